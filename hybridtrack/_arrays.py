@@ -1,0 +1,95 @@
+"""Array checks shared by the value types, the interfaces and the plugins.
+
+Every public entry point that takes an array runs it through one of these, so a
+wrong shape, a NaN or a covariance that is not symmetric positive (semi)definite
+fails early with a ``ValueError`` naming the argument and what was expected.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import attrs
+import numpy as np
+
+#: relative tolerance for symmetry of a covariance
+SYMMETRY_RTOL = 1e-9
+
+
+def _shape_text(shape: Sequence[int | None]) -> str:
+    return "(" + ", ".join("*" if s is None else str(s) for s in shape) + (",)" if len(shape) == 1 else ")")
+
+
+def as_float_array(
+    value,
+    name: str,
+    shape: Sequence[int | None] | None = None,
+    *,
+    allow_nan: bool = False,
+    readonly: bool = False,
+) -> np.ndarray:
+    """Return ``value`` as a float64 array, checking shape and finiteness.
+
+    ``shape`` may hold ``None`` for a free axis.  With ``readonly`` the result is
+    a private copy that cannot be written to (for frozen value objects).
+    """
+    try:
+        array = np.array(value, dtype=np.float64, copy=True) if readonly else np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name}: expected a numeric array, got {type(value).__name__} ({error})") from None
+    if shape is not None:
+        if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
+            raise ValueError(f"{name}: expected shape {_shape_text(shape)}, got {array.shape}")
+    bad = ~np.isfinite(array)
+    if allow_nan:
+        bad &= ~np.isnan(array)
+    if bad.any():
+        what = "inf" if allow_nan else "NaN or inf"
+        raise ValueError(f"{name}: contains {what} at index {tuple(int(i) for i in np.argwhere(bad)[0])}")
+    if readonly:
+        array.setflags(write=False)
+    return array
+
+
+def check_covariance(value, name: str, dim: int | None = None, *, definite: bool = False, readonly: bool = False) -> np.ndarray:
+    """Check a covariance (or a stack of them, shape ``(..., n, n)``).
+
+    It must be finite, symmetric to :data:`SYMMETRY_RTOL` and positive
+    semidefinite (positive definite with ``definite=True``, tested by Cholesky).
+    """
+    array = as_float_array(value, name, readonly=readonly)
+    if array.ndim < 2 or array.shape[-1] != array.shape[-2] or (dim is not None and array.shape[-1] != dim):
+        expected = f"({dim}, {dim})" if dim is not None else "(n, n)"
+        raise ValueError(f"{name}: expected a square covariance of shape (..., {expected[1:-1]}), got {array.shape}")
+    scale = max(float(np.abs(array).max(initial=0.0)), np.finfo(float).tiny)
+    if np.abs(array - np.swapaxes(array, -1, -2)).max(initial=0.0) > SYMMETRY_RTOL * scale:
+        raise ValueError(f"{name}: covariance is not symmetric")
+    if definite:
+        try:
+            np.linalg.cholesky(array)
+        except np.linalg.LinAlgError:
+            raise ValueError(f"{name}: covariance is not positive definite") from None
+    else:
+        eigenvalues = np.linalg.eigvalsh(array)
+        if (eigenvalues < -1e-10 * scale).any():
+            raise ValueError(f"{name}: covariance is not positive semidefinite (eigenvalue {eigenvalues.min():.3g})")
+    return array
+
+
+def readonly_array_field(shape: Sequence[int | None] | None = None, *, covariance: bool = False, allow_nan: bool = False, **kwargs):
+    """An attrs field holding a read-only float64 copy, compared with ``np.array_equal``.
+
+    Errors name the field.  ``covariance=True`` adds the symmetric-PSD check.
+    """
+
+    def convert(value, field):
+        if covariance:
+            return check_covariance(value, field.name, readonly=True)
+        return as_float_array(value, field.name, shape, allow_nan=allow_nan, readonly=True)
+
+    return attrs.field(
+        converter=attrs.Converter(convert, takes_field=True),
+        eq=attrs.cmp_using(eq=np.array_equal),
+        hash=False,
+        **kwargs,
+    )

@@ -1,0 +1,318 @@
+"""The five interfaces of hybridtrack: MotionModel, Sensor, Estimator, Detector, Solver.
+
+Conventions (symbols in ``docs/notation.md``):
+
+* A state is a float64 vector whose components are named by the model's
+  ``layout`` (``("x", "vx", "y", "vy")`` for the 4-state modes,
+  ``("x", "vx", "ax", "y", "vy", "ay")`` for constant acceleration).  Units:
+  metres, seconds, radians.
+* Everything that runs inside a bank of filters works on stacked arrays: a mean
+  of shape ``(M, n)``, a covariance ``(M, n, n)``; a single filter is ``M = 1``.
+* One step of a motion model is x_k = F x_{k-1} + B u + G w_{k-1}, u ≡ 1,
+  w ~ N(0, Q) (SPEC §1, seed 000 eq. 1); a sensor is z = h(x) + v, v ~ N(0, R),
+  with h(x) = H x for a linear sensor (SPEC §2).
+
+Every implementation is checked by :mod:`hybridtrack.testing` (also a pytest
+plugin), which third-party plugins can run on their own components.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar, Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack._arrays import as_float_array, check_covariance, readonly_array_field
+
+KINDS = ("motion_model", "sensor", "estimator", "detector", "solver")
+
+
+# --------------------------------------------------------------------------- motion
+
+
+@attrs.frozen
+class LinearTransition:
+    """One step x_k = F x_{k-1} + B + G w, w ~ N(0, Q) (B already multiplied by u ≡ 1).
+
+    Shapes: F (n, n), B (n,), G (n, q), Q (q, q) symmetric PSD.
+    """
+
+    F: np.ndarray = readonly_array_field((None, None))
+    B: np.ndarray = readonly_array_field((None,))
+    G: np.ndarray = readonly_array_field((None, None))
+    Q: np.ndarray = readonly_array_field(covariance=True)
+
+    def __attrs_post_init__(self):
+        n, q = self.F.shape[0], self.Q.shape[0]
+        for name, shape in (("F", (n, n)), ("B", (n,)), ("G", (n, q))):
+            if getattr(self, name).shape != shape:
+                raise ValueError(f"{name}: expected shape {shape}, got {getattr(self, name).shape}")
+
+    @property
+    def process_noise(self) -> np.ndarray:
+        """G Q Gᵀ, the covariance the noise adds to the state, shape (n, n)."""
+        return self.G @ self.Q @ self.G.T
+
+    def apply(self, x: np.ndarray) -> np.ndarray:
+        """Noise-free step F x + B for x of shape (..., n)."""
+        return x @ self.F.T + self.B
+
+
+class MotionModel(ABC):
+    """A motion mode: the transition of one step of length ``tau`` seconds.
+
+    Contract:
+
+    * ``name`` is the registry name (class attribute), ``layout`` the state
+      component names, ``noise_cov`` Q of shape (q, q).
+    * ``transition(tau, switch_state)`` returns a :class:`LinearTransition`.
+      ``switch_state`` (shape (n,), this model's layout) is the state at the
+      switching moment s; models whose F or B depend on it (a turn fixes ω and
+      the turn centre there, SPEC §1) read it, the others ignore it.  A
+      nonlinear model returns its linearization at ``switch_state``
+      (F = ∂f/∂x, B = f(x_s) − F x_s), so that F x_s + B = f(x_s).
+    * ``propagate(x, tau, switch_state)`` is the noise-free step for x of shape
+      (..., n); it equals ``transition(...).apply(x)`` for a linear model.
+    * ``enter(state, layout)`` converts a state of another mode's layout into
+      this one when the trajectory switches to this mode (components matched by
+      name; missing ones are set to zero unless the model says otherwise).
+    """
+
+    name: ClassVar[str]
+    layout: ClassVar[tuple[str, ...]]
+    linear: ClassVar[bool] = True
+
+    noise_cov: np.ndarray
+
+    @property
+    def state_dim(self) -> int:
+        return len(self.layout)
+
+    @abstractmethod
+    def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
+        """F, B, G, Q of one step of length ``tau`` (see the class contract)."""
+
+    def propagate(self, x: np.ndarray, tau: float, switch_state: np.ndarray) -> np.ndarray:
+        """Noise-free step of x (..., n)."""
+        return self.transition(tau, switch_state).apply(x)
+
+    def enter(self, state: np.ndarray, layout: Sequence[str], parameters: dict | None = None) -> np.ndarray:
+        """Convert ``state`` given in ``layout`` to this model's layout (by component name).
+
+        ``parameters`` holds segment extras (e.g. ``acceleration``) a model may use.
+        """
+        return convert_layout(state, layout, self.layout)
+
+
+def convert_layout(state: np.ndarray, source: Sequence[str], target: Sequence[str], fill: dict | None = None) -> np.ndarray:
+    """Copy components of ``state`` (…, len(source)) into a new (…, len(target)) array by name.
+
+    Components of ``target`` missing from ``source`` take ``fill[name]`` or 0.
+    """
+    state = np.asarray(state, dtype=float)
+    fill = fill or {}
+    out = np.zeros(state.shape[:-1] + (len(target),))
+    index = {name: i for i, name in enumerate(source)}
+    for j, name in enumerate(target):
+        out[..., j] = state[..., index[name]] if name in index else fill.get(name, 0.0)
+    return out
+
+
+# --------------------------------------------------------------------------- sensors
+
+
+class Sensor(ABC):
+    """A sensor node: z = h(x) + v, v ~ N(0, R) (SPEC §2).
+
+    Contract:
+
+    * ``name`` is the node id (unique within a network), ``kind`` the registry
+      name (class attribute), ``measurement_dim`` m, ``noise_cov`` R (m, m)
+      symmetric positive definite.
+    * ``measure(x, layout)`` is h(x) for x of shape (..., n) → (..., m);
+      ``jacobian(x, layout)`` is ∂h/∂x at x → (..., m, n) (for a linear sensor
+      the constant H broadcast to x's leading shape).
+    * ``residual(z, z_pred)`` is the innovation ν = z − h(x) (angles wrapped to
+      (−π, π] by sensors that measure angles).
+    * ``simulate(x, layout, rng)`` draws z = h(x) + v for x of shape (..., n).
+    """
+
+    kind: ClassVar[str]
+    linear: ClassVar[bool] = True
+
+    name: str
+    noise_cov: np.ndarray
+
+    @property
+    def measurement_dim(self) -> int:
+        return self.noise_cov.shape[0]
+
+    @abstractmethod
+    def measure(self, x: np.ndarray, layout: Sequence[str]) -> np.ndarray:
+        """h(x): (..., n) → (..., m)."""
+
+    @abstractmethod
+    def jacobian(self, x: np.ndarray, layout: Sequence[str]) -> np.ndarray:
+        """∂h/∂x: (..., n) → (..., m, n)."""
+
+    def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
+        """ν = z − ẑ (override to wrap angles)."""
+        return z - z_pred
+
+    def simulate(self, x: np.ndarray, layout: Sequence[str], rng: np.random.Generator) -> np.ndarray:
+        """z = h(x) + v, v ~ N(0, R), for x of shape (..., n)."""
+        z = self.measure(x, layout)
+        L = np.linalg.cholesky(self.noise_cov)
+        return z + rng.standard_normal(z.shape) @ L.T
+
+
+# --------------------------------------------------------------------------- estimators
+
+
+@attrs.frozen(eq=False)
+class Innovation:
+    """What one measurement update of a bank of M filters exposes (SPEC §3–4).
+
+    nu (M, m) innovation ν = z − h(x⁻); S (M, m, m) its covariance H P⁻ Hᵀ + R;
+    loglik (M,) ℓ = −½(m ln 2π + ln det S + νᵀS⁻¹ν); nis (M,) νᵀS⁻¹ν.
+    ``m == 0`` (no measurement at this step) gives empty ν, S and ℓ = nis = 0.
+    """
+
+    nu: np.ndarray
+    S: np.ndarray
+    loglik: np.ndarray
+    nis: np.ndarray
+
+    @property
+    def measurement_dim(self) -> int:
+        return self.nu.shape[-1]
+
+
+@attrs.frozen(eq=False)
+class TransitionBank:
+    """Stacked transitions of M filters: F (M, n, n), B (M, n), Q (M, n, n) = G Q Gᵀ."""
+
+    F: np.ndarray
+    B: np.ndarray
+    Q: np.ndarray
+
+    @classmethod
+    def stack(cls, transitions: Sequence[LinearTransition]) -> "TransitionBank":
+        return cls(
+            np.stack([t.F for t in transitions]),
+            np.stack([t.B for t in transitions]),
+            np.stack([t.process_noise for t in transitions]),
+        )
+
+
+class Estimator(ABC):
+    """A bank of M Kalman-type filters run on the same measurements.
+
+    Contract (shapes with M filters, n states, m measured components):
+
+    * ``initialize(mean (M, n), cov (M, n, n))`` → an estimator-specific state
+      object (covariance, information or factor form).
+    * ``predict(state, transitions: TransitionBank)`` → the predicted state.
+    * ``update(state, z, sensors, layout)`` → ``(state, Innovation)``: ``z`` is
+      the stacked measurement of ``sensors`` (shape (Σ m_i,)); rows of a sensor
+      holding NaN mean that sensor has no measurement at this step; all NaN means
+      prediction only (the state is returned unchanged, ``m == 0``).
+    * ``mean(state)`` (M, n) and ``covariance(state)`` (M, n, n) read the state
+      back in covariance form whatever the internal form.
+    * Bad input (NaN/inf in the prior, wrong shapes) raises ``ValueError``
+      naming the argument and the expected shape.
+    """
+
+    name: ClassVar[str]
+
+    @abstractmethod
+    def initialize(self, mean: np.ndarray, cov: np.ndarray) -> Any: ...
+
+    @abstractmethod
+    def predict(self, state: Any, transitions: TransitionBank) -> Any: ...
+
+    @abstractmethod
+    def update(self, state: Any, z: np.ndarray, sensors: Sequence[Sensor], layout: Sequence[str]) -> tuple[Any, Innovation]: ...
+
+    @abstractmethod
+    def mean(self, state: Any) -> np.ndarray: ...
+
+    @abstractmethod
+    def covariance(self, state: Any) -> np.ndarray: ...
+
+
+def check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a bank prior: mean (M, n), cov (M, n, n) symmetric positive definite."""
+    mean = as_float_array(mean, "mean", (None, None))
+    M, n = mean.shape
+    cov = as_float_array(cov, "cov", (M, n, n))
+    check_covariance(cov, "cov", n, definite=True)
+    return mean, cov
+
+
+# --------------------------------------------------------------------------- detectors
+
+
+@attrs.frozen(eq=False)
+class DetectorStep:
+    """A detector's output at one step.
+
+    ``statistics`` maps a series name to its value(s) this step (a float or an
+    array over hypotheses); ``thresholds`` maps a name to the current threshold;
+    ``decision`` is set on the step a decision is taken.
+    """
+
+    statistics: dict[str, Any]
+    thresholds: dict[str, float] = attrs.field(factory=dict)
+    decision: Any = None
+
+
+class Detector(ABC):
+    """A sequential change detector fed one step at a time.
+
+    Contract: ``reset()`` forgets the past; ``step(step, innovation)`` consumes
+    the :class:`Innovation` of the bank it watches at that step and returns a
+    :class:`DetectorStep`; ``name`` is the registry name.  Detectors are
+    deterministic given their input.
+    """
+
+    name: ClassVar[str]
+
+    @abstractmethod
+    def reset(self) -> None: ...
+
+    @abstractmethod
+    def step(self, step: int, innovation: Innovation) -> DetectorStep: ...
+
+
+# --------------------------------------------------------------------------- solvers
+
+
+@attrs.frozen(eq=False)
+class Solution:
+    """A batch solver's answer: parameters θ (p,), their covariance (p, p), and diagnostics."""
+
+    parameters: np.ndarray
+    covariance: np.ndarray
+    cost: float
+    iterations: int
+    evaluations: int
+    converged: bool
+    message: str = ""
+
+
+class Solver(ABC):
+    """A batch problem solved at once (e.g. bearings-only target motion analysis).
+
+    Contract: ``solve(problem)`` returns a :class:`Solution` (or a subclass with
+    more fields); ``name`` is the registry name; an ill-posed problem (too few
+    data, NaN, unobservable) raises ``ValueError`` or warns explicitly, never
+    returns a silent wrong answer.
+    """
+
+    name: ClassVar[str]
+
+    @abstractmethod
+    def solve(self, problem: Any) -> Solution: ...

@@ -1,0 +1,159 @@
+"""Plugin loading on pluggy.
+
+Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions,
+found through the ``hybridtrack`` entry-point group.  The built-ins in
+``hybridtrack_plugins`` are declared there by this project's own
+``pyproject.toml``, exactly like a third-party package would.
+
+Loading isolates faults: a plugin that fails to import, implements a misspelt
+hook (pluggy's ``check_pending``) or registers a component name that is taken
+gives a :class:`PluginWarning` naming the plugin and its distribution, and the
+other plugins still load.  ``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks
+plugins by entry-point name (or distribution name).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import warnings
+from importlib.metadata import entry_points
+from typing import Iterable
+
+import attrs
+import pluggy
+
+from hybridtrack import hookspecs
+from hybridtrack.registry import Registry
+
+ENTRY_POINT_GROUP = "hybridtrack"
+DISABLE_ENV = "HYBRIDTRACK_DISABLE_PLUGINS"
+
+
+class PluginWarning(UserWarning):
+    """A plugin could not be loaded or one of its components was rejected."""
+
+
+class PluginError(RuntimeError):
+    """Raised instead of :class:`PluginWarning` when loading strictly."""
+
+
+@attrs.frozen
+class PluginInfo:
+    """A loaded plugin: its name, and the distribution that ships it (None for objects registered in code)."""
+
+    name: str
+    distribution: str | None = None
+    version: str | None = None
+
+
+@attrs.frozen
+class LoadedPlugins:
+    """The outcome of :func:`load_plugins`: the registry, the plugins and what went wrong."""
+
+    registry: Registry
+    plugins: tuple[PluginInfo, ...]
+    problems: tuple[str, ...]
+    manager: pluggy.PluginManager = attrs.field(repr=False)
+
+
+def disabled_from_env() -> set[str]:
+    return {name.strip() for name in os.environ.get(DISABLE_ENV, "").split(",") if name.strip()}
+
+
+def load_plugins(
+    extra: Iterable[object] = (),
+    *,
+    entrypoints: bool = True,
+    disabled: Iterable[str] | None = None,
+    strict: bool = False,
+) -> LoadedPlugins:
+    """Load the entry-point plugins (unless ``entrypoints=False``) and the ``extra`` plugin objects.
+
+    ``disabled`` defaults to the names in ``HYBRIDTRACK_DISABLE_PLUGINS``.
+    Problems are warned about (``strict=True``: raised as :class:`PluginError`);
+    problems with ``extra`` objects always raise, since the caller wrote them.
+    """
+    blocked = disabled_from_env() if disabled is None else set(disabled)
+    manager = pluggy.PluginManager(hookspecs.PROJECT)
+    manager.add_hookspecs(hookspecs)
+    infos: dict[str, PluginInfo] = {}
+    problems: list[str] = []
+
+    def report(message: str, raise_it: bool) -> None:
+        problems.append(message)
+        if strict or raise_it:
+            raise PluginError(message)
+        warnings.warn(message, PluginWarning, stacklevel=3)
+
+    def register(obj: object, info: PluginInfo, from_code: bool) -> None:
+        where = f"plugin {info.name!r} (distribution {info.distribution or 'none'})"
+        try:
+            manager.register(obj, name=info.name)
+            manager.check_pending()
+        except Exception as error:  # noqa: BLE001 - any fault of a plugin is reported, not fatal
+            if manager.is_registered(obj):
+                manager.unregister(obj)
+            report(f"{where} was not loaded: {error}", from_code)
+            return
+        infos[info.name] = info
+
+    if entrypoints:
+        for point in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda p: p.name):
+            dist = getattr(point, "dist", None)
+            info = PluginInfo(point.name, dist.name if dist else None, dist.version if dist else None)
+            if point.name in blocked or info.distribution in blocked:
+                manager.set_blocked(point.name)
+                continue
+            if point.name in infos:
+                report(f"plugin {point.name!r} (distribution {info.distribution}) duplicates an entry-point name; skipped", False)
+                continue
+            try:
+                obj = point.load()
+            except Exception as error:  # noqa: BLE001
+                report(f"plugin {point.name!r} (distribution {info.distribution or 'unknown'}) failed to import: {error!r}", False)
+                continue
+            register(obj, info, from_code=False)
+
+    for obj in extra:
+        name = getattr(obj, "__name__", None) or type(obj).__name__
+        if name in blocked:
+            continue
+        register(obj, PluginInfo(name), from_code=True)
+
+    registry = Registry()
+    for kind, hook_name in hookspecs.HOOKS.items():
+        for impl in getattr(manager.hook, hook_name).get_hookimpls():
+            info = infos[impl.plugin_name]
+            from_code = info.distribution is None
+            registrar = registry.bind(
+                kind, info.name, info.distribution, info.version,
+                on_error=lambda error, fc=from_code: report(str(error), fc),
+            )
+            try:
+                impl.function(**{arg: registrar for arg in impl.argnames})
+            except PluginError:
+                raise
+            except Exception as error:  # noqa: BLE001
+                report(f"plugin {info.name!r} (distribution {info.distribution or 'none'}) failed in {hook_name}: {error!r}", from_code)
+    return LoadedPlugins(registry, tuple(infos.values()), tuple(problems), manager)
+
+
+@functools.cache
+def _default() -> LoadedPlugins:
+    return load_plugins()
+
+
+def default_plugins() -> LoadedPlugins:
+    """The plugins from entry points, loaded once per process (see :func:`reset`)."""
+    return _default()
+
+
+def get_registry() -> Registry:
+    """The default registry (entry-point plugins, honouring ``HYBRIDTRACK_DISABLE_PLUGINS``)."""
+    return _default().registry
+
+
+def reset() -> None:
+    """Forget the cached default plugins (after installing a plugin or changing the environment)."""
+    _default.cache_clear()

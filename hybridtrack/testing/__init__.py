@@ -1,0 +1,1 @@
+"""Contract checks for hybridtrack components (filled in by the testing module)."""

@@ -1,0 +1,10 @@
+"""Built-in solvers plugins (every module's ``COMPONENTS`` is registered by ``register_solvers``)."""
+
+from hybridtrack import hookimpl
+from hybridtrack_plugins._collect import components
+
+
+@hookimpl
+def register_solvers(registry):
+    for name, factory in components(__name__, __path__).items():
+        registry.add(name, factory)
