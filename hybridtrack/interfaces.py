@@ -45,6 +45,8 @@ class LinearTransition:
     Q: np.ndarray = readonly_array_field(covariance=True)
 
     def __attrs_post_init__(self):
+        if self.Q.ndim != 2:
+            raise ValueError(f"Q: expected shape (q, q), got {self.Q.shape}")
         n, q = self.F.shape[0], self.Q.shape[0]
         for name, shape in (("F", (n, n)), ("B", (n,)), ("G", (n, q))):
             if getattr(self, name).shape != shape:
