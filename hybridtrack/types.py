@@ -1,7 +1,8 @@
 """Frozen value types passed between components.
 
 Arrays inside them are read-only float64 copies; equality compares arrays with
-``np.array_equal`` and the objects are not hashable (``hash=False`` fields).  A
+``np.array_equal``; array fields take no part in the hash (``hash=False``), so
+equal objects hash equal and objects differing only in arrays collide.  A
 wrong shape, NaN/inf or a non-symmetric / non-PSD covariance raises
 ``ValueError`` naming the field.
 """
@@ -59,6 +60,11 @@ class Decision:
     message: str = ""
 
 
+def _positive_integer(instance, attribute, value):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value <= 0:
+        raise ValueError(f"{attribute.name}: expected a positive integer, got {value!r}")
+
+
 def _positive_or_none(instance, attribute, value):
     if value is not None and not (np.isfinite(value) and value > 0):
         raise ValueError(f"{attribute.name}: expected a positive finite number, got {value!r}")
@@ -73,7 +79,7 @@ class Segment:
     """
 
     mode: str = attrs.field(validator=attrs.validators.min_len(1))
-    steps: int = attrs.field(validator=attrs.validators.gt(0))
+    steps: int = attrs.field(validator=_positive_integer)
     radius: float | None = attrs.field(default=None, validator=_positive_or_none)
     acceleration: tuple[float, float] | None = attrs.field(
         default=None, converter=attrs.converters.optional(lambda a: tuple(float(v) for v in a))
@@ -93,7 +99,19 @@ class Segment:
 class Schedule:
     """A hybrid trajectory's schedule: a sequence of :class:`Segment` rows."""
 
-    segments: tuple[Segment, ...] = attrs.field(converter=tuple, validator=attrs.validators.min_len(1))
+    segments: tuple[Segment, ...] = attrs.field(
+        converter=tuple,
+        validator=attrs.validators.min_len(1),
+    )
+
+    @segments.validator
+    def _check_segments(self, attribute, value):
+        for i, segment in enumerate(value):
+            if not isinstance(segment, Segment):
+                raise TypeError(
+                    f"segments: row {i} is a {type(segment).__name__}, expected Segment"
+                    " (Schedule.from_rows builds segments from tuples or dicts)"
+                )
 
     @classmethod
     def from_rows(cls, rows: Iterable) -> "Schedule":
