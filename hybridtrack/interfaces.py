@@ -14,6 +14,25 @@ Conventions (symbols in ``docs/notation.md``):
 
 Every implementation is checked by :mod:`hybridtrack.testing` (also a pytest
 plugin), which third-party plugins can run on their own components.
+
+Contract-check conventions (optional attributes a component may define so that
+the checks, and ``tests/contract``, can build and exercise it without help):
+
+* ``example_parameters`` (any kind) on the registered factory: a dict of
+  keyword arguments, or a classmethod/staticmethod returning one, used to build
+  an example instance, e.g. ``example_parameters = {"radius": 5.0}``.  Without
+  it the factory is called with no arguments, so a component whose parameters
+  all have defaults needs nothing.
+* ``example_layout`` (Sensor): the state layout the checks feed to
+  ``measure``/``jacobian``; default ``("x", "vx", "y", "vy")``.
+* ``example_innovations(rng)`` (Detector): a list of :class:`Innovation`, one
+  per step, of the bank this detector expects; default: 20 steps of a bank of
+  M = 3 filters with m = 2, drawn from ``rng``.
+* ``exact_kalman`` (Estimator, default True): the estimator computes the Kalman
+  filter exactly (in any algebraic form), so the checks compare it with the
+  covariance form; an approximate one (e.g. PDA in clutter) sets it False.
+* ``example_problem()`` (Solver): a problem ``solve`` accepts, small enough to
+  solve in well under a second; without it the checks skip the solve.
 """
 
 from __future__ import annotations
@@ -80,6 +99,9 @@ class MotionModel(ABC):
     * ``enter(state, layout)`` converts a state of another mode's layout into
       this one when the trajectory switches to this mode (components matched by
       name; missing ones are set to zero unless the model says otherwise).
+
+    Checked by :func:`hybridtrack.testing.check_motion_model`; a factory
+    with required arguments defines ``example_parameters`` (module docstring).
     """
 
     name: ClassVar[str]
@@ -139,6 +161,9 @@ class Sensor(ABC):
     * ``residual(z, z_pred)`` is the innovation ν = z − h(x) (angles wrapped to
       (−π, π] by sensors that measure angles).
     * ``simulate(x, layout, rng)`` draws z = h(x) + v for x of shape (..., n).
+
+    Checked by :func:`hybridtrack.testing.check_sensor` on states of
+    ``example_layout`` (default ``("x", "vx", "y", "vy")``).
     """
 
     kind: ClassVar[str]
@@ -225,6 +250,9 @@ class Estimator(ABC):
       back in covariance form whatever the internal form.
     * Bad input (NaN/inf in the prior, wrong shapes) raises ``ValueError``
       naming the argument and the expected shape.
+
+    Checked by :func:`hybridtrack.testing.check_estimator` (against the
+    covariance-form KF unless the class sets ``exact_kalman = False``).
     """
 
     name: ClassVar[str]
@@ -278,6 +306,9 @@ class Detector(ABC):
     the :class:`Innovation` of the bank it watches at that step and returns a
     :class:`DetectorStep`; ``name`` is the registry name.  Detectors are
     deterministic given their input.
+
+    Checked by :func:`hybridtrack.testing.check_detector`, fed
+    ``example_innovations(rng)`` when the detector defines it.
     """
 
     name: ClassVar[str]
@@ -312,6 +343,9 @@ class Solver(ABC):
     more fields); ``name`` is the registry name; an ill-posed problem (too few
     data, NaN, unobservable) raises ``ValueError`` or warns explicitly, never
     returns a silent wrong answer.
+
+    Checked by :func:`hybridtrack.testing.check_solver` on
+    ``example_problem()`` when the solver defines it.
     """
 
     name: ClassVar[str]
