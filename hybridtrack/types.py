@@ -142,7 +142,14 @@ class Schedule:
         return list(np.cumsum([0] + [s.steps for s in self.segments[:-1]]).astype(int))
 
 
-#: Table 1 of seed 001: modes L(eft), R(ight), S(traight) with radii in metres.
+#: Table 1 of seed 001 (L, R, S = left turn, right turn, straight; radii in metres).
 SEED001_TABLE1 = Schedule.from_rows(
-    [("left", 50, 3.0), ("right", 75, 5.0), ("straight", 50), ("left", 75, 3.0), ("straight", 50), ("left", 60, 4.0)]
+    [
+        ("left_turn", 50, 3.0),
+        ("right_turn", 75, 5.0),
+        ("straight", 50),
+        ("left_turn", 75, 3.0),
+        ("straight", 50),
+        ("left_turn", 60, 4.0),
+    ]
 )

@@ -1,0 +1,185 @@
+"""The five linear motion modes of the hybrid model (SPEC §1; seed 000 §"Модель", eq. 1–3).
+
+x_k = Φ_p x_{k-1} + B_p u + G_p w_{k-1}, u ≡ 1, w ~ N(0, Q_p), with per-axis
+blocks Φ = blockdiag(Φ_axis, Φ_axis):
+
+* straight (CV):  Φ_axis = [[1, τ], [0, 1]], B = 0
+* left / right turn of radius r: Φ_axis = [[cos ωτ, sin ωτ/ω], [−ω sin ωτ, cos ωτ]],
+  B = [x_c(1 − cos ωτ), ω x_c sin ωτ, y_c(1 − cos ωτ), ω y_c sin ωτ] with the
+  turn centre (x_c, y_c) = (x_s ∓ v_ys/ω, y_s ± v_xs/ω) (upper sign: left) and
+  ω = |v_s|/r fixed at the switching moment s (seed 000 eqs. for modes 2–3)
+* constant acceleration: Φ_axis = [[1, τ, τ²/2], [0, 1, τ], [0, 0, 1]], B = 0
+* stop: Φ_axis = [[1, 0], [0, 0]], B = 0
+
+G = [[0,1,0,0],[0,0,0,1]]ᵀ for the 4-state modes (noise on the velocities),
+[[0,0,1,0,0,0],[0,0,0,0,0,1]]ᵀ for constant acceleration (noise on the
+accelerations).  Layouts: ("x", "vx", "y", "vy") and ("x", "vx", "ax", "y", "vy", "ay").
+
+Entering constant acceleration augments the state: the acceleration is the
+segment's ``acceleration`` parameter if given, zero otherwise (then only the
+noise drives it).  Leaving it drops the acceleration (the velocity reached is
+kept).  A turn entered at zero speed has ω = 0 and moves as the straight mode:
+the formulas below use (1 − cos ωτ)/ω = 2 sin²(ωτ/2)/ω and sin(ωτ)/ω = τ·sinc,
+so nothing divides by zero.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from typing import ClassVar, Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack._arrays import as_float_array, check_covariance
+from hybridtrack.interfaces import LinearTransition, MotionModel, convert_layout
+
+LAYOUT_4 = ("x", "vx", "y", "vy")
+LAYOUT_6 = ("x", "vx", "ax", "y", "vy", "ay")
+G_4 = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
+G_6 = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
+#: Q of Example 1 (seed 000), the default process-noise covariance of every mode
+DEFAULT_NOISE = ((0.01, 0.0), (0.0, 0.01))
+
+
+def _noise_cov(value) -> np.ndarray:
+    return check_covariance(value, "noise_cov", 2, readonly=True)
+
+
+def _check_tau(tau: float) -> float:
+    tau = float(tau)
+    if not (np.isfinite(tau) and tau > 0):
+        raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
+    return tau
+
+
+def _blockdiag(axis: np.ndarray) -> np.ndarray:
+    k = axis.shape[0]
+    F = np.zeros((2 * k, 2 * k))
+    F[:k, :k] = axis
+    F[k:, k:] = axis
+    return F
+
+
+@attrs.frozen
+class _FixedMatrixMode(MotionModel):
+    """A mode whose Φ depends on τ only (B = 0): subclasses give Φ_axis."""
+
+    noise_cov: np.ndarray = attrs.field(default=DEFAULT_NOISE, converter=_noise_cov, eq=attrs.cmp_using(eq=np.array_equal))
+
+    layout: ClassVar[tuple[str, ...]] = LAYOUT_4
+    G: ClassVar[np.ndarray] = G_4
+
+    @abstractmethod
+    def axis_matrix(self, tau: float) -> np.ndarray:
+        """Φ_axis, the block of one axis."""
+
+    def transition(self, tau: float, switch_state: np.ndarray | None = None) -> LinearTransition:
+        tau = _check_tau(tau)
+        return LinearTransition(_blockdiag(self.axis_matrix(tau)), np.zeros(self.state_dim), self.G, self.noise_cov)
+
+
+@attrs.frozen
+class Straight(_FixedMatrixMode):
+    """Straight uniform motion (constant velocity): Φ_axis = [[1, τ], [0, 1]] (seed 000, mode 1)."""
+
+    name: ClassVar[str] = "straight"
+
+    def axis_matrix(self, tau):
+        return np.array([[1.0, tau], [0.0, 1.0]])
+
+
+@attrs.frozen
+class Stop(_FixedMatrixMode):
+    """Stop: position held, velocity reset to the noise, Φ_axis = [[1, 0], [0, 0]] (SPEC §1)."""
+
+    name: ClassVar[str] = "stop"
+
+    def axis_matrix(self, tau):
+        return np.array([[1.0, 0.0], [0.0, 0.0]])
+
+
+@attrs.frozen
+class ConstantAcceleration(_FixedMatrixMode):
+    """Constant acceleration: Φ_axis = [[1, τ, τ²/2], [0, 1, τ], [0, 0, 1]], 6-state (SPEC §1).
+
+    Entering augments the state with the segment's ``acceleration`` (default 0).
+    """
+
+    name: ClassVar[str] = "constant_acceleration"
+    layout: ClassVar[tuple[str, ...]] = LAYOUT_6
+    G: ClassVar[np.ndarray] = G_6
+
+    def axis_matrix(self, tau):
+        return np.array([[1.0, tau, tau * tau / 2], [0.0, 1.0, tau], [0.0, 0.0, 1.0]])
+
+    def enter(self, state, layout: Sequence[str], parameters: dict | None = None) -> np.ndarray:
+        acceleration = (parameters or {}).get("acceleration") or (0.0, 0.0)
+        fill = {} if "ax" in layout else {"ax": acceleration[0], "ay": acceleration[1]}
+        return convert_layout(state, layout, self.layout, fill)
+
+
+def _positive_radius(instance, attribute, value):
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"radius: expected a positive turn radius in metres, got {value!r}")
+
+
+@attrs.frozen
+class _Turn(MotionModel):
+    """Uniform circular motion of radius r (seed 000, modes 2–3); ``direction`` +1 left, −1 right."""
+
+    radius: float = attrs.field(default=5.0, converter=float, validator=_positive_radius)
+    noise_cov: np.ndarray = attrs.field(default=DEFAULT_NOISE, converter=_noise_cov, eq=attrs.cmp_using(eq=np.array_equal))
+
+    layout: ClassVar[tuple[str, ...]] = LAYOUT_4
+    direction: ClassVar[int] = 1
+    example_parameters: ClassVar[dict] = {"radius": 5.0}
+
+    def angular_rate(self, switch_state: np.ndarray) -> float:
+        """ω = |v_s| / r at the switching moment."""
+        return float(np.hypot(switch_state[1], switch_state[3])) / self.radius
+
+    def turn_centre(self, switch_state: np.ndarray) -> np.ndarray:
+        """(x_c, y_c) = (x_s ∓ v_ys/ω, y_s ± v_xs/ω) = position + r · (unit normal towards the turn side)."""
+        x, vx, y, vy = switch_state
+        speed = np.hypot(vx, vy)
+        if speed == 0:
+            raise ValueError("turn centre undefined at zero speed")
+        return np.array([x - self.direction * self.radius * vy / speed, y + self.direction * self.radius * vx / speed])
+
+    def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
+        tau = _check_tau(tau)
+        x, vx, y, vy = as_float_array(switch_state, "switch_state", (4,))
+        w = self.angular_rate(np.array([x, vx, y, vy]))
+        c, s = np.cos(w * tau), np.sin(w * tau)
+        sin_over_w = tau * np.sinc(w * tau / np.pi)  # sin(ωτ)/ω, τ at ω = 0
+        one_minus_cos_over_w = w * (tau * np.sinc(w * tau / (2 * np.pi))) ** 2 / 2  # (1 − cos ωτ)/ω
+        F = _blockdiag(np.array([[c, sin_over_w], [-w * s, c]]))
+        d = self.direction
+        # B = [x_c(1−c), ω x_c s, y_c(1−c), ω y_c s] with x_c = x_s − d·v_ys/ω, y_c = y_s + d·v_xs/ω
+        B = np.array([
+            x * (1 - c) - d * vy * one_minus_cos_over_w,
+            (w * x - d * vy) * s,
+            y * (1 - c) + d * vx * one_minus_cos_over_w,
+            (w * y + d * vx) * s,
+        ])
+        return LinearTransition(F, B, G_4, self.noise_cov)
+
+
+@attrs.frozen
+class LeftTurn(_Turn):
+    """Left (counter-clockwise) uniform turn of radius ``radius`` metres (seed 000, mode 2)."""
+
+    name: ClassVar[str] = "left_turn"
+    direction: ClassVar[int] = 1
+
+
+@attrs.frozen
+class RightTurn(_Turn):
+    """Right (clockwise) uniform turn of radius ``radius`` metres (seed 000, mode 3)."""
+
+    name: ClassVar[str] = "right_turn"
+    direction: ClassVar[int] = -1
+
+
+COMPONENTS = {cls.name: cls for cls in (Straight, LeftTurn, RightTurn, ConstantAcceleration, Stop)}
