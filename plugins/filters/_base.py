@@ -1,0 +1,77 @@
+"""Shared pieces of the bank estimators: input checks, the empty innovation, the reading API.
+
+Every estimator state object of this family exposes, per step and per filter
+(issue 3 item 5):
+
+* ``mean`` (M, n) and ``covariance`` (M, n, n): the current (updated, or just
+  predicted) estimate, P assembled from the factors for factor forms;
+* ``predicted_mean`` / ``predicted_covariance``: x⁻, P⁻ of the last prediction
+  (equal to the current ones right after ``predict``);
+* ``innovation``: the :class:`~hybridtrack.interfaces.Innovation` (ν, S, ℓ,
+  NIS) of the last update, ``None`` right after ``predict`` or ``initialize``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from hybridtrack._arrays import as_float_array
+from hybridtrack.interfaces import Estimator, Innovation, TransitionBank, check_prior
+from hybridtrack_plugins.filters._measurements import MeasurementAssembler
+
+
+def empty_innovation(bank_size: int) -> Innovation:
+    """m = 0: no measurement at this step (prediction only)."""
+    return Innovation(np.zeros((bank_size, 0)), np.zeros((bank_size, 0, 0)), np.zeros(bank_size), np.zeros(bank_size))
+
+
+class BankEstimator(Estimator):
+    """Common plumbing; subclasses implement the maths of one form."""
+
+    def __init__(self):
+        self._assembler = MeasurementAssembler()
+        self._checked_transitions: tuple | None = None
+
+    # ------------------------------------------------------------------ checks
+    @staticmethod
+    def _check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
+        return check_prior(mean, cov)
+
+    def _check_transitions(self, transitions: TransitionBank, bank_size: int, n: int) -> TransitionBank:
+        """F (M, n, n), B (M, n), Q (M, n, n) finite; a bank already checked (same object) is not re-checked."""
+        if not isinstance(transitions, TransitionBank):
+            raise ValueError(f"transitions: expected a TransitionBank, got {type(transitions).__name__}")
+        checked = self._checked_transitions
+        if checked is not None and checked[0] is transitions and checked[1] == (bank_size, n):
+            return transitions
+        as_float_array(transitions.F, "transitions.F", (bank_size, n, n))
+        as_float_array(transitions.B, "transitions.B", (bank_size, n))
+        as_float_array(transitions.Q, "transitions.Q", (bank_size, n, n))
+        self._checked_transitions = (transitions, (bank_size, n))
+        return transitions
+
+    def _measurement(self, z, sensors: Sequence, layout: Sequence[str], bank_size: int, n: int):
+        if len(layout) != n:
+            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        return self._assembler.assemble(z, sensors, layout, bank_size)
+
+    # ------------------------------------------------------------------ reading
+    def mean(self, state: Any) -> np.ndarray:
+        return state.mean
+
+    def covariance(self, state: Any) -> np.ndarray:
+        return state.covariance
+
+    def predicted_mean(self, state: Any) -> np.ndarray:
+        """x⁻ of the last prediction (M, n)."""
+        return state.predicted_mean
+
+    def predicted_covariance(self, state: Any) -> np.ndarray:
+        """P⁻ of the last prediction (M, n, n)."""
+        return state.predicted_covariance
+
+    def innovation(self, state: Any) -> Innovation | None:
+        """ν, S, ℓ, NIS of the last update (None after a prediction)."""
+        return state.innovation
