@@ -1,0 +1,248 @@
+"""Compose and run: measurements → estimator bank → detectors → recorder.
+
+A :class:`Pipeline` runs one bank of M filters, filter j using motion model j,
+on the stacked measurements of a sensor network:
+
+* step 0: each filter starts from the prior and is updated with z_0 (when row 0
+  has data);
+* step k ≥ 1: predict with the model's transition, then update with z_k.
+
+A linear model's transition is fixed from the prior mean, the state at the
+switching moment (SPEC §1: a turn's ω and centre are fixed at the switch); a
+nonlinear model is relinearized at each filter's own estimate every step
+(EKF).  Measurements are a mapping sensor name → array (steps, m_i), row k
+holding step k, NaN rows meaning no measurement; see
+:mod:`hybridtrack.measurements_io` for the CSV/NPZ layouts.
+
+Components are given as objects or by registered name (``"kalman"``,
+``("left_turn", {"radius": 3.0})``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.interfaces import Detector, DetectorStep, Estimator, Innovation, MotionModel, Sensor, TransitionBank
+from hybridtrack.network import SensorNetwork
+from hybridtrack.recording import NullRecorder
+from hybridtrack.registry import Registry
+from hybridtrack.types import Decision, Gaussian
+
+
+def _registry(registry: Registry | None) -> Registry:
+    if registry is None:
+        from hybridtrack.plugins import get_registry
+
+        registry = get_registry()
+    return registry
+
+
+def resolve(kind: str, spec, base: type, registry: Registry | None = None):
+    """An instance of ``base`` from an object, a registered name, or ``(name, parameters)``."""
+    if isinstance(spec, base):
+        return spec
+    if isinstance(spec, str):
+        return _registry(registry).create(kind, spec)
+    if isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str) and isinstance(spec[1], Mapping):
+        return _registry(registry).create(kind, spec[0], **spec[1])
+    raise TypeError(f"{kind}: expected a {base.__name__}, a registered name or (name, parameters), got {spec!r}")
+
+
+@attrs.frozen(eq=False)
+class StepResult:
+    """One step of a pipeline: the bank's posterior, its innovations and the detectors' outputs."""
+
+    step: int
+    mean: np.ndarray  # (M, n)
+    cov: np.ndarray  # (M, n, n)
+    innovation: Innovation
+    detectors: dict[str, DetectorStep]
+
+
+@attrs.frozen(eq=False)
+class RunResult:
+    """A whole run: means (K+1, M, n), covs (K+1, M, n, n), nis and loglik (K+1, M) (NaN where no
+    measurement), detector statistics name → series → array over steps, and the decisions."""
+
+    layout: tuple[str, ...]
+    filters: tuple[str, ...]
+    means: np.ndarray
+    covs: np.ndarray
+    nis: np.ndarray
+    loglik: np.ndarray
+    statistics: dict[str, dict[str, np.ndarray]]
+    decisions: tuple[Decision, ...]
+
+
+class Pipeline:
+    """A bank of filters (one per motion model) on a network's measurements, with detectors and a recorder.
+
+    Parameters: ``models`` (motion models, names or (name, parameters)); ``estimator``;
+    ``sensors`` (a :class:`SensorNetwork` or a list of sensors); ``measurements``
+    (sensor name → (steps, m_i)); ``prior`` (a :class:`Gaussian` or (mean, cov),
+    in the models' layout); ``tau``; ``detectors``; ``recorder`` (defaults to
+    :class:`NullRecorder`); ``truth`` (an optional trajectory to record beside
+    the estimates); ``filter_names`` to label the bank.
+    """
+
+    def __init__(
+        self,
+        *,
+        models: Sequence[Any],
+        estimator: Any,
+        sensors: SensorNetwork | Sequence[Sensor],
+        measurements: Mapping[str, np.ndarray],
+        prior: Gaussian | tuple,
+        tau: float,
+        detectors: Sequence[Any] = (),
+        recorder=None,
+        truth=None,
+        filter_names: Sequence[str] | None = None,
+        registry: Registry | None = None,
+    ):
+        self.models = [resolve("motion_model", m, MotionModel, registry) for m in models]
+        if not self.models:
+            raise ValueError("models: a bank needs at least one motion model")
+        layouts = {m.layout for m in self.models}
+        if len(layouts) != 1:
+            raise ValueError(f"models: every filter of a bank must share one state layout, got {sorted(layouts)}")
+        self.layout = self.models[0].layout
+        self.estimator: Estimator = resolve("estimator", estimator, Estimator, registry)
+        self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
+        self.z = self.network.stack(measurements)
+        self.tau = float(tau)
+        if not (np.isfinite(self.tau) and self.tau > 0):
+            raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
+        self.detectors: list[Detector] = [resolve("detector", d, Detector, registry) for d in detectors]
+        names = [d.name for d in self.detectors]
+        if len(set(names)) != len(names):
+            raise ValueError(f"detectors: names must be unique, got {names}")
+        self.recorder = recorder if recorder is not None else NullRecorder()
+        self.truth = truth
+        self.filter_names = tuple(filter_names) if filter_names is not None else self._default_names()
+        if len(self.filter_names) != len(self.models):
+            raise ValueError(f"filter_names: expected {len(self.models)} names, got {len(self.filter_names)}")
+
+        prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
+        if prior.dim != len(self.layout):
+            raise ValueError(f"prior: expected a state of the layout {self.layout}, got dimension {prior.dim}")
+        self.prior = prior
+        M = len(self.models)
+        self._state = self.estimator.initialize(np.tile(prior.mean, (M, 1)), np.tile(prior.cov, (M, 1, 1)))
+        self._transitions = None
+        if all(m.linear for m in self.models):
+            self._transitions = TransitionBank.stack([m.transition(self.tau, prior.mean) for m in self.models])
+        self._results: list[StepResult] = []
+        self._decisions: list[Decision] = []
+        self._recorded = False
+
+    def _default_names(self) -> tuple[str, ...]:
+        names = []
+        for model in self.models:
+            radius = getattr(model, "radius", None)
+            names.append(model.name if radius is None else f"{model.name}_r{radius:g}")
+        # make repeated names unique
+        return tuple(n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names))
+
+    @property
+    def steps(self) -> int:
+        """Number of steps in the measurements (0..steps−1)."""
+        return self.z.shape[0]
+
+    @property
+    def done(self) -> bool:
+        return len(self._results) >= self.steps
+
+    def step(self) -> StepResult:
+        """Process the next step and return its result."""
+        k = len(self._results)
+        if k >= self.steps:
+            raise StopIteration(f"all {self.steps} steps processed")
+        state = self._state
+        if k > 0:
+            transitions = self._transitions
+            if transitions is None:
+                means = self.estimator.mean(state)
+                transitions = TransitionBank.stack([m.transition(self.tau, x) for m, x in zip(self.models, means)])
+            state = self.estimator.predict(state, transitions)
+        state, innovation = self.estimator.update(state, self.z[k], self.network.sensors, self.layout)
+        self._state = state
+        outputs = {}
+        for detector in self.detectors:
+            output = detector.step(k, innovation)
+            outputs[detector.name] = output
+            if output.decision is not None:
+                self._decisions.append(output.decision)
+        result = StepResult(k, self.estimator.mean(state), self.estimator.covariance(state), innovation, outputs)
+        self._results.append(result)
+        return result
+
+    def run(self) -> RunResult:
+        """Process the remaining steps, record the run and return it.
+
+        If a step raises, what was processed before is still recorded.
+        """
+        try:
+            while not self.done:
+                self.step()
+        finally:
+            self.record()
+        return self.result()
+
+    def result(self) -> RunResult:
+        """The steps processed so far as arrays."""
+        if not self._results:
+            raise RuntimeError("no step has been processed yet")
+        M = len(self.models)
+        statistics: dict[str, dict[str, list]] = {}
+        for r in self._results:
+            for name, output in r.detectors.items():
+                series = statistics.setdefault(name, {})
+                for key, value in {**output.statistics, **output.thresholds}.items():
+                    series.setdefault(key, []).append(value)
+
+        def per_filter(values):
+            values = np.asarray(values, dtype=float)
+            return values if values.shape == (M,) else np.full(M, np.nan)
+
+        return RunResult(
+            layout=self.layout,
+            filters=self.filter_names,
+            means=np.stack([r.mean for r in self._results]),
+            covs=np.stack([r.cov for r in self._results]),
+            nis=np.stack([per_filter(r.innovation.nis) if r.innovation.measurement_dim else np.full(M, np.nan) for r in self._results]),
+            loglik=np.stack([per_filter(r.innovation.loglik) if r.innovation.measurement_dim else np.full(M, np.nan) for r in self._results]),
+            statistics={n: {k: np.asarray(v, dtype=float) for k, v in s.items()} for n, s in statistics.items()},
+            decisions=tuple(self._decisions),
+        )
+
+    def record(self) -> None:
+        """Log the truth, measurements, estimates, NIS, detector series and decisions (once)."""
+        if self._recorded or not self._results:
+            return
+        self._recorded = True
+        rec = self.recorder
+        result = self.result()
+        steps = np.arange(len(self._results))
+        times = steps * self.tau
+        if self.truth is not None:
+            positions = self.truth.positions[: len(steps)]
+            rec.log_path("world/truth", steps, positions, times)
+        for name, z in self.network.split(self.z[: len(steps)]).items():
+            sensor = self.network.sensors[self.network.names.index(name)]
+            if getattr(sensor, "components", None) == ("x", "y"):
+                rec.log_points(f"world/measurements/{name}", steps, z, times)
+            else:
+                rec.log_scalars(f"world/measurements/{name}", steps, z, times)
+        ix, iy = self.layout.index("x"), self.layout.index("y")
+        for j, name in enumerate(self.filter_names):
+            rec.log_path(f"world/estimate/{name}", steps, result.means[:, j][:, [ix, iy]], times)
+        rec.log_scalars("estimator/nis", steps, result.nis, times, names=self.filter_names)
+        for detector, series in result.statistics.items():
+            for key, values in series.items():
+                rec.log_scalars(f"detector/{detector}/{key}", steps, values, times)
+        for decision in result.decisions:
+            rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", decision.step * self.tau)

@@ -1,0 +1,168 @@
+"""The recorder seam: every run logs through a recorder object passed in.
+
+Components never touch rerun's global stream.  :class:`RerunRecorder` owns one
+``rerun.RecordingStream`` (application id ``hybridtrack``) with a file sink;
+:class:`NullRecorder` records nothing (Monte Carlo).  Both are context managers;
+leaving the context (normally or by an exception) flushes and closes the file so
+it is always complete.
+
+Series are logged as whole columns (``send_columns``) on the timelines ``step``
+(sequence) and ``time`` (duration in seconds, when times are given).  Entity
+paths used by the built-in components:
+
+==============================  ===============================================
+``world/truth``                 true positions (points per step + the whole path)
+``world/measurements/<sensor>`` measured positions of a position sensor
+``world/estimate/<filter>``     estimated positions
+``estimator/<filter>/nis``      normalized innovation squared per step
+``detector/<name>/<series>``    detector statistics and thresholds
+``events/decisions``            decisions as text events
+==============================  ===============================================
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Protocol, Sequence, runtime_checkable
+
+import numpy as np
+
+APPLICATION_ID = "hybridtrack"
+
+
+@runtime_checkable
+class Recorder(Protocol):
+    """What components log through.  ``steps`` (K,) ints; ``times`` (K,) seconds or None."""
+
+    def log_path(self, entity: str, steps: np.ndarray, positions: np.ndarray, times: np.ndarray | None = None) -> None:
+        """A 2-D trajectory: positions (K, 2), one point per step and the whole path as a line."""
+
+    def log_points(self, entity: str, steps: np.ndarray, points: np.ndarray, times: np.ndarray | None = None) -> None:
+        """2-D points (K, 2) per step; rows with NaN are skipped."""
+
+    def log_scalars(
+        self, entity: str, steps: np.ndarray, values: np.ndarray, times: np.ndarray | None = None, names: Sequence[str] | None = None
+    ) -> None:
+        """Scalar series: values (K,) or (K, c) (c named series under one entity)."""
+
+    def log_event(self, step: int, text: str, time: float | None = None, level: str = "INFO") -> None:
+        """A text event (decisions, warnings) at ``step``."""
+
+    def close(self) -> None:
+        """Flush and close; idempotent."""
+
+
+class NullRecorder:
+    """Records nothing (recording turned off)."""
+
+    def log_path(self, entity, steps, positions, times=None):
+        pass
+
+    def log_points(self, entity, steps, points, times=None):
+        pass
+
+    def log_scalars(self, entity, steps, values, times=None, names=None):
+        pass
+
+    def log_event(self, step, text, time=None, level="INFO"):
+        pass
+
+    def close(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def recording_id(configuration: dict) -> str:
+    """A stable recording id from a run's configuration (which includes its seed)."""
+    text = json.dumps(configuration, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
+
+
+class RerunRecorder:
+    """A file recording (.rrd) on its own ``rerun.RecordingStream``.
+
+    ``configuration`` (a JSON-able dict, seed included) gives the recording id,
+    so the same run twice gives the same id.
+    """
+
+    def __init__(self, path: str | Path, configuration: dict | None = None, *, recording_id_: str | None = None):
+        import rerun as rr
+
+        self._rr = rr
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.recording_id = recording_id_ or recording_id(configuration or {})
+        self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
+        self.stream.save(str(self.path))
+        self._closed = False
+
+    # -- helpers
+    def _indexes(self, steps, times):
+        rr = self._rr
+        steps = np.asarray(steps, dtype=np.int64)
+        indexes = [rr.TimeColumn("step", sequence=steps)]
+        if times is not None:
+            indexes.append(rr.TimeColumn("time", duration=np.asarray(times, dtype=np.float64)))
+        return indexes
+
+    def _set_time(self, step, time):
+        self.stream.set_time("step", sequence=int(step))
+        if time is not None:
+            self.stream.set_time("time", duration=float(time))
+
+    # -- Recorder
+    def log_points(self, entity, steps, points, times=None):
+        points = np.asarray(points, dtype=np.float64)
+        keep = np.all(np.isfinite(points), axis=-1)
+        if not keep.any():
+            return
+        steps = np.asarray(steps)[keep]
+        times = None if times is None else np.asarray(times)[keep]
+        self.stream.send_columns(
+            entity,
+            indexes=self._indexes(steps, times),
+            columns=self._rr.Points2D.columns(positions=points[keep]).partition(np.ones(int(keep.sum()), dtype=np.int64)),
+        )
+
+    def log_path(self, entity, steps, positions, times=None):
+        positions = np.asarray(positions, dtype=np.float64)
+        self.log_points(entity, steps, positions, times)
+        finite = positions[np.all(np.isfinite(positions), axis=-1)]
+        self.stream.log(f"{entity}/path", self._rr.LineStrips2D([finite]), static=True)
+
+    def log_scalars(self, entity, steps, values, times=None, names=None):
+        rr = self._rr
+        values = np.asarray(values, dtype=np.float64)
+        self.stream.send_columns(entity, indexes=self._indexes(steps, times), columns=rr.Scalars.columns(scalars=values))
+        if names is not None:
+            self.stream.log(entity, rr.SeriesLines(names=list(names)), static=True)
+
+    def log_event(self, step, text, time=None, level="INFO"):
+        self._set_time(step, time)
+        self.stream.log("events/decisions", self._rr.TextLog(text, level=level))
+
+    def close(self):
+        if not self._closed:
+            self._closed = True
+            self.stream.flush()
+            self.stream.disconnect()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def open_recorder(path: str | Path | None, configuration: dict | None = None):
+    """A :class:`RerunRecorder` writing ``path``, or a :class:`NullRecorder` when ``path`` is None."""
+    return NullRecorder() if path is None else RerunRecorder(path, configuration)

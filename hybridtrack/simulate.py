@@ -1,0 +1,179 @@
+"""Hybrid trajectories from a schedule, and multisensor measurements of them (SPEC §1–2).
+
+A schedule row (mode, steps, radius) runs the motion model registered as
+``mode`` for ``steps`` steps of length τ:
+
+    x_k = F_p x_{k-1} + B_p + G_p w_{k-1},  w ~ N(0, Q_p)   (seed 000, eq. 1)
+
+At each switch the new model ``enter``s the state (layout conversion,
+augmentation on entering constant acceleration) and fixes its transition from
+the state at the switching moment s (a turn's ω = |v_s|/r and centre).  With
+``process_noise=False`` the trajectory is noise-free.
+
+Randomness comes from ``numpy.random.Generator`` only; the same seed gives
+identical arrays.  :func:`simulate` spawns independent streams for the
+trajectory and the measurements from one seed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack._arrays import as_float_array, check_covariance
+from hybridtrack.interfaces import MotionModel, Sensor, convert_layout
+from hybridtrack.network import SensorNetwork
+from hybridtrack.registry import Registry
+from hybridtrack.types import Schedule
+
+
+def _rng(seed) -> np.random.Generator:
+    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+
+
+def noise_factor(Q: np.ndarray) -> np.ndarray:
+    """L with L Lᵀ = Q for a symmetric PSD Q (eigen-decomposition, so singular Q works)."""
+    values, vectors = np.linalg.eigh(Q)
+    return vectors * np.sqrt(np.clip(values, 0.0, None))
+
+
+@attrs.frozen(eq=False)
+class Trajectory:
+    """A simulated hybrid trajectory: states at steps 0..K.
+
+    ``states`` (K+1, n) are in ``layout``, the union of the layouts of the
+    schedule's modes (components a mode lacks are zero while it runs);
+    ``segment`` (K+1,) is the index of the schedule row that produced each state
+    (row 0 for the initial state); ``times`` = step · τ.
+    """
+
+    schedule: Schedule
+    tau: float
+    layout: tuple[str, ...]
+    states: np.ndarray
+    segment: np.ndarray
+
+    @property
+    def steps(self) -> np.ndarray:
+        return np.arange(self.states.shape[0])
+
+    @property
+    def times(self) -> np.ndarray:
+        return self.steps * self.tau
+
+    @property
+    def modes(self) -> list[str]:
+        """Mode name governing each step (the initial state counts as the first mode)."""
+        return [self.schedule.segments[i].mode for i in self.segment]
+
+    def states_in(self, layout: Sequence[str]) -> np.ndarray:
+        """States converted to another layout (by component name; missing components are zero)."""
+        return convert_layout(self.states, self.layout, layout)
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.states_in(("x", "y"))
+
+    def save_npz(self, path: str | Path, **extra: np.ndarray) -> None:
+        """Write states, layout, steps, times, segment and the schedule rows (plus ``extra`` arrays)."""
+        segments = self.schedule.segments
+        np.savez(
+            path,
+            states=self.states,
+            layout=np.array(self.layout),
+            steps=self.steps,
+            times=self.times,
+            segment=self.segment,
+            schedule_mode=np.array([s.mode for s in segments]),
+            schedule_steps=np.array([s.steps for s in segments]),
+            schedule_radius=np.array([np.nan if s.radius is None else s.radius for s in segments]),
+            tau=self.tau,
+            **extra,
+        )
+
+
+def build_models(schedule: Schedule, registry: Registry | None = None, noise_cov=None) -> list[MotionModel]:
+    """One motion model per schedule row, created from the registry by mode name.
+
+    ``noise_cov`` (2×2 Q), when given, is passed to every model.
+    """
+    if registry is None:
+        from hybridtrack.plugins import get_registry
+
+        registry = get_registry()
+    models = []
+    for i, segment in enumerate(schedule.segments):
+        parameters = segment.parameters()
+        if noise_cov is not None:
+            parameters["noise_cov"] = noise_cov
+        try:
+            models.append(registry.create("motion_model", segment.mode, **parameters))
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"schedule row {i} ({segment.mode}): {error}") from error
+    return models
+
+
+def simulate_trajectory(
+    schedule: Schedule,
+    x0,
+    tau: float,
+    *,
+    process_noise: bool = True,
+    seed=None,
+    noise_cov=None,
+    registry: Registry | None = None,
+    models: Sequence[MotionModel] | None = None,
+) -> Trajectory:
+    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``.
+
+    ``models`` overrides the registry lookup (one model per schedule row).
+    """
+    tau = float(tau)
+    if not (np.isfinite(tau) and tau > 0):
+        raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
+    if noise_cov is not None:
+        noise_cov = check_covariance(noise_cov, "noise_cov")
+    models = list(models) if models is not None else build_models(schedule, registry, noise_cov)
+    if len(models) != len(schedule.segments):
+        raise ValueError(f"models: expected {len(schedule.segments)} models (one per schedule row), got {len(models)}")
+    layout: list[str] = []
+    for model in models:
+        layout += [name for name in model.layout if name not in layout]
+    x = as_float_array(x0, "x0", (models[0].state_dim,))
+    rng = _rng(seed)
+
+    states = [convert_layout(x, models[0].layout, layout)]
+    segment_index = [0]
+    current_layout = models[0].layout
+    for i, (segment, model) in enumerate(zip(schedule.segments, models)):
+        x = model.enter(x, current_layout, {"acceleration": segment.acceleration})
+        current_layout = model.layout
+        switch_state = x.copy()
+        transition = model.transition(tau, switch_state)
+        L = noise_factor(transition.Q)
+        for _ in range(segment.steps):
+            x = transition.apply(x) if model.linear else model.propagate(x, tau, switch_state)
+            if process_noise:
+                x = x + transition.G @ (L @ rng.standard_normal(L.shape[1]))
+            if not np.all(np.isfinite(x)):
+                raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
+            states.append(convert_layout(x, current_layout, layout))
+            segment_index.append(i)
+    return Trajectory(schedule, tau, tuple(layout), np.array(states), np.array(segment_index))
+
+
+def simulate_measurements(trajectory: Trajectory, sensors: Sequence[Sensor] | SensorNetwork, *, seed=None) -> dict[str, np.ndarray]:
+    """Noisy measurements of every state (steps 0..K) by each sensor: name → (K+1, m)."""
+    network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
+    rng = _rng(seed)
+    return {sensor.name: sensor.simulate(trajectory.states, trajectory.layout, rng) for sensor in network.sensors}
+
+
+def simulate(schedule: Schedule, x0, tau: float, sensors, *, seed=None, **options) -> tuple[Trajectory, dict[str, np.ndarray]]:
+    """Trajectory and measurements from one seed (independent streams via ``SeedSequence.spawn``)."""
+    trajectory_seed, measurement_seed = np.random.SeedSequence(seed).spawn(2)
+    trajectory = simulate_trajectory(schedule, x0, tau, seed=np.random.default_rng(trajectory_seed), **options)
+    return trajectory, simulate_measurements(trajectory, sensors, seed=np.random.default_rng(measurement_seed))

@@ -1,0 +1,115 @@
+"""Simulator: reproducibility, schedules, measurements, bad input."""
+
+import numpy as np
+import pytest
+
+from hybridtrack import SEED001_TABLE1, Schedule
+from hybridtrack.network import SensorNetwork
+from hybridtrack.simulate import noise_factor, simulate, simulate_measurements, simulate_trajectory
+from hybridtrack_plugins.sensors.position import PositionSensor
+
+X0 = [0, 0, 0, 2]
+
+
+def network():
+    return [PositionSensor(name="a"), PositionSensor(name="b", components="x", noise_cov=[[0.5]])]
+
+
+def test_same_seed_gives_identical_arrays():
+    first = simulate(SEED001_TABLE1, X0, 0.1, network(), seed=7, noise_cov=np.diag([1e-3, 1e-3]))
+    second = simulate(SEED001_TABLE1, X0, 0.1, network(), seed=7, noise_cov=np.diag([1e-3, 1e-3]))
+    assert np.array_equal(first[0].states, second[0].states)
+    for name in ("a", "b"):
+        assert np.array_equal(first[1][name], second[1][name])
+    third = simulate(SEED001_TABLE1, X0, 0.1, network(), seed=8, noise_cov=np.diag([1e-3, 1e-3]))
+    assert not np.array_equal(first[0].states, third[0].states)
+
+
+def test_table1_shapes_segments_and_modes():
+    trajectory = simulate_trajectory(SEED001_TABLE1, X0, 0.1, process_noise=False)
+    assert trajectory.states.shape == (361, 4)
+    assert trajectory.layout == ("x", "vx", "y", "vy")
+    assert trajectory.modes[1:51] == ["left_turn"] * 50 and trajectory.modes[51] == "right_turn"
+    np.testing.assert_allclose(trajectory.times[-1], 36.0)
+    # noise-free: the speed of x0 is kept by every mode of the table
+    np.testing.assert_allclose(np.hypot(trajectory.states[:, 1], trajectory.states[:, 3]), 2.0, atol=1e-9)
+
+
+def test_process_noise_statistics():
+    """The velocity increments of a straight run have covariance τ-independent Q (G selects velocities)."""
+    Q = np.array([[0.04, 0.01], [0.01, 0.09]])
+    trajectory = simulate_trajectory(Schedule.from_rows([("straight", 20000)]), X0, 0.1, seed=3, noise_cov=Q)
+    increments = np.diff(trajectory.states_in(("vx", "vy")), axis=0)
+    np.testing.assert_allclose(np.cov(increments.T), Q, atol=0.004)
+
+
+def test_measurement_noise_statistics_and_shapes():
+    trajectory = simulate_trajectory(Schedule.from_rows([("straight", 5000)]), X0, 0.1, process_noise=False)
+    z = simulate_measurements(trajectory, network(), seed=1)
+    assert z["a"].shape == (5001, 2) and z["b"].shape == (5001, 1)
+    np.testing.assert_allclose(np.var(z["b"][:, 0] - trajectory.states[:, 0]), 0.5, rtol=0.06)
+    np.testing.assert_allclose(np.cov((z["a"] - trajectory.positions).T), np.diag([0.01, 0.01]), atol=1e-3)
+
+
+def test_noise_factor_handles_singular_q():
+    L = noise_factor(np.zeros((2, 2)))
+    assert np.all(L == 0)
+    Q = np.array([[1.0, 1.0], [1.0, 1.0]])
+    np.testing.assert_allclose(noise_factor(Q) @ noise_factor(Q).T, Q, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"x0": [0, 0, 0]}, "x0"),
+        ({"x0": [0, np.nan, 0, 1]}, "x0"),
+        ({"tau": 0}, "tau"),
+        ({"tau": float("inf")}, "tau"),
+        ({"noise_cov": [[1, 2], [0, 1]]}, "noise_cov"),
+    ],
+)
+def test_bad_input_is_named(kwargs, message):
+    arguments = {"x0": X0, "tau": 0.1, **kwargs}
+    with pytest.raises(ValueError, match=message):
+        simulate_trajectory(SEED001_TABLE1, arguments.pop("x0"), arguments.pop("tau"), **arguments)
+
+
+def test_unknown_mode_lists_known_modes():
+    with pytest.raises(KeyError, match="known: .*left_turn"):
+        simulate_trajectory(Schedule.from_rows([("zigzag", 3)]), X0, 0.1)
+
+
+def test_turn_without_radius_uses_model_default_and_bad_radius_is_named():
+    with pytest.raises(ValueError, match="radius"):
+        Schedule.from_rows([("left_turn", 3, -1.0)])
+
+
+def test_network_stacks_and_splits():
+    net = SensorNetwork(network())
+    assert net.measurement_dim == 3
+    H = net.jacobian(np.zeros(4), ("x", "vx", "y", "vy"))
+    np.testing.assert_array_equal(H, [[1, 0, 0, 0], [0, 0, 1, 0], [1, 0, 0, 0]])
+    np.testing.assert_array_equal(net.noise_cov(), np.diag([0.01, 0.01, 0.5]))
+    z = net.stack({"a": np.ones((4, 2)), "b": np.zeros((4, 1))})
+    assert z.shape == (4, 3)
+    assert np.array_equal(net.split(z)["b"], np.zeros((4, 1)))
+    with pytest.raises(ValueError, match="unique"):
+        SensorNetwork([PositionSensor(name="a"), PositionSensor(name="a")])
+    with pytest.raises(ValueError, match="no data for sensors \\['b'\\]"):
+        net.stack({"a": np.ones((4, 2))})
+    with pytest.raises(ValueError, match=r"measurements\['a'\]: expected shape \(\*, 2\)"):
+        net.stack({"a": np.ones((4, 3)), "b": np.zeros((4, 1))})
+    with pytest.raises(ValueError, match="different numbers of steps"):
+        net.stack({"a": np.ones((4, 2)), "b": np.zeros((5, 1))})
+
+
+def test_schedule_from_toml(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('[[segment]]\nmode = "straight"\nsteps = 4\n\n[[segment]]\nmode = "left_turn"\nsteps = 3\nradius = 2.5\n')
+    schedule = Schedule.from_toml(path)
+    assert [s.mode for s in schedule.segments] == ["straight", "left_turn"] and schedule.segments[1].radius == 2.5
+    assert schedule.total_steps == 7 and schedule.switch_steps() == [0, 4]
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[segment]]\nmode = "straight"\nsteps = 0\n')
+    with pytest.raises(ValueError, match="row 0"):
+        Schedule.from_toml(bad)
