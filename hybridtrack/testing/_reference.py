@@ -1,0 +1,148 @@
+"""Small reference objects the contract checks are built on.
+
+They depend on the kernel only (never on plugins), so a check of an estimator
+or a detector means the same thing whichever plugins are installed:
+
+* :func:`cv_transition` — the straight (constant-velocity) mode of SPEC §1;
+* :class:`LinearPositionSensor` — z = H x + v picking named state components;
+* :func:`kalman_predict` / :func:`kalman_update` — the covariance-form Kalman
+  filter over a bank (SPEC §3), the oracle every exact estimator must match;
+* :func:`example_state` — plausible states for a layout, by component name.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+import scipy.linalg
+
+from hybridtrack._arrays import check_covariance
+from hybridtrack.interfaces import Innovation, LinearTransition, Sensor, TransitionBank
+
+CV_LAYOUT = ("x", "vx", "y", "vy")
+
+#: (centre, spread) of generated values, by the first letters of a component name
+_SCALES = (
+    (("omega", "w", "turn_rate"), (0.05, 0.02)),
+    (("v",), (10.0, 3.0)),
+    (("a",), (0.0, 1.0)),
+    (("x", "y", "z"), (100.0, 30.0)),
+)
+
+
+def cv_transition(tau: float = 1.0, q: float = 0.1) -> LinearTransition:
+    """Straight mode: F = blockdiag([[1, τ], [0, 1]] ×2), B = 0, G = [[τ²/2, 0], [τ, 0], [0, τ²/2], [0, τ]], Q = q I₂."""
+    axis = np.array([[1.0, tau], [0.0, 1.0]])
+    gain = np.array([[tau**2 / 2], [tau]])
+    return LinearTransition(
+        scipy.linalg.block_diag(axis, axis), np.zeros(4), scipy.linalg.block_diag(gain, gain), q * np.eye(2)
+    )
+
+
+def example_state(layout: Sequence[str], rng: np.random.Generator, shape: tuple[int, ...] = ()) -> np.ndarray:
+    """Random states of ``layout`` with magnitudes chosen by component name.
+
+    Positions ≈ 100 ± 30 m (away from the origin, where bearings are singular),
+    velocities 10 ± 3 m/s (a non-zero speed, which turns need), accelerations
+    0 ± 1 m/s², turn rates 0.05 ± 0.02 rad/s, anything else 0 ± 1.
+    """
+    state = np.empty(shape + (len(layout),))
+    for j, name in enumerate(layout):
+        centre, spread = 0.0, 1.0
+        for prefixes, values in _SCALES:
+            if name == prefixes[0] or any(name.startswith(p) for p in prefixes):
+                centre, spread = values
+                break
+        state[..., j] = centre + spread * rng.uniform(-1.0, 1.0, size=shape)
+    return state
+
+
+class LinearPositionSensor(Sensor):
+    """z = H x + v with H picking the named ``components`` of the state (a ``position``-like sensor).
+
+    Used by the estimator checks so they need no sensor plugin; it is itself a
+    valid :class:`~hybridtrack.interfaces.Sensor` (and passes ``check_sensor``).
+    """
+
+    kind = "contract_position"
+
+    def __init__(self, name: str = "contract", components: Sequence[str] = ("x", "y"), noise_cov=None):
+        self.name = name
+        self.components = tuple(components)
+        m = len(self.components)
+        self.noise_cov = check_covariance(np.eye(m) if noise_cov is None else noise_cov, "noise_cov", m, definite=True)
+
+    def matrix(self, layout: Sequence[str]) -> np.ndarray:
+        """H of shape (m, n) for ``layout``."""
+        layout = tuple(layout)
+        H = np.zeros((len(self.components), len(layout)))
+        for i, component in enumerate(self.components):
+            if component not in layout:
+                raise ValueError(f"layout: sensor {self.name!r} measures {component!r}, absent from {layout}")
+            H[i, layout.index(component)] = 1.0
+        return H
+
+    def measure(self, x, layout):
+        return np.asarray(x, dtype=float) @ self.matrix(layout).T
+
+    def jacobian(self, x, layout):
+        x = np.asarray(x, dtype=float)
+        H = self.matrix(layout)
+        return np.broadcast_to(H, x.shape[:-1] + H.shape).copy()
+
+
+def kalman_predict(mean: np.ndarray, cov: np.ndarray, bank: TransitionBank) -> tuple[np.ndarray, np.ndarray]:
+    """x⁻ = F x + B, P⁻ = F P Fᵀ + G Q Gᵀ for a bank: mean (M, n), cov (M, n, n)."""
+    mean = np.einsum("mij,mj->mi", bank.F, mean) + bank.B
+    cov = bank.F @ cov @ np.swapaxes(bank.F, -1, -2) + bank.Q
+    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+
+
+def kalman_update(
+    mean: np.ndarray, cov: np.ndarray, z: np.ndarray, sensors: Sequence[Sensor], layout: Sequence[str]
+) -> tuple[np.ndarray, np.ndarray, Innovation]:
+    """Covariance-form update (Joseph form) with the sensors whose rows of ``z`` hold no NaN."""
+    z = np.asarray(z, dtype=float)
+    rows, H_blocks, R_blocks, start = [], [], [], 0
+    for sensor in sensors:
+        m = sensor.measurement_dim
+        part = z[start : start + m]
+        if not np.isnan(part).any():
+            rows.append(part)
+            H_blocks.append(sensor.jacobian(mean, layout))
+            R_blocks.append(sensor.noise_cov)
+        start += m
+    M, n = mean.shape
+    if not rows:
+        empty = Innovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M))
+        return mean, cov, empty
+    z_used = np.concatenate(rows)
+    H = np.concatenate(H_blocks, axis=-2)  # (M, m, n)
+    R = scipy.linalg.block_diag(*R_blocks)
+    m = z_used.shape[0]
+    nu = z_used - np.einsum("mij,mj->mi", H, mean)
+    S = H @ cov @ np.swapaxes(H, -1, -2) + R
+    S = 0.5 * (S + np.swapaxes(S, -1, -2))
+    K = np.swapaxes(np.linalg.solve(S, H @ cov), -1, -2)  # P Hᵀ S⁻¹ (S, P symmetric)
+    mean = mean + np.einsum("mij,mj->mi", K, nu)
+    A = np.eye(n) - K @ H
+    cov = A @ cov @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+    nis = np.einsum("mi,mi->m", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+    loglik = -0.5 * (m * np.log(2 * np.pi) + np.linalg.slogdet(S)[1] + nis)
+    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2)), Innovation(nu, S, loglik, nis)
+
+
+def random_innovations(rng: np.random.Generator, steps: int = 20, bank_size: int = 3, measurement_dim: int = 2) -> list[Innovation]:
+    """Innovations of a bank: filter 0 consistent (ν ~ N(0, S)), the others biased, as a detector would see."""
+    out = []
+    base = np.array([[4.0, 1.0], [1.0, 3.0]])[:measurement_dim, :measurement_dim] if measurement_dim <= 2 else np.eye(measurement_dim)
+    S = np.stack([base * (1.0 + 0.5 * j) for j in range(bank_size)])
+    L = np.linalg.cholesky(S)
+    bias = np.linspace(0.0, 3.0, bank_size)[:, None] * np.ones(measurement_dim)
+    for _ in range(steps):
+        nu = np.einsum("mij,mj->mi", L, rng.standard_normal((bank_size, measurement_dim))) + bias
+        nis = np.einsum("mi,mi->m", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+        loglik = -0.5 * (measurement_dim * np.log(2 * np.pi) + np.linalg.slogdet(S)[1] + nis)
+        out.append(Innovation(nu, S.copy(), loglik, nis))
+    return out

@@ -1,0 +1,481 @@
+"""Contract checks: run a component through its interface with small generated inputs.
+
+Each ``check_<kind>(component, ...)`` raises ``AssertionError`` with a message
+naming the component and the broken rule, and returns nothing useful on
+success (``check_solver`` returns the :class:`~hybridtrack.interfaces.Solution`
+or ``None`` when it had no problem to solve).  The rules are the contracts in
+the docstrings of :mod:`hybridtrack.interfaces`; the optional attributes they
+read (``example_parameters``, ``example_layout``, ``example_innovations``,
+``exact_kalman``, ``example_problem``) are described there too.
+
+    from hybridtrack.testing import check_motion_model
+    check_motion_model(MyModel(noise_cov=[[0.1, 0], [0, 0.1]]))
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from hybridtrack.interfaces import (
+    KINDS,
+    Detector,
+    DetectorStep,
+    Estimator,
+    Innovation,
+    LinearTransition,
+    MotionModel,
+    Sensor,
+    Solution,
+    Solver,
+    TransitionBank,
+)
+from hybridtrack.testing._reference import (
+    CV_LAYOUT,
+    LinearPositionSensor,
+    cv_transition,
+    example_state,
+    kalman_predict,
+    kalman_update,
+    random_innovations,
+)
+
+__all__ = [
+    "build_example", "check_component", "check_detector", "check_estimator", "check_motion_model",
+    "check_sensor", "check_solver", "example_parameters",
+]
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def example_parameters(factory: Callable[..., Any]) -> dict:
+    """The keyword arguments ``factory`` declares for building an example (``{}`` if none)."""
+    params = getattr(factory, "example_parameters", None)
+    if params is None:
+        return {}
+    if callable(params):
+        params = params()
+    if not isinstance(params, dict):
+        raise TypeError(f"{_qualname(factory)}.example_parameters must be a dict (or return one), got {type(params).__name__}")
+    return dict(params)
+
+
+def build_example(factory: Callable[..., Any]) -> Any:
+    """``factory(**example_parameters(factory))``, with the factory named if that fails."""
+    params = example_parameters(factory)
+    try:
+        return factory(**params)
+    except Exception as error:
+        raise AssertionError(
+            f"{_qualname(factory)}: cannot be built with example parameters {params!r} ({error!r});"
+            " give the factory an `example_parameters` dict (see hybridtrack.interfaces)"
+        ) from error
+
+
+def _qualname(obj) -> str:
+    return getattr(obj, "__qualname__", None) or type(obj).__qualname__
+
+
+def _label(component, kind: str) -> str:
+    name = getattr(component, "name", None)
+    registry_name = getattr(component, "kind", None) if kind == "sensor" else name
+    return f"{kind} {registry_name!r} ({type(component).__qualname__})"
+
+
+def _require(condition, label: str, message: str) -> None:
+    if not condition:
+        raise AssertionError(f"{label}: {message}")
+
+
+def _array(value, label: str, what: str, shape: tuple | None = None, finite: bool = True) -> np.ndarray:
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise AssertionError(f"{label}: {what} is not a numeric array ({error})") from None
+    if shape is not None:
+        _require(array.shape == tuple(shape), label, f"{what} has shape {array.shape}, expected {tuple(shape)}")
+    if finite:
+        _require(np.isfinite(array).all(), label, f"{what} contains NaN or inf:\n{array}")
+    return array
+
+
+def _close(actual, expected, label: str, what: str, rtol: float = 1e-9, atol: float = 1e-9) -> None:
+    actual, expected = np.asarray(actual, dtype=float), np.asarray(expected, dtype=float)
+    _require(actual.shape == expected.shape, label, f"{what}: shape {actual.shape}, expected {expected.shape}")
+    if not np.allclose(actual, expected, rtol=rtol, atol=atol):
+        worst = float(np.max(np.abs(actual - expected)))
+        raise AssertionError(f"{label}: {what} differs (max abs difference {worst:.3g}):\n{actual}\nexpected\n{expected}")
+
+
+def _symmetric_psd(matrix: np.ndarray, label: str, what: str, definite: bool) -> None:
+    matrix = np.asarray(matrix, dtype=float)
+    scale = max(float(np.abs(matrix).max(initial=0.0)), 1e-300)
+    asym = float(np.abs(matrix - np.swapaxes(matrix, -1, -2)).max(initial=0.0))
+    _require(asym <= 1e-9 * scale, label, f"{what} is not symmetric (max |A − Aᵀ| = {asym:.3g})")
+    eigenvalues = np.linalg.eigvalsh(0.5 * (matrix + np.swapaxes(matrix, -1, -2)))
+    if definite:
+        _require((eigenvalues > 0).all(), label, f"{what} is not positive definite (smallest eigenvalue {eigenvalues.min():.3g})")
+    else:
+        _require((eigenvalues >= -1e-10 * scale).all(), label, f"{what} is not positive semidefinite (smallest eigenvalue {eigenvalues.min():.3g})")
+
+
+def _registry_name(component, label: str, attribute: str = "name") -> None:
+    value = getattr(component, attribute, None)
+    _require(isinstance(value, str) and value, label, f"`{attribute}` must be a non-empty string, got {value!r}")
+
+
+def _numerical_jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
+    """Central differences of ``function`` at x (n,) → (out, n)."""
+    columns = []
+    for i in range(x.shape[0]):
+        h = 1e-6 * max(1.0, abs(x[i]))
+        up, down = x.copy(), x.copy()
+        up[i] += h
+        down[i] -= h
+        columns.append((np.asarray(function(up)) - np.asarray(function(down))) / (2 * h))
+    return np.stack(columns, axis=-1)
+
+
+# --------------------------------------------------------------------------- motion models
+
+
+def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -> None:
+    """Check a :class:`~hybridtrack.interfaces.MotionModel` against its contract.
+
+    Name and layout; ``transition`` returns a :class:`LinearTransition` whose
+    dimensions match the layout and ``noise_cov``, with Q and G Q Gᵀ symmetric
+    PSD; F x_s + B = f(x_s); F matches finite differences of ``propagate``;
+    ``propagate`` equals ``transition(...).apply`` for a linear model and is
+    vectorized over leading axes; ``enter`` round-trips the model's own layout
+    and accepts the 4-state layout; fifty noise-free steps stay finite.
+    """
+    label = _label(model, "motion_model")
+    _require(isinstance(model, MotionModel), label, "is not a hybridtrack.interfaces.MotionModel")
+    _registry_name(model, label)
+    layout = getattr(model, "layout", None)
+    _require(isinstance(layout, tuple) and len(layout) > 0, label, f"`layout` must be a non-empty tuple, got {layout!r}")
+    _require(all(isinstance(c, str) and c for c in layout), label, f"`layout` entries must be non-empty strings, got {layout!r}")
+    _require(len(set(layout)) == len(layout), label, f"`layout` has repeated names: {layout!r}")
+    n = len(layout)
+    _require(model.state_dim == n, label, f"state_dim is {model.state_dim}, layout has {n} components")
+
+    rng = np.random.default_rng(seed)
+    x_s = example_state(layout, rng)
+    T = model.transition(tau, x_s.copy())
+    _require(isinstance(T, LinearTransition), label, f"transition() returned {type(T).__name__}, expected LinearTransition")
+    _require(T.F.shape == (n, n), label, f"transition F has shape {T.F.shape}, expected ({n}, {n}) for layout {layout}")
+    q = T.Q.shape[0]
+    noise_cov = _array(getattr(model, "noise_cov", None), label, "noise_cov")
+    _require(noise_cov.shape == (q, q), label, f"noise_cov has shape {noise_cov.shape}, transition Q has {T.Q.shape}")
+    for what, matrix in (("F", T.F), ("B", T.B), ("G", T.G), ("Q", T.Q)):
+        _array(matrix, label, f"transition {what}")
+    _symmetric_psd(T.Q, label, "transition Q", definite=False)
+    _symmetric_psd(T.process_noise, label, "G Q Gᵀ", definite=False)
+
+    f_s = _array(model.propagate(x_s.copy(), tau, x_s.copy()), label, "propagate(x_s)", (n,))
+    _close(T.F @ x_s + T.B, f_s, label, "F x_s + B (the linearization at x_s must pass through f(x_s))", rtol=1e-9, atol=1e-9 * (1 + np.abs(f_s).max()))
+    jac = _numerical_jacobian(lambda x: model.propagate(x, tau, x_s.copy()), x_s.copy())
+    _close(T.F, jac, label, "transition F against finite differences of propagate", rtol=1e-5, atol=1e-6 * (1 + np.abs(T.F).max()))
+
+    X = x_s + example_state(layout, rng, (5,)) * 0.1
+    out = _array(model.propagate(X.copy(), tau, x_s.copy()), label, "propagate of a (5, n) stack", (5, n))
+    rows = np.stack([model.propagate(row.copy(), tau, x_s.copy()) for row in X])
+    _close(out, rows, label, "propagate of a (5, n) stack against row-by-row calls", atol=1e-9 * (1 + np.abs(rows).max()))
+    out3 = _array(model.propagate(np.stack([X, X]), tau, x_s.copy()), label, "propagate of a (2, 5, n) stack", (2, 5, n))
+    _close(out3[1], rows, label, "propagate of a (2, 5, n) stack", atol=1e-9 * (1 + np.abs(rows).max()))
+    if getattr(model, "linear", True):
+        _close(out, T.apply(X), label, "propagate against transition(...).apply for a linear model", atol=1e-9 * (1 + np.abs(out).max()))
+
+    _close(model.enter(x_s.copy(), layout), x_s, label, "enter(state, own layout) (must round-trip)")
+    entered = _array(model.enter(example_state(CV_LAYOUT, rng), CV_LAYOUT), label, f"enter from layout {CV_LAYOUT}", (n,))
+    _array(model.transition(0.5 * tau, entered).F, label, "transition F at a state entered from the 4-state layout")
+
+    x = x_s.copy()
+    for step in range(50):
+        x = _array(model.propagate(x, tau, x_s.copy()), label, f"noise-free state after {step + 1} steps", (n,))
+
+
+# --------------------------------------------------------------------------- sensors
+
+
+def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: int = 0) -> None:
+    """Check a :class:`~hybridtrack.interfaces.Sensor` against its contract.
+
+    ``kind``/``name``; R symmetric positive definite of size ``measurement_dim``;
+    ``measure``/``jacobian`` shapes over leading axes (and row-by-row equal);
+    the Jacobian matches finite differences of ``measure`` (and, for a linear
+    sensor, h(x) = H x with H the same everywhere); ``residual(z, z) == 0``;
+    ``simulate`` is reproducible with a seeded Generator and its noise has
+    covariance R (2000 draws, 25 % tolerance).
+    """
+    label = _label(sensor, "sensor")
+    _require(isinstance(sensor, Sensor), label, "is not a hybridtrack.interfaces.Sensor")
+    _registry_name(sensor, label, "kind")
+    _registry_name(sensor, label, "name")
+    R = _array(getattr(sensor, "noise_cov", None), label, "noise_cov")
+    _require(R.ndim == 2 and R.shape[0] == R.shape[1], label, f"noise_cov must be square (m, m), got {R.shape}")
+    m = R.shape[0]
+    _require(sensor.measurement_dim == m, label, f"measurement_dim is {sensor.measurement_dim}, noise_cov is {R.shape}")
+    _symmetric_psd(R, label, "noise_cov R", definite=True)
+
+    layout = tuple(layout or getattr(sensor, "example_layout", CV_LAYOUT))
+    n = len(layout)
+    rng = np.random.default_rng(seed)
+    X = example_state(layout, rng, (4,))
+    z = _array(sensor.measure(X.copy(), layout), label, "measure of a (4, n) stack", (4, m))
+    rows = np.stack([sensor.measure(row.copy(), layout) for row in X])
+    _close(z, rows, label, "measure of a (4, n) stack against row-by-row calls")
+    _array(sensor.measure(np.stack([X, X]), layout), label, "measure of a (2, 4, n) stack", (2, 4, m))
+    J = _array(sensor.jacobian(X.copy(), layout), label, "jacobian of a (4, n) stack", (4, m, n))
+    _array(sensor.jacobian(np.stack([X, X]), layout), label, "jacobian of a (2, 4, n) stack", (2, 4, m, n))
+    for k, row in enumerate(X):
+        numeric = _numerical_jacobian(lambda x: sensor.measure(x, layout), row.copy())
+        _close(J[k], numeric, label, f"jacobian at state {k} against finite differences of measure", rtol=1e-5, atol=1e-6 * (1e-3 + np.abs(J[k]).max()))
+    if getattr(sensor, "linear", True):
+        _close(J, np.broadcast_to(J[0], J.shape), label, "jacobian of a linear sensor (must not depend on x)")
+        _close(z, np.einsum("kij,kj->ki", J, X), label, "measure of a linear sensor against H x", atol=1e-9 * (1 + np.abs(z).max()))
+
+    _close(sensor.residual(z, z.copy()), np.zeros_like(z), label, "residual(z, z)")
+    first = _array(sensor.simulate(X.copy(), layout, np.random.default_rng(seed + 1)), label, "simulate of a (4, n) stack", (4, m))
+    again = sensor.simulate(X.copy(), layout, np.random.default_rng(seed + 1))
+    _close(again, first, label, "simulate with the same seed (must be reproducible)", rtol=0, atol=0)
+    draws = 2000
+    many = sensor.simulate(np.broadcast_to(X[0], (draws, n)).copy(), layout, np.random.default_rng(seed + 2))
+    noise = _array(sensor.residual(_array(many, label, "simulate of a (2000, n) stack", (draws, m)), np.broadcast_to(z[0], (draws, m))), label, "simulated noise")
+    sample = np.cov(noise, rowvar=False).reshape(m, m)
+    error = np.linalg.norm(sample - R) / np.linalg.norm(R)
+    _require(error < 0.25, label, f"simulated noise covariance\n{sample}\nis far from noise_cov R\n{R}\n(relative error {error:.2f} over {draws} draws)")
+    _require(np.all(np.abs(noise.mean(axis=0)) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12), label, f"simulated noise has mean {noise.mean(axis=0)}, expected 0")
+
+
+# --------------------------------------------------------------------------- estimators
+
+
+def _estimator_problem(rng: np.random.Generator):
+    """A bank of M = 3 CV filters with different Q, two linear sensors (x, y) and (x)."""
+    M, n = 3, len(CV_LAYOUT)
+    mean = example_state(CV_LAYOUT, rng, (M,))
+    A = rng.normal(size=(M, n, n))
+    cov = A @ np.swapaxes(A, -1, -2) + np.diag([25.0, 4.0, 25.0, 4.0])
+    bank = TransitionBank.stack([cv_transition(1.0, q) for q in (0.01, 0.1, 1.0)])
+    sensors = [
+        LinearPositionSensor("contract_xy", ("x", "y"), [[4.0, 1.0], [1.0, 9.0]]),
+        LinearPositionSensor("contract_x", ("x",), [[2.0]]),
+    ]
+    return mean, cov, bank, sensors
+
+
+def _check_innovation(innovation, label: str, M: int, m: int) -> None:
+    _require(isinstance(innovation, Innovation), label, f"update returned {type(innovation).__name__} as innovation, expected Innovation")
+    nu = _array(innovation.nu, label, "innovation nu", (M, m))
+    S = _array(innovation.S, label, "innovation S", (M, m, m))
+    loglik = _array(innovation.loglik, label, "innovation loglik", (M,))
+    nis = _array(innovation.nis, label, "innovation nis", (M,))
+    if m == 0:
+        _close(loglik, np.zeros(M), label, "loglik with no measurement")
+        _close(nis, np.zeros(M), label, "nis with no measurement")
+        return
+    _symmetric_psd(S, label, "innovation S", definite=True)
+    expected_nis = np.einsum("mi,mi->m", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+    _close(nis, expected_nis, label, "nis against νᵀS⁻¹ν", rtol=1e-7, atol=1e-9)
+    expected_loglik = -0.5 * (m * np.log(2 * np.pi) + np.linalg.slogdet(S)[1] + expected_nis)
+    _close(loglik, expected_loglik, label, "loglik against −½(m ln 2π + ln det S + νᵀS⁻¹ν)", rtol=1e-7, atol=1e-9)
+
+
+def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, seed: int = 0) -> None:
+    """Check an :class:`~hybridtrack.interfaces.Estimator` on a bank of M = 3 CV filters.
+
+    The prior reads back unchanged; shapes of every :class:`Innovation` field
+    (ν (M, m), S (M, m, m), ℓ and NIS (M,)) and their consistency; a sensor's
+    NaN rows drop that sensor; all-NaN z ⇒ prediction only (state unchanged,
+    m = 0); covariance symmetric positive definite throughout; NaN/inf or a
+    wrong shape in the prior raises ValueError.  With ``exact_kalman`` (default:
+    the estimator's ``exact_kalman`` attribute, else True) every mean,
+    covariance and innovation is compared with the covariance-form KF.
+    """
+    label = _label(estimator, "estimator")
+    _require(isinstance(estimator, Estimator), label, "is not a hybridtrack.interfaces.Estimator")
+    _registry_name(estimator, label)
+    if exact_kalman is None:
+        exact_kalman = bool(getattr(estimator, "exact_kalman", True))
+    rng = np.random.default_rng(seed)
+    mean, cov, bank, sensors = _estimator_problem(rng)
+    M, n = mean.shape
+
+    def read(state, when: str) -> tuple[np.ndarray, np.ndarray]:
+        x = _array(estimator.mean(state), label, f"mean {when}", (M, n))
+        P = _array(estimator.covariance(state), label, f"covariance {when}", (M, n, n))
+        _symmetric_psd(P, label, f"covariance {when}", definite=True)
+        return x.copy(), P.copy()
+
+    def compare(state, ref_mean, ref_cov, when: str) -> tuple[np.ndarray, np.ndarray]:
+        x, P = read(state, when)
+        if exact_kalman:
+            _close(x, ref_mean, label, f"mean {when} against the covariance-form KF", rtol=1e-7, atol=1e-7)
+            _close(P, ref_cov, label, f"covariance {when} against the covariance-form KF", rtol=1e-7, atol=1e-7)
+        return x, P
+
+    state = estimator.initialize(mean.copy(), cov.copy())
+    compare(state, mean, cov, "after initialize")
+    ref = (mean, cov)
+    truth = example_state(CV_LAYOUT, rng)
+    cases = (
+        ("both sensors", np.ones(3, dtype=bool)),
+        ("sensor contract_x missing (NaN rows)", np.array([True, True, False])),
+        ("sensor contract_xy missing (NaN rows)", np.array([False, False, True])),
+        ("no measurement (all NaN)", np.zeros(3, dtype=bool)),
+    )
+    for step, (case, present) in enumerate(cases * 2):
+        state = estimator.predict(state, bank)
+        ref = kalman_predict(*ref, bank)
+        before = compare(state, *ref, f"after predict at step {step}")
+        truth = cv_transition().apply(truth)
+        z = np.concatenate([s.simulate(truth, CV_LAYOUT, rng) for s in sensors])
+        z[~present] = np.nan
+        state, innovation = estimator.update(state, z.copy(), sensors, CV_LAYOUT)
+        m = int(present.sum())
+        when = f"after update at step {step} ({case})"
+        _check_innovation(innovation, f"{label} {when}", M, m)
+        ref_mean, ref_cov, ref_innovation = kalman_update(*ref, z, sensors, CV_LAYOUT)
+        ref = (ref_mean, ref_cov)
+        after = compare(state, *ref, when)
+        if m == 0:
+            _close(after[0], before[0], label, f"mean {when} (must equal the prediction)", rtol=1e-12, atol=1e-12)
+            _close(after[1], before[1], label, f"covariance {when} (must equal the prediction)", rtol=1e-12, atol=1e-12)
+        elif exact_kalman:
+            _close(innovation.nu, ref_innovation.nu, label, f"innovation nu {when}", rtol=1e-7, atol=1e-7)
+            _close(innovation.S, ref_innovation.S, label, f"innovation S {when}", rtol=1e-7, atol=1e-7)
+            _close(innovation.loglik, ref_innovation.loglik, label, f"loglik {when}", rtol=1e-7, atol=1e-7)
+
+    bad_priors = (
+        ("a NaN in the prior mean", np.where(np.arange(n) == 1, np.nan, mean), cov),
+        ("an inf in the prior covariance", mean, np.where(np.eye(n, dtype=bool), np.inf, cov)),
+        ("a covariance of the wrong shape", mean, cov[:, :-1, :-1]),
+    )
+    for what, bad_mean, bad_cov in bad_priors:
+        try:
+            estimator.initialize(np.array(bad_mean), np.array(bad_cov))
+        except ValueError:
+            continue
+        except Exception as error:
+            raise AssertionError(f"{label}: initialize with {what} raised {error!r}, expected ValueError") from error
+        raise AssertionError(f"{label}: initialize with {what} did not raise ValueError")
+
+
+# --------------------------------------------------------------------------- detectors
+
+
+def _comparable(value) -> np.ndarray:
+    return np.asarray(value, dtype=float)
+
+
+def _same_step(a: DetectorStep, b: DetectorStep) -> bool:
+    if set(a.statistics) != set(b.statistics) or set(a.thresholds) != set(b.thresholds):
+        return False
+    for key in a.statistics:
+        if not np.array_equal(_comparable(a.statistics[key]), _comparable(b.statistics[key]), equal_nan=True):
+            return False
+    for key in a.thresholds:
+        if not np.array_equal(_comparable(a.thresholds[key]), _comparable(b.thresholds[key]), equal_nan=True):
+            return False
+    return a.decision == b.decision
+
+
+def check_detector(detector: Detector, innovations: Sequence[Innovation] | None = None, *, seed: int = 0) -> None:
+    """Check a :class:`~hybridtrack.interfaces.Detector` over a sequence of innovations.
+
+    ``innovations`` defaults to the detector's ``example_innovations(rng)`` or
+    20 steps of a bank of M = 3, m = 2.  Every step returns a
+    :class:`DetectorStep` whose statistics (a non-empty dict) and thresholds
+    are numeric with no NaN; after ``reset()`` the same input gives the same
+    outputs and decisions.
+    """
+    label = _label(detector, "detector")
+    _require(isinstance(detector, Detector), label, "is not a hybridtrack.interfaces.Detector")
+    _registry_name(detector, label)
+    if innovations is None:
+        provider = getattr(detector, "example_innovations", None)
+        innovations = provider(np.random.default_rng(seed)) if provider else random_innovations(np.random.default_rng(seed))
+    innovations = list(innovations)
+    _require(len(innovations) > 0, label, "no innovations to run on")
+
+    def run() -> list[DetectorStep]:
+        detector.reset()
+        outputs = []
+        for k, innovation in enumerate(innovations):
+            out = detector.step(k, innovation)
+            _require(isinstance(out, DetectorStep), label, f"step {k} returned {type(out).__name__}, expected DetectorStep")
+            _require(isinstance(out.statistics, dict) and out.statistics, label, f"step {k}: statistics must be a non-empty dict, got {out.statistics!r}")
+            for kind, table in (("statistic", out.statistics), ("threshold", out.thresholds)):
+                for key, value in table.items():
+                    _require(isinstance(key, str) and key, label, f"step {k}: {kind} name {key!r} is not a non-empty string")
+                    try:
+                        array = _comparable(value)
+                    except (TypeError, ValueError):
+                        raise AssertionError(f"{label}: step {k}: {kind} {key!r} is not numeric: {value!r}") from None
+                    _require(not np.isnan(array).any(), label, f"step {k}: {kind} {key!r} is NaN: {value!r}")
+            outputs.append(out)
+        return outputs
+
+    first, second = run(), run()
+    for k, (a, b) in enumerate(zip(first, second)):
+        _require(_same_step(a, b), label, f"step {k} differs after reset() on the same input:\n{a}\n{b}")
+
+
+# --------------------------------------------------------------------------- solvers
+
+
+def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
+    """Check a :class:`~hybridtrack.interfaces.Solver` on ``problem`` (default: its ``example_problem()``).
+
+    The answer is a :class:`Solution` with finite parameters θ (p,), a
+    symmetric PSD covariance (p, p), a finite non-negative cost, non-negative
+    counts and a bool ``converged``; solving again gives the same θ.  Without a
+    problem only the name is checked and ``None`` is returned.
+    """
+    label = _label(solver, "solver")
+    _require(isinstance(solver, Solver), label, "is not a hybridtrack.interfaces.Solver")
+    _registry_name(solver, label)
+    if problem is None:
+        provider = getattr(solver, "example_problem", None)
+        if provider is None:
+            return None
+        problem = provider()
+    solution = solver.solve(problem)
+    _require(isinstance(solution, Solution), label, f"solve() returned {type(solution).__name__}, expected Solution")
+    theta = _array(solution.parameters, label, "solution parameters")
+    _require(theta.ndim == 1 and theta.size > 0, label, f"solution parameters must have shape (p,), got {theta.shape}")
+    p = theta.shape[0]
+    covariance = _array(solution.covariance, label, "solution covariance", (p, p))
+    _symmetric_psd(covariance, label, "solution covariance", definite=False)
+    _require(np.isfinite(solution.cost) and solution.cost >= 0, label, f"solution cost must be finite and ≥ 0, got {solution.cost!r}")
+    for field in ("iterations", "evaluations"):
+        value = getattr(solution, field)
+        _require(isinstance(value, (int, np.integer)) and value >= 0, label, f"solution {field} must be an integer ≥ 0, got {value!r}")
+    _require(isinstance(solution.converged, (bool, np.bool_)), label, f"solution converged must be a bool, got {solution.converged!r}")
+    again = solver.solve(problem)
+    _close(again.parameters, theta, label, "parameters of a second solve of the same problem", rtol=1e-12, atol=0)
+    return solution
+
+
+# --------------------------------------------------------------------------- dispatch
+
+_CHECKS: dict[str, Callable[..., Any]] = {
+    "motion_model": check_motion_model,
+    "sensor": check_sensor,
+    "estimator": check_estimator,
+    "detector": check_detector,
+    "solver": check_solver,
+}
+assert set(_CHECKS) == set(KINDS)
+
+
+def check_component(kind: str, component: Any, **options) -> Any:
+    """Run the check for ``kind`` (one of :data:`hybridtrack.interfaces.KINDS`) on ``component``."""
+    try:
+        check = _CHECKS[kind]
+    except KeyError:
+        raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(KINDS)}") from None
+    return check(component, **options)
