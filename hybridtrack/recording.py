@@ -163,6 +163,17 @@ class RerunRecorder:
         return False
 
 
+def log_measurements(recorder, sensors, measurements, steps, times=None) -> None:
+    """Log each sensor's measurements: points when it measures (x, y), scalar series otherwise."""
+    for sensor in sensors:
+        z = measurements[sensor.name]
+        entity = f"world/measurements/{sensor.name}"
+        if tuple(getattr(sensor, "components", ())) == ("x", "y"):
+            recorder.log_points(entity, steps, z, times)
+        else:
+            recorder.log_scalars(entity, steps, z, times)
+
+
 def open_recorder(path: str | Path | None, configuration: dict | None = None):
     """A :class:`RerunRecorder` writing ``path``, or a :class:`NullRecorder` when ``path`` is None."""
     return NullRecorder() if path is None else RerunRecorder(path, configuration)

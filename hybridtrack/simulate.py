@@ -26,6 +26,7 @@ import numpy as np
 from hybridtrack._arrays import as_float_array, check_covariance
 from hybridtrack.interfaces import MotionModel, Sensor, convert_layout
 from hybridtrack.network import SensorNetwork
+from hybridtrack.recording import log_measurements
 from hybridtrack.registry import Registry
 from hybridtrack.types import Schedule
 
@@ -126,10 +127,12 @@ def simulate_trajectory(
     noise_cov=None,
     registry: Registry | None = None,
     models: Sequence[MotionModel] | None = None,
+    recorder=None,
 ) -> Trajectory:
     """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``.
 
-    ``models`` overrides the registry lookup (one model per schedule row).
+    ``models`` overrides the registry lookup (one model per schedule row); with
+    a ``recorder`` the true path is logged under ``world/truth``.
     """
     tau = float(tau)
     if not (np.isfinite(tau) and tau > 0):
@@ -162,18 +165,35 @@ def simulate_trajectory(
                 raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
             states.append(convert_layout(x, current_layout, layout))
             segment_index.append(i)
-    return Trajectory(schedule, tau, tuple(layout), np.array(states), np.array(segment_index))
+    trajectory = Trajectory(schedule, tau, tuple(layout), np.array(states), np.array(segment_index))
+    if recorder is not None:
+        recorder.log_path("world/truth", trajectory.steps, trajectory.positions, trajectory.times)
+    return trajectory
 
 
-def simulate_measurements(trajectory: Trajectory, sensors: Sequence[Sensor] | SensorNetwork, *, seed=None) -> dict[str, np.ndarray]:
-    """Noisy measurements of every state (steps 0..K) by each sensor: name → (K+1, m)."""
+def simulate_measurements(
+    trajectory: Trajectory, sensors: Sequence[Sensor] | SensorNetwork, *, seed=None, recorder=None
+) -> dict[str, np.ndarray]:
+    """Noisy measurements of every state (steps 0..K) by each sensor: name → (K+1, m).
+
+    With a ``recorder`` they are logged under ``world/measurements/<sensor>``.
+    """
     network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
     rng = _rng(seed)
-    return {sensor.name: sensor.simulate(trajectory.states, trajectory.layout, rng) for sensor in network.sensors}
+    measurements = {sensor.name: sensor.simulate(trajectory.states, trajectory.layout, rng) for sensor in network.sensors}
+    if recorder is not None:
+        log_measurements(recorder, network.sensors, measurements, trajectory.steps, trajectory.times)
+    return measurements
 
 
-def simulate(schedule: Schedule, x0, tau: float, sensors, *, seed=None, **options) -> tuple[Trajectory, dict[str, np.ndarray]]:
-    """Trajectory and measurements from one seed (independent streams via ``SeedSequence.spawn``)."""
+def simulate(
+    schedule: Schedule, x0, tau: float, sensors, *, seed=None, recorder=None, **options
+) -> tuple[Trajectory, dict[str, np.ndarray]]:
+    """Trajectory and measurements from one seed (independent streams via ``SeedSequence.spawn``).
+
+    With a ``recorder`` the truth and the measurements are logged.
+    """
     trajectory_seed, measurement_seed = np.random.SeedSequence(seed).spawn(2)
-    trajectory = simulate_trajectory(schedule, x0, tau, seed=np.random.default_rng(trajectory_seed), **options)
-    return trajectory, simulate_measurements(trajectory, sensors, seed=np.random.default_rng(measurement_seed))
+    trajectory = simulate_trajectory(schedule, x0, tau, seed=np.random.default_rng(trajectory_seed), recorder=recorder, **options)
+    measurements = simulate_measurements(trajectory, sensors, seed=np.random.default_rng(measurement_seed), recorder=recorder)
+    return trajectory, measurements
