@@ -44,9 +44,9 @@ def update(x, P, nu, H, R, selection=None, form: str = "joseph"):
     K = np.swapaxes(cholesky_solve(L, np.swapaxes(PHt, -1, -2)), -1, -2)  # (M, n, m)
     x_new = x + np.einsum("mij,mj->mi", K, nu)
     if form == "joseph":
-        if selection is not None:
+        if selection is not None and len(set(idx)) == len(idx):
             A = np.broadcast_to(np.eye(P.shape[-1]), P.shape).copy()
-            A[:, :, idx] -= K
+            A[:, :, idx] -= K  # K H puts K's columns at the selected indices
         else:
             A = np.eye(P.shape[-1]) - K @ H
         P_new = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)

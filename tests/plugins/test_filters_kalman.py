@@ -86,7 +86,7 @@ def test_selection_path_equals_general_h():
     assert est_sel._assembler.sensor_model(sel, LAYOUT).selection == (0, 2)
     assert est_gen._assembler.sensor_model(general, LAYOUT).selection is None
     for (sa, ia), (sb, ib) in zip(a, b):
-        np.testing.assert_allclose(sa.mean, sb.mean, rtol=1e-12)
+        np.testing.assert_allclose(sa.mean, sb.mean, rtol=1e-12, atol=1e-290)
         np.testing.assert_allclose(sa.covariance, sb.covariance, rtol=1e-12, atol=1e-290)
         np.testing.assert_allclose(ia.loglik, ib.loglik, rtol=1e-12)
 
@@ -156,3 +156,18 @@ def test_bad_step_input_raises():
         est.update(state, np.zeros(2), [position_sensor()], LAYOUT[:3])
     with pytest.raises(ValueError, match="form: expected one of"):
         KalmanFilter(form="nope")
+
+
+@pytest.mark.parametrize("form", ["joseph", "symmetric"])
+def test_repeated_components_across_sensors(form):
+    """Two sensors measuring the same coordinate: the selection path must add both gains."""
+    a, b = position_sensor(np.diag([0.02, 0.05]), name="a"), position_sensor(np.array([[0.1]]), ("x",), name="b")
+    H = np.vstack([a.H, b.H])
+    stacked = MatrixSensor(H + np.array([[0, 1e-300, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0]]), np.diag([0.02, 0.05, 0.1]))
+    x0, P0 = np.zeros((1, 4)), np.eye(4)[None]
+    z = np.array([1.0, 2.0, 3.0])
+    ea, eb = KalmanFilter(form=form), KalmanFilter(form=form)
+    sa, _ = ea.update(ea.initialize(x0, P0), z, [a, b], LAYOUT)
+    sb, _ = eb.update(eb.initialize(x0, P0), z, [stacked], LAYOUT)
+    np.testing.assert_allclose(sa.covariance, sb.covariance, rtol=1e-12, atol=1e-290)
+    np.testing.assert_allclose(sa.mean, sb.mean, rtol=1e-12, atol=1e-290)

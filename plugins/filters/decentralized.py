@@ -1,0 +1,154 @@
+"""Decentralized information Kalman filter over N fully connected nodes (SPEC §3, seed 000 Algorithm 2).
+
+Every node i keeps its own copy (I_i, s_i) of every filter of the bank and:
+
+1. predicts locally: x_i⁻ = F x_i⁺ + B, (P_i⁻)⁻¹ = (F P_i⁺ Fᵀ + G Q Gᵀ)⁻¹       (eqs. 16–17)
+2. computes its contribution ΔI_i = H_iᵀR_i⁻¹H_i, Δs_i = H_iᵀR_i⁻¹z_i         (eqs. 18–19)
+   (and z_iᵀR_i⁻¹z_i, ln det R_i for local detection, SPEC §4)
+3. broadcasts them; every node assimilates all of them:
+   I_i⁺ = I_i⁻ + Σ_j ΔI_j,  x_i⁺ = (I_i⁺)⁻¹ (I_i⁻ x_i⁻ + Σ_j Δs_j)           (eqs. 20–21)
+
+The nodes are the sensors passed to ``update`` (node j = ``sensors[j]``); a node
+without a measurement at a step broadcasts nothing.  Each node also computes
+NIS and ℓ locally (seed 000 eq. 22 and the determinant lemma), kept as
+``state.node_nis`` / ``state.node_loglik`` (N, M).  The returned
+:class:`Innovation` is that of the stacked (centralized) model at node 0, for
+comparison with the centralized filter (``kalman`` given all sensors), which
+this filter equals exactly (Rao & Durrant-Whyte 1991).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+from typing import Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack_plugins.filters import _information as info
+from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
+from hybridtrack_plugins.filters._linalg import symmetrize
+from hybridtrack_plugins.filters.information import information_predict, stacked_innovation
+
+
+@attrs.frozen(eq=False, slots=False)
+class DecentralizedState:
+    """Per-node information states: I (N, M, n, n), s (N, M, n); x⁻, P⁻ (N, M, …)."""
+
+    Y: np.ndarray
+    s: np.ndarray
+    x_predicted: np.ndarray
+    P_predicted: np.ndarray
+    innovation: Innovation | None = None
+    node_nis: np.ndarray | None = None
+    node_loglik: np.ndarray | None = None
+    moments: tuple | None = None
+
+    @property
+    def nodes(self) -> int:
+        return self.Y.shape[0]
+
+    @cached_property
+    def _moments(self):
+        return self.moments if self.moments is not None else info.to_covariance(self.Y, self.s)
+
+    @property
+    def node_means(self) -> np.ndarray:
+        """Every node's x (N, M, n)."""
+        return self._moments[0]
+
+    @property
+    def node_covariances(self) -> np.ndarray:
+        return self._moments[1]
+
+    @property
+    def mean(self) -> np.ndarray:
+        """Node 0's estimate (all nodes hold the same one up to rounding)."""
+        return self._moments[0][0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self._moments[1][0]
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted[0]
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.P_predicted[0]
+
+
+class DecentralizedFilter(BankEstimator):
+    """Decentralized information KF (Algorithm 2 of seed 000): N nodes = the sensors given to ``update``.
+
+    ``nodes``: the number of nodes, if known at ``initialize``; otherwise the
+    single initial copy is replicated to ``len(sensors)`` nodes at the first update.
+    """
+
+    name = "decentralized"
+
+    def __init__(self, nodes: int | None = None):
+        super().__init__()
+        if nodes is not None and (int(nodes) != nodes or nodes < 1):
+            raise ValueError(f"nodes: expected a positive integer, got {nodes!r}")
+        self.nodes = None if nodes is None else int(nodes)
+
+    def initialize(self, mean, cov) -> DecentralizedState:
+        x, P = self._check_prior(mean, cov)
+        Y, s = info.to_information(x, P)
+        N = self.nodes or 1
+        rep = lambda a: np.broadcast_to(a, (N,) + a.shape).copy()  # noqa: E731
+        return DecentralizedState(rep(Y), rep(s), rep(x), rep(P), moments=(rep(x), rep(P)))
+
+    def predict(self, state: DecentralizedState, transitions: TransitionBank) -> DecentralizedState:
+        N, M, n = state.s.shape
+        bank = self._check_transitions(transitions, M, n)
+        flat = lambda a: np.broadcast_to(a, (N,) + a.shape).reshape((N * M,) + a.shape[1:])  # noqa: E731
+        Y, s, x, P = information_predict(state.Y.reshape(N * M, n, n), state.s.reshape(N * M, n), flat(bank.F), flat(bank.B), flat(bank.Q))
+        shape = lambda a: a.reshape((N, M) + a.shape[1:])  # noqa: E731
+        return DecentralizedState(shape(Y), shape(s), shape(x), shape(P), moments=(shape(x), shape(P)))
+
+    def _replicate(self, state: DecentralizedState, N: int) -> DecentralizedState:
+        rep = lambda a: np.broadcast_to(a[:1], (N,) + a.shape[1:]).copy()  # noqa: E731
+        x, P = state._moments
+        return DecentralizedState(rep(state.Y), rep(state.s), rep(state.x_predicted), rep(state.P_predicted), moments=(rep(x), rep(P)))
+
+    def update(self, state: DecentralizedState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        if isinstance(sensors, Sensor):
+            sensors = (sensors,)
+        N, M, n = state.s.shape
+        if N != len(sensors):
+            if N != 1:
+                raise ValueError(f"sensors: expected {N} sensors (one per node of this decentralized filter), got {len(sensors)}")
+            state = self._replicate(state, len(sensors))
+            N = len(sensors)
+        step = self._measurement(z, sensors, layout, M, n)
+        if step is None:
+            innovation = empty_innovation(M)
+            return attrs.evolve(state, innovation=innovation, node_nis=None, node_loglik=None, moments=state._moments), innovation
+        if step.H is None:
+            raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
+        # Local measurement update at each node that measured (eqs. 18–19).
+        broadcast = []
+        for model, block in zip(step.models, step.blocks):
+            R_j = step.R[..., block, block]
+            broadcast.append(info.measurement_information(model.H, R_j, step.z[:, block]))
+        # Communication: every node receives every contribution and sums them.
+        dY = sum(b[0] for b in broadcast)
+        ds = sum(b[1] for b in broadcast)
+        zRz = sum(b[2] for b in broadcast)
+        log_det_R = sum(b[3] for b in broadcast)
+        # Assimilation at every node (eqs. 20–21).
+        x_prior, P_prior = state._moments
+        Y = symmetrize(state.Y + dY)
+        s = state.s + ds
+        x_post, P_post = info.to_covariance(Y, s)
+        node_loglik, node_nis = info.local_scores(x_prior, state.Y, x_post, Y, zRz, log_det_R, step.dim)
+        innovation = stacked_innovation(step, x_prior[0], P_prior[0], layout)
+        new = DecentralizedState(Y, s, state.x_predicted, state.P_predicted, innovation, node_nis, node_loglik, (x_post, P_post))
+        return new, innovation
+
+
+COMPONENTS = {"decentralized": DecentralizedFilter}

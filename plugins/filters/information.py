@@ -1,0 +1,117 @@
+"""Information filter bank (SPEC §3, seed 000 eqs. 10–13).
+
+State I = P⁻¹, s = I x.  Predict in covariance form (F may be singular, e.g.
+the stop mode): P⁺ = (I⁺)⁻¹, P⁻ = F P⁺ Fᵀ + G Q Gᵀ, I⁻ = (P⁻)⁻¹, s⁻ = I⁻ x⁻
+(seed 000 eq. 17), all by Cholesky solves.  Update:
+I⁺ = I⁻ + Hᵀ R⁻¹ H,  s⁺ = s⁻ + Hᵀ R⁻¹ z  (eqs. 10–13).
+ν = z − H x⁻ and S = H P⁻ Hᵀ + R are reported as in the covariance form; the
+NIS is also computed from information quantities alone (seed 000 eq. 22) and
+kept as ``state.nis_information``.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+from typing import Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack_plugins.filters import _covariance as cov_form
+from hybridtrack_plugins.filters import _information as info
+from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
+from hybridtrack_plugins.filters._linalg import cholesky, gaussian_scores, symmetrize
+
+
+@attrs.frozen(eq=False, slots=False)
+class InformationState:
+    """I (M, n, n) and s (M, n), with x⁻, P⁻ of the last prediction."""
+
+    Y: np.ndarray
+    s: np.ndarray
+    x_predicted: np.ndarray
+    P_predicted: np.ndarray
+    innovation: Innovation | None = None
+    nis_information: np.ndarray | None = None
+    moments: tuple | None = None  # (x, P) when already known, else computed from (I, s) on demand
+
+    @cached_property
+    def _moments(self):
+        return self.moments if self.moments is not None else info.to_covariance(self.Y, self.s)
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self._moments[0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self._moments[1]
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.P_predicted
+
+    @property
+    def information(self) -> np.ndarray:
+        """I = P⁻¹."""
+        return self.Y
+
+
+def information_predict(Y, s, F, B, Q):
+    """(I⁻, s⁻, x⁻, P⁻) from (I⁺, s⁺) through the covariance prediction (seed 000 eqs. 16–17)."""
+    x, P = info.to_covariance(Y, s)
+    x_pred, P_pred = cov_form.predict(x, P, F, B, Q)
+    Y_pred, s_pred = info.to_information(x_pred, P_pred)
+    return Y_pred, s_pred, x_pred, P_pred
+
+
+def stacked_innovation(step, x_pred, P_pred, layout):
+    """ν = z − H x⁻, S = H P⁻ Hᵀ + R and their scores for the stacked (centralized) model."""
+    z_pred, H = step.predicted(x_pred, layout)
+    nu = step.residual(z_pred)
+    S = symmetrize(H @ P_pred @ np.swapaxes(H, -1, -2) + step.R)
+    loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
+    return Innovation(nu, S, loglik, nis)
+
+
+class InformationFilter(BankEstimator):
+    """Information-form Kalman filter bank (I = P⁻¹, s = I x)."""
+
+    name = "information"
+
+    def initialize(self, mean, cov) -> InformationState:
+        x, P = self._check_prior(mean, cov)
+        Y, s = info.to_information(x, P)
+        return InformationState(Y, s, x, P, moments=(x, P))
+
+    def predict(self, state: InformationState, transitions: TransitionBank) -> InformationState:
+        M, n = state.s.shape
+        bank = self._check_transitions(transitions, M, n)
+        Y, s, x, P = information_predict(state.Y, state.s, bank.F, bank.B, bank.Q)
+        return InformationState(Y, s, x, P, moments=(x, P))
+
+    def update(self, state: InformationState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        M, n = state.s.shape
+        step = self._measurement(z, sensors, layout, M, n)
+        if step is None:
+            innovation = empty_innovation(M)
+            return attrs.evolve(state, innovation=innovation, nis_information=None, moments=state._moments), innovation
+        if step.H is None:
+            raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
+        dY, ds, zRz, log_det_R = info.measurement_information(step.H, step.R, step.z)
+        Y = symmetrize(state.Y + dY)
+        s = state.s + ds
+        x_prior, P_prior = state.mean, state.covariance  # the prior of this update
+        innovation = stacked_innovation(step, x_prior, P_prior, layout)
+        x_post, P_post = info.to_covariance(Y, s)
+        _, nis_local = info.local_scores(x_prior, state.Y, x_post, Y, zRz, log_det_R, step.dim)
+        new = InformationState(Y, s, state.x_predicted, state.P_predicted, innovation, nis_local, (x_post, P_post))
+        return new, innovation
+
+
+COMPONENTS = {"information": InformationFilter}
