@@ -8,7 +8,9 @@ found through the ``hybridtrack`` entry-point group.  The built-ins in
 Loading isolates faults: a plugin that fails to import, implements a misspelt
 hook (pluggy's ``check_pending``) or registers a component name that is taken
 gives a :class:`PluginWarning` naming the plugin and its distribution, and the
-other plugins still load.  ``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks
+other plugins still load.  This project's own plugins load first, so a
+component name taken by a built-in stays the built-in's.
+``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks
 plugins by entry-point name (or distribution name).
 """
 
@@ -99,7 +101,7 @@ def load_plugins(
         infos[info.name] = info
 
     if entrypoints:
-        for point in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda p: p.name):
+        for point in sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order):
             dist = getattr(point, "dist", None)
             info = PluginInfo(point.name, dist.name if dist else None, dist.version if dist else None)
             if point.name in blocked or info.distribution in blocked:
@@ -137,6 +139,13 @@ def load_plugins(
             except Exception as error:  # noqa: BLE001
                 report(f"plugin {info.name!r} (distribution {info.distribution or 'none'}) failed in {hook_name}: {error!r}", from_code)
     return LoadedPlugins(registry, tuple(infos.values()), tuple(problems), manager)
+
+
+def _load_order(point) -> tuple[bool, str]:
+    """This project's own plugins first, then the others by name: a third-party
+    component reusing a built-in name is the one rejected, whatever its name sorts as."""
+    dist = getattr(point, "dist", None)
+    return (dist is None or dist.name != hookspecs.PROJECT, point.name)
 
 
 @functools.cache
