@@ -219,18 +219,32 @@ class Innovation:
 
 @attrs.frozen(eq=False)
 class TransitionBank:
-    """Stacked transitions of M filters: F (M, n, n), B (M, n), Q (M, n, n) = G Q Gᵀ."""
+    """Stacked transitions of M filters: F (M, n, n), B (M, n), Q (M, n, n) = G Q Gᵀ.
+
+    ``noise_root`` (optional, (M, n, r)) is a factor W with W Wᵀ = Q, e.g.
+    G chol(Q_w); square-root filters use it instead of factoring the singular
+    G Q Gᵀ.  ``stack`` fills it when every Q_w is positive definite and all have
+    the same size, otherwise leaves it ``None``.
+    """
 
     F: np.ndarray
     B: np.ndarray
     Q: np.ndarray
+    noise_root: np.ndarray | None = None
 
     @classmethod
     def stack(cls, transitions: Sequence[LinearTransition]) -> "TransitionBank":
+        root = None
+        if len({t.Q.shape for t in transitions}) == 1:
+            try:
+                root = np.stack([t.G @ np.linalg.cholesky(t.Q) for t in transitions])
+            except np.linalg.LinAlgError:
+                root = None
         return cls(
             np.stack([t.F for t in transitions]),
             np.stack([t.B for t in transitions]),
             np.stack([t.process_noise for t in transitions]),
+            root,
         )
 
 
