@@ -27,7 +27,7 @@ import numpy as np
 
 from hybridtrack.interfaces import Detector, DetectorStep, Estimator, Innovation, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
-from hybridtrack.recording import NullRecorder, log_measurements
+from hybridtrack.recording import NullRecorder, log_estimate, log_measurements
 from hybridtrack.registry import Registry
 from hybridtrack.types import Decision, Gaussian
 
@@ -64,8 +64,9 @@ class StepResult:
 
 @attrs.frozen(eq=False)
 class RunResult:
-    """A whole run: means (K+1, M, n), covs (K+1, M, n, n), nis and loglik (K+1, M) (NaN where no
-    measurement), detector statistics name → series → array over steps, and the decisions."""
+    """A whole run: means (K+1, M, n), covs (K+1, M, n, n), nis and loglik (K+1, M), innovations
+    (K+1, M, Σm) (NaN where a step lacked some measurement), detector statistics name → series →
+    array over steps, and the decisions."""
 
     layout: tuple[str, ...]
     filters: tuple[str, ...]
@@ -73,6 +74,7 @@ class RunResult:
     covs: np.ndarray
     nis: np.ndarray
     loglik: np.ndarray
+    innovations: np.ndarray
     statistics: dict[str, dict[str, np.ndarray]]
     decisions: tuple[Decision, ...]
 
@@ -204,17 +206,22 @@ class Pipeline:
                 for key, value in {**output.statistics, **output.thresholds}.items():
                     series.setdefault(key, []).append(value)
 
-        def per_filter(values):
-            values = np.asarray(values, dtype=float)
-            return values if values.shape == (M,) else np.full(M, np.nan)
-
+        full = self.network.measurement_dim
+        missing = np.full(M, np.nan)
+        nis, loglik, innovations = [], [], []
+        for r in self._results:
+            complete = r.innovation.measurement_dim > 0
+            nis.append(r.innovation.nis if complete else missing)
+            loglik.append(r.innovation.loglik if complete else missing)
+            innovations.append(r.innovation.nu if r.innovation.measurement_dim == full else np.full((M, full), np.nan))
         return RunResult(
             layout=self.layout,
             filters=self.filter_names,
             means=np.stack([r.mean for r in self._results]),
             covs=np.stack([r.cov for r in self._results]),
-            nis=np.stack([per_filter(r.innovation.nis) if r.innovation.measurement_dim else np.full(M, np.nan) for r in self._results]),
-            loglik=np.stack([per_filter(r.innovation.loglik) if r.innovation.measurement_dim else np.full(M, np.nan) for r in self._results]),
+            nis=np.stack(nis).astype(float),
+            loglik=np.stack(loglik).astype(float),
+            innovations=np.stack(innovations).astype(float),
             statistics={n: {k: np.asarray(v, dtype=float) for k, v in s.items()} for n, s in statistics.items()},
             decisions=tuple(self._decisions),
         )
@@ -232,10 +239,12 @@ class Pipeline:
             positions = self.truth.positions[: len(steps)]
             rec.log_path("world/truth", steps, positions, times)
         log_measurements(rec, self.network.sensors, self.network.split(self.z[: len(steps)]), steps, times)
-        ix, iy = self.layout.index("x"), self.layout.index("y")
+        position = [self.layout.index("x"), self.layout.index("y")]
         for j, name in enumerate(self.filter_names):
-            rec.log_path(f"world/estimate/{name}", steps, result.means[:, j][:, [ix, iy]], times)
-        rec.log_scalars("estimator/nis", steps, result.nis, times, names=self.filter_names)
+            log_estimate(rec, name, steps, result.means[:, j], result.covs[:, j], position, times)
+            rec.log_scalars(f"estimator/{name}/nis", steps, result.nis[:, j], times)
+            rec.log_scalars(f"estimator/{name}/loglik", steps, result.loglik[:, j], times)
+            rec.log_scalars(f"estimator/{name}/innovation", steps, result.innovations[:, j], times)
         for detector, series in result.statistics.items():
             for key, values in series.items():
                 rec.log_scalars(f"detector/{detector}/{key}", steps, values, times)
@@ -299,7 +308,7 @@ def run_known_modes(
     run = ScheduleRun(models[0].layout, np.concatenate(means), np.concatenate(covs), np.concatenate(nis))
     if recorder is not None:
         steps = np.arange(run.means.shape[0])
-        positions = run.means[:, [run.layout.index("x"), run.layout.index("y")]]
-        recorder.log_path(f"world/estimate/{name}", steps, positions, steps * tau)
+        position = [run.layout.index("x"), run.layout.index("y")]
+        log_estimate(recorder, name, steps, run.means, run.covs, position, steps * tau)
         recorder.log_scalars(f"estimator/{name}/nis", steps, run.nis, steps * tau)
     return run

@@ -10,14 +10,10 @@ Series are logged as whole columns (``send_columns``) on the timelines ``step``
 (sequence) and ``time`` (duration in seconds, when times are given).  Entity
 paths used by the built-in components:
 
-==============================  ===============================================
-``world/truth``                 true positions (points per step + the whole path)
-``world/measurements/<sensor>`` measured positions of a position sensor
-``world/estimate/<filter>``     estimated positions
-``estimator/<filter>/nis``      normalized innovation squared per step
-``detector/<name>/<series>``    detector statistics and thresholds
-``events/decisions``            decisions as text events
-==============================  ===============================================
+The full list of entity paths is in ``docs/recording.md``.  Every file
+carries the default blueprint of :func:`default_blueprint` (trajectories,
+likelihood ratios, signal functions, events) and the run's configuration as
+the recording property ``configuration``.
 """
 
 from __future__ import annotations
@@ -50,6 +46,14 @@ class Recorder(Protocol):
     def log_event(self, step: int, text: str, time: float | None = None, level: str = "INFO") -> None:
         """A text event (decisions, warnings) at ``step``."""
 
+    def log_ellipses(
+        self, entity: str, steps: np.ndarray, centers: np.ndarray, covs: np.ndarray, times: np.ndarray | None = None, sigmas: float = 2.0
+    ) -> None:
+        """Covariance ellipses: centers (K, 2), 2×2 position covariances (K, 2, 2), drawn at ``sigmas``."""
+
+    def log_lines(self, entity: str, steps: np.ndarray, starts: np.ndarray, ends: np.ndarray, times: np.ndarray | None = None) -> None:
+        """One or more 2-D segments per step: starts, ends of shape (K, 2) or (K, L, 2) (e.g. bearing lines)."""
+
     def close(self) -> None:
         """Flush and close; idempotent."""
 
@@ -69,6 +73,12 @@ class NullRecorder:
     def log_event(self, step, text, time=None, level="INFO"):
         pass
 
+    def log_ellipses(self, entity, steps, centers, covs, times=None, sigmas=2.0):
+        pass
+
+    def log_lines(self, entity, steps, starts, ends, times=None):
+        pass
+
     def close(self):
         pass
 
@@ -86,11 +96,41 @@ def recording_id(configuration: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
+def default_blueprint():
+    """The layout stored in every file: trajectories, likelihood ratios, signal functions, events."""
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="/world", name="Trajectories"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="/detector", contents=["+ /detector/**", "- /detector/*/signal/**"],
+                                   name="Likelihood ratios and statistics"),
+                rrb.TimeSeriesView(origin="/detector", contents=["+ /detector/*/signal/**", "+ /estimator/**"],
+                                   name="Signal functions and NIS"),
+                rrb.TextLogView(origin="/events", name="Events"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+def ellipse_outlines(centers: np.ndarray, covs: np.ndarray, sigmas: float = 2.0, points: int = 33) -> np.ndarray:
+    """Outlines (K, points, 2) of {c + σ·L u : |u| = 1} with L Lᵀ = P, for centers (K, 2) and covariances (K, 2, 2)."""
+    angles = np.linspace(0.0, 2 * np.pi, points)
+    circle = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    values, vectors = np.linalg.eigh((covs + np.swapaxes(covs, -1, -2)) / 2)
+    L = vectors * np.sqrt(np.clip(values, 0.0, None))[..., None, :]
+    return centers[:, None, :] + sigmas * circle @ np.swapaxes(L, -1, -2)
+
+
 class RerunRecorder:
     """A file recording (.rrd) on its own ``rerun.RecordingStream``.
 
     ``configuration`` (a JSON-able dict, seed included) gives the recording id,
-    so the same run twice gives the same id.
+    so the same run twice gives the same id, and is stored as the recording
+    property ``configuration``.  The default blueprint is embedded.
     """
 
     def __init__(self, path: str | Path, configuration: dict | None = None, *, recording_id_: str | None = None):
@@ -99,9 +139,13 @@ class RerunRecorder:
         self._rr = rr
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.recording_id = recording_id_ or recording_id(configuration or {})
+        self.configuration = dict(configuration or {})
+        self.recording_id = recording_id_ or recording_id(self.configuration)
         self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
-        self.stream.save(str(self.path))
+        self.stream.save(str(self.path), default_blueprint=default_blueprint())
+        self.stream.send_property(
+            "configuration", rr.AnyValues(json=json.dumps(self.configuration, sort_keys=True, default=str))
+        )
         self._closed = False
 
     # -- helpers
@@ -149,6 +193,31 @@ class RerunRecorder:
         self._set_time(step, time)
         self.stream.log("events/decisions", self._rr.TextLog(text, level=level))
 
+    def _log_strips(self, entity, steps, strips, times):
+        """One list of line strips per step (strips: list over steps of lists of (P, 2) arrays)."""
+        self.stream.send_columns(
+            entity,
+            indexes=self._indexes(steps, times),
+            columns=self._rr.LineStrips2D.columns(strips=[s for step in strips for s in step]).partition(
+                np.array([len(step) for step in strips], dtype=np.int64)
+            ),
+        )
+
+    def log_ellipses(self, entity, steps, centers, covs, times=None, sigmas=2.0):
+        centers, covs = np.asarray(centers, dtype=np.float64), np.asarray(covs, dtype=np.float64)
+        keep = np.all(np.isfinite(centers), axis=-1) & np.all(np.isfinite(covs), axis=(-1, -2))
+        if keep.any():
+            strips = [[outline] for outline in ellipse_outlines(centers[keep], covs[keep], sigmas)]
+            self._log_strips(entity, np.asarray(steps)[keep], strips, None if times is None else np.asarray(times)[keep])
+
+    def log_lines(self, entity, steps, starts, ends, times=None):
+        starts, ends = np.asarray(starts, dtype=np.float64), np.asarray(ends, dtype=np.float64)
+        if starts.ndim == 2:
+            starts, ends = starts[:, None], ends[:, None]
+        strips = [[np.stack([a, b]) for a, b in zip(sa, sb) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
+                  for sa, sb in zip(starts, ends)]
+        self._log_strips(entity, steps, strips, times)
+
     def close(self):
         if not self._closed:
             self._closed = True
@@ -172,6 +241,16 @@ def log_measurements(recorder, sensors, measurements, steps, times=None) -> None
             recorder.log_points(entity, steps, z, times)
         else:
             recorder.log_scalars(entity, steps, z, times)
+
+
+def log_estimate(recorder, name, steps, means, covs, position, times=None) -> None:
+    """An estimate's path under ``world/estimate/<name>`` and its 2σ position ellipses under ``…/ellipse``.
+
+    ``means`` (K, n), ``covs`` (K, n, n); ``position`` the indices of x and y in the layout.
+    """
+    index = np.ix_(position, position)
+    recorder.log_path(f"world/estimate/{name}", steps, means[:, position], times)
+    recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, index[0], index[1]], times)
 
 
 def open_recorder(path: str | Path | None, configuration: dict | None = None):

@@ -138,7 +138,7 @@ def test_run_is_recorded_and_error_midway_keeps_what_was_done(tmp_path):
         with pytest.raises(RuntimeError, match="boom"):
             pipeline.run()
     entities = set(rr.chunk.RrdReader(path).stream().collect().schema().entity_paths())
-    assert {"/world/truth", "/world/measurements/a", "/world/estimate/straight", "/estimator/nis"} <= entities
+    assert {"/world/truth", "/world/measurements/a", "/world/estimate/straight", "/estimator/straight/nis"} <= entities
 
 
 def test_known_modes_runner_follows_the_schedule():
