@@ -39,8 +39,21 @@ class BankEstimator(Estimator):
     def _check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
         return check_prior(mean, cov)
 
-    def _check_transitions(self, transitions: TransitionBank, bank_size: int, n: int) -> TransitionBank:
-        """F (M, n, n), B (M, n), Q (M, n, n) finite; a bank already checked (same object) is not re-checked."""
+    #: estimators that relinearize (EKF forms) accept nonlinear sensors and a callable for ``transitions``
+    accepts_nonlinear = False
+
+    def _check_transitions(self, transitions, bank_size: int, n: int, x: np.ndarray | None = None) -> TransitionBank:
+        """F (M, n, n), B (M, n), Q (M, n, n) finite; a bank already checked (same object) is not re-checked.
+
+        Extended filters also take a callable ``transitions(x) -> TransitionBank``
+        that linearizes the motion at the current estimate x (M, n):
+        F = ∂f/∂x(x), B = f(x) − F x, so that F x + B = f(x) (MotionModel contract).
+        """
+        if callable(transitions) and not isinstance(transitions, TransitionBank):
+            if not self.accepts_nonlinear:
+                raise ValueError(f"transitions: {self.name!r} takes a TransitionBank; a linearizing callable needs an extended filter ('ekf', 'ekf_sqrt')")
+            transitions = transitions(x)
+            self._checked_transitions = None
         if not isinstance(transitions, TransitionBank):
             raise ValueError(f"transitions: expected a TransitionBank, got {type(transitions).__name__}")
         checked = self._checked_transitions
@@ -49,6 +62,8 @@ class BankEstimator(Estimator):
         as_float_array(transitions.F, "transitions.F", (bank_size, n, n))
         as_float_array(transitions.B, "transitions.B", (bank_size, n))
         as_float_array(transitions.Q, "transitions.Q", (bank_size, n, n))
+        if getattr(transitions, "noise_root", None) is not None:
+            as_float_array(transitions.noise_root, "transitions.noise_root", (bank_size, n, None))
         self._checked_transitions = (transitions, (bank_size, n))
         return transitions
 
@@ -56,6 +71,21 @@ class BankEstimator(Estimator):
         if len(layout) != n:
             raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
         return self._assembler.assemble(z, sensors, layout, bank_size)
+
+    def _linearized(self, x: np.ndarray, z, sensors: Sequence, layout: Sequence[str]):
+        """(step, ν, H) at x (M, n), or None when nothing was measured (prediction only).
+
+        ν = residual(z, h(x)) per sensor (angles wrapped), H = ∂h/∂x at x.
+        """
+        M, n = x.shape
+        step = self._measurement(z, sensors, layout, M, n)
+        if step is None:
+            return None
+        if step.H is None and not self.accepts_nonlinear:
+            names = [m.sensor.name for m in step.models if m.H is None]
+            raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {names} are nonlinear (use an extended filter)")
+        z_pred, H = step.predicted(x, layout)
+        return step, step.residual(z_pred), H
 
     # ------------------------------------------------------------------ reading
     def mean(self, state: Any) -> np.ndarray:

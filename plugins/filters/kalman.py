@@ -62,7 +62,6 @@ class KalmanFilter(BankEstimator):
     """
 
     name = "kalman"
-    accepts_nonlinear = False
 
     def __init__(self, form: str = "joseph"):
         super().__init__()
@@ -76,21 +75,17 @@ class KalmanFilter(BankEstimator):
 
     def predict(self, state: CovarianceState, transitions: TransitionBank) -> CovarianceState:
         M, n = state.x.shape
-        bank = self._check_transitions(transitions, M, n)
+        bank = self._check_transitions(transitions, M, n, state.x)
         x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
         return CovarianceState(x, P, x, P, None)
 
     def update(self, state: CovarianceState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
-        step = self._measurement(z, sensors, layout, M, n)
-        if step is None:
+        found = self._linearized(state.x, z, sensors, layout)
+        if found is None:
             innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation), innovation
-        if step.H is None and not self.accepts_nonlinear:
-            names = [m.sensor.name for m in step.models if m.H is None]
-            raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {names} are nonlinear (use 'ekf')")
-        z_pred, H = step.predicted(state.x, layout)
-        nu = step.residual(z_pred)
+        step, nu, H = found
         x, P, S, L, _ = cov_form.update(state.x, state.P, nu, H, step.R, step.selection, self.form)
         loglik, nis = cov_form.innovation_scores(nu, L)
         innovation = Innovation(nu, S, loglik, nis)

@@ -1,0 +1,81 @@
+"""Bierman UD filter bank (SPEC §3; seed 003, "Bierman style"; Bierman 1977, Thornton 1976).
+
+P = U D Uᵀ with U unit upper triangular and D = diag(d).  Time update by
+Thornton's modified weighted Gram–Schmidt on [F U, W] with weights diag(d, 1)
+(W Wᵀ = G Q Gᵀ); measurement update by Bierman's scalar algorithm after
+whitening by the Cholesky factor of R (``_sqrt.thornton_predict``,
+``_sqrt.bierman_update``).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.interfaces import Innovation, Sensor
+from hybridtrack_plugins.filters import _sqrt
+from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
+from hybridtrack_plugins.filters._linalg import symmetrize
+
+
+@attrs.frozen(eq=False)
+class UDState:
+    """x (M, n), U (M, n, n) unit upper triangular, d (M, n): P = U diag(d) Uᵀ; and the last prediction."""
+
+    x: np.ndarray
+    U: np.ndarray
+    d: np.ndarray
+    x_predicted: np.ndarray
+    U_predicted: np.ndarray
+    d_predicted: np.ndarray
+    innovation: Innovation | None = None
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.x
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return _sqrt.ud_covariance(self.U, self.d)
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return _sqrt.ud_covariance(self.U_predicted, self.d_predicted)
+
+
+class BiermanFilter(BankEstimator):
+    """Bierman UD filter bank with Thornton's MWGS time update."""
+
+    name = "bierman"
+
+    def initialize(self, mean, cov) -> UDState:
+        x, P = self._check_prior(mean, cov)
+        U, d = _sqrt.ud_factor(P)
+        return UDState(x, U, d, x, U, d)
+
+    def predict(self, state: UDState, transitions) -> UDState:
+        M, n = state.x.shape
+        bank = self._check_transitions(transitions, M, n, state.x)
+        x, U, d = _sqrt.thornton_predict(state.x, state.U, state.d, bank.F, bank.B, _sqrt.noise_root(bank))
+        return UDState(x, U, d, x, U, d)
+
+    def update(self, state: UDState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        found = self._linearized(state.x, z, sensors, layout)
+        if found is None:
+            innovation = empty_innovation(state.x.shape[0])
+            return attrs.evolve(state, innovation=innovation), innovation
+        step, nu, H = found
+        x, U, d, loglik, nis = _sqrt.bierman_update(state.x, state.U, state.d, H, nu, step.R)
+        HU = H @ state.U
+        S = symmetrize((HU * state.d[..., None, :]) @ np.swapaxes(HU, -1, -2) + step.R)
+        innovation = Innovation(nu, S, loglik, nis)
+        return UDState(x, U, d, state.x_predicted, state.U_predicted, state.d_predicted, innovation), innovation
+
+
+COMPONENTS = {"bierman": BiermanFilter}

@@ -1,0 +1,84 @@
+"""Potter square-root filter bank (SPEC §3; seed 003, "Potter style"; Potter 1963, Bierman 1977).
+
+State x and a square root S of P = S Sᵀ.  Time update: S⁻ from the QR
+factorization of [(F S)ᵀ; Wᵀ] (W Wᵀ = G Q Gᵀ), so S⁻S⁻ᵀ = F P Fᵀ + G Q Gᵀ.
+Measurement update: whiten by the Cholesky factor of R, then one scalar Potter
+step per component (``_sqrt.potter_update``).  P is never formed in the
+filter; ``covariance`` assembles it for reading.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.interfaces import Innovation, Sensor
+from hybridtrack_plugins.filters import _sqrt
+from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
+from hybridtrack_plugins.filters._linalg import cholesky, symmetrize
+
+
+@attrs.frozen(eq=False)
+class SquareRootState:
+    """x (M, n), S (M, n, n) with P = S Sᵀ; the same for the last prediction."""
+
+    x: np.ndarray
+    S: np.ndarray
+    x_predicted: np.ndarray
+    S_predicted: np.ndarray
+    innovation: Innovation | None = None
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.x
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """P = S Sᵀ."""
+        return self.S @ np.swapaxes(self.S, -1, -2)
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.S_predicted @ np.swapaxes(self.S_predicted, -1, -2)
+
+
+def factored_innovation(nu, H, root, R, loglik, nis):
+    """Innovation with S = (H S⁻)(H S⁻)ᵀ + R from a covariance factor, ℓ and NIS from the scalar steps."""
+    HS = H @ root
+    return Innovation(nu, symmetrize(HS @ np.swapaxes(HS, -1, -2) + R), loglik, nis)
+
+
+class PotterFilter(BankEstimator):
+    """Potter square-root Kalman filter bank (scalar measurement processing after whitening)."""
+
+    name = "potter"
+
+    def initialize(self, mean, cov) -> SquareRootState:
+        x, P = self._check_prior(mean, cov)
+        S = cholesky(P, "cov")
+        return SquareRootState(x, S, x, S)
+
+    def predict(self, state: SquareRootState, transitions) -> SquareRootState:
+        M, n = state.x.shape
+        bank = self._check_transitions(transitions, M, n, state.x)
+        x, S = _sqrt.potter_predict(state.x, state.S, bank.F, bank.B, _sqrt.noise_root(bank))
+        return SquareRootState(x, S, x, S)
+
+    def update(self, state: SquareRootState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        found = self._linearized(state.x, z, sensors, layout)
+        if found is None:
+            innovation = empty_innovation(state.x.shape[0])
+            return attrs.evolve(state, innovation=innovation), innovation
+        step, nu, H = found
+        x, S, loglik, nis = _sqrt.potter_update(state.x, state.S, H, nu, step.R)
+        innovation = factored_innovation(nu, H, state.S, step.R, loglik, nis)
+        return SquareRootState(x, S, state.x_predicted, state.S_predicted, innovation), innovation
+
+
+COMPONENTS = {"potter": PotterFilter}

@@ -1,0 +1,101 @@
+"""Square-root information filter bank (SPEC §3; Bierman 1977; seed 000 ref. 16).
+
+State R and ζ with I = P⁻¹ = Rᵀ R and ζ = R x.  Measurement update: QR of the
+stacked rows [[R⁻, ζ⁻], [L_R⁻¹H, L_R⁻¹z]] = [[R⁺, ζ⁺], [0, e]], NIS = e² and
+ln det S = ln det R_meas + 2 ln|det R⁺| − 2 ln|det R⁻|.  Time update:
+Dyer–McReynolds (F⁻¹ only through solves), or through the covariance square
+root when some F of the bank is singular (the stop mode).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+from typing import Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.interfaces import Innovation, Sensor
+from hybridtrack_plugins.filters import _sqrt
+from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
+from hybridtrack_plugins.filters._linalg import symmetrize
+
+
+@attrs.frozen(eq=False, slots=False)
+class SRIFState:
+    """R (…, M, n, n), ζ (…, M, n) now and after the last prediction; leading node axis for the decentralized form."""
+
+    R: np.ndarray
+    zeta: np.ndarray
+    R_predicted: np.ndarray
+    zeta_predicted: np.ndarray
+    innovation: Innovation | None = None
+
+    @cached_property
+    def _moments(self):
+        return _sqrt.srif_moments(self.R, self.zeta)
+
+    @cached_property
+    def _predicted_moments(self):
+        return _sqrt.srif_moments(self.R_predicted, self.zeta_predicted)
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self._moments[0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """P = R⁻¹R⁻ᵀ (by solves)."""
+        return self._moments[1]
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self._predicted_moments[0]
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self._predicted_moments[1]
+
+    @property
+    def information(self) -> np.ndarray:
+        """I = Rᵀ R."""
+        return np.swapaxes(self.R, -1, -2) @ self.R
+
+
+def srif_innovation(nu, H, Rinfo, R_meas):
+    """S = (H R⁻¹)(H R⁻¹)ᵀ + R_meas with H R⁻¹ from a solve with Rᵀ."""
+    A = np.linalg.solve(np.swapaxes(Rinfo, -1, -2), np.swapaxes(np.broadcast_to(H, Rinfo.shape[:-2] + H.shape[-2:]), -1, -2))
+    return symmetrize(np.swapaxes(A, -1, -2) @ A + R_meas)
+
+
+class SquareRootInformationFilter(BankEstimator):
+    """Square-root information filter bank (QR of stacked information rows)."""
+
+    name = "srif"
+
+    def initialize(self, mean, cov) -> SRIFState:
+        x, P = self._check_prior(mean, cov)
+        R, zeta = _sqrt.srif_from_moments(x, P)
+        return SRIFState(R, zeta, R, zeta)
+
+    def predict(self, state: SRIFState, transitions) -> SRIFState:
+        M, n = state.zeta.shape
+        bank = self._check_transitions(transitions, M, n, state.mean if callable(transitions) else None)
+        R, zeta = _sqrt.srif_predict(state.R, state.zeta, bank.F, bank.B, _sqrt.noise_root(bank))
+        return SRIFState(R, zeta, R, zeta)
+
+    def update(self, state: SRIFState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        x = state.mean
+        found = self._linearized(x, z, sensors, layout)
+        if found is None:
+            innovation = empty_innovation(x.shape[0])
+            return attrs.evolve(state, innovation=innovation), innovation
+        step, nu, H = found
+        Ht, zt, log_det_R = _sqrt.srif_rows(H, nu, step.R, x)
+        R, zeta, e2 = _sqrt.srif_update(state.R, state.zeta, [(Ht, zt)])
+        loglik = _sqrt.srif_scores(state.R, R, log_det_R, e2, step.dim)
+        innovation = Innovation(nu, srif_innovation(nu, H, state.R, step.R), loglik, e2)
+        return SRIFState(R, zeta, state.R_predicted, state.zeta_predicted, innovation), innovation
+
+
+COMPONENTS = {"srif": SquareRootInformationFilter}
