@@ -27,6 +27,7 @@ class RecordingFile:
     """The data of one .rrd file, per entity path and column."""
 
     def __init__(self, path: str | Path):
+        import pyarrow as pa
         import rerun as rr
 
         self.path = Path(path)
@@ -52,7 +53,10 @@ class RecordingFile:
             before = rows_so_far.get(entity, 0)
             names = [n for n in batch.schema.names if n != "rerun.controls.RowId"]
             for name in names:
-                table.setdefault(name, [None] * before).extend(batch.column(name).to_pylist())
+                column = batch.column(name)
+                if pa.types.is_temporal(column.type):  # time indexes and timestamps as integer nanoseconds
+                    column = column.cast(pa.int64())
+                table.setdefault(name, [None] * before).extend(column.to_pylist())
             for name in set(table) - set(names):
                 table[name].extend([None] * batch.num_rows)
             rows_so_far[entity] = before + batch.num_rows

@@ -87,7 +87,8 @@ class Pipeline:
     (sensor name → (steps, m_i)); ``prior`` (a :class:`Gaussian` or (mean, cov),
     in the models' layout); ``tau``; ``detectors``; ``recorder`` (defaults to
     :class:`NullRecorder`); ``truth`` (an optional trajectory to record beside
-    the estimates); ``filter_names`` to label the bank.
+    the estimates); ``filter_names`` to label the bank; ``record_measurements``
+    (False when another pipeline on the same recorder already logs them).
     """
 
     def __init__(
@@ -104,6 +105,7 @@ class Pipeline:
         truth=None,
         filter_names: Sequence[str] | None = None,
         registry: Registry | None = None,
+        record_measurements: bool = True,
     ):
         self.models = [resolve("motion_model", m, MotionModel, registry) for m in models]
         if not self.models:
@@ -123,6 +125,7 @@ class Pipeline:
         if len(set(names)) != len(names):
             raise ValueError(f"detectors: names must be unique, got {names}")
         self.recorder = recorder if recorder is not None else NullRecorder()
+        self.record_measurements = record_measurements
         self.truth = truth
         self.filter_names = tuple(filter_names) if filter_names is not None else self._default_names()
         if len(self.filter_names) != len(self.models):
@@ -238,7 +241,8 @@ class Pipeline:
         if self.truth is not None:
             positions = self.truth.positions[: len(steps)]
             rec.log_path("world/truth", steps, positions, times)
-        log_measurements(rec, self.network.sensors, self.network.split(self.z[: len(steps)]), steps, times)
+        if self.record_measurements:
+            log_measurements(rec, self.network.sensors, self.network.split(self.z[: len(steps)]), steps, times)
         position = [self.layout.index("x"), self.layout.index("y")]
         for j, name in enumerate(self.filter_names):
             log_estimate(rec, name, steps, result.means[:, j], result.covs[:, j], position, times)
@@ -296,8 +300,8 @@ def run_known_modes(
         rows = z[start : start + segment.steps + 1].copy()
         if start > 0:
             rows[0] = np.nan  # the switch step was already updated by the previous segment
-        pipeline = Pipeline(models=[model], estimator=estimator, sensors=network,
-                            measurements=network.split(rows), prior=prior, tau=tau, registry=registry)
+        pipeline = Pipeline(models=[model], estimator=estimator, sensors=network, measurements=network.split(rows),
+                            prior=prior, tau=tau, registry=registry)
         result = pipeline.run()
         skip = 0 if start == 0 else 1
         means.append(result.means[skip:, 0])

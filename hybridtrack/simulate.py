@@ -26,7 +26,6 @@ import numpy as np
 from hybridtrack._arrays import as_float_array, check_covariance
 from hybridtrack.interfaces import MotionModel, Sensor, convert_layout
 from hybridtrack.network import SensorNetwork
-from hybridtrack.recording import log_measurements
 from hybridtrack.registry import Registry
 from hybridtrack.types import Schedule
 
@@ -171,19 +170,11 @@ def simulate_trajectory(
     return trajectory
 
 
-def simulate_measurements(
-    trajectory: Trajectory, sensors: Sequence[Sensor] | SensorNetwork, *, seed=None, recorder=None
-) -> dict[str, np.ndarray]:
-    """Noisy measurements of every state (steps 0..K) by each sensor: name → (K+1, m).
-
-    With a ``recorder`` they are logged under ``world/measurements/<sensor>``.
-    """
+def simulate_measurements(trajectory: Trajectory, sensors: Sequence[Sensor] | SensorNetwork, *, seed=None) -> dict[str, np.ndarray]:
+    """Noisy measurements of every state (steps 0..K) by each sensor: name → (K+1, m)."""
     network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
     rng = _rng(seed)
-    measurements = {sensor.name: sensor.simulate(trajectory.states, trajectory.layout, rng) for sensor in network.sensors}
-    if recorder is not None:
-        log_measurements(recorder, network.sensors, measurements, trajectory.steps, trajectory.times)
-    return measurements
+    return {sensor.name: sensor.simulate(trajectory.states, trajectory.layout, rng) for sensor in network.sensors}
 
 
 def simulate(
@@ -191,9 +182,10 @@ def simulate(
 ) -> tuple[Trajectory, dict[str, np.ndarray]]:
     """Trajectory and measurements from one seed (independent streams via ``SeedSequence.spawn``).
 
-    With a ``recorder`` the truth and the measurements are logged.
+    With a ``recorder`` the truth is logged; the measurements are logged by
+    what consumes them (the pipeline), or by
+    :func:`hybridtrack.recording.log_measurements`.
     """
     trajectory_seed, measurement_seed = np.random.SeedSequence(seed).spawn(2)
     trajectory = simulate_trajectory(schedule, x0, tau, seed=np.random.default_rng(trajectory_seed), recorder=recorder, **options)
-    measurements = simulate_measurements(trajectory, sensors, seed=np.random.default_rng(measurement_seed), recorder=recorder)
-    return trajectory, measurements
+    return trajectory, simulate_measurements(trajectory, sensors, seed=np.random.default_rng(measurement_seed))

@@ -1,8 +1,6 @@
 """Every example runs, at a small size, and writes a valid recording."""
 
 import importlib.util
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,13 +15,11 @@ def load(name):
     return module
 
 
-def test_demo_runs_small_and_writes_a_verified_recording(tmp_path):
+def test_demo_runs_small_and_writes_a_verified_recording(tmp_path, rerun_cli):
     out = tmp_path / "demo.rrd"
     summary = load("demo").main(["--out", str(out), "--steps-scale", "0.2"])
     assert out.stat().st_size > 0
     assert summary["steps"] == 72
     assert np.isfinite(summary["rmse_known_modes"]) and summary["rmse_known_modes"] < summary["rmse_straight_only"]
-    rerun = Path(sys.executable).with_name("rerun")
-    result = subprocess.run([str(rerun), "rrd", "verify", str(out)], capture_output=True, text=True,
-                            env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin"})
+    result = rerun_cli("rrd", "verify", out)
     assert result.returncode == 0, result.stderr
