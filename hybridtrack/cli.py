@@ -24,6 +24,8 @@ import attrs
 #: modules defining a ``COMMAND``, in the order ``--help`` lists them
 COMMAND_MODULES: tuple[str, ...] = (
     "hybridtrack.commands.plugins",
+    "hybridtrack.commands.simulate",
+    "hybridtrack.commands.inspect",
 )
 
 
