@@ -271,3 +271,10 @@ def test_example_parameters_convention():
 
     with pytest.raises(AssertionError, match="needs_radius: cannot be built with example parameters"):
         build_example(needs_radius)
+
+
+@pytest.mark.hybridtrack_contract
+def test_the_pytest_plugin_fixtures(hybridtrack_contracts, hybridtrack_registry):
+    hybridtrack_contracts.check_component("motion_model", ToyStraight())
+    assert hybridtrack_contracts.check_estimator is check_estimator
+    assert "straight" in hybridtrack_registry.names("motion_model")
