@@ -161,6 +161,9 @@ class Sensor(ABC):
     * ``residual(z, z_pred)`` is the innovation ν = z − h(x) (angles wrapped to
       (−π, π] by sensors that measure angles).
     * ``simulate(x, layout, rng)`` draws z = h(x) + v for x of shape (..., n).
+    * ``measurement_noise(z)`` is the R that goes with the measurement z
+      (``noise_cov`` unless the sensor's R depends on z, e.g. radar
+      pseudo-measurements).
 
     Checked by :func:`hybridtrack.testing.check_sensor` on states of
     ``example_layout`` (default ``("x", "vx", "y", "vy")``).
@@ -187,6 +190,15 @@ class Sensor(ABC):
     def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
         """ν = z − ẑ (override to wrap angles)."""
         return z - z_pred
+
+    def measurement_noise(self, z: np.ndarray) -> np.ndarray:
+        """R to use with the measurement z ((m,) → (m, m), or (..., m) → (..., m, m)).
+
+        ``noise_cov`` for ordinary sensors; pseudo-measurement sensors whose R
+        depends on the measurement (radar converted to Cartesian coordinates)
+        override it.  Estimators take R from here.
+        """
+        return self.noise_cov
 
     def simulate(self, x: np.ndarray, layout: Sequence[str], rng: np.random.Generator) -> np.ndarray:
         """z = h(x) + v, v ~ N(0, R), for x of shape (..., n)."""
