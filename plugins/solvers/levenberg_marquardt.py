@@ -1,0 +1,318 @@
+"""Maximum likelihood TMA by Levenberg–Marquardt, one problem or a batch (seed 002 §4.3).
+
+The seed's algorithm, on F(s) = Σ r_k², r = wrap(X − f(s)), J = ∂f/∂s:
+
+1. start from s, λ = λ_0 (with λ_up, λ_down, F_tol);
+2. compute F(s), J(s) and H = JᵀJ;
+3. A = H + λ diag(H) (Marquardt's scaling);
+4. if A is not positive definite: λ ← λ λ_up, back to 3;
+5. solve A Δs = Jᵀ r (Cholesky);
+6. s_new = s + Δs, ΔF = F(s) − F(s_new);
+7. if ΔF < 0 (or F(s_new) is not finite): λ ← λ λ_up, back to 3;
+8. accept s ← s_new, λ ← λ λ_down;
+9. stop if ΔF < F_tol, else back to 2.
+
+Iterations count accepted steps (8), evaluations count F evaluations (the
+start and every trial of 6) — the seed's "Iter" and "Nf".  Two guards the seed
+does not state: at most ``max_iterations`` accepted steps, and λ > ``lam_max``
+stops (no step decreases F); both end with ``converged=False``.  The solver
+works in the scaled parameters of :mod:`.tma_model`; Marquardt's diag(H) makes
+the steps themselves invariant to that scaling, which only conditions the
+Cholesky factorization.
+
+:class:`LevenbergMarquardt` runs one problem with ``scipy.linalg.cho_factor``;
+:class:`BatchLevenbergMarquardt` runs the same steps for B problems at once, each
+with its own λ, counters and stopping rule (problems that stop leave the
+active set), using H and Jᵀr assembled from time-power sums
+(:func:`.tma_model.normal_equations`) and a masked 4×4 Cholesky.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import attrs
+import numpy as np
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+from hybridtrack.interfaces import Solver
+from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient, wrap_angle
+from hybridtrack_plugins.solvers._small_linalg import cholesky_solve, masked_cholesky
+from hybridtrack_plugins.solvers.tma_model import (
+    N_PARAMETERS,
+    BatchTMASolution,
+    BearingsBatch,
+    BearingsProblem,
+    ScaledProblem,
+    Scaling,
+    TMASolution,
+    normal_equations,
+    require_maneuver,
+    summarize,
+    time_powers,
+    to_solution,
+    warn_unobservable,
+)
+
+STOP_CONVERGED = "ΔF < F_tol"
+STOP_ITERATIONS = "max_iterations reached"
+STOP_LAMBDA = "λ > lam_max: no step decreases F"
+
+
+def _positive(instance, attribute, value):
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{attribute.name}: expected a positive finite number, got {value!r}")
+
+
+@attrs.frozen
+class LMSettings:
+    """The seed's hyper-parameters (seed 002 §4.3; values chosen here, the seed gives none).
+
+    ``lam0`` λ_0, ``lam_up`` λ_up > 1, ``lam_down`` λ_down < 1, ``F_tol`` (rad²)
+    the stop on the decrease ΔF of an accepted step, ``max_iterations`` and
+    ``lam_max`` the guards.
+    """
+
+    lam0: float = attrs.field(default=1.0, converter=float, validator=_positive)
+    lam_up: float = attrs.field(default=10.0, converter=float, validator=_positive)
+    lam_down: float = attrs.field(default=0.1, converter=float, validator=_positive)
+    F_tol: float = attrs.field(default=1e-12, converter=float, validator=_positive)
+    max_iterations: int = attrs.field(default=100, converter=int, validator=_positive)
+    lam_max: float = attrs.field(default=1e16, converter=float, validator=_positive)
+
+    def __attrs_post_init__(self):
+        if not self.lam_up > 1:
+            raise ValueError(f"lam_up: expected > 1, got {self.lam_up}")
+        if not self.lam_down < 1:
+            raise ValueError(f"lam_down: expected < 1, got {self.lam_down}")
+
+
+def _initial_guess(problem, name):
+    if problem.initial is not None:
+        return np.asarray(problem.initial, dtype=float)
+    raise ValueError(f"{name}: problem.initial is None; give a starting guess θ (e.g. the N-bearings answer or a prior)")
+
+
+def minimize(scaled: ScaledProblem, s: np.ndarray, settings: LMSettings):
+    """Seed 002 §4.3 steps 1–9 for one problem from s (4,).
+
+    Returns (s, F, H at s, iterations, evaluations, converged, message).
+    """
+    F, r = scaled.cost(s)
+    evaluations, iterations = 1, 0
+    lam = settings.lam0
+    while True:
+        J = scaled.jacobian(s)  # step 2
+        H, g = J.T @ J, J.T @ r
+        while True:
+            A = H + lam * np.diag(np.diag(H))  # step 3
+            try:
+                factor = cho_factor(A)  # step 4
+            except (LinAlgError, ValueError):
+                lam *= settings.lam_up
+                if lam > settings.lam_max:
+                    return s, F, H, iterations, evaluations, False, STOP_LAMBDA
+                continue
+            s_new = s + cho_solve(factor, g)  # steps 5–6
+            F_new, r_new = scaled.cost(s_new)
+            evaluations += 1
+            dF = F - F_new
+            if np.isfinite(F_new) and dF >= 0:
+                break
+            lam *= settings.lam_up  # step 7
+            if lam > settings.lam_max:
+                return s, F, H, iterations, evaluations, False, STOP_LAMBDA
+        s, F, r = s_new, F_new, r_new  # step 8
+        lam *= settings.lam_down
+        iterations += 1
+        if dF < settings.F_tol:  # step 9
+            J = scaled.jacobian(s)
+            return s, F, J.T @ J, iterations, evaluations, True, STOP_CONVERGED
+        if iterations >= settings.max_iterations:
+            J = scaled.jacobian(s)
+            return s, F, J.T @ J, iterations, evaluations, False, STOP_ITERATIONS
+
+
+@attrs.frozen
+class LevenbergMarquardt(Solver):
+    """Maximum likelihood θ by the seed's Levenberg–Marquardt (one problem; see the module doc)."""
+
+    name: ClassVar[str] = "levenberg_marquardt"
+
+    @staticmethod
+    def example_problem():
+        """A 60-bearing seed 002 problem (contract checks)."""
+        from hybridtrack_plugins.solvers.observer import example_problem
+
+        return example_problem()
+    settings: LMSettings = attrs.field(factory=LMSettings)
+
+    def solve(self, problem: BearingsProblem) -> TMASolution:
+        if not isinstance(problem, BearingsProblem):
+            raise ValueError(f"problem: expected a BearingsProblem, got {type(problem).__name__}")
+        require_maneuver(problem.times, problem.observer)
+        theta0 = _initial_guess(problem, self.name)
+        scaled = ScaledProblem.build(problem.times, problem.bearings, problem.observer, theta0, problem.reference_time, problem.convention)
+        s, F, H, it, nf, converged, message = minimize(scaled, scaled.scaling.to_scaled(theta0), self.settings)
+        return to_solution(problem, scaled, s, F, H, it, nf, converged, message, self.name)
+
+
+# --------------------------------------------------------------------------- batch
+
+
+class _Chunk:
+    """Scaled data of one chunk of problems, compacted to the active ones as they stop.
+
+    :meth:`evaluate` walks the rows in blocks of ``block`` problems so that its
+    (block, n) work arrays, allocated once, stay in cache.
+    """
+
+    def __init__(self, tau, ox, oy, X, convention, block=32):
+        self.tau, self.ox, self.oy, self.X, self.convention = tau, ox, oy, X, convention
+        self.powers = time_powers(tau)
+        self.block = block
+        n = X.shape[1]
+        self._work = np.empty((6, block, n))
+        self._W = np.empty((block, 5, n))
+
+    def evaluate(self, s):
+        """F, H = JᵀJ and g = Jᵀr at s (m, 4): the trial of step 6 plus step 2 in case it is accepted."""
+        m = s.shape[0]
+        F, H, g = np.empty(m), np.empty((m, 4, 4)), np.empty((m, 4))
+        shared = self.ox.ndim == 1
+        for a in range(0, m, self.block):
+            b = min(a + self.block, m)
+            sb = s[a:b]
+            ox, oy = (self.ox, self.oy) if shared else (self.ox[a:b], self.oy[a:b])
+            dx, dy, phi, p, q, w = self._work[:, : b - a]
+            np.multiply(sb[:, 2, None], self.tau, out=dx)
+            dx += sb[:, 0, None]
+            dx -= ox
+            np.multiply(sb[:, 3, None], self.tau, out=dy)
+            dy += sb[:, 1, None]
+            dy -= oy
+            bearing(dx, dy, self.convention, out=phi)
+            r = angle_difference(self.X[a:b], phi, out=phi)
+            F[a:b] = np.einsum("mk,mk->m", r, r)
+            bearing_gradient(dx, dy, self.convention, out=(p, q, w))
+            H[a:b], g[a:b] = normal_equations(p, q, r, self.powers, out=self._W[: b - a])
+        return F, H, g
+
+    def keep(self, rows):
+        self.X = self.X[rows]
+        if self.ox.ndim == 2:
+            self.ox, self.oy = self.ox[rows], self.oy[rows]
+
+
+def minimize_batch(chunk: _Chunk, s: np.ndarray, settings: LMSettings):
+    """Seed 002 §4.3 for m problems at once; each keeps its own λ and stopping rule.
+
+    Returns arrays (s, F, H, iterations, evaluations, status) with status
+    0 converged, 1 max_iterations, 2 λ overflow.
+    """
+    m = s.shape[0]
+    out_s, out_F = s.copy(), np.empty(m)
+    out_H = np.empty((m, 4, 4))
+    out_it, out_nf, out_status = np.zeros(m, int), np.ones(m, int), np.full(m, -1)
+    ids = np.arange(m)
+    F, H, g = chunk.evaluate(s)
+    lam = np.full(m, settings.lam0)
+    it, nf = np.zeros(m, int), np.ones(m, int)
+    diag = np.arange(4)
+    while ids.size:
+        A = H.copy()
+        A[:, diag, diag] *= 1.0 + lam[:, None]  # step 3
+        L, ok = masked_cholesky(A)  # step 4
+        delta = cholesky_solve(L, g)
+        delta[~ok] = 0.0
+        s_new = s + delta  # steps 5–6 (rows not ok are evaluated at s and ignored)
+        F_new, H_new, g_new = chunk.evaluate(s_new)
+        nf += ok
+        dF = F - F_new
+        accept = ok & np.isfinite(F_new) & (dF >= 0)
+        lam = np.where(accept, lam * settings.lam_down, lam * settings.lam_up)  # steps 7–8
+        it += accept
+        stop = np.full(ids.size, -1)
+        stop[accept & (dF < settings.F_tol)] = 0
+        stop[accept & (stop < 0) & (it >= settings.max_iterations)] = 1
+        stop[~accept & (lam > settings.lam_max)] = 2
+        s = np.where(accept[:, None], s_new, s)
+        F = np.where(accept, F_new, F)
+        H = np.where(accept[:, None, None], H_new, H)  # step 2 at the new s
+        g = np.where(accept[:, None], g_new, g)
+        done = stop >= 0
+        if done.any():
+            d = np.flatnonzero(done)
+            rows = ids[d]
+            out_s[rows], out_F[rows], out_H[rows] = s[d], F[d], H[d]
+            out_it[rows], out_nf[rows], out_status[rows] = it[d], nf[d], stop[d]
+            keep = np.flatnonzero(~done)
+            ids, s, F, H, g, lam, it, nf = (v[keep] for v in (ids, s, F, H, g, lam, it, nf))
+            chunk.keep(keep)
+    return out_s, out_F, out_H, out_it, out_nf, out_status
+
+
+@attrs.frozen
+class BatchLevenbergMarquardt(Solver):
+    """The seed's Levenberg–Marquardt vectorized over many independent problems (one per Monte Carlo target).
+
+    ``solve_batch(batch)`` → :class:`BatchTMASolution`; ``solve(problem)`` runs a
+    batch of one.  Problems are processed ``chunk_size`` at a time (bounding
+    memory), each trial in cache-sized blocks of rows; the answers do not depend on either.
+    """
+
+    name: ClassVar[str] = "levenberg_marquardt_batch"
+
+    @staticmethod
+    def example_problem():
+        """A 60-bearing seed 002 problem (contract checks)."""
+        from hybridtrack_plugins.solvers.observer import example_problem
+
+        return example_problem()
+    settings: LMSettings = attrs.field(factory=LMSettings)
+    chunk_size: int = attrs.field(default=1024, converter=int, validator=_positive)
+
+    def solve(self, problem: BearingsProblem) -> TMASolution:
+        if not isinstance(problem, BearingsProblem):
+            raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
+        theta0 = _initial_guess(problem, self.name)
+        batch = BearingsBatch(problem.times, problem.bearings[None], problem.observer, problem.sigma, theta0,
+                              problem.reference_time, problem.convention)
+        return self.solve_batch(batch).solution(0)
+
+    def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
+        if not isinstance(batch, BearingsBatch):
+            raise ValueError(f"batch: expected a BearingsBatch, got {type(batch).__name__}")
+        require_maneuver(batch.times, batch.observer)
+        B, n = batch.bearings.shape
+        theta0 = np.broadcast_to(_initial_guess(batch, self.name), (B, N_PARAMETERS))
+        X = wrap_angle(batch.bearings)
+        scaling = Scaling.build(batch.times, batch.observer, theta0, batch.reference_time)
+        s0 = scaling.to_scaled(theta0)
+        tau = scaling.tau(batch.times)
+        shared = batch.observer.ndim == 2 and np.ndim(scaling.length) == 0
+        if shared:
+            o = scaling.observer(batch.observer)
+        s, F, H = np.empty((B, 4)), np.empty(B), np.empty((B, 4, 4))
+        it, nf, status = np.empty(B, int), np.empty(B, int), np.empty(B, int)
+        for start in range(0, B, self.chunk_size):
+            rows = slice(start, min(start + self.chunk_size, B))
+            if not shared:
+                part = Scaling(scaling.origin if batch.observer.ndim == 2 else scaling.origin[rows],
+                               np.broadcast_to(scaling.length, (B,))[rows], scaling.duration, scaling.reference_time)
+                o = part.observer(batch.observer if batch.observer.ndim == 2 else batch.observer[rows])
+            chunk = _Chunk(tau, o[..., 0], o[..., 1], X[rows].copy(), batch.convention)
+            s[rows], F[rows], H[rows], it[rows], nf[rows], status[rows] = minimize_batch(chunk, s0[rows].copy(), self.settings)
+        theta, cov, ska, stat, pval, cons, observable = summarize(scaling, s, F, H, n, batch.sigma)
+        if not observable.all():
+            warn_unobservable(int((~observable).sum()), self.name)
+        messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
+        messages = tuple(m if o else m + "; unobservable: JᵀJ singular" for m, o in zip(messages, observable))
+        return BatchTMASolution(
+            parameters=theta, covariance=cov, cost=F, iterations=it, evaluations=nf, converged=(status == 0) & observable,
+            sqrt_ka=ska, chi2_statistic=stat, chi2_dof=n - N_PARAMETERS, chi2_pvalue=pval, consistent=cons,
+            reference_time=batch.reference_time, messages=messages, method=self.name,
+        )
+
+
+COMPONENTS = {LevenbergMarquardt.name: LevenbergMarquardt, BatchLevenbergMarquardt.name: BatchLevenbergMarquardt}

@@ -1,0 +1,176 @@
+"""N-bearings pseudo-linear estimator of θ (seed 002 §4.4).
+
+The first bearing φ_0 fixes the direction of the target at t_0 = t_1 (first
+bearing time); the unknowns are x = (r_0, v_x, v_y), r_0 the range at t_0.
+With u(φ) the unit vector along bearing φ (sensor convention), the target at
+t_i lies on the bearing line from the observer, cross(u(φ_i), d_i) = 0 with
+d_i = r_0 u(φ_0) + v Δt_i − Δõ_i, Δt_i = t_i − t_0, Δõ_i = o_i − o_0.  Row i of
+the linear regression H x = b is therefore
+
+    H_i = [cross(u_i, u_0), −u_iy Δt_i, u_ix Δt_i],   b_i = u_ix Δỹ_i − u_iy Δx̃_i,
+
+with cross(a, b) = a_x b_y − a_y b_x.  In the math convention (u = (cos φ, sin φ))
+this is minus the seed's row H_i = [sin(φ_i − φ_0), sin φ_i Δt_i, −cos φ_i Δt_i],
+b_i = Δx̃_i sin φ_i − Δỹ_i cos φ_i, i.e. the same equations; in the north
+convention (u = (sin φ, cos φ)) it reads H_i = [sin(φ_i − φ_0), −cos φ_i Δt_i,
+sin φ_i Δt_i], b_i = Δỹ_i sin φ_i − Δx̃_i cos φ_i.  The solution is exact for
+noise-free bearings and biased by the error of φ_0 otherwise (seed 002 §4.4).
+
+Columns are scaled (r_0/L, v T/L; Δt/T, Δõ/L) as in :mod:`.tma_model`.  The
+reported covariance is the regression's s_b² (HᵀH)⁻¹ (s_b² = |b − Hx|²/(n−3))
+mapped to θ, plus the φ_0 term Var(φ_0) r_0² u'(φ_0) u'(φ_0)ᵀ on the position
+(Var(φ_0) = σ² when known, else Ka); it ignores the bias.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import attrs
+import numpy as np
+
+from hybridtrack.interfaces import Solver
+from hybridtrack_plugins.sensors.bearing import direction, wrap_angle
+from hybridtrack_plugins.solvers._small_linalg import cholesky_solve, masked_cholesky
+from hybridtrack_plugins.solvers.tma_model import (
+    N_PARAMETERS,
+    BatchTMASolution,
+    BearingsBatch,
+    BearingsProblem,
+    ScaledProblem,
+    TMASolution,
+    fit_statistics,
+    require_maneuver,
+    warn_unobservable,
+)
+
+
+def pseudo_linear_system(tau, bearings, ox, oy, convention):
+    """H (..., n, 3) and b (..., n) of the N-bearings regression in scaled units (τ_0 = 0, õ_0 = 0)."""
+    ux, uy = direction(bearings, convention)
+    u0x, u0y = ux[..., :1], uy[..., :1]
+    H = np.stack(np.broadcast_arrays(ux * u0y - uy * u0x, -uy * tau, ux * tau), axis=-1)
+    b = ux * oy - uy * ox
+    return H, b
+
+
+def solve_lstsq(H, b):
+    """One regression by ``np.linalg.lstsq`` (SVD): x, (HᵀH)⁻¹ and whether H has full rank."""
+    x, _, rank, singular = np.linalg.lstsq(H, b, rcond=None)
+    if rank < 3:
+        return np.full(3, np.nan), np.full((3, 3), np.nan), False
+    V = np.linalg.svd(H, full_matrices=False)[2]
+    return x, (V.T / singular**2) @ V, True
+
+
+def solve_normal(H, b):
+    """B regressions at once: Jacobi-scaled normal equations HᵀH x = Hᵀb by a masked Cholesky."""
+    N = np.einsum("bki,bkj->bij", H, H)
+    c = np.einsum("bki,bk->bi", H, b)
+    e = 1.0 / np.sqrt(np.maximum(np.diagonal(N, axis1=-2, axis2=-1), np.finfo(float).tiny))
+    L, ok = masked_cholesky(N * e[:, :, None] * e[:, None, :])
+    # reject near-singular systems like lstsq's rank test would
+    ok &= np.diagonal(L, axis1=-2, axis2=-1).min(axis=-1) ** 2 > 1e-12
+    x = cholesky_solve(L, c * e) * e
+    eye = np.eye(3)
+    N_inv = np.stack([cholesky_solve(L, np.broadcast_to(eye[j], c.shape)) for j in range(3)], axis=-1)
+    N_inv *= e[:, :, None] * e[:, None, :]
+    return np.where(ok[:, None], x, np.nan), np.where(ok[:, None, None], N_inv, np.nan), ok
+
+
+def assemble(x, HtH_inv, residual_ss, n, X0, variance_phi0, scaling_t0, reference_time, convention):
+    """θ (..., 4) at ``reference_time`` and its covariance from x = (r_0, v_x, v_y) (scaled, at t_0).
+
+    s = (r_0 u(φ_0), v); C_s = G C_x Gᵀ + Var(φ_0) r_0² u'(φ_0) u'(φ_0)ᵀ (position block),
+    C_x = s_b² (HᵀH)⁻¹; then θ = D s + (o_0, 0) moved by A = [[I, Δt I], [0, I]].
+    """
+    u0x, u0y = direction(X0, convention)
+    r0 = x[..., 0]
+    s = np.stack([r0 * u0x, r0 * u0y, x[..., 1], x[..., 2]], axis=-1)
+    G = np.zeros(x.shape[:-1] + (4, 3))
+    G[..., 0, 0], G[..., 1, 0], G[..., 2, 1], G[..., 3, 2] = u0x, u0y, 1.0, 1.0
+    cov_x = (np.asarray(residual_ss) / (n - 3))[..., None, None] * HtH_inv
+    cov_s = G @ cov_x @ np.swapaxes(G, -1, -2)
+    # ∂u/∂φ: north (cos φ, −sin φ) = (u_y, −u_x); math (−sin φ, cos φ) = (−u_y, u_x)
+    du = np.stack([u0y, -u0x] if convention == "north" else [-u0y, u0x], axis=-1)
+    cov_s[..., :2, :2] += (variance_phi0 * r0**2)[..., None, None] * du[..., :, None] * du[..., None, :]
+    D = scaling_t0.factors
+    A = np.eye(4)
+    A[0, 2] = A[1, 3] = reference_time - scaling_t0.reference_time
+    theta = scaling_t0.from_scaled(s) @ A.T
+    cov = A @ (cov_s * D[..., :, None] * D[..., None, :]) @ A.T
+    return theta, cov
+
+
+@attrs.frozen
+class NBearings(Solver):
+    """N-bearings pseudo-linear least squares (seed 002 §4.4); closed form, biased by the first bearing's error.
+
+    ``solve(problem)`` takes a :class:`BearingsProblem` (``np.linalg.lstsq``);
+    ``solve_batch(batch)`` a :class:`BearingsBatch` (scaled normal equations,
+    Cholesky).  The observer must maneuver (else :class:`UnobservableError`).
+    """
+
+    name: ClassVar[str] = "n_bearings"
+
+    @staticmethod
+    def example_problem():
+        """A 60-bearing seed 002 problem (contract checks)."""
+        from hybridtrack_plugins.solvers.observer import example_problem
+
+        return example_problem()
+
+    def solve(self, problem: BearingsProblem) -> TMASolution:
+        if not isinstance(problem, BearingsProblem):
+            raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
+        (theta, cov, F, ska, stat, pval, cons), ok, r0 = self._run(problem, batch=False)
+        converged, message = bool(ok and r0 > 0), "closed form"
+        if not ok:
+            message = "unobservable: the N-bearings system is rank deficient"
+        elif r0 <= 0:
+            message = "range r_0 ≤ 0: the bearings do not fit a target ahead of the observer"
+        return TMASolution(
+            parameters=theta, covariance=cov, cost=float(F), iterations=0, evaluations=0, converged=converged,
+            message=message, reference_time=problem.reference_time, sqrt_ka=float(ska), chi2_statistic=float(stat),
+            chi2_dof=problem.size - N_PARAMETERS, chi2_pvalue=float(pval), consistent=None if cons is None else bool(cons),
+            method=self.name,
+        )
+
+    def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
+        if not isinstance(batch, BearingsBatch):
+            raise ValueError(f"batch: expected a BearingsBatch, got {type(batch).__name__}")
+        (theta, cov, F, ska, stat, pval, cons), ok, r0 = self._run(batch, batch=True)
+        converged = ok & (r0 > 0)
+        messages = tuple(
+            "closed form" if c else ("unobservable: the N-bearings system is singular" if not o else "range r_0 ≤ 0")
+            for c, o in zip(converged, ok)
+        )
+        return BatchTMASolution(
+            parameters=theta, covariance=cov, cost=F, iterations=np.zeros(len(F), int), evaluations=np.zeros(len(F), int),
+            converged=converged, sqrt_ka=ska, chi2_statistic=stat, chi2_dof=batch.size - N_PARAMETERS, chi2_pvalue=pval,
+            consistent=cons, reference_time=batch.reference_time, messages=messages, method=self.name,
+        )
+
+    def _run(self, problem, batch: bool):
+        require_maneuver(problem.times, problem.observer)
+        n, conv = problem.size, problem.convention
+        X = wrap_angle(problem.bearings)
+        scaled = ScaledProblem.build(problem.times, X, problem.observer, None, problem.times[0], conv)
+        H, b = pseudo_linear_system(scaled.tau, X, scaled.ox, scaled.oy, conv)
+        x, HtH_inv, ok = solve_normal(H, b) if batch else solve_lstsq(H, b)
+        residual = b - np.einsum("...ki,...i->...k", H, x)
+        residual_ss = np.einsum("...k,...k->...", residual, residual)
+        if not np.all(ok):
+            warn_unobservable(int(np.size(ok) - np.count_nonzero(ok)), self.name)
+        args = (x, HtH_inv, residual_ss, n, X[..., 0])
+        theta, _ = assemble(*args, np.zeros(np.shape(residual_ss)), scaled.scaling, problem.reference_time, conv)
+        # √Ka and the χ² test judge θ_N under the ML model, as the seed's table does (§5.1)
+        at_ref = ScaledProblem.build(problem.times, X, problem.observer, None, problem.reference_time, conv)
+        F, _ = at_ref.cost(at_ref.scaling.to_scaled(theta))
+        ska, stat, pval, cons = fit_statistics(F, n, problem.sigma)
+        variance_phi0 = problem.sigma**2 if problem.sigma is not None else ska**2
+        theta, cov = assemble(*args, variance_phi0, scaled.scaling, problem.reference_time, conv)
+        return (theta, cov, F, ska, stat, pval, cons), ok, x[..., 0]
+
+
+COMPONENTS = {NBearings.name: NBearings}

@@ -1,0 +1,509 @@
+"""Bearings-only TMA model shared by the solvers (seed 002, §4.1–4.2).
+
+The target moves uniformly, θ = (x0, y0, vx, vy) being its position at the
+reference time t_r and its velocity (seed 002, eq. 1):
+
+    x(t) = x0 + vx (t − t_r),   y(t) = y0 + vy (t − t_r).
+
+Bearing k, taken at t_k from the observer at (x̃_k, ỹ_k), is
+X_k = f_k(θ) + N(0, σ²) with f_k(θ) = φ(x(t_k) − x̃_k, y(t_k) − ỹ_k) (eq. 2–3;
+φ and its convention from :mod:`hybridtrack_plugins.sensors.bearing`).  Maximum
+likelihood is least squares (eq. 5):
+
+    F(θ) = Σ_k r_k²,  r_k = wrap(X_k − f_k(θ)) ∈ (−π, π].
+
+**Parameter scaling.**  The solvers work in dimensionless parameters
+s = ((x0 − x̃_0)/L, (y0 − ỹ_0)/L, vx T/L, vy T/L) with times τ_k = (t_k − t_r)/T
+and observer positions õ_k = (o_k − o_0)/L, where o_0 is the first observer
+position, L = max(range of the initial guess from o_0, extent of the observer
+path, 1 m) and T = max |t_k − t_r|.  Then every
+column of J = ∂f/∂s is of order one whether θ is in km or m/s (seed 002 §4.3
+notes the vanishing gradient of atan far from the origin); f is unchanged by the
+scaling (bearings are scale-free), so F is the same function.
+
+With p_k = ∂φ/∂Δx and q_k = ∂φ/∂Δy at point k (scaled units), the Jacobian row is
+J_k = (p_k, q_k, p_k τ_k, q_k τ_k), so H = JᵀJ and g = Jᵀr only need the
+sums Σ w τ^j of w ∈ {p², pq, q², pr, qr} (:func:`normal_equations`).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import attrs
+import numpy as np
+from scipy import stats
+
+from hybridtrack._arrays import as_float_array
+from hybridtrack.interfaces import Solution
+from hybridtrack_plugins.sensors.bearing import (
+    angle_difference,
+    bearing,
+    bearing_gradient,
+    check_convention,
+    direction,
+    wrap_angle,
+)
+
+#: θ has four components
+N_PARAMETERS = 4
+#: observer paths whose deviation from a straight constant-velocity line is below
+#: this fraction of their extent count as "never maneuvering"
+MANEUVER_RTOL = 1e-9
+#: reciprocal condition number of the scaled JᵀJ below which θ is declared unobservable
+RCOND_MIN = 1e-12
+
+
+class UnobservableError(ValueError):
+    """The range is unobservable: the observer never maneuvers (constant velocity)."""
+
+
+class UnobservabilityWarning(UserWarning):
+    """The information matrix JᵀJ at the answer is numerically singular."""
+
+
+# --------------------------------------------------------------------------- problems
+
+
+def _check_count(n: int) -> None:
+    if n < N_PARAMETERS:
+        raise ValueError(f"bearings: bearings-only TMA needs at least {N_PARAMETERS} bearings to fit θ = (x0, y0, vx, vy), got {n}")
+
+
+def _sigma(value):
+    if value is None:
+        return None
+    value = float(value)
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"sigma: expected a finite bearing noise σ ≥ 0 in radians (or None), got {value!r}")
+    return value
+
+
+@attrs.frozen(eq=False)
+class BearingsProblem:
+    """One bearings-only TMA problem.
+
+    ``times`` (n,) seconds; ``bearings`` (n,) radians, any finite value (wrapped
+    internally); ``observer`` (n, 2) observer positions (x̃_k, ỹ_k) in metres;
+    ``sigma`` the bearing noise in radians when known (used for the χ²(n−4) test
+    and the covariance σ²(JᵀJ)⁻¹; otherwise σ² is estimated by F/(n−4));
+    ``initial`` a guess of θ at ``reference_time`` (default ``times[0]``);
+    ``convention`` the bearing convention ("north" default, see the sensor).
+    NaN/inf anywhere, fewer than 4 bearings or mismatched shapes raise ``ValueError``.
+    """
+
+    times: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "times", (None,), readonly=True))
+    bearings: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "bearings", (None,), readonly=True))
+    observer: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "observer", (None, 2), readonly=True))
+    sigma: float | None = attrs.field(default=None, converter=_sigma)
+    initial: np.ndarray | None = attrs.field(
+        default=None, converter=lambda v: None if v is None else as_float_array(v, "initial", (N_PARAMETERS,), readonly=True)
+    )
+    reference_time: float = attrs.field(default=None)
+    convention: str = attrs.field(default="north", validator=lambda i, a, v: check_convention(v))
+
+    def __attrs_post_init__(self):
+        n = self.bearings.shape[0]
+        _check_count(n)
+        if self.times.shape != (n,) or self.observer.shape != (n, 2):
+            raise ValueError(
+                f"times {self.times.shape}, bearings {self.bearings.shape} and observer {self.observer.shape}:"
+                f" expected shapes (n,), (n,), (n, 2) with the same n"
+            )
+        t_r = self.times[0] if self.reference_time is None else self.reference_time
+        object.__setattr__(self, "reference_time", float(as_float_array(t_r, "reference_time", ())))
+
+    @property
+    def size(self) -> int:
+        return self.bearings.shape[0]
+
+
+@attrs.frozen(eq=False)
+class BearingsBatch:
+    """B independent problems on one time grid (e.g. Monte Carlo targets of one scenario).
+
+    ``times`` (n,) shared; ``bearings`` (B, n); ``observer`` (n, 2) shared or
+    (B, n, 2); ``initial`` (4,) shared or (B, 4); ``sigma`` one value or None;
+    ``reference_time`` and ``convention`` as in :class:`BearingsProblem`.
+    """
+
+    times: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "times", (None,), readonly=True))
+    bearings: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "bearings", (None, None), readonly=True))
+    observer: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "observer", readonly=True))
+    sigma: float | None = attrs.field(default=None, converter=_sigma)
+    initial: np.ndarray | None = attrs.field(default=None, converter=lambda v: None if v is None else as_float_array(v, "initial", readonly=True))
+    reference_time: float = attrs.field(default=None)
+    convention: str = attrs.field(default="north", validator=lambda i, a, v: check_convention(v))
+
+    def __attrs_post_init__(self):
+        B, n = self.bearings.shape
+        _check_count(n)
+        if self.times.shape != (n,):
+            raise ValueError(f"times: expected shape ({n},) to match bearings {self.bearings.shape}, got {self.times.shape}")
+        if self.observer.shape not in ((n, 2), (B, n, 2)):
+            raise ValueError(f"observer: expected shape ({n}, 2) or ({B}, {n}, 2), got {self.observer.shape}")
+        if self.initial is not None and self.initial.shape not in ((N_PARAMETERS,), (B, N_PARAMETERS)):
+            raise ValueError(f"initial: expected shape (4,) or ({B}, 4), got {self.initial.shape}")
+        t_r = self.times[0] if self.reference_time is None else self.reference_time
+        object.__setattr__(self, "reference_time", float(as_float_array(t_r, "reference_time", ())))
+
+    def __len__(self) -> int:
+        return self.bearings.shape[0]
+
+    @property
+    def size(self) -> int:
+        return self.bearings.shape[1]
+
+    def observer_of(self, i: int) -> np.ndarray:
+        return self.observer if self.observer.ndim == 2 else self.observer[i]
+
+    def initial_of(self, i: int):
+        if self.initial is None:
+            return None
+        return self.initial if self.initial.ndim == 1 else self.initial[i]
+
+    def problem(self, i: int) -> BearingsProblem:
+        """Problem ``i`` on its own."""
+        return BearingsProblem(
+            self.times, self.bearings[i], self.observer_of(i), self.sigma, self.initial_of(i), self.reference_time, self.convention
+        )
+
+
+# --------------------------------------------------------------------------- observability
+
+
+def maneuver_deviation(times: np.ndarray, observer: np.ndarray) -> np.ndarray:
+    """Largest distance of the observer path (..., n, 2) from its best constant-velocity fit, relative to its extent.
+
+    A constant-velocity observer sees the same bearings for every target whose
+    relative motion is scaled by a common factor, so the range is unobservable
+    (seed 002 §6: a good maneuver is what makes the solution unique).
+    """
+    t = times - times.mean()
+    design = np.stack([np.ones_like(t), t], axis=1)  # (n, 2)
+    coef, *_ = np.linalg.lstsq(design, np.moveaxis(observer, -2, 0).reshape(len(t), -1), rcond=None)
+    fitted = (design @ coef).reshape((len(t),) + observer.shape[:-2] + (2,))
+    deviation = np.linalg.norm(np.moveaxis(fitted, 0, -2) - observer, axis=-1).max(axis=-1)
+    extent = np.ptp(observer, axis=-2).max(axis=-1)
+    return deviation / np.maximum(extent, 1.0)
+
+
+def require_maneuver(times, observer) -> None:
+    """Raise :class:`UnobservableError` when the observer path (n, 2) or (B, n, 2) never maneuvers."""
+    bad = np.atleast_1d(maneuver_deviation(times, observer) <= MANEUVER_RTOL)
+    if bad.any():
+        which = "" if observer.ndim == 2 else f" (problems {np.flatnonzero(bad)[:10].tolist()}…)"
+        raise UnobservableError(
+            "observer never maneuvers (constant velocity): the range is unobservable from bearings alone"
+            f"{which}; add a course or speed change"
+        )
+
+
+# --------------------------------------------------------------------------- scaling
+
+
+@attrs.frozen(eq=False)
+class Scaling:
+    """θ ↔ s = ((x0, y0) − o_0)/L, (vx, vy) T/L) for arrays (..., 4) (see the module doc).
+
+    ``origin`` (..., 2), ``length`` L (...,), ``duration`` T and ``reference_time`` t_r.
+    """
+
+    origin: np.ndarray
+    length: np.ndarray
+    duration: float
+    reference_time: float
+
+    @classmethod
+    def build(cls, times, observer, initial, reference_time) -> "Scaling":
+        origin = observer[..., 0, :]
+        extent = np.linalg.norm(np.ptp(observer, axis=-2), axis=-1)
+        length = np.maximum(extent, 1.0)
+        if initial is not None:
+            length = np.maximum(np.linalg.norm(initial[..., :2] - origin, axis=-1), length)
+        if length.ndim and origin.ndim == 1 and np.all(length == length.flat[0]):
+            length = length.flat[0]  # one L for a batch sharing observer and guess: õ stays (n,)
+        duration = float(max(np.abs(times - reference_time).max(), 1e-9))
+        return cls(origin, np.asarray(length, dtype=float), duration, reference_time)
+
+    @property
+    def factors(self) -> np.ndarray:
+        """D = ∂θ/∂s = diag(L, L, L/T, L/T) as (..., 4)."""
+        L = np.asarray(self.length)[..., None]
+        return L * np.array([1.0, 1.0, 1.0 / self.duration, 1.0 / self.duration])
+
+    def to_scaled(self, theta):
+        theta = np.asarray(theta, dtype=float)
+        shifted = np.concatenate([theta[..., :2] - self.origin, theta[..., 2:]], axis=-1)
+        return shifted / self.factors
+
+    def from_scaled(self, s):
+        theta = np.asarray(s) * self.factors
+        return np.concatenate([theta[..., :2] + self.origin, theta[..., 2:]], axis=-1)
+
+    def tau(self, times):
+        return (times - self.reference_time) / self.duration
+
+    def observer(self, observer):
+        """õ = (o − o_0)/L, shape (..., n, 2)."""
+        return (observer - self.origin[..., None, :]) / np.asarray(self.length)[..., None, None]
+
+
+# --------------------------------------------------------------------------- model (scaled units)
+
+
+def relative(s, tau, ox, oy):
+    """Δx_k, Δy_k = s_0 + s_2 τ_k − õx_k, s_1 + s_3 τ_k − õy_k for s (..., 4) → (..., n)."""
+    s = np.asarray(s)
+    dx = s[..., 0, None] + s[..., 2, None] * tau - ox
+    dy = s[..., 1, None] + s[..., 3, None] * tau - oy
+    return dx, dy
+
+
+def residuals(s, tau, ox, oy, X, convention):
+    """r_k = wrap(X_k − f_k(s)) (seed 002 eq. 5, wrapped to (−π, π]); X must already lie in (−π, π]."""
+    dx, dy = relative(s, tau, ox, oy)
+    return angle_difference(X, bearing(dx, dy, convention))
+
+
+def jacobian(s, tau, ox, oy, convention):
+    """J = ∂f/∂s, rows (p_k, q_k, p_k τ_k, q_k τ_k), shape (..., n, 4)."""
+    dx, dy = relative(s, tau, ox, oy)
+    p, q = bearing_gradient(dx, dy, convention)
+    return np.stack([p, q, p * tau, q * tau], axis=-1)
+
+
+def time_powers(tau) -> np.ndarray:
+    """T_k = (1, τ_k, τ_k²), shape (n, 3)."""
+    return np.stack([np.ones_like(tau), tau, tau * tau], axis=-1)
+
+
+def normal_equations(p, q, r, powers, out=None):
+    """H = JᵀJ (..., 4, 4) and g = Jᵀr (..., 4) from p, q, r (..., n) and T = time_powers(τ) (n, 3).
+
+    S_ij = Σ_k w_i,k τ_k^j for w = (p², pq, q², pr, qr), one matrix product
+    W T; H and g are read off S (J_k = (p, q, pτ, qτ)).  ``out`` is an optional
+    C-contiguous (..., 5, n) buffer for W.
+    """
+    n = p.shape[-1]
+    lead = np.broadcast_shapes(p.shape, q.shape, r.shape)[:-1]
+    W = np.empty(lead + (5, n)) if out is None else out
+    np.multiply(p, p, out=W[..., 0, :])
+    np.multiply(p, q, out=W[..., 1, :])
+    np.multiply(q, q, out=W[..., 2, :])
+    np.multiply(p, r, out=W[..., 3, :])
+    np.multiply(q, r, out=W[..., 4, :])
+    S = (W.reshape(-1, n) @ powers).reshape(lead + (15,))  # one 2-D product for the whole stack
+    return S[..., _H_FROM_S].reshape(lead + (4, 4)), S[..., _G_FROM_S]
+
+
+# S flattened as 3 i + j (weight i, power j): H_ab and g_a read off it
+_H_FROM_S = np.array([
+    0, 3, 1, 4,    # H_0· = Σp², Σpq, Σp²τ, Σpqτ
+    3, 6, 4, 7,    # H_1· = Σpq, Σq², Σpqτ, Σq²τ
+    1, 4, 2, 5,    # H_2· = Σp²τ, Σpqτ, Σp²τ², Σpqτ²
+    4, 7, 5, 8,    # H_3· = Σpqτ, Σq²τ, Σpqτ², Σq²τ²
+])
+_G_FROM_S = np.array([9, 12, 10, 13])  # g = Σpr, Σqr, Σprτ, Σqrτ
+
+
+@attrs.frozen(eq=False)
+class ScaledProblem:
+    """A problem in scaled units: τ (n,), õx, õy (..., n), X (..., n), with its :class:`Scaling`."""
+
+    tau: np.ndarray
+    ox: np.ndarray
+    oy: np.ndarray
+    X: np.ndarray
+    convention: str
+    scaling: Scaling
+
+    @classmethod
+    def build(cls, times, bearings, observer, initial, reference_time, convention) -> "ScaledProblem":
+        scaling = Scaling.build(times, observer, initial, reference_time)
+        o = scaling.observer(observer)
+        return cls(scaling.tau(times), o[..., 0], o[..., 1], wrap_angle(bearings), convention, scaling)
+
+    def residuals(self, s):
+        return residuals(s, self.tau, self.ox, self.oy, self.X, self.convention)
+
+    def cost(self, s):
+        r = self.residuals(s)
+        return np.einsum("...k,...k->...", r, r), r
+
+    def jacobian(self, s):
+        return jacobian(s, self.tau, self.ox, self.oy, self.convention)
+
+
+# --------------------------------------------------------------------------- answers
+
+
+@attrs.frozen(eq=False, kw_only=True)
+class TMASolution(Solution):
+    """A TMA answer: θ = (x0, y0, vx, vy) at ``reference_time`` and its covariance.
+
+    ``cost`` is F(θ) in rad²; ``sqrt_ka`` = √(F/n) in radians (seed 002 §5.1,
+    "Ka"), ``sqrt_ka_deg`` in degrees; ``chi2_statistic`` = F/σ² tested against
+    χ²(n − 4) (seed 002 §4.2): ``chi2_pvalue`` = P(χ²(n−4) ≥ F/σ²) and
+    ``consistent`` = p ≥ ``alpha`` (None when σ is unknown or zero).
+    """
+
+    reference_time: float
+    sqrt_ka: float
+    chi2_statistic: float = float("nan")
+    chi2_dof: int = 0
+    chi2_pvalue: float = float("nan")
+    consistent: bool | None = None
+    method: str = ""
+
+    @property
+    def sqrt_ka_deg(self) -> float:
+        return float(np.rad2deg(self.sqrt_ka))
+
+    def state_at(self, t: float) -> np.ndarray:
+        """(x, y, vx, vy) of the estimated target at time ``t``."""
+        return propagate(self.parameters, t - self.reference_time)
+
+
+@attrs.frozen(eq=False)
+class BatchTMASolution:
+    """B answers stacked: parameters (B, 4), covariance (B, 4, 4), cost, sqrt_ka, chi2_pvalue (B,), iterations, evaluations (B,), converged (B,)."""
+
+    parameters: np.ndarray
+    covariance: np.ndarray
+    cost: np.ndarray
+    iterations: np.ndarray
+    evaluations: np.ndarray
+    converged: np.ndarray
+    sqrt_ka: np.ndarray
+    chi2_statistic: np.ndarray
+    chi2_dof: int
+    chi2_pvalue: np.ndarray
+    consistent: np.ndarray | None
+    reference_time: float
+    messages: tuple[str, ...]
+    method: str = ""
+
+    def __len__(self) -> int:
+        return self.parameters.shape[0]
+
+    @property
+    def sqrt_ka_deg(self) -> np.ndarray:
+        return np.rad2deg(self.sqrt_ka)
+
+    def solution(self, i: int) -> TMASolution:
+        return TMASolution(
+            parameters=self.parameters[i], covariance=self.covariance[i], cost=float(self.cost[i]),
+            iterations=int(self.iterations[i]), evaluations=int(self.evaluations[i]), converged=bool(self.converged[i]),
+            message=self.messages[i], reference_time=self.reference_time, sqrt_ka=float(self.sqrt_ka[i]),
+            chi2_statistic=float(self.chi2_statistic[i]), chi2_dof=self.chi2_dof, chi2_pvalue=float(self.chi2_pvalue[i]),
+            consistent=None if self.consistent is None else bool(self.consistent[i]), method=self.method,
+        )
+
+
+def propagate(theta, dt):
+    """Position of θ = (x0, y0, vx, vy) moved by dt: (x0 + vx dt, y0 + vy dt, vx, vy)."""
+    theta = np.asarray(theta, dtype=float)
+    dt = np.asarray(dt, dtype=float)[..., None]
+    return np.concatenate([theta[..., :2] + theta[..., 2:] * dt, theta[..., 2:]], axis=-1)
+
+
+def summarize(scaling, s, F, H, n, sigma, alpha=0.01):
+    """θ, covariance, √Ka and the χ²(n−4) test for answers s (..., 4) with F (...,) and H = JᵀJ (..., 4, 4) in scaled units.
+
+    Covariance (Cramér–Rao, seed 002 §4.2): C_θ = σ² D (JᵀJ)⁻¹ D with D = ∂θ/∂s, σ²
+    the known noise or F/(n − 4).  Answers whose JᵀJ has reciprocal condition
+    below :data:`RCOND_MIN` get a NaN covariance and ``observable`` False.
+    Returns (theta, covariance, sqrt_ka, chi2_statistic, chi2_pvalue, consistent, observable).
+    """
+    F = np.asarray(F, dtype=float)
+    theta = scaling.from_scaled(s)
+    dof = n - N_PARAMETERS
+    # Jacobi-equilibrate before factorizing: C = E (E H E)⁻¹ E with E = diag(H)^(-1/2)
+    d = np.sqrt(np.maximum(np.diagonal(H, axis1=-2, axis2=-1), np.finfo(float).tiny))
+    Hn = H / (d[..., :, None] * d[..., None, :])
+    eig = np.linalg.eigvalsh(Hn)
+    observable = (eig[..., 0] > RCOND_MIN * eig[..., -1]) & np.isfinite(eig).all(axis=-1)
+    Hn_safe = np.where(observable[..., None, None], Hn, np.eye(4))
+    Lc = np.linalg.cholesky(Hn_safe)
+    Linv = np.linalg.solve(Lc, np.broadcast_to(np.eye(4), Lc.shape))  # 4×4 triangular, off the hot path
+    Hinv = (np.swapaxes(Linv, -1, -2) @ Linv) / (d[..., :, None] * d[..., None, :])
+    if sigma is not None:
+        variance = np.full(F.shape, sigma**2)
+    else:
+        variance = F / dof if dof > 0 else np.full(F.shape, np.nan)
+    D = scaling.factors
+    cov = variance[..., None, None] * Hinv * (D[..., :, None] * D[..., None, :])
+    cov = np.where(observable[..., None, None], cov, np.nan)
+    return (theta, cov) + fit_statistics(F, n, sigma, alpha) + (observable,)
+
+
+def fit_statistics(F, n, sigma, alpha=0.01):
+    """√Ka = √(F/n) (seed 002 §5.1) and the χ²(n−4) test of F/σ² (seed 002 §4.2).
+
+    Returns (sqrt_ka, statistic, pvalue, consistent); the last three are NaN /
+    None when σ is unknown or zero or n = 4.
+    """
+    F = np.asarray(F, dtype=float)
+    dof = n - N_PARAMETERS
+    sqrt_ka = np.sqrt(F / n)
+    if sigma is not None and sigma > 0 and dof > 0:
+        statistic = F / sigma**2
+        pvalue = stats.chi2.sf(statistic, dof)
+        return sqrt_ka, statistic, pvalue, pvalue >= alpha
+    nan = np.full(F.shape, np.nan)
+    return sqrt_ka, nan, nan.copy(), None
+
+
+def warn_unobservable(count: int, method: str) -> None:
+    warnings.warn(
+        f"{method}: JᵀJ is numerically singular at {count} answer(s): θ is unobservable from these bearings"
+        " (covariance set to NaN, converged=False)",
+        UnobservabilityWarning,
+        stacklevel=3,
+    )
+
+
+def to_solution(problem: BearingsProblem, scaled: ScaledProblem, s, F, H, iterations, evaluations, converged, message, method):
+    """Assemble a :class:`TMASolution` for one problem (warns when θ is unobservable)."""
+    theta, cov, ska, stat, pval, cons, observable = summarize(scaled.scaling, s, F, H, problem.size, problem.sigma)
+    if not observable:
+        warn_unobservable(1, method)
+        converged = False
+        message = (message + "; " if message else "") + "unobservable: JᵀJ singular"
+    return TMASolution(
+        parameters=theta, covariance=cov, cost=float(F), iterations=int(iterations), evaluations=int(evaluations),
+        converged=bool(converged), message=message, reference_time=problem.reference_time, sqrt_ka=float(ska),
+        chi2_statistic=float(stat), chi2_dof=problem.size - N_PARAMETERS, chi2_pvalue=float(pval),
+        consistent=None if cons is None else bool(cons), method=method,
+    )
+
+
+# --------------------------------------------------------------------------- kinematics
+
+
+def kinematics(theta, t, reference_time, observer_position, convention="north"):
+    """Bearing, range, course and speed of the target θ at time t seen from ``observer_position`` (..., 2).
+
+    Course is the bearing of the velocity vector in the same convention.
+    Returns four arrays (radians, metres, radians, m/s).
+    """
+    state = propagate(theta, np.asarray(t) - reference_time)
+    dx = state[..., 0] - observer_position[..., 0]
+    dy = state[..., 1] - observer_position[..., 1]
+    return (
+        bearing(dx, dy, convention),
+        np.hypot(dx, dy),
+        bearing(state[..., 2], state[..., 3], convention),
+        np.hypot(state[..., 2], state[..., 3]),
+    )
+
+
+def from_polar(bearing_angle, range_, course, speed, observer_position, convention="north"):
+    """θ (..., 4) of a target at ``bearing``/``range`` from ``observer_position`` moving on ``course`` at ``speed``."""
+    ux, uy = direction(bearing_angle, convention)
+    cx, cy = direction(course, convention)
+    observer_position = np.asarray(observer_position, dtype=float)
+    return np.stack(
+        [observer_position[..., 0] + range_ * ux, observer_position[..., 1] + range_ * uy, speed * cx, speed * cy], axis=-1
+    )
