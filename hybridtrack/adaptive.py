@@ -1,0 +1,479 @@
+"""Adaptive estimation: the estimate follows the filter of the identified motion mode (SPEC §4, §7).
+
+Two drivers compose registered plugins — motion models, an estimator, a
+detector — around a :class:`~hybridtrack.bank.FilterBank` whose membership
+changes over time, which a fixed-bank :class:`~hybridtrack.pipeline.Pipeline`
+cannot express:
+
+* :class:`KnownSwitchAdaptive` — seed 001 Algorithm 1.  At every known
+  switching moment (the start of every schedule segment, the first included)
+  a bank of 2n+1 filters (straight, n left and n right turns with radii
+  r_min … r_max) is re-created from the current estimate (x̂, P), each turn's
+  ω and centre fixed from x̂ (SPEC §7); the detector (default
+  ``sprt_pairwise``, rule (5)) eliminates hypotheses; until it decides the
+  estimate follows the filter of the previously chosen hypothesis (seed 001
+  line 9); after the decision only the chosen filter runs to the end of the
+  segment (lines 14–16).
+* :class:`UnknownChangeAdaptive` — seed 000 Algorithm 3 repeated.  Filter 0
+  runs the current mode; at every step one filter per alternative mode is
+  started from filter 0's estimate, hypothesising the change there; the
+  detector (default ``sprt_unknown_change``) averages the ratios over change
+  times and applies rule (24).  A change to p makes the most likely filter of
+  p the new filter 0 (the estimate follows it) and restarts the test; "no
+  change" (every ln λ ≤ B) restarts the test with filter 0 alone.  The bank is
+  bounded by ``bank_size`` alternative filters, pruned by the detector's rule
+  (``"oldest"`` or seed 003's ``"nearest_lower"``), or by Algorithm 4's
+  estimate (``bank_size="algorithm4"``, oldest first).
+
+Step convention (as the Pipeline): step 0 updates the prior with z_0; step
+k ≥ 1 predicts and updates.  With the ``decentralized`` estimator every node's
+locally computed ℓ and NIS (seed 000 eq. 22) feed node copies of the detector
+and of the signal function, recorded beside the centralized values.
+
+Recording (through the recorder passed in): ``world/estimate/<name>``,
+``detector/<detector>/log_ratio/<mode>`` with ``…/upper`` and ``…/lower``,
+``detector/signal_function/signal`` with ±bounds, ``estimator/<name>/bank_size``
+and the decisions as events.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any, Mapping, Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.bank import FilterBank
+from hybridtrack.interfaces import Detector, Estimator, MotionModel, Sensor
+from hybridtrack.network import SensorNetwork
+from hybridtrack.pipeline import _registry, resolve
+from hybridtrack.registry import Registry
+from hybridtrack.types import Decision, Gaussian, Schedule
+
+
+# --------------------------------------------------------------------------- composition helpers
+
+
+def turn_bank(r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=None) -> list[tuple[str, dict]]:
+    """The 2n+1 hypotheses of seed 001 §3: straight, left turns r_1 … r_n, right turns r_1 … r_n.
+
+    Radii r_i = r_min + (i − 1)(r_max − r_min)/(n − 1) (n = 1: r_min alone, which must equal r_max).
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n: expected a positive number of radii, got {n!r}")
+    r_min, r_max = float(r_min), float(r_max)
+    if not (np.isfinite(r_min) and r_min > 0):
+        raise ValueError(f"r_min: expected a positive radius, got {r_min!r}")
+    if not np.isfinite(r_max) or r_min > r_max:
+        raise ValueError(f"r_min, r_max: expected 0 < r_min ≤ r_max, got r_min = {r_min}, r_max = {r_max}")
+    if n == 1 and r_min != r_max:
+        raise ValueError(f"n: one radius needs r_min = r_max, got r_min = {r_min}, r_max = {r_max}")
+    extra = {} if noise_cov is None else {"noise_cov": noise_cov}
+    radii = np.linspace(r_min, r_max, n)
+    return ([("straight", dict(extra))] + [("left_turn", {"radius": float(r), **extra}) for r in radii]
+            + [("right_turn", {"radius": float(r), **extra}) for r in radii])
+
+
+def mode_label(model: MotionModel) -> str:
+    radius = getattr(model, "radius", None)
+    return model.name if radius is None else f"{model.name}_r{radius:g}"
+
+
+def _models(modes, registry) -> list[MotionModel]:
+    models = [resolve("motion_model", m, MotionModel, registry) for m in modes]
+    if not models:
+        raise ValueError("modes: expected at least one motion mode, got an empty set")
+    layouts = {m.layout for m in models}
+    if len(layouts) != 1:
+        raise ValueError(f"modes: every mode must share one state layout, got {sorted(layouts)}")
+    return models
+
+
+def _labels(models) -> tuple[str, ...]:
+    labels = [mode_label(m) for m in models]
+    return tuple(x if labels.count(x) == 1 else f"{x}_{i}" for i, x in enumerate(labels))
+
+
+def _prior(prior) -> Gaussian:
+    return prior if isinstance(prior, Gaussian) else Gaussian(*prior)
+
+
+def _log_columns(recorder, entity: str, steps, values: np.ndarray, names: Sequence[str], times) -> None:
+    """One scalar series per column, finite rows only (a hypothesis not in play leaves a gap)."""
+    for j, name in enumerate(names):
+        keep = np.isfinite(values[:, j])
+        if keep.any():
+            recorder.log_scalars(f"{entity}/{name}", steps[keep], values[keep, j], None if times is None else times[keep])
+
+
+# --------------------------------------------------------------------------- known switching moments
+
+
+@attrs.frozen
+class SegmentOutcome:
+    """One segment of Algorithm 1: the hypothesis followed at its end, its radius, when it was decided."""
+
+    start: int
+    steps: int
+    mode: str
+    index: int
+    radius: float | None
+    decision_step: int | None
+
+    @property
+    def delay(self) -> int | None:
+        """Steps from the switching moment to the decision (None: undecided in the segment)."""
+        return None if self.decision_step is None else self.decision_step - self.start
+
+
+@attrs.frozen(eq=False)
+class KnownSwitchRun:
+    """Algorithm 1's output: the selected estimate (K+1, n), covariances, the hypothesis followed per step,
+    the log-likelihood ratios per hypothesis (K+1, H; NaN when not in play) and the per-segment outcomes."""
+
+    layout: tuple[str, ...]
+    hypotheses: tuple[str, ...]
+    means: np.ndarray
+    covs: np.ndarray
+    followed: np.ndarray
+    log_ratios: np.ndarray
+    segments: tuple[SegmentOutcome, ...]
+    decisions: tuple[Decision, ...]
+    upper: float
+    lower: float
+
+
+class KnownSwitchAdaptive:
+    """Seed 001 Algorithm 1: SPRT on a re-created bank of 2n+1 filters at each known switching moment.
+
+    ``modes`` overrides the bank (default :func:`turn_bank` (r_min, r_max, n,
+    noise_cov)); ``detector`` is a fixed-bank detector exposing ``decided``
+    and ``hypotheses`` (default ``sprt_pairwise`` with ``alpha``, ``beta``).
+    """
+
+    def __init__(self, *, sensors: SensorNetwork | Sequence[Sensor], tau: float, modes: Sequence[Any] | None = None,
+                 r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=None, estimator: Any = "kalman",
+                 detector: Any = None, alpha: float = 0.01, beta: float = 0.01, name: str = "known_switch",
+                 registry: Registry | None = None):
+        registry = _registry(registry)
+        self.models = _models(modes if modes is not None else turn_bank(r_min, r_max, n, noise_cov), registry)
+        self.hypotheses = _labels(self.models)
+        self.layout = self.models[0].layout
+        self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
+        self.tau = float(tau)
+        if not (np.isfinite(self.tau) and self.tau > 0):
+            raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
+        self.estimator: Estimator = resolve("estimator", estimator, Estimator, registry)
+        spec = detector if detector is not None else ("sprt_pairwise", {"alpha": alpha, "beta": beta})
+        self.detector: Detector = resolve("detector", spec, Detector, registry)
+        for attribute in ("decided", "hypotheses", "observe"):
+            if not hasattr(self.detector, attribute):
+                raise ValueError(f"detector: {self.detector.name!r} has no {attribute!r}; Algorithm 1 needs a fixed-bank SPRT such as 'sprt_pairwise'")
+        self.name = name
+
+    def run(self, measurements: Mapping[str, np.ndarray], prior, segments: Schedule | Sequence[int], *, recorder=None, truth=None) -> KnownSwitchRun:
+        lengths = [s.steps for s in segments.segments] if isinstance(segments, Schedule) else [int(t) for t in segments]
+        if not lengths or min(lengths) < 1:
+            raise ValueError(f"segments: expected positive segment lengths, got {lengths}")
+        z = self.network.stack(measurements)
+        K = sum(lengths)
+        if z.shape[0] != K + 1:
+            raise ValueError(f"measurements: expected {K + 1} steps (0 … {K}) for segments totalling {K}, got {z.shape[0]}")
+        prior = _prior(prior)
+        H = len(self.models)
+        means, covs = np.zeros((K + 1, len(self.layout))), np.zeros((K + 1, len(self.layout), len(self.layout)))
+        followed = np.zeros(K + 1, dtype=int)
+        ratios = np.full((K + 1, H), np.nan)
+        start_bank = FilterBank(len(self.layout))
+        start_bank.add(prior.mean, prior.cov, self.models[0], self.tau, prior.mean)
+        start_bank.update_only(self.estimator, z[0], self.network.sensors, self.layout)
+        x, P = start_bank.means[0], start_bank.covs[0]
+        means[0], covs[0] = x, P
+        q, k = 0, 0
+        outcomes, decisions = [], []
+        detector = self.detector
+        for T in lengths:
+            bank = FilterBank(len(self.layout))
+            for i, model in enumerate(self.models):
+                bank.add(x, P, model, self.tau, x, label=i)
+            detector.hypotheses = self.hypotheses
+            detector.reset()
+            decision_step = None
+            for step in range(k + 1, k + T + 1):
+                innovation = bank.step(self.estimator, z[step], self.network.sensors, self.layout)
+                row = 0
+                if decision_step is None:
+                    out = detector.observe(step, innovation.loglik, innovation.nis, innovation.measurement_dim)
+                    ratios[step] = np.where(out.statistics["active"] > 0, out.statistics["log_ratio"], np.nan)
+                    row = q
+                    if out.decision is not None:
+                        q, row, decision_step = int(detector.decided), int(detector.decided), step
+                        ratios[step, q] = out.statistics["log_ratio"][q]
+                        decisions.append(out.decision)
+                x, P = bank.means[row], bank.covs[row]
+                if decision_step == step:
+                    bank.keep([q])
+                means[step], covs[step], followed[step] = x, P, q
+            model = self.models[q]
+            outcomes.append(SegmentOutcome(k, T, self.hypotheses[q], q, getattr(model, "radius", None), decision_step))
+            k += T
+        run = KnownSwitchRun(self.layout, self.hypotheses, means, covs, followed, ratios, tuple(outcomes), tuple(decisions),
+                             float(detector.upper), float(detector.lower))
+        if recorder is not None:
+            self._record(recorder, run, truth)
+        return run
+
+    def _record(self, recorder, run: KnownSwitchRun, truth) -> None:
+        steps = np.arange(run.means.shape[0])
+        times = steps * self.tau
+        if truth is not None:
+            recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
+        ix, iy = self.layout.index("x"), self.layout.index("y")
+        recorder.log_path(f"world/estimate/{self.name}", steps, run.means[:, [ix, iy]], times)
+        base = f"detector/{self.detector.name}"
+        _log_columns(recorder, f"{base}/log_ratio", steps, run.log_ratios, run.hypotheses, times)
+        recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
+        recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
+        recorder.log_scalars(f"estimator/{self.name}/followed", steps, run.followed.astype(float), times)
+        for d in run.decisions:
+            recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", d.step * self.tau)
+
+
+# --------------------------------------------------------------------------- unknown change time
+
+
+@attrs.frozen
+class ChangeEvent:
+    """A detected change: at ``step`` the mode became ``mode``; the most likely change step was ``change_step``."""
+
+    step: int
+    mode: str
+    change_step: int
+
+
+@attrs.frozen(eq=False)
+class UnknownChangeRun:
+    """Algorithm 3 repeated: the selected estimate (K+1, n), the mode followed per step (index into
+    ``modes``), ln λ per mode (K+1, M; NaN for the current mode and at step 0), the bank size (number of
+    filters) per step, the signal function of filter 0 and its bounds, decisions, detected changes, and,
+    with a decentralized estimator, the same series computed at each node (K+1, N, …)."""
+
+    layout: tuple[str, ...]
+    modes: tuple[str, ...]
+    means: np.ndarray
+    covs: np.ndarray
+    mode: np.ndarray
+    log_ratios: np.ndarray
+    bank_sizes: np.ndarray
+    signal: np.ndarray
+    signal_bounds: np.ndarray
+    decisions: tuple[Decision, ...]
+    changes: tuple[ChangeEvent, ...]
+    upper: float
+    lower: float
+    bank_limit: int | None
+    node_log_ratios: np.ndarray | None = None
+    node_signal: np.ndarray | None = None
+
+    def first_change(self, after: int = 0) -> ChangeEvent | None:
+        """The first detected change at a step > ``after``."""
+        return next((c for c in self.changes if c.step > after), None)
+
+
+class UnknownChangeAdaptive:
+    """Seed 000 Algorithm 3, repeated: growing (or bounded) bank, rule (24), the estimate follows the identified mode.
+
+    ``modes``: the M motion modes (objects, names or (name, parameters));
+    ``initial_mode`` the index of the mode at the start.  ``detector``: an
+    object or spec of a change-time SPRT (default ``sprt_unknown_change`` with
+    ``alpha``, ``beta``); ``bank_size`` bounds the alternative filters (an int,
+    ``"algorithm4"`` or None for the growing bank of the seed); ``pruning``
+    overrides the detector's rule.  ``signal``: a signal-function detector
+    watching filter 0 (None to skip).
+    """
+
+    def __init__(self, *, modes: Sequence[Any], sensors: SensorNetwork | Sequence[Sensor], tau: float,
+                 estimator: Any = "kalman", detector: Any = None, alpha: float = 0.05, beta: float = 0.05,
+                 initial_mode: int = 0, bank_size: int | str | None = None, pruning: str | None = None,
+                 signal: Any = "signal_function", name: str = "unknown_change", registry: Registry | None = None):
+        registry = _registry(registry)
+        self.models = _models(modes, registry)
+        if len(self.models) < 2:
+            raise ValueError(f"modes: a change needs at least two modes, got {len(self.models)}")
+        self.labels = _labels(self.models)
+        self.layout = self.models[0].layout
+        if isinstance(initial_mode, bool) or not isinstance(initial_mode, (int, np.integer)) or not 0 <= initial_mode < len(self.models):
+            raise ValueError(f"initial_mode: expected an index in 0 … {len(self.models) - 1}, got {initial_mode!r}")
+        self.initial_mode = int(initial_mode)
+        self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
+        self.tau = float(tau)
+        if not (np.isfinite(self.tau) and self.tau > 0):
+            raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
+        self.estimator: Estimator = resolve("estimator", estimator, Estimator, registry)
+        spec = detector if detector is not None else ("sprt_unknown_change", {"alpha": alpha, "beta": beta})
+        self.detector: Detector = resolve("detector", spec, Detector, registry)
+        for attribute in ("add", "keep", "prune", "decided", "chosen_entry", "starts", "hypotheses", "observe"):
+            if not hasattr(self.detector, attribute):
+                raise ValueError(f"detector: {self.detector.name!r} has no {attribute!r}; Algorithm 3 needs a change-time SPRT such as 'sprt_unknown_change'")
+        if pruning is not None:
+            if pruning not in ("oldest", "nearest_lower"):
+                raise ValueError(f"pruning: expected 'oldest' or 'nearest_lower', got {pruning!r}")
+            self.detector.pruning = pruning
+        if isinstance(bank_size, str):
+            if bank_size != "algorithm4":
+                raise ValueError(f"bank_size: expected a positive integer, 'algorithm4' or None, got {bank_size!r}")
+            if pruning is None:
+                self.detector.pruning = "oldest"
+        elif bank_size is not None and (isinstance(bank_size, bool) or not isinstance(bank_size, (int, np.integer)) or bank_size < 1):
+            raise ValueError(f"bank_size: expected a positive integer, 'algorithm4' or None, got {bank_size!r}")
+        self.bank_size = bank_size
+        self.signal: Detector | None = None if signal is None else resolve("detector", signal, Detector, registry)
+        self.name = name
+
+    # ------------------------------------------------------------------ Algorithm 4
+    def algorithm4_bank_size(self, switch_state, horizon: int = 300) -> int:
+        """Alternative filters to keep: Algorithm 4's steps per change time × (M − 1), from ``switch_state``."""
+        from hybridtrack_plugins.detectors._wald import algorithm4_bank_size, wald_pair
+
+        x_s = np.asarray(switch_state, dtype=float)
+        H = self.network.jacobian(x_s, self.layout)
+        R = self.network.noise_cov()
+        base = self.models[self.initial_mode].transition(self.tau, x_s)
+        pairs = []
+        for p, model in enumerate(self.models):
+            if p == self.initial_mode:
+                continue
+            t = model.transition(self.tau, x_s)
+            pairs.append(wald_pair((base.F, base.B, base.process_noise), (t.F, t.B, t.process_noise), H, R, x_s,
+                                   self.detector.alpha, self.detector.beta, horizon=horizon))
+        return algorithm4_bank_size(pairs) * (len(self.models) - 1)
+
+    def _algorithm4_cached(self, switch_state) -> int:
+        key = (np.asarray(switch_state, dtype=float).tobytes(), self.detector.alpha, self.detector.beta)
+        cache = self.__dict__.setdefault("_algorithm4", {})
+        if key not in cache:
+            cache[key] = self.algorithm4_bank_size(switch_state)
+        return cache[key]
+
+    # ------------------------------------------------------------------ the run
+    def _restart(self, detectors, current: int) -> list[int]:
+        alternatives = [i for i in range(len(self.models)) if i != current]
+        for detector in detectors:
+            detector.hypotheses = (self.labels[current],) + tuple(self.labels[i] for i in alternatives)
+            detector.reset()
+        return alternatives
+
+    def run(self, measurements: Mapping[str, np.ndarray], prior, *, recorder=None, truth=None) -> UnknownChangeRun:
+        z = self.network.stack(measurements)
+        prior = _prior(prior)
+        K = z.shape[0] - 1
+        n, M = len(self.layout), len(self.models)
+        limit = self._algorithm4_cached(prior.mean) if self.bank_size == "algorithm4" else self.bank_size
+        sensors = self.network.sensors
+        detector = self.detector
+        signal = self.signal
+        node_detectors: list = []
+        node_signals: list = []
+
+        means, covs = np.zeros((K + 1, n)), np.zeros((K + 1, n, n))
+        mode = np.zeros(K + 1, dtype=int)
+        ratios = np.full((K + 1, M), np.nan)
+        bank_sizes = np.zeros(K + 1, dtype=int)
+        signal_values = np.full(K + 1, np.nan)
+        bounds = np.full((K + 1, 2), np.nan)
+        node_ratios, node_signal = None, None
+        decisions, changes = [], []
+
+        current = self.initial_mode
+        alternatives = self._restart([detector], current)
+        if signal is not None:
+            signal.reset()
+        bank = FilterBank(n)
+        bank.add(prior.mean, prior.cov, self.models[current], self.tau, prior.mean)
+        innovation = bank.update_only(self.estimator, z[0], sensors, self.layout)
+        if signal is not None:
+            out = signal.observe(0, innovation.loglik[:1], innovation.nis[:1], innovation.measurement_dim)
+            signal_values[0], bounds[0] = out.statistics["signal"][0], (out.thresholds["lower"], out.thresholds["upper"])
+        means[0], covs[0], mode[0], bank_sizes[0] = bank.means[0], bank.covs[0], current, 1
+        scores = bank.node_scores()
+        if scores is not None:  # decentralized: every node runs its own copy of the detectors
+            N = scores[0].shape[0]
+            node_detectors = [copy.deepcopy(detector) for _ in range(N)]
+            node_ratios, node_signal = np.full((K + 1, N, M), np.nan), np.full((K + 1, N), np.nan)
+            if signal is not None:
+                node_signals = [copy.deepcopy(signal) for _ in range(N)]
+                for i, ns in enumerate(node_signals):
+                    ns.reset()
+                    node_signal[0, i] = ns.observe(0, scores[0][i][:1], scores[1][i][:1], innovation.measurement_dim).statistics["signal"][0]
+
+        for k in range(1, K + 1):
+            # 1. one new filter per alternative, hypothesising the change at k (from filter 0's estimate)
+            x0, P0 = bank.means[0].copy(), bank.covs[0].copy()
+            for p, i in enumerate(alternatives, start=1):
+                bank.add(x0, P0, self.models[i], self.tau, x0, label=(i, k))
+            for d in [detector] + node_detectors:
+                d.add(np.arange(1, M), k)
+            # 2. one step of the whole bank, then the ratios (25) and rule (24)
+            innovation = bank.step(self.estimator, z[k], sensors, self.layout)
+            m = innovation.measurement_dim
+            out = detector.observe(k, innovation.loglik, innovation.nis, m)
+            ratios[k, alternatives] = out.statistics["log_ratio"]
+            bank_sizes[k] = len(bank)
+            scores = bank.node_scores()
+            for i, d in enumerate(node_detectors):
+                d.observe(k, scores[0][i], scores[1][i], m)
+                node_ratios[k, i, alternatives] = d.log_ratios()
+            if signal is not None:
+                s = signal.observe(k, innovation.loglik[:1], innovation.nis[:1], m)
+                signal_values[k], bounds[k] = s.statistics["signal"][0], (s.thresholds["lower"], s.thresholds["upper"])
+                for i, ns in enumerate(node_signals):
+                    node_signal[k, i] = ns.observe(k, scores[0][i][:1], scores[1][i][:1], m).statistics["signal"][0]
+            # 3. act on the decision, or bound the bank
+            if out.decision is not None:
+                decisions.append(out.decision)
+                if detector.decided:  # a change to alternatives[p − 1], followed by its most likely filter
+                    entry = int(detector.chosen_entry)
+                    change = ChangeEvent(k, self.labels[alternatives[detector.decided - 1]], int(detector.starts[entry]))
+                    changes.append(change)
+                    current = alternatives[detector.decided - 1]
+                    bank.keep([1 + entry])
+                    if signal is not None:
+                        for s_ in [signal] + node_signals:
+                            s_.reset()
+                else:  # H_0 accepted: the test restarts with filter 0 alone
+                    bank.keep([0])
+                alternatives = self._restart([detector] + node_detectors, current)
+            else:
+                rows = detector.prune(limit)
+                for d in node_detectors:
+                    d.keep(rows)
+                bank.keep(np.concatenate([[0], rows + 1]))
+            means[k], covs[k], mode[k] = bank.means[0], bank.covs[0], current
+        run = UnknownChangeRun(self.layout, self.labels, means, covs, mode, ratios, bank_sizes, signal_values, bounds,
+                               tuple(decisions), tuple(changes), float(detector.upper), float(detector.lower), limit,
+                               node_ratios, node_signal)
+        if recorder is not None:
+            self._record(recorder, run, truth)
+        return run
+
+    def _record(self, recorder, run: UnknownChangeRun, truth) -> None:
+        steps = np.arange(run.means.shape[0])
+        times = steps * self.tau
+        if truth is not None:
+            recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
+        ix, iy = self.layout.index("x"), self.layout.index("y")
+        recorder.log_path(f"world/estimate/{self.name}", steps, run.means[:, [ix, iy]], times)
+        base = f"detector/{self.detector.name}"
+        _log_columns(recorder, f"{base}/log_ratio", steps, run.log_ratios, run.modes, times)
+        recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
+        recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
+        if self.signal is not None:
+            sig = f"detector/{self.signal.name}"
+            recorder.log_scalars(f"{sig}/signal", steps, run.signal, times)
+            recorder.log_scalars(f"{sig}/lower", steps, run.signal_bounds[:, 0], times)
+            recorder.log_scalars(f"{sig}/upper", steps, run.signal_bounds[:, 1], times)
+        recorder.log_scalars(f"estimator/{self.name}/bank_size", steps, run.bank_sizes.astype(float), times)
+        recorder.log_scalars(f"estimator/{self.name}/mode", steps, run.mode.astype(float), times)
+        for d in run.decisions:
+            recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", d.step * self.tau)

@@ -1,0 +1,186 @@
+"""SPRT with unknown change time over a growing bank of filters (seed 000 Algorithm 3, eqs. 24–25; SPEC §4).
+
+Hypothesis H_0: the current mode 0 goes on; H_p (p = 1 … M−1): the mode
+changed to p at some unknown step j.  Filter F_1^0 runs mode 0 since the test
+began; at every step j a filter F_j^p per alternative p is started,
+hypothesising the change at j.  With ℓ the innovation log-likelihood,
+
+    ln ψ_j^p(k) = ln ψ_j^p(k−1) + ℓ_j^p(k) − ℓ_1^0(k),   ln ψ_j^p(j−1) = 0   (eq. 25 with the
+                  determinant ratio the right way up, √(det S_0 / det S_p): SPEC §4)
+    ln λ_{p,k} = ln((1/k) Σ_{j=1}^{k} ψ_j^p(k)) = logsumexp_j ln ψ_j^p(k) − ln k
+
+(change time uniform on [1, k]; k counts the steps since the test began).
+Decision rule (24) with A = ln((1−β)/α) (``upper``), B = ln(β/(1−α)) (``lower``):
+any ln λ_p ≥ A → change to the largest such p; all ln λ_p ≤ B → H_0 ("stay"),
+and the test restarts; otherwise continue.  With ``averaging="none"`` the
+mean over change times is replaced by the sum (a fixed bank whose filters all
+start at the first step is then the multi-hypothesis SPRT with a known change
+time).
+
+Bookkeeping (who drives the bank calls these): the innovation's row 0 is
+F_1^0 and rows 1 … E are the entries in the order of :meth:`add`;
+:meth:`prune` bounds the bank and returns the rows kept:
+
+* ``"oldest"`` — drop the entries started longest ago (a sliding window
+  over change times, the rule seed 003 improves on);
+* ``"nearest_lower"`` — drop the entries whose ln ψ is nearest the lower bound
+  B, i.e. the smallest (seed 003, Zakharov's rule).
+
+Fed a fixed bank of M filters without any :meth:`add` (e.g. by the
+:class:`~hybridtrack.pipeline.Pipeline`), rows 1 … M−1 become the entries of
+modes 1 … M−1 started at the first step.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+from scipy.special import logsumexp
+
+from hybridtrack.interfaces import DetectorStep
+from hybridtrack.types import Decision
+from hybridtrack_plugins.detectors._base import ScoreDetector, check_positive_int
+from hybridtrack_plugins.detectors._thresholds import check_error_probabilities, sprt_thresholds
+
+PRUNING_RULES = ("oldest", "nearest_lower")
+AVERAGING = ("uniform", "none")
+
+
+class ChangeTimeSPRT(ScoreDetector):
+    """Algorithm 3 of seed 000: log-likelihood ratios averaged over change times, rule (24), bank pruning."""
+
+    name = "sprt_unknown_change"
+
+    def __init__(self, alpha: float = 0.05, beta: float = 0.05, hypotheses: Sequence[str] | None = None,
+                 averaging: str = "uniform", bank_size: int | None = None, pruning: str = "nearest_lower"):
+        self._alpha, self._beta = check_error_probabilities(alpha, beta)
+        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+        self.hypotheses = None if hypotheses is None else tuple(str(h) for h in hypotheses)
+        if self.hypotheses is not None and len(self.hypotheses) < 2:
+            raise ValueError(f"hypotheses: expected the current mode and at least one alternative, got {self.hypotheses!r}")
+        if averaging not in AVERAGING:
+            raise ValueError(f"averaging: expected one of {AVERAGING}, got {averaging!r}")
+        if pruning not in PRUNING_RULES:
+            raise ValueError(f"pruning: expected one of {PRUNING_RULES}, got {pruning!r}")
+        self.averaging = averaging
+        self.bank_size = None if bank_size is None else check_positive_int(bank_size, "bank_size")
+        self.pruning = pruning
+        self.reset()
+
+    # ------------------------------------------------------------------ thresholds
+    @property
+    def alpha(self) -> float:
+        """False-alarm probability α; setting it moves A and B (dynamic thresholds)."""
+        return self._alpha
+
+    @alpha.setter
+    def alpha(self, value) -> None:
+        self._alpha, self._beta = check_error_probabilities(value, self._beta)
+        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+
+    @property
+    def beta(self) -> float:
+        return self._beta
+
+    @beta.setter
+    def beta(self, value) -> None:
+        self._alpha, self._beta = check_error_probabilities(self._alpha, value)
+        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+
+    # ------------------------------------------------------------------ bank bookkeeping
+    def reset(self) -> None:
+        """Start a new test: no entries, k = 0."""
+        self.modes = np.zeros(0, dtype=int)  # alternative p of each entry (1 … M−1)
+        self.starts = np.zeros(0, dtype=int)  # hypothesised change step j of each entry
+        self.log_psi = np.zeros(0)
+        self.k = 0
+        self.alternatives: int | None = None if self.hypotheses is None else len(self.hypotheses) - 1
+        self.decided: int | None = None
+        self.chosen_entry: int | None = None
+        self._last: tuple | None = None
+
+    def add(self, modes: Sequence[int], start: int) -> None:
+        """Append entries F_start^p for the alternatives ``modes`` (each in 1 … M−1), ln ψ = 0."""
+        modes = np.asarray(modes, dtype=int).reshape(-1)
+        if modes.size and modes.min() < 1:
+            raise ValueError(f"modes: alternatives are numbered from 1 (0 is the current mode), got {modes.tolist()}")
+        if self.alternatives is not None and modes.size and modes.max() > self.alternatives:
+            raise ValueError(f"modes: alternative {modes.max()} beyond the {self.alternatives} alternatives")
+        self.modes = np.concatenate([self.modes, modes])
+        self.starts = np.concatenate([self.starts, np.full(modes.size, int(start))])
+        self.log_psi = np.concatenate([self.log_psi, np.zeros(modes.size)])
+
+    def keep(self, rows: np.ndarray) -> None:
+        """Keep only the entries ``rows`` (indices into the entries, in order)."""
+        rows = np.asarray(rows, dtype=int)
+        self.modes, self.starts, self.log_psi = self.modes[rows], self.starts[rows], self.log_psi[rows]
+
+    def prune(self, bank_size: int | None = None) -> np.ndarray:
+        """Bound the entries to ``bank_size`` (default: the constructor's) by the pruning rule; returns the rows kept."""
+        size = self.bank_size if bank_size is None else check_positive_int(bank_size, "bank_size")
+        E = self.log_psi.size
+        if size is None or E <= size:
+            return np.arange(E)
+        if self.pruning == "oldest":
+            order = np.lexsort((np.arange(E), -self.starts))  # newest first, stable
+        else:
+            order = np.lexsort((np.arange(E), -self.log_psi))  # largest ln ψ first: the nearest to B go
+        rows = np.sort(order[:size])
+        self.keep(rows)
+        return rows
+
+    # ------------------------------------------------------------------ the test
+    def label(self, p: int) -> str:
+        if self.hypotheses is not None:
+            return self.hypotheses[p]
+        return f"H{p}"
+
+    def log_ratios(self) -> np.ndarray:
+        """ln λ_p for p = 1 … M−1 (−inf for an alternative with no entry)."""
+        P = self.alternatives or (int(self.modes.max()) if self.modes.size else 0)
+        out = np.full(P, -np.inf)
+        for p in range(1, P + 1):
+            values = self.log_psi[self.modes == p]
+            if values.size:
+                out[p - 1] = logsumexp(values) - (math.log(self.k) if self.averaging == "uniform" and self.k > 0 else 0.0)
+        return out
+
+    def observe(self, step, loglik, nis, m) -> DetectorStep:
+        loglik = np.atleast_1d(np.asarray(loglik, dtype=float))
+        if self.decided is not None and self._last is not None:
+            return DetectorStep(*self._last)
+        if self.k == 0 and self.modes.size == 0 and loglik.size > 1:
+            self.add(np.arange(1, loglik.size), step)  # a fixed bank: every alternative from the first step
+        if loglik.size != 1 + self.modes.size:
+            raise ValueError(f"loglik: expected {1 + self.modes.size} filters (the current mode and {self.modes.size} entries), got {loglik.size}")
+        self.k += 1
+        if m > 0:
+            self.log_psi = self.log_psi + (loglik[1:] - loglik[0])
+        ratios = self.log_ratios()
+        decision = None
+        finite = ratios[np.isfinite(ratios)]
+        if ratios.size and ratios.max() >= self.upper:
+            p = int(np.argmax(ratios)) + 1
+            rows = np.flatnonzero(self.modes == p)
+            self.chosen_entry = int(rows[np.argmax(self.log_psi[rows])])
+            self.decided = p
+            j = int(self.starts[self.chosen_entry])
+            decision = Decision(step, self.name, self.label(p), float(ratios[p - 1]),
+                                f"change to {self.label(p)} (most likely at step {j}), ln λ = {ratios[p - 1]:.2f} ≥ A = {self.upper:.2f}")
+        elif finite.size == ratios.size and ratios.size and ratios.max() <= self.lower:
+            decision = Decision(step, self.name, self.label(0), float(ratios.max()),
+                                f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts")
+            self.decided = 0
+        output = ({"log_ratio": ratios, "bank_size": float(self.modes.size)}, {"upper": self.upper, "lower": self.lower}, decision)
+        if decision is not None and self.decided == 0:
+            self.log_psi = np.zeros_like(self.log_psi)  # restart with the same (fixed) bank
+            self.k = 0
+            self.decided = None
+        else:
+            self._last = (output[0], output[1], None)
+        return DetectorStep(*output)
+
+
+COMPONENTS = {ChangeTimeSPRT.name: ChangeTimeSPRT}

@@ -1,0 +1,129 @@
+"""Pairwise SPRT with elimination over a fixed bank (seed 001 §3, rule (5); SPEC §4 "SPRT, known switching moments").
+
+Filters F_0 … F_{M−1} run on the same data from a known switching moment.
+With ℓ_{k,i} the innovation log-likelihood of filter i at step k, the pairwise
+log-likelihood ratio
+
+    λ_{k,ij} = λ_{k−1,ij} + μ_{k,ij},
+    2μ_{k,ij} = ln det S_j − ln det S_i + ν_jᵀS_j⁻¹ν_j − ν_iᵀS_i⁻¹ν_i   (seed 001 eq. 4)
+
+is μ_{k,ij} = ℓ_{k,i} − ℓ_{k,j}, so λ_{k,ij} = L_i − L_j with L_i = Σ ℓ_i since
+the start (λ_0 = 0).  Thresholds A = ln((1−β)/α) (``upper``), B = ln(β/(1−α))
+(``lower``).  Rule (5), applied to the hypotheses still in play:
+
+* λ_ij ≤ B for some j: H_i is dropped (vectorized: L_i − max_j L_j ≤ B);
+* λ_ij ≥ A for every other j in play: H_i is accepted;
+* one hypothesis left: it is accepted.
+
+The leader is never dropped (its λ against everyone is ≥ 0 > B), so the test
+always ends with exactly one hypothesis.  After the decision the detector
+keeps reporting the final values and takes no further decision until
+``reset()``.
+
+Statistics: ``log_ratio`` (M,) = L_i − max_{j≠i in play} L_j (the leader's margin
+over the runner-up, negative for the others; frozen when a hypothesis is
+dropped) and ``active`` (M,) 1/0 (all 0 once decided; the accepted hypothesis keeps its
+final margin over the best of the others).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from hybridtrack.interfaces import DetectorStep
+from hybridtrack.types import Decision
+from hybridtrack_plugins.detectors._base import ScoreDetector
+from hybridtrack_plugins.detectors._thresholds import check_error_probabilities, sprt_thresholds
+
+
+def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """L_i − max_{j ≠ i, j active} L_j for every i (all j when fewer than two are active)."""
+    pool = active if active.sum() >= 2 else np.ones(L.shape[0], dtype=bool)
+    if L.shape[0] < 2:
+        return np.zeros_like(L)
+    masked = np.where(pool, L, -np.inf)
+    order = np.argsort(masked)[::-1]
+    best, second = masked[order[0]], masked[order[1]]
+    rival = np.where(np.arange(L.shape[0]) == order[0], second, best)
+    return L - rival
+
+
+class PairwiseSPRT(ScoreDetector):
+    """SPRT with pairwise log-likelihood ratios and elimination over a fixed bank (seed 001, rule (5))."""
+
+    name = "sprt_pairwise"
+
+    def __init__(self, alpha: float = 0.01, beta: float = 0.01, hypotheses: Sequence[str] | None = None):
+        self._alpha, self._beta = check_error_probabilities(alpha, beta)
+        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+        self.hypotheses = None if hypotheses is None else tuple(str(h) for h in hypotheses)
+        if self.hypotheses is not None and not self.hypotheses:
+            raise ValueError("hypotheses: expected at least one hypothesis name")
+        self.reset()
+
+    @property
+    def alpha(self) -> float:
+        """False-alarm probability α; setting it moves A and B (dynamic thresholds)."""
+        return self._alpha
+
+    @alpha.setter
+    def alpha(self, value) -> None:
+        self._alpha, self._beta = check_error_probabilities(value, self._beta)
+        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+
+    @property
+    def beta(self) -> float:
+        return self._beta
+
+    @beta.setter
+    def beta(self, value) -> None:
+        self._alpha, self._beta = check_error_probabilities(self._alpha, value)
+        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+
+    def reset(self) -> None:
+        self.L = None  # cumulative log-likelihood per hypothesis
+        self.active = None
+        self.frozen = None  # log_ratio at the moment each hypothesis was dropped
+        self.decided: int | None = None
+
+    def label(self, index: int) -> str:
+        if self.hypotheses is not None and index < len(self.hypotheses):
+            return self.hypotheses[index]
+        return f"H{index}"
+
+    def observe(self, step, loglik, nis, m) -> DetectorStep:
+        loglik = np.atleast_1d(np.asarray(loglik, dtype=float))
+        M = loglik.shape[0]
+        if self.L is None:
+            self.L = np.zeros(M)
+            self.active = np.ones(M, dtype=bool)
+            self.frozen = np.zeros(M)
+        if self.L.shape[0] != M:
+            raise ValueError(f"loglik: the bank changed from {self.L.shape[0]} to {M} filters; call reset() first")
+        if self.hypotheses is not None and len(self.hypotheses) != M:
+            raise ValueError(f"hypotheses: {len(self.hypotheses)} names for a bank of {M} filters")
+        decision = None
+        if self.decided is None:
+            if m > 0:
+                self.L = self.L + loglik  # every filter runs on the data; only those in play are compared
+            ratio = margins(self.L, self.active)
+            dropped = self.active & (ratio <= self.lower)
+            self.frozen = np.where(dropped, ratio, self.frozen)
+            self.active = self.active & ~dropped
+            ratio = margins(self.L, self.active)
+            winners = np.flatnonzero(self.active & (ratio >= self.upper))
+            if self.active.sum() == 1 or winners.size:
+                i = int(np.flatnonzero(self.active)[0]) if self.active.sum() == 1 else int(winners[np.argmax(ratio[winners])])
+                self.decided = i
+                self.frozen = np.where(np.arange(M) == i, margins(self.L, np.ones(M, dtype=bool))[i], self.frozen)
+                self.active = np.zeros(M, dtype=bool)
+                decision = Decision(step, self.name, self.label(i), float(ratio[i]),
+                                    f"{self.label(i)} accepted, log-LR margin {ratio[i]:.2f} (A = {self.upper:.2f})")
+        ratio = np.where(self.active, margins(self.L, self.active), self.frozen)
+        return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)},
+                            {"upper": self.upper, "lower": self.lower}, decision)
+
+
+COMPONENTS = {PairwiseSPRT.name: PairwiseSPRT}
