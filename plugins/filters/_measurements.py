@@ -45,6 +45,7 @@ class MeasurementStep:
     H: np.ndarray | None  # (m, n) when every present sensor is linear
     selection: tuple[int, ...] | None  # when every present sensor selects components
     plain_residual: bool
+    R_diagonal: bool = False  # R has no off-diagonal entries
 
     @property
     def dim(self) -> int:
@@ -89,6 +90,7 @@ class MeasurementAssembler:
 
     def __init__(self):
         self._cache: dict = {}
+        self._template: tuple | None = None
 
     def sensor_model(self, sensor: Sensor, layout: tuple[str, ...]) -> SensorModel:
         key = (id(sensor), layout)
@@ -112,10 +114,29 @@ class MeasurementAssembler:
         return model
 
     def assemble(self, z, sensors: Sequence[Sensor], layout: Sequence[str], bank_size: int) -> MeasurementStep | None:
-        """The present sensors' stacked model, or None when no sensor measured (prediction only)."""
+        """The present sensors' stacked model, or None when no sensor measured (prediction only).
+
+        The common case — the same sensors as the previous call, every row
+        finite, R independent of z — reuses the previous step's structure.
+        """
         if isinstance(sensors, Sensor):
             sensors = (sensors,)
         layout = tuple(layout)
+        z_array = np.asarray(z, dtype=np.float64) if isinstance(z, np.ndarray) else None
+        template = self._template
+        if (
+            template is not None
+            and z_array is not None
+            and template[0] == (tuple(map(id, sensors)), layout, bank_size, z_array.shape)
+            and np.isfinite(z_array).all()
+        ):
+            return attrs.evolve(template[1], z=z_array.reshape(-1, template[1].dim))
+        step = self._assemble(z, sensors, layout, bank_size)
+        if step is not None and z_array is not None and len(step.models) == len(sensors) and all(_constant_noise(m.sensor) for m in step.models):
+            self._template = ((tuple(map(id, sensors)), layout, bank_size, z_array.shape), step)
+        return step
+
+    def _assemble(self, z, sensors: Sequence[Sensor], layout: tuple[str, ...], bank_size: int) -> MeasurementStep | None:
         models = [self.sensor_model(s, layout) for s in sensors]
         total = sum(m.dim for m in models)
         z = as_float_array(z, "z", allow_nan=True)
@@ -145,7 +166,14 @@ class MeasurementAssembler:
         if linear and all(m.selection is not None for m in present):
             selection = tuple(i for m in present for i in m.selection)
         plain = all(m.plain_residual for m in present)
-        return MeasurementStep(tuple(present), zp, R, tuple(blocks), H, selection, plain)
+        R_diagonal = not np.count_nonzero(R * (1.0 - np.eye(R.shape[-1])))
+        return MeasurementStep(tuple(present), zp, R, tuple(blocks), H, selection, plain, R_diagonal)
+
+
+def _constant_noise(sensor: Sensor) -> bool:
+    """R does not depend on z (the sensor keeps the default ``measurement_noise``)."""
+    method = getattr(type(sensor), "measurement_noise", None)
+    return method is None or method is Sensor.measurement_noise
 
 
 def _noise(sensor: Sensor, z: np.ndarray) -> np.ndarray:

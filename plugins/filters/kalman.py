@@ -6,6 +6,10 @@ Update:   S = H P⁻ Hᵀ + R,  K = P⁻ Hᵀ S⁻¹,  ν = z − H x⁻,  x⁺ 
 Scores:   ℓ = −½(m ln 2π + ln det S + νᵀS⁻¹ν),  NIS = νᵀS⁻¹ν          (SPEC §4)
 
 All of it over stacked arrays: M filters with their own F, B, Q are one call.
+When F, Q, P are block diagonal over equal "axes" and the sensors select one
+component per axis with diagonal R (the 4-state modes with position sensors),
+the filter runs the exact axis-separable form of ``_separable`` (structure of
+arrays, scalar updates); otherwise, or with ``structure=False``, the dense form.
 The centralized multisensor filter is this filter given all sensors at once
 (H = [H_1; …; H_N], R = blockdiag(R_i), SPEC §2).
 """
@@ -14,11 +18,14 @@ from __future__ import annotations
 
 from typing import Sequence
 
+from functools import cached_property
+
 import attrs
 import numpy as np
 
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack_plugins.filters import _covariance as cov_form
+from hybridtrack_plugins.filters import _separable as sep
 from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
 
 
@@ -53,34 +60,149 @@ class CovarianceState:
         return self.x.shape[0]
 
 
+@attrs.frozen(eq=False, slots=False)
+class AxisState:
+    """A bank in axis-separable covariance form: x (d, A, M), P blocks (d, d, A, M) over ``axes``.
+
+    Reads back like :class:`CovarianceState` (``x``, ``P``, ``mean``,
+    ``covariance``, ``predicted_*``); the dense arrays are assembled on demand.
+    """
+
+    axes: tuple
+    n: int
+    xa: np.ndarray
+    Pa: np.ndarray
+    xa_predicted: np.ndarray
+    Pa_predicted: np.ndarray
+    innovation: Innovation | None = None
+
+    @cached_property
+    def _dense(self):
+        return sep.from_blocks(self.xa, self.Pa, self.axes, self.n)
+
+    @cached_property
+    def _dense_predicted(self):
+        if self.xa_predicted is self.xa:
+            return self._dense
+        return sep.from_blocks(self.xa_predicted, self.Pa_predicted, self.axes, self.n)
+
+    x = property(lambda self: self._dense[0])
+    P = property(lambda self: self._dense[1])
+    x_predicted = property(lambda self: self._dense_predicted[0])
+    P_predicted = property(lambda self: self._dense_predicted[1])
+    mean = x
+    covariance = P
+    predicted_mean = x_predicted
+    predicted_covariance = P_predicted
+
+    @property
+    def bank_size(self) -> int:
+        return self.xa.shape[-1]
+
+
 class KalmanFilter(BankEstimator):
     """Covariance-form Kalman filter bank (Joseph or symmetrised update, Cholesky solves).
 
     ``form``: ``"joseph"`` (default), ``"symmetric"`` (P⁻ − K S Kᵀ, symmetrised)
     or ``"conventional"`` ((I − K H) P⁻ unsymmetrised, for comparisons only).
+    ``structure`` (default True): use the axis-separable fast path when the
+    bank, the prior and the sensors allow it (same results to rounding).
     Linear sensors only; the ``ekf`` estimator takes nonlinear ones.
     """
 
     name = "kalman"
 
-    def __init__(self, form: str = "joseph"):
+    def __init__(self, form: str = "joseph", structure: bool = True):
         super().__init__()
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
         self.form = form
+        self.structure = bool(structure) and form != "conventional"
+        self._split_cache: tuple | None = None
+        self._plan_cache: dict = {}
 
     def initialize(self, mean, cov) -> CovarianceState:
         x, P = self._check_prior(mean, cov)
         return CovarianceState(x, P, x, P, None)
 
-    def predict(self, state: CovarianceState, transitions: TransitionBank) -> CovarianceState:
-        M, n = state.x.shape
-        bank = self._check_transitions(transitions, M, n, state.x)
+    # ------------------------------------------------------------------ predict
+    def _split(self, bank: TransitionBank):
+        cached = self._split_cache
+        if cached is not None and cached[0] is bank:
+            return cached[1]
+        split = sep.split_bank(bank.F, bank.B, bank.Q)
+        self._split_cache = (bank, split)
+        return split
+
+    def predict(self, state, transitions: TransitionBank):
+        M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
+        bank = self._check_transitions(transitions, M, n, state.mean if callable(transitions) and not isinstance(transitions, TransitionBank) else None)
+        if self.structure:
+            split = self._split(bank)
+            if split is not None:
+                if isinstance(state, AxisState) and state.axes == split.axes:
+                    xa, Pa = state.xa, state.Pa
+                elif sep.is_block_diagonal(state.P, split.axes):
+                    xa, Pa = sep.to_blocks(state.x, state.P, split.axes)
+                else:
+                    xa = None
+                if xa is not None:
+                    xa, Pa = sep.predict(xa, Pa, split)
+                    return AxisState(split.axes, n, xa, Pa, xa, Pa, None)
         x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
         return CovarianceState(x, P, x, P, None)
 
-    def update(self, state: CovarianceState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        M, n = state.x.shape
+    # ------------------------------------------------------------------ update
+    def _axis_plan(self, step, axes):
+        """How a measurement step maps onto the axes, or None if it does not separate.
+
+        Needs: selection H, one row per axis, the same component position c in
+        each measured axis, and R diagonal.
+        """
+        if step.selection is None or not step.R_diagonal:
+            return None
+        key = (step.selection, axes)
+        if key in self._plan_cache:
+            return self._plan_cache[key]
+        where = {i: (a, block.index(i)) for a, block in enumerate(axes) for i in block}
+        rows = [where[i] for i in step.selection]
+        plan = None
+        if len({a for a, _ in rows}) == len(rows) and len({c for _, c in rows}) == 1:
+            order = np.argsort([a for a, _ in rows])  # rows sorted by axis
+            measured = np.array(sorted(a for a, _ in rows))
+            all_axes = len(rows) == len(axes)
+            plan = (rows[0][1], None if all_axes else measured, order)
+        self._plan_cache[key] = plan
+        return plan
+
+    def _update_axes(self, state: AxisState, step, plan):
+        c, measured, order = plan
+        M = state.bank_size
+        m = step.dim
+        z = step.z[:, order].T  # (A_m, 1 or M)
+        r = np.diagonal(step.R, axis1=-2, axis2=-1)[..., order]
+        r = r[:, None] if r.ndim == 1 else r.T
+        xa, Pa, nu_a, s_a, loglik, nis = sep.update(state.xa, state.Pa, c, measured, z, r, self.form)
+        nu = np.empty((M, m))
+        nu[:, order] = nu_a.T
+        S = np.zeros((M, m, m))
+        diag = np.arange(m)
+        S[:, diag[order], diag[order]] = s_a.T
+        innovation = Innovation(nu, S, loglik, nis)
+        return AxisState(state.axes, state.n, xa, Pa, state.xa_predicted, state.Pa_predicted, innovation), innovation
+
+    def update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        M = state.bank_size
+        n = state.n if isinstance(state, AxisState) else state.x.shape[1]
+        if isinstance(state, AxisState):
+            step = self._measurement(z, sensors, layout, M, n)
+            if step is None:
+                innovation = empty_innovation(M)
+                return attrs.evolve(state, innovation=innovation), innovation
+            plan = self._axis_plan(step, state.axes) if step.H is not None else None
+            if plan is not None:
+                return self._update_axes(state, step, plan)
+            state = CovarianceState(state.x, state.P, state.x_predicted, state.P_predicted, state.innovation)
         found = self._linearized(state.x, z, sensors, layout)
         if found is None:
             innovation = empty_innovation(M)

@@ -171,3 +171,66 @@ def test_repeated_components_across_sensors(form):
     sb, _ = eb.update(eb.initialize(x0, P0), z, [stacked], LAYOUT)
     np.testing.assert_allclose(sa.covariance, sb.covariance, rtol=1e-12, atol=1e-290)
     np.testing.assert_allclose(sa.mean, sb.mean, rtol=1e-12, atol=1e-290)
+
+
+@pytest.mark.parametrize("form", ["joseph", "symmetric"])
+def test_axis_separable_path_equals_dense(form):
+    """Block-diagonal F, Q, P0 with diagonal-R selection sensors: the separable fast path equals the dense KF."""
+    from hybridtrack_plugins.filters.kalman import AxisState, CovarianceState
+
+    rng = np.random.default_rng(5)
+    s0 = np.array([0.0, 0.0, 0.0, 2.0])
+    trs = radii_bank(s0, n_radii=4)
+    both = position_sensor(np.diag([0.02, 0.05]), name="xy")
+    x_only = position_sensor(np.array([[0.03]]), ("x",), name="x")
+    correlated = position_sensor(np.array([[0.05, 0.01], [0.01, 0.05]]), name="corr")
+    _, Z = simulate(trs[2], [both], s0, 40, rng)
+    M = len(trs)
+    x0 = np.tile(s0, (M, 1)) + rng.normal(0, 0.1, (M, 4))
+    P0 = np.stack([np.diag(rng.uniform(0.5, 2.0, 4)) for _ in range(M)])
+    P0[:, 0, 1] = P0[:, 1, 0] = 0.1
+    fast, dense = KalmanFilter(form=form), KalmanFilter(form=form, structure=False)
+    bank = bank_of(trs)
+    sf, sd = fast.initialize(x0, P0), dense.initialize(x0, P0)
+    kinds = set()
+    for k in range(40):
+        sf, sd = fast.predict(sf, bank), dense.predict(sd, bank)
+        if k % 10 == 3:
+            sensors, z = [x_only], Z[0, k, :1]
+        elif k == 25:
+            sensors, z = [correlated], Z[0, k]  # forces the dense form for one step, then back
+        elif k == 30:
+            sensors, z = [both], np.array([np.nan, np.nan])
+        else:
+            sensors, z = [both], Z[0, k]
+        sf, inf_ = fast.update(sf, z, sensors, LAYOUT)
+        sd, ind = dense.update(sd, z, sensors, LAYOUT)
+        kinds.add(type(sf))
+        np.testing.assert_allclose(sf.mean, sd.mean, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(sf.covariance, sd.covariance, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(sf.predicted_covariance, sd.predicted_covariance, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(inf_.nu, ind.nu, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(inf_.S, ind.S, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(inf_.loglik, ind.loglik, rtol=1e-10)
+        np.testing.assert_allclose(inf_.nis, ind.nis, rtol=1e-9)
+    assert kinds == {AxisState, CovarianceState}
+
+
+def test_axis_separable_path_equals_filterpy():
+    rng = np.random.default_rng(6)
+    tr = turn(np.array([0.0, 0.0, 0.0, 2.0]), 3.0, left=True, q=0.01)
+    sensor = position_sensor(np.diag([0.04, 0.02]))
+    _, Z = simulate(tr, [sensor], np.array([0.0, 0.0, 0.0, 2.0]), 50, rng)
+    x0, P0 = np.array([0.1, 0.0, -0.1, 1.9]), np.diag([1.0, 0.5, 1.0, 0.5])
+    ref = FilterpyKF(dim_x=4, dim_z=2)
+    ref.x, ref.P, ref.F, ref.Q, ref.H, ref.R = x0.copy(), P0.copy(), tr.F.copy(), tr.process_noise, sensor.H, sensor.noise_cov
+    ref.B, u = tr.B[:, None], np.array([1.0])
+    out = _run(KalmanFilter(), bank_of([tr]), [sensor], Z[0], x0[None], P0[None])
+    assert type(out[-1][0]).__name__ == "AxisState"
+    for k, (state, inn) in enumerate(out):
+        ref.predict(u=u)
+        ref.update(Z[0, k])
+        np.testing.assert_allclose(state.mean[0], ref.x, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(state.covariance[0], ref.P, rtol=1e-9, atol=1e-14)
+        np.testing.assert_allclose(inn.S[0], ref.S, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(inn.loglik[0], ref.log_likelihood, rtol=1e-10)
