@@ -26,6 +26,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "hybridtrack.commands.plugins",
     "hybridtrack.commands.simulate",
     "hybridtrack.commands.inspect",
+    "hybridtrack.commands.run",
 )
 
 

@@ -1,0 +1,190 @@
+"""The Monte Carlo campaign: n seeded runs of an experiment, stored as they finish, resumable.
+
+    campaign = Campaign("demo_rmse", n=200, out="runs/demo", seed=0)
+    result = campaign.run()              # computes only the runs missing from runs/demo
+    result.arrays["rmse"]                # (200,) ordered by run index
+
+Run ``i`` always gets child ``i`` of ``SeedSequence(seed)`` (see
+:mod:`hybridtrack.experiment.worker`), so the arrays are the same whatever the
+executor, the chunk size, or how many times the campaign was interrupted and
+resumed.  Missing runs are cut into chunks; every finished chunk is written to
+the result folder at once (:mod:`hybridtrack.experiment.store`).  A failing run
+stops the campaign with :class:`RunFailed` after the runs finished before it
+are stored; running the campaign again resumes from there.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any, Mapping
+
+import attrs
+import numpy as np
+
+from hybridtrack.experiment.definition import Experiment, load_experiment
+from hybridtrack.experiment.executors import EXECUTORS, make_executor
+from hybridtrack.experiment.store import ResultStore
+from hybridtrack.experiment.worker import run_chunk
+
+
+class RunFailed(RuntimeError):
+    """A run raised; the runs finished before it are stored."""
+
+
+def _positive_int(instance, attribute, value):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{attribute.name}: expected a positive integer, got {value!r}")
+
+
+def _optional_positive_int(instance, attribute, value):
+    if value is not None:
+        _positive_int(instance, attribute, value)
+
+
+def _seed(instance, attribute, value):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"seed: expected a non-negative integer, got {value!r}")
+
+
+def _executor(instance, attribute, value):
+    if value not in EXECUTORS:
+        raise ValueError(f"unknown executor {value!r}; choose one of {', '.join(EXECUTORS)}")
+
+
+def chunks(indices: np.ndarray, size: int) -> list[tuple[int, ...]]:
+    """``indices`` (sorted) cut into consecutive pieces of at most ``size``."""
+    return [tuple(int(i) for i in indices[start : start + size]) for start in range(0, len(indices), size)]
+
+
+@attrs.frozen(eq=False)
+class CampaignResult:
+    """All stored runs of a campaign (``arrays``: name → (n, …) by run index, plus ``index``) and
+    how many runs this call computed versus found already stored."""
+
+    experiment: str
+    out: Path
+    n: int
+    arrays: dict[str, np.ndarray]
+    computed: int
+    reused: int
+
+    def summary(self) -> dict[str, dict[str, Any]]:
+        """Per result name: mean and standard deviation over runs (for scalars) or the per-run shape."""
+        table = {}
+        for name, values in self.arrays.items():
+            if name == "index":
+                continue
+            if values.ndim == 1:
+                table[name] = {"mean": float(np.mean(values)), "std": float(np.std(values, ddof=1)) if len(values) > 1 else 0.0}
+            else:
+                table[name] = {"shape": list(values.shape[1:]), "mean": np.mean(values, axis=0).tolist()}
+        return table
+
+
+def _progress(total: int, done: int, description: str, enabled: bool):
+    from tqdm.auto import tqdm
+
+    stream = sys.stderr
+    show = enabled and hasattr(stream, "isatty") and stream.isatty()
+    return tqdm(total=total, initial=done, desc=description, unit="run", disable=not show, file=stream,
+                dynamic_ncols=True)
+
+
+@attrs.frozen(eq=False)
+class Campaign:
+    """``n`` runs of ``experiment`` (an :class:`Experiment`, a registered name or a script path) into ``out``.
+
+    ``parameters`` override the experiment's defaults; ``executor`` is
+    ``inline``, ``process`` (default) or ``dask`` (needs ``scheduler``, an
+    address or a ``distributed.Client``); ``workers`` sizes the process pool;
+    ``chunk_size`` runs are stored per file (default: about four chunks per
+    worker, at most 25 runs); ``progress`` shows a tqdm bar when stderr is a
+    terminal.
+    """
+
+    experiment: Experiment = attrs.field(converter=load_experiment)
+    n: int = attrs.field(validator=_positive_int)
+    out: Path = attrs.field(converter=Path)
+    seed: int = attrs.field(default=0, validator=_seed)
+    parameters: dict[str, Any] = attrs.field(factory=dict, converter=dict)
+    executor: str = attrs.field(default="process", validator=_executor)
+    scheduler: Any = None
+    workers: int | None = attrs.field(default=None, validator=_optional_positive_int)
+    chunk_size: int | None = attrs.field(default=None, validator=_optional_positive_int)
+    progress: bool = True
+
+    def __attrs_post_init__(self):
+        object.__setattr__(self, "parameters", self.experiment.with_parameters(**self.parameters))
+        if self.executor == "dask" and self.scheduler in (None, ""):
+            raise ValueError("the dask executor needs a scheduler address (--scheduler tcp://HOST:PORT)")
+
+    @property
+    def store(self) -> ResultStore:
+        return ResultStore(self.out)
+
+    def missing(self) -> np.ndarray:
+        """Run indices below n that no stored chunk holds."""
+        done = self.store.completed() if self.out.exists() else np.zeros(0, dtype=np.int64)
+        return np.setdiff1d(np.arange(self.n), done)
+
+    def _chunk_size(self, missing: int, workers: int) -> int:
+        if self.chunk_size is not None:
+            return self.chunk_size
+        return max(1, min(25, math.ceil(missing / (4 * workers))))
+
+    def run(self) -> CampaignResult:
+        """Compute the missing runs (storing each chunk as it finishes) and return every run's results."""
+        store = self.store
+        store.open(experiment=self.experiment.name, locator=self.experiment.locator, parameters=self.parameters,
+                   seed=self.seed, n=self.n)
+        missing = self.missing()
+        reused = self.n - len(missing)
+        computed = 0
+        failures: list[tuple[int, str]] = []
+        if len(missing):
+            source = self.experiment.locator or self.experiment
+            with make_executor(self.executor, workers=self.workers, scheduler=self.scheduler) as executor:
+                tasks = [(source, self.parameters, int(self.seed), chunk)
+                         for chunk in chunks(missing, self._chunk_size(len(missing), executor.workers))]
+                with _progress(self.n, reused, self.experiment.name, self.progress) as bar:
+                    for outcome in executor.map_unordered(run_chunk, tasks):
+                        if outcome.indices:
+                            store.write_chunk(outcome.indices, outcome.results)
+                            computed += len(outcome.indices)
+                            bar.update(len(outcome.indices))
+                        if outcome.failure is not None:
+                            failures.append(outcome.failure)
+                            executor.cancel_pending()
+        if failures:
+            index, report = min(failures)
+            raise RunFailed(f"experiment {self.experiment.name!r}: run {index} failed "
+                            f"({computed} run(s) computed and stored in {self.out}; run again to resume)\n{report}")
+        return CampaignResult(self.experiment.name, self.out, self.n, store.load(self.n), computed, reused)
+
+    def results(self) -> dict[str, np.ndarray]:
+        """The runs stored so far (index below n), without computing anything."""
+        return self.store.load(self.n)
+
+
+def run_campaign(experiment: Experiment | str, n: int, out: str | os.PathLike, **options: Any) -> CampaignResult:
+    """Shorthand for ``Campaign(experiment, n, out, **options).run()``."""
+    return Campaign(experiment, n, out, **options).run()
+
+
+def campaign_parameters(pairs: list[str] | None) -> Mapping[str, Any]:
+    """``["key=value", …]`` → dict, each value parsed as JSON when it parses (numbers, lists, true/false), else text."""
+    import json
+
+    parsed: dict[str, Any] = {}
+    for pair in pairs or []:
+        key, separator, text = pair.partition("=")
+        if not separator or not key:
+            raise ValueError(f"--param: expected KEY=VALUE, got {pair!r}")
+        try:
+            parsed[key] = json.loads(text)
+        except json.JSONDecodeError:
+            parsed[key] = text
+    return parsed

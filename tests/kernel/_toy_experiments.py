@@ -1,0 +1,41 @@
+"""Small experiments for the runner tests, loaded by path (``…/_toy_experiments.py:NAME``) like a user's script.
+
+``draws`` returns numbers taken from the run's generator, so equal arrays mean
+equal seeds.  ``flaky`` does the same and appends each call's index to
+``log``; the first time it reaches ``fail_at`` it fails (``how="raise"``) or
+kills its own process (``how="kill"``), leaving ``marker`` so the next attempt
+succeeds.
+"""
+
+import os
+import signal
+from pathlib import Path
+
+import numpy as np
+
+from hybridtrack.experiment import Experiment
+
+
+def draws(index, rng, *, size=3):
+    return {"normal": rng.standard_normal(size), "uniform": float(rng.uniform()), "index_seen": index}
+
+
+def flaky(index, rng, *, log, marker, fail_at, how, size=3):
+    with open(log, "a") as handle:
+        handle.write(f"{index}\n")
+    if index == fail_at and not Path(marker).exists():
+        Path(marker).write_text("failed once")
+        if how == "kill":
+            os.kill(os.getpid(), signal.SIGKILL)
+        raise RuntimeError(f"planned failure at run {index}")
+    return draws(index, rng, size=size)
+
+
+def not_numeric(index, rng):
+    return {"label": "text"}
+
+
+DRAWS = Experiment("draws", draws, {"size": 3})
+FLAKY = Experiment("flaky", flaky, {"log": "", "marker": "", "fail_at": -1, "how": "raise", "size": 3})
+EXPERIMENT = FLAKY  # what `hybridtrack run tests/kernel/_toy_experiments.py` runs
+NOT_NUMERIC = Experiment("not_numeric", not_numeric)
