@@ -1,0 +1,351 @@
+"""Gating and data association over a bank of filters and a set of candidates (SPEC §6; seed 004).
+
+Shapes: M filters, L candidate measurements of dimension m.  For filter j and
+candidate i the innovation is ν_ji = z_i − ẑ_j (ẑ = H x⁻), with the innovation
+covariance S_j = H P⁻_j Hᵀ + R, and
+
+    d²_ji = ν_jiᵀ S_j⁻¹ ν_ji                       (squared Mahalanobis distance)
+    gate:  d²_ji ≤ γ,   γ = χ²_m quantile of P_G    (the gate probability P_G)
+
+Nearest neighbour (Bar-Shalom & Fortmann 1988, §6.2; seed 004 "метод
+ближайшего соседа"): the gated candidate with the smallest d² is taken as the
+target's and the filter updated with it as a Kalman filter would.
+
+Probabilistic data association, parametric version (Bar-Shalom & Fortmann
+1988, §6.4; Bar-Shalom, Daum & Huang 2009, IEEE Control Systems 29(6), eqs.
+(21)–(27); seed 004 "Алгоритм вероятностного объединения данных" and its
+ref. [4]).  With e_i = exp(−½ d²_i) over the gated candidates and
+
+    b = λ √|2π S| (1 − P_D P_G) / P_D,
+
+    β_i = e_i / (b + Σ_j e_j),   β_0 = b / (b + Σ_j e_j)            (association weights)
+    ν = Σ_i β_i ν_i                                                 (combined innovation)
+    x⁺ = x⁻ + K ν,   K = P⁻ Hᵀ S⁻¹
+    P⁺ = β_0 P⁻ + (1 − β_0) Pᶜ + K [Σ_i β_i ν_i ν_iᵀ − ν νᵀ] Kᵀ     (spread of innovations)
+
+with Pᶜ = (I − K H) P⁻ the covariance of a correct single-measurement update.
+With nothing gated and b = 0 (no clutter model) β_0 = 1: prediction only.
+
+The association likelihood of a scan, the likelihood of the m_k gated
+candidates given the filter divided by the clutter-only factor
+e^{−λV} λ^{m_k} / m_k! (Bar-Shalom, Li & Kirubarajan 2001 §11.7.4, the IMM-PDA
+mode likelihood):
+
+    Λ = (1 − P_D P_G) + (P_D / λ) Σ_i N(ν_i; 0, S)
+      = P_D (b + Σ_i e_i) / (λ √|2π S|)                  (λ > 0)
+
+for λ = 0 it is the likelihood itself: P_D Σ_i N(ν_i; 0, S) if a candidate is
+gated, 1 − P_D P_G otherwise.  It compares the filters of a bank on the same
+scan (mode-change detection in clutter) — the Gaussian ℓ of one innovation
+does not, in clutter.
+
+Everything is computed in the log domain (log-sum-exp), so a candidate far
+outside the gate does not underflow the weights.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from typing import Sequence
+
+import attrs
+import numpy as np
+from scipy.stats import chi2
+
+from hybridtrack.interfaces import Innovation, Sensor
+from hybridtrack_plugins.filters import _covariance as cov_form
+from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
+from hybridtrack_plugins.filters._linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
+from hybridtrack_plugins.filters._measurements import block_diagonal
+from hybridtrack_plugins.filters.kalman import CovarianceState
+
+
+# --------------------------------------------------------------------------- checks
+
+
+def check_gate_probability(value) -> float | None:
+    """P_G in (0, 1), or None for no gate (every candidate is considered, P_G = 1)."""
+    if value is None:
+        return None
+    value = float(value)
+    if not (0.0 < value < 1.0):
+        raise ValueError(f"gate_probability: expected P_G in (0, 1) (or None for no gate), got {value!r}")
+    return value
+
+
+def gate_threshold(gate_probability: float | None, m: int) -> float:
+    """γ with P(χ²_m ≤ γ) = P_G; ∞ without a gate."""
+    if gate_probability is None:
+        return float("inf")
+    return float(chi2.ppf(gate_probability, m))
+
+
+# --------------------------------------------------------------------------- records
+
+
+@attrs.frozen(eq=False)
+class Association:
+    """What one clutter-aware update of a bank did with one sensor's scan.
+
+    ``candidates`` (L, m); ``predicted`` ẑ (M, m); ``S`` (M, m, m); ``gate`` γ;
+    ``distances`` d² (M, L); ``gated`` (M, L) bool; ``weights`` β_i (M, L)
+    (nearest neighbour: 1 for the chosen candidate); ``missed`` β_0 (M,)
+    (nearest neighbour: 1 when nothing was gated); ``selected`` (M,) the chosen
+    (NN) or most probable (PDA) candidate, −1 for none; ``loglik`` (M,)
+    ln Λ (PDA) or the Gaussian ℓ of the chosen candidate (NN, NaN when none).
+    """
+
+    sensor: str
+    candidates: np.ndarray
+    predicted: np.ndarray
+    S: np.ndarray
+    gate: float
+    distances: np.ndarray
+    gated: np.ndarray
+    weights: np.ndarray
+    missed: np.ndarray
+    selected: np.ndarray
+    loglik: np.ndarray
+
+
+@attrs.frozen(eq=False)
+class ClutterInnovation(Innovation):
+    """An :class:`Innovation` of a clutter-aware update plus its :class:`Association` per scan.
+
+    ``nu`` is the innovation the update used: the combined ν = Σ β_i ν_i (PDA)
+    or the chosen candidate's (NN; 0 for a filter with nothing gated); S, ℓ and
+    NIS go with it as in every Innovation.  ``association_loglik`` (M,) sums
+    ln Λ over the scans of the step (0 when no scan was processed).
+    """
+
+    associations: tuple[Association, ...] = ()
+
+    @property
+    def association_loglik(self) -> np.ndarray:
+        if not self.associations:
+            return np.zeros(self.nu.shape[0])
+        return np.sum([a.loglik for a in self.associations], axis=0)
+
+
+# --------------------------------------------------------------------------- maths
+
+
+def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray, selection=None) -> np.ndarray:
+    """S = H P⁻ Hᵀ + R (M, m, m), symmetrised; with ``selection`` H P Hᵀ is indexing (as in ``_covariance.update``)."""
+    if selection is not None:
+        idx = list(selection)
+        S = P[:, :, idx][:, idx, :] + R
+    else:
+        S = H @ P @ np.swapaxes(H, -1, -2) + R
+    return symmetrize(S)
+
+
+def distances(nu: np.ndarray, L: np.ndarray) -> np.ndarray:
+    """d²_ji = ν_jiᵀ S_j⁻¹ ν_ji for ν (M, L, m) and S_j = L_j L_jᵀ (M, m, m) → (M, L)."""
+    if nu.shape[1] == 0:
+        return np.zeros(nu.shape[:2])
+    w = forward_substitute(L[:, None, :, :], nu)
+    return np.einsum("...i,...i->...", w, w)
+
+
+def nearest(d2: np.ndarray, gated: np.ndarray) -> np.ndarray:
+    """Index (M,) of the gated candidate with the smallest d², −1 where none is gated."""
+    if d2.shape[1] == 0:
+        return np.full(d2.shape[0], -1, dtype=np.int64)
+    masked = np.where(gated, d2, np.inf)
+    index = np.argmin(masked, axis=1)
+    return np.where(gated.any(axis=1), index, -1).astype(np.int64)
+
+
+def log_half_det_2pi_s(L: np.ndarray) -> np.ndarray:
+    """ln √|2π S| = ½(m ln 2π + ln det S) for S = L Lᵀ (M,)."""
+    m = L.shape[-1]
+    return 0.5 * (m * LOG_2PI + log_det_from_cholesky(L))
+
+
+def pda_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float,
+                gate_probability: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """β_i (M, L), β_0 (M,) and ln Λ (M,) of the parametric PDA (module docstring).
+
+    ln b = ln λ + ln √|2πS| + ln(1 − P_D P_G) − ln P_D (−∞ when λ = 0 or P_D P_G = 1).
+    """
+    P_D, lam = detection_probability, clutter_density
+    P_G = 1.0 if gate_probability is None else gate_probability
+    M = d2.shape[0]
+    half = log_half_det_2pi_s(L)  # (M,)
+    miss = 1.0 - P_D * P_G
+    with np.errstate(divide="ignore"):
+        log_miss = np.log(miss) if miss > 0 else -np.inf
+        log_b = np.log(lam) + half + log_miss - np.log(P_D) if lam > 0 else np.full(M, -np.inf)
+    log_b = np.broadcast_to(log_b, (M,))
+    log_e = np.where(gated, -0.5 * d2, -np.inf)  # (M, L)
+    terms = np.concatenate([log_b[:, None], log_e], axis=1)  # (M, 1 + L)
+    total = logsumexp_rows(terms)
+    informative = np.isfinite(total)
+    weights = np.zeros_like(terms)
+    weights[informative] = np.exp(terms[informative] - total[informative, None])
+    weights[~informative, 0] = 1.0  # nothing gated and b = 0: no information, β_0 = 1
+    beta0, beta = weights[:, 0], weights[:, 1:]
+    if lam > 0:
+        loglik = np.where(informative, np.log(P_D) - np.log(lam) - half + total, log_miss)
+    else:
+        log_sum = logsumexp_rows(log_e)
+        loglik = np.where(np.isfinite(log_sum), np.log(P_D) - half + log_sum, log_miss)
+    return beta, beta0, loglik
+
+
+def logsumexp_rows(a: np.ndarray) -> np.ndarray:
+    """ln Σ_l exp(a_jl) per row of a (M, L); −∞ for a row of −∞ (or an empty row), without warnings."""
+    top = a.max(axis=1, initial=-np.inf)
+    out = np.full(a.shape[0], -np.inf)
+    ok = np.isfinite(top)
+    if ok.any():
+        out[ok] = top[ok] + np.log(np.exp(a[ok] - top[ok, None]).sum(axis=1))
+    return out
+
+
+def combine(nu: np.ndarray, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Combined innovation ν = Σ β_i ν_i (M, m) and the spread Σ β_i ν_i ν_iᵀ − ν νᵀ (M, m, m)."""
+    combined = np.einsum("jl,jli->ji", beta, nu)
+    second = np.einsum("jl,jli,jlk->jik", beta, nu, nu)
+    spread = second - combined[:, :, None] * combined[:, None, :]
+    return combined, symmetrize(spread)
+
+
+def check_innovation_covariance(S: np.ndarray) -> np.ndarray:
+    """L = chol(S) (M, m, m), the clear error of ``_linalg.cholesky`` when S is not positive definite."""
+    return cholesky(S, "innovation covariance S")
+
+
+# --------------------------------------------------------------------------- estimator plumbing
+
+
+class ClutterEstimator(BankEstimator):
+    """Covariance-form bank whose update associates candidates before correcting (NN, PDA).
+
+    ``update(state, z, sensors, layout)`` accepts, for ``z``:
+
+    * the stacked z of :meth:`Estimator.update` (shape (Σ m_i,) or (M, Σ m_i),
+      NaN rows: a sensor without measurement) — the present sensors' stacked
+      vector is then the one candidate of the step;
+    * a :class:`~hybridtrack.clutter.Scan` — the candidates (L, m) of the
+      sensor named ``scan.sensor`` (one of ``sensors``), L ≥ 0;
+    * a sequence of Scans — processed one sensor after the other (sequential
+      multisensor association); the :class:`ClutterInnovation` stacks their ν
+      with S block-diagonal.
+
+    Linear sensors with a measurement-independent R only.  Subclasses give the
+    weights: :meth:`associate` (d², gated, chol S) → (β_i, β_0, selected, ln Λ).
+    """
+
+    exact_kalman = False
+
+    def __init__(self, gate_probability: float | None, form: str = "joseph"):
+        super().__init__()
+        if form not in cov_form.UPDATE_FORMS:
+            raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
+        self.gate_probability = check_gate_probability(gate_probability)
+        self.form = form
+
+    # ------------------------------------------------------------------ the Estimator API
+    def initialize(self, mean, cov) -> CovarianceState:
+        x, P = self._check_prior(mean, cov)
+        return CovarianceState(x, P, x, P, None)
+
+    def predict(self, state: CovarianceState, transitions) -> CovarianceState:
+        M, n = state.x.shape
+        bank = self._check_transitions(transitions, M, n, state.x)
+        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
+        return CovarianceState(x, P, x, P, None)
+
+    def update(self, state: CovarianceState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        M, n = state.x.shape
+        if len(layout) != n:
+            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        scans = _as_scans(z)
+        if scans is None:
+            return self._update_stacked(state, z, sensors, layout)
+        if isinstance(sensors, Sensor):
+            sensors = (sensors,)
+        by_name = {s.name: s for s in sensors}
+        x, P = state.x, state.P
+        used, blocks, associations = [], [], []
+        for scan in scans:
+            sensor = by_name.get(scan.sensor)
+            if sensor is None:
+                raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
+            model = self._assembler.sensor_model(sensor, tuple(layout))
+            if model.H is None:
+                raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
+            if type(sensor).measurement_noise is not Sensor.measurement_noise:
+                raise ValueError(f"sensors: {self.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
+            if scan.measurement_dim != model.dim:
+                raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
+            z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
+            candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
+            predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
+            nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+            x, P, nu_used, S, association = self._associate_and_update(x, P, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred)
+            associations.append(association)
+            if scan.size:
+                used.append(nu_used)
+                blocks.append(S)
+        return self._finish(state, x, P, used, blocks, associations)
+
+    # ------------------------------------------------------------------ pieces
+    def _update_stacked(self, state, z, sensors, layout):
+        found = self._linearized(state.x, z, sensors, layout)
+        if found is None:
+            innovation = empty_innovation(state.x.shape[0])
+            return attrs.evolve(state, innovation=innovation), innovation
+        step, nu, H = found
+        name = "+".join(m.sensor.name for m in step.models)
+        z_pred = np.broadcast_to(step.z, nu.shape) - nu
+        x, P, nu_used, S, association = self._associate_and_update(state.x, state.P, nu[:, None, :], H, step.R, step.selection, name,
+                                                                   step.z, z_pred)
+        return self._finish(state, x, P, [nu_used], [S], [association])
+
+    def _associate_and_update(self, x, P, nu, H, R, selection, sensor_name, candidates, z_pred):
+        """Gate, weigh and update with one scan: ν (M, L, m) → x⁺, P⁺, ν used (M, m), S, Association."""
+        S = innovation_covariance(P, H, R, selection)
+        L = check_innovation_covariance(S)
+        gamma = gate_threshold(self.gate_probability, S.shape[-1])
+        d2 = distances(nu, L)
+        gated = d2 <= gamma
+        beta, beta0, selected, loglik = self.associate(d2, gated, L)
+        record = Association(sensor_name, np.asarray(candidates), z_pred, S, gamma, d2, gated, beta, beta0, selected, loglik)
+        if nu.shape[1] == 0:
+            return x, P, np.zeros(x.shape[:1] + S.shape[-1:]), S, record
+        combined, spread = combine(nu, beta)
+        x_new, P_correct, _, _, K = cov_form.update(x, P, combined, H, R, selection, self.form)
+        P_new = beta0[:, None, None] * P + (1.0 - beta0)[:, None, None] * P_correct + K @ spread @ np.swapaxes(K, -1, -2)
+        return x_new, symmetrize(P_new), combined, S, record
+
+    def _finish(self, state, x, P, used, blocks, associations):
+        M = x.shape[0]
+        if used:
+            nu = np.concatenate(used, axis=-1)
+            S = block_diagonal(blocks)
+            loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
+        else:
+            nu, S, loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(associations))
+        return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
+
+    @abstractmethod
+    def associate(self, d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
+        """(β_i (M, L), β_0 (M,), selected (M,), ln Λ or ℓ (M,)) from d² (M, L), the gate mask and chol S."""
+
+
+def _as_scans(z):
+    """z as a list of Scans, or None for a stacked measurement array."""
+    from hybridtrack.clutter import Scan
+
+    if isinstance(z, Scan):
+        return [z]
+    if isinstance(z, (list, tuple)) and z and all(isinstance(s, Scan) for s in z):
+        names = [s.sensor for s in z]
+        if len(set(names)) != len(names):
+            raise ValueError(f"z: one scan per sensor, got {names}")
+        return list(z)
+    return None
