@@ -174,23 +174,33 @@ class _Chunk:
         n = X.shape[1]
         self._work = np.empty((6, block, n))
         self._W = np.empty((block, 5, n))
+        # shared observer: Δx = [s_0, s_2, 1]·[1, τ, −õx], Δy = [s_1, s_3, 1]·[1, τ, −õy], one small matrix product each
+        if ox.ndim == 1:
+            self._basis_x = np.stack([np.ones_like(tau), tau, -ox])
+            self._basis_y = np.stack([np.ones_like(tau), tau, -oy])
 
     def evaluate(self, s):
         """F, H = JᵀJ and g = Jᵀr at s (m, 4): the trial of step 6 plus step 2 in case it is accepted."""
         m = s.shape[0]
         F, H, g = np.empty(m), np.empty((m, 4, 4)), np.empty((m, 4))
         shared = self.ox.ndim == 1
+        if shared:
+            ones = np.ones(m)
+            Sx, Sy = np.stack([s[:, 0], s[:, 2], ones], axis=1), np.stack([s[:, 1], s[:, 3], ones], axis=1)
         for a in range(0, m, self.block):
             b = min(a + self.block, m)
-            sb = s[a:b]
-            ox, oy = (self.ox, self.oy) if shared else (self.ox[a:b], self.oy[a:b])
             dx, dy, phi, p, q, w = self._work[:, : b - a]
-            np.multiply(sb[:, 2, None], self.tau, out=dx)
-            dx += sb[:, 0, None]
-            dx -= ox
-            np.multiply(sb[:, 3, None], self.tau, out=dy)
-            dy += sb[:, 1, None]
-            dy -= oy
+            if shared:
+                np.matmul(Sx[a:b], self._basis_x, out=dx)
+                np.matmul(Sy[a:b], self._basis_y, out=dy)
+            else:
+                sb = s[a:b]
+                np.multiply(sb[:, 2, None], self.tau, out=dx)
+                dx += sb[:, 0, None]
+                dx -= self.ox[a:b]
+                np.multiply(sb[:, 3, None], self.tau, out=dy)
+                dy += sb[:, 1, None]
+                dy -= self.oy[a:b]
             bearing(dx, dy, self.convention, out=phi)
             r = angle_difference(self.X[a:b], phi, out=phi)
             F[a:b] = np.einsum("mk,mk->m", r, r)

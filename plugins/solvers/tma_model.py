@@ -433,7 +433,8 @@ def summarize(scaling, s, F, H, n, sigma, alpha=0.01):
     else:
         variance = F / dof if dof > 0 else np.full(F.shape, np.nan)
     D = scaling.factors
-    cov = variance[..., None, None] * Hinv * (D[..., :, None] * D[..., None, :])
+    with np.errstate(over="ignore", invalid="ignore"):  # unobservable rows are overwritten with NaN
+        cov = variance[..., None, None] * Hinv * (D[..., :, None] * D[..., None, :])
     cov = np.where(observable[..., None, None], cov, np.nan)
     return (theta, cov) + fit_statistics(F, n, sigma, alpha) + (observable,)
 

@@ -1,0 +1,157 @@
+"""Wall time of the seed 002 Monte Carlo (σ = 0.5°) with the batched LM against a loop of scipy's LM.
+
+    python benchmarks/tma.py --json docs/results/tma_bench.json
+
+Both sides solve the same problems from the same start (the seed's prior) in
+the same scaled parameters.  The batched side is the whole
+``levenberg_marquardt_batch`` call on all targets (scaling, iterations,
+covariances, χ² tests included).  The loop side is, per target,
+``scipy.optimize.least_squares(fun, x0, jac=jac, method="lm")`` with the
+analytic Jacobian and scipy's default tolerances; only that call is timed
+(building the closures is not), which favours scipy.  The loop may run on a
+subset (``--scipy-n``) and is scaled to all targets; the JSON says so.  BLAS
+is pinned to one thread for both (set before numpy is imported).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy  # noqa: E402
+from scipy.optimize import least_squares  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+from tma_montecarlo import errors, ref_fractions  # noqa: E402
+
+from hybridtrack_plugins.solvers.levenberg_marquardt import BatchLevenbergMarquardt, LMSettings  # noqa: E402
+from hybridtrack_plugins.solvers.observer import Seed002Scenario, simulate_bearings  # noqa: E402
+from hybridtrack_plugins.solvers.scipy_reference import ScipyLeastSquares  # noqa: E402
+from hybridtrack_plugins.solvers.tma_model import BearingsBatch, ScaledProblem, UnobservabilityWarning  # noqa: E402
+
+
+def time_batched(batch, settings, repeats):
+    solver = BatchLevenbergMarquardt(settings)
+    times, result = [], None
+    for _ in range(repeats):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnobservabilityWarning)
+            start = time.perf_counter()
+            result = solver.solve_batch(batch)
+            times.append(time.perf_counter() - start)
+    return times, result
+
+
+def time_scipy(batch, count, repeats):
+    """Per-target least_squares(method="lm") with the analytic Jacobian; returns times and the answers of the last pass."""
+    reference = ScipyLeastSquares()
+    closures = []
+    for i in range(count):
+        problem = batch.problem(i)
+        scaled = ScaledProblem.build(problem.times, problem.bearings, problem.observer, problem.initial,
+                                     problem.reference_time, problem.convention)
+        fun, jac = reference.residual_functions(scaled)
+        closures.append((fun, jac, scaled.scaling.to_scaled(problem.initial), scaled.scaling))
+    times = []
+    for _ in range(repeats):
+        answers = []
+        start = time.perf_counter()
+        for fun, jac, x0, _ in closures:
+            answers.append(least_squares(fun, x0, jac=jac, method="lm"))
+        times.append(time.perf_counter() - start)
+    theta = np.array([scaling.from_scaled(r.x) for r, (_, _, _, scaling) in zip(answers, closures)])
+    return times, answers, theta
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=10_000, help="targets (default 10000)")
+    parser.add_argument("--sigma", type=float, default=0.5, help="bearing noise in degrees (default 0.5)")
+    parser.add_argument("--seed", type=int, default=2021)
+    parser.add_argument("--scipy-n", type=int, default=2000, help="targets timed with the scipy loop (scaled to --n)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed repeats of each side (median reported)")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args(argv)
+    count = min(args.scipy_n, args.n)
+
+    scenario = Seed002Scenario()
+    times, observer, prior = scenario.times(), scenario.observer(), scenario.prior_theta()
+    streams = np.random.SeedSequence(args.seed).spawn(2)
+    targets = scenario.draw_targets(np.random.default_rng(streams[0]), args.n)
+    sigma = float(np.deg2rad(args.sigma))
+    X = simulate_bearings(targets, times, observer, sigma, np.random.default_rng(streams[1]), scenario.convention)
+    batch = BearingsBatch(times, X, observer, sigma=sigma, initial=prior, convention=scenario.convention)
+    settings = LMSettings()
+
+    lm_times, lm = time_batched(batch, settings, args.repeats)
+    sp_times, sp_answers, sp_theta = time_scipy(batch, count, args.repeats)
+    lm_total = float(np.median(lm_times))
+    sp_per = float(np.median(sp_times)) / count
+    sp_total = sp_per * args.n
+
+    def refs(theta, rows):
+        return ref_fractions(errors(theta, targets[rows], 0.0, observer[0], scenario.convention))
+
+    subset = slice(0, count)
+    result = {
+        "problem": {
+            "targets": args.n, "sigma_deg": args.sigma, "seed": args.seed, "bearings_per_target": len(times),
+            "scenario": "seed 002 three-leg observer, prior start (see experiments/tma_montecarlo.py)",
+        },
+        "batched_lm": {
+            "solver": "levenberg_marquardt_batch",
+            "settings": attrs_dict(settings),
+            "wall_time_s": lm_total, "wall_times_s": lm_times,
+            "per_target_ms": 1e3 * lm_total / args.n,
+            "iterations_mean": float(lm.iterations.mean()), "evaluations_mean": float(lm.evaluations.mean()),
+            "converged_rate": float(lm.converged.mean()),
+            "converged_rate_on_scipy_subset": float(lm.converged[subset].mean()),
+            "ref_on_scipy_subset": refs(lm.parameters[subset], subset),
+            "ref_all": refs(lm.parameters, slice(None)),
+        },
+        "scipy_loop": {
+            "call": 'least_squares(fun, x0, jac=analytic, method="lm"), default tolerances, same scaled start',
+            "timed_targets": count,
+            "scaled_to_targets": args.n,
+            "note": f"timed on the first {count} targets and scaled by {args.n}/{count}; only the least_squares calls are timed",
+            "wall_time_subset_s": float(np.median(sp_times)), "wall_times_subset_s": sp_times,
+            "wall_time_scaled_s": sp_total,
+            "per_target_ms": 1e3 * sp_per,
+            "njev_mean": float(np.mean([r.njev for r in sp_answers])),
+            "nfev_mean": float(np.mean([r.nfev for r in sp_answers])),
+            "success_rate": float(np.mean([r.status > 0 for r in sp_answers])),
+            "ref_on_subset": refs(sp_theta, subset),
+        },
+        "speedup": sp_total / lm_total,
+        "target_speedup": 20.0,
+        "machine": {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
+                    "processor": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
+                    "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS")},
+    }
+    print(json.dumps(result, indent=2, ensure_ascii=False))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(result, indent=2, ensure_ascii=False) + "\n")
+    return 0
+
+
+def attrs_dict(settings):
+    import attrs
+
+    return attrs.asdict(settings)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
