@@ -23,3 +23,12 @@ def test_demo_runs_small_and_writes_a_verified_recording(tmp_path, rerun_cli):
     assert np.isfinite(summary["rmse_known_modes"]) and summary["rmse_known_modes"] < summary["rmse_straight_only"]
     result = rerun_cli("rrd", "verify", out)
     assert result.returncode == 0, result.stderr
+
+
+def test_example1_unknown_change_runs_small_and_writes_a_verified_recording(tmp_path, rerun_cli):
+    out = tmp_path / "example1.rrd"
+    summary = load("example1_unknown_change").main(["--out", str(out), "--turn-steps", "15", "--seed", "1"])
+    assert summary["steps"] == 36 and summary["max_bank_size"] <= 1 + 2 * 35
+    assert out.stat().st_size > 0
+    result = rerun_cli("rrd", "verify", out)
+    assert result.returncode == 0, result.stderr
