@@ -8,7 +8,8 @@ The seed's algorithm, on F(s) = Σ r_k², r = wrap(X − f(s)), J = ∂f/∂s:
 4. if A is not positive definite: λ ← λ λ_up, back to 3;
 5. solve A Δs = Jᵀ r (Cholesky);
 6. s_new = s + Δs, ΔF = F(s) − F(s_new);
-7. if ΔF < 0 (or F(s_new) is not finite): λ ← λ λ_up, back to 3;
+7. if ΔF < 0 (or F(s_new) is not finite): λ ← λ λ_up, back to 3 (a ΔF within
+   rounding of F, |ΔF| ≤ 10⁻¹² F, counts as 0: see :data:`ROUNDING_RTOL`);
 8. accept s ← s_new, λ ← λ λ_down;
 9. stop if ΔF < F_tol, else back to 2.
 
@@ -53,6 +54,11 @@ from hybridtrack_plugins.solvers.tma_model import (
     to_solution,
     warn_unobservable,
 )
+
+#: step 7 counts ΔF ≥ −ROUNDING_RTOL·F as "no increase": a change at the rounding level of F
+#: (the batch's block matrix products may round F(θ) differently for the same θ) must not
+#: push λ to overflow at a minimum
+ROUNDING_RTOL = 1e-12
 
 STOP_CONVERGED = "ΔF < F_tol"
 STOP_ITERATIONS = "max_iterations reached"
@@ -117,7 +123,7 @@ def minimize(scaled: ScaledProblem, s: np.ndarray, settings: LMSettings):
             F_new, r_new = scaled.cost(s_new)
             evaluations += 1
             dF = F - F_new
-            if np.isfinite(F_new) and dF >= 0:
+            if np.isfinite(F_new) and dF >= -ROUNDING_RTOL * F:
                 break
             lam *= settings.lam_up  # step 7
             if lam > settings.lam_max:
@@ -239,7 +245,7 @@ def minimize_batch(chunk: _Chunk, s: np.ndarray, settings: LMSettings):
         F_new, H_new, g_new = chunk.evaluate(s_new)
         nf += ok
         dF = F - F_new
-        accept = ok & np.isfinite(F_new) & (dF >= 0)
+        accept = ok & np.isfinite(F_new) & (dF >= -ROUNDING_RTOL * F)
         lam = np.where(accept, lam * settings.lam_down, lam * settings.lam_up)  # steps 7–8
         it += accept
         stop = np.full(ids.size, -1)
