@@ -96,6 +96,11 @@ class RecordingFile:
         steps, values = self._table(entity, "Points2D:positions")
         return steps, np.array([v[0] for v in values], dtype=np.float64).reshape(-1, 2)
 
+    def point_sets(self, entity: str) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Any number of 2-D points per step (e.g. clutter): steps (K,) and, per step, an (L, 2) array."""
+        steps, values = self._table(entity, "Points2D:positions")
+        return steps, [np.array(list(v), dtype=np.float64).reshape(-1, 2) for v in values]
+
     def strips(self, entity: str) -> tuple[np.ndarray, list[list[np.ndarray]]]:
         """Line strips per step (ellipses, bearing lines): steps and, per step, a list of (P, 2) arrays."""
         steps, values = self._table(entity, "LineStrips2D:strips")

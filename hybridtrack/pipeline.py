@@ -12,7 +12,10 @@ switching moment (SPEC §1: a turn's ω and centre are fixed at the switch); a
 nonlinear model is relinearized at each filter's own estimate every step
 (EKF).  Measurements are a mapping sensor name → array (steps, m_i), row k
 holding step k, NaN rows meaning no measurement; see
-:mod:`hybridtrack.measurements_io` for the CSV/NPZ layouts.
+:mod:`hybridtrack.measurements_io` for the CSV/NPZ layouts.  In clutter they
+are instead ``candidates``, sensor name → :class:`~hybridtrack.clutter.ScanSequence`
+(a variable number of candidate measurements per step), for an estimator that
+associates them (``nearest_neighbour``, ``pda``: ``accepts_scans = True``).
 
 Components are given as objects or by registered name (``"kalman"``,
 ``("left_turn", {"radius": 3.0})``).
@@ -88,7 +91,11 @@ class Pipeline:
     in the models' layout); ``tau``; ``detectors``; ``recorder`` (defaults to
     :class:`NullRecorder`); ``truth`` (an optional trajectory to record beside
     the estimates); ``filter_names`` to label the bank; ``record_measurements``
-    (False when another pipeline on the same recorder already logs them).
+    (False when another pipeline on the same recorder already logs them);
+    ``candidates`` (sensor name → :class:`~hybridtrack.clutter.ScanSequence`, one
+    per sensor) in place of ``measurements`` when tracking in clutter: each step
+    passes the sensors' :class:`~hybridtrack.clutter.Scan` list to an estimator
+    with ``accepts_scans``; clutter, gates and association weights are recorded.
     """
 
     def __init__(
@@ -97,7 +104,7 @@ class Pipeline:
         models: Sequence[Any],
         estimator: Any,
         sensors: SensorNetwork | Sequence[Sensor],
-        measurements: Mapping[str, np.ndarray],
+        measurements: Mapping[str, np.ndarray] | None = None,
         prior: Gaussian | tuple,
         tau: float,
         detectors: Sequence[Any] = (),
@@ -106,6 +113,7 @@ class Pipeline:
         filter_names: Sequence[str] | None = None,
         registry: Registry | None = None,
         record_measurements: bool = True,
+        candidates: Mapping[str, Any] | None = None,
     ):
         self.models = [resolve("motion_model", m, MotionModel, registry) for m in models]
         if not self.models:
@@ -116,6 +124,11 @@ class Pipeline:
         self.layout = self.models[0].layout
         self.estimator: Estimator = resolve("estimator", estimator, Estimator, registry)
         self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
+        self.candidates = self._check_candidates(candidates, measurements)
+        if self.candidates is not None:
+            measurements = {name: seq.target_measurements() for name, seq in self.candidates.items()}
+        elif measurements is None:
+            raise ValueError("measurements: required (sensor name → (steps, m_i)) unless candidates are given")
         self.z = self.network.stack(measurements)
         self.tau = float(tau)
         if not (np.isfinite(self.tau) and self.tau > 0):
@@ -143,6 +156,24 @@ class Pipeline:
         self._results: list[StepResult] = []
         self._decisions: list[Decision] = []
         self._recorded = False
+
+    def _check_candidates(self, candidates, measurements):
+        """Validate ``candidates`` (one ScanSequence per network sensor) against the estimator."""
+        if candidates is None:
+            return None
+        from hybridtrack.clutter import ScanSequence
+
+        if measurements is not None:
+            raise ValueError("candidates: give either measurements or candidates, not both")
+        if not getattr(self.estimator, "accepts_scans", False):
+            raise ValueError(f"candidates: estimator {self.estimator.name!r} does not associate candidate measurements; use 'nearest_neighbour' or 'pda'")
+        names = set(self.network.names)
+        if set(candidates) != names:
+            raise ValueError(f"candidates: expected one ScanSequence per sensor {sorted(names)}, got {sorted(candidates)}")
+        for name, seq in candidates.items():
+            if not isinstance(seq, ScanSequence) or seq.sensor != name:
+                raise ValueError(f"candidates[{name!r}]: expected a ScanSequence of sensor {name!r}, got {seq!r}")
+        return {name: candidates[name] for name in self.network.names}
 
     def _default_names(self) -> tuple[str, ...]:
         names = []
@@ -173,7 +204,8 @@ class Pipeline:
                 means = self.estimator.mean(state)
                 transitions = TransitionBank.stack([m.transition(self.tau, x) for m, x in zip(self.models, means)])
             state = self.estimator.predict(state, transitions)
-        state, innovation = self.estimator.update(state, self.z[k], self.network.sensors, self.layout)
+        z = self.z[k] if self.candidates is None else [seq.scan(k) for seq in self.candidates.values()]
+        state, innovation = self.estimator.update(state, z, self.network.sensors, self.layout)
         self._state = state
         outputs = {}
         for detector in self.detectors:
@@ -241,7 +273,11 @@ class Pipeline:
         if self.truth is not None:
             positions = self.truth.positions[: len(steps)]
             rec.log_path("world/truth", steps, positions, times)
-        if self.record_measurements:
+        if self.record_measurements and self.candidates is not None:
+            from hybridtrack.clutter import log_scans
+
+            log_scans(rec, list(self.candidates.values()), steps, times)
+        elif self.record_measurements:
             log_measurements(rec, self.network.sensors, self.network.split(self.z[: len(steps)]), steps, times)
         position = [self.layout.index("x"), self.layout.index("y")]
         for j, name in enumerate(self.filter_names):
@@ -249,6 +285,10 @@ class Pipeline:
             rec.log_scalars(f"estimator/{name}/nis", steps, result.nis[:, j], times)
             rec.log_scalars(f"estimator/{name}/loglik", steps, result.loglik[:, j], times)
             rec.log_scalars(f"estimator/{name}/innovation", steps, result.innovations[:, j], times)
+        if self.candidates is not None:
+            from hybridtrack.clutter import log_associations
+
+            log_associations(rec, self.filter_names, steps, [r.innovation for r in self._results], times)
         for detector, series in result.statistics.items():
             for key, values in series.items():
                 rec.log_scalars(f"detector/{detector}/{key}", steps, values, times)

@@ -36,7 +36,8 @@ class Recorder(Protocol):
         """A 2-D trajectory: positions (K, 2), one point per step and the whole path as a line."""
 
     def log_points(self, entity: str, steps: np.ndarray, points: np.ndarray, times: np.ndarray | None = None) -> None:
-        """2-D points (K, 2) per step; rows with NaN are skipped."""
+        """2-D points (K, 2) per step, or a variable number per step as (K, L, 2) NaN-padded (e.g. clutter);
+        rows with NaN are skipped."""
 
     def log_scalars(
         self, entity: str, steps: np.ndarray, values: np.ndarray, times: np.ndarray | None = None, names: Sequence[str] | None = None
@@ -171,15 +172,17 @@ class RerunRecorder:
     # -- Recorder
     def log_points(self, entity, steps, points, times=None):
         points = np.asarray(points, dtype=np.float64)
-        keep = np.all(np.isfinite(points), axis=-1)
+        keep = np.all(np.isfinite(points), axis=-1)  # (K,) or (K, L) for several points per step
         if not keep.any():
             return
-        steps = np.asarray(steps)[keep]
-        times = None if times is None else np.asarray(times)[keep]
+        counts = keep.reshape(keep.shape[0], -1).sum(axis=1)
+        present = counts > 0
+        steps = np.asarray(steps)[present]
+        times = None if times is None else np.asarray(times)[present]
         self.stream.send_columns(
             entity,
             indexes=self._indexes(steps, times),
-            columns=self._rr.Points2D.columns(positions=points[keep]).partition(np.ones(int(keep.sum()), dtype=np.int64)),
+            columns=self._rr.Points2D.columns(positions=points[keep]).partition(counts[present].astype(np.int64)),
         )
 
     def log_path(self, entity, steps, positions, times=None):

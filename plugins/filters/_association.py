@@ -239,6 +239,8 @@ class ClutterEstimator(BankEstimator):
     """
 
     exact_kalman = False
+    #: the pipeline may pass a list of Scans (candidates in clutter) as z
+    accepts_scans = True
 
     def __init__(self, gate_probability: float | None, form: str = "joseph"):
         super().__init__()
