@@ -194,8 +194,8 @@ def bench(M, repeats, loop_steps):
             np.testing.assert_allclose(x, ref_x, rtol=1e-8, atol=1e-10, err_msg=f"final x of {impl}")
             np.testing.assert_allclose(P, ref_P, rtol=1e-8, atol=1e-12, err_msg=f"final P of {impl}")
     speed = {c["impl"]: c["filter_steps_per_s"] for c in cases}
-    ratios = {"vs_filterpy": speed["hybridtrack"] / speed["filterpy"], "vs_loop": speed["hybridtrack"] / speed["numpy_loop"], "vs_dense_bank": speed["hybridtrack"] / speed["hybridtrack_dense"]}
-    return cases, ratios
+    ratios = {"vs_filterpy": speed["hybridtrack"] / speed["filterpy"], "vs_loop": speed["hybridtrack"] / speed["numpy_loop"]}
+    return cases, ratios, speed["hybridtrack"] / speed["hybridtrack_dense"]
 
 
 def main(argv=None):
@@ -207,18 +207,20 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.repeats < 3:
         parser.error("--repeats must be at least 3")
-    all_cases, ratios = [], {}
+    all_cases, ratios, vs_dense = [], {}, {}
     for M in args.sizes:
         loop_steps = args.loop_steps or (36 if M >= 2001 else STEPS)
-        cases, r = bench(M, args.repeats, loop_steps)
+        cases, r, dense = bench(M, args.repeats, loop_steps)
         all_cases += cases
         ratios[str(M)] = r
-        print(f"M={M}: {r['vs_filterpy']:.0f}x filterpy, {r['vs_loop']:.0f}x numpy loop, {r['vs_dense_bank']:.2f}x dense bank", flush=True)
+        vs_dense[str(M)] = dense
+        print(f"M={M}: {r['vs_filterpy']:.0f}x filterpy, {r['vs_loop']:.0f}x numpy loop, {dense:.2f}x dense bank", flush=True)
     import filterpy
 
     out = {
         "cases": all_cases,
         "ratios": ratios,
+        "hybridtrack_vs_dense_bank": vs_dense,
         "settings": {
             "steps": STEPS,
             "state_dim": 4,

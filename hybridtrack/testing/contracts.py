@@ -245,6 +245,8 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     many = sensor.simulate(np.broadcast_to(X[0], (draws, n)).copy(), layout, np.random.default_rng(seed + 2))
     noise = _array(sensor.residual(_array(many, label, "simulate of a (2000, n) stack", (draws, m)), np.broadcast_to(z[0], (draws, m))), label, "simulated noise")
     sample = np.cov(noise, rowvar=False).reshape(m, m)
+    # R that goes with this measurement: noise_cov, or R(z) for pseudo-measurement sensors (Sensor.measurement_noise)
+    R = _array(sensor.measurement_noise(z[0]), label, "measurement_noise(z)", (m, m))
     error = np.linalg.norm(sample - R) / np.linalg.norm(R)
     _require(error < 0.25, label, f"simulated noise covariance\n{sample}\nis far from noise_cov R\n{R}\n(relative error {error:.2f} over {draws} draws)")
     _require(np.all(np.abs(noise.mean(axis=0)) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12), label, f"simulated noise has mean {noise.mean(axis=0)}, expected 0")

@@ -9,14 +9,17 @@ axis, each with a scalar measurement.  P stays block diagonal after every step.
 
 Storage is "structure of arrays" with the bank last: x as (d, A, M), P as
 (d, d, A, M) (A axes, M filters), so every line below is one vectorized
-operation over all axes and filters at once; only the upper triangle of each
-symmetric block is computed.  The maths is that of ``_covariance`` (seed 000
-Algorithm 1) written out for a scalar update h = e_c, r:
+operation over all axes and filters at once.  The maths is that of
+``_covariance`` (seed 000 Algorithm 1) written out for a scalar update
+h = e_c, r on each axis:
 
     s = P_cc + r,  k = P_:c / s,  ν = z − x_c,  x⁺ = x + k ν,
-    Joseph:     P⁺_ij = P_ij − k_i P_cj − P_ic k_j + k_i k_j s
-    symmetric:  P⁺_ij = P_ij − P_ic P_jc / s
-    ℓ = −½(ln 2π + ln s + ν²/s), summed over axes (independent given the prior).
+    Joseph:     P⁺ = P − k P_c:ᵀ − P_:c kᵀ + s k kᵀ   (= (I − k hᵀ) P (I − k hᵀ)ᵀ + r k kᵀ)
+    symmetric:  P⁺ = P − s k kᵀ                          (= P − K S Kᵀ)
+    ℓ = −½ Σ_axes (ln 2π + ln s + ν²/s)   (the axes are independent given the prior)
+
+Both P⁺ forms are exactly symmetric as computed.  ν, S = diag(s) and ℓ equal
+those of the dense filter on the stacked model.
 """
 
 from __future__ import annotations
