@@ -23,10 +23,34 @@ spec.loader.exec_module(experiment)
 CONFIGS = [("nearest_lower", 4), ("oldest", 32), ("oldest", 4), ("nearest_lower", 32), ("oldest", "algorithm4"), (None, None)]
 
 
+def _num(value, spec: str) -> str:
+    return "–" if value is None else format(value, spec)
+
+
+def write_markdown(results: dict, path: Path) -> None:
+    lines = ["| bank | right turn detected | undetected (30 steps) | false alarm | delay mean | median | IQR | within 15 | max filters |", "|---|---|---|---|---|---|---|---|---|"]
+    for key, s in results.items():
+        if key.startswith("paired"):
+            continue
+        iqr = "–" if s["delay_quartiles"] is None else f"{s['delay_quartiles'][0]:.0f}–{s['delay_quartiles'][1]:.0f}"
+        limit = f" (Algorithm 4: {s['algorithm4_bank_limit']})" if "algorithm4_bank_limit" in s else ""
+        lines.append(f"| {key}{limit} | {s['detected_right_turn']:.1%} | {s['undetected_within_30_steps']:.1%} | {s['runs_with_false_alarm_before_change']:.1%} | "
+                     f"{_num(s['delay_mean'], '.1f')} | {_num(s['delay_median'], '.0f')} | {iqr} | {s['within_15_steps']:.1%} | {s['max_bank_size']} |")
+    p = results["paired_nearest4_minus_oldest32"]
+    lines.append(f"\nPaired (runs detected by both, n = {p['runs_detected_by_both']}): delay(nearest-4) − delay(oldest-32) = "
+                 f"{p['mean_difference']:.2f} ± {p['std_error']:.2f} (s.e.); identical in {p['same_delay']} runs.")
+    path.write_text("\n".join(lines) + "\n")
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=200)
+    parser.add_argument("--markdown-only", action="store_true", help="rewrite the table from docs/results/pruning.json")
     args = parser.parse_args(argv)
+    if args.markdown_only:
+        results = json.loads((ROOT / "docs" / "results" / "pruning.json").read_text())["results"]
+        write_markdown(results, ROOT / "docs" / "results" / "pruning.md")
+        return results
     results, delays = {}, {}
     for pruning, size in CONFIGS:
         adaptive = experiment.example1.estimator(bank_size=size, pruning=pruning)
@@ -46,15 +70,7 @@ def main(argv=None) -> dict:
                                                    "same_delay": int((diff == 0).sum())}
     out = ROOT / "docs" / "results" / "pruning"
     out.with_suffix(".json").write_text(json.dumps({"setup": "Example 1, α = β = 0.1, seeds 0..%d" % (args.runs - 1), "results": results}, indent=2))
-    lines = ["| bank | right turn detected | undetected (30 steps) | false alarm | delay mean | median | IQR | within 15 | max filters |", "|---|---|---|---|---|---|---|---|---|"]
-    for key, s in results.items():
-        if key.startswith("paired"):
-            continue
-        lines.append(f"| {key} | {s['detected_right_turn']:.1%} | {s['undetected_within_30_steps']:.1%} | {s['runs_with_false_alarm_before_change']:.1%} | "
-                     f"{s['delay_mean']:.1f} | {s['delay_median']:.0f} | {s['delay_quartiles'][0]:.0f}–{s['delay_quartiles'][1]:.0f} | {s['within_15_steps']:.1%} | {s['max_bank_size']} |")
-    p = results["paired_nearest4_minus_oldest32"]
-    lines.append(f"\nPaired (runs detected by both, n = {p['runs_detected_by_both']}): delay(nearest-4) − delay(oldest-32) = {p['mean_difference']:.2f} ± {p['std_error']:.2f} (s.e.); identical in {p['same_delay']} runs.")
-    out.with_suffix(".md").write_text("\n".join(lines) + "\n")
+    write_markdown(results, out.with_suffix(".md"))
     return results
 
 
