@@ -32,3 +32,23 @@ def test_example1_unknown_change_runs_small_and_writes_a_verified_recording(tmp_
     assert out.stat().st_size > 0
     result = rerun_cli("rrd", "verify", out)
     assert result.returncode == 0, result.stderr
+
+
+def test_monte_carlo_runs_small_and_resumes(tmp_path):
+    module = load("monte_carlo")
+    args = ["--n", "3", "--executor", "inline", "--steps-scale", "0.1", "--out", str(tmp_path / "mc"), "--no-progress"]
+    first = module.main(args)
+    assert (first["runs"], first["computed"], first["reused"]) == (3, 3, 0)
+    assert 0 < first["rmse_known_modes"] < first["rmse_straight"]
+    extended = module.main([*args[:1], "4", *args[2:]])
+    assert (extended["computed"], extended["reused"]) == (1, 3)
+
+
+def test_every_example_is_run_by_a_test():
+    """A new script in examples/ needs a small run here (load("name")); a folder needs a test naming it."""
+    source = Path(__file__).read_text(encoding="utf-8")
+    tests = "".join(p.read_text(encoding="utf-8") for p in Path(__file__).parent.rglob("test_*.py"))
+    for script in sorted(EXAMPLES.glob("*.py")):
+        assert f'load("{script.stem}")' in source, f"examples/{script.name} is not run by tests/test_examples.py"
+    for folder in sorted(p for p in EXAMPLES.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))):
+        assert f'"{folder.name}"' in tests, f"examples/{folder.name}/ is not exercised by any test"

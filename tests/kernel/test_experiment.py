@@ -211,7 +211,7 @@ def test_cli_runs_demo_rmse_and_a_second_call_reuses_every_run(tmp_path, capsys)
     assert second["results"] == first["results"]
 
     arrays = ResultStore(out).load()
-    assert arrays["squared_error"].shape == (3, 4) and np.all(arrays["steps"] == 38)  # 37 steps + the initial state
+    assert arrays["squared_error"].shape == (3, 4) and np.all(arrays["steps"] == 37)  # steps 1 … K, as seed 001
     per_run = np.linalg.norm(np.sqrt(arrays["squared_error"] / arrays["steps"][:, None]), axis=1)
     np.testing.assert_allclose(arrays["nrmse"], per_run)
     pooled = pooled_rmse(arrays["squared_error"], arrays["steps"])
