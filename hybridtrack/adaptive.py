@@ -48,6 +48,7 @@ from hybridtrack.bank import FilterBank
 from hybridtrack.interfaces import Detector, Estimator, MotionModel, Sensor
 from hybridtrack.network import SensorNetwork
 from hybridtrack.pipeline import _registry, resolve
+from hybridtrack.recording import log_estimate, log_measurements
 from hybridtrack.registry import Registry
 from hybridtrack.types import Decision, Gaussian, Schedule
 
@@ -97,6 +98,27 @@ def _labels(models) -> tuple[str, ...]:
 
 def _prior(prior) -> Gaussian:
     return prior if isinstance(prior, Gaussian) else Gaussian(*prior)
+
+
+def _record_run(recorder, adaptive, z: np.ndarray, run, hypotheses: Sequence[str], truth) -> tuple[np.ndarray, np.ndarray]:
+    """What every adaptive run records: the truth (if given), the measurements, the selected estimate with
+    its 2σ ellipses, ln λ per hypothesis with A (``upper``) and B (``lower``), and the decisions.
+    Returns the steps and times for the caller's own series."""
+    steps = np.arange(run.means.shape[0])
+    times = steps * adaptive.tau
+    if truth is not None:
+        recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
+    network = adaptive.network
+    log_measurements(recorder, network.sensors, network.split(z[: steps.size]), steps, times)
+    position = [adaptive.layout.index("x"), adaptive.layout.index("y")]
+    log_estimate(recorder, adaptive.name, steps, run.means, run.covs, position, times)
+    base = f"detector/{adaptive.detector.name}"
+    _log_columns(recorder, f"{base}/log_ratio", steps, run.log_ratios, hypotheses, times)
+    recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
+    recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
+    for d in run.decisions:
+        recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", d.step * adaptive.tau)
+    return steps, times
 
 
 def _log_columns(recorder, entity: str, steps, values: np.ndarray, names: Sequence[str], times) -> None:
@@ -221,23 +243,15 @@ class KnownSwitchAdaptive:
         run = KnownSwitchRun(self.layout, self.hypotheses, means, covs, followed, ratios, tuple(outcomes), tuple(decisions),
                              float(detector.upper), float(detector.lower))
         if recorder is not None:
-            self._record(recorder, run, truth)
+            self._record(recorder, z, run, truth)
         return run
 
-    def _record(self, recorder, run: KnownSwitchRun, truth) -> None:
-        steps = np.arange(run.means.shape[0])
-        times = steps * self.tau
-        if truth is not None:
-            recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
-        ix, iy = self.layout.index("x"), self.layout.index("y")
-        recorder.log_path(f"world/estimate/{self.name}", steps, run.means[:, [ix, iy]], times)
-        base = f"detector/{self.detector.name}"
-        _log_columns(recorder, f"{base}/log_ratio", steps, run.log_ratios, run.hypotheses, times)
-        recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
-        recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
+    def _record(self, recorder, z: np.ndarray, run: KnownSwitchRun, truth) -> None:
+        steps, times = _record_run(recorder, self, z, run, run.hypotheses, truth)
         recorder.log_scalars(f"estimator/{self.name}/followed", steps, run.followed.astype(float), times)
-        for d in run.decisions:
-            recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", d.step * self.tau)
+        # filters running per step: the hypotheses still in play, one after the decision
+        bank_size = np.maximum(1, np.isfinite(run.log_ratios).sum(axis=1))
+        recorder.log_scalars(f"estimator/{self.name}/bank_size", steps, bank_size.astype(float), times)
 
 
 # --------------------------------------------------------------------------- unknown change time
@@ -454,20 +468,11 @@ class UnknownChangeAdaptive:
                                tuple(decisions), tuple(changes), float(detector.upper), float(detector.lower), limit,
                                node_ratios, node_signal)
         if recorder is not None:
-            self._record(recorder, run, truth)
+            self._record(recorder, z, run, truth)
         return run
 
-    def _record(self, recorder, run: UnknownChangeRun, truth) -> None:
-        steps = np.arange(run.means.shape[0])
-        times = steps * self.tau
-        if truth is not None:
-            recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
-        ix, iy = self.layout.index("x"), self.layout.index("y")
-        recorder.log_path(f"world/estimate/{self.name}", steps, run.means[:, [ix, iy]], times)
-        base = f"detector/{self.detector.name}"
-        _log_columns(recorder, f"{base}/log_ratio", steps, run.log_ratios, run.modes, times)
-        recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
-        recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
+    def _record(self, recorder, z: np.ndarray, run: UnknownChangeRun, truth) -> None:
+        steps, times = _record_run(recorder, self, z, run, run.modes, truth)
         if self.signal is not None:
             sig = f"detector/{self.signal.name}"
             recorder.log_scalars(f"{sig}/signal", steps, run.signal, times)
@@ -475,5 +480,3 @@ class UnknownChangeAdaptive:
             recorder.log_scalars(f"{sig}/upper", steps, run.signal_bounds[:, 1], times)
         recorder.log_scalars(f"estimator/{self.name}/bank_size", steps, run.bank_sizes.astype(float), times)
         recorder.log_scalars(f"estimator/{self.name}/mode", steps, run.mode.astype(float), times)
-        for d in run.decisions:
-            recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", d.step * self.tau)

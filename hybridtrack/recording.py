@@ -105,10 +105,10 @@ def default_blueprint():
         rrb.Horizontal(
             rrb.Spatial2DView(origin="/world", name="Trajectories"),
             rrb.Vertical(
-                rrb.TimeSeriesView(origin="/detector", contents=["+ /detector/**", "- /detector/*/signal/**"],
+                rrb.TimeSeriesView(origin="/detector", contents=["+ /detector/**", "- /detector/signal_function/**"],
                                    name="Likelihood ratios and statistics"),
-                rrb.TimeSeriesView(origin="/detector", contents=["+ /detector/*/signal/**", "+ /estimator/**"],
-                                   name="Signal functions and NIS"),
+                rrb.TimeSeriesView(origin="/", contents=["+ /detector/signal_function/**", "+ /estimator/**"],
+                                   name="Signal functions, NIS, bank size"),
                 rrb.TextLogView(origin="/events", name="Events"),
             ),
             column_shares=[3, 2],
