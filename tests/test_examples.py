@@ -21,8 +21,21 @@ def test_demo_runs_small_and_writes_a_verified_recording(tmp_path, rerun_cli):
     assert out.stat().st_size > 0
     assert summary["steps"] == 72
     assert np.isfinite(summary["rmse_known_modes"]) and summary["rmse_known_modes"] < summary["rmse_straight_only"]
+    assert np.isfinite(summary["rmse_adaptive"]) and len(summary["segments"]) == 6
     result = rerun_cli("rrd", "verify", out)
     assert result.returncode == 0, result.stderr
+    from hybridtrack.inspection import RecordingFile
+
+    entities = set(RecordingFile(out).entity_paths)
+    assert {"/world/truth", "/world/estimate/adaptive", "/world/estimate/known_modes", "/world/estimate/straight_only",
+            "/world/measurements/plotter", "/detector/sprt_pairwise/upper"} <= entities
+
+
+def test_demo_full_size_identifies_every_segment(tmp_path):
+    summary = load("demo").main(["--out", str(tmp_path / "demo.rrd")])
+    assert [row["identified"] for row in summary["segments"]] == [
+        "left_turn_r3", "right_turn_r5", "straight", "left_turn_r3", "straight", "left_turn_r4"]
+    assert summary["rmse_known_modes"] < 0.2
 
 
 def test_example1_unknown_change_runs_small_and_writes_a_verified_recording(tmp_path, rerun_cli):
