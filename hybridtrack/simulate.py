@@ -180,12 +180,16 @@ def simulate_measurements(trajectory: Trajectory, sensors: Sequence[Sensor] | Se
 def simulate(
     schedule: Schedule, x0, tau: float, sensors, *, seed=None, recorder=None, **options
 ) -> tuple[Trajectory, dict[str, np.ndarray]]:
-    """Trajectory and measurements from one seed (independent streams via ``SeedSequence.spawn``).
+    """Trajectory and measurements from one seed — an int, a ``SeedSequence`` or a ``Generator`` —
+    with independent streams for the two (``spawn``).
 
     With a ``recorder`` the truth is logged; the measurements are logged by
     what consumes them (the pipeline), or by
     :func:`hybridtrack.recording.log_measurements`.
     """
-    trajectory_seed, measurement_seed = np.random.SeedSequence(seed).spawn(2)
-    trajectory = simulate_trajectory(schedule, x0, tau, seed=np.random.default_rng(trajectory_seed), recorder=recorder, **options)
-    return trajectory, simulate_measurements(trajectory, sensors, seed=np.random.default_rng(measurement_seed))
+    if isinstance(seed, np.random.Generator):
+        trajectory_rng, measurement_rng = seed.spawn(2)
+    else:
+        trajectory_rng, measurement_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+    trajectory = simulate_trajectory(schedule, x0, tau, seed=trajectory_rng, recorder=recorder, **options)
+    return trajectory, simulate_measurements(trajectory, sensors, seed=measurement_rng)

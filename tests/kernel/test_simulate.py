@@ -25,6 +25,13 @@ def test_same_seed_gives_identical_arrays():
     assert not np.array_equal(first[0].states, third[0].states)
 
 
+def test_a_generator_seeds_simulate_reproducibly():
+    first = simulate(SEED001_TABLE1, X0, 0.1, network(), seed=np.random.default_rng(11))
+    second = simulate(SEED001_TABLE1, X0, 0.1, network(), seed=np.random.default_rng(11))
+    assert np.array_equal(first[0].states, second[0].states) and np.array_equal(first[1]["a"], second[1]["a"])
+    assert not np.array_equal(first[0].states, simulate(SEED001_TABLE1, X0, 0.1, network(), seed=12)[0].states)
+
+
 def test_table1_shapes_segments_and_modes():
     trajectory = simulate_trajectory(SEED001_TABLE1, X0, 0.1, process_noise=False)
     assert trajectory.states.shape == (361, 4)
