@@ -39,6 +39,8 @@ def measurement_information(H: np.ndarray, R: np.ndarray, z: np.ndarray):
     H is (m, n) or (M, m, n), R (m, m) or (M, m, m), z (1 or M, m).
     """
     L_R = cholesky(R, "measurement noise R")
+    if H.ndim < L_R.ndim:  # shared H with one R per filter: broadcast (a bare (m, n) would read as a stack of vectors)
+        H = np.broadcast_to(H, L_R.shape[:-2] + H.shape[-2:])
     W = forward_substitute(L_R, H)
     w = forward_substitute(L_R, z[..., None])[..., 0]
     Wt = np.swapaxes(W, -1, -2)

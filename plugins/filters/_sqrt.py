@@ -28,8 +28,16 @@ def noise_root(bank) -> np.ndarray:
 
 
 def whiten(H: np.ndarray, nu: np.ndarray, R: np.ndarray):
-    """H̃ = L_R⁻¹ H, ν̃ = L_R⁻¹ ν and ln det R, with R = L_R L_Rᵀ."""
+    """H̃ = L_R⁻¹ H, ν̃ = L_R⁻¹ ν and ln det R, with R = L_R L_Rᵀ.
+
+    H is (m, n) shared or (M, m, n); R is (m, m) or (M, m, m) (one per filter, e.g.
+    radar pseudo-measurements of stacked Monte Carlo runs).  A shared H with a
+    stacked R is broadcast first: (m, n) has the shape of a stack of vectors and
+    would otherwise be solved as one.
+    """
     L_R = cholesky(R, "measurement noise R")
+    if H.ndim < L_R.ndim:
+        H = np.broadcast_to(H, L_R.shape[:-2] + H.shape[-2:])
     return forward_substitute(L_R, H), forward_substitute(L_R, nu[..., None])[..., 0], log_det_from_cholesky(L_R)
 
 

@@ -67,3 +67,31 @@ def test_form_equals_covariance_kf(name, with_stop, noise_root):
             np.testing.assert_allclose(ie.nis, ir.nis, rtol=1e-8)
         else:
             np.testing.assert_array_equal(ie.loglik, 0.0)
+
+
+@pytest.mark.parametrize("name", FORMS)
+def test_form_equals_covariance_kf_with_per_filter_measurements_and_noise(name):
+    """z of shape (M, m) (Monte Carlo runs as a bank) with a measurement-dependent R per filter (radar pseudo-measurements)."""
+    from hybridtrack_plugins.sensors.radar import RadarSensor
+
+    rng = np.random.default_rng(11)
+    s0 = np.array([300.0, 1.0, 400.0, -2.0])
+    trs = radii_bank(s0, n_radii=2)
+    M = len(trs)
+    radar = RadarSensor(range_std=2.0, azimuth_std=np.deg2rad(0.5))
+    X = np.tile(s0, (M, 1)) + rng.normal(0, 1.0, (M, 4))
+    registry = ht.load_plugins(strict=True).registry
+    ref, est = registry.create("estimator", "kalman"), registry.create("estimator", name)
+    P0 = np.stack([np.diag([25.0, 1.0, 25.0, 1.0])] * M)
+    sr, se = ref.initialize(np.tile(s0, (M, 1)), P0), est.initialize(np.tile(s0, (M, 1)), P0)
+    bank = bank_of(trs)
+    for _ in range(15):
+        X = np.einsum("mij,mj->mi", bank.F, X) + bank.B
+        z = radar.simulate(X, LAYOUT, rng)  # (M, 2): one measurement per filter, R differs per filter
+        sr, se = ref.predict(sr, bank), est.predict(se, bank)
+        sr, ir = ref.update(sr, z, [radar], LAYOUT)
+        se, ie = est.update(se, z, [radar], LAYOUT)
+        assert _rel(est.mean(se), ref.mean(sr)) <= REL
+        assert _rel(est.covariance(se), ref.covariance(sr)) <= REL
+        np.testing.assert_allclose(ie.loglik, ir.loglik, rtol=REL)
+        assert _rel(ie.S, ir.S) <= REL
