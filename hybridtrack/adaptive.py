@@ -12,8 +12,10 @@ cannot express:
   ω and centre fixed from x̂ (SPEC §7); the detector (default
   ``sprt_pairwise``, rule (5)) eliminates hypotheses; until it decides the
   estimate follows the filter of the previously chosen hypothesis (seed 001
-  line 9); after the decision only the chosen filter runs to the end of the
-  segment (lines 14–16).
+  line 9, ``follow="previous"``) or, with ``follow="most_likely"``, the
+  hypothesis still in play with the largest accumulated log-likelihood
+  L_i = Σ ℓ_i since the switch (the leader of the pairwise test); after the
+  decision only the chosen filter runs to the end of the segment (lines 14–16).
 * :class:`UnknownChangeAdaptive` — seed 000 Algorithm 3 repeated.  Filter 0
   runs the current mode; at every step one filter per alternative mode is
   started from filter 0's estimate, hypothesising the change there; the
@@ -172,12 +174,32 @@ class KnownSwitchAdaptive:
     ``modes`` overrides the bank (default :func:`turn_bank` (r_min, r_max, n,
     noise_cov)); ``detector`` is a fixed-bank detector exposing ``decided``
     and ``hypotheses`` (default ``sprt_pairwise`` with ``alpha``, ``beta``).
+
+    ``follow`` chooses the estimate before the decision in a segment:
+
+    * ``"previous"`` (default, seed 001 Algorithm 1 line 9): the filter of the
+      hypothesis followed at the end of the previous segment (straight, index
+      0, in the first segment);
+    * ``"most_likely"``: at step k the filter î_k = argmax_{i in play} L_{k,i},
+      L_{k,i} = Σ_{j=s+1}^{k} ℓ_{j,i} the log-likelihood accumulated since the
+      switch s (ℓ the innovation log-likelihood, SPEC §4) — the maximum-likelihood
+      hypothesis among those the SPRT has not dropped.  A segment left
+      undecided ends on that filter, which the next segment's bank starts from.
+
+    The SPRT and its decisions are the same under both rules within a segment;
+    the rule changes the estimate until the decision, and so the state the next
+    segment's bank is created from.
     """
+
+    FOLLOW = ("previous", "most_likely")
 
     def __init__(self, *, sensors: SensorNetwork | Sequence[Sensor], tau: float, modes: Sequence[Any] | None = None,
                  r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=None, estimator: Any = "kalman",
-                 detector: Any = None, alpha: float = 0.01, beta: float = 0.01, name: str = "known_switch",
-                 registry: Registry | None = None):
+                 detector: Any = None, alpha: float = 0.01, beta: float = 0.01, follow: str = "previous",
+                 name: str = "known_switch", registry: Registry | None = None):
+        if follow not in self.FOLLOW:
+            raise ValueError(f"follow: expected one of {self.FOLLOW}, got {follow!r}")
+        self.follow = follow
         registry = _registry(registry)
         self.models = _models(modes if modes is not None else turn_bank(r_min, r_max, n, noise_cov), registry)
         self.hypotheses = _labels(self.models)
@@ -222,13 +244,19 @@ class KnownSwitchAdaptive:
             detector.hypotheses = self.hypotheses
             detector.reset()
             decision_step = None
+            accumulated = np.zeros(H)  # L_i: log-likelihood since the switch
             for step in range(k + 1, k + T + 1):
                 innovation = bank.step(self.estimator, z[step], self.network.sensors, self.layout)
                 row = 0
                 if decision_step is None:
                     out = detector.observe(step, innovation.loglik, innovation.nis, innovation.measurement_dim)
-                    ratios[step] = np.where(out.statistics["active"] > 0, out.statistics["log_ratio"], np.nan)
+                    active = np.asarray(out.statistics.get("active", np.ones(H)), dtype=float) > 0
+                    ratios[step] = np.where(active, out.statistics["log_ratio"], np.nan)
                     row = q
+                    if self.follow == "most_likely":
+                        accumulated += np.asarray(innovation.loglik, dtype=float)
+                        if active.any():
+                            row = q = int(np.argmax(np.where(active, accumulated, -np.inf)))
                     if out.decision is not None:
                         q, row, decision_step = int(detector.decided), int(detector.decided), step
                         ratios[step, q] = out.statistics["log_ratio"][q]

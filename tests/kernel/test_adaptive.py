@@ -140,6 +140,33 @@ def test_known_switch_identifies_each_segment():
     assert optimal < error < 1.0  # as in seed 001 Table 2: the optimal KF beats the adaptive one
 
 
+def test_known_switch_can_follow_the_most_likely_hypothesis_before_the_decision():
+    """follow="most_likely": before the SPRT decides, the estimate is the filter with the largest Σ ℓ among the
+    hypotheses in play (the one with a positive margin λ_i = L_i − max_j L_j); the decisions of the first segment
+    are the seed's; over noisy runs the error is smaller than following the previous segment's hypothesis."""
+    sensors = [PositionSensor(noise_cov=0.5 * np.eye(2))]
+    q = np.diag([1e-3, 1e-3])
+    schedule = Schedule.from_rows([("left_turn", 40, 3.0), ("right_turn", 40, 5.0), ("straight", 40)])
+    errors = {"previous": 0.0, "most_likely": 0.0}
+    for seed in range(4):
+        truth, z = simulate(schedule, X0, 0.1, sensors, seed=seed, noise_cov=q)
+        runs = {}
+        for follow in errors:
+            adaptive = KnownSwitchAdaptive(sensors=sensors, tau=0.1, noise_cov=q, n=4, r_min=2.0, r_max=5.0, follow=follow)
+            runs[follow] = run = adaptive.run(z, Gaussian(X0, np.eye(4)), schedule)
+            errors[follow] += float(np.sum((run.means[1:, [0, 2]] - truth.positions[1:]) ** 2))
+        run, seed_rule = runs["most_likely"], runs["previous"]
+        assert run.segments[0].decision_step == seed_rule.segments[0].decision_step
+        first = run.segments[0].decision_step or 40
+        for step in range(1, first):
+            ratios = run.log_ratios[step]
+            assert run.followed[step] == int(np.nanargmax(ratios)) and ratios[run.followed[step]] >= 0
+        assert (seed_rule.followed[1:first] == 0).all()  # the seed's rule: straight until the first decision
+    assert errors["most_likely"] < errors["previous"]
+    with pytest.raises(ValueError, match="follow"):
+        KnownSwitchAdaptive(sensors=sensors, tau=0.1, follow="best")
+
+
 def test_recording_of_an_adaptive_run(tmp_path):
     rerun = pytest.importorskip("rerun")
     from hybridtrack.recording import RerunRecorder
