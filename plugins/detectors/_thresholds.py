@@ -39,6 +39,35 @@ def sprt_thresholds(alpha, beta) -> tuple[float, float]:
     return math.log((1.0 - beta) / alpha), math.log(beta / (1.0 - alpha))
 
 
+class WaldThresholds:
+    """Mixin: error probabilities α, β and the thresholds ``upper`` = A, ``lower`` = B they give.
+
+    Setting ``alpha`` or ``beta`` moves A and B (the dynamic-threshold wrapper relies on it).
+    """
+
+    def set_error_probabilities(self, alpha, beta) -> None:
+        self._alpha, self._beta = check_error_probabilities(alpha, beta)
+        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+
+    @property
+    def alpha(self) -> float:
+        """False-alarm probability α; setting it moves A and B (dynamic thresholds)."""
+        return self._alpha
+
+    @alpha.setter
+    def alpha(self, value) -> None:
+        self.set_error_probabilities(value, self._beta)
+
+    @property
+    def beta(self) -> float:
+        """Missed-detection probability β; setting it moves A and B."""
+        return self._beta
+
+    @beta.setter
+    def beta(self, value) -> None:
+        self.set_error_probabilities(self._alpha, value)
+
+
 def two_sided_normal_bound(alpha) -> float:
     """c with P(|N(0,1)| > c) = α: the 3σ rule is α = 2(1 − Φ(3)) ≈ 0.0027."""
     alpha = check_probability(alpha, "alpha")

@@ -42,21 +42,20 @@ from scipy.special import logsumexp
 from hybridtrack.interfaces import DetectorStep
 from hybridtrack.types import Decision
 from hybridtrack_plugins.detectors._base import ScoreDetector, check_positive_int
-from hybridtrack_plugins.detectors._thresholds import check_error_probabilities, sprt_thresholds
+from hybridtrack_plugins.detectors._thresholds import WaldThresholds
 
 PRUNING_RULES = ("oldest", "nearest_lower")
 AVERAGING = ("uniform", "none")
 
 
-class ChangeTimeSPRT(ScoreDetector):
+class ChangeTimeSPRT(WaldThresholds, ScoreDetector):
     """Algorithm 3 of seed 000: log-likelihood ratios averaged over change times, rule (24), bank pruning."""
 
     name = "sprt_unknown_change"
 
     def __init__(self, alpha: float = 0.05, beta: float = 0.05, hypotheses: Sequence[str] | None = None,
                  averaging: str = "uniform", bank_size: int | None = None, pruning: str = "nearest_lower"):
-        self._alpha, self._beta = check_error_probabilities(alpha, beta)
-        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+        self.set_error_probabilities(alpha, beta)
         self.hypotheses = None if hypotheses is None else tuple(str(h) for h in hypotheses)
         if self.hypotheses is not None and len(self.hypotheses) < 2:
             raise ValueError(f"hypotheses: expected the current mode and at least one alternative, got {self.hypotheses!r}")
@@ -68,26 +67,6 @@ class ChangeTimeSPRT(ScoreDetector):
         self.bank_size = None if bank_size is None else check_positive_int(bank_size, "bank_size")
         self.pruning = pruning
         self.reset()
-
-    # ------------------------------------------------------------------ thresholds
-    @property
-    def alpha(self) -> float:
-        """False-alarm probability α; setting it moves A and B (dynamic thresholds)."""
-        return self._alpha
-
-    @alpha.setter
-    def alpha(self, value) -> None:
-        self._alpha, self._beta = check_error_probabilities(value, self._beta)
-        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
-
-    @property
-    def beta(self) -> float:
-        return self._beta
-
-    @beta.setter
-    def beta(self, value) -> None:
-        self._alpha, self._beta = check_error_probabilities(self._alpha, value)
-        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
 
     # ------------------------------------------------------------------ bank bookkeeping
     def reset(self) -> None:

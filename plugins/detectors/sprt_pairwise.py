@@ -35,7 +35,7 @@ import numpy as np
 from hybridtrack.interfaces import DetectorStep
 from hybridtrack.types import Decision
 from hybridtrack_plugins.detectors._base import ScoreDetector
-from hybridtrack_plugins.detectors._thresholds import check_error_probabilities, sprt_thresholds
+from hybridtrack_plugins.detectors._thresholds import WaldThresholds
 
 
 def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -50,37 +50,17 @@ def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
     return L - rival
 
 
-class PairwiseSPRT(ScoreDetector):
+class PairwiseSPRT(WaldThresholds, ScoreDetector):
     """SPRT with pairwise log-likelihood ratios and elimination over a fixed bank (seed 001, rule (5))."""
 
     name = "sprt_pairwise"
 
     def __init__(self, alpha: float = 0.01, beta: float = 0.01, hypotheses: Sequence[str] | None = None):
-        self._alpha, self._beta = check_error_probabilities(alpha, beta)
-        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
+        self.set_error_probabilities(alpha, beta)
         self.hypotheses = None if hypotheses is None else tuple(str(h) for h in hypotheses)
         if self.hypotheses is not None and not self.hypotheses:
             raise ValueError("hypotheses: expected at least one hypothesis name")
         self.reset()
-
-    @property
-    def alpha(self) -> float:
-        """False-alarm probability α; setting it moves A and B (dynamic thresholds)."""
-        return self._alpha
-
-    @alpha.setter
-    def alpha(self, value) -> None:
-        self._alpha, self._beta = check_error_probabilities(value, self._beta)
-        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
-
-    @property
-    def beta(self) -> float:
-        return self._beta
-
-    @beta.setter
-    def beta(self, value) -> None:
-        self._alpha, self._beta = check_error_probabilities(self._alpha, value)
-        self.upper, self.lower = sprt_thresholds(self._alpha, self._beta)
 
     def reset(self) -> None:
         self.L = None  # cumulative log-likelihood per hypothesis
