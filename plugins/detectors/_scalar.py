@@ -8,6 +8,15 @@ reference, the reference is a seeded sample of χ²(m), the NIS distribution of
 the correct model.  The threshold is λ(α), the (1 − α) quantile of the
 statistic under H_0 from seeded simulation (:mod:`._h0`); setting ``alpha``
 moves it (dynamic thresholds).
+
+The seeded simulation feeds the statistic independent N(0, 1) values (seed 003
+does so).  A normalized *filtered* signal — e.g. the EKF's angular-rate
+estimate — is N(0, 1) at each step but strongly autocorrelated, so its window
+sums are far wider than under independence and λ(α) from independent input
+gives many more false alarms than α.  ``null_sample`` replaces the simulated
+sample by values of the statistic computed on the actual signal under H_0
+(e.g. :func:`._h0.glr_statistics` on normalized estimates of simulated
+straight runs); λ(α) is then its (1 − α) quantile.
 """
 
 from __future__ import annotations
@@ -25,16 +34,30 @@ from hybridtrack_plugins.detectors._thresholds import check_probability
 REFERENCE_SIZE = 20000
 
 
+def _sorted_sample(values) -> np.ndarray:
+    sample = np.sort(np.asarray(values, dtype=float).reshape(-1))
+    if sample.size < 10 or not np.all(np.isfinite(sample)):
+        raise ValueError(f"null_sample: expected at least 10 finite values of the statistic under H0, got {sample.size}")
+    sample.setflags(write=False)
+    return sample
+
+
 class ScalarDetector(ScoreDetector):
     """A change detector on one normalized sequence with a threshold λ(α) from H0 quantiles."""
 
-    def __init__(self, alpha: float = 0.001, watch: int = 0, reference=None, normalize: bool = True, seed: int = 20240601):
+    def __init__(self, alpha: float = 0.001, watch: int = 0, reference=None, normalize: bool = True, seed: int = 20240601,
+                 null_sample=None):
         self.watch = check_positive_int(watch, "watch", minimum=0)
         self.normalize = bool(normalize)
         self.seed = int(seed)
         self._normalizer = None if reference is None else EmpiricalNormalizer(reference)
         self._chi2_normalizers: dict[int, EmpiricalNormalizer] = {}
+        self._null = None if null_sample is None else _sorted_sample(null_sample)
         self.alpha = alpha
+
+    def threshold_sample(self) -> np.ndarray:
+        """The sorted H0 sample λ(α) is taken from: ``null_sample`` if given, else :meth:`h0_sample`."""
+        return self._null if self._null is not None else self.h0_sample()
 
     @property
     def alpha(self) -> float:
@@ -44,15 +67,15 @@ class ScalarDetector(ScoreDetector):
     @alpha.setter
     def alpha(self, value) -> None:
         self._alpha = check_probability(value, "alpha")
-        self.threshold = h0_quantile(self.h0_sample(), self._alpha)
+        self.threshold = h0_quantile(self.threshold_sample(), self._alpha)
 
     def threshold_for(self, alpha) -> float:
         """λ(α) without changing the detector."""
-        return h0_quantile(self.h0_sample(), alpha)
+        return h0_quantile(self.threshold_sample(), alpha)
 
     @abstractmethod
     def h0_sample(self) -> np.ndarray:
-        """Sorted H0 sample of the statistic."""
+        """Sorted H0 sample of the statistic on seeded independent N(0, 1) input (cached)."""
 
     @abstractmethod
     def update_statistic(self, y: float) -> float:

@@ -4,8 +4,10 @@
 
 — the generalized likelihood ratio for a change of the mean of unknown size
 and sign in the last W steps.  λ = λ(α) is the (1 − α) quantile of g under H_0
-from seeded simulation (cached); the input is normalized through an empirical
-CDF (see :mod:`._scalar`).  After an alarm the window restarts.
+from seeded simulation on independent N(0, 1) input (cached), or of a given
+``null_sample`` of g computed on the actual (autocorrelated) signal under H_0;
+the input is normalized through an empirical CDF (see :mod:`._scalar`).  After
+an alarm the window restarts.
 """
 
 from __future__ import annotations
@@ -24,9 +26,10 @@ class GLR(ScalarDetector):
 
     name = "glr"
 
-    def __init__(self, window: int = 10, alpha: float = 0.001, watch: int = 0, reference=None, normalize: bool = True, seed: int = 20240601):
+    def __init__(self, window: int = 10, alpha: float = 0.001, watch: int = 0, reference=None, normalize: bool = True, seed: int = 20240601,
+                 null_sample=None):
         self.window = check_positive_int(window, "window")
-        super().__init__(alpha, watch, reference, normalize, seed)
+        super().__init__(alpha, watch, reference, normalize, seed, null_sample)
         self.reset()
 
     def h0_sample(self) -> np.ndarray:

@@ -85,3 +85,32 @@ def test_dynamic_threshold_lowers_the_threshold_while_the_cue_holds_and_detects_
         delays[L_C] = first
     assert delays[20.0] is not None and delays[1.0] is not None and delays[20.0] <= delays[1.0]
     assert norm.isf(0.0005) > 0
+
+
+def _ar1(rng, shape, rho=0.9):
+    """Stationary AR(1) with N(0, 1) marginals: y_n = ρ y_{n−1} + √(1 − ρ²) e_n."""
+    y = np.empty(shape)
+    y[:, 0] = rng.standard_normal(shape[0])
+    for n in range(1, shape[1]):
+        y[:, n] = rho * y[:, n - 1] + np.sqrt(1 - rho * rho) * rng.standard_normal(shape[0])
+    return y
+
+
+def test_null_sample_calibrates_the_threshold_on_an_autocorrelated_signal():
+    """N(0,1) marginals but autocorrelated (as a filtered estimate): λ(α) from independent input gives far more
+    than α false alarms per step; λ(α) from a null sample of g on the same kind of signal gives α."""
+    rng = np.random.default_rng(5)
+    null = _h0.glr_statistics(_ar1(rng, (1000, 300)), 10)[:, 50:]
+    calibrated = GLR(window=10, alpha=0.01, normalize=False, null_sample=null)
+    independent = GLR(window=10, alpha=0.01, normalize=False)
+    assert calibrated.threshold_sample().size == null.size and calibrated.threshold > 2 * independent.threshold
+    assert calibrated.threshold == pytest.approx(np.quantile(null, 0.99))
+    fresh = _h0.glr_statistics(_ar1(np.random.default_rng(6), (3000, 160)), 10)[:, [59, 109, 159]]  # 50 steps apart
+    n = fresh.size
+    hits = int((fresh > calibrated.threshold).sum())
+    assert binom.ppf(0.0005, n, 0.01) <= hits <= binom.ppf(0.9995, n, 0.01)
+    assert (fresh > independent.threshold).mean() > 0.05
+    wrapper = DynamicThreshold(("glr", {"window": 10, "alpha": 0.01, "normalize": False, "null_sample": null}), "speed_drop", 3.0)
+    assert wrapper.detector.threshold_for(0.03) == pytest.approx(np.quantile(null, 0.97))
+    with pytest.raises(ValueError, match="null_sample"):
+        GLR(window=10, null_sample=[1.0, np.nan] * 10)
