@@ -18,6 +18,13 @@ the segment); the fraction of segments whose motion type (straight / left /
 right) was identified (``modes_correct``).  The protocol adds the fraction with
 the exact radius too, and how many segments ended undecided.
 
+The rows use the seed's rule before a decision (Algorithm 1 line 9: follow the
+hypothesis of the previous segment, ``follow="previous"``).  Unless
+``--follow previous`` is given, the same trajectories are also run with
+``follow="most_likely"`` (follow the hypothesis still in play with the largest
+accumulated log-likelihood); its figures go to ``protocol.supplementary[i]
+["follow_most_likely"]`` and to a second table in the markdown.
+
     python experiments/seed001_adaptive.py --json results/seed001_adaptive.json [--n 100] [--executor process]
 
 Runs are stored under ``--out`` (one campaign per R) and reused when the
@@ -35,7 +42,7 @@ import numpy as np
 
 from hybridtrack.experiment import Campaign, Experiment, load_experiment
 from hybridtrack.experiment.builtin import X0, known_modes_estimate, pooled_rmse, simulate_seed001, squared_errors
-from hybridtrack.reporting import Column, write_report
+from hybridtrack.reporting import Column, markdown_table, write_report
 
 R_VALUES = (1.0, 0.1, 0.01)
 SEGMENTS = 6
@@ -63,7 +70,7 @@ def _motion_type(mode: str) -> str:
 
 
 def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, tau: float, alpha: float, beta: float,
-            r_min: float, r_max: float, n_radii: int, steps_scale: float) -> dict:
+            r_min: float, r_max: float, n_radii: int, steps_scale: float, follow: str = "previous") -> dict:
     """One trajectory: both estimators' squared errors, per-segment decision delays and identifications."""
     from hybridtrack.adaptive import KnownSwitchAdaptive
     from hybridtrack.types import Gaussian
@@ -71,7 +78,7 @@ def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, tau: fl
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
     optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
     adaptive = KnownSwitchAdaptive(sensors=sensors, tau=tau, r_min=r_min, r_max=r_max, n=n_radii,
-                                   noise_cov=q * np.eye(2), alpha=alpha, beta=beta)
+                                   noise_cov=q * np.eye(2), alpha=alpha, beta=beta, follow=follow)
     run = adaptive.run(measurements, Gaussian(np.array(X0), np.eye(4)), schedule)
     delays, type_right, radius_right = [], [], []
     for outcome, segment in zip(run.segments, schedule.segments):
@@ -93,7 +100,7 @@ EXPERIMENT = Experiment(
     name="seed001_adaptive",
     run_one=run_one,
     parameters={"R": 0.1, "q": 0.001, "tau": 0.1, "alpha": 0.01, "beta": 0.01, "r_min": 1.0, "r_max": 10.0,
-                "n_radii": 10, "steps_scale": 1.0},
+                "n_radii": 10, "steps_scale": 1.0, "follow": "previous"},
     description="seed 001 Tables 2-4: optimal KF vs adaptive estimator (Algorithm 1) on the Table 1 schedule",
 )
 
@@ -160,16 +167,26 @@ def main(argv=None) -> dict:
     parser.add_argument("--workers", type=int)
     parser.add_argument("--out", default="runs/seed001_adaptive", help="campaign folders (one per R)")
     parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--follow", default="both", choices=("previous", "both"),
+                        help="rule before a decision: the seed's only, or also 'most_likely' (supplementary)")
     args = parser.parse_args(argv)
 
     experiment = load_experiment(str(Path(__file__).resolve()))
-    rows, supplementary = [], []
+
+    def campaign_for(R: float, follow: str):
+        folder = Path(args.out) / f"alpha{args.alpha:g}_beta{args.beta:g}_scale{args.steps_scale:g}_follow-{follow}" / f"R{R:g}"
+        return Campaign(experiment, args.n, folder, seed=args.seed, executor=args.executor, scheduler=args.scheduler,
+                        workers=args.workers, progress=not args.no_progress,
+                        parameters={"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale,
+                                    "follow": follow})
+
+    rows, supplementary, most_likely = [], [], []
     for R in args.R:
-        campaign = Campaign(experiment, args.n, Path(args.out) / f"alpha{args.alpha:g}_beta{args.beta:g}_scale{args.steps_scale:g}" / f"R{R:g}",
-                            seed=args.seed, executor=args.executor, scheduler=args.scheduler, workers=args.workers,
-                            progress=not args.no_progress,
-                            parameters={"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale})
-        row, extra = aggregate(campaign.run().arrays, R)
+        row, extra = aggregate(campaign_for(R, "previous").run().arrays, R)
+        if args.follow == "both":
+            other, other_extra = aggregate(campaign_for(R, "most_likely").run().arrays, R)
+            extra["follow_most_likely"] = {**other, **{k: v for k, v in other_extra.items() if k != "R"}}
+            most_likely.append(other)
         rows.append(row)
         supplementary.append(extra)
     protocol = {
@@ -185,6 +202,9 @@ def main(argv=None) -> dict:
         "rmse": "sqrt(mean over runs and steps k = 1..K of (x_i - xhat_i)^2); nRMSE = ||RMSE||_2; state (x, vx, y, vy)",
         "decision_steps": "per segment: mean over runs that decided in the segment of (decision step - switch step)",
         "modes_correct": "fraction of the 6 x n segments whose motion type (straight/left/right) was identified",
+        "follow": "rows: 'previous' (seed 001 Algorithm 1 line 9: until the decision, follow the previous segment's hypothesis); "
+                  "supplementary[i]['follow_most_likely']: the same trajectories with 'most_likely' (follow the in-play "
+                  "hypothesis with the largest accumulated log-likelihood; an undecided segment ends on it)",
         "supplementary": supplementary,
         "seed_figures": {str(R): figures for R, figures in SEED.items()},
         "command": "python experiments/seed001_adaptive.py " + " ".join(sys.argv[1:] if argv is None else argv),
@@ -195,6 +215,9 @@ def main(argv=None) -> dict:
                        if e["mean_decision_steps"] is not None else
                        f"| {e['R']:g} | – | {e['undecided_fraction']:.3f} | {e['radius_correct']:.3f} |\n"
                        for e in supplementary))
+    if most_likely:
+        notes += ("\nThe same trajectories with `follow=\"most_likely\"` (before the decision, follow the hypothesis in play "
+                  "with the largest accumulated log-likelihood):\n\n" + markdown_table(most_likely, COLUMNS))
     write_report(args.json, rows, protocol, columns=COLUMNS, title="Seed 001, Tables 2–4 (reproduced)", notes=notes)
     for row, extra in zip(rows, supplementary):
         print(f"R = {row['R']:g}: optimal nRMSE {row['optimal_nrmse']:.4f} (seed {SEED.get(row['R'], {}).get('optimal_nrmse', '–')}), "

@@ -37,8 +37,11 @@ def test_seed001_adaptive_writes_the_agreed_json_layout_small(tmp_path):
         assert 0 < row["optimal_nrmse"] < row["adaptive_nrmse"]  # the filter told the modes is the better one
     protocol = written["protocol"]
     assert protocol["trajectories_per_R"] == 2 and protocol["alpha"] == 0.01 and protocol["bank"]["filters"] == 21
+    for extra, row in zip(protocol["supplementary"], written["rows"]):  # the 'most_likely' rule on the same trajectories
+        other = extra["follow_most_likely"]
+        assert other["optimal_nrmse"] == row["optimal_nrmse"] and math.isclose(other["adaptive_nrmse"], float(np.linalg.norm(other["rmse_adaptive"])))
     table = out.with_suffix(".md").read_text()
-    assert table.count("\n| 0.1 |") == 3 and "Seed 001" in table  # ours, the seed's, the supplementary table
+    assert table.count("\n| 0.1 |") == 4 and "Seed 001" in table  # ours, the seed's, the supplementary table, most_likely
 
 
 def test_report_tables_and_strict_json(tmp_path):
