@@ -1,44 +1,60 @@
 """Compiled kernel of the batched Levenberg–Marquardt for bearings-only TMA (seed 002 §4.3), by numba.
 
 The same steps as :func:`.levenberg_marquardt.minimize_batch`, run problem by
-problem in compiled code, with one fused pass over the n bearings per trial point
-s = (s_0, s_1, s_2, s_3) (scaled units, see :mod:`.tma_model`):
+problem in compiled code (:func:`minimize_problems`), with one fused pass over
+the n bearings per trial point s = (s_0, s_1, s_2, s_3) (scaled units, see
+:mod:`.tma_model`; "north" convention, φ = atan2(Δx, Δy) — the "math"
+convention is its mirror image x ↔ y and is solved that way by the caller):
 
-    Δx_k = s_0 + s_2 τ_k − õx_k,   Δy_k = s_1 + s_3 τ_k − õy_k,
-    r_k  = wrap(X_k − φ(Δx_k, Δy_k)) ∈ (−π, π],     φ = atan2(Δx, Δy) ("north") or atan2(Δy, Δx) ("math"),
-    p_k, q_k = (Δy, −Δx)/ρ_k² ("north") or (−Δy, Δx)/ρ_k² ("math"),   ρ_k² = Δx_k² + Δy_k²,
+    a_k = Δx_k = s_0 + s_2 τ_k − õx_k,   b_k = Δy_k = s_1 + s_3 τ_k − õy_k,   ρ_k² = a_k² + b_k²,
+    S_k = sin X_k b_k − cos X_k a_k = ρ_k sin r_k,   C_k = cos X_k b_k + sin X_k a_k = ρ_k cos r_k,
+    r_k = wrap(X_k − φ_k) = atan2(S_k, C_k),   p_k = b_k/ρ_k²,  q_k = −a_k/ρ_k²,
 
-accumulating F = Σ r_k² and the 13 sums Σ w_k τ_k^j (w ∈ {p², pq, q²}, j = 0, 1, 2;
-w ∈ {pr, qr}, j = 0, 1) from which H = JᵀJ and g = Jᵀr are read
-(J_k = (p_k, q_k, p_k τ_k, q_k τ_k)): no (n, 4) Jacobian and no intermediate arrays.
+(S, C: the measured direction (sin X, cos X) against the predicted one (a, b)/ρ,
+so no wrap is needed), accumulating F = Σ r_k² and the 13 sums Σ w_k τ_k^j
+(w ∈ {p², pq, q²}, j = 0, 1, 2; w ∈ {pr, qr}, j = 0, 1) from which H = JᵀJ and
+g = Jᵀr are read (J_k = (p_k, q_k, p_k τ_k, q_k τ_k)): no Jacobian array, nothing
+stored per bearing.  sin X_k and cos X_k are computed once per problem
+(:func:`unit_vectors`).
 
-**atan2.**  numba calls the C library's scalar ``atan2`` (≈ 40 ns a call here,
-against ≈ 3 ns for numpy's SIMD loop), and llvmlite's wheels carry no SVML, so
-:func:`atan2` is written out in arithmetic the compiler vectorizes: with
-a = |y|, b = |x|, m = min(a, b), M = max(a, b),
+**Two passes.**  :func:`pass_small` assumes |S_k| ≤ tan(π/8) C_k for every k
+(residuals within 22.5°, true after the first one or two steps): then
+r_k = atan(S_k/C_k) by :func:`atan_small`, and S_k/C_k and 1/ρ_k² come from one
+division 1/(C_k ρ_k²).  :func:`pass_general` takes any S, C (:func:`atan2`).
+:func:`evaluate` tries the small pass unless the previous evaluation of the
+problem broke the bound, and redoes a pass that breaks it in general form.
+
+**atan2, sin, cos.**  numba calls the C library's scalar ``atan2`` (≈ 40 ns a
+call here, against ≈ 3 ns for numpy's SIMD loop) and llvmlite's wheels carry
+no SVML, so these are written out in arithmetic the compiler vectorizes.
+atan2(y, x): with A = |y|, B = |x|, m = min(A, B), M = max(A, B),
 
     z = m/M                      if m ≤ tan(π/8) M,
     z = (m − M)/(m + M), + π/4   otherwise      (atan(m/M) = π/4 + atan((m − M)/(m + M))),
 
 so |z| ≤ tan(π/8) and atan(z) = z + z u P(u), u = z², P a degree-10 polynomial
-(:data:`ATAN_P`, a least-squares fit at Chebyshev nodes on [0, tan²(π/8)] to
-the series P(u) = Σ_{k≥1} (−1)^k u^{k−1}/(2k+1), evaluated in 50-digit decimals;
-fit error < 10⁻¹⁵ in P, i.e. < 3·10⁻¹⁷ relative in atan).  Then
-θ = π/2 − θ when a > b, θ = π − θ when x < 0, and the sign of y (π/4, π/2, π
-each as a two-double constant).  Measured against ``numpy.arctan2``: ≤ 2 ulp
-(``tests/plugins/test_tma_kernel.py``).  Only the last bits of r_k differ from
-the numpy path, so F, H, g agree to ~10⁻¹⁴ relative and the answers to ~10⁻⁹.
+(:data:`ATAN_P` from :func:`fit_atan_polynomial`: a least-squares fit at 200
+Chebyshev nodes on [0, tan²(π/8)] to the series P(u) = Σ_{k≥1} (−1)^k u^{k−1}/(2k+1)
+evaluated in 50-digit decimals; error < 10⁻¹⁵ in P, < 3·10⁻¹⁷ relative in atan).
+Then θ = π/2 − θ when A > B, θ = π − θ when x < 0, and the sign of y (π/4, π/2,
+π each as a two-double constant).  sin/cos: X = n π/2 + y, |y| ≤ π/4, Taylor
+series of sin y and cos y, quadrant n mod 4.  Against numpy: atan2 ≤ 2 ulp,
+sin/cos ≤ 2.3·10⁻¹⁶ (``tests/plugins/test_tma_kernel.py``).  F, H and g agree
+with the numpy path to ~10⁻¹⁴ relative.
 
-**Floating point.**  The fused pass is compiled with ``fastmath={"reassoc",
-"contract"}`` only (reordered sums so that the loop is vectorized, and FMA);
+**Floating point.**  The passes are compiled with ``fastmath={"reassoc",
+"contract"}`` only (reordered sums, so that the loops are vectorized, and FMA);
 NaN/inf semantics are kept (a non-finite trial F is rejected as in the numpy
-path).  The λ logic and the 4×4 Cholesky are compiled without fastmath, in
-the operation order of :mod:`._small_linalg`.  ``cache=True``: the first call in
-a fresh environment compiles (a few seconds) and caches the machine code
-next to this file (``__pycache__``).
+path; a trial point so far out that C ρ² overflows falls to the general pass).
+The λ logic and the 4×4 Cholesky are compiled without fastmath, in the
+operation order of :mod:`._small_linalg`.  ``error_model="numpy"``: no
+Python zero-division checks (they would stop the vectorization).
+``cache=True``: the first call in a fresh checkout compiles (≈ 5 s) and caches
+the machine code next to this file (``__pycache__``).
 
-``AVAILABLE`` is False when numba is not installed; the solvers then use the
-numpy path.
+``AVAILABLE`` is False when numba is not installed; the batched solver then
+uses the numpy path and does not import this module (nor, when numba is
+installed, before its first compiled solve: loading the plugins stays free of numba).
 """
 
 from __future__ import annotations
@@ -54,7 +70,7 @@ except ImportError:  # pragma: no cover - exercised only without numba
 
 AVAILABLE = numba is not None
 
-#: P(u) with atan(z) = z + z u P(u), u = z² ≤ tan²(π/8) (coefficients of u⁰ … u¹⁰; derivation in the module doc)
+#: P(u) with atan(z) = z + z u P(u), u = z² ≤ tan²(π/8): coefficients of u⁰ … u¹⁰ from :func:`fit_atan_polynomial`
 ATAN_P = (
     -0.33333333333333337, 0.19999999999995072, -0.14285714284697382, 0.11111111020754154,
     -0.09090904847282058, 0.07692189924877749, -0.06664610050049277, 0.05859027333736597,
@@ -67,6 +83,37 @@ PI_2_HI, PI_2_LO = 1.5707963267948966, 6.123233995736766e-17
 PI_HI, PI_LO = 3.141592653589793, 1.2246467991473532e-16
 
 STATUS_CONVERGED, STATUS_ITERATIONS, STATUS_LAMBDA = 0, 1, 2
+
+
+def fit_atan_polynomial(degree=10, nodes=200):
+    """The derivation of :data:`ATAN_P` (not used at run time): P(u) = (atan(√u)/√u − 1)/u on [0, tan²(π/8)].
+
+    P(u) = Σ_{k≥1} (−1)^k u^{k−1}/(2k+1) is summed in 50-digit decimals at
+    ``nodes`` Chebyshev nodes, fitted by least squares in the Chebyshev basis of
+    the given degree, and returned as monomial coefficients in u (u⁰ first).
+    """
+    from decimal import Decimal, localcontext
+
+    with localcontext() as context:
+        context.prec = 50
+        tan_pi_8 = Decimal(2).sqrt() - 1
+        u_max = float(tan_pi_8 * tan_pi_8)
+
+        def series(u):
+            u, total, power, k = Decimal(u), Decimal(0), Decimal(1), 1
+            while True:
+                term = power / (2 * k + 1)
+                total += -term if k % 2 else term
+                if term < Decimal(10) ** -40:
+                    return float(total)
+                power *= u
+                k += 1
+
+        x = np.cos(np.pi * (np.arange(nodes) + 0.5) / nodes)  # Chebyshev nodes on [−1, 1], u = (x + 1) u_max / 2
+        values = np.array([series(float(v)) for v in (x + 1) / 2 * u_max])
+    chebyshev = np.linalg.lstsq(np.polynomial.chebyshev.chebvander(x, degree), values, rcond=None)[0]
+    in_x = np.polynomial.Polynomial(np.polynomial.chebyshev.cheb2poly(chebyshev))
+    return in_x(np.polynomial.Polynomial([-1.0, 2.0 / u_max])).coef
 
 # Taylor coefficients (−1)^k/(2k+1)! of sin (k = 1 … 8) and (−1)^k/(2k)! of cos (k = 2 … 8), for |y| ≤ π/4
 _S3, _S5, _S7, _S9, _S11, _S13, _S15, _S17 = ((-1) ** k / math.factorial(2 * k + 1) for k in range(1, 9))
@@ -293,7 +340,8 @@ def damped_step(H, g, lam, L, delta):
 @_njit()
 def minimize_problems(s0, tau, ox, oy, X, lam0, lam_up, lam_down, F_tol, max_iterations, lam_max, rounding_rtol,
                       out_s, out_F, out_H, out_it, out_nf, out_status):
-    """Seed 002 §4.3 steps 1–9 for each row of s0 (m, 4) with bearings X (m, n); õx, õy (1, n) shared or (m, n).
+    """Seed 002 §4.3 steps 1–9 for each row of s0 (m, 4) with bearings X (m, n), any finite radians ("north"
+    convention); õx, õy (1, n) shared or (m, n).
 
     Per problem: F, H, g at s; A = H + λ diag(H); not positive definite → λ ← λ λ_up;
     else s_new = s + A⁻¹g, one evaluation; accepted when F(s_new) is finite and

@@ -22,14 +22,17 @@ the steps themselves invariant to that scaling, which only conditions the
 Cholesky factorization.
 
 :class:`LevenbergMarquardt` runs one problem with ``scipy.linalg.cho_factor``;
-:class:`BatchLevenbergMarquardt` runs the same steps for B problems at once, each
-with its own λ, counters and stopping rule (problems that stop leave the
-active set), using H and Jᵀr assembled from time-power sums
-(:func:`.tma_model.normal_equations`) and a masked 4×4 Cholesky.
+:class:`BatchLevenbergMarquardt` runs the same steps for B problems, each with
+its own λ, counters and stopping rule: by default problem by problem in the
+compiled kernel of :mod:`._tma_kernel` (numba; one fused pass over the bearings
+per trial gives F, H = JᵀJ and Jᵀr), or, without numba, all at once in numpy
+(problems that stop leave the active set), using H and Jᵀr assembled from
+time-power sums (:func:`.tma_model.normal_equations`) and a masked 4×4 Cholesky.
 """
 
 from __future__ import annotations
 
+import importlib.util
 from typing import ClassVar
 
 import attrs
@@ -38,7 +41,6 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from hybridtrack.interfaces import Solver
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient, wrap_angle
-from hybridtrack_plugins.solvers import _tma_kernel
 from hybridtrack_plugins.solvers._small_linalg import cholesky_solve, masked_cholesky
 from hybridtrack_plugins.solvers.tma_model import (
     N_PARAMETERS,
@@ -60,6 +62,10 @@ from hybridtrack_plugins.solvers.tma_model import (
 #: (the batch's block matrix products may round F(θ) differently for the same θ) must not
 #: push λ to overflow at a minimum
 ROUNDING_RTOL = 1e-12
+
+#: numba is installed: the batched LM's "auto" engine is the compiled kernel (imported on first use, so
+#: that loading the plugins does not import numba)
+NUMBA_AVAILABLE = importlib.util.find_spec("numba") is not None
 
 STOP_CONVERGED = "ΔF < F_tol"
 STOP_ITERATIONS = "max_iterations reached"
@@ -277,7 +283,7 @@ ENGINES = ("auto", "numba", "numpy")
 def _check_engine(engine):
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
-    if engine == "numba" and not _tma_kernel.AVAILABLE:
+    if engine == "numba" and not NUMBA_AVAILABLE:
         raise ValueError("engine: 'numba' asked for but numba is not installed (pip install numba), use 'auto' or 'numpy'")
 
 
@@ -290,6 +296,8 @@ def minimize_compiled(tau, ox, oy, X, convention, s, settings: LMSettings):
     mirrored back (H ← P H P, P the swap).  Returns (s, F, H, iterations,
     evaluations, status) as :func:`minimize_batch`.
     """
+    from hybridtrack_plugins.solvers import _tma_kernel
+
     if convention != "north":
         ox, oy, s = oy, ox, s[:, _MIRROR]
     m = s.shape[0]
@@ -335,7 +343,7 @@ class BatchLevenbergMarquardt(Solver):
     @property
     def compiled(self) -> bool:
         """True when the numba kernel (:mod:`._tma_kernel`) runs the iterations, False for the numpy path."""
-        return self.engine == "numba" or (self.engine == "auto" and _tma_kernel.AVAILABLE)
+        return self.engine == "numba" or (self.engine == "auto" and NUMBA_AVAILABLE)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
         if not isinstance(problem, BearingsProblem):

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hybridtrack_plugins.solvers import _tma_kernel as kernel
+from hybridtrack_plugins.solvers import levenberg_marquardt
 from hybridtrack_plugins.solvers.levenberg_marquardt import BatchLevenbergMarquardt, LMSettings
 from hybridtrack_plugins.solvers.observer import Seed002Scenario, simulate_bearings
 from hybridtrack_plugins.solvers.tma_model import BearingsBatch, ScaledProblem, UnobservabilityWarning, normal_equations, time_powers
@@ -34,6 +35,12 @@ def test_atan2_is_within_two_ulp_of_numpy():
             elif not (a == 0 and b == 0):  # atan2(±0, ±0): only the value 0 or ±π matters to nobody here
                 assert ulps(got, want) <= 2, (a, b, got, want)
     assert kernel.atan2(0.0, 0.0) == 0.0
+
+
+def test_atan_polynomial_is_reproduced_by_its_derivation():
+    u = np.linspace(0.0, kernel.TAN_PI_8**2, 1001)
+    fitted = np.polynomial.polynomial.polyval(u, kernel.fit_atan_polynomial())
+    assert np.abs(fitted - np.polynomial.polynomial.polyval(u, kernel.ATAN_P)).max() < 1e-15
 
 
 @needs_numba
@@ -159,7 +166,8 @@ def test_engine_choice(monkeypatch):
     with pytest.raises(ValueError, match="engine"):
         BatchLevenbergMarquardt(engine="fortran")
     assert not BatchLevenbergMarquardt(engine="numpy").compiled
-    monkeypatch.setattr(kernel, "AVAILABLE", False)
+    assert levenberg_marquardt.NUMBA_AVAILABLE == kernel.AVAILABLE
+    monkeypatch.setattr(levenberg_marquardt, "NUMBA_AVAILABLE", False)
     assert not BatchLevenbergMarquardt().compiled  # "auto" falls back to numpy without numba
     with pytest.raises(ValueError, match="numba is not installed"):
         BatchLevenbergMarquardt(engine="numba")
