@@ -8,11 +8,16 @@ the same scaled parameters.  The batched side is the whole
 covariances, χ² tests included).  The loop side is, per target,
 ``scipy.optimize.least_squares(fun, x0, jac=jac, method="lm")`` with the
 analytic Jacobian and scipy's default tolerances; only that call is timed
-(building the closures is not), which favours scipy.  The loop may run on a
+(building the closures is not), which favours scipy.  One untimed batched
+call on a few targets comes first (numba compiles the kernel, or loads it
+from its cache; the JSON gives that time).  The loop may run on a
 subset (``--scipy-n``) and is scaled to all targets; the JSON says so.  The
 repeats of the two sides are interleaved and the fastest of each is used, so
-that load from other processes affects both alike.  BLAS
-is pinned to one thread for both (set before numpy is imported).
+that load from other processes affects both alike.  With numba installed the
+batched side runs the compiled kernel (the default engine), and the numpy
+engine is timed in the same rounds as well (``numpy_engine``: its time and
+that it gives the same iterations and answers).  BLAS is pinned to one thread
+for all (set before numpy is imported); nothing runs in parallel.
 """
 
 from __future__ import annotations
@@ -44,8 +49,19 @@ from hybridtrack_plugins.solvers.scipy_reference import ScipyLeastSquares  # noq
 from hybridtrack_plugins.solvers.tma_model import BearingsBatch, ScaledProblem, UnobservabilityWarning  # noqa: E402
 
 
-def time_batched(batch, settings, repeats):
-    solver = BatchLevenbergMarquardt(settings)
+def warm_up(batch, settings):
+    """One untimed batched solve of a few targets: numba's first call compiles or loads the cached kernel."""
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnobservabilityWarning)
+        BatchLevenbergMarquardt(settings).solve_batch(
+            BearingsBatch(batch.times, batch.bearings[:4], batch.observer, batch.sigma, batch.initial,
+                          batch.reference_time, batch.convention))
+    return time.perf_counter() - start
+
+
+def time_batched(batch, settings, repeats, engine="auto"):
+    solver = BatchLevenbergMarquardt(settings, engine=engine)
     times, result = [], None
     for _ in range(repeats):
         with warnings.catch_warnings():
@@ -97,11 +113,17 @@ def main(argv=None) -> int:
     batch = BearingsBatch(times, X, observer, sigma=sigma, initial=prior, convention=scenario.convention)
     settings = LMSettings()
 
+    first_call = warm_up(batch, settings)
+    load_before = os.getloadavg()
     # interleave the repeats so that load from other processes hits both sides alike; report the best (timeit's rule)
-    lm_times, sp_times = [], []
+    lm_times, sp_times, np_times = [], [], []
+    compiled = BatchLevenbergMarquardt().compiled
     for _ in range(args.repeats):
         t, lm = time_batched(batch, settings, 1)
         lm_times += t
+        if compiled:  # the numpy engine on the same targets: its time, and that the answers are the same
+            t, lm_numpy = time_batched(batch, settings, 1, engine="numpy")
+            np_times += t
         t, sp_answers, sp_theta = time_scipy(batch, count, 1)
         sp_times += t
     lm_total = float(np.min(lm_times))
@@ -119,6 +141,9 @@ def main(argv=None) -> int:
         },
         "batched_lm": {
             "solver": "levenberg_marquardt_batch",
+            "engine": "numba kernel (_tma_kernel)" if BatchLevenbergMarquardt().compiled else "numpy",
+            "first_call_s": first_call,
+            "first_call_note": "untimed warm-up on 4 targets before the repeats (numba compile, or load from its cache)",
             "settings": attrs_dict(settings),
             "wall_time_s": lm_total, "wall_times_s": lm_times, "timing": "fastest of the interleaved repeats",
             "per_target_ms": 1e3 * lm_total / args.n,
@@ -127,6 +152,16 @@ def main(argv=None) -> int:
             "converged_rate_on_scipy_subset": float(lm.converged[subset].mean()),
             "ref_on_scipy_subset": refs(lm.parameters[subset], subset),
             "ref_all": refs(lm.parameters, slice(None)),
+        },
+        "numpy_engine": None if not compiled else {
+            "solver": 'levenberg_marquardt_batch, engine="numpy" (the fallback without numba)',
+            "wall_time_s": float(np.min(np_times)), "wall_times_s": np_times, "timing": "fastest of the interleaved repeats",
+            "per_target_ms": 1e3 * float(np.min(np_times)) / args.n,
+            "same_iterations_and_evaluations": float(np.mean((lm_numpy.iterations == lm.iterations)
+                                                             & (lm_numpy.evaluations == lm.evaluations))),
+            "max_relative_parameter_difference": float(np.max(np.abs(lm_numpy.parameters - lm.parameters)
+                                                              / np.abs(lm.parameters).max(axis=1, keepdims=True))),
+            "converged_rate": float(lm_numpy.converged.mean()),
         },
         "scipy_loop": {
             "call": 'least_squares(fun, x0, jac=analytic, method="lm"), default tolerances, same scaled start',
@@ -143,8 +178,12 @@ def main(argv=None) -> int:
             "ref_on_subset": refs(sp_theta, subset),
         },
         "speedup": sp_total / lm_total,
+        "speedup_numpy_engine": sp_total / float(np.min(np_times)) if compiled else None,
         "target_speedup": 20.0,
         "machine": {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
+                    "numba": numba_version(),
+                    "load_average_1_5_15_min": {"before": [round(v, 2) for v in load_before],
+                                                "after": [round(v, 2) for v in os.getloadavg()]},
                     "processor": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
                     "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS")},
     }
@@ -153,6 +192,14 @@ def main(argv=None) -> int:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(result, indent=2, ensure_ascii=False) + "\n")
     return 0
+
+
+def numba_version():
+    try:
+        import numba
+    except ImportError:
+        return None
+    return numba.__version__
 
 
 def attrs_dict(settings):
