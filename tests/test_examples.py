@@ -65,3 +65,20 @@ def test_every_example_is_run_by_a_test():
         assert f'load("{script.stem}")' in source, f"examples/{script.name} is not run by tests/test_examples.py"
     for folder in sorted(p for p in EXAMPLES.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))):
         assert f'"{folder.name}"' in tests, f"examples/{folder.name}/ is not exercised by any test"
+
+
+def test_bearings_only_runs_small_and_records_bearing_lines_and_solutions(tmp_path, rerun_cli):
+    from hybridtrack.inspection import RecordingFile
+
+    out = tmp_path / "tma.rrd"
+    summary = load("bearings_only").main(["--out", str(out), "--interval", "20", "--sigma", "0.2"])
+    assert summary["solutions"]["levenberg_marquardt"]["range_pct"] < 5
+    assert rerun_cli("rrd", "verify", out).returncode == 0
+    recording = RecordingFile(out)
+    assert {"/world/observer", "/world/bearings", "/world/truth", "/world/estimate/levenberg_marquardt",
+            "/world/estimate/levenberg_marquardt/ellipse", "/solver/n_bearings/residual"} <= set(recording.entity_paths)
+    steps, lines = recording.strips("world/bearings")
+    assert len(steps) == 60 and all(len(step) == 1 and step[0].shape == (2, 2) for step in lines)
+    _, residuals = recording.series("solver/levenberg_marquardt/residual")
+    assert residuals.shape == (60,) and np.abs(residuals).max() < 1.5  # degrees, σ = 0.2°
+    assert len(recording.events()) == 2
