@@ -91,6 +91,9 @@ class DynamicThreshold(Detector):
         if not 0.0 < self.alpha_ready < 1.0:
             raise ValueError(f"likelihood_ratio: α·L_C = {self.alpha_start} × {self.likelihood_ratio} = {self.alpha_ready} is not a probability in (0, 1)")
         check_probability(self.alpha_ready, "alpha * likelihood_ratio")
+        # λ(α), the threshold without the cue, reported beside the current one (recorded as static vs dynamic)
+        threshold_for = getattr(self.detector, "threshold_for", None)
+        self.static_thresholds = {} if threshold_for is None else {"static_threshold": float(threshold_for(self.alpha_start))}
         self.reset()
 
     def reset(self) -> None:
@@ -115,7 +118,7 @@ class DynamicThreshold(Detector):
         if decision is not None:
             decision = Decision(decision.step, self.name, decision.mode, decision.statistic,
                                 f"{decision.message} [cue {'on' if self.holds else 'off'}, α = {self.detector.alpha:g}]")
-        return DetectorStep({**out.statistics, "cue": float(self.holds)}, dict(out.thresholds), decision)
+        return DetectorStep({**out.statistics, "cue": float(self.holds)}, {**out.thresholds, **self.static_thresholds}, decision)
 
     def step(self, step: int, innovation: Innovation) -> DetectorStep:
         return self._wrap(step, self.detector.step(step, innovation))

@@ -77,9 +77,12 @@ def test_dynamic_threshold_lowers_the_threshold_while_the_cue_holds_and_detects_
         for k in range(140):
             wrapper.feed_cue(k, speeds[k])
             out = wrapper.observe_value(k, shift[k] + noise[k])
+            # the static threshold λ(α) is reported beside the current one (recorded as static vs dynamic)
+            assert out.thresholds["static_threshold"] == pytest.approx(wrapper.detector.threshold_for(0.0005))
             if k == 120:
                 assert out.statistics["cue"] == 1.0
                 assert out.thresholds["threshold"] == pytest.approx(wrapper.detector.threshold_for(0.0005 * L_C))
+                assert L_C == 1.0 or out.thresholds["threshold"] < out.thresholds["static_threshold"]
             if out.decision is not None and k >= 100 and first is None:
                 first = k
         delays[L_C] = first
