@@ -30,6 +30,32 @@ SMALL_CHOLESKY = 4
 SMALL_SOLVE = 8
 
 
+def _cholesky_entries(S: np.ndarray, what: str) -> list[list[np.ndarray]]:
+    """The entries L_ij (i ≥ j) of chol(S) as stack-shaped arrays, by the recurrence (small m).
+
+    L_jj = √(S_jj − Σ_{k<j} L_jk²), L_ij = (S_ij − Σ_{k<j} L_ik L_jk) / L_jj (i > j).
+    """
+    m = S.shape[-1]
+    entries = [[None] * m for _ in range(m)]
+    ok = None
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for j in range(m):
+            d = S[..., j, j]
+            for k in range(j):
+                d = d - entries[j][k] * entries[j][k]
+            good = d > 0
+            ok = good if ok is None else ok & good
+            ljj = entries[j][j] = np.sqrt(d)
+            for i in range(j + 1, m):
+                s = S[..., i, j]
+                for k in range(j):
+                    s = s - entries[i][k] * entries[j][k]
+                entries[i][j] = s / ljj
+    if not ok.all():
+        raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(~ok)[0])})")
+    return entries
+
+
 def cholesky(S: np.ndarray, what: str = "matrix") -> np.ndarray:
     """Lower Cholesky factor L of S = L Lᵀ for a stack S (..., m, m).
 
@@ -47,26 +73,95 @@ def cholesky(S: np.ndarray, what: str = "matrix") -> np.ndarray:
             return np.linalg.cholesky(S)
         except np.linalg.LinAlgError:
             raise np.linalg.LinAlgError(f"{what} is not positive definite") from None
+    entries = _cholesky_entries(S, what)
     L = np.zeros(S.shape)
-    ok = None
-    with np.errstate(invalid="ignore", divide="ignore"):
-        for j in range(m):
-            d = S[..., j, j]
-            for k in range(j):
-                d = d - L[..., j, k] * L[..., j, k]
-            good = d > 0
-            ok = good if ok is None else ok & good
-            ljj = np.sqrt(d)
-            L[..., j, j] = ljj
-            for i in range(j + 1, m):
-                s = S[..., i, j]
-                for k in range(j):
-                    s = s - L[..., i, k] * L[..., j, k]
-                L[..., i, j] = s / ljj
-    if not ok.all():
-        bad = ~ok
-        raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(bad)[0])})")
+    for i in range(m):
+        for j in range(i + 1):
+            L[..., i, j] = entries[i][j]
     return L
+
+
+class CholeskyFactor:
+    """chol(S) of a stack S (..., m, m) for the three uses of an innovation covariance:
+    the factor L, the inverse S⁻¹ (for the gain K = P Hᵀ S⁻¹ as one stacked
+    matmul) and the Gaussian scores of ν.
+
+    For m ≤ ``SMALL_CHOLESKY`` the factor is kept as its entries (stack-shaped
+    arrays, from the recurrence of :func:`cholesky`) and everything is computed
+    entry by entry over the stack:
+
+    * the triangular inverse (L⁻¹)_ii = 1 / L_ii,
+      (L⁻¹)_ij = −(Σ_{j≤k<i} L_ik (L⁻¹)_kj) / L_ii (i > j) — for m = 2,
+      L⁻¹ = [[1/a, 0], [−b/(a c), 1/c]];
+    * S⁻¹ = L⁻ᵀ L⁻¹: (S⁻¹)_ij = Σ_{k ≥ max(i, j)} (L⁻¹)_ki (L⁻¹)_kj (exactly symmetric);
+    * w = L⁻¹ν by forward substitution, NIS = Σ w_i², ln det S = 2 Σ ln L_ii.
+
+    Larger m: LAPACK's factor, :func:`cholesky_solve` on the identity and
+    :func:`gaussian_scores`.
+    """
+
+    def __init__(self, S: np.ndarray, what: str = "matrix"):
+        self.shape = S.shape
+        m = S.shape[-1]
+        self.small = 0 < m <= SMALL_CHOLESKY
+        if self.small:
+            self.entries = _cholesky_entries(S, what)
+            self._L = None
+        else:
+            self._L = cholesky(S, what)
+
+    @property
+    def L(self) -> np.ndarray:
+        if self._L is None:
+            m, entries = self.shape[-1], self.entries
+            L = np.zeros(self.shape)
+            for i in range(m):
+                for j in range(i + 1):
+                    L[..., i, j] = entries[i][j]
+            self._L = L
+        return self._L
+
+    def inverse(self) -> np.ndarray:
+        """S⁻¹ (..., m, m)."""
+        m = self.shape[-1]
+        if not self.small:
+            return cholesky_solve(self._L, np.broadcast_to(np.eye(m), self.shape))
+        entries = self.entries
+        inv = [[None] * m for _ in range(m)]
+        for i in range(m):
+            inv[i][i] = 1.0 / entries[i][i]
+            for j in range(i - 1, -1, -1):
+                acc = entries[i][j] * inv[j][j]
+                for k in range(j + 1, i):
+                    acc = acc + entries[i][k] * inv[k][j]
+                inv[i][j] = -acc / entries[i][i]
+        S_inv = np.empty(self.shape)
+        for i in range(m):
+            for j in range(i, m):
+                acc = inv[j][i] * inv[j][j]
+                for k in range(j + 1, m):
+                    acc = acc + inv[k][i] * inv[k][j]
+                S_inv[..., i, j] = acc
+                if i != j:
+                    S_inv[..., j, i] = acc
+        return S_inv
+
+    def scores(self, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(ℓ, NIS) of ν (..., m) as :func:`gaussian_scores`."""
+        if not self.small:
+            return gaussian_scores(nu, self._L)
+        m, entries = self.shape[-1], self.entries
+        w = []
+        nis = log_det = None
+        for i in range(m):
+            acc = nu[..., i]
+            for j in range(i):
+                acc = acc - entries[i][j] * w[j]
+            w.append(acc / entries[i][i])
+            nis = w[i] * w[i] if i == 0 else nis + w[i] * w[i]
+            log_det = np.log(entries[i][i]) if i == 0 else log_det + np.log(entries[i][i])
+        loglik = -0.5 * (m * LOG_2PI + 2.0 * log_det + nis)
+        return loglik, nis
 
 
 def forward_substitute(L: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -74,10 +169,18 @@ def forward_substitute(L: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     y_i = (b_i − Σ_{j<i} L_ij y_j) / L_ii, row by row over the stack (m ≤ ``SMALL_SOLVE``).
     """
+    m = L.shape[-1]
+    if b.ndim == L.ndim - 1 and m <= SMALL_SOLVE:  # a vector: each step is a 1-D operation over the stack
+        y = np.empty(np.broadcast_shapes(L.shape[:-2], b.shape[:-1]) + (m,))
+        for i in range(m):
+            s = b[..., i]
+            for j in range(i):
+                s = s - L[..., i, j] * y[..., j]
+            y[..., i] = s / L[..., i, i]
+        return y
     vector = b.ndim == L.ndim - 1
     if vector:
         b = b[..., None]
-    m = L.shape[-1]
     if m > SMALL_SOLVE:
         y = np.linalg.solve(L, b)
         return y[..., 0] if vector else y
@@ -126,8 +229,17 @@ def gaussian_scores(nu: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, np.ndarr
     """NIS νᵀS⁻¹ν and log-likelihood ℓ = −½(m ln 2π + ln det S + NIS) (SPEC §4), S = L Lᵀ."""
     m = nu.shape[-1]
     w = forward_substitute(L, nu)
-    nis = np.einsum("...i,...i->...", w, w)
-    loglik = -0.5 * (m * LOG_2PI + log_det_from_cholesky(L) + nis)
+    if m == 0 or m > SMALL_SOLVE:
+        nis = np.einsum("...i,...i->...", w, w)
+        log_det = log_det_from_cholesky(L)
+    else:  # Σ over the few components as 1-D operations over the stack
+        nis = w[..., 0] * w[..., 0]
+        log_det = np.log(L[..., 0, 0])
+        for i in range(1, m):
+            nis = nis + w[..., i] * w[..., i]
+            log_det = log_det + np.log(L[..., i, i])
+        log_det = 2.0 * log_det
+    loglik = -0.5 * (m * LOG_2PI + log_det + nis)
     return loglik, nis
 
 

@@ -208,8 +208,7 @@ class KalmanFilter(BankEstimator):
             innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation), innovation
         step, nu, H = found
-        x, P, S, L, _ = cov_form.update(state.x, state.P, nu, H, step.R, step.selection, self.form)
-        loglik, nis = cov_form.innovation_scores(nu, L)
+        x, P, S, loglik, nis = cov_form.update_scored(state.x, state.P, nu, H, step.R, step.selection, self.form)
         innovation = Innovation(nu, S, loglik, nis)
         return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
 
