@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybridtrack_plugins.filters._linalg import CholeskyFactor, gaussian_scores, symmetrize
+from hybridtrack_plugins.filters._measurements import selection_index
 
 UPDATE_FORMS = ("joseph", "symmetric", "conventional")
 
@@ -25,17 +26,6 @@ def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, B: np.ndarray, Q: np.nd
     P_pred = F @ P @ Ft
     P_pred += Q
     return x_pred, symmetrize(P_pred)
-
-
-def as_index(selection) -> slice | list[int]:
-    """The state indices a selection H picks, as a slice when they are evenly spaced (a view instead of a gather)."""
-    idx = [int(i) for i in selection]
-    if len(idx) == 1:
-        return slice(idx[0], idx[0] + 1)
-    step = idx[1] - idx[0]
-    if step > 0 and all(b - a == step for a, b in zip(idx, idx[1:])):
-        return slice(idx[0], idx[-1] + 1, step)
-    return idx
 
 
 def _times_matrix(A: np.ndarray, C: np.ndarray) -> np.ndarray:
@@ -84,35 +74,41 @@ def _update(x, P, nu, H, R, selection, form):
     M, n = x.shape
     m = nu.shape[-1]
     if selection is not None:
-        idx = as_index(selection)
+        selection = tuple(selection)
+        idx = selection_index(selection)
         PHt = P[:, :, idx]  # P Hᵀ (M, n, m)
-        S = PHt[:, idx, :] + R
+        S = _selected_innovation_covariance(P, selection, R)
     else:
         Ht = np.ascontiguousarray(np.swapaxes(H, -1, -2))
         PHt = _times_matrix(P, Ht)
-        S = H @ PHt + R
-    S = _symmetrize_small(S)
+        S = _symmetrize_small(H @ PHt + R)
     factor = CholeskyFactor(S, "innovation covariance S")
     K = PHt @ factor.inverse()  # (M, n, m)
+    x_new = x + np.einsum("mij,mj->mi", K, nu)
     if form == "joseph":
-        # one stacked product gives K (H P⁻) and K ν
-        Y = np.empty((M, m, n + 1))
-        Y[:, :, :n] = P[:, idx, :] if selection is not None else H @ P
-        Y[:, :, n] = nu
-        KY = K @ Y
-        x_new = x + KY[:, :, n]
-        T = P - KY[:, :, :n]  # (I − K H) P⁻
+        T = P - K @ (P[:, idx, :] if selection is not None else H @ P)  # (I − K H) P⁻
         D = _times_matrix(K, R)
         D -= T[:, :, idx] if selection is not None else _times_matrix(T, Ht)  # K R − T Hᵀ
         T += D @ np.ascontiguousarray(np.swapaxes(K, -1, -2))
         return x_new, symmetrize(T), S, factor, K
-    x_new = x + (K @ nu[:, :, None])[:, :, 0]
-    KPHt_T = K @ np.ascontiguousarray(np.swapaxes(PHt, -1, -2))  # K S Kᵀ = K (P⁻ Hᵀ)ᵀ
+    T = P - K @ np.ascontiguousarray(np.swapaxes(PHt, -1, -2))  # P⁻ − K S Kᵀ = P⁻ − K (P⁻ Hᵀ)ᵀ
     if form == "symmetric":
-        P_new = symmetrize(P - KPHt_T)
-    else:
-        P_new = P - KPHt_T
-    return x_new, P_new, S, factor, K
+        return x_new, symmetrize(T), S, factor, K
+    return x_new, T, S, factor, K
+
+
+def _selected_innovation_covariance(P: np.ndarray, selection: tuple[int, ...], R: np.ndarray) -> np.ndarray:
+    """S = ½(C + Cᵀ), C = H P Hᵀ + R for a selection H: C_ij = P[s_i, s_j] + R_ij, entry by entry over the bank."""
+    M, m = P.shape[0], len(selection)
+    if m > 3:
+        return symmetrize(P[:, :, list(selection)][:, list(selection), :] + R)
+    S = np.empty((M, m, m))
+    for i, a in enumerate(selection):
+        S[:, i, i] = P[:, a, a] + R[..., i, i]
+        for j in range(i + 1, m):
+            b = selection[j]
+            S[:, i, j] = S[:, j, i] = 0.5 * ((P[:, a, b] + R[..., i, j]) + (P[:, b, a] + R[..., j, i]))
+    return S
 
 
 def _symmetrize_small(S: np.ndarray) -> np.ndarray:

@@ -82,38 +82,56 @@ def cholesky(S: np.ndarray, what: str = "matrix") -> np.ndarray:
 
 
 class CholeskyFactor:
-    """chol(S) of a stack S (..., m, m) for the three uses of an innovation covariance:
-    the factor L, the inverse S⁻¹ (for the gain K = P Hᵀ S⁻¹ as one stacked
-    matmul) and the Gaussian scores of ν.
+    """An SPD stack S (..., m, m) factored once for the three uses of an innovation
+    covariance: the Cholesky factor L, the inverse S⁻¹ (for the gain
+    K = P Hᵀ S⁻¹ as one stacked matmul) and the Gaussian scores of ν.
 
-    For m ≤ ``SMALL_CHOLESKY`` the factor is kept as its entries (stack-shaped
-    arrays, from the recurrence of :func:`cholesky`) and everything is computed
-    entry by entry over the stack:
+    Closed forms for m ≤ 2, with S = [[a, b], [b, c]], det S = a c − b²:
 
-    * the triangular inverse (L⁻¹)_ii = 1 / L_ii,
-      (L⁻¹)_ij = −(Σ_{j≤k<i} L_ik (L⁻¹)_kj) / L_ii (i > j) — for m = 2,
-      L⁻¹ = [[1/a, 0], [−b/(a c), 1/c]];
-    * S⁻¹ = L⁻ᵀ L⁻¹: (S⁻¹)_ij = Σ_{k ≥ max(i, j)} (L⁻¹)_ki (L⁻¹)_kj (exactly symmetric);
-    * w = L⁻¹ν by forward substitution, NIS = Σ w_i², ln det S = 2 Σ ln L_ii.
+    * positive definite ⇔ a > 0 and det S > 0 (m = 1: a > 0);
+    * S⁻¹ = [[c, −b], [−b, a]] / det S (adjugate; m = 1: 1/a);
+    * L = [[l₀₀, 0], [l₁₀, l₁₁]], l₀₀ = √a, l₁₀ = b / l₀₀, l₁₁ = √(c − l₁₀²);
+      w = L⁻¹ν (w₀ = ν₀ / l₀₀, w₁ = (ν₁ − l₁₀ w₀) / l₁₁), NIS = |w|²,
+      ln det S = ln(a c − b²).
 
-    Larger m: LAPACK's factor, :func:`cholesky_solve` on the identity and
-    :func:`gaussian_scores`.
+    For 2 < m ≤ ``SMALL_CHOLESKY`` the factor is kept as its entries
+    (stack-shaped arrays, from the recurrence of :func:`cholesky`) and, entry by
+    entry over the stack, (L⁻¹)_ii = 1 / L_ii,
+    (L⁻¹)_ij = −(Σ_{j≤k<i} L_ik (L⁻¹)_kj) / L_ii (i > j),
+    (S⁻¹)_ij = Σ_{k ≥ max(i, j)} (L⁻¹)_ki (L⁻¹)_kj (exactly symmetric), and w,
+    NIS, ln det S = 2 Σ ln L_ii as above.  Larger m: LAPACK's factor,
+    :func:`cholesky_solve` on the identity and :func:`gaussian_scores`.
     """
 
     def __init__(self, S: np.ndarray, what: str = "matrix"):
+        self.S = S
         self.shape = S.shape
         m = S.shape[-1]
-        self.small = 0 < m <= SMALL_CHOLESKY
-        if self.small:
+        self._L = None
+        if m in (1, 2):
+            a = S[..., 0, 0]
+            if m == 1:
+                self.det = a
+            else:
+                b, c = S[..., 1, 0], S[..., 1, 1]
+                self.det = a * c - b * b
+                a = np.minimum(a, self.det)
+            if not a.min(initial=np.inf) > 0:  # also catches NaN
+                bad = ~(a > 0)
+                raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(bad)[0])})")
+            self.kind = "closed"
+        elif 0 < m <= SMALL_CHOLESKY:
             self.entries = _cholesky_entries(S, what)
-            self._L = None
+            self.kind = "entries"
         else:
             self._L = cholesky(S, what)
+            self.kind = "lapack"
 
     @property
     def L(self) -> np.ndarray:
         if self._L is None:
-            m, entries = self.shape[-1], self.entries
+            m = self.shape[-1]
+            entries = self._closed_entries() if self.kind == "closed" else self.entries
             L = np.zeros(self.shape)
             for i in range(m):
                 for j in range(i + 1):
@@ -121,10 +139,29 @@ class CholeskyFactor:
             self._L = L
         return self._L
 
+    def _closed_entries(self):
+        S = self.S
+        l00 = np.sqrt(S[..., 0, 0])
+        if self.shape[-1] == 1:
+            return [[l00]]
+        l10 = S[..., 1, 0] / l00
+        return [[l00, None], [l10, np.sqrt(S[..., 1, 1] - l10 * l10)]]
+
     def inverse(self) -> np.ndarray:
         """S⁻¹ (..., m, m)."""
         m = self.shape[-1]
-        if not self.small:
+        if self.kind == "closed":
+            S = self.S
+            if m == 1:
+                return 1.0 / S
+            r = 1.0 / self.det
+            S_inv = np.empty(self.shape)
+            S_inv[..., 0, 0] = S[..., 1, 1] * r
+            S_inv[..., 1, 1] = S[..., 0, 0] * r
+            off = S[..., 1, 0] * r
+            S_inv[..., 0, 1] = S_inv[..., 1, 0] = np.negative(off, out=off)
+            return S_inv
+        if self.kind == "lapack":
             return cholesky_solve(self._L, np.broadcast_to(np.eye(m), self.shape))
         entries = self.entries
         inv = [[None] * m for _ in range(m)]
@@ -148,19 +185,26 @@ class CholeskyFactor:
 
     def scores(self, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(ℓ, NIS) of ν (..., m) as :func:`gaussian_scores`."""
-        if not self.small:
+        m = self.shape[-1]
+        if self.kind == "lapack":
             return gaussian_scores(nu, self._L)
-        m, entries = self.shape[-1], self.entries
+        if self.kind == "closed":
+            entries = self._closed_entries()
+            log_det = np.log(self.det)
+        else:
+            entries = self.entries
+            log_det = np.log(entries[0][0])
+            for i in range(1, m):
+                log_det += np.log(entries[i][i])
+            log_det *= 2.0
         w = []
-        nis = log_det = None
         for i in range(m):
             acc = nu[..., i]
             for j in range(i):
                 acc = acc - entries[i][j] * w[j]
             w.append(acc / entries[i][i])
             nis = w[i] * w[i] if i == 0 else nis + w[i] * w[i]
-            log_det = np.log(entries[i][i]) if i == 0 else log_det + np.log(entries[i][i])
-        loglik = -0.5 * (m * LOG_2PI + 2.0 * log_det + nis)
+        loglik = -0.5 * (m * LOG_2PI + log_det + nis)
         return loglik, nis
 
 

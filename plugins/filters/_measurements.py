@@ -14,6 +14,7 @@ matrix products.
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Sequence
 
 import attrs
@@ -51,10 +52,14 @@ class MeasurementStep:
     def dim(self) -> int:
         return self.z.shape[-1]
 
+    def with_z(self, z: np.ndarray) -> "MeasurementStep":
+        """The same model with new measurement rows (the cached-structure path of :meth:`MeasurementAssembler.assemble`)."""
+        return MeasurementStep(self.models, z, self.R, self.blocks, self.H, self.selection, self.plain_residual, self.R_diagonal)
+
     def predicted(self, x: np.ndarray, layout: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
         """ẑ = h(x⁻) (M, m) and H = ∂h/∂x at x⁻ ((m, n) linear, (M, m, n) otherwise)."""
         if self.selection is not None:
-            return x[:, list(self.selection)], self.H
+            return x[:, selection_index(self.selection)], self.H
         if self.H is not None:
             return x @ self.H.T, self.H
         z_pred = np.concatenate([model.sensor.measure(x, layout) if model.H is None else x @ model.H.T for model in self.models], axis=-1)
@@ -70,6 +75,18 @@ class MeasurementStep:
             return self.z - z_pred
         z = np.broadcast_to(self.z, z_pred.shape)
         return np.concatenate([m.sensor.residual(z[..., b], z_pred[..., b]) for m, b in zip(self.models, self.blocks)], axis=-1)
+
+
+@lru_cache(maxsize=256)
+def selection_index(selection: tuple[int, ...]) -> slice | list[int]:
+    """The state indices a selection H picks, as a slice when they are evenly spaced (a view instead of a gather)."""
+    idx = [int(i) for i in selection]
+    if len(idx) == 1:
+        return slice(idx[0], idx[0] + 1)
+    step = idx[1] - idx[0]
+    if step > 0 and all(b - a == step for a, b in zip(idx, idx[1:])):
+        return slice(idx[0], idx[-1] + 1, step)
+    return idx
 
 
 def block_diagonal(blocks: Sequence[np.ndarray]) -> np.ndarray:
@@ -130,7 +147,7 @@ class MeasurementAssembler:
             and template[0] == (tuple(map(id, sensors)), layout, bank_size, z_array.shape)
             and np.isfinite(z_array).all()
         ):
-            return attrs.evolve(template[1], z=z_array.reshape(-1, template[1].dim))
+            return template[1].with_z(z_array.reshape(-1, template[1].dim))
         step = self._assemble(z, sensors, layout, bank_size)
         if step is not None and z_array is not None and len(step.models) == len(sensors) and all(_constant_noise(m.sensor) for m in step.models):
             self._template = ((tuple(map(id, sensors)), layout, bank_size, z_array.shape), step)

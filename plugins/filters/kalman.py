@@ -119,6 +119,7 @@ class KalmanFilter(BankEstimator):
         self.form = form
         self.structure = bool(structure) and form != "conventional"
         self._split_cache: tuple | None = None
+        self._transposed_cache: tuple | None = None
         self._plan_cache: dict = {}
 
     def initialize(self, mean, cov) -> CovarianceState:
@@ -149,8 +150,17 @@ class KalmanFilter(BankEstimator):
                 if xa is not None:
                     xa, Pa = sep.predict(xa, Pa, split)
                     return AxisState(split.axes, n, xa, Pa, xa, Pa, None)
-        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
+        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, self._transposed(bank))
         return CovarianceState(x, P, x, P, None)
+
+    def _transposed(self, bank: TransitionBank) -> np.ndarray:
+        """Fᵀ as a contiguous stack, kept with the bank object like the other per-bank caches."""
+        cached = self._transposed_cache
+        if cached is not None and cached[0] is bank and cached[1] is bank.F:
+            return cached[2]
+        Ft = np.ascontiguousarray(np.swapaxes(bank.F, -1, -2))
+        self._transposed_cache = (bank, bank.F, Ft)
+        return Ft
 
     # ------------------------------------------------------------------ update
     def _axis_plan(self, step, axes):
