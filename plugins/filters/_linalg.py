@@ -70,9 +70,12 @@ def cholesky(S: np.ndarray, what: str = "matrix") -> np.ndarray:
         return np.zeros_like(S)
     if m > SMALL_CHOLESKY:
         try:
-            return np.linalg.cholesky(S)
+            L = np.linalg.cholesky(S)
         except np.linalg.LinAlgError:
             raise np.linalg.LinAlgError(f"{what} is not positive definite") from None
+        if not np.isfinite(np.diagonal(L, axis1=-2, axis2=-1)).all():  # LAPACK passes NaN through
+            raise np.linalg.LinAlgError(f"{what} is not positive definite (NaN)")
+        return L
     entries = _cholesky_entries(S, what)
     L = np.zeros(S.shape)
     for i in range(m):
