@@ -94,8 +94,9 @@ class CholeskyFactor:
     * positive definite ⇔ a > 0 and det S > 0 (m = 1: a > 0);
     * S⁻¹ = [[c, −b], [−b, a]] / det S (adjugate; m = 1: 1/a);
     * L = [[l₀₀, 0], [l₁₀, l₁₁]], l₀₀ = √a, l₁₀ = b / l₀₀, l₁₁ = √(c − l₁₀²);
-      w = L⁻¹ν (w₀ = ν₀ / l₀₀, w₁ = (ν₁ − l₁₀ w₀) / l₁₁), NIS = |w|²,
-      ln det S = ln(a c − b²).
+    * NIS = νᵀS⁻¹ν from S = U D Uᵀ, U = [[1, 0], [b/a, 1]], D = diag(a, det S / a):
+      NIS = ν₀²/a + r² a / det S with r = ν₁ − (b/a) ν₀ (= |L⁻¹ν|², a sum of
+      non-negative terms), ln det S = ln(a c − b²).
 
     For 2 < m ≤ ``SMALL_CHOLESKY`` the factor is kept as its entries
     (stack-shaped arrays, from the recurrence of :func:`cholesky`) and, entry by
@@ -191,15 +192,19 @@ class CholeskyFactor:
         m = self.shape[-1]
         if self.kind == "lapack":
             return gaussian_scores(nu, self._L)
-        if self.kind == "closed":
-            entries = self._closed_entries()
-            log_det = np.log(self.det)
-        else:
-            entries = self.entries
-            log_det = np.log(entries[0][0])
-            for i in range(1, m):
-                log_det += np.log(entries[i][i])
-            log_det *= 2.0
+        if self.kind == "closed":  # S = U D Uᵀ: NIS = ν₀²/a + r²/(det S / a), r = ν₁ − (b/a) ν₀
+            S, nu0 = self.S, nu[..., 0]
+            t = nu0 / S[..., 0, 0]
+            nis = nu0 * t
+            if m == 2:
+                r = nu[..., 1] - S[..., 1, 0] * t
+                nis += S[..., 0, 0] * (r * r) / self.det
+            return -0.5 * (m * LOG_2PI + np.log(self.det) + nis), nis
+        entries = self.entries
+        log_det = np.log(entries[0][0])
+        for i in range(1, m):
+            log_det += np.log(entries[i][i])
+        log_det *= 2.0
         w = []
         for i in range(m):
             acc = nu[..., i]
