@@ -39,7 +39,7 @@ def _times_matrix(A: np.ndarray, C: np.ndarray) -> np.ndarray:
 def update(x, P, nu, H, R, selection=None, form: str = "joseph"):
     """One measurement update (seed 000 eqs. 6–9 with the SPEC §3 correction P⁺ = (I − K H) P⁻).
 
-    S = H P⁻ Hᵀ + R, K = P⁻ Hᵀ S⁻¹ (S⁻¹ from the Cholesky factor of S), x⁺ = x⁻ + K ν, and
+    S = H P⁻ Hᵀ + R (symmetrised), K = P⁻ Hᵀ S⁻¹, x⁺ = x⁻ + K ν, and
 
     * ``joseph``: P⁺ = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ (PSD by construction),
       evaluated as T = (I − K H) P⁻ = P⁻ − K (H P⁻), then
@@ -50,9 +50,13 @@ def update(x, P, nu, H, R, selection=None, form: str = "joseph"):
     * ``conventional``: P⁺ = (I − K H) P⁻ as printed, no symmetrisation (kept
       to show how it breaks on ill-conditioned problems, docs/estimators.md).
 
-    H is (m, n) or (M, m, n), R (m, m) or (M, m, m); a shared H or R multiplies
-    the whole bank in one BLAS call.  With ``selection`` (the state indices H
-    picks) the products with H become indexing.  Returns x⁺, P⁺, S, L = chol(S), K.
+    S⁻¹ comes from :class:`~hybridtrack_plugins.filters._linalg.CholeskyFactor`
+    (closed forms for m ≤ 2: positive definiteness from a > 0 and det S > 0,
+    S⁻¹ by the adjugate; the Cholesky recurrence for larger m), so K is one
+    stacked matmul.  H is (m, n) or (M, m, n), R (m, m) or (M, m, m); a shared
+    H or R multiplies the whole bank in one BLAS call.  With ``selection`` (the
+    state indices H picks) the products with H become indexing and S is built
+    entry by entry.  Returns x⁺, P⁺, S, L = chol(S), K.
     """
     x_new, P_new, S, factor, K = _update(x, P, nu, H, R, selection, form)
     return x_new, P_new, S, factor.L, K
