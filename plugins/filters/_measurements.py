@@ -14,7 +14,6 @@ matrix products.
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 from typing import Sequence
 
@@ -146,7 +145,7 @@ class MeasurementAssembler:
             template is not None
             and z_array is not None
             and template[0] == (tuple(map(id, sensors)), layout, bank_size, z_array.shape)
-            and math.isfinite(z_array.sum())  # NaN or ±inf anywhere (or an overflowing sum): the full path below decides
+            and np.isfinite(z_array).all()  # NaN or ±inf anywhere: the full path below decides (missing sensor or error)
         ):
             return template[1].with_z(z_array.reshape(-1, template[1].dim))
         step = self._assemble(z, sensors, layout, bank_size)

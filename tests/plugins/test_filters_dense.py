@@ -126,3 +126,23 @@ def test_joseph_is_the_two_sided_product_for_the_gain_used():
     for i in range(M):
         assert _rel(P_new[i], ref[i]) < 1e-11
         assert np.linalg.eigvalsh(P_new[i]).min() > 0
+
+
+def test_cached_measurement_step_still_checks_z():
+    """After a step has cached the sensors' model, inf in z still raises and NaN still means 'not measured'."""
+    from hybridtrack_plugins.filters.kalman import KalmanFilter
+
+    from _filters_support import LAYOUT, bank_of, position_sensor, straight
+
+    est = KalmanFilter(structure=False)
+    sensor = position_sensor(np.array([[0.02, 0.005], [0.005, 0.03]]))
+    bank = bank_of([straight()] * 3)
+    state = est.predict(est.initialize(np.zeros((3, 4)), np.stack([np.eye(4)] * 3)), bank)
+    state, _ = est.update(state, np.array([0.1, -0.2]), [sensor], LAYOUT)  # caches the step's model
+    with pytest.raises(ValueError, match="z: contains inf"):
+        est.update(state, np.array([np.inf, 0.0]), [sensor], LAYOUT)
+    with pytest.raises(ValueError, match=r"z: expected shape \(2,\) or \(3, 2\)"):
+        est.update(state, np.zeros(4), [sensor], LAYOUT)
+    same, innovation = est.update(state, np.array([np.nan, np.nan]), [sensor], LAYOUT)
+    assert innovation.nu.shape == (3, 0)
+    np.testing.assert_array_equal(same.covariance, state.covariance)
