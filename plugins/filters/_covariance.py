@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridtrack_plugins.filters._linalg import CholeskyFactor, gaussian_scores, symmetrize
+from hybridtrack_plugins.filters._linalg import CholeskyFactor, symmetrize
 from hybridtrack_plugins.filters._measurements import selection_index
 
 UPDATE_FORMS = ("joseph", "symmetric", "conventional")
@@ -124,8 +124,3 @@ def _symmetrize_small(S: np.ndarray) -> np.ndarray:
         for j in range(i + 1, m):
             S[:, i, j] = S[:, j, i] = 0.5 * (S[:, i, j] + S[:, j, i])
     return S
-
-
-def innovation_scores(nu: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(ℓ, NIS) of ν with S = L Lᵀ (SPEC §4)."""
-    return gaussian_scores(nu, L)
