@@ -22,6 +22,29 @@ from hybridtrack.interfaces import Estimator, Innovation, TransitionBank, check_
 from hybridtrack_plugins.filters._measurements import MeasurementAssembler
 
 
+class NodeMoments:
+    """Mixin for decentralized states: ``_moments`` = (x (N, M, n), P (N, M, n, n)) over the N nodes;
+    ``mean``/``covariance`` read node 0 (every node holds the same estimate up to rounding)."""
+
+    @property
+    def node_means(self) -> np.ndarray:
+        """Every node's x (N, M, n)."""
+        return self._moments[0]
+
+    @property
+    def node_covariances(self) -> np.ndarray:
+        """Every node's P (N, M, n, n)."""
+        return self._moments[1]
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self._moments[0][0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self._moments[1][0]
+
+
 def empty_innovation(bank_size: int) -> Innovation:
     """m = 0: no measurement at this step (prediction only)."""
     return Innovation(np.zeros((bank_size, 0)), np.zeros((bank_size, 0, 0)), np.zeros(bank_size), np.zeros(bank_size))

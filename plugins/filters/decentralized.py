@@ -27,13 +27,13 @@ import numpy as np
 
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack_plugins.filters import _information as info
-from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
+from hybridtrack_plugins.filters._base import BankEstimator, NodeMoments, empty_innovation
 from hybridtrack_plugins.filters._linalg import symmetrize
 from hybridtrack_plugins.filters.information import information_predict, stacked_innovation
 
 
 @attrs.frozen(eq=False, slots=False)
-class DecentralizedState:
+class DecentralizedState(NodeMoments):
     """Per-node information states: I (N, M, n, n), s (N, M, n); x⁻, P⁻ (N, M, …)."""
 
     Y: np.ndarray
@@ -52,24 +52,6 @@ class DecentralizedState:
     @cached_property
     def _moments(self):
         return self.moments if self.moments is not None else info.to_covariance(self.Y, self.s)
-
-    @property
-    def node_means(self) -> np.ndarray:
-        """Every node's x (N, M, n)."""
-        return self._moments[0]
-
-    @property
-    def node_covariances(self) -> np.ndarray:
-        return self._moments[1]
-
-    @property
-    def mean(self) -> np.ndarray:
-        """Node 0's estimate (all nodes hold the same one up to rounding)."""
-        return self._moments[0][0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self._moments[1][0]
 
     @property
     def predicted_mean(self) -> np.ndarray:

@@ -18,12 +18,12 @@ import numpy as np
 
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack_plugins.filters import _sqrt
-from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
+from hybridtrack_plugins.filters._base import BankEstimator, NodeMoments, empty_innovation
 from hybridtrack_plugins.filters.srif import SRIFState, srif_innovation
 
 
 @attrs.frozen(eq=False, slots=False)
-class DecentralizedSRIFState(SRIFState):
+class DecentralizedSRIFState(NodeMoments, SRIFState):
     """Node arrays R (N, M, n, n), ζ (N, M, n); ``mean``/``covariance`` read node 0."""
 
     node_nis: np.ndarray | None = None
@@ -32,22 +32,6 @@ class DecentralizedSRIFState(SRIFState):
     @property
     def nodes(self) -> int:
         return self.R.shape[0]
-
-    @property
-    def node_means(self) -> np.ndarray:
-        return self._moments[0]
-
-    @property
-    def node_covariances(self) -> np.ndarray:
-        return self._moments[1]
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self._moments[0][0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self._moments[1][0]
 
     @property
     def predicted_mean(self) -> np.ndarray:
