@@ -210,16 +210,18 @@ def bench(M, repeats, loop_steps):
             times.append(elapsed)
         median = statistics.median(times)
         results[impl] = (steps, logliks, x, P)
-        cases.append({
-            "M": M,
-            "steps": STEPS,
-            "impl": impl,
-            "filter_steps_per_s": M * steps / median,
-            "timed_steps": steps,
-            "scaled": steps != STEPS,
-            "median_s_for_360_steps": median * STEPS / steps,
-            "repeats": repeats,
-        })
+        cases.append(
+            {
+                "M": M,
+                "steps": STEPS,
+                "impl": impl,
+                "filter_steps_per_s": M * steps / median,
+                "timed_steps": steps,
+                "scaled": steps != STEPS,
+                "median_s_for_360_steps": median * STEPS / steps,
+                "repeats": repeats,
+            }
+        )
         print(f"M={M:5d} {impl:18s} {M * steps / median:12.4g} filter-steps/s  (timed {steps} steps, median of {repeats})", flush=True)
     # equality checks
     ref_steps, ref_ll, ref_x, ref_P = results["hybridtrack"]
@@ -257,8 +259,11 @@ def main(argv=None):
         ratios[str(M)] = r
         vs_dense[str(M)] = dense
         dense_ratios[str(M)] = dense_r
-        print(f"M={M}: {r['vs_filterpy']:.0f}x filterpy, {r['vs_loop']:.0f}x numpy loop, {dense:.2f}x dense bank; "
-              f"dense bank {dense_r['vs_numpy_batched']:.2f}x the batched numpy bank (load {load_before:.2f})", flush=True)
+        print(
+            f"M={M}: {r['vs_filterpy']:.0f}x filterpy, {r['vs_loop']:.0f}x numpy loop, {dense:.2f}x dense bank; "
+            f"dense bank {dense_r['vs_numpy_batched']:.2f}x the batched numpy bank (load {load_before:.2f})",
+            flush=True,
+        )
     import filterpy
 
     out = {

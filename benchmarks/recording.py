@@ -61,8 +61,11 @@ def main(argv=None) -> dict:
             recorded.append(one_run(truth, z, sensors, Path(folder) / f"run{i}.rrd"))
         size = (Path(folder) / "run0.rrd").stat().st_size
     result = {
-        "case": {"filters": 21, "steps": 360, "what": "KnownSwitchAdaptive (seed 001 Algorithm 1, 2n+1 = 21 filters) "
-                 "on the Table 1 trajectory, everything it records"},
+        "case": {
+            "filters": 21,
+            "steps": 360,
+            "what": "KnownSwitchAdaptive (seed 001 Algorithm 1, 2n+1 = 21 filters) on the Table 1 trajectory, everything it records",
+        },
         "repeats": args.repeats,
         "median_s_without_recording": statistics.median(plain),
         "median_s_with_recording": statistics.median(recorded),

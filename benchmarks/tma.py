@@ -55,8 +55,10 @@ def warm_up(batch, settings):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnobservabilityWarning)
         BatchLevenbergMarquardt(settings).solve_batch(
-            BearingsBatch(batch.times, batch.bearings[:4], batch.observer, batch.sigma, batch.initial,
-                          batch.reference_time, batch.convention))
+            BearingsBatch(
+                batch.times, batch.bearings[:4], batch.observer, batch.sigma, batch.initial, batch.reference_time, batch.convention
+            )
+        )
     return time.perf_counter() - start
 
 
@@ -78,8 +80,9 @@ def time_scipy(batch, count, repeats):
     closures = []
     for i in range(count):
         problem = batch.problem(i)
-        scaled = ScaledProblem.build(problem.times, problem.bearings, problem.observer, problem.initial,
-                                     problem.reference_time, problem.convention)
+        scaled = ScaledProblem.build(
+            problem.times, problem.bearings, problem.observer, problem.initial, problem.reference_time, problem.convention
+        )
         fun, jac = reference.residual_functions(scaled)
         closures.append((fun, jac, scaled.scaling.to_scaled(problem.initial), scaled.scaling))
     times = []
@@ -136,7 +139,10 @@ def main(argv=None) -> int:
     subset = slice(0, count)
     result = {
         "problem": {
-            "targets": args.n, "sigma_deg": args.sigma, "seed": args.seed, "bearings_per_target": len(times),
+            "targets": args.n,
+            "sigma_deg": args.sigma,
+            "seed": args.seed,
+            "bearings_per_target": len(times),
             "scenario": "seed 002 three-leg observer, prior start (see experiments/tma_montecarlo.py)",
         },
         "batched_lm": {
@@ -145,22 +151,31 @@ def main(argv=None) -> int:
             "first_call_s": first_call,
             "first_call_note": "untimed warm-up on 4 targets before the repeats (numba compile, or load from its cache)",
             "settings": attrs_dict(settings),
-            "wall_time_s": lm_total, "wall_times_s": lm_times, "timing": "fastest of the interleaved repeats",
+            "wall_time_s": lm_total,
+            "wall_times_s": lm_times,
+            "timing": "fastest of the interleaved repeats",
             "per_target_ms": 1e3 * lm_total / args.n,
-            "iterations_mean": float(lm.iterations.mean()), "evaluations_mean": float(lm.evaluations.mean()),
+            "iterations_mean": float(lm.iterations.mean()),
+            "evaluations_mean": float(lm.evaluations.mean()),
             "converged_rate": float(lm.converged.mean()),
             "converged_rate_on_scipy_subset": float(lm.converged[subset].mean()),
             "ref_on_scipy_subset": refs(lm.parameters[subset], subset),
             "ref_all": refs(lm.parameters, slice(None)),
         },
-        "numpy_engine": None if not compiled else {
+        "numpy_engine": None
+        if not compiled
+        else {
             "solver": 'levenberg_marquardt_batch, engine="numpy" (the fallback without numba)',
-            "wall_time_s": float(np.min(np_times)), "wall_times_s": np_times, "timing": "fastest of the interleaved repeats",
+            "wall_time_s": float(np.min(np_times)),
+            "wall_times_s": np_times,
+            "timing": "fastest of the interleaved repeats",
             "per_target_ms": 1e3 * float(np.min(np_times)) / args.n,
-            "same_iterations_and_evaluations": float(np.mean((lm_numpy.iterations == lm.iterations)
-                                                             & (lm_numpy.evaluations == lm.evaluations))),
-            "max_relative_parameter_difference": float(np.max(np.abs(lm_numpy.parameters - lm.parameters)
-                                                              / np.abs(lm.parameters).max(axis=1, keepdims=True))),
+            "same_iterations_and_evaluations": float(
+                np.mean((lm_numpy.iterations == lm.iterations) & (lm_numpy.evaluations == lm.evaluations))
+            ),
+            "max_relative_parameter_difference": float(
+                np.max(np.abs(lm_numpy.parameters - lm.parameters) / np.abs(lm.parameters).max(axis=1, keepdims=True))
+            ),
             "converged_rate": float(lm_numpy.converged.mean()),
         },
         "scipy_loop": {
@@ -168,7 +183,8 @@ def main(argv=None) -> int:
             "timed_targets": count,
             "scaled_to_targets": args.n,
             "note": f"timed on the first {count} targets and scaled by {args.n}/{count}; only the least_squares calls are timed",
-            "wall_time_subset_s": float(np.min(sp_times)), "wall_times_subset_s": sp_times,
+            "wall_time_subset_s": float(np.min(sp_times)),
+            "wall_times_subset_s": sp_times,
             "timing": "fastest of the interleaved repeats",
             "wall_time_scaled_s": sp_total,
             "per_target_ms": 1e3 * sp_per,
@@ -180,12 +196,16 @@ def main(argv=None) -> int:
         "speedup": sp_total / lm_total,
         "speedup_numpy_engine": sp_total / float(np.min(np_times)) if compiled else None,
         "target_speedup": 20.0,
-        "machine": {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
-                    "numba": numba_version(),
-                    "load_average_1_5_15_min": {"before": [round(v, 2) for v in load_before],
-                                                "after": [round(v, 2) for v in os.getloadavg()]},
-                    "processor": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
-                    "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS")},
+        "machine": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "scipy": scipy.__version__,
+            "numba": numba_version(),
+            "load_average_1_5_15_min": {"before": [round(v, 2) for v in load_before], "after": [round(v, 2) for v in os.getloadavg()]},
+            "processor": platform.processor() or platform.machine(),
+            "cpu_count": os.cpu_count(),
+            "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
+        },
     }
     print(json.dumps(result, indent=2, ensure_ascii=False))
     if args.json:

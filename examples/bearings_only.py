@@ -36,25 +36,38 @@ def main(argv=None) -> dict:
     truth = scenario.draw_targets(rng, 1)[0]
     times, observer = scenario.times(), scenario.observer()
     sigma = np.deg2rad(args.sigma)
-    problem = BearingsProblem(times, simulate_bearings(truth, times, observer, sigma, rng, scenario.convention),
-                              observer, sigma=sigma, initial=scenario.prior_theta(), convention=scenario.convention)
+    problem = BearingsProblem(
+        times,
+        simulate_bearings(truth, times, observer, sigma, rng, scenario.convention),
+        observer,
+        sigma=sigma,
+        initial=scenario.prior_theta(),
+        convention=scenario.convention,
+    )
     registry = get_registry()
     solutions = {name: registry.create("solver", name).solve(problem) for name in ("levenberg_marquardt", "n_bearings")}
     with RerunRecorder(args.out, {"example": "bearings_only", **vars(args)}) as recorder:
         record_tma(recorder, problem, solutions, truth)
 
     true_b, true_r, true_c, true_v = kinematics(truth, 0.0, 0.0, observer[0], scenario.convention)
-    print(f"target at t = 0: range {true_r / 1000:.2f} km, course {np.rad2deg(true_c):.1f}°, speed {true_v:.2f} m/s;"
-          f" {problem.size} bearings, σ = {args.sigma}°")
+    print(
+        f"target at t = 0: range {true_r / 1000:.2f} km, course {np.rad2deg(true_c):.1f}°, speed {true_v:.2f} m/s;"
+        f" {problem.size} bearings, σ = {args.sigma}°"
+    )
     summary = {"range_km": float(true_r / 1000), "solutions": {}, "recording": args.out}
     for name, solution in solutions.items():
         b, r, c, v = kinematics(solution.parameters, 0.0, 0.0, observer[0], scenario.convention)
-        errors = {"range_pct": float(100 * abs(r - true_r) / true_r),
-                  "course_deg": float(abs(np.rad2deg(np.angle(np.exp(1j * (c - true_c)))))),
-                  "speed_pct": float(100 * abs(v - true_v) / true_v), "sqrt_ka_deg": solution.sqrt_ka_deg}
+        errors = {
+            "range_pct": float(100 * abs(r - true_r) / true_r),
+            "course_deg": float(abs(np.rad2deg(np.angle(np.exp(1j * (c - true_c)))))),
+            "speed_pct": float(100 * abs(v - true_v) / true_v),
+            "sqrt_ka_deg": solution.sqrt_ka_deg,
+        }
         summary["solutions"][name] = errors
-        print(f"  {name:<20} range error {errors['range_pct']:5.2f} %, course error {errors['course_deg']:5.2f}°,"
-              f" speed error {errors['speed_pct']:5.2f} %, √Ka {errors['sqrt_ka_deg']:.3f}°")
+        print(
+            f"  {name:<20} range error {errors['range_pct']:5.2f} %, course error {errors['course_deg']:5.2f}°,"
+            f" speed error {errors['speed_pct']:5.2f} %, √Ka {errors['sqrt_ka_deg']:.3f}°"
+        )
     print(f"  recording: {args.out}   open it with: .venv/bin/rerun {args.out}")
     return summary
 

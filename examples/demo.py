@@ -63,22 +63,34 @@ def main(argv=None) -> dict:
     with RerunRecorder(args.out, configuration) as recorder:
         truth, measurements = simulate(schedule, X0, TAU, sensors, seed=args.seed, noise_cov=Q, recorder=recorder)
         prior = Gaussian(X0, np.eye(4))
-        adaptive = KnownSwitchAdaptive(sensors=sensors, tau=TAU, r_min=1.0, r_max=10.0, n=10, noise_cov=Q,
-                                       alpha=0.01, beta=0.01, name="adaptive", follow="most_likely")
+        adaptive = KnownSwitchAdaptive(
+            sensors=sensors, tau=TAU, r_min=1.0, r_max=10.0, n=10, noise_cov=Q, alpha=0.01, beta=0.01, name="adaptive", follow="most_likely"
+        )
         identified = adaptive.run(measurements, prior, schedule, recorder=recorder)
-        known = run_known_modes(schedule, estimator="kalman", sensors=sensors, measurements=measurements,
-                                prior=prior, tau=TAU, noise_cov=Q, recorder=recorder)
-        straight = Pipeline(models=[("straight", {"noise_cov": 0.05 * np.eye(2)})], estimator="kalman",
-                            sensors=sensors, measurements=measurements, prior=prior, tau=TAU, recorder=recorder,
-                            filter_names=["straight_only"], record_measurements=False).run()
+        known = run_known_modes(
+            schedule, estimator="kalman", sensors=sensors, measurements=measurements, prior=prior, tau=TAU, noise_cov=Q, recorder=recorder
+        )
+        straight = Pipeline(
+            models=[("straight", {"noise_cov": 0.05 * np.eye(2)})],
+            estimator="kalman",
+            sensors=sensors,
+            measurements=measurements,
+            prior=prior,
+            tau=TAU,
+            recorder=recorder,
+            filter_names=["straight_only"],
+            record_measurements=False,
+        ).run()
     position = [0, 2]
     segments = []
     for segment, outcome in zip(schedule.segments, identified.segments):
-        segments.append({
-            "true": segment.mode + ("" if segment.radius is None else f" r={segment.radius:g}"),
-            "identified": outcome.mode,
-            "decision_delay": outcome.delay,
-        })
+        segments.append(
+            {
+                "true": segment.mode + ("" if segment.radius is None else f" r={segment.radius:g}"),
+                "identified": outcome.mode,
+                "decision_delay": outcome.delay,
+            }
+        )
     summary = {
         "steps": schedule.total_steps,
         "segments": segments,
@@ -92,8 +104,10 @@ def main(argv=None) -> dict:
     for i, row in enumerate(segments, 1):
         delay = "undecided" if row["decision_delay"] is None else f"{row['decision_delay']} steps"
         print(f"  {i:>7}  {row['true']:<15} {row['identified']:<38} {delay}")
-    print(f"  position RMSE: adaptive {summary['rmse_adaptive']:.3f} m, told the modes {summary['rmse_known_modes']:.3f} m,"
-          f" straight-only (inflated Q) {summary['rmse_straight_only']:.3f} m")
+    print(
+        f"  position RMSE: adaptive {summary['rmse_adaptive']:.3f} m, told the modes {summary['rmse_known_modes']:.3f} m,"
+        f" straight-only (inflated Q) {summary['rmse_straight_only']:.3f} m"
+    )
     print(f"  recording: {args.out}   open it with: .venv/bin/rerun {args.out}")
     return summary
 

@@ -37,9 +37,17 @@ def schedule(straight_steps: int = 20, turn_steps: int = 30) -> Schedule:
 
 def estimator(bank_size=None, pruning=None, alpha=ALPHA, beta=BETA, estimator_name="kalman", sensors=None) -> UnknownChangeAdaptive:
     """The adaptive estimator of Example 1, composed from registered names."""
-    return UnknownChangeAdaptive(modes=MODES, sensors=sensors or [PositionSensor(noise_cov=NOISE)], tau=TAU,
-                                 estimator=estimator_name, alpha=alpha, beta=beta, bank_size=bank_size, pruning=pruning,
-                                 name="example1")
+    return UnknownChangeAdaptive(
+        modes=MODES,
+        sensors=sensors or [PositionSensor(noise_cov=NOISE)],
+        tau=TAU,
+        estimator=estimator_name,
+        alpha=alpha,
+        beta=beta,
+        bank_size=bank_size,
+        pruning=pruning,
+        name="example1",
+    )
 
 
 def run_once(seed: int, adaptive: UnknownChangeAdaptive, turn_steps: int = 30, recorder=None):
@@ -57,7 +65,13 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     bank_size = None if args.bank_size is None else (args.bank_size if args.bank_size == "algorithm4" else int(args.bank_size))
     adaptive = estimator(bank_size, args.pruning)
-    configuration = {"example": "example1", "seed": args.seed, "turn_steps": args.turn_steps, "bank_size": args.bank_size, "pruning": args.pruning}
+    configuration = {
+        "example": "example1",
+        "seed": args.seed,
+        "turn_steps": args.turn_steps,
+        "bank_size": args.bank_size,
+        "pruning": args.pruning,
+    }
     with RerunRecorder(args.out, configuration) as recorder:
         truth, run = run_once(args.seed, adaptive, args.turn_steps, recorder)
     change = run.first_change(after=CHANGE_STEP)

@@ -35,17 +35,27 @@ def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, straigh
     tau = 0.1
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
     known = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
-    straight = Pipeline(models=[("straight", {"noise_cov": straight_q * np.eye(2)})], estimator="kalman",
-                        sensors=sensors, measurements=measurements, prior=Gaussian(np.array(X0), np.eye(4)),
-                        tau=tau).run()
+    straight = Pipeline(
+        models=[("straight", {"noise_cov": straight_q * np.eye(2)})],
+        estimator="kalman",
+        sensors=sensors,
+        measurements=measurements,
+        prior=Gaussian(np.array(X0), np.eye(4)),
+        tau=tau,
+    ).run()
     xy = [0, 2]
-    return {"rmse_known_modes": position_rmse(known.means[:, xy], truth),
-            "rmse_straight": position_rmse(straight.means[:, 0][:, xy], truth)}
+    return {
+        "rmse_known_modes": position_rmse(known.means[:, xy], truth),
+        "rmse_straight": position_rmse(straight.means[:, 0][:, xy], truth),
+    }
 
 
-EXPERIMENT = Experiment("monte_carlo_example", run_one,
-                        {"R": 0.1, "q": 0.001, "straight_q": 0.05, "steps_scale": 1.0},
-                        description="position RMSE: known-modes KF vs one straight-motion filter on seed 001's schedule")
+EXPERIMENT = Experiment(
+    "monte_carlo_example",
+    run_one,
+    {"R": 0.1, "q": 0.001, "straight_q": 0.05, "steps_scale": 1.0},
+    description="position RMSE: known-modes KF vs one straight-motion filter on seed 001's schedule",
+)
 
 
 def main(argv=None) -> dict:
@@ -60,14 +70,24 @@ def main(argv=None) -> dict:
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
 
-    campaign = Campaign(load_experiment(str(Path(__file__).resolve())), args.n, args.out, seed=args.seed,
-                        parameters={"R": args.R, "steps_scale": args.steps_scale}, executor=args.executor,
-                        scheduler=args.scheduler, progress=not args.no_progress)
+    campaign = Campaign(
+        load_experiment(str(Path(__file__).resolve())),
+        args.n,
+        args.out,
+        seed=args.seed,
+        parameters={"R": args.R, "steps_scale": args.steps_scale},
+        executor=args.executor,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+    )
     result = campaign.run()
     known, straight = result.arrays["rmse_known_modes"], result.arrays["rmse_straight"]
     summary = {
-        "runs": result.n, "computed": result.computed, "reused": result.reused,
-        "rmse_known_modes": float(known.mean()), "rmse_straight": float(straight.mean()),
+        "runs": result.n,
+        "computed": result.computed,
+        "reused": result.reused,
+        "rmse_known_modes": float(known.mean()),
+        "rmse_straight": float(straight.mean()),
         "known_better_fraction": float(np.mean(known < straight)),
     }
     print(f"{result.n} runs in {args.out} ({result.computed} computed, {result.reused} reused)")

@@ -33,9 +33,11 @@ ROOT = Path(__file__).resolve().parents[1]
 TAU, XS = 0.1, np.array([0.0, 0.0, 0.0, 2.0])
 H, R = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]]), 0.01 * np.eye(2)
 LAYOUT = ("x", "vx", "y", "vy")
-PAIRS = {"straight vs right r=5": (Straight(), RightTurn(radius=5.0)),
-         "straight vs left r=3": (Straight(), LeftTurn(radius=3.0)),
-         "right r=5 vs straight": (RightTurn(radius=5.0), Straight())}
+PAIRS = {
+    "straight vs right r=5": (Straight(), RightTurn(radius=5.0)),
+    "straight vs left r=3": (Straight(), LeftTurn(radius=3.0)),
+    "right r=5 vs straight": (RightTurn(radius=5.0), Straight()),
+}
 
 
 def monte_carlo(model_0, model_p, true, alpha, beta, runs, horizon, seed):
@@ -47,9 +49,11 @@ def monte_carlo(model_0, model_p, true, alpha, beta, runs, horizon, seed):
     start = XS + rng.standard_normal((runs, 4)) @ np.linalg.cholesky(P0).T
     kf, sensor = KalmanFilter(), PositionSensor(noise_cov=R)
     state = kf.initialize(np.concatenate([start, start]), np.tile(P0, (2 * runs, 1, 1)))
-    bank = TransitionBank(np.concatenate([np.tile(t0.F, (runs, 1, 1)), np.tile(tp.F, (runs, 1, 1))]),
-                          np.concatenate([np.tile(t0.B, (runs, 1)), np.tile(tp.B, (runs, 1))]),
-                          np.concatenate([np.tile(t0.process_noise, (runs, 1, 1)), np.tile(tp.process_noise, (runs, 1, 1))]))
+    bank = TransitionBank(
+        np.concatenate([np.tile(t0.F, (runs, 1, 1)), np.tile(tp.F, (runs, 1, 1))]),
+        np.concatenate([np.tile(t0.B, (runs, 1)), np.tile(tp.B, (runs, 1))]),
+        np.concatenate([np.tile(t0.process_noise, (runs, 1, 1)), np.tile(tp.process_noise, (runs, 1, 1))]),
+    )
     Lq = np.linalg.cholesky(true.noise_cov)
     lam = np.zeros(runs)
     stop = np.full(runs, np.nan)
@@ -67,9 +71,13 @@ def monte_carlo(model_0, model_p, true, alpha, beta, runs, horizon, seed):
         if not np.isnan(stop).any():
             break
     done = ~np.isnan(stop)
-    return {"mean_decision_time": float(np.nanmean(stop)), "median": float(np.nanmedian(stop)),
-            "std_error": float(np.nanstd(stop, ddof=1) / np.sqrt(done.sum())),
-            "undecided": int((~done).sum()), "accepted_alternative": float(accepted_p[done].mean())}
+    return {
+        "mean_decision_time": float(np.nanmean(stop)),
+        "median": float(np.nanmedian(stop)),
+        "std_error": float(np.nanstd(stop, ddof=1) / np.sqrt(done.sum())),
+        "undecided": int((~done).sum()),
+        "accepted_alternative": float(accepted_p[done].mean()),
+    }
 
 
 def main(argv=None) -> dict:
@@ -86,11 +94,15 @@ def main(argv=None) -> dict:
             own = _wald.wald_pair(f0, fp, H, R, XS, alpha, beta, horizon=args.horizon, gains="transient")
             row = {
                 "predicted": {
-                    "N_0p_steady_limit": steady.n_0p_steady, "N_p0_steady_limit": steady.n_p0_steady,
-                    "N_0p_transient_steady_gains": steady.n_0p_transient, "N_p0_transient_steady_gains": steady.n_p0_transient,
-                    "N_0p_transient_own_gains": own.n_0p_transient, "N_p0_transient_own_gains": own.n_p0_transient,
+                    "N_0p_steady_limit": steady.n_0p_steady,
+                    "N_p0_steady_limit": steady.n_p0_steady,
+                    "N_0p_transient_steady_gains": steady.n_0p_transient,
+                    "N_p0_transient_steady_gains": steady.n_p0_transient,
+                    "N_0p_transient_own_gains": own.n_0p_transient,
+                    "N_p0_transient_own_gains": own.n_p0_transient,
                     "bank_size_M_p": steady.bank_size,
-                    "mu_0p_last": float(steady.mu_0p[-1]), "mu_p0_last": float(steady.mu_p0[-1]),
+                    "mu_0p_last": float(steady.mu_0p[-1]),
+                    "mu_p0_last": float(steady.mu_p0[-1]),
                 },
                 "monte_carlo_data_mode_0": monte_carlo(m0, mp, m0, alpha, beta, args.runs, args.horizon, seed=1),
                 "monte_carlo_data_mode_p": monte_carlo(m0, mp, mp, alpha, beta, args.runs, args.horizon, seed=2),
@@ -99,14 +111,18 @@ def main(argv=None) -> dict:
             print(name, alpha, json.dumps(row))
     out = ROOT / "docs" / "results" / "algorithm4"
     out.with_suffix(".json").write_text(json.dumps({"setup": __doc__, "runs": args.runs, "results": results}, indent=2))
-    lines = ["| pair, α = β | data | Algorithm 4 steady-state N | transient N (steady gains) | transient N (own gains) | Monte Carlo mean N ± s.e. | MC median | MC accepts H_p |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| pair, α = β | data | Algorithm 4 steady-state N | transient N (steady gains) | transient N (own gains) | Monte Carlo mean N ± s.e. | MC median | MC accepts H_p |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     fmt = lambda v: "no limit" if v is None else ("∞" if v == float("inf") else f"{v:.1f}")  # noqa: E731
     for key, row in results.items():
         p = row["predicted"]
         for data, suffix, mc in (("mode 0", "0p", row["monte_carlo_data_mode_0"]), ("mode p", "p0", row["monte_carlo_data_mode_p"])):
-            lines.append(f"| {key} | {data} | {fmt(p[f'N_{suffix}_steady_limit'])} | {fmt(p[f'N_{suffix}_transient_steady_gains'])} | "
-                         f"{fmt(p[f'N_{suffix}_transient_own_gains'])} | {mc['mean_decision_time']:.1f} ± {mc['std_error']:.1f} | {mc['median']:.0f} | {mc['accepted_alternative']:.1%} |")
+            lines.append(
+                f"| {key} | {data} | {fmt(p[f'N_{suffix}_steady_limit'])} | {fmt(p[f'N_{suffix}_transient_steady_gains'])} | "
+                f"{fmt(p[f'N_{suffix}_transient_own_gains'])} | {mc['mean_decision_time']:.1f} ± {mc['std_error']:.1f} | {mc['median']:.0f} | {mc['accepted_alternative']:.1%} |"
+            )
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     return results
 

@@ -57,7 +57,14 @@ X0 = np.array([0.0, 0.0, 0.0, 2.0])
 TAU = 0.1
 
 # Part 1
-TABLE1 = [("left_turn", 50, 3.0), ("right_turn", 75, 5.0), ("straight", 50), ("left_turn", 75, 3.0), ("straight", 50), ("left_turn", 60, 4.0)]
+TABLE1 = [
+    ("left_turn", 50, 3.0),
+    ("right_turn", 75, 5.0),
+    ("straight", 50),
+    ("left_turn", 75, 3.0),
+    ("straight", 50),
+    ("left_turn", 60, 4.0),
+]
 TRACKING_R = 0.1
 TRACKING_PD = 0.9
 TRACKER_Q = 0.1
@@ -108,8 +115,12 @@ def track_run(seed: int, density: float, models) -> dict:
             gated += innovation.associations[0].gated[0].sum()
             errors[k] = np.hypot(*(state.x[0, [0, 2]] - positions[k]))
         lost = _lost_at(errors)
-        out[name] = {"lost_at": lost, "sum_sq_error": float(np.sum(errors**2)), "steps": int(errors.size),
-                     "mean_gated": gated / scans.steps}
+        out[name] = {
+            "lost_at": lost,
+            "sum_sq_error": float(np.sum(errors**2)),
+            "steps": int(errors.size),
+            "mean_gated": gated / scans.steps,
+        }
     return out
 
 
@@ -126,12 +137,16 @@ def tracking_table(runs: int) -> list[dict]:
                 "track_loss_rate": 1.0 - len(kept) / runs,
                 "rmse_kept": float(np.sqrt(sum(r["sum_sq_error"] for r in kept) / sum(r["steps"] for r in kept))) if kept else None,
                 "mean_loss_step": float(np.mean([r[name]["lost_at"] for r in results if r[name]["lost_at"] is not None]))
-                if len(kept) < runs else None,
+                if len(kept) < runs
+                else None,
                 "mean_gated_candidates": float(np.mean([r[name]["mean_gated"] for r in results])),
             }
         rows.append(row)
-        print(f"λ = {density}: NN loss {row['nearest_neighbour']['track_loss_rate']:.3f} rmse {row['nearest_neighbour']['rmse_kept']}, "
-              f"PDA loss {row['pda']['track_loss_rate']:.3f} rmse {row['pda']['rmse_kept']}", flush=True)
+        print(
+            f"λ = {density}: NN loss {row['nearest_neighbour']['track_loss_rate']:.3f} rmse {row['nearest_neighbour']['rmse_kept']}, "
+            f"PDA loss {row['pda']['track_loss_rate']:.3f} rmse {row['pda']['rmse_kept']}",
+            flush=True,
+        )
     return rows
 
 
@@ -220,7 +235,9 @@ def detection_table(runs: int) -> list[dict]:
         delays = np.array([r["delay"] for r in right], dtype=float)
         signal_delays = np.array([r["signal_delay"] for r in results if r["signal_delay"] is not None], dtype=float)
         row = {
-            "density": density, "detection_probability": detection_probability, "runs": runs,
+            "density": density,
+            "detection_probability": detection_probability,
+            "runs": runs,
             "expected_false_per_step": float(np.mean([r["expected_false_per_step"] for r in results])),
             "detected_right_turn": len(right) / runs,
             "detected_other_mode": sum(1 for r in results if r["mode"] not in (None, "right_turn_r5")) / runs,
@@ -235,9 +252,12 @@ def detection_table(runs: int) -> list[dict]:
             "max_bank": int(max(r["max_bank"] for r in results)),
         }
         rows.append(row)
-        print(f"λ = {density}, P_D = {detection_probability}: right turn {row['detected_right_turn']:.2f}, median delay {row['delay_median']}, "
-              f"false alarms {row['runs_with_false_alarm_before_change']:.2f}; signal {row['signal_detected']:.2f} "
-              f"median {row['signal_delay_median']} FA {row['signal_runs_with_false_alarm_before_change']:.2f}", flush=True)
+        print(
+            f"λ = {density}, P_D = {detection_probability}: right turn {row['detected_right_turn']:.2f}, median delay {row['delay_median']}, "
+            f"false alarms {row['runs_with_false_alarm_before_change']:.2f}; signal {row['signal_detected']:.2f} "
+            f"median {row['signal_delay_median']} FA {row['signal_runs_with_false_alarm_before_change']:.2f}",
+            flush=True,
+        )
     return rows
 
 
@@ -249,26 +269,39 @@ def _f(value, digits=3):
 
 
 def markdown(result: dict) -> str:
-    lines = ["### NN vs PDA: RMSE and track loss (seed-001 Table 1 trajectory, R = 0.1 I, P_D = 0.9)", "",
-             f"{result['tracking_runs']} seeded runs per density, 361 steps; track lost after {LOSS_STEPS} consecutive steps "
-             f"with position error > {LOSS_DISTANCE} m; RMSE (m) over the runs not lost.", "",
-             "| λ (1/m² per step) | mean false per step | NN track loss | PDA track loss | NN RMSE (m) | PDA RMSE (m) | NN gated | PDA gated |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "### NN vs PDA: RMSE and track loss (seed-001 Table 1 trajectory, R = 0.1 I, P_D = 0.9)",
+        "",
+        f"{result['tracking_runs']} seeded runs per density, 361 steps; track lost after {LOSS_STEPS} consecutive steps "
+        f"with position error > {LOSS_DISTANCE} m; RMSE (m) over the runs not lost.",
+        "",
+        "| λ (1/m² per step) | mean false per step | NN track loss | PDA track loss | NN RMSE (m) | PDA RMSE (m) | NN gated | PDA gated |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for row in result["tracking"]:
         nn, pda = row["nearest_neighbour"], row["pda"]
-        lines.append(f"| {row['density']:g} | {row['expected_false_per_step']:.1f} | {nn['track_loss_rate']:.3f} | {pda['track_loss_rate']:.3f} | "
-                     f"{_f(nn['rmse_kept'])} | {_f(pda['rmse_kept'])} | {nn['mean_gated_candidates']:.2f} | {pda['mean_gated_candidates']:.2f} |")
-    lines += ["", "### Example 1 in clutter: the right turn detected by the change-time SPRT on PDA filters", "",
-              f"{result['detection_runs']} seeded runs per row; change at step {CHANGE_STEP}; α = β = {ALPHA}; delay = decision step − {CHANGE_STEP}. "
-              "The signal-function columns: ±3 bounds on the straight filter's nearest gated candidate.", "",
-              "| λ (1/m²) | P_D | mean false per step | right turn detected | other mode | undetected | SPRT false alarm before change | delay median [IQR] | delay mean | signal fn detected | signal fn median delay | signal fn false alarm before change |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        lines.append(
+            f"| {row['density']:g} | {row['expected_false_per_step']:.1f} | {nn['track_loss_rate']:.3f} | {pda['track_loss_rate']:.3f} | "
+            f"{_f(nn['rmse_kept'])} | {_f(pda['rmse_kept'])} | {nn['mean_gated_candidates']:.2f} | {pda['mean_gated_candidates']:.2f} |"
+        )
+    lines += [
+        "",
+        "### Example 1 in clutter: the right turn detected by the change-time SPRT on PDA filters",
+        "",
+        f"{result['detection_runs']} seeded runs per row; change at step {CHANGE_STEP}; α = β = {ALPHA}; delay = decision step − {CHANGE_STEP}. "
+        "The signal-function columns: ±3 bounds on the straight filter's nearest gated candidate.",
+        "",
+        "| λ (1/m²) | P_D | mean false per step | right turn detected | other mode | undetected | SPRT false alarm before change | delay median [IQR] | delay mean | signal fn detected | signal fn median delay | signal fn false alarm before change |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for row in result["detection"]:
         iqr = "–" if row["delay_quartiles"] is None else f"[{row['delay_quartiles'][0]:g}, {row['delay_quartiles'][1]:g}]"
-        lines.append(f"| {row['density']:g} | {row['detection_probability']:g} | {row['expected_false_per_step']:.1f} | {row['detected_right_turn']:.2f} | "
-                     f"{row['detected_other_mode']:.2f} | {row['undetected']:.2f} | {row['runs_with_false_alarm_before_change']:.2f} | "
-                     f"{_f(row['delay_median'], 1)} {iqr} | {_f(row['delay_mean'], 2)} | {row['signal_detected']:.2f} | "
-                     f"{_f(row['signal_delay_median'], 1)} | {row['signal_runs_with_false_alarm_before_change']:.2f} |")
+        lines.append(
+            f"| {row['density']:g} | {row['detection_probability']:g} | {row['expected_false_per_step']:.1f} | {row['detected_right_turn']:.2f} | "
+            f"{row['detected_other_mode']:.2f} | {row['undetected']:.2f} | {row['runs_with_false_alarm_before_change']:.2f} | "
+            f"{_f(row['delay_median'], 1)} {iqr} | {_f(row['delay_mean'], 2)} | {row['signal_detected']:.2f} | "
+            f"{_f(row['signal_delay_median'], 1)} | {row['signal_runs_with_false_alarm_before_change']:.2f} |"
+        )
     return "\n".join(lines) + "\n"
 
 

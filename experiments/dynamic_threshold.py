@@ -80,9 +80,22 @@ LAYOUT = ("x", "y", "vx", "vy", "omega")
 # --------------------------------------------------------------------------- scenario
 
 
-def ship_truth(rng: np.random.Generator, count: int, *, tau: float, straight: float, turn: float, speed: float,
-               diameter: float, speed_loss: float, loss_time: float, rudder_time: float, range0: float,
-               maneuver: bool = True, substeps: int = 10) -> np.ndarray:
+def ship_truth(
+    rng: np.random.Generator,
+    count: int,
+    *,
+    tau: float,
+    straight: float,
+    turn: float,
+    speed: float,
+    diameter: float,
+    speed_loss: float,
+    loss_time: float,
+    rudder_time: float,
+    range0: float,
+    maneuver: bool = True,
+    substeps: int = 10,
+) -> np.ndarray:
     """Positions and velocities (count, K+1, 4) as (x, y, vx, vy), step k at time kτ; the turn starts at ``straight`` s.
 
     Within a sub-step of length h with speed v and rate ω held constant the course
@@ -127,8 +140,17 @@ def radar_for(sigma: float, range0: float):
     return RadarSensor(name="radar", range_std=float(sigma), azimuth_std=float(sigma) / float(range0))
 
 
-def filter_runs(truth: np.ndarray, rng: np.random.Generator, *, sigma: float, tau: float, range0: float,
-                sigma_velocity: float, sigma_rate: float, estimator: str = "ekf_sqrt") -> tuple[np.ndarray, np.ndarray]:
+def filter_runs(
+    truth: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    sigma: float,
+    tau: float,
+    range0: float,
+    sigma_velocity: float,
+    sigma_rate: float,
+    estimator: str = "ekf_sqrt",
+) -> tuple[np.ndarray, np.ndarray]:
     """Radar pseudo-measurements of every run and one bank of EKFs over the runs: (ω̂, v̂), each (count, K+1)."""
     import hybridtrack as ht
     from hybridtrack_plugins.motion.ship import ShipTurn
@@ -188,26 +210,66 @@ def first_alarm(alarms: list[int], start: int) -> int | None:
     return next((k for k in alarms if k >= start), None)
 
 
-def run_one(index: int, rng: np.random.Generator, *, sigma: float, batch: int, tau: float, straight: float, turn: float,
-            speed: float, diameter: float, speed_loss: float, loss_time: float, rudder_time: float, range0: float,
-            sigma_velocity: float, sigma_rate: float, window: int, alpha: float, likelihood_ratio: float, drop: float,
-            burn_in: int, calibration_runs: int, calibration_seed: int, threshold: str) -> dict:
+def run_one(
+    index: int,
+    rng: np.random.Generator,
+    *,
+    sigma: float,
+    batch: int,
+    tau: float,
+    straight: float,
+    turn: float,
+    speed: float,
+    diameter: float,
+    speed_loss: float,
+    loss_time: float,
+    rudder_time: float,
+    range0: float,
+    sigma_velocity: float,
+    sigma_rate: float,
+    window: int,
+    alpha: float,
+    likelihood_ratio: float,
+    drop: float,
+    burn_in: int,
+    calibration_runs: int,
+    calibration_seed: int,
+    threshold: str,
+) -> dict:
     """``batch`` trajectories: alarm times of the static and the dynamic GLR, cue counts (see the module docstring)."""
     import hybridtrack as ht
 
     registry = ht.load_plugins().registry
-    scenario = dict(tau=tau, straight=straight, turn=turn, speed=speed, diameter=diameter, speed_loss=speed_loss,
-                    loss_time=loss_time, rudder_time=rudder_time, range0=range0, sigma_velocity=sigma_velocity,
-                    sigma_rate=sigma_rate)
-    reference, null = calibration(float(sigma), int(window), int(burn_in), int(calibration_runs), int(calibration_seed),
-                                  tuple(sorted(scenario.items())))
+    scenario = dict(
+        tau=tau,
+        straight=straight,
+        turn=turn,
+        speed=speed,
+        diameter=diameter,
+        speed_loss=speed_loss,
+        loss_time=loss_time,
+        rudder_time=rudder_time,
+        range0=range0,
+        sigma_velocity=sigma_velocity,
+        sigma_rate=sigma_rate,
+    )
+    reference, null = calibration(
+        float(sigma), int(window), int(burn_in), int(calibration_runs), int(calibration_seed), tuple(sorted(scenario.items()))
+    )
     if threshold not in ("calibrated", "independent"):
         raise ValueError(f"threshold: expected 'calibrated' or 'independent', got {threshold!r}")
-    glr = ("glr", {"window": int(window), "alpha": float(alpha), "reference": reference,
-                   "null_sample": null if threshold == "calibrated" else None})
+    glr = (
+        "glr",
+        {"window": int(window), "alpha": float(alpha), "reference": reference, "null_sample": null if threshold == "calibrated" else None},
+    )
     static = registry.create("detector", *glr[:1], **glr[1])
-    dynamic = registry.create("detector", "dynamic_threshold", detector=glr,
-                              cue=("speed_drop", {"drop": float(drop), "lags": (60, 30)}), likelihood_ratio=float(likelihood_ratio))
+    dynamic = registry.create(
+        "detector",
+        "dynamic_threshold",
+        detector=glr,
+        cue=("speed_drop", {"drop": float(drop), "lags": (60, 30)}),
+        likelihood_ratio=float(likelihood_ratio),
+    )
 
     truth = ship_truth(rng, batch, **{k: scenario[k] for k in SCENARIO_KEYS})
     omega, v_hat = filter_runs(truth, rng, sigma=sigma, **{k: scenario[k] for k in FILTER_KEYS})
@@ -239,10 +301,27 @@ def run_one(index: int, rng: np.random.Generator, *, sigma: float, batch: int, t
 
 
 DEFAULTS = {
-    "sigma": 15.0, "batch": 50, "tau": 1.0, "straight": 300.0, "turn": 120.0, "speed": 3.0, "diameter": 700.0,
-    "speed_loss": 0.3, "loss_time": 30.0, "rudder_time": 10.0, "range0": 5000.0, "sigma_velocity": 0.01,
-    "sigma_rate": 2e-4, "window": 20, "alpha": 1e-3, "likelihood_ratio": 10.0, "drop": 0.05, "burn_in": 100,
-    "calibration_runs": 400, "calibration_seed": 3003, "threshold": "calibrated",
+    "sigma": 15.0,
+    "batch": 50,
+    "tau": 1.0,
+    "straight": 300.0,
+    "turn": 120.0,
+    "speed": 3.0,
+    "diameter": 700.0,
+    "speed_loss": 0.3,
+    "loss_time": 30.0,
+    "rudder_time": 10.0,
+    "range0": 5000.0,
+    "sigma_velocity": 0.01,
+    "sigma_rate": 2e-4,
+    "window": 20,
+    "alpha": 1e-3,
+    "likelihood_ratio": 10.0,
+    "drop": 0.05,
+    "burn_in": 100,
+    "calibration_runs": 400,
+    "calibration_seed": 3003,
+    "threshold": "calibrated",
 }
 
 EXPERIMENT = Experiment(
@@ -309,8 +388,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--sigma", type=float, nargs="+", default=[3.0, 9.0, 15.0], help="radar noise σ_noise (m)")
     parser.add_argument("--batches", type=int, default=20, help="runner runs per σ; each is --batch trajectories")
     parser.add_argument("--batch", type=int, default=DEFAULTS["batch"])
-    parser.add_argument("--independent-batches", type=int, default=4,
-                        help="batches per σ with the seed's independent-input thresholds (0: skip those rows)")
+    parser.add_argument(
+        "--independent-batches", type=int, default=4, help="batches per σ with the seed's independent-input thresholds (0: skip those rows)"
+    )
     parser.add_argument("--turn", type=float, default=DEFAULTS["turn"], help="turn duration (s)")
     parser.add_argument("--straight", type=float, default=DEFAULTS["straight"], help="straight leg (s)")
     parser.add_argument("--calibration-runs", type=int, default=DEFAULTS["calibration_runs"])
@@ -331,44 +411,87 @@ def main(argv=None) -> dict:
         for sigma in args.sigma:
             parameters = {**shared, "sigma": sigma, "threshold": threshold}
             tag = "_".join(f"{k}{v:g}" for k, v in sorted(shared.items()))
-            campaign = Campaign(experiment, batches, Path(args.out) / tag / threshold / f"sigma{sigma:g}", seed=args.seed,
-                                executor=args.executor, scheduler=args.scheduler, workers=args.workers,
-                                progress=not args.no_progress, parameters=parameters)
+            campaign = Campaign(
+                experiment,
+                batches,
+                Path(args.out) / tag / threshold / f"sigma{sigma:g}",
+                seed=args.seed,
+                executor=args.executor,
+                scheduler=args.scheduler,
+                workers=args.workers,
+                progress=not args.no_progress,
+                parameters=parameters,
+            )
             rows.append(aggregate(campaign.run().arrays, sigma, threshold, DEFAULTS["tau"]))
             r = rows[-1]
-            print(f"σ = {sigma:g} m ({threshold}): delay static {r['delay_static']} s, dynamic {r['delay_dynamic']} s, "
-                  f"gain {r['gain']} ± {r['gain_ci95']} s (seed {r['seed_gain']}), false alarms/h {r['false_alarms_per_hour_static']:.3f} / "
-                  f"{r['false_alarms_per_hour_dynamic']:.3f}", flush=True)
+            print(
+                f"σ = {sigma:g} m ({threshold}): delay static {r['delay_static']} s, dynamic {r['delay_dynamic']} s, "
+                f"gain {r['gain']} ± {r['gain_ci95']} s (seed {r['seed_gain']}), false alarms/h {r['false_alarms_per_hour_static']:.3f} / "
+                f"{r['false_alarms_per_hour_dynamic']:.3f}",
+                flush=True,
+            )
     p = {**DEFAULTS, **shared}
     protocol = {
         "source": "seed 003 (autoreferat: Algorithm 1, eqs. 5-7, conclusions: gains 1.09 s at 3 m, 2.308 s at 15 m, V = 3 m/s, D = 700 m)",
-        "ship": {"speed_m_s": p["speed"], "circulation_diameter_m": p["diameter"], "straight_s": p["straight"],
-                 "turn_s": p["turn"], "turn_side": "random, equally likely",
-                 "speed_in_turn": "v(t) = V (1 - delta (1 - exp(-(t - t0)/tau_v)))", "delta": p["speed_loss"],
-                 "tau_v_s": p["loss_time"], "rudder_time_s": p["rudder_time"], "rate_of_turn": "v/(D/2), ramped over the rudder time",
-                 "start": f"range {p['range0']:g} m, uniform bearing and course"},
-        "radar": {"sigma_range": "sigma_noise", "sigma_azimuth": "sigma_noise / range0 (rad)", "range0_m": p["range0"],
-                  "measurements": "Cartesian pseudo-measurements with the converted covariance", "tau_s": p["tau"]},
-        "filter": {"estimator": "ekf_sqrt (Potter, scalar processing)", "model": "ship_turn", "sigma_velocity": p["sigma_velocity"],
-                   "sigma_rate": p["sigma_rate"], "prior": "first measurement, velocity 0 (sigma 5 m/s), omega 0 (sigma 0.02 rad/s)"},
-        "detector": {"glr_window_W": p["window"], "alpha_per_step": p["alpha"], "L_C": p["likelihood_ratio"],
-                     "alpha_1": p["alpha"] * p["likelihood_ratio"], "cue": "speed_drop on the EKF speed, lags (60, 30) steps",
-                     "drop_Delta": p["drop"], "normalization": "empirical CDF of omega-hat in simulated straight runs",
-                     "thresholds": {"calibrated": "quantiles of the GLR statistic on normalized omega-hat of simulated straight runs (null_sample)",
-                                    "independent": "quantiles of the GLR statistic on independent N(0,1) input (seed 003's method)"},
-                     "calibration_runs": p["calibration_runs"], "calibration_seed": p["calibration_seed"]},
-        "measures": {"delay": "first alarm at or after the turn start minus the turn start (s), runs that detect within the turn",
-                     "gain": "paired mean of (static - dynamic) delay over runs both detect, with a 1.96 s.e. half-width",
-                     "false_alarms_per_hour": f"alarms on the straight leg after the burn-in of {p['burn_in']} steps",
-                     "cue": "fraction of steps the cue holds, straight leg after burn-in / turn"},
+        "ship": {
+            "speed_m_s": p["speed"],
+            "circulation_diameter_m": p["diameter"],
+            "straight_s": p["straight"],
+            "turn_s": p["turn"],
+            "turn_side": "random, equally likely",
+            "speed_in_turn": "v(t) = V (1 - delta (1 - exp(-(t - t0)/tau_v)))",
+            "delta": p["speed_loss"],
+            "tau_v_s": p["loss_time"],
+            "rudder_time_s": p["rudder_time"],
+            "rate_of_turn": "v/(D/2), ramped over the rudder time",
+            "start": f"range {p['range0']:g} m, uniform bearing and course",
+        },
+        "radar": {
+            "sigma_range": "sigma_noise",
+            "sigma_azimuth": "sigma_noise / range0 (rad)",
+            "range0_m": p["range0"],
+            "measurements": "Cartesian pseudo-measurements with the converted covariance",
+            "tau_s": p["tau"],
+        },
+        "filter": {
+            "estimator": "ekf_sqrt (Potter, scalar processing)",
+            "model": "ship_turn",
+            "sigma_velocity": p["sigma_velocity"],
+            "sigma_rate": p["sigma_rate"],
+            "prior": "first measurement, velocity 0 (sigma 5 m/s), omega 0 (sigma 0.02 rad/s)",
+        },
+        "detector": {
+            "glr_window_W": p["window"],
+            "alpha_per_step": p["alpha"],
+            "L_C": p["likelihood_ratio"],
+            "alpha_1": p["alpha"] * p["likelihood_ratio"],
+            "cue": "speed_drop on the EKF speed, lags (60, 30) steps",
+            "drop_Delta": p["drop"],
+            "normalization": "empirical CDF of omega-hat in simulated straight runs",
+            "thresholds": {
+                "calibrated": "quantiles of the GLR statistic on normalized omega-hat of simulated straight runs (null_sample)",
+                "independent": "quantiles of the GLR statistic on independent N(0,1) input (seed 003's method)",
+            },
+            "calibration_runs": p["calibration_runs"],
+            "calibration_seed": p["calibration_seed"],
+        },
+        "measures": {
+            "delay": "first alarm at or after the turn start minus the turn start (s), runs that detect within the turn",
+            "gain": "paired mean of (static - dynamic) delay over runs both detect, with a 1.96 s.e. half-width",
+            "false_alarms_per_hour": f"alarms on the straight leg after the burn-in of {p['burn_in']} steps",
+            "cue": "fraction of steps the cue holds, straight leg after burn-in / turn",
+        },
         "runs": f"runner runs of {args.batch} trajectories each; run i uses child i of SeedSequence({args.seed})",
         "batches": {"calibrated": args.batches, "independent": args.independent_batches},
         "command": "python experiments/dynamic_threshold.py " + " ".join(sys.argv[1:] if argv is None else argv),
     }
-    notes = ("Seed 003 reports only the largest gain: 1.09 s at σ_noise = 3 m and 2.308 s at 15 m "
-             "(V = 3 m/s, D = 700 m; significant at 5 %). Delays in seconds; τ = 1 s.")
-    write_report(args.json, rows, protocol, columns=COLUMNS, title="Seed 003: GLR detection delay, static vs dynamic threshold",
-                 notes=notes)
+    notes = (
+        "Seed 003 reports only the largest gain: 1.09 s at σ_noise = 3 m and 2.308 s at 15 m "
+        "(V = 3 m/s, D = 700 m; significant at 5 %). Delays in seconds; τ = 1 s."
+    )
+    write_report(
+        args.json, rows, protocol, columns=COLUMNS, title="Seed 003: GLR detection delay, static vs dynamic threshold", notes=notes
+    )
     return {"rows": rows, "protocol": protocol}
 
 

@@ -26,14 +26,16 @@ def outcomes(adaptive, runs: int, first_seed: int = 0) -> list[dict]:
     for seed in range(first_seed, first_seed + runs):
         _, run = example1.run_once(seed, adaptive)
         change = run.first_change(after=example1.CHANGE_STEP)
-        rows.append({
-            "seed": seed,
-            "false_alarms": sum(1 for c in run.changes if c.step <= example1.CHANGE_STEP),
-            "mode": None if change is None else change.mode,
-            "delay": None if change is None else change.step - example1.CHANGE_STEP,
-            "estimated_change_step": None if change is None else change.change_step,
-            "max_bank": int(run.bank_sizes.max()),
-        })
+        rows.append(
+            {
+                "seed": seed,
+                "false_alarms": sum(1 for c in run.changes if c.step <= example1.CHANGE_STEP),
+                "mode": None if change is None else change.mode,
+                "delay": None if change is None else change.step - example1.CHANGE_STEP,
+                "estimated_change_step": None if change is None else change.change_step,
+                "max_bank": int(run.bank_sizes.max()),
+            }
+        )
     return rows
 
 
@@ -65,10 +67,21 @@ def main(argv=None) -> dict:
     parser.add_argument("--runs", type=int, default=200)
     parser.add_argument("--out", default=str(ROOT / "docs" / "results" / "example1"))
     args = parser.parse_args(argv)
-    results = {"setup": {"tau": example1.TAU, "x0": example1.X0.tolist(), "Q": "diag(0.01, 0.01)", "R": "diag(0.01, 0.01)",
-                         "modes": ["straight", "right_turn r=5", "left_turn r=5"], "change_step": example1.CHANGE_STEP,
-                         "turn_steps": 30, "prior_cov": "I", "bank": "growing (Algorithm 3, no bound)", "seeds": f"0..{args.runs - 1}"},
-               "by_error_probabilities": {}}
+    results = {
+        "setup": {
+            "tau": example1.TAU,
+            "x0": example1.X0.tolist(),
+            "Q": "diag(0.01, 0.01)",
+            "R": "diag(0.01, 0.01)",
+            "modes": ["straight", "right_turn r=5", "left_turn r=5"],
+            "change_step": example1.CHANGE_STEP,
+            "turn_steps": 30,
+            "prior_cov": "I",
+            "bank": "growing (Algorithm 3, no bound)",
+            "seeds": f"0..{args.runs - 1}",
+        },
+        "by_error_probabilities": {},
+    }
     for alpha, beta in ((0.1, 0.1), (0.05, 0.05), (0.01, 0.01)):
         rows = outcomes(example1.estimator(alpha=alpha, beta=beta), args.runs)
         results["by_error_probabilities"][f"alpha={alpha},beta={beta}"] = summarize(rows)
@@ -76,13 +89,17 @@ def main(argv=None) -> dict:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(results, indent=2))
-    lines = ["| α = β | right turn detected | other mode | undetected (30 steps) | false alarm before change | delay mean | median | IQR | within 10 | within 15 |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| α = β | right turn detected | other mode | undetected (30 steps) | false alarm before change | delay mean | median | IQR | within 10 | within 15 |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for key, s in results["by_error_probabilities"].items():
         a = key.split(",")[0].split("=")[1]
-        lines.append(f"| {a} | {s['detected_right_turn']:.1%} | {s['detected_other_mode']:.1%} | {s['undetected_within_30_steps']:.1%} | "
-                     f"{s['runs_with_false_alarm_before_change']:.1%} | {s['delay_mean']:.1f} | {s['delay_median']:.0f} | "
-                     f"{s['delay_quartiles'][0]:.0f}–{s['delay_quartiles'][1]:.0f} | {s['within_10_steps']:.1%} | {s['within_15_steps']:.1%} |")
+        lines.append(
+            f"| {a} | {s['detected_right_turn']:.1%} | {s['detected_other_mode']:.1%} | {s['undetected_within_30_steps']:.1%} | "
+            f"{s['runs_with_false_alarm_before_change']:.1%} | {s['delay_mean']:.1f} | {s['delay_median']:.0f} | "
+            f"{s['delay_quartiles'][0]:.0f}–{s['delay_quartiles'][1]:.0f} | {s['within_10_steps']:.1%} | {s['within_15_steps']:.1%} |"
+        )
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     return results
 

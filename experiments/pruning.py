@@ -28,17 +28,24 @@ def _num(value, spec: str) -> str:
 
 
 def write_markdown(results: dict, path: Path) -> None:
-    lines = ["| bank | right turn detected | undetected (30 steps) | false alarm | delay mean | median | IQR | within 15 | max filters |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| bank | right turn detected | undetected (30 steps) | false alarm | delay mean | median | IQR | within 15 | max filters |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for key, s in results.items():
         if key.startswith("paired"):
             continue
         iqr = "–" if s["delay_quartiles"] is None else f"{s['delay_quartiles'][0]:.0f}–{s['delay_quartiles'][1]:.0f}"
         limit = f" (Algorithm 4: {s['algorithm4_bank_limit']})" if "algorithm4_bank_limit" in s else ""
-        lines.append(f"| {key}{limit} | {s['detected_right_turn']:.1%} | {s['undetected_within_30_steps']:.1%} | {s['runs_with_false_alarm_before_change']:.1%} | "
-                     f"{_num(s['delay_mean'], '.1f')} | {_num(s['delay_median'], '.0f')} | {iqr} | {s['within_15_steps']:.1%} | {s['max_bank_size']} |")
+        lines.append(
+            f"| {key}{limit} | {s['detected_right_turn']:.1%} | {s['undetected_within_30_steps']:.1%} | {s['runs_with_false_alarm_before_change']:.1%} | "
+            f"{_num(s['delay_mean'], '.1f')} | {_num(s['delay_median'], '.0f')} | {iqr} | {s['within_15_steps']:.1%} | {s['max_bank_size']} |"
+        )
     p = results["paired_nearest4_minus_oldest32"]
-    lines.append(f"\nPaired (runs detected by both, n = {p['runs_detected_by_both']}): delay(nearest-4) − delay(oldest-32) = "
-                 f"{p['mean_difference']:.2f} ± {p['std_error']:.2f} (s.e.); identical in {p['same_delay']} runs.")
+    lines.append(
+        f"\nPaired (runs detected by both, n = {p['runs_detected_by_both']}): delay(nearest-4) − delay(oldest-32) = "
+        f"{p['mean_difference']:.2f} ± {p['std_error']:.2f} (s.e.); identical in {p['same_delay']} runs."
+    )
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -65,11 +72,16 @@ def main(argv=None) -> dict:
     a, b = delays["nearest_lower-4"], delays["oldest-32"]
     both = [(x, y) for x, y in zip(a, b) if x is not None and y is not None]
     diff = np.array([x - y for x, y in both], dtype=float)
-    results["paired_nearest4_minus_oldest32"] = {"runs_detected_by_both": len(both), "mean_difference": float(diff.mean()),
-                                                   "std_error": float(diff.std(ddof=1) / np.sqrt(diff.size)),
-                                                   "same_delay": int((diff == 0).sum())}
+    results["paired_nearest4_minus_oldest32"] = {
+        "runs_detected_by_both": len(both),
+        "mean_difference": float(diff.mean()),
+        "std_error": float(diff.std(ddof=1) / np.sqrt(diff.size)),
+        "same_delay": int((diff == 0).sum()),
+    }
     out = ROOT / "docs" / "results" / "pruning"
-    out.with_suffix(".json").write_text(json.dumps({"setup": "Example 1, α = β = 0.1, seeds 0..%d" % (args.runs - 1), "results": results}, indent=2))
+    out.with_suffix(".json").write_text(
+        json.dumps({"setup": f"Example 1, α = β = 0.1, seeds 0..{args.runs - 1}", "results": results}, indent=2)
+    )
     write_markdown(results, out.with_suffix(".md"))
     return results
 

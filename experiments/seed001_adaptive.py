@@ -50,15 +50,33 @@ TURN_TYPES = ("straight", "left_turn", "right_turn")
 
 #: seed 001 Tables 2–4 and the percentages of §5, by R
 SEED = {
-    1.0: {"rmse_optimal": [0.3552, 0.2738, 0.3618, 0.2587], "optimal_nrmse": 0.6316,
-          "rmse_adaptive": [0.9189, 1.2295, 0.9752, 1.1414], "adaptive_nrmse": 2.1471,
-          "decision_steps": [32.92, 22.87, 29.57, 37.88, 30.67, 40.74], "mean_decision": 32.442, "modes_correct": 0.725},
-    0.1: {"rmse_optimal": [0.1355, 0.1662, 0.1363, 0.1678], "optimal_nrmse": 0.3045,
-          "rmse_adaptive": [0.5743, 0.9727, 0.5671, 0.9169], "adaptive_nrmse": 1.5615,
-          "decision_steps": [22.18, 15.95, 26.3, 22.23, 20.48, 26.98], "mean_decision": 22.353, "modes_correct": 0.77},
-    0.01: {"rmse_optimal": [0.0506, 0.1073, 0.0500, 0.1064], "optimal_nrmse": 0.1670,
-           "rmse_adaptive": [0.3650, 1.2056, 0.4292, 2.0156], "adaptive_nrmse": 2.4152,
-           "decision_steps": [14.94, 11.24, 17.04, 14.66, 14.66, 18.44], "mean_decision": 15.163, "modes_correct": 0.798},
+    1.0: {
+        "rmse_optimal": [0.3552, 0.2738, 0.3618, 0.2587],
+        "optimal_nrmse": 0.6316,
+        "rmse_adaptive": [0.9189, 1.2295, 0.9752, 1.1414],
+        "adaptive_nrmse": 2.1471,
+        "decision_steps": [32.92, 22.87, 29.57, 37.88, 30.67, 40.74],
+        "mean_decision": 32.442,
+        "modes_correct": 0.725,
+    },
+    0.1: {
+        "rmse_optimal": [0.1355, 0.1662, 0.1363, 0.1678],
+        "optimal_nrmse": 0.3045,
+        "rmse_adaptive": [0.5743, 0.9727, 0.5671, 0.9169],
+        "adaptive_nrmse": 1.5615,
+        "decision_steps": [22.18, 15.95, 26.3, 22.23, 20.48, 26.98],
+        "mean_decision": 22.353,
+        "modes_correct": 0.77,
+    },
+    0.01: {
+        "rmse_optimal": [0.0506, 0.1073, 0.0500, 0.1064],
+        "optimal_nrmse": 0.1670,
+        "rmse_adaptive": [0.3650, 1.2056, 0.4292, 2.0156],
+        "adaptive_nrmse": 2.4152,
+        "decision_steps": [14.94, 11.24, 17.04, 14.66, 14.66, 18.44],
+        "mean_decision": 15.163,
+        "modes_correct": 0.798,
+    },
 }
 
 
@@ -69,16 +87,30 @@ def _motion_type(mode: str) -> str:
     return mode
 
 
-def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, tau: float, alpha: float, beta: float,
-            r_min: float, r_max: float, n_radii: int, steps_scale: float, follow: str = "previous") -> dict:
+def run_one(
+    index: int,
+    rng: np.random.Generator,
+    *,
+    R: float,
+    q: float,
+    tau: float,
+    alpha: float,
+    beta: float,
+    r_min: float,
+    r_max: float,
+    n_radii: int,
+    steps_scale: float,
+    follow: str = "previous",
+) -> dict:
     """One trajectory: both estimators' squared errors, per-segment decision delays and identifications."""
     from hybridtrack.adaptive import KnownSwitchAdaptive
     from hybridtrack.types import Gaussian
 
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
     optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
-    adaptive = KnownSwitchAdaptive(sensors=sensors, tau=tau, r_min=r_min, r_max=r_max, n=n_radii,
-                                   noise_cov=q * np.eye(2), alpha=alpha, beta=beta, follow=follow)
+    adaptive = KnownSwitchAdaptive(
+        sensors=sensors, tau=tau, r_min=r_min, r_max=r_max, n=n_radii, noise_cov=q * np.eye(2), alpha=alpha, beta=beta, follow=follow
+    )
     run = adaptive.run(measurements, Gaussian(np.array(X0), np.eye(4)), schedule)
     delays, type_right, radius_right = [], [], []
     for outcome, segment in zip(run.segments, schedule.segments):
@@ -99,8 +131,18 @@ def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, tau: fl
 EXPERIMENT = Experiment(
     name="seed001_adaptive",
     run_one=run_one,
-    parameters={"R": 0.1, "q": 0.001, "tau": 0.1, "alpha": 0.01, "beta": 0.01, "r_min": 1.0, "r_max": 10.0,
-                "n_radii": 10, "steps_scale": 1.0, "follow": "previous"},
+    parameters={
+        "R": 0.1,
+        "q": 0.001,
+        "tau": 0.1,
+        "alpha": 0.01,
+        "beta": 0.01,
+        "r_min": 1.0,
+        "r_max": 10.0,
+        "n_radii": 10,
+        "steps_scale": 1.0,
+        "follow": "previous",
+    },
     description="seed 001 Tables 2-4: optimal KF vs adaptive estimator (Algorithm 1) on the Table 1 schedule",
 )
 
@@ -167,18 +209,29 @@ def main(argv=None) -> dict:
     parser.add_argument("--workers", type=int)
     parser.add_argument("--out", default="runs/seed001_adaptive", help="campaign folders (one per R)")
     parser.add_argument("--no-progress", action="store_true")
-    parser.add_argument("--follow", default="both", choices=("previous", "both"),
-                        help="rule before a decision: the seed's only, or also 'most_likely' (supplementary)")
+    parser.add_argument(
+        "--follow",
+        default="both",
+        choices=("previous", "both"),
+        help="rule before a decision: the seed's only, or also 'most_likely' (supplementary)",
+    )
     args = parser.parse_args(argv)
 
     experiment = load_experiment(str(Path(__file__).resolve()))
 
     def campaign_for(R: float, follow: str):
         folder = Path(args.out) / f"alpha{args.alpha:g}_beta{args.beta:g}_scale{args.steps_scale:g}_follow-{follow}" / f"R{R:g}"
-        return Campaign(experiment, args.n, folder, seed=args.seed, executor=args.executor, scheduler=args.scheduler,
-                        workers=args.workers, progress=not args.no_progress,
-                        parameters={"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale,
-                                    "follow": follow})
+        return Campaign(
+            experiment,
+            args.n,
+            folder,
+            seed=args.seed,
+            executor=args.executor,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            progress=not args.no_progress,
+            parameters={"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale, "follow": follow},
+        )
 
     rows, supplementary, most_likely = [], [], []
     for R in args.R:
@@ -192,37 +245,52 @@ def main(argv=None) -> dict:
     protocol = {
         "source": "seed 001, section 5, Tables 2-4",
         "schedule": "Table 1: L r=3 x50, R r=5 x75, S x50, L r=3 x75, S x50, L r=4 x60"
-                    + ("" if args.steps_scale == 1 else f" (lengths scaled by {args.steps_scale})"),
-        "x0": list(X0), "tau": 0.1, "Q": "0.001 I2", "prior": "N(x0, I4) for both estimators",
-        "trajectories_per_R": args.n, "campaign_seed": args.seed,
+        + ("" if args.steps_scale == 1 else f" (lengths scaled by {args.steps_scale})"),
+        "x0": list(X0),
+        "tau": 0.1,
+        "Q": "0.001 I2",
+        "prior": "N(x0, I4) for both estimators",
+        "trajectories_per_R": args.n,
+        "campaign_seed": args.seed,
         "seeds": "run i uses child i of SeedSequence(campaign_seed) for every R",
         "bank": {"r_min": 1.0, "r_max": 10.0, "n": 10, "filters": 21},
         "decision_rule": "pairwise SPRT with elimination (seed 001 rule 5), A = ln((1-beta)/alpha), B = ln(beta/(1-alpha))",
-        "alpha": args.alpha, "beta": args.beta,
+        "alpha": args.alpha,
+        "beta": args.beta,
         "rmse": "sqrt(mean over runs and steps k = 1..K of (x_i - xhat_i)^2); nRMSE = ||RMSE||_2; state (x, vx, y, vy)",
         "decision_steps": "per segment: mean over runs that decided in the segment of (decision step - switch step)",
         "modes_correct": "fraction of the 6 x n segments whose motion type (straight/left/right) was identified",
         "follow": "rows: 'previous' (seed 001 Algorithm 1 line 9: until the decision, follow the previous segment's hypothesis); "
-                  "supplementary[i]['follow_most_likely']: the same trajectories with 'most_likely' (follow the in-play "
-                  "hypothesis with the largest accumulated log-likelihood; an undecided segment ends on it)",
+        "supplementary[i]['follow_most_likely']: the same trajectories with 'most_likely' (follow the in-play "
+        "hypothesis with the largest accumulated log-likelihood; an undecided segment ends on it)",
         "supplementary": supplementary,
         "seed_figures": {str(R): figures for R, figures in SEED.items()},
         "command": "python experiments/seed001_adaptive.py " + " ".join(sys.argv[1:] if argv is None else argv),
     }
-    notes = ("Seed 001 (Tables 2-4, §5 percentages):\n\n" + seed_table() + "\n"
-             + "| R | mean decision (steps) | undecided segments | type and radius right |\n|---|---|---|---|\n"
-             + "".join(f"| {e['R']:g} | {e['mean_decision_steps']:.2f} | {e['undecided_fraction']:.3f} | {e['radius_correct']:.3f} |\n"
-                       if e["mean_decision_steps"] is not None else
-                       f"| {e['R']:g} | – | {e['undecided_fraction']:.3f} | {e['radius_correct']:.3f} |\n"
-                       for e in supplementary))
+    notes = (
+        "Seed 001 (Tables 2-4, §5 percentages):\n\n"
+        + seed_table()
+        + "\n"
+        + "| R | mean decision (steps) | undecided segments | type and radius right |\n|---|---|---|---|\n"
+        + "".join(
+            f"| {e['R']:g} | {e['mean_decision_steps']:.2f} | {e['undecided_fraction']:.3f} | {e['radius_correct']:.3f} |\n"
+            if e["mean_decision_steps"] is not None
+            else f"| {e['R']:g} | – | {e['undecided_fraction']:.3f} | {e['radius_correct']:.3f} |\n"
+            for e in supplementary
+        )
+    )
     if most_likely:
-        notes += ("\nThe same trajectories with `follow=\"most_likely\"` (before the decision, follow the hypothesis in play "
-                  "with the largest accumulated log-likelihood):\n\n" + markdown_table(most_likely, COLUMNS))
+        notes += (
+            '\nThe same trajectories with `follow="most_likely"` (before the decision, follow the hypothesis in play '
+            "with the largest accumulated log-likelihood):\n\n" + markdown_table(most_likely, COLUMNS)
+        )
     write_report(args.json, rows, protocol, columns=COLUMNS, title="Seed 001, Tables 2–4 (reproduced)", notes=notes)
     for row, extra in zip(rows, supplementary):
-        print(f"R = {row['R']:g}: optimal nRMSE {row['optimal_nrmse']:.4f} (seed {SEED.get(row['R'], {}).get('optimal_nrmse', '–')}), "
-              f"adaptive nRMSE {row['adaptive_nrmse']:.4f} (seed {SEED.get(row['R'], {}).get('adaptive_nrmse', '–')}), "
-              f"modes right {row['modes_correct']:.3f}, mean decision {extra['mean_decision_steps']}")
+        print(
+            f"R = {row['R']:g}: optimal nRMSE {row['optimal_nrmse']:.4f} (seed {SEED.get(row['R'], {}).get('optimal_nrmse', '–')}), "
+            f"adaptive nRMSE {row['adaptive_nrmse']:.4f} (seed {SEED.get(row['R'], {}).get('adaptive_nrmse', '–')}), "
+            f"modes right {row['modes_correct']:.3f}, mean decision {extra['mean_decision_steps']}"
+        )
     return {"rows": rows, "protocol": protocol}
 
 

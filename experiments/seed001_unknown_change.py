@@ -66,8 +66,20 @@ def motion_type(mode: str) -> str:
     return mode
 
 
-def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, tau: float, alpha: float, beta: float,
-            known_alpha: float, modes: str, bank_size: int, steps_scale: float) -> dict:
+def run_one(
+    index: int,
+    rng: np.random.Generator,
+    *,
+    R: float,
+    q: float,
+    tau: float,
+    alpha: float,
+    beta: float,
+    known_alpha: float,
+    modes: str,
+    bank_size: int,
+    steps_scale: float,
+) -> dict:
     """One trajectory: squared errors of the three estimators, per-segment delays, changes, identifications."""
     from hybridtrack.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
     from hybridtrack.types import Gaussian
@@ -80,14 +92,22 @@ def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, tau: fl
     optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
     known = KnownSwitchAdaptive(sensors=sensors, tau=tau, noise_cov=q * np.eye(2), alpha=known_alpha, beta=known_alpha)
     known_run = known.run(measurements, prior, schedule)
-    unknown = UnknownChangeAdaptive(modes=turn_bank(r_min, r_max, n, q * np.eye(2)), sensors=sensors, tau=tau, alpha=alpha,
-                                    beta=beta, bank_size=int(bank_size), pruning="nearest_lower", signal=None)
+    unknown = UnknownChangeAdaptive(
+        modes=turn_bank(r_min, r_max, n, q * np.eye(2)),
+        sensors=sensors,
+        tau=tau,
+        alpha=alpha,
+        beta=beta,
+        bank_size=int(bank_size),
+        pruning="nearest_lower",
+        signal=None,
+    )
     run = unknown.run(measurements, prior)
 
     starts = np.cumsum([0] + [s.steps for s in schedule.segments])
     true_type = np.empty(schedule.total_steps + 1, dtype=object)
     for i, segment in enumerate(schedule.segments):
-        true_type[starts[i]: starts[i + 1] + 1] = segment.mode
+        true_type[starts[i] : starts[i + 1] + 1] = segment.mode
     delays, right, known_right = [], [], []
     for i, segment in enumerate(schedule.segments):
         inside = [c for c in run.changes if starts[i] < c.step <= starts[i + 1] and motion_type(c.mode) == segment.mode]
@@ -112,16 +132,27 @@ def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, tau: fl
 EXPERIMENT = Experiment(
     name="seed001_unknown_change",
     run_one=run_one,
-    parameters={"R": 0.1, "q": 0.001, "tau": 0.1, "alpha": 0.001, "beta": 0.001, "known_alpha": 0.01, "modes": "seed001",
-                "bank_size": 40, "steps_scale": 1.0},
+    parameters={
+        "R": 0.1,
+        "q": 0.001,
+        "tau": 0.1,
+        "alpha": 0.001,
+        "beta": 0.001,
+        "known_alpha": 0.01,
+        "modes": "seed001",
+        "bank_size": 40,
+        "steps_scale": 1.0,
+    },
     description="seed 000 Algorithm 3 (unknown change time) on the seed 001 schedule, beside Algorithm 1 and the optimal KF",
 )
 
 
 def aggregate(arrays: dict[str, np.ndarray], R: float) -> dict:
     """One report row from one R's runs."""
-    nrmse = {name: float(np.linalg.norm(pooled_rmse(arrays[f"squared_error_{name}"], arrays["steps"])))
-             for name in ("optimal", "known", "unknown")}
+    nrmse = {
+        name: float(np.linalg.norm(pooled_rmse(arrays[f"squared_error_{name}"], arrays["steps"])))
+        for name in ("optimal", "known", "unknown")
+    }
     delays = arrays["detection_delay"]
     detected = np.isfinite(delays)
     counts = detected.sum(axis=0)
@@ -179,36 +210,61 @@ def main(argv=None) -> dict:
     experiment = load_experiment(str(Path(__file__).resolve()))
     rows = []
     for R in args.R:
-        parameters = {"R": R, "alpha": args.alpha, "beta": args.alpha, "modes": args.modes, "bank_size": args.bank_size,
-                      "steps_scale": args.steps_scale}
+        parameters = {
+            "R": R,
+            "alpha": args.alpha,
+            "beta": args.alpha,
+            "modes": args.modes,
+            "bank_size": args.bank_size,
+            "steps_scale": args.steps_scale,
+        }
         folder = Path(args.out) / f"{args.modes}_alpha{args.alpha:g}_bank{args.bank_size}_scale{args.steps_scale:g}" / f"R{R:g}"
-        campaign = Campaign(experiment, args.n, folder, seed=args.seed, executor=args.executor, scheduler=args.scheduler,
-                            workers=args.workers, progress=not args.no_progress, parameters=parameters)
+        campaign = Campaign(
+            experiment,
+            args.n,
+            folder,
+            seed=args.seed,
+            executor=args.executor,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            progress=not args.no_progress,
+            parameters=parameters,
+        )
         rows.append(aggregate(campaign.run().arrays, R))
         r = rows[-1]
-        print(f"R = {R:g}: nRMSE optimal {r['optimal_nrmse']:.4f}, known-switch {r['known_switch_nrmse']:.4f}, "
-              f"unknown-change {r['unknown_change_nrmse']:.4f}; switches detected {r['detected_fraction']:.3f}, "
-              f"false alarms/run {r['false_alarms_per_run']:.1f}, modes right {r['modes_correct']:.3f}", flush=True)
+        print(
+            f"R = {R:g}: nRMSE optimal {r['optimal_nrmse']:.4f}, known-switch {r['known_switch_nrmse']:.4f}, "
+            f"unknown-change {r['unknown_change_nrmse']:.4f}; switches detected {r['detected_fraction']:.3f}, "
+            f"false alarms/run {r['false_alarms_per_run']:.1f}, modes right {r['modes_correct']:.3f}",
+            flush=True,
+        )
     r_min, r_max, n = MODE_SETS[args.modes]
     protocol = {
         "source": "seed 000 Algorithm 3 (repeated) on the seed 001 Table 1 schedule; SPEC sections 4 and 7",
         "schedule": "Table 1: L r=3 x50, R r=5 x75, S x50, L r=3 x75, S x50, L r=4 x60"
-                    + ("" if args.steps_scale == 1 else f" (lengths scaled by {args.steps_scale})"),
-        "x0": list(X0), "tau": 0.1, "Q": "0.001 I2", "prior": "N(x0, I4) for every estimator",
-        "trajectories_per_R": args.n, "campaign_seed": args.seed,
+        + ("" if args.steps_scale == 1 else f" (lengths scaled by {args.steps_scale})"),
+        "x0": list(X0),
+        "tau": 0.1,
+        "Q": "0.001 I2",
+        "prior": "N(x0, I4) for every estimator",
+        "trajectories_per_R": args.n,
+        "campaign_seed": args.seed,
         "seeds": "run i uses child i of SeedSequence(campaign_seed) for every R (the trajectories of seed001_adaptive.py)",
         "modes": {"set": args.modes, "r_min": r_min, "r_max": r_max, "n": n, "count": 2 * n + 1},
-        "unknown_change": {"alpha": args.alpha, "beta": args.alpha, "initial_mode": "straight",
-                           "bank_size": f"{args.bank_size} alternative filters + filter 0, nearest-B pruning (seed 003)"},
+        "unknown_change": {
+            "alpha": args.alpha,
+            "beta": args.alpha,
+            "initial_mode": "straight",
+            "bank_size": f"{args.bank_size} alternative filters + filter 0, nearest-B pruning (seed 003)",
+        },
         "known_switch": {"bank": "21 filters, radii 1..10", "alpha": 0.01, "beta": 0.01, "follow": "previous (seed 001 line 9)"},
         "detection_delay": "per segment: first detected change inside the segment to the segment's motion type, minus its first step; "
-                           "mean over the runs that detect it",
+        "mean over the runs that detect it",
         "false_alarms": "detected changes to a motion type other than the true one at that step, per run",
         "modes_correct": "fraction of segments whose followed mode at the segment's last step has the right motion type",
         "command": "python experiments/seed001_unknown_change.py " + " ".join(sys.argv[1:] if argv is None else argv),
     }
-    write_report(args.json, rows, protocol, columns=COLUMNS,
-                 title=f"Unknown-change-time SPRT on the seed 001 schedule ({2 * n + 1} modes)")
+    write_report(args.json, rows, protocol, columns=COLUMNS, title=f"Unknown-change-time SPRT on the seed 001 schedule ({2 * n + 1} modes)")
     return {"rows": rows, "protocol": protocol}
 
 

@@ -70,23 +70,33 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     steps = 200
     nis = nis_sample(args.runs, steps, seed=2024)
-    cases = [("window 10, ±3", SignalFunction(window=10, reset_on_alarm=False), set(range(9, steps, 10)), 20),
-             ("window 50, ±3", SignalFunction(window=50, reset_on_alarm=False), set(range(49, steps, 50)), 100),
-             ("window 10, χ²-calibrated", SignalFunction(window=10, calibration="chi2", reset_on_alarm=False), set(range(9, steps, 10)), 20),
-             ("cumulative at k = 200, ±3", SignalFunction(reset_on_alarm=False), {steps - 1}, 2 * steps)]
+    cases = [
+        ("window 10, ±3", SignalFunction(window=10, reset_on_alarm=False), set(range(9, steps, 10)), 20),
+        ("window 50, ±3", SignalFunction(window=50, reset_on_alarm=False), set(range(49, steps, 50)), 100),
+        ("window 10, χ²-calibrated", SignalFunction(window=10, calibration="chi2", reset_on_alarm=False), set(range(9, steps, 10)), 20),
+        ("cumulative at k = 200, ±3", SignalFunction(reset_on_alarm=False), {steps - 1}, 2 * steps),
+    ]
     results = {"runs": args.runs, "nominal_3sigma": THREE_SIGMA_ALPHA, "cases": {}}
     for name, detector, check, dof in cases:
         alarms = count(nis, detector, check)
         n = args.runs * len(check)
         lower, upper = _signal.bounds(THREE_SIGMA_ALPHA, dof, detector.calibration)
-        results["cases"][name] = {"trials": n, "alarms": alarms, "rate": alarms / n, "ci95": clopper_pearson(alarms, n),
-                                  "dof": dof, "exact_chi2_rate": _signal.false_alarm_probability(dof, lower, upper)}
+        results["cases"][name] = {
+            "trials": n,
+            "alarms": alarms,
+            "rate": alarms / n,
+            "ci95": clopper_pearson(alarms, n),
+            "dof": dof,
+            "exact_chi2_rate": _signal.false_alarm_probability(dof, lower, upper),
+        }
         print(name, results["cases"][name])
     out = ROOT / "docs" / "results" / "signal_function"
     out.with_suffix(".json").write_text(json.dumps(results, indent=2))
     lines = ["| statistic | D | trials | measured rate | 95 % CI | exact χ²(D) rate | nominal 2(1−Φ(3)) |", "|---|---|---|---|---|---|---|"]
     for name, c in results["cases"].items():
-        lines.append(f"| {name} | {c['dof']} | {c['trials']} | {c['rate']:.5f} | {c['ci95'][0]:.5f}–{c['ci95'][1]:.5f} | {c['exact_chi2_rate']:.5f} | {THREE_SIGMA_ALPHA:.5f} |")
+        lines.append(
+            f"| {name} | {c['dof']} | {c['trials']} | {c['rate']:.5f} | {c['ci95'][0]:.5f}–{c['ci95'][1]:.5f} | {c['exact_chi2_rate']:.5f} | {THREE_SIGMA_ALPHA:.5f} |"
+        )
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     return results
 

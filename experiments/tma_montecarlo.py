@@ -97,18 +97,20 @@ def run(n: int, sigmas_deg, seed: int, chunk: int = 2000, settings: LMSettings |
             end = errors(params, targets, times[-1], observer[-1], scenario.convention)
             its = np.concatenate([p.iterations for p in parts])
             nfs = np.concatenate([p.evaluations for p in parts])
-            rows.append({
-                "method": method,
-                "sigma_deg": float(sigma_deg),
-                "ref": ref_fractions(start),
-                "ref_end": ref_fractions(end),
-                "sqrt_ka_deg": float(np.nanmean(np.concatenate([p.sqrt_ka_deg for p in parts]))),
-                "nf": float(nfs.mean()) if method == "LM" else None,
-                "iter": float(its.mean()) if method == "LM" else None,
-                "nf_median": float(np.median(nfs)) if method == "LM" else None,
-                "iter_median": float(np.median(its)) if method == "LM" else None,
-                "converged": float(np.mean(np.concatenate([p.converged for p in parts]))),
-            })
+            rows.append(
+                {
+                    "method": method,
+                    "sigma_deg": float(sigma_deg),
+                    "ref": ref_fractions(start),
+                    "ref_end": ref_fractions(end),
+                    "sqrt_ka_deg": float(np.nanmean(np.concatenate([p.sqrt_ka_deg for p in parts]))),
+                    "nf": float(nfs.mean()) if method == "LM" else None,
+                    "iter": float(its.mean()) if method == "LM" else None,
+                    "nf_median": float(np.median(nfs)) if method == "LM" else None,
+                    "iter_median": float(np.median(its)) if method == "LM" else None,
+                    "converged": float(np.mean(np.concatenate([p.converged for p in parts]))),
+                }
+            )
         print(f"σ = {sigma_deg}° done ({time.perf_counter() - started:.1f} s)", file=sys.stderr)
     protocol = {
         "seed_document": "002 (bearings-only TMA report, §5.1)",
@@ -116,19 +118,26 @@ def run(n: int, sigmas_deg, seed: int, chunk: int = 2000, settings: LMSettings |
         "seed": seed,
         "sigmas_deg": [float(s) for s in sigmas_deg],
         "scenario": "observer 5 m/s: 0° 180 s; turn to 270° at 0.5°/s (180 s); 270° 300 s; turn to 90° (360 s, "
-                    f"the 180° tie broken to the {scenario.tie}, i.e. increasing course); 90° 180 s",
+        f"the 180° tie broken to the {scenario.tie}, i.e. increasing course); 90° 180 s",
         "bearings": f"every {scenario.interval} s from t = 0: {len(times)} bearings, last at {times[-1]} s",
         "convention": f"{scenario.convention}: bearing and course clockwise from north, x east, y north",
         "prior_guess": "bearing 0°, range 25 km, course 90°, speed 10 m/s (LM start)",
-        "target_draw": "at t = 0: bearing 0°, range U(5, 50) km, course U(0°, 180°), speed U(5, 15) m/s; "
-                       "the same targets for every σ",
-        "refs": {f"Ref{j + 1}": {"bearing_deg": b, "range_fraction": r, "course_deg": c, "speed_fraction": v}
-                 for j, (b, r, c, v) in enumerate(REFS)},
+        "target_draw": "at t = 0: bearing 0°, range U(5, 50) km, course U(0°, 180°), speed U(5, 15) m/s; the same targets for every σ",
+        "refs": {
+            f"Ref{j + 1}": {"bearing_deg": b, "range_fraction": r, "course_deg": c, "speed_fraction": v}
+            for j, (b, r, c, v) in enumerate(REFS)
+        },
         "error_time": "ref: start of the observation (t = 0, where targets are drawn); ref_end: end (t = last bearing)",
         "sqrt_ka": "mean over targets of √(F(θ̂)/n) in degrees (F the ML cost at the method's answer)",
         "nf_iter": "means over targets (medians in nf_median / iter_median); null for N-bearings (closed form)",
-        "lm_settings": {"lam0": settings.lam0, "lam_up": settings.lam_up, "lam_down": settings.lam_down,
-                        "F_tol_rad2": settings.F_tol, "max_iterations": settings.max_iterations, "lam_max": settings.lam_max},
+        "lm_settings": {
+            "lam0": settings.lam0,
+            "lam_up": settings.lam_up,
+            "lam_down": settings.lam_down,
+            "F_tol_rad2": settings.F_tol,
+            "max_iterations": settings.max_iterations,
+            "lam_max": settings.lam_max,
+        },
         "wall_time_s": round(time.perf_counter() - started, 2),
         "python": platform.python_version(),
         "numpy": np.__version__,
@@ -151,12 +160,15 @@ def markdown(result) -> str:
         key = (row["method"], row["sigma_deg"])
         if key in seed:
             ref, ka, nf, it = seed[key]
-            lines.append(f"| {key[0]} | {key[1]:g} | seed | " + " | ".join(f"{x:.3f}" for x in ref)
-                         + f" | {ka:.2f} | {fmt(nf, 0)} | {fmt(it, 0)} |")
-        lines.append(f"| {key[0]} | {key[1]:g} | ours, start | " + " | ".join(f"{x:.3f}" for x in row["ref"])
-                     + f" | {row['sqrt_ka_deg']:.2f} | {fmt(row['nf'], 1)} | {fmt(row['iter'], 1)} |")
-        lines.append(f"| {key[0]} | {key[1]:g} | ours, end | " + " | ".join(f"{x:.3f}" for x in row["ref_end"])
-                     + " | | | |")
+            lines.append(
+                f"| {key[0]} | {key[1]:g} | seed | " + " | ".join(f"{x:.3f}" for x in ref) + f" | {ka:.2f} | {fmt(nf, 0)} | {fmt(it, 0)} |"
+            )
+        lines.append(
+            f"| {key[0]} | {key[1]:g} | ours, start | "
+            + " | ".join(f"{x:.3f}" for x in row["ref"])
+            + f" | {row['sqrt_ka_deg']:.2f} | {fmt(row['nf'], 1)} | {fmt(row['iter'], 1)} |"
+        )
+        lines.append(f"| {key[0]} | {key[1]:g} | ours, end | " + " | ".join(f"{x:.3f}" for x in row["ref_end"]) + " | | | |")
     return "\n".join(lines) + "\n"
 
 

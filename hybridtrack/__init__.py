@@ -6,7 +6,8 @@ types (:mod:`hybridtrack.types`) and the plugin system
 ``hybridtrack`` entry-point group.
 """
 
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 from hybridtrack.hookspecs import hookimpl
 from hybridtrack.interfaces import (
@@ -30,7 +31,24 @@ except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0"
 
 __all__ = [
-    "Decision", "Detector", "DetectorStep", "Estimator", "Gaussian", "Innovation", "LinearTransition",
-    "Measurement", "MotionModel", "SEED001_TABLE1", "Schedule", "Segment", "Sensor", "Solution", "Solver",
-    "TransitionBank", "__version__", "get_registry", "hookimpl", "load_plugins",
+    "Decision",
+    "Detector",
+    "DetectorStep",
+    "Estimator",
+    "Gaussian",
+    "Innovation",
+    "LinearTransition",
+    "Measurement",
+    "MotionModel",
+    "SEED001_TABLE1",
+    "Schedule",
+    "Segment",
+    "Sensor",
+    "Solution",
+    "Solver",
+    "TransitionBank",
+    "__version__",
+    "get_registry",
+    "hookimpl",
+    "load_plugins",
 ]

@@ -7,7 +7,7 @@ fails early with a ``ValueError`` naming the argument and what was expected.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import attrs
 import numpy as np

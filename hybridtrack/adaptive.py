@@ -41,7 +41,8 @@ and the decisions as events.
 from __future__ import annotations
 
 import copy
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import attrs
 import numpy as np
@@ -53,7 +54,6 @@ from hybridtrack.pipeline import _registry, resolve
 from hybridtrack.recording import log_estimate, log_measurements
 from hybridtrack.registry import Registry
 from hybridtrack.types import Decision, Gaussian, Schedule
-
 
 # --------------------------------------------------------------------------- composition helpers
 
@@ -74,8 +74,11 @@ def turn_bank(r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=No
         raise ValueError(f"n: one radius needs r_min = r_max, got r_min = {r_min}, r_max = {r_max}")
     extra = {} if noise_cov is None else {"noise_cov": noise_cov}
     radii = np.linspace(r_min, r_max, n)
-    return ([("straight", dict(extra))] + [("left_turn", {"radius": float(r), **extra}) for r in radii]
-            + [("right_turn", {"radius": float(r), **extra}) for r in radii])
+    return (
+        [("straight", dict(extra))]
+        + [("left_turn", {"radius": float(r), **extra}) for r in radii]
+        + [("right_turn", {"radius": float(r), **extra}) for r in radii]
+    )
 
 
 def mode_label(model: MotionModel) -> str:
@@ -193,10 +196,24 @@ class KnownSwitchAdaptive:
 
     FOLLOW = ("previous", "most_likely")
 
-    def __init__(self, *, sensors: SensorNetwork | Sequence[Sensor], tau: float, modes: Sequence[Any] | None = None,
-                 r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=None, estimator: Any = "kalman",
-                 detector: Any = None, alpha: float = 0.01, beta: float = 0.01, follow: str = "previous",
-                 name: str = "known_switch", registry: Registry | None = None):
+    def __init__(
+        self,
+        *,
+        sensors: SensorNetwork | Sequence[Sensor],
+        tau: float,
+        modes: Sequence[Any] | None = None,
+        r_min: float = 1.0,
+        r_max: float = 10.0,
+        n: int = 10,
+        noise_cov=None,
+        estimator: Any = "kalman",
+        detector: Any = None,
+        alpha: float = 0.01,
+        beta: float = 0.01,
+        follow: str = "previous",
+        name: str = "known_switch",
+        registry: Registry | None = None,
+    ):
         if follow not in self.FOLLOW:
             raise ValueError(f"follow: expected one of {self.FOLLOW}, got {follow!r}")
         self.follow = follow
@@ -213,10 +230,14 @@ class KnownSwitchAdaptive:
         self.detector: Detector = resolve("detector", spec, Detector, registry)
         for attribute in ("decided", "hypotheses", "observe"):
             if not hasattr(self.detector, attribute):
-                raise ValueError(f"detector: {self.detector.name!r} has no {attribute!r}; Algorithm 1 needs a fixed-bank SPRT such as 'sprt_pairwise'")
+                raise ValueError(
+                    f"detector: {self.detector.name!r} has no {attribute!r}; Algorithm 1 needs a fixed-bank SPRT such as 'sprt_pairwise'"
+                )
         self.name = name
 
-    def run(self, measurements: Mapping[str, np.ndarray], prior, segments: Schedule | Sequence[int], *, recorder=None, truth=None) -> KnownSwitchRun:
+    def run(
+        self, measurements: Mapping[str, np.ndarray], prior, segments: Schedule | Sequence[int], *, recorder=None, truth=None
+    ) -> KnownSwitchRun:
         lengths = [s.steps for s in segments.segments] if isinstance(segments, Schedule) else [int(t) for t in segments]
         if not lengths or min(lengths) < 1:
             raise ValueError(f"segments: expected positive segment lengths, got {lengths}")
@@ -268,8 +289,18 @@ class KnownSwitchAdaptive:
             model = self.models[q]
             outcomes.append(SegmentOutcome(k, T, self.hypotheses[q], q, getattr(model, "radius", None), decision_step))
             k += T
-        run = KnownSwitchRun(self.layout, self.hypotheses, means, covs, followed, ratios, tuple(outcomes), tuple(decisions),
-                             float(detector.upper), float(detector.lower))
+        run = KnownSwitchRun(
+            self.layout,
+            self.hypotheses,
+            means,
+            covs,
+            followed,
+            ratios,
+            tuple(outcomes),
+            tuple(decisions),
+            float(detector.upper),
+            float(detector.lower),
+        )
         if recorder is not None:
             self._record(recorder, z, run, truth)
         return run
@@ -335,10 +366,23 @@ class UnknownChangeAdaptive:
     watching filter 0 (None to skip).
     """
 
-    def __init__(self, *, modes: Sequence[Any], sensors: SensorNetwork | Sequence[Sensor], tau: float,
-                 estimator: Any = "kalman", detector: Any = None, alpha: float = 0.05, beta: float = 0.05,
-                 initial_mode: int = 0, bank_size: int | str | None = None, pruning: str | None = None,
-                 signal: Any = "signal_function", name: str = "unknown_change", registry: Registry | None = None):
+    def __init__(
+        self,
+        *,
+        modes: Sequence[Any],
+        sensors: SensorNetwork | Sequence[Sensor],
+        tau: float,
+        estimator: Any = "kalman",
+        detector: Any = None,
+        alpha: float = 0.05,
+        beta: float = 0.05,
+        initial_mode: int = 0,
+        bank_size: int | str | None = None,
+        pruning: str | None = None,
+        signal: Any = "signal_function",
+        name: str = "unknown_change",
+        registry: Registry | None = None,
+    ):
         registry = _registry(registry)
         self.models = _models(modes, registry)
         if len(self.models) < 2:
@@ -357,7 +401,9 @@ class UnknownChangeAdaptive:
         self.detector: Detector = resolve("detector", spec, Detector, registry)
         for attribute in ("add", "keep", "prune", "decided", "chosen_entry", "starts", "hypotheses", "observe"):
             if not hasattr(self.detector, attribute):
-                raise ValueError(f"detector: {self.detector.name!r} has no {attribute!r}; Algorithm 3 needs a change-time SPRT such as 'sprt_unknown_change'")
+                raise ValueError(
+                    f"detector: {self.detector.name!r} has no {attribute!r}; Algorithm 3 needs a change-time SPRT such as 'sprt_unknown_change'"
+                )
         if pruning is not None:
             if pruning not in ("oldest", "nearest_lower"):
                 raise ValueError(f"pruning: expected 'oldest' or 'nearest_lower', got {pruning!r}")
@@ -387,8 +433,18 @@ class UnknownChangeAdaptive:
             if p == self.initial_mode:
                 continue
             t = model.transition(self.tau, x_s)
-            pairs.append(wald_pair((base.F, base.B, base.process_noise), (t.F, t.B, t.process_noise), H, R, x_s,
-                                   self.detector.alpha, self.detector.beta, horizon=horizon))
+            pairs.append(
+                wald_pair(
+                    (base.F, base.B, base.process_noise),
+                    (t.F, t.B, t.process_noise),
+                    H,
+                    R,
+                    x_s,
+                    self.detector.alpha,
+                    self.detector.beta,
+                    horizon=horizon,
+                )
+            )
         return algorithm4_bank_size(pairs) * (len(self.models) - 1)
 
     def _algorithm4_cached(self, switch_state) -> int:
@@ -447,12 +503,14 @@ class UnknownChangeAdaptive:
                 node_signals = [copy.deepcopy(signal) for _ in range(N)]
                 for i, ns in enumerate(node_signals):
                     ns.reset()
-                    node_signal[0, i] = ns.observe(0, scores[0][i][:1], scores[1][i][:1], innovation.measurement_dim).statistics["signal"][0]
+                    node_signal[0, i] = ns.observe(0, scores[0][i][:1], scores[1][i][:1], innovation.measurement_dim).statistics["signal"][
+                        0
+                    ]
 
         for k in range(1, K + 1):
             # 1. one new filter per alternative, hypothesising the change at k (from filter 0's estimate)
             x0, P0 = bank.means[0].copy(), bank.covs[0].copy()
-            for p, i in enumerate(alternatives, start=1):
+            for i in alternatives:
                 bank.add(x0, P0, self.models[i], self.tau, x0, label=(i, k))
             for d in [detector] + node_detectors:
                 d.add(np.arange(1, M), k)
@@ -492,9 +550,24 @@ class UnknownChangeAdaptive:
                     d.keep(rows)
                 bank.keep(np.concatenate([[0], rows + 1]))
             means[k], covs[k], mode[k] = bank.means[0], bank.covs[0], current
-        run = UnknownChangeRun(self.layout, self.labels, means, covs, mode, ratios, bank_sizes, signal_values, bounds,
-                               tuple(decisions), tuple(changes), float(detector.upper), float(detector.lower), limit,
-                               node_ratios, node_signal)
+        run = UnknownChangeRun(
+            self.layout,
+            self.labels,
+            means,
+            covs,
+            mode,
+            ratios,
+            bank_sizes,
+            signal_values,
+            bounds,
+            tuple(decisions),
+            tuple(changes),
+            float(detector.upper),
+            float(detector.lower),
+            limit,
+            node_ratios,
+            node_signal,
+        )
         if recorder is not None:
             self._record(recorder, z, run, truth)
         return run

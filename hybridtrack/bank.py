@@ -13,7 +13,7 @@ filter's ``node_loglik``/``node_nis``).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

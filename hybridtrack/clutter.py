@@ -31,13 +31,12 @@ gates and the association weights through a recorder (paths in
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import attrs
 import numpy as np
 
 from hybridtrack._arrays import as_float_array
-
 
 # --------------------------------------------------------------------------- value types
 
@@ -283,7 +282,9 @@ def log_scans(recorder, sequences: Sequence[ScanSequence], steps: np.ndarray, ti
             recorder.log_points(f"world/clutter/{seq.sensor}", steps, false, times)
 
 
-def log_associations(recorder, filter_names: Sequence[str], steps: np.ndarray, innovations: Sequence, times: np.ndarray | None = None) -> None:
+def log_associations(
+    recorder, filter_names: Sequence[str], steps: np.ndarray, innovations: Sequence, times: np.ndarray | None = None
+) -> None:
     """Gates, association weights and association likelihoods of clutter-aware updates.
 
     ``innovations`` holds one :class:`~hybridtrack_plugins.filters._association.ClutterInnovation`
@@ -311,7 +312,9 @@ def log_associations(recorder, filter_names: Sequence[str], steps: np.ndarray, i
         for j, name in enumerate(filter_names):
             beta0 = np.array([a.missed[j] for _, a in rows])
             largest = np.array([a.weights[j].max(initial=0.0) for _, a in rows])
-            recorder.log_scalars(f"estimator/{name}/beta{suffix}", ks, np.stack([beta0, largest], axis=-1), ts, names=["beta_0", "beta_max"])
+            recorder.log_scalars(
+                f"estimator/{name}/beta{suffix}", ks, np.stack([beta0, largest], axis=-1), ts, names=["beta_0", "beta_max"]
+            )
             recorder.log_scalars(f"estimator/{name}/gated{suffix}", ks, np.array([float(a.gated[j].sum()) for _, a in rows]), ts)
             recorder.log_scalars(f"estimator/{name}/association_loglik{suffix}", ks, np.array([a.loglik[j] for _, a in rows]), ts)
             gamma = rows[0][1].gate

@@ -112,7 +112,7 @@ class RecordingFile:
             return []
         steps, texts = self._table("/events/decisions", "TextLog:text")
         _, levels = self._table("/events/decisions", "TextLog:level")
-        return [(int(s), (l[0] if l else ""), t[0]) for s, l, t in zip(steps, levels, texts)]
+        return [(int(s), (lv[0] if lv else ""), t[0]) for s, lv, t in zip(steps, levels, texts)]
 
     def step_range(self) -> tuple[int, int] | None:
         steps = [s for table in self._columns.values() for s in table.get("step", []) if s is not None]
@@ -138,7 +138,7 @@ class RecordingFile:
             "configuration": self.configuration,
             "entity_paths": self.entity_paths,
             "step_range": list(step_range) if step_range else None,
-            "decisions": [{"step": s, "level": l, "text": t} for s, l, t in self.events()],
+            "decisions": [{"step": s, "level": lv, "text": t} for s, lv, t in self.events()],
             "final_estimates": self.final_estimates(),
         }
 
@@ -156,7 +156,9 @@ def format_summary(summary: dict) -> str:
         f"decisions ({len(summary['decisions'])}):",
         *[f"  step {d['step']:>5}  {d['level']:<5} {d['text']}" for d in summary["decisions"]],
         "final estimates:",
-        *[f"  {name:<24} step {e['step']:>5}  x={e['position'][0]:.4g} y={e['position'][1]:.4g}"
-          for name, e in summary["final_estimates"].items()],
+        *[
+            f"  {name:<24} step {e['step']:>5}  x={e['position'][0]:.4g} y={e['position'][1]:.4g}"
+            for name, e in summary["final_estimates"].items()
+        ],
     ]
     return "\n".join(lines)

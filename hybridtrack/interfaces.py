@@ -38,7 +38,8 @@ the checks, and ``tests/contract``, can build and exercise it without help):
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar, Sequence
+from collections.abc import Sequence
+from typing import Any, ClassVar
 
 import attrs
 import numpy as np
@@ -245,7 +246,7 @@ class TransitionBank:
     noise_root: np.ndarray | None = None
 
     @classmethod
-    def stack(cls, transitions: Sequence[LinearTransition]) -> "TransitionBank":
+    def stack(cls, transitions: Sequence[LinearTransition]) -> TransitionBank:
         root = None
         if len({t.Q.shape for t in transitions}) == 1:
             try:

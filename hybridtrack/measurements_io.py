@@ -21,8 +21,8 @@ NPZ layout: one array per sensor, named by the sensor, shape (steps, m).
 from __future__ import annotations
 
 import csv
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 

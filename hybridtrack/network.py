@@ -7,7 +7,7 @@ unique; a node's rows of the stacked z are ``network.slices[i]``.
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import attrs
 import numpy as np

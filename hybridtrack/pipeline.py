@@ -23,7 +23,8 @@ Components are given as objects or by registered name (``"kalman"``,
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import attrs
 import numpy as np
@@ -166,7 +167,9 @@ class Pipeline:
         if measurements is not None:
             raise ValueError("candidates: give either measurements or candidates, not both")
         if not getattr(self.estimator, "accepts_scans", False):
-            raise ValueError(f"candidates: estimator {self.estimator.name!r} does not associate candidate measurements; use 'nearest_neighbour' or 'pda'")
+            raise ValueError(
+                f"candidates: estimator {self.estimator.name!r} does not associate candidate measurements; use 'nearest_neighbour' or 'pda'"
+            )
         names = set(self.network.names)
         if set(candidates) != names:
             raise ValueError(f"candidates: expected one ScanSequence per sensor {sorted(names)}, got {sorted(candidates)}")
@@ -340,8 +343,9 @@ def run_known_modes(
         rows = z[start : start + segment.steps + 1].copy()
         if start > 0:
             rows[0] = np.nan  # the switch step was already updated by the previous segment
-        pipeline = Pipeline(models=[model], estimator=estimator, sensors=network, measurements=network.split(rows),
-                            prior=prior, tau=tau, registry=registry)
+        pipeline = Pipeline(
+            models=[model], estimator=estimator, sensors=network, measurements=network.split(rows), prior=prior, tau=tau, registry=registry
+        )
         result = pipeline.run()
         skip = 0 if start == 0 else 1
         means.append(result.means[skip:, 0])

@@ -19,8 +19,8 @@ from __future__ import annotations
 import functools
 import os
 import warnings
+from collections.abc import Iterable
 from importlib.metadata import entry_points
-from typing import Iterable
 
 import attrs
 import pluggy
@@ -129,7 +129,10 @@ def load_plugins(
             info = infos[impl.plugin_name]
             from_code = info.distribution is None
             registrar = registry.bind(
-                kind, info.name, info.distribution, info.version,
+                kind,
+                info.name,
+                info.distribution,
+                info.version,
                 on_error=lambda error, fc=from_code: report(str(error), fc),
             )
             try:

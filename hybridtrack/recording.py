@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Protocol, Sequence, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -105,10 +106,14 @@ def default_blueprint():
         rrb.Horizontal(
             rrb.Spatial2DView(origin="/world", name="Trajectories"),
             rrb.Vertical(
-                rrb.TimeSeriesView(origin="/detector", contents=["+ /detector/**", "- /detector/signal_function/**"],
-                                   name="Likelihood ratios and statistics"),
-                rrb.TimeSeriesView(origin="/", contents=["+ /detector/signal_function/**", "+ /estimator/**"],
-                                   name="Signal functions, NIS, bank size"),
+                rrb.TimeSeriesView(
+                    origin="/detector",
+                    contents=["+ /detector/**", "- /detector/signal_function/**"],
+                    name="Likelihood ratios and statistics",
+                ),
+                rrb.TimeSeriesView(
+                    origin="/", contents=["+ /detector/signal_function/**", "+ /estimator/**"], name="Signal functions, NIS, bank size"
+                ),
                 rrb.TextLogView(origin="/events", name="Events"),
             ),
             column_shares=[3, 2],
@@ -150,9 +155,7 @@ class RerunRecorder:
         self.recording_id = recording_id_ or recording_id(self.configuration)
         self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
         self.stream.save(str(self.path), default_blueprint=default_blueprint())
-        self.stream.send_property(
-            "configuration", rr.AnyValues(json=json.dumps(self.configuration, sort_keys=True, default=str))
-        )
+        self.stream.send_property("configuration", rr.AnyValues(json=json.dumps(self.configuration, sort_keys=True, default=str)))
         self._closed = False
 
     # -- helpers

@@ -6,7 +6,8 @@ plugin and distribution that registered it (for ``hybridtrack plugins``).
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import attrs
 
@@ -87,7 +88,7 @@ class Registry:
     def entries(self) -> list[Entry]:
         return [entry for kind in KINDS for entry in self._entries[kind].values()]
 
-    def bind(self, kind: str, plugin: str, distribution: str | None, version: str | None, on_error) -> "Registrar":
+    def bind(self, kind: str, plugin: str, distribution: str | None, version: str | None, on_error) -> Registrar:
         return Registrar(self, kind, plugin, distribution, version, on_error)
 
 

@@ -15,8 +15,9 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any
 
 import attrs
 import numpy as np
@@ -77,9 +78,16 @@ def _atomic_text(path: Path, text: str) -> None:
     os.replace(temporary, path)
 
 
-def write_report(json_path: str | os.PathLike, rows: Iterable[Mapping[str, Any]], protocol: Mapping[str, Any], *,
-                 columns: Sequence[Column], title: str, markdown_path: str | os.PathLike | None = None,
-                 notes: str = "") -> tuple[Path, Path]:
+def write_report(
+    json_path: str | os.PathLike,
+    rows: Iterable[Mapping[str, Any]],
+    protocol: Mapping[str, Any],
+    *,
+    columns: Sequence[Column],
+    title: str,
+    markdown_path: str | os.PathLike | None = None,
+    notes: str = "",
+) -> tuple[Path, Path]:
     """Write the JSON report and its markdown table (default: the JSON path with ``.md``); return both paths.
 
     ``notes`` (markdown) follows the table, e.g. the seed's figures or what is pending.

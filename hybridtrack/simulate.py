@@ -17,8 +17,8 @@ trajectory and the measurements from one seed.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import attrs
 import numpy as np

@@ -10,8 +10,8 @@ wrong shape, NaN/inf or a non-symmetric / non-PSD covariance raises
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import attrs
 import numpy as np
@@ -114,7 +114,7 @@ class Schedule:
                 )
 
     @classmethod
-    def from_rows(cls, rows: Iterable) -> "Schedule":
+    def from_rows(cls, rows: Iterable) -> Schedule:
         """Build from (mode, steps[, radius]) tuples or dicts with the Segment fields."""
         segments = []
         for i, row in enumerate(rows):
@@ -125,7 +125,7 @@ class Schedule:
         return cls(segments)
 
     @classmethod
-    def from_toml(cls, path: str | Path) -> "Schedule":
+    def from_toml(cls, path: str | Path) -> Schedule:
         """Read ``[[segment]]`` tables (keys ``mode``, ``steps``, optional ``radius``, ``acceleration``)."""
         with open(path, "rb") as handle:
             data = tomllib.load(handle)

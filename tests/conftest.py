@@ -15,7 +15,8 @@ def rerun_cli(tmp_path_factory):
     home = tmp_path_factory.mktemp("rerun-home")
 
     def run(*args):
-        return subprocess.run([str(RERUN), *map(str, args)], capture_output=True, text=True,
-                              env={"HOME": str(home), "PATH": "/usr/bin:/bin"}, timeout=120)
+        return subprocess.run(
+            [str(RERUN), *map(str, args)], capture_output=True, text=True, env={"HOME": str(home), "PATH": "/usr/bin:/bin"}, timeout=120
+        )
 
     return run

@@ -27,14 +27,26 @@ def test_demo_runs_small_and_writes_a_verified_recording(tmp_path, rerun_cli):
     from hybridtrack.inspection import RecordingFile
 
     entities = set(RecordingFile(out).entity_paths)
-    assert {"/world/truth", "/world/estimate/adaptive", "/world/estimate/known_modes", "/world/estimate/straight_only",
-            "/world/measurements/plotter", "/detector/sprt_pairwise/upper"} <= entities
+    assert {
+        "/world/truth",
+        "/world/estimate/adaptive",
+        "/world/estimate/known_modes",
+        "/world/estimate/straight_only",
+        "/world/measurements/plotter",
+        "/detector/sprt_pairwise/upper",
+    } <= entities
 
 
 def test_demo_full_size_identifies_every_segment(tmp_path):
     summary = load("demo").main(["--out", str(tmp_path / "demo.rrd")])
     assert [row["identified"] for row in summary["segments"]] == [
-        "left_turn_r3", "right_turn_r5", "straight", "left_turn_r3", "straight", "left_turn_r4"]
+        "left_turn_r3",
+        "right_turn_r5",
+        "straight",
+        "left_turn_r3",
+        "straight",
+        "left_turn_r4",
+    ]
     assert summary["rmse_known_modes"] < 0.2
 
 
@@ -75,8 +87,14 @@ def test_bearings_only_runs_small_and_records_bearing_lines_and_solutions(tmp_pa
     assert summary["solutions"]["levenberg_marquardt"]["range_pct"] < 5
     assert rerun_cli("rrd", "verify", out).returncode == 0
     recording = RecordingFile(out)
-    assert {"/world/observer", "/world/bearings", "/world/truth", "/world/estimate/levenberg_marquardt",
-            "/world/estimate/levenberg_marquardt/ellipse", "/solver/n_bearings/residual"} <= set(recording.entity_paths)
+    assert {
+        "/world/observer",
+        "/world/bearings",
+        "/world/truth",
+        "/world/estimate/levenberg_marquardt",
+        "/world/estimate/levenberg_marquardt/ellipse",
+        "/solver/n_bearings/residual",
+    } <= set(recording.entity_paths)
     steps, lines = recording.strips("world/bearings")
     assert len(steps) == 60 and all(len(step) == 1 and step[0].shape == (2, 2) for step in lines)
     _, residuals = recording.series("solver/levenberg_marquardt/residual")

@@ -37,13 +37,38 @@ def test_ship_truth_straight_then_a_slowing_circulation_of_the_given_diameter():
 
 def test_dynamic_threshold_script_small(tmp_path):
     out = tmp_path / "dt.json"
-    report = load("dynamic_threshold").main(["--json", str(out), "--sigma", "3", "15", "--batches", "1", "--batch", "4",
-                                             "--independent-batches", "1", "--calibration-runs", "100", "--turn", "60",
-                                             "--executor", "inline", "--out", str(tmp_path / "runs"), "--no-progress"])
+    load("dynamic_threshold").main(
+        [
+            "--json",
+            str(out),
+            "--sigma",
+            "3",
+            "15",
+            "--batches",
+            "1",
+            "--batch",
+            "4",
+            "--independent-batches",
+            "1",
+            "--calibration-runs",
+            "100",
+            "--turn",
+            "60",
+            "--executor",
+            "inline",
+            "--out",
+            str(tmp_path / "runs"),
+            "--no-progress",
+        ]
+    )
     written = json.loads(out.read_text())
     rows = written["rows"]
-    assert [(r["sigma_noise"], r["threshold"]) for r in rows] == [(3.0, "calibrated"), (15.0, "calibrated"),
-                                                                 (3.0, "independent"), (15.0, "independent")]
+    assert [(r["sigma_noise"], r["threshold"]) for r in rows] == [
+        (3.0, "calibrated"),
+        (15.0, "calibrated"),
+        (3.0, "independent"),
+        (15.0, "independent"),
+    ]
     for r in rows:
         assert r["runs"] == 4 and 0 <= r["detected_static"] <= r["detected_dynamic"] <= 1
         assert r["delay_dynamic"] is None or r["delay_static"] is None or r["delay_dynamic"] <= r["delay_static"] + 60
@@ -57,9 +82,27 @@ def test_dynamic_threshold_script_small(tmp_path):
 
 def test_seed001_unknown_change_script_small(tmp_path):
     out = tmp_path / "uc.json"
-    load("seed001_unknown_change").main(["--json", str(out), "--n", "2", "--R", "0.01", "--steps-scale", "0.3",
-                                         "--modes", "table1", "--bank-size", "12", "--executor", "inline",
-                                         "--out", str(tmp_path / "runs"), "--no-progress"])
+    load("seed001_unknown_change").main(
+        [
+            "--json",
+            str(out),
+            "--n",
+            "2",
+            "--R",
+            "0.01",
+            "--steps-scale",
+            "0.3",
+            "--modes",
+            "table1",
+            "--bank-size",
+            "12",
+            "--executor",
+            "inline",
+            "--out",
+            str(tmp_path / "runs"),
+            "--no-progress",
+        ]
+    )
     written = json.loads(out.read_text())
     (row,) = written["rows"]
     assert row["R"] == 0.01 and row["runs"] == 2 and len(row["detection_delay"]) == 6 and len(row["detected"]) == 6

@@ -22,14 +22,29 @@ def load(name):
 
 def test_seed001_adaptive_writes_the_agreed_json_layout_small(tmp_path):
     out = tmp_path / "seed001.json"
-    report = load("seed001_adaptive").main(["--json", str(out), "--n", "2", "--R", "0.1", "0.01", "--steps-scale", "0.3",
-                                            "--executor", "inline", "--out", str(tmp_path / "runs"), "--no-progress"])
+    report = load("seed001_adaptive").main(
+        [
+            "--json",
+            str(out),
+            "--n",
+            "2",
+            "--R",
+            "0.1",
+            "0.01",
+            "--steps-scale",
+            "0.3",
+            "--executor",
+            "inline",
+            "--out",
+            str(tmp_path / "runs"),
+            "--no-progress",
+        ]
+    )
     written = json.loads(out.read_text())
     assert written["rows"] == plain(report["rows"])  # NaN (a segment no run decided in) is written as null
     assert [row["R"] for row in written["rows"]] == [0.1, 0.01]
     for row in written["rows"]:
-        assert set(row) == {"R", "optimal_nrmse", "adaptive_nrmse", "rmse_optimal", "rmse_adaptive", "decision_steps",
-                            "modes_correct"}
+        assert set(row) == {"R", "optimal_nrmse", "adaptive_nrmse", "rmse_optimal", "rmse_adaptive", "decision_steps", "modes_correct"}
         assert len(row["rmse_optimal"]) == 4 and len(row["rmse_adaptive"]) == 4 and len(row["decision_steps"]) == 6
         assert math.isclose(row["optimal_nrmse"], float(np.linalg.norm(row["rmse_optimal"])))
         assert math.isclose(row["adaptive_nrmse"], float(np.linalg.norm(row["rmse_adaptive"])))
@@ -39,22 +54,28 @@ def test_seed001_adaptive_writes_the_agreed_json_layout_small(tmp_path):
     assert protocol["trajectories_per_R"] == 2 and protocol["alpha"] == 0.01 and protocol["bank"]["filters"] == 21
     for extra, row in zip(protocol["supplementary"], written["rows"]):  # the 'most_likely' rule on the same trajectories
         other = extra["follow_most_likely"]
-        assert other["optimal_nrmse"] == row["optimal_nrmse"] and math.isclose(other["adaptive_nrmse"], float(np.linalg.norm(other["rmse_adaptive"])))
+        assert other["optimal_nrmse"] == row["optimal_nrmse"] and math.isclose(
+            other["adaptive_nrmse"], float(np.linalg.norm(other["rmse_adaptive"]))
+        )
     table = out.with_suffix(".md").read_text()
     assert table.count("\n| 0.1 |") == 4 and "Seed 001" in table  # ours, the seed's, the supplementary table, most_likely
 
 
 def test_report_tables_and_strict_json(tmp_path):
-    rows = [{"name": "a", "values": np.array([1.0, 2.5]), "score": np.float64(0.25)},
-            {"name": "b", "values": [3.0, float("nan")], "score": None}]
-    columns = [Column("name", "name"), Column("values", "v1", ".2f", 0), Column("values", "v2", ".2f", 1),
-               Column("score", "score", ".3f")]
-    assert markdown_table(plain(rows), columns) == ("| name | v1 | v2 | score |\n|---|---|---|---|\n"
-                                                    "| a | 1.00 | 2.50 | 0.250 |\n| b | 3.00 | – | – |\n")
+    rows = [
+        {"name": "a", "values": np.array([1.0, 2.5]), "score": np.float64(0.25)},
+        {"name": "b", "values": [3.0, float("nan")], "score": None},
+    ]
+    columns = [Column("name", "name"), Column("values", "v1", ".2f", 0), Column("values", "v2", ".2f", 1), Column("score", "score", ".3f")]
+    assert markdown_table(plain(rows), columns) == (
+        "| name | v1 | v2 | score |\n|---|---|---|---|\n| a | 1.00 | 2.50 | 0.250 |\n| b | 3.00 | – | – |\n"
+    )
     json_path, md_path = write_report(tmp_path / "r.json", rows, {"runs": np.int64(3)}, columns=columns, title="T")
     data = json.loads(json_path.read_text())
-    assert data == {"rows": [{"name": "a", "values": [1.0, 2.5], "score": 0.25},
-                             {"name": "b", "values": [3.0, None], "score": None}], "protocol": {"runs": 3}}
+    assert data == {
+        "rows": [{"name": "a", "values": [1.0, 2.5], "score": 0.25}, {"name": "b", "values": [3.0, None], "score": None}],
+        "protocol": {"runs": 3},
+    }
     assert md_path.read_text().startswith("### T\n\n| name |")
     with pytest.raises(KeyError, match="row has no 'missing'"):
         markdown_table(rows, [Column("missing", "m")])

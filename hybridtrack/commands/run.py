@@ -67,9 +67,18 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         parameters = campaign_parameters(args.param)
-        campaign = Campaign(args.experiment, args.n, args.out or Path("runs") / Path(args.experiment).stem,
-                            seed=args.seed, parameters=parameters, executor=args.executor, scheduler=args.scheduler,
-                            workers=args.workers, chunk_size=args.chunk, progress=not args.no_progress)
+        campaign = Campaign(
+            args.experiment,
+            args.n,
+            args.out or Path("runs") / Path(args.experiment).stem,
+            seed=args.seed,
+            parameters=parameters,
+            executor=args.executor,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            chunk_size=args.chunk,
+            progress=not args.no_progress,
+        )
         result = campaign.run()
     except (UnknownExperiment, CampaignMismatch, ValueError) as error:
         print(f"hybridtrack run: {error}", file=sys.stderr)
@@ -77,9 +86,16 @@ def run(args: argparse.Namespace) -> int:
     except (RunFailed, CorruptResults) as error:
         print(f"hybridtrack run: {error}", file=sys.stderr)
         return 1
-    summary = {"experiment": result.experiment, "n": result.n, "out": str(result.out), "computed": result.computed,
-               "reused": result.reused, "seed": campaign.seed, "parameters": campaign.parameters,
-               "results": result.summary()}
+    summary = {
+        "experiment": result.experiment,
+        "n": result.n,
+        "out": str(result.out),
+        "computed": result.computed,
+        "reused": result.reused,
+        "seed": campaign.seed,
+        "parameters": campaign.parameters,
+        "results": result.summary(),
+    }
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0

@@ -39,13 +39,20 @@ def run(args: argparse.Namespace) -> int:
     sensor = PositionSensor(name="sensor", noise_cov=args.measurement_noise * np.eye(2))
     configuration = {key: value for key, value in vars(args).items() if key not in ("run", "npz", "rrd", "no_record")}
     with open_recorder(None if args.no_record else args.rrd, {"command": "simulate", **configuration}) as recorder:
-        truth, z = simulate(schedule, args.x0, args.tau, [sensor], seed=args.seed, recorder=recorder,
-                            process_noise=not args.no_noise, noise_cov=args.process_noise * np.eye(2))
+        truth, z = simulate(
+            schedule,
+            args.x0,
+            args.tau,
+            [sensor],
+            seed=args.seed,
+            recorder=recorder,
+            process_noise=not args.no_noise,
+            noise_cov=args.process_noise * np.eye(2),
+        )
         log_measurements(recorder, [sensor], z, truth.steps, truth.times)
     truth.save_npz(args.npz, **{f"z_{name}": values for name, values in z.items()})
     segments = ", ".join(f"{s.mode}×{s.steps}" for s in schedule.segments)
-    print(f"simulated {truth.states.shape[0] - 1} steps ({segments}) → {args.npz}"
-          + ("" if args.no_record else f", {args.rrd}"))
+    print(f"simulated {truth.states.shape[0] - 1} steps ({segments}) → {args.npz}" + ("" if args.no_record else f", {args.rrd}"))
     return 0
 
 

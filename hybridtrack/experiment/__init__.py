@@ -24,7 +24,19 @@ from hybridtrack.experiment.store import CampaignMismatch, CorruptResults, Resul
 from hybridtrack.experiment.worker import run_seed
 
 __all__ = [
-    "EXECUTORS", "EXPERIMENTS", "Campaign", "CampaignMismatch", "CampaignResult", "CorruptResults", "Experiment",
-    "ResultStore", "RunFailed", "UnknownExperiment", "known_experiments", "load_experiment", "register_experiment",
-    "run_campaign", "run_seed",
+    "EXECUTORS",
+    "EXPERIMENTS",
+    "Campaign",
+    "CampaignMismatch",
+    "CampaignResult",
+    "CorruptResults",
+    "Experiment",
+    "ResultStore",
+    "RunFailed",
+    "UnknownExperiment",
+    "known_experiments",
+    "load_experiment",
+    "register_experiment",
+    "run_campaign",
+    "run_seed",
 ]

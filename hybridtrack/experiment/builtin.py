@@ -53,12 +53,20 @@ def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float,
     from hybridtrack.pipeline import run_known_modes
     from hybridtrack.types import Gaussian
 
-    return run_known_modes(schedule, estimator=estimator, sensors=sensors, measurements=measurements,
-                           prior=Gaussian(np.array(X0), np.eye(4)), tau=tau, noise_cov=float(q) * np.eye(2))
+    return run_known_modes(
+        schedule,
+        estimator=estimator,
+        sensors=sensors,
+        measurements=measurements,
+        prior=Gaussian(np.array(X0), np.eye(4)),
+        tau=tau,
+        noise_cov=float(q) * np.eye(2),
+    )
 
 
-def known_modes_errors(rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0,
-                       estimator: str = "kalman") -> dict[str, Any]:
+def known_modes_errors(
+    rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0, estimator: str = "kalman"
+) -> dict[str, Any]:
     """Squared errors (steps 1 … K) of the known-modes KF on one simulated seed-001 trajectory."""
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
     run = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau, estimator=estimator)

@@ -18,8 +18,9 @@ from __future__ import annotations
 import math
 import os
 import sys
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import attrs
 import numpy as np
@@ -89,8 +90,7 @@ def _progress(total: int, done: int, description: str, enabled: bool):
 
     stream = sys.stderr
     show = enabled and hasattr(stream, "isatty") and stream.isatty()
-    return tqdm(total=total, initial=done, desc=description, unit="run", disable=not show, file=stream,
-                dynamic_ncols=True)
+    return tqdm(total=total, initial=done, desc=description, unit="run", disable=not show, file=stream, dynamic_ncols=True)
 
 
 @attrs.frozen(eq=False)
@@ -138,8 +138,7 @@ class Campaign:
     def run(self) -> CampaignResult:
         """Compute the missing runs (storing each chunk as it finishes) and return every run's results."""
         store = self.store
-        store.open(experiment=self.experiment.name, locator=self.experiment.locator, parameters=self.parameters,
-                   seed=self.seed, n=self.n)
+        store.open(experiment=self.experiment.name, locator=self.experiment.locator, parameters=self.parameters, seed=self.seed, n=self.n)
         missing = self.missing()
         reused = self.n - len(missing)
         computed = 0
@@ -147,8 +146,10 @@ class Campaign:
         if len(missing):
             source = self.experiment.locator or self.experiment
             with make_executor(self.executor, workers=self.workers, scheduler=self.scheduler) as executor:
-                tasks = [(source, self.parameters, int(self.seed), chunk)
-                         for chunk in chunks(missing, self._chunk_size(len(missing), executor.workers))]
+                tasks = [
+                    (source, self.parameters, int(self.seed), chunk)
+                    for chunk in chunks(missing, self._chunk_size(len(missing), executor.workers))
+                ]
                 with _progress(self.n, reused, self.experiment.name, self.progress) as bar:
                     for outcome in executor.map_unordered(run_chunk, tasks):
                         if outcome.indices:
@@ -160,8 +161,10 @@ class Campaign:
                             executor.cancel_pending()
         if failures:
             index, report = min(failures)
-            raise RunFailed(f"experiment {self.experiment.name!r}: run {index} failed "
-                            f"({computed} run(s) computed and stored in {self.out}; run again to resume)\n{report}")
+            raise RunFailed(
+                f"experiment {self.experiment.name!r}: run {index} failed "
+                f"({computed} run(s) computed and stored in {self.out}; run again to resume)\n{report}"
+            )
         return CampaignResult(self.experiment.name, self.out, self.n, store.load(self.n), computed, reused)
 
     def results(self) -> dict[str, np.ndarray]:

@@ -22,11 +22,12 @@ into an :class:`Experiment` whose ``locator`` is set.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
-import hashlib
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import attrs
 
@@ -38,7 +39,7 @@ EXPERIMENTS: dict[str, str] = {
 #: where ``hybridtrack run NAME`` also looks for ``NAME.py`` (relative to the working directory)
 SCRIPT_FOLDER = Path("experiments")
 
-_resolved: dict[str, "Experiment"] = {}
+_resolved: dict[str, Experiment] = {}
 
 
 class UnknownExperiment(LookupError):
@@ -75,8 +76,7 @@ class Experiment:
         """The defaults updated by ``overrides``; an unknown parameter name is an error."""
         unknown = sorted(set(overrides) - set(self.parameters))
         if unknown:
-            raise ValueError(f"experiment {self.name!r}: unknown parameter(s) {unknown}; "
-                             f"its parameters are {sorted(self.parameters)}")
+            raise ValueError(f"experiment {self.name!r}: unknown parameter(s) {unknown}; its parameters are {sorted(self.parameters)}")
         return {**self.parameters, **overrides}
 
 
@@ -155,5 +155,6 @@ def load_experiment(spec: str | Experiment) -> Experiment:
         return resolve_locator(str(script.resolve()))
     if ":" in spec:
         return resolve_locator(spec)
-    raise UnknownExperiment(f"unknown experiment {spec!r}; known experiments: {', '.join(known_experiments())} "
-                            f"(or give a path to a script defining EXPERIMENT)")
+    raise UnknownExperiment(
+        f"unknown experiment {spec!r}; known experiments: {', '.join(known_experiments())} (or give a path to a script defining EXPERIMENT)"
+    )

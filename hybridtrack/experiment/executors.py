@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any
 
 EXECUTORS = ("inline", "process", "dask")
 
@@ -79,8 +80,7 @@ class ProcessExecutor:
     def map_unordered(self, function: Callable, tasks: Sequence[tuple]) -> Iterator[Any]:
         if not tasks:
             return
-        self._pool = ProcessPoolExecutor(max_workers=min(self.workers, len(tasks)),
-                                         mp_context=multiprocessing.get_context("spawn"))
+        self._pool = ProcessPoolExecutor(max_workers=min(self.workers, len(tasks)), mp_context=multiprocessing.get_context("spawn"))
         self._pending = {self._pool.submit(function, *task) for task in tasks}
         error: BaseException | None = None
         while self._pending:

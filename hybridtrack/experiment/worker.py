@@ -13,7 +13,8 @@ together with the failure, so the campaign can store them before reporting it.
 from __future__ import annotations
 
 import traceback
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import attrs
 import numpy as np
@@ -37,12 +38,13 @@ class ChunkOutcome:
 
 def _as_row(experiment: str, index: int, name: Any, value: Any) -> np.ndarray:
     if not isinstance(name, str) or not name or name == "index":
-        raise TypeError(f"experiment {experiment!r}, run {index}: result names must be non-empty strings other than "
-                        f"'index', got {name!r}")
+        raise TypeError(f"experiment {experiment!r}, run {index}: result names must be non-empty strings other than 'index', got {name!r}")
     array = np.asarray(value)
     if array.dtype.kind not in "biuf":
-        raise TypeError(f"experiment {experiment!r}, run {index}: result {name!r} is {type(value).__name__} "
-                        f"(dtype {array.dtype}), expected a number or a numeric array")
+        raise TypeError(
+            f"experiment {experiment!r}, run {index}: result {name!r} is {type(value).__name__} "
+            f"(dtype {array.dtype}), expected a number or a numeric array"
+        )
     return array
 
 
@@ -52,8 +54,9 @@ def _stack(experiment: str, indices: Sequence[int], rows: list[Mapping[str, Any]
     names = sorted(rows[0])
     for index, row in zip(indices, rows):
         if sorted(row) != names:
-            raise ValueError(f"experiment {experiment!r}, run {index}: results {sorted(row)} differ from {names} "
-                             f"returned by run {indices[0]}")
+            raise ValueError(
+                f"experiment {experiment!r}, run {index}: results {sorted(row)} differ from {names} returned by run {indices[0]}"
+            )
     stacked = {}
     for name in names:
         values = [row[name] for row in rows]
@@ -79,8 +82,10 @@ def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int
         try:
             result = experiment.run_one(int(index), rng, **parameters)
             if not isinstance(result, Mapping):
-                raise TypeError(f"experiment {experiment.name!r}, run {index}: run_one returned "
-                                f"{type(result).__name__}, expected a mapping name → number or array")
+                raise TypeError(
+                    f"experiment {experiment.name!r}, run {index}: run_one returned "
+                    f"{type(result).__name__}, expected a mapping name → number or array"
+                )
             row = {name: _as_row(experiment.name, index, name, value) for name, value in result.items()}
         except Exception as error:  # reported with the finished runs, re-raised by the campaign
             failure = (int(index), f"{type(error).__name__}: {error}\n{traceback.format_exc()}")

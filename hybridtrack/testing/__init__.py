@@ -23,6 +23,15 @@ from hybridtrack.testing.contracts import (
 )
 
 __all__ = [
-    "LinearPositionSensor", "build_example", "check_component", "check_detector", "check_estimator",
-    "check_motion_model", "check_sensor", "check_solver", "cv_transition", "example_parameters", "example_state",
+    "LinearPositionSensor",
+    "build_example",
+    "check_component",
+    "check_detector",
+    "check_estimator",
+    "check_motion_model",
+    "check_sensor",
+    "check_solver",
+    "cv_transition",
+    "example_parameters",
+    "example_state",
 ]

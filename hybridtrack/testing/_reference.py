@@ -12,7 +12,7 @@ or a detector means the same thing whichever plugins are installed:
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg
@@ -35,9 +35,7 @@ def cv_transition(tau: float = 1.0, q: float = 0.1) -> LinearTransition:
     """Straight mode: F = blockdiag([[1, τ], [0, 1]] ×2), B = 0, G = [[τ²/2, 0], [τ, 0], [0, τ²/2], [0, τ]], Q = q I₂."""
     axis = np.array([[1.0, tau], [0.0, 1.0]])
     gain = np.array([[tau**2 / 2], [tau]])
-    return LinearTransition(
-        scipy.linalg.block_diag(axis, axis), np.zeros(4), scipy.linalg.block_diag(gain, gain), q * np.eye(2)
-    )
+    return LinearTransition(scipy.linalg.block_diag(axis, axis), np.zeros(4), scipy.linalg.block_diag(gain, gain), q * np.eye(2))
 
 
 def example_state(layout: Sequence[str], rng: np.random.Generator, shape: tuple[int, ...] = ()) -> np.ndarray:

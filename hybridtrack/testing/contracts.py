@@ -14,7 +14,8 @@ read (``example_parameters``, ``example_layout``, ``example_innovations``,
 
 from __future__ import annotations
 
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -42,8 +43,14 @@ from hybridtrack.testing._reference import (
 )
 
 __all__ = [
-    "build_example", "check_component", "check_detector", "check_estimator", "check_motion_model",
-    "check_sensor", "check_solver", "example_parameters",
+    "build_example",
+    "check_component",
+    "check_detector",
+    "check_estimator",
+    "check_motion_model",
+    "check_sensor",
+    "check_solver",
+    "example_parameters",
 ]
 
 
@@ -118,7 +125,11 @@ def _symmetric_psd(matrix: np.ndarray, label: str, what: str, definite: bool) ->
     if definite:
         _require((eigenvalues > 0).all(), label, f"{what} is not positive definite (smallest eigenvalue {eigenvalues.min():.3g})")
     else:
-        _require((eigenvalues >= -1e-10 * scale).all(), label, f"{what} is not positive semidefinite (smallest eigenvalue {eigenvalues.min():.3g})")
+        _require(
+            (eigenvalues >= -1e-10 * scale).all(),
+            label,
+            f"{what} is not positive semidefinite (smallest eigenvalue {eigenvalues.min():.3g})",
+        )
 
 
 def _registry_name(component, label: str, attribute: str = "name") -> None:
@@ -175,7 +186,14 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
     _symmetric_psd(T.process_noise, label, "G Q Gᵀ", definite=False)
 
     f_s = _array(model.propagate(x_s.copy(), tau, x_s.copy()), label, "propagate(x_s)", (n,))
-    _close(T.F @ x_s + T.B, f_s, label, "F x_s + B (the linearization at x_s must pass through f(x_s))", rtol=1e-9, atol=1e-9 * (1 + np.abs(f_s).max()))
+    _close(
+        T.F @ x_s + T.B,
+        f_s,
+        label,
+        "F x_s + B (the linearization at x_s must pass through f(x_s))",
+        rtol=1e-9,
+        atol=1e-9 * (1 + np.abs(f_s).max()),
+    )
     jac = _numerical_jacobian(lambda x: model.propagate(x, tau, x_s.copy()), x_s.copy())
     _close(T.F, jac, label, "transition F against finite differences of propagate", rtol=1e-5, atol=1e-6 * (1 + np.abs(T.F).max()))
 
@@ -232,7 +250,14 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     _array(sensor.jacobian(np.stack([X, X]), layout), label, "jacobian of a (2, 4, n) stack", (2, 4, m, n))
     for k, row in enumerate(X):
         numeric = _numerical_jacobian(lambda x: sensor.measure(x, layout), row.copy())
-        _close(J[k], numeric, label, f"jacobian at state {k} against finite differences of measure", rtol=1e-5, atol=1e-6 * (1e-3 + np.abs(J[k]).max()))
+        _close(
+            J[k],
+            numeric,
+            label,
+            f"jacobian at state {k} against finite differences of measure",
+            rtol=1e-5,
+            atol=1e-6 * (1e-3 + np.abs(J[k]).max()),
+        )
     if getattr(sensor, "linear", True):
         _close(J, np.broadcast_to(J[0], J.shape), label, "jacobian of a linear sensor (must not depend on x)")
         _close(z, np.einsum("kij,kj->ki", J, X), label, "measure of a linear sensor against H x", atol=1e-9 * (1 + np.abs(z).max()))
@@ -243,13 +268,25 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     _close(again, first, label, "simulate with the same seed (must be reproducible)", rtol=0, atol=0)
     draws = 2000
     many = sensor.simulate(np.broadcast_to(X[0], (draws, n)).copy(), layout, np.random.default_rng(seed + 2))
-    noise = _array(sensor.residual(_array(many, label, "simulate of a (2000, n) stack", (draws, m)), np.broadcast_to(z[0], (draws, m))), label, "simulated noise")
+    noise = _array(
+        sensor.residual(_array(many, label, "simulate of a (2000, n) stack", (draws, m)), np.broadcast_to(z[0], (draws, m))),
+        label,
+        "simulated noise",
+    )
     sample = np.cov(noise, rowvar=False).reshape(m, m)
     # R that goes with this measurement: noise_cov, or R(z) for pseudo-measurement sensors (Sensor.measurement_noise)
     R = _array(sensor.measurement_noise(z[0]), label, "measurement_noise(z)", (m, m))
     error = np.linalg.norm(sample - R) / np.linalg.norm(R)
-    _require(error < 0.25, label, f"simulated noise covariance\n{sample}\nis far from noise_cov R\n{R}\n(relative error {error:.2f} over {draws} draws)")
-    _require(np.all(np.abs(noise.mean(axis=0)) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12), label, f"simulated noise has mean {noise.mean(axis=0)}, expected 0")
+    _require(
+        error < 0.25,
+        label,
+        f"simulated noise covariance\n{sample}\nis far from noise_cov R\n{R}\n(relative error {error:.2f} over {draws} draws)",
+    )
+    _require(
+        np.all(np.abs(noise.mean(axis=0)) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12),
+        label,
+        f"simulated noise has mean {noise.mean(axis=0)}, expected 0",
+    )
 
 
 # --------------------------------------------------------------------------- estimators
@@ -409,7 +446,11 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
         for k, innovation in enumerate(innovations):
             out = detector.step(k, innovation)
             _require(isinstance(out, DetectorStep), label, f"step {k} returned {type(out).__name__}, expected DetectorStep")
-            _require(isinstance(out.statistics, dict) and out.statistics, label, f"step {k}: statistics must be a non-empty dict, got {out.statistics!r}")
+            _require(
+                isinstance(out.statistics, dict) and out.statistics,
+                label,
+                f"step {k}: statistics must be a non-empty dict, got {out.statistics!r}",
+            )
             for kind, table in (("statistic", out.statistics), ("threshold", out.thresholds)):
                 for key, value in table.items():
                     _require(isinstance(key, str) and key, label, f"step {k}: {kind} name {key!r} is not a non-empty string")

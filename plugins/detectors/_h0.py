@@ -43,7 +43,7 @@ def glr_statistics(y: np.ndarray, window: int) -> np.ndarray:
     g = np.zeros((runs, steps))
     for length in range(1, window + 1):
         sums = c[:, length:] - c[:, :-length]  # window sums ending at n = length−1 … steps−1
-        g[:, length - 1:] = np.maximum(g[:, length - 1:], sums * sums / (2.0 * length))
+        g[:, length - 1 :] = np.maximum(g[:, length - 1 :], sums * sums / (2.0 * length))
     return g
 
 
@@ -60,7 +60,9 @@ def cusum_statistics(y: np.ndarray, drift: float) -> np.ndarray:
 
 
 @lru_cache(maxsize=32)
-def h0_sample(statistic: str, parameter: float, seed: int = 20240601, runs: int = 2000, length: int = 200, burn_in: int = 100) -> np.ndarray:
+def h0_sample(
+    statistic: str, parameter: float, seed: int = 20240601, runs: int = 2000, length: int = 200, burn_in: int = 100
+) -> np.ndarray:
     """Sorted per-step values of ``statistic`` ("glr" with window, "cusum" with drift) on N(0,1) input (cached)."""
     y = np.random.default_rng(seed).standard_normal((runs, length))
     if statistic == "glr":

@@ -45,8 +45,9 @@ def _sorted_sample(values) -> np.ndarray:
 class ScalarDetector(ScoreDetector):
     """A change detector on one normalized sequence with a threshold λ(α) from H0 quantiles."""
 
-    def __init__(self, alpha: float = 0.001, watch: int = 0, reference=None, normalize: bool = True, seed: int = 20240601,
-                 null_sample=None):
+    def __init__(
+        self, alpha: float = 0.001, watch: int = 0, reference=None, normalize: bool = True, seed: int = 20240601, null_sample=None
+    ):
         self.watch = check_positive_int(watch, "watch", minimum=0)
         self.normalize = bool(normalize)
         self.seed = int(seed)
@@ -99,7 +100,9 @@ class ScalarDetector(ScoreDetector):
         g = self.update_statistic(y)
         decision = None
         if g > self.threshold:
-            decision = Decision(step, self.name, "change", g, f"{self.name} statistic {g:.2f} > λ(α = {self.alpha:g}) = {self.threshold:.2f}")
+            decision = Decision(
+                step, self.name, "change", g, f"{self.name} statistic {g:.2f} > λ(α = {self.alpha:g}) = {self.threshold:.2f}"
+            )
             self.reset()
         return DetectorStep({"statistic": g, "normalized": y}, {"threshold": self.threshold}, decision)
 

@@ -29,7 +29,9 @@ def check_error_probabilities(alpha, beta) -> tuple[float, float]:
     alpha = check_probability(alpha, "alpha")
     beta = check_probability(beta, "beta")
     if alpha + beta >= 1.0:
-        raise ValueError(f"alpha + beta: expected alpha + beta < 1 so that the thresholds satisfy A > 0 > B, got {alpha} + {beta} = {alpha + beta}")
+        raise ValueError(
+            f"alpha + beta: expected alpha + beta < 1 so that the thresholds satisfy A > 0 > B, got {alpha} + {beta} = {alpha + beta}"
+        )
     return alpha, beta
 
 

@@ -97,11 +97,11 @@ def innovation_moments(true, filters, H, R, switch_state, P0, steps: int, gains:
         steady = steady_state_filter(F_f, H, Q_f, R) if gains == "steady" else None
         A_p = np.zeros((2 * n + 1, 2 * n + 1))
         A_p[:n, :n], A_p[:n, -1] = F_t, B_t
-        A_p[n:2 * n, n:2 * n], A_p[n:2 * n, -1] = F_f, B_f
+        A_p[n : 2 * n, n : 2 * n], A_p[n : 2 * n, -1] = F_f, B_f
         A_p[-1, -1] = 1.0
         zeta = np.concatenate([x_s, x_s, [1.0]])
         M = np.outer(zeta, zeta)
-        M[n:2 * n, n:2 * n] += P0
+        M[n : 2 * n, n : 2 * n] += P0
         P = P0.copy()
         for k in range(steps):
             M = A_p @ M @ A_p.T
@@ -116,10 +116,10 @@ def innovation_moments(true, filters, H, R, switch_state, P0, steps: int, gains:
             own[i, k] = S
             actual[i, k] = C @ M @ C.T + R
             U = np.eye(2 * n + 1)
-            U[n:2 * n, :n] = K @ H
-            U[n:2 * n, n:2 * n] = np.eye(n) - K @ H
+            U[n : 2 * n, :n] = K @ H
+            U[n : 2 * n, n : 2 * n] = np.eye(n) - K @ H
             M = U @ M @ U.T
-            M[n:2 * n, n:2 * n] += K @ R @ K.T
+            M[n : 2 * n, n : 2 * n] += K @ R @ K.T
             M = 0.5 * (M + M.T)
     return own, actual
 
@@ -143,7 +143,7 @@ def wald_boundary_terms(alpha, beta) -> tuple[float, float]:
 
 def _limit(series: np.ndarray, rtol: float = 1e-3) -> float | None:
     """The last value when the series has settled (relative change over the last tenth below rtol)."""
-    tail = series[-max(2, series.size // 10):]
+    tail = series[-max(2, series.size // 10) :]
     scale = max(abs(float(series[-1])), 1e-12)
     return float(series[-1]) if np.ptp(tail) <= rtol * scale else None
 

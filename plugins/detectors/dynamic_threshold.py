@@ -51,7 +51,7 @@ class SpeedDropCue:
         far, near = self.lags
         if len(self._speeds) <= far:
             return False
-        reference = float(np.mean(self._speeds[-far - 1: -near]))  # steps k−far … k−near
+        reference = float(np.mean(self._speeds[-far - 1 : -near]))  # steps k−far … k−near
         return self._speeds[-1] < (1.0 - self.drop) * reference
 
 
@@ -89,7 +89,9 @@ class DynamicThreshold(Detector):
         self.alpha_start = float(self.detector.alpha)
         self.alpha_ready = self.alpha_start * self.likelihood_ratio
         if not 0.0 < self.alpha_ready < 1.0:
-            raise ValueError(f"likelihood_ratio: α·L_C = {self.alpha_start} × {self.likelihood_ratio} = {self.alpha_ready} is not a probability in (0, 1)")
+            raise ValueError(
+                f"likelihood_ratio: α·L_C = {self.alpha_start} × {self.likelihood_ratio} = {self.alpha_ready} is not a probability in (0, 1)"
+            )
         check_probability(self.alpha_ready, "alpha * likelihood_ratio")
         # λ(α), the threshold without the cue, reported beside the current one (recorded as static vs dynamic)
         threshold_for = getattr(self.detector, "threshold_for", None)
@@ -116,8 +118,13 @@ class DynamicThreshold(Detector):
     def _wrap(self, step: int, out: DetectorStep) -> DetectorStep:
         decision = out.decision
         if decision is not None:
-            decision = Decision(decision.step, self.name, decision.mode, decision.statistic,
-                                f"{decision.message} [cue {'on' if self.holds else 'off'}, α = {self.detector.alpha:g}]")
+            decision = Decision(
+                decision.step,
+                self.name,
+                decision.mode,
+                decision.statistic,
+                f"{decision.message} [cue {'on' if self.holds else 'off'}, α = {self.detector.alpha:g}]",
+            )
         return DetectorStep({**out.statistics, "cue": float(self.holds)}, {**out.thresholds, **self.static_thresholds}, decision)
 
     def step(self, step: int, innovation: Innovation) -> DetectorStep:

@@ -26,8 +26,16 @@ class GLR(ScalarDetector):
 
     name = "glr"
 
-    def __init__(self, window: int = 10, alpha: float = 0.001, watch: int = 0, reference=None, normalize: bool = True, seed: int = 20240601,
-                 null_sample=None):
+    def __init__(
+        self,
+        window: int = 10,
+        alpha: float = 0.001,
+        watch: int = 0,
+        reference=None,
+        normalize: bool = True,
+        seed: int = 20240601,
+        null_sample=None,
+    ):
         self.window = check_positive_int(window, "window")
         super().__init__(alpha, watch, reference, normalize, seed, null_sample)
         self.reset()

@@ -35,8 +35,14 @@ class SignalFunction(ScoreDetector):
 
     name = "signal_function"
 
-    def __init__(self, window: int | None = None, alpha: float = THREE_SIGMA_ALPHA, calibration: str = "normal",
-                 watch: int = 0, reset_on_alarm: bool = True):
+    def __init__(
+        self,
+        window: int | None = None,
+        alpha: float = THREE_SIGMA_ALPHA,
+        calibration: str = "normal",
+        watch: int = 0,
+        reset_on_alarm: bool = True,
+    ):
         self.window = None if window is None else check_positive_int(window, "window")
         if calibration not in _signal.CALIBRATIONS:
             raise ValueError(f"calibration: expected one of {_signal.CALIBRATIONS}, got {calibration!r}")
@@ -88,7 +94,9 @@ class SignalFunction(ScoreDetector):
         decision = None
         if dof > 0 and not (lower <= value <= upper):
             side = "above" if value > upper else "below"
-            decision = Decision(step, self.name, "change", value, f"signal function {value:.2f} {side} the bound ({lower:.2f}, {upper:.2f}), D = {dof:g}")
+            decision = Decision(
+                step, self.name, "change", value, f"signal function {value:.2f} {side} the bound ({lower:.2f}, {upper:.2f}), D = {dof:g}"
+            )
             if self.reset_on_alarm:
                 self.reset()
         return DetectorStep({"signal": signal.copy(), "dof": dof}, {"upper": upper, "lower": lower}, decision)

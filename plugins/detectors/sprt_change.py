@@ -34,7 +34,7 @@ modes 1 … M−1 started at the first step.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.special import logsumexp
@@ -53,8 +53,15 @@ class ChangeTimeSPRT(WaldThresholds, ScoreDetector):
 
     name = "sprt_unknown_change"
 
-    def __init__(self, alpha: float = 0.05, beta: float = 0.05, hypotheses: Sequence[str] | None = None,
-                 averaging: str = "uniform", bank_size: int | None = None, pruning: str = "nearest_lower"):
+    def __init__(
+        self,
+        alpha: float = 0.05,
+        beta: float = 0.05,
+        hypotheses: Sequence[str] | None = None,
+        averaging: str = "uniform",
+        bank_size: int | None = None,
+        pruning: str = "nearest_lower",
+    ):
         self.set_error_probabilities(alpha, beta)
         self.hypotheses = None if hypotheses is None else tuple(str(h) for h in hypotheses)
         if self.hypotheses is not None and len(self.hypotheses) < 2:
@@ -133,7 +140,9 @@ class ChangeTimeSPRT(WaldThresholds, ScoreDetector):
         if self.k == 0 and self.modes.size == 0 and loglik.size > 1:
             self.add(np.arange(1, loglik.size), step)  # a fixed bank: every alternative from the first step
         if loglik.size != 1 + self.modes.size:
-            raise ValueError(f"loglik: expected {1 + self.modes.size} filters (the current mode and {self.modes.size} entries), got {loglik.size}")
+            raise ValueError(
+                f"loglik: expected {1 + self.modes.size} filters (the current mode and {self.modes.size} entries), got {loglik.size}"
+            )
         self.k += 1
         if m > 0:
             self.log_psi = self.log_psi + (loglik[1:] - loglik[0])
@@ -146,11 +155,17 @@ class ChangeTimeSPRT(WaldThresholds, ScoreDetector):
             self.chosen_entry = int(rows[np.argmax(self.log_psi[rows])])
             self.decided = p
             j = int(self.starts[self.chosen_entry])
-            decision = Decision(step, self.name, self.label(p), float(ratios[p - 1]),
-                                f"change to {self.label(p)} (most likely at step {j}), ln λ = {ratios[p - 1]:.2f} ≥ A = {self.upper:.2f}")
+            decision = Decision(
+                step,
+                self.name,
+                self.label(p),
+                float(ratios[p - 1]),
+                f"change to {self.label(p)} (most likely at step {j}), ln λ = {ratios[p - 1]:.2f} ≥ A = {self.upper:.2f}",
+            )
         elif finite.size == ratios.size and ratios.size and ratios.max() <= self.lower:
-            decision = Decision(step, self.name, self.label(0), float(ratios.max()),
-                                f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts")
+            decision = Decision(
+                step, self.name, self.label(0), float(ratios.max()), f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts"
+            )
             self.decided = 0
         output = ({"log_ratio": ratios, "bank_size": float(self.modes.size)}, {"upper": self.upper, "lower": self.lower}, decision)
         if decision is not None and self.decided == 0:

@@ -28,7 +28,7 @@ final margin over the best of the others).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -99,11 +99,15 @@ class PairwiseSPRT(WaldThresholds, ScoreDetector):
                 self.decided = i
                 self.frozen = np.where(np.arange(M) == i, margins(self.L, np.ones(M, dtype=bool))[i], self.frozen)
                 self.active = np.zeros(M, dtype=bool)
-                decision = Decision(step, self.name, self.label(i), float(ratio[i]),
-                                    f"{self.label(i)} accepted, log-LR margin {ratio[i]:.2f} (A = {self.upper:.2f})")
+                decision = Decision(
+                    step,
+                    self.name,
+                    self.label(i),
+                    float(ratio[i]),
+                    f"{self.label(i)} accepted, log-LR margin {ratio[i]:.2f} (A = {self.upper:.2f})",
+                )
         ratio = np.where(self.active, margins(self.L, self.active), self.frozen)
-        return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)},
-                            {"upper": self.upper, "lower": self.lower}, decision)
+        return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision)
 
 
 COMPONENTS = {PairwiseSPRT.name: PairwiseSPRT}

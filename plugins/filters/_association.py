@@ -46,7 +46,7 @@ outside the gate does not underflow the weights.
 from __future__ import annotations
 
 from abc import abstractmethod
-from typing import Sequence
+from collections.abc import Sequence
 
 import attrs
 import numpy as np
@@ -58,7 +58,6 @@ from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
 from hybridtrack_plugins.filters._linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack_plugins.filters._measurements import block_diagonal
 from hybridtrack_plugins.filters.kalman import CovarianceState
-
 
 # --------------------------------------------------------------------------- checks
 
@@ -163,8 +162,9 @@ def log_half_det_2pi_s(L: np.ndarray) -> np.ndarray:
     return 0.5 * (m * LOG_2PI + log_det_from_cholesky(L))
 
 
-def pda_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float,
-                gate_probability: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pda_weights(
+    d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float, gate_probability: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """β_i (M, L), β_0 (M,) and ln Λ (M,) of the parametric PDA (module docstring).
 
     ln b = ln λ + ln √|2πS| + ln(1 − P_D P_G) − ln P_D (−∞ when λ = 0 or P_D P_G = 1).
@@ -287,7 +287,9 @@ class ClutterEstimator(BankEstimator):
             candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
             predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
             nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
-            x, P, nu_used, S, association = self._associate_and_update(x, P, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred)
+            x, P, nu_used, S, association = self._associate_and_update(
+                x, P, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred
+            )
             associations.append(association)
             if scan.size:
                 used.append(nu_used)
@@ -303,8 +305,9 @@ class ClutterEstimator(BankEstimator):
         step, nu, H = found
         name = "+".join(m.sensor.name for m in step.models)
         z_pred = np.broadcast_to(step.z, nu.shape) - nu
-        x, P, nu_used, S, association = self._associate_and_update(state.x, state.P, nu[:, None, :], H, step.R, step.selection, name,
-                                                                   step.z, z_pred)
+        x, P, nu_used, S, association = self._associate_and_update(
+            state.x, state.P, nu[:, None, :], H, step.R, step.selection, name, step.z, z_pred
+        )
         return self._finish(state, x, P, [nu_used], [S], [association])
 
     def _associate_and_update(self, x, P, nu, H, R, selection, sensor_name, candidates, z_pred):

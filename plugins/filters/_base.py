@@ -13,7 +13,8 @@ Every estimator state object of this family exposes, per step and per filter
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -74,7 +75,9 @@ class BankEstimator(Estimator):
         """
         if callable(transitions) and not isinstance(transitions, TransitionBank):
             if not self.accepts_nonlinear:
-                raise ValueError(f"transitions: {self.name!r} takes a TransitionBank; a linearizing callable needs an extended filter ('ekf', 'ekf_sqrt')")
+                raise ValueError(
+                    f"transitions: {self.name!r} takes a TransitionBank; a linearizing callable needs an extended filter ('ekf', 'ekf_sqrt')"
+                )
             transitions = transitions(x)
             self._checked_transitions = None
         if not isinstance(transitions, TransitionBank):

@@ -13,7 +13,9 @@ from hybridtrack_plugins.filters._measurements import selection_index
 UPDATE_FORMS = ("joseph", "symmetric", "conventional")
 
 
-def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, B: np.ndarray, Q: np.ndarray, Ft: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def predict(
+    x: np.ndarray, P: np.ndarray, F: np.ndarray, B: np.ndarray, Q: np.ndarray, Ft: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """x⁻ = F x⁺ + B u, P⁻ = F P⁺ Fᵀ + G Q Gᵀ (seed 000 eqs. 4–5), P⁻ symmetrised.
 
     ``Ft``: Fᵀ as a contiguous stack, if the caller keeps one (a stacked matmul
@@ -76,7 +78,6 @@ def _update(x, P, nu, H, R, selection, form):
     if form not in UPDATE_FORMS:
         raise ValueError(f"form: expected one of {UPDATE_FORMS}, got {form!r}")
     M, n = x.shape
-    m = nu.shape[-1]
     if selection is not None:
         selection = tuple(selection)
         idx = selection_index(selection)

@@ -14,8 +14,8 @@ matrix products.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import lru_cache
-from typing import Sequence
 
 import attrs
 import numpy as np
@@ -52,7 +52,7 @@ class MeasurementStep:
     def dim(self) -> int:
         return self.z.shape[-1]
 
-    def with_z(self, z: np.ndarray) -> "MeasurementStep":
+    def with_z(self, z: np.ndarray) -> MeasurementStep:
         """The same model with new measurement rows (the cached-structure path of :meth:`MeasurementAssembler.assemble`)."""
         return MeasurementStep(self.models, z, self.R, self.blocks, self.H, self.selection, self.plain_residual, self.R_diagonal)
 
@@ -64,7 +64,10 @@ class MeasurementStep:
             return x @ self.H.T, self.H
         z_pred = np.concatenate([model.sensor.measure(x, layout) if model.H is None else x @ model.H.T for model in self.models], axis=-1)
         H = np.concatenate(
-            [model.sensor.jacobian(x, layout) if model.H is None else np.broadcast_to(model.H, (x.shape[0],) + model.H.shape) for model in self.models],
+            [
+                model.sensor.jacobian(x, layout) if model.H is None else np.broadcast_to(model.H, (x.shape[0],) + model.H.shape)
+                for model in self.models
+            ],
             axis=-2,
         )
         return z_pred, H
@@ -149,7 +152,12 @@ class MeasurementAssembler:
         ):
             return template[1].with_z(z_array.reshape(-1, template[1].dim))
         step = self._assemble(z, sensors, layout, bank_size)
-        if step is not None and z_array is not None and len(step.models) == len(sensors) and all(_constant_noise(m.sensor) for m in step.models):
+        if (
+            step is not None
+            and z_array is not None
+            and len(step.models) == len(sensors)
+            and all(_constant_noise(m.sensor) for m in step.models)
+        ):
             self._template = ((tuple(map(id, sensors)), layout, bank_size, z_array.shape), step)
         return step
 
@@ -158,7 +166,9 @@ class MeasurementAssembler:
         total = sum(m.dim for m in models)
         z = as_float_array(z, "z", allow_nan=True)
         if z.shape not in ((total,), (bank_size, total)):
-            raise ValueError(f"z: expected shape ({total},) or ({bank_size}, {total}) (the stacked measurement of {len(models)} sensor(s)), got {z.shape}")
+            raise ValueError(
+                f"z: expected shape ({total},) or ({bank_size}, {total}) (the stacked measurement of {len(models)} sensor(s)), got {z.shape}"
+            )
         z2 = z.reshape(-1, total)
         present, blocks, columns = [], [], []
         start = out = 0
@@ -166,7 +176,9 @@ class MeasurementAssembler:
             rows = z2[:, start : start + model.dim]
             missing = np.isnan(rows).any(axis=1)
             if missing.any() and not missing.all():
-                raise ValueError(f"z: sensor {model.sensor.name!r} has NaN for some filters of the bank and not others; the missing pattern must be the same for the whole bank")
+                raise ValueError(
+                    f"z: sensor {model.sensor.name!r} has NaN for some filters of the bank and not others; the missing pattern must be the same for the whole bank"
+                )
             if not missing.any():
                 present.append(model)
                 blocks.append(slice(out, out + model.dim))

@@ -72,7 +72,12 @@ def split_bank(F: np.ndarray, B: np.ndarray, Q: np.ndarray) -> SeparableBank | N
     Fa = F[:, idx[:, :, None], idx[:, None, :]]  # (M, A, d, d)
     Qa = Q[:, idx[:, :, None], idx[:, None, :]]
     Ba = B[:, idx]  # (M, A, d)
-    return SeparableBank(axes, np.ascontiguousarray(Fa.transpose(2, 3, 1, 0)), np.ascontiguousarray(Ba.transpose(2, 1, 0)), np.ascontiguousarray(Qa.transpose(2, 3, 1, 0)))
+    return SeparableBank(
+        axes,
+        np.ascontiguousarray(Fa.transpose(2, 3, 1, 0)),
+        np.ascontiguousarray(Ba.transpose(2, 1, 0)),
+        np.ascontiguousarray(Qa.transpose(2, 3, 1, 0)),
+    )
 
 
 def is_block_diagonal(P: np.ndarray, axes) -> bool:

@@ -9,7 +9,7 @@ whitening by the Cholesky factor of R (``_sqrt.thornton_predict``,
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import attrs
 import numpy as np

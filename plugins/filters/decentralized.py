@@ -19,8 +19,8 @@ this filter equals exactly (Rao & Durrant-Whyte 1991).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import cached_property
-from typing import Sequence
 
 import attrs
 import numpy as np

@@ -11,8 +11,8 @@ kept as ``state.nis_information``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import cached_property
-from typing import Sequence
 
 import attrs
 import numpy as np

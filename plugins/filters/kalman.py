@@ -16,8 +16,7 @@ The centralized multisensor filter is this filter given all sensors at once
 
 from __future__ import annotations
 
-from typing import Sequence
-
+from collections.abc import Sequence
 from functools import cached_property
 
 import attrs
@@ -137,7 +136,9 @@ class KalmanFilter(BankEstimator):
 
     def predict(self, state, transitions: TransitionBank):
         M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
-        bank = self._check_transitions(transitions, M, n, state.mean if callable(transitions) and not isinstance(transitions, TransitionBank) else None)
+        bank = self._check_transitions(
+            transitions, M, n, state.mean if callable(transitions) and not isinstance(transitions, TransitionBank) else None
+        )
         if self.structure:
             split = self._split(bank)
             if split is not None:

@@ -36,8 +36,9 @@ class PDAFilter(ClutterEstimator):
     name = "pda"
     example_parameters = {"detection_probability": 0.9, "clutter_density": 0.01, "gate_probability": 0.99}
 
-    def __init__(self, detection_probability: float = 1.0, clutter_density: float = 0.0, gate_probability: float | None = 0.99,
-                 form: str = "joseph"):
+    def __init__(
+        self, detection_probability: float = 1.0, clutter_density: float = 0.0, gate_probability: float | None = 0.99, form: str = "joseph"
+    ):
         super().__init__(gate_probability, form)
         self.detection_probability = check_detection_probability(detection_probability)
         self.clutter_density = check_clutter_density(clutter_density)

@@ -9,7 +9,7 @@ filter; ``covariance`` assembles it for reading.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import attrs
 import numpy as np

@@ -9,8 +9,8 @@ root when some F of the bank is singular (the stop mode).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import cached_property
-from typing import Sequence
 
 import attrs
 import numpy as np

@@ -11,7 +11,7 @@ Nodes are the sensors passed to ``update``; it equals the centralized KF.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import attrs
 import numpy as np

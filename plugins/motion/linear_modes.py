@@ -26,7 +26,8 @@ so nothing divides by zero.
 from __future__ import annotations
 
 from abc import abstractmethod
-from typing import ClassVar, Sequence
+from collections.abc import Sequence
+from typing import ClassVar
 
 import attrs
 import numpy as np
@@ -157,12 +158,14 @@ class _Turn(MotionModel):
         F = _blockdiag(np.array([[c, sin_over_w], [-w * s, c]]))
         d = self.direction
         # B = [x_c(1−c), ω x_c s, y_c(1−c), ω y_c s] with x_c = x_s − d·v_ys/ω, y_c = y_s + d·v_xs/ω
-        B = np.array([
-            x * (1 - c) - d * vy * one_minus_cos_over_w,
-            (w * x - d * vy) * s,
-            y * (1 - c) + d * vx * one_minus_cos_over_w,
-            (w * y + d * vx) * s,
-        ])
+        B = np.array(
+            [
+                x * (1 - c) - d * vy * one_minus_cos_over_w,
+                (w * x - d * vy) * s,
+                y * (1 - c) + d * vx * one_minus_cos_over_w,
+                (w * y + d * vx) * s,
+            ]
+        )
         return LinearTransition(F, B, G_4, self.noise_cov)
 
 

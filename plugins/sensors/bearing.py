@@ -17,7 +17,8 @@ import them.
 
 from __future__ import annotations
 
-from typing import ClassVar, Sequence
+from collections.abc import Sequence
+from typing import ClassVar
 
 import attrs
 import numpy as np
@@ -117,7 +118,7 @@ class BearingSensor(Sensor):
         R = check_covariance([[self.sigma**2]], "noise_cov", 1, definite=True, readonly=True)
         object.__setattr__(self, "noise_cov", R)
 
-    def at(self, observer) -> "BearingSensor":
+    def at(self, observer) -> BearingSensor:
         """The same sensor with the observer at ``observer`` (one step of a moving observer)."""
         return attrs.evolve(self, observer=observer)
 

@@ -9,7 +9,8 @@ components and R form an N-node network (:class:`hybridtrack.network.SensorNetwo
 
 from __future__ import annotations
 
-from typing import ClassVar, Sequence
+from collections.abc import Sequence
+from typing import ClassVar
 
 import attrs
 import numpy as np

@@ -16,7 +16,8 @@ Angle convention (seed 003: z = (ρ cos θ, ρ sin θ)): θ is measured from the
 
 from __future__ import annotations
 
-from typing import ClassVar, Sequence
+from collections.abc import Sequence
+from typing import ClassVar
 
 import attrs
 import numpy as np
@@ -49,7 +50,9 @@ class _RadarBase(Sensor):
     name: str = "radar"
     range_std: float = attrs.field(default=10.0, validator=_positive)
     azimuth_std: float = attrs.field(default=float(np.deg2rad(0.2)), validator=_positive)
-    site: tuple[float, float] = attrs.field(default=(0.0, 0.0), converter=lambda s: tuple(float(v) for v in as_float_array(s, "site", (2,))))
+    site: tuple[float, float] = attrs.field(
+        default=(0.0, 0.0), converter=lambda s: tuple(float(v) for v in as_float_array(s, "site", (2,)))
+    )
 
     @property
     def noise_cov(self) -> np.ndarray:

@@ -72,9 +72,17 @@ AVAILABLE = numba is not None
 
 #: P(u) with atan(z) = z + z u P(u), u = z² ≤ tan²(π/8): coefficients of u⁰ … u¹⁰ from :func:`fit_atan_polynomial`
 ATAN_P = (
-    -0.33333333333333337, 0.19999999999995072, -0.14285714284697382, 0.11111111020754154,
-    -0.09090904847282058, 0.07692189924877749, -0.06664610050049277, 0.05859027333736597,
-    -0.050901362349793325, 0.03936929724571587, -0.019347970377818047,
+    -0.33333333333333337,
+    0.19999999999995072,
+    -0.14285714284697382,
+    0.11111111020754154,
+    -0.09090904847282058,
+    0.07692189924877749,
+    -0.06664610050049277,
+    0.05859027333736597,
+    -0.050901362349793325,
+    0.03936929724571587,
+    -0.019347970377818047,
 )
 TAN_PI_8 = 0.41421356237309503  # tan(π/8) = √2 − 1
 # π/4, π/2, π as hi + lo (hi the nearest double, lo the rest)
@@ -115,6 +123,7 @@ def fit_atan_polynomial(degree=10, nodes=200):
     in_x = np.polynomial.Polynomial(np.polynomial.chebyshev.cheb2poly(chebyshev))
     return in_x(np.polynomial.Polynomial([-1.0, 2.0 / u_max])).coef
 
+
 # Taylor coefficients (−1)^k/(2k+1)! of sin (k = 1 … 8) and (−1)^k/(2k)! of cos (k = 2 … 8), for |y| ≤ π/4
 _S3, _S5, _S7, _S9, _S11, _S13, _S15, _S17 = ((-1) ** k / math.factorial(2 * k + 1) for k in range(1, 9))
 _K4, _K6, _K8, _K10, _K12, _K14, _K16 = ((-1) ** k / math.factorial(2 * k) for k in range(2, 9))
@@ -124,6 +133,7 @@ TWO_OVER_PI = 0.6366197723675814
 def _njit(**options):
     def decorate(function):
         return numba.njit(cache=True, error_model="numpy", **options)(function) if AVAILABLE else function
+
     return decorate
 
 
@@ -215,11 +225,22 @@ def _add(acc, a, b, w, r, t):
     q = -a * w
     pp, pq, qq, pr, qr = p * p, p * q, q * q, p * r, q * r
     t2 = t * t
-    return (acc[0] + r * r,
-            acc[1] + pp, acc[2] + pp * t, acc[3] + pp * t2,
-            acc[4] + pq, acc[5] + pq * t, acc[6] + pq * t2,
-            acc[7] + qq, acc[8] + qq * t, acc[9] + qq * t2,
-            acc[10] + pr, acc[11] + pr * t, acc[12] + qr, acc[13] + qr * t)
+    return (
+        acc[0] + r * r,
+        acc[1] + pp,
+        acc[2] + pp * t,
+        acc[3] + pp * t2,
+        acc[4] + pq,
+        acc[5] + pq * t,
+        acc[6] + pq * t2,
+        acc[7] + qq,
+        acc[8] + qq * t,
+        acc[9] + qq * t2,
+        acc[10] + pr,
+        acc[11] + pr * t,
+        acc[12] + qr,
+        acc[13] + qr * t,
+    )
 
 
 @_njit(fastmath=_FAST)
@@ -338,8 +359,26 @@ def damped_step(H, g, lam, L, delta):
 
 
 @_njit()
-def minimize_problems(s0, tau, ox, oy, X, lam0, lam_up, lam_down, F_tol, max_iterations, lam_max, rounding_rtol,
-                      out_s, out_F, out_H, out_it, out_nf, out_status):
+def minimize_problems(
+    s0,
+    tau,
+    ox,
+    oy,
+    X,
+    lam0,
+    lam_up,
+    lam_down,
+    F_tol,
+    max_iterations,
+    lam_max,
+    rounding_rtol,
+    out_s,
+    out_F,
+    out_H,
+    out_it,
+    out_nf,
+    out_status,
+):
     """Seed 002 §4.3 steps 1–9 for each row of s0 (m, 4) with bearings X (m, n), any finite radians ("north"
     convention); õx, õy (1, n) shared or (m, n).
 

@@ -158,6 +158,7 @@ class LevenbergMarquardt(Solver):
         from hybridtrack_plugins.solvers.observer import example_problem
 
         return example_problem()
+
     settings: LMSettings = attrs.field(factory=LMSettings)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
@@ -305,9 +306,24 @@ def minimize_compiled(tau, ox, oy, X, convention, s, settings: LMSettings):
     out_s, out_F, out_H = np.empty((m, 4)), np.empty(m), np.empty((m, 4, 4))
     out_it, out_nf, out_status = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64)
     _tma_kernel.minimize_problems(
-        np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(tau), np.ascontiguousarray(ox), np.ascontiguousarray(oy),
-        np.ascontiguousarray(X, dtype=float), settings.lam0, settings.lam_up, settings.lam_down, settings.F_tol, settings.max_iterations,
-        settings.lam_max, ROUNDING_RTOL, out_s, out_F, out_H, out_it, out_nf, out_status,
+        np.ascontiguousarray(s, dtype=float),
+        np.ascontiguousarray(tau),
+        np.ascontiguousarray(ox),
+        np.ascontiguousarray(oy),
+        np.ascontiguousarray(X, dtype=float),
+        settings.lam0,
+        settings.lam_up,
+        settings.lam_down,
+        settings.F_tol,
+        settings.max_iterations,
+        settings.lam_max,
+        ROUNDING_RTOL,
+        out_s,
+        out_F,
+        out_H,
+        out_it,
+        out_nf,
+        out_status,
     )
     if convention != "north":
         out_s, out_H = out_s[:, _MIRROR], out_H[:, _MIRROR][:, :, _MIRROR]
@@ -336,6 +352,7 @@ class BatchLevenbergMarquardt(Solver):
         from hybridtrack_plugins.solvers.observer import example_problem
 
         return example_problem()
+
     settings: LMSettings = attrs.field(factory=LMSettings)
     chunk_size: int = attrs.field(default=1024, converter=int, validator=_positive)
     engine: str = attrs.field(default="auto", validator=lambda i, a, v: _check_engine(v))
@@ -349,8 +366,9 @@ class BatchLevenbergMarquardt(Solver):
         if not isinstance(problem, BearingsProblem):
             raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
         theta0 = _initial_guess(problem, self.name)
-        batch = BearingsBatch(problem.times, problem.bearings[None], problem.observer, problem.sigma, theta0,
-                              problem.reference_time, problem.convention)
+        batch = BearingsBatch(
+            problem.times, problem.bearings[None], problem.observer, problem.sigma, theta0, problem.reference_time, problem.convention
+        )
         return self.solve_batch(batch).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
@@ -370,8 +388,12 @@ class BatchLevenbergMarquardt(Solver):
         for start in range(0, B, self.chunk_size):
             rows = slice(start, min(start + self.chunk_size, B))
             if not shared:
-                part = Scaling(scaling.origin if batch.observer.ndim == 2 else scaling.origin[rows],
-                               np.broadcast_to(scaling.length, (B,))[rows], scaling.duration, scaling.reference_time)
+                part = Scaling(
+                    scaling.origin if batch.observer.ndim == 2 else scaling.origin[rows],
+                    np.broadcast_to(scaling.length, (B,))[rows],
+                    scaling.duration,
+                    scaling.reference_time,
+                )
                 o = part.observer(batch.observer if batch.observer.ndim == 2 else batch.observer[rows])
             if self.compiled:
                 out = minimize_compiled(tau, o[..., 0], o[..., 1], batch.bearings[rows], batch.convention, s0[rows], self.settings)
@@ -385,9 +407,20 @@ class BatchLevenbergMarquardt(Solver):
         messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
         messages = tuple(m if o else m + "; unobservable: JᵀJ singular" for m, o in zip(messages, observable))
         return BatchTMASolution(
-            parameters=theta, covariance=cov, cost=F, iterations=it, evaluations=nf, converged=(status == 0) & observable,
-            sqrt_ka=ska, chi2_statistic=stat, chi2_dof=n - N_PARAMETERS, chi2_pvalue=pval, consistent=cons,
-            reference_time=batch.reference_time, messages=messages, method=self.name,
+            parameters=theta,
+            covariance=cov,
+            cost=F,
+            iterations=it,
+            evaluations=nf,
+            converged=(status == 0) & observable,
+            sqrt_ka=ska,
+            chi2_statistic=stat,
+            chi2_dof=n - N_PARAMETERS,
+            chi2_pvalue=pval,
+            consistent=cons,
+            reference_time=batch.reference_time,
+            messages=messages,
+            method=self.name,
         )
 
 

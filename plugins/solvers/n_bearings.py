@@ -130,9 +130,19 @@ class NBearings(Solver):
         elif r0 <= 0:
             message = "range r_0 ≤ 0: the bearings do not fit a target ahead of the observer"
         return TMASolution(
-            parameters=theta, covariance=cov, cost=float(F), iterations=0, evaluations=0, converged=converged,
-            message=message, reference_time=problem.reference_time, sqrt_ka=float(ska), chi2_statistic=float(stat),
-            chi2_dof=problem.size - N_PARAMETERS, chi2_pvalue=float(pval), consistent=None if cons is None else bool(cons),
+            parameters=theta,
+            covariance=cov,
+            cost=float(F),
+            iterations=0,
+            evaluations=0,
+            converged=converged,
+            message=message,
+            reference_time=problem.reference_time,
+            sqrt_ka=float(ska),
+            chi2_statistic=float(stat),
+            chi2_dof=problem.size - N_PARAMETERS,
+            chi2_pvalue=float(pval),
+            consistent=None if cons is None else bool(cons),
             method=self.name,
         )
 
@@ -146,9 +156,20 @@ class NBearings(Solver):
             for c, o in zip(converged, ok)
         )
         return BatchTMASolution(
-            parameters=theta, covariance=cov, cost=F, iterations=np.zeros(len(F), int), evaluations=np.zeros(len(F), int),
-            converged=converged, sqrt_ka=ska, chi2_statistic=stat, chi2_dof=batch.size - N_PARAMETERS, chi2_pvalue=pval,
-            consistent=cons, reference_time=batch.reference_time, messages=messages, method=self.name,
+            parameters=theta,
+            covariance=cov,
+            cost=F,
+            iterations=np.zeros(len(F), int),
+            evaluations=np.zeros(len(F), int),
+            converged=converged,
+            sqrt_ka=ska,
+            chi2_statistic=stat,
+            chi2_dof=batch.size - N_PARAMETERS,
+            chi2_pvalue=pval,
+            consistent=cons,
+            reference_time=batch.reference_time,
+            messages=messages,
+            method=self.name,
         )
 
     def _run(self, problem, batch: bool):

@@ -17,14 +17,14 @@ No ``COMPONENTS``: this module is a scenario helper, not a plugin.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import attrs
 import numpy as np
 
 from hybridtrack._arrays import as_float_array
 from hybridtrack_plugins.sensors.bearing import BearingSensor, check_convention, direction, wrap_angle
-from hybridtrack_plugins.solvers.tma_model import from_polar
+from hybridtrack_plugins.solvers.tma_model import BearingsProblem, from_polar
 
 
 @attrs.frozen
@@ -68,8 +68,9 @@ class ObserverPath:
     convention: str
 
     @classmethod
-    def build(cls, segments: Sequence[Leg | Turn], speed: float, start=(0.0, 0.0), t0: float = 0.0,
-              convention: str = "north", tie: str = "right") -> "ObserverPath":
+    def build(
+        cls, segments: Sequence[Leg | Turn], speed: float, start=(0.0, 0.0), t0: float = 0.0, convention: str = "north", tie: str = "right"
+    ) -> ObserverPath:
         check_convention(convention)
         if tie not in ("right", "left"):
             raise ValueError(f"tie: expected 'right' or 'left', got {tie!r}")
@@ -83,8 +84,9 @@ class ObserverPath:
         for i, seg in enumerate(segments):
             if isinstance(seg, Leg):
                 if abs(wrap_angle(np.deg2rad(seg.course) - course)) > 1e-9:
-                    raise ValueError(f"segments[{i}]: leg course {seg.course}° differs from the current course"
-                                     f" {np.rad2deg(course):.6g}°; insert a Turn")
+                    raise ValueError(
+                        f"segments[{i}]: leg course {seg.course}° differs from the current course {np.rad2deg(course):.6g}°; insert a Turn"
+                    )
                 if seg.duration < 0:
                     raise ValueError(f"segments[{i}]: negative duration {seg.duration}")
                 piece = _Piece(t, seg.duration, position, course, 0.0)
@@ -158,8 +160,9 @@ def _advance(piece: _Piece, times: np.ndarray, speed: float, convention: str) ->
     return piece.position + speed * step
 
 
-def simulate_bearings(theta, times, observer, sigma: float, rng: np.random.Generator, convention="north",
-                      reference_time: float | None = None) -> np.ndarray:
+def simulate_bearings(
+    theta, times, observer, sigma: float, rng: np.random.Generator, convention="north", reference_time: float | None = None
+) -> np.ndarray:
     """Bearings X (..., n) of targets θ (..., 4) (at ``reference_time``, default ``times[0]``) with noise σ (radians).
 
     Uses the bearing sensor plugin: X = wrap(φ + N(0, σ²)); σ = 0 gives exact bearings.
@@ -228,10 +231,8 @@ class Seed002Scenario:
         return from_polar(np.zeros(size), ranges, courses, speeds, self.observer()[0], self.convention)
 
 
-def example_problem(interval: float = 20.0, sigma_deg: float = 0.5, seed: int = 0) -> "BearingsProblem":
+def example_problem(interval: float = 20.0, sigma_deg: float = 0.5, seed: int = 0) -> BearingsProblem:
     """A small seed 002 problem (one target, bearings every ``interval`` s, noise σ) for contract checks and demos."""
-    from hybridtrack_plugins.solvers.tma_model import BearingsProblem
-
     scenario = Seed002Scenario(interval=interval)
     rng = np.random.default_rng(seed)
     theta = scenario.draw_targets(rng, 1)[0]

@@ -36,6 +36,7 @@ class ScipyLeastSquares(Solver):
         from hybridtrack_plugins.solvers.observer import example_problem
 
         return example_problem()
+
     method: str = attrs.field(default="lm", validator=attrs.validators.in_(("lm", "trf", "dogbox")))
     ftol: float = attrs.field(default=1e-10, converter=float, validator=_tolerance)
     xtol: float = attrs.field(default=1e-10, converter=float, validator=_tolerance)
@@ -58,11 +59,13 @@ class ScipyLeastSquares(Solver):
         require_maneuver(problem.times, problem.observer)
         if problem.initial is None:
             raise ValueError(f"{self.name}: problem.initial is None; give a starting guess θ")
-        scaled = ScaledProblem.build(problem.times, problem.bearings, problem.observer, problem.initial,
-                                     problem.reference_time, problem.convention)
+        scaled = ScaledProblem.build(
+            problem.times, problem.bearings, problem.observer, problem.initial, problem.reference_time, problem.convention
+        )
         fun, jac = self.residual_functions(scaled)
-        result = least_squares(fun, scaled.scaling.to_scaled(problem.initial), jac=jac, method=self.method,
-                               ftol=self.ftol, xtol=self.xtol, gtol=self.gtol)
+        result = least_squares(
+            fun, scaled.scaling.to_scaled(problem.initial), jac=jac, method=self.method, ftol=self.ftol, xtol=self.xtol, gtol=self.gtol
+        )
         J = scaled.jacobian(result.x)
         F = float(result.fun @ result.fun)
         njev = result.njev if result.njev is not None else result.nfev

@@ -131,7 +131,9 @@ class BearingsBatch:
     bearings: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "bearings", (None, None), readonly=True))
     observer: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "observer", readonly=True))
     sigma: float | None = attrs.field(default=None, converter=_sigma)
-    initial: np.ndarray | None = attrs.field(default=None, converter=lambda v: None if v is None else as_float_array(v, "initial", readonly=True))
+    initial: np.ndarray | None = attrs.field(
+        default=None, converter=lambda v: None if v is None else as_float_array(v, "initial", readonly=True)
+    )
     reference_time: float = attrs.field(default=None)
     convention: str = attrs.field(default="north", validator=lambda i, a, v: check_convention(v))
 
@@ -215,7 +217,7 @@ class Scaling:
     reference_time: float
 
     @classmethod
-    def build(cls, times, observer, initial, reference_time) -> "Scaling":
+    def build(cls, times, observer, initial, reference_time) -> Scaling:
         origin = observer[..., 0, :]
         extent = np.linalg.norm(np.ptp(observer, axis=-2), axis=-1)
         length = np.maximum(extent, 1.0)
@@ -298,12 +300,26 @@ def normal_equations(p, q, r, powers, out=None):
 
 
 # S flattened as 3 i + j (weight i, power j): H_ab and g_a read off it
-_H_FROM_S = np.array([
-    0, 3, 1, 4,    # H_0· = Σp², Σpq, Σp²τ, Σpqτ
-    3, 6, 4, 7,    # H_1· = Σpq, Σq², Σpqτ, Σq²τ
-    1, 4, 2, 5,    # H_2· = Σp²τ, Σpqτ, Σp²τ², Σpqτ²
-    4, 7, 5, 8,    # H_3· = Σpqτ, Σq²τ, Σpqτ², Σq²τ²
-])
+_H_FROM_S = np.array(
+    [
+        0,
+        3,
+        1,
+        4,  # H_0· = Σp², Σpq, Σp²τ, Σpqτ
+        3,
+        6,
+        4,
+        7,  # H_1· = Σpq, Σq², Σpqτ, Σq²τ
+        1,
+        4,
+        2,
+        5,  # H_2· = Σp²τ, Σpqτ, Σp²τ², Σpqτ²
+        4,
+        7,
+        5,
+        8,  # H_3· = Σpqτ, Σq²τ, Σpqτ², Σq²τ²
+    ]
+)
 _G_FROM_S = np.array([9, 12, 10, 13])  # g = Σpr, Σqr, Σprτ, Σqrτ
 
 
@@ -319,7 +335,7 @@ class ScaledProblem:
     scaling: Scaling
 
     @classmethod
-    def build(cls, times, bearings, observer, initial, reference_time, convention) -> "ScaledProblem":
+    def build(cls, times, bearings, observer, initial, reference_time, convention) -> ScaledProblem:
         scaling = Scaling.build(times, observer, initial, reference_time)
         o = scaling.observer(observer)
         return cls(scaling.tau(times), o[..., 0], o[..., 1], wrap_angle(bearings), convention, scaling)
@@ -393,11 +409,20 @@ class BatchTMASolution:
 
     def solution(self, i: int) -> TMASolution:
         return TMASolution(
-            parameters=self.parameters[i], covariance=self.covariance[i], cost=float(self.cost[i]),
-            iterations=int(self.iterations[i]), evaluations=int(self.evaluations[i]), converged=bool(self.converged[i]),
-            message=self.messages[i], reference_time=self.reference_time, sqrt_ka=float(self.sqrt_ka[i]),
-            chi2_statistic=float(self.chi2_statistic[i]), chi2_dof=self.chi2_dof, chi2_pvalue=float(self.chi2_pvalue[i]),
-            consistent=None if self.consistent is None else bool(self.consistent[i]), method=self.method,
+            parameters=self.parameters[i],
+            covariance=self.covariance[i],
+            cost=float(self.cost[i]),
+            iterations=int(self.iterations[i]),
+            evaluations=int(self.evaluations[i]),
+            converged=bool(self.converged[i]),
+            message=self.messages[i],
+            reference_time=self.reference_time,
+            sqrt_ka=float(self.sqrt_ka[i]),
+            chi2_statistic=float(self.chi2_statistic[i]),
+            chi2_dof=self.chi2_dof,
+            chi2_pvalue=float(self.chi2_pvalue[i]),
+            consistent=None if self.consistent is None else bool(self.consistent[i]),
+            method=self.method,
         )
 
 
@@ -473,10 +498,20 @@ def to_solution(problem: BearingsProblem, scaled: ScaledProblem, s, F, H, iterat
         converged = False
         message = (message + "; " if message else "") + "unobservable: JᵀJ singular"
     return TMASolution(
-        parameters=theta, covariance=cov, cost=float(F), iterations=int(iterations), evaluations=int(evaluations),
-        converged=bool(converged), message=message, reference_time=problem.reference_time, sqrt_ka=float(ska),
-        chi2_statistic=float(stat), chi2_dof=problem.size - N_PARAMETERS, chi2_pvalue=float(pval),
-        consistent=None if cons is None else bool(cons), method=method,
+        parameters=theta,
+        covariance=cov,
+        cost=float(F),
+        iterations=int(iterations),
+        evaluations=int(evaluations),
+        converged=bool(converged),
+        message=message,
+        reference_time=problem.reference_time,
+        sqrt_ka=float(ska),
+        chi2_statistic=float(stat),
+        chi2_dof=problem.size - N_PARAMETERS,
+        chi2_pvalue=float(pval),
+        consistent=None if cons is None else bool(cons),
+        method=method,
     )
 
 
@@ -505,6 +540,4 @@ def from_polar(bearing_angle, range_, course, speed, observer_position, conventi
     ux, uy = direction(bearing_angle, convention)
     cx, cy = direction(course, convention)
     observer_position = np.asarray(observer_position, dtype=float)
-    return np.stack(
-        [observer_position[..., 0] + range_ * ux, observer_position[..., 1] + range_ * uy, speed * cx, speed * cy], axis=-1
-    )
+    return np.stack([observer_position[..., 0] + range_ * ux, observer_position[..., 1] + range_ * uy, speed * cx, speed * cy], axis=-1)

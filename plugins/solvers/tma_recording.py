@@ -18,7 +18,7 @@ No ``COMPONENTS``: a helper of the solver family, not a plugin.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

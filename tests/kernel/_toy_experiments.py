@@ -11,8 +11,6 @@ import os
 import signal
 from pathlib import Path
 
-import numpy as np
-
 from hybridtrack.experiment import Experiment
 
 

@@ -11,7 +11,6 @@ from hybridtrack import Gaussian, Schedule
 from hybridtrack.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
 from hybridtrack.bank import FilterBank
 from hybridtrack.simulate import simulate
-from hybridtrack_plugins.detectors.sprt_change import ChangeTimeSPRT
 from hybridtrack_plugins.motion.linear_modes import Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
 
@@ -89,7 +88,7 @@ def test_example1_detects_the_right_turn():
         assert not [c for c in run.changes if c.step <= 20]  # no false alarm on the straight part
         if change is not None and change.mode == "right_turn_r5":
             detected += 1
-            assert (run.mode[change.step:] == 1).all()  # the estimate now follows the right-turn filter
+            assert (run.mode[change.step :] == 1).all()  # the estimate now follows the right-turn filter
         assert run.bank_sizes[0] == 1 and run.bank_sizes.max() <= 1 + 2 * 50
     assert detected >= 5
 
@@ -97,7 +96,9 @@ def test_example1_detects_the_right_turn():
 def test_bank_is_bounded_by_pruning_and_by_algorithm4():
     sensors = [PositionSensor(noise_cov=NOISE)]
     _, z = example1(1)
-    small = UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, alpha=0.1, beta=0.1, bank_size=4, pruning="nearest_lower").run(z, Gaussian(X0, np.eye(4)))
+    small = UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, alpha=0.1, beta=0.1, bank_size=4, pruning="nearest_lower").run(
+        z, Gaussian(X0, np.eye(4))
+    )
     assert small.bank_sizes.max() <= 1 + 4 + 2  # filter 0, the kept entries, this step's new pair
     alg4 = UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, alpha=0.1, beta=0.1, bank_size="algorithm4")
     run = alg4.run(z, Gaussian(X0, np.eye(4)))
@@ -106,11 +107,18 @@ def test_bank_is_bounded_by_pruning_and_by_algorithm4():
 
 
 def test_decentralized_ratios_and_signal_function_equal_the_centralized_ones():
-    sensors = [PositionSensor(name="a", noise_cov=NOISE), PositionSensor(name="b", components="x", noise_cov=[[0.04]]),
-               PositionSensor(name="c", components="y", noise_cov=[[0.02]])]
+    sensors = [
+        PositionSensor(name="a", noise_cov=NOISE),
+        PositionSensor(name="b", components="x", noise_cov=[[0.04]]),
+        PositionSensor(name="c", components="y", noise_cov=[[0.02]]),
+    ]
     _, z = example1(3, sensors)
-    runs = {name: UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, alpha=0.1, beta=0.1, estimator=name).run(z, Gaussian(X0, np.eye(4)))
-            for name in ("kalman", "decentralized")}
+    runs = {
+        name: UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, alpha=0.1, beta=0.1, estimator=name).run(
+            z, Gaussian(X0, np.eye(4))
+        )
+        for name in ("kalman", "decentralized")
+    }
     central, decentral = runs["kalman"], runs["decentralized"]
     assert decentral.node_log_ratios.shape == (51, 3, 3) and central.node_log_ratios is None
     finite = np.isfinite(central.log_ratios)
@@ -135,7 +143,9 @@ def test_known_switch_identifies_each_segment():
     from hybridtrack.pipeline import run_known_modes
 
     error = np.sqrt(np.mean(np.sum((run.means[:, [0, 2]] - truth.positions) ** 2, axis=1)))
-    known = run_known_modes(schedule, estimator="kalman", sensors=sensors, measurements=z, prior=Gaussian(X0, np.eye(4)), tau=0.1, noise_cov=q)
+    known = run_known_modes(
+        schedule, estimator="kalman", sensors=sensors, measurements=z, prior=Gaussian(X0, np.eye(4)), tau=0.1, noise_cov=q
+    )
     optimal = np.sqrt(np.mean(np.sum((known.means[:, [0, 2]] - truth.positions) ** 2, axis=1)))
     assert optimal < error < 1.0  # as in seed 001 Table 2: the optimal KF beats the adaptive one
 
@@ -180,8 +190,13 @@ def test_recording_of_an_adaptive_run(tmp_path):
     assert path.stat().st_size > 0 and run.decisions
     if recording is not None:
         paths = {str(c.entity_path) for c in recording.schema().component_columns()}
-        for entity in ("/world/estimate/ex1", "/detector/sprt_unknown_change/log_ratio/right_turn_r5",
-                       "/detector/sprt_unknown_change/upper", "/detector/signal_function/signal", "/estimator/ex1/bank_size"):
+        for entity in (
+            "/world/estimate/ex1",
+            "/detector/sprt_unknown_change/log_ratio/right_turn_r5",
+            "/detector/sprt_unknown_change/upper",
+            "/detector/signal_function/signal",
+            "/estimator/ex1/bank_size",
+        ):
             assert entity in paths, (entity, sorted(paths))
 
 

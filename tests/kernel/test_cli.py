@@ -45,7 +45,13 @@ def test_plugins_json_lists_every_registered_component(capsys):
     registry = hybridtrack.plugins.load_plugins().registry
     assert {(i["kind"], i["name"]) for i in listing} == {(e.kind, e.name) for e in registry.entries()}
     straight = next(i for i in listing if i["name"] == "straight")
-    assert straight == {"plugin": "motion", "distribution": "hybridtrack", "version": hybridtrack.__version__, "kind": "motion_model", "name": "straight"}
+    assert straight == {
+        "plugin": "motion",
+        "distribution": "hybridtrack",
+        "version": hybridtrack.__version__,
+        "kind": "motion_model",
+        "name": "straight",
+    }
 
 
 def test_plugins_table_shows_plugins_components_and_summaries(capsys):

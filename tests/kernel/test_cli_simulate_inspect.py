@@ -29,8 +29,27 @@ def test_simulate_toml_schedule_noise_free_without_recording(tmp_path, capsys):
     schedule = tmp_path / "s.toml"
     schedule.write_text('[[segment]]\nmode = "straight"\nsteps = 5\n\n[[segment]]\nmode = "stop"\nsteps = 2\n')
     npz = tmp_path / "s.npz"
-    assert main(["simulate", "--schedule", str(schedule), "--no-noise", "--no-record", "--x0", "0", "1", "0", "0",
-                 "--npz", str(npz), "--rrd", str(tmp_path / "none.rrd")]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--schedule",
+                str(schedule),
+                "--no-noise",
+                "--no-record",
+                "--x0",
+                "0",
+                "1",
+                "0",
+                "0",
+                "--npz",
+                str(npz),
+                "--rrd",
+                str(tmp_path / "none.rrd"),
+            ]
+        )
+        == 0
+    )
     states = np.load(npz)["states"]
     np.testing.assert_allclose(states[-1], [0.5, 0, 0, 0], atol=1e-12)
     assert not (tmp_path / "none.rrd").exists()

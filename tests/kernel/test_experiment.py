@@ -42,6 +42,7 @@ def calls(log: Path) -> list[int]:
 
 # -- seeds -------------------------------------------------------------------------------------------
 
+
 def test_run_seed_is_the_index_th_child_of_the_campaign_seed_sequence():
     children = np.random.SeedSequence(42).spawn(7)
     for i, child in enumerate(children):
@@ -69,15 +70,17 @@ def test_chunks_cut_sorted_indices():
 
 # -- executors ---------------------------------------------------------------------------------------
 
+
 def test_inline_process_and_dask_executors_give_identical_results(tmp_path):
     distributed = pytest.importorskip("distributed")
     inline = run_campaign(DRAWS, 10, tmp_path / "inline", executor="inline", seed=11, progress=False)
-    process = run_campaign(DRAWS, 10, tmp_path / "process", executor="process", workers=2, chunk_size=3, seed=11,
-                           progress=False)
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp://", host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
-        dask = run_campaign(DRAWS, 10, tmp_path / "dask", executor="dask", scheduler=cluster.scheduler_address,
-                            chunk_size=4, seed=11, progress=False)
+    process = run_campaign(DRAWS, 10, tmp_path / "process", executor="process", workers=2, chunk_size=3, seed=11, progress=False)
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, protocol="tcp://", host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        dask = run_campaign(
+            DRAWS, 10, tmp_path / "dask", executor="dask", scheduler=cluster.scheduler_address, chunk_size=4, seed=11, progress=False
+        )
     assert_same_results(inline.arrays, process.arrays)
     assert_same_results(inline.arrays, dask.arrays)
     assert (inline.computed, process.computed, dask.computed) == (10, 10, 10)
@@ -85,6 +88,7 @@ def test_inline_process_and_dask_executors_give_identical_results(tmp_path):
 
 
 # -- interruption and resumption ---------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("executor", ["inline", "process"])
 def test_a_failed_campaign_resumes_without_losing_or_repeating_a_run(tmp_path, executor):
@@ -99,7 +103,7 @@ def test_a_failed_campaign_resumes_without_losing_or_repeating_a_run(tmp_path, e
 
     resumed = run_campaign(FLAKY, 12, tmp_path / "out", **options)
     assert resumed.reused == len(stored) and resumed.computed == 12 - len(stored)
-    second_calls = calls(log)[len(first_calls):]
+    second_calls = calls(log)[len(first_calls) :]
     assert sorted(second_calls) == sorted(set(range(12)) - set(stored.tolist())), "a stored run was recomputed"
     np.testing.assert_array_equal(resumed.arrays["index"], np.arange(12))
 
@@ -110,9 +114,29 @@ def test_a_failed_campaign_resumes_without_losing_or_repeating_a_run(tmp_path, e
 def test_a_killed_campaign_resumes_where_it_stopped(tmp_path):
     """The process running the campaign is killed (SIGKILL) inside run 5; `hybridtrack run` again finishes it."""
     log, marker, out = tmp_path / "calls.log", tmp_path / "killed-once", tmp_path / "out"
-    args = ["run", str(TOY), "--n", "9", "--executor", "inline", "--chunk", "1", "--out", str(out), "--seed", "8",
-            "--param", f"log={log}", "--param", f"marker={marker}", "--param", "fail_at=5", "--param", "how=kill",
-            "--no-progress"]
+    args = [
+        "run",
+        str(TOY),
+        "--n",
+        "9",
+        "--executor",
+        "inline",
+        "--chunk",
+        "1",
+        "--out",
+        str(out),
+        "--seed",
+        "8",
+        "--param",
+        f"log={log}",
+        "--param",
+        f"marker={marker}",
+        "--param",
+        "fail_at=5",
+        "--param",
+        "how=kill",
+        "--no-progress",
+    ]
     killed = subprocess.run([sys.executable, "-m", "hybridtrack", *args], capture_output=True, text=True, timeout=120)
     assert killed.returncode == -9, killed.stderr
     assert ResultStore(out).completed().tolist() == [0, 1, 2, 3, 4]
@@ -153,6 +177,7 @@ def test_a_run_stored_twice_is_reported(tmp_path):
 
 
 # -- definitions and errors --------------------------------------------------------------------------
+
 
 def test_bad_arguments_are_clear_errors(tmp_path):
     with pytest.raises(ValueError, match="n: expected a positive integer"):
@@ -197,10 +222,26 @@ def test_progress_bar_only_on_a_terminal(monkeypatch):
 
 # -- the CLI and the built-in experiment -------------------------------------------------------------
 
+
 def test_cli_runs_demo_rmse_and_a_second_call_reuses_every_run(tmp_path, capsys):
     out = tmp_path / "demo"
-    args = ["run", "demo_rmse", "--n", "3", "--executor", "inline", "--out", str(out), "--seed", "4",
-            "--param", "steps_scale=0.1", "--param", "R=0.1", "--json"]
+    args = [
+        "run",
+        "demo_rmse",
+        "--n",
+        "3",
+        "--executor",
+        "inline",
+        "--out",
+        str(out),
+        "--seed",
+        "4",
+        "--param",
+        "steps_scale=0.1",
+        "--param",
+        "R=0.1",
+        "--json",
+    ]
     assert main(args) == 0
     first = json.loads(capsys.readouterr().out)
     assert (first["computed"], first["reused"], first["n"]) == (3, 0, 3)
@@ -239,7 +280,8 @@ def test_cli_finds_experiments_by_name_in_the_experiments_folder(tmp_path, monke
     (tmp_path / "experiments").mkdir()
     (tmp_path / "experiments" / "coin.py").write_text(
         "from hybridtrack.experiment import Experiment\n"
-        "EXPERIMENT = Experiment('coin', lambda index, rng: {'heads': float(rng.uniform() < 0.5)})\n")
+        "EXPERIMENT = Experiment('coin', lambda index, rng: {'heads': float(rng.uniform() < 0.5)})\n"
+    )
     assert main(["run", "coin", "--n", "4", "--executor", "inline", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["out"] == str(Path("runs") / "coin") and summary["computed"] == 4

@@ -50,7 +50,9 @@ def test_every_plugin_family_folder_is_a_declared_package_with_an_entry_point():
     declared = ENTRY_POINTS["hybridtrack"]
     for family in families:
         assert f"hybridtrack_plugins.{family}" in PACKAGES, f"plugins/{family}/ missing from [tool.setuptools] packages"
-        assert f"hybridtrack_plugins.{family}" in declared.values(), f"plugins/{family}/ has no entry point in [project.entry-points.hybridtrack]"
+        assert f"hybridtrack_plugins.{family}" in declared.values(), (
+            f"plugins/{family}/ has no entry point in [project.entry-points.hybridtrack]"
+        )
 
 
 @pytest.mark.parametrize("top", ["hybridtrack", "hybridtrack_plugins"])
@@ -108,11 +110,17 @@ def test_the_wheel_contains_every_module(tmp_path):
     if unmet:
         pytest.skip(
             "building without isolation needs the build requirements in this environment; unmet: "
-            + ", ".join(unmet) + f" (install them with `{sys.executable} -m pip install " + " ".join(f"'{r.split(' (')[0]}'" for r in unmet) + "`)"
+            + ", ".join(unmet)
+            + f" (install them with `{sys.executable} -m pip install "
+            + " ".join(f"'{r.split(' (')[0]}'" for r in unmet)
+            + "`)"
         )
     result = subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", str(ROOT), "-w", str(tmp_path)],
-        capture_output=True, text=True, timeout=300, check=False,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
     )
     assert result.returncode == 0, result.stdout + result.stderr
     (wheel,) = tmp_path.glob("hybridtrack-*.whl")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hybridtrack import SEED001_TABLE1, Detector, DetectorStep, Decision, Gaussian, Schedule
+from hybridtrack import Decision, Detector, DetectorStep, Gaussian, Schedule
 from hybridtrack.pipeline import Pipeline
 from hybridtrack.recording import RerunRecorder
 from hybridtrack.simulate import simulate
@@ -46,11 +46,19 @@ def test_by_name_equals_by_object_and_step_equals_run():
     _, sensors, trajectory, z = scenario()
     by_name = Pipeline(
         models=["straight", ("left_turn", {"radius": 3.0, "noise_cov": np.diag([1e-3, 1e-3])})],
-        estimator="kalman", sensors=sensors, measurements=z, prior=PRIOR, tau=0.1,
+        estimator="kalman",
+        sensors=sensors,
+        measurements=z,
+        prior=PRIOR,
+        tau=0.1,
     )
     by_object = Pipeline(
         models=[Straight(), LeftTurn(radius=3.0, noise_cov=np.diag([1e-3, 1e-3]))],
-        estimator=KalmanFilter(), sensors=sensors, measurements=z, prior=(X0, np.eye(4)), tau=0.1,
+        estimator=KalmanFilter(),
+        sensors=sensors,
+        measurements=z,
+        prior=(X0, np.eye(4)),
+        tau=0.1,
     )
     run = by_name.run()
     steps = [by_object.step() for _ in range(by_object.steps)]
@@ -78,8 +86,11 @@ def test_estimates_track_the_truth_with_the_right_model():
     schedule, sensors, trajectory, z = scenario(seed=4, steps=200)
     pipeline = Pipeline(
         models=[("left_turn", {"radius": 3.0, "noise_cov": np.diag([1e-3, 1e-3])})],
-        estimator="kalman", sensors=sensors, measurements={k: v[100:] for k, v in z.items()},
-        prior=Gaussian(trajectory.states[100], 0.01 * np.eye(4)), tau=0.1,
+        estimator="kalman",
+        sensors=sensors,
+        measurements={k: v[100:] for k, v in z.items()},
+        prior=Gaussian(trajectory.states[100], 0.01 * np.eye(4)),
+        tau=0.1,
     )
     result = pipeline.run()
     error = result.means[:, 0] - trajectory.states[100:]
@@ -90,8 +101,9 @@ def test_estimates_track_the_truth_with_the_right_model():
 def test_detector_decisions_and_statistics_are_collected():
     _, sensors, _, z = scenario(seed=1, steps=200)
     stiff = ("straight", {"noise_cov": 1e-6 * np.eye(2)})  # cannot follow the turn: NIS explodes there
-    pipeline = Pipeline(models=[stiff], estimator="kalman", sensors=sensors, measurements=z, prior=PRIOR, tau=0.1,
-                        detectors=[NisThreshold()])
+    pipeline = Pipeline(
+        models=[stiff], estimator="kalman", sensors=sensors, measurements=z, prior=PRIOR, tau=0.1, detectors=[NisThreshold()]
+    )
     result = pipeline.run()
     assert len(result.decisions) == 1 and result.decisions[0].step > 100  # the turn starts at step 100
     assert result.statistics["nis_threshold"]["nis"].shape == (201,)
@@ -126,8 +138,16 @@ def test_run_is_recorded_and_error_midway_keeps_what_was_done(tmp_path):
     _, sensors, trajectory, z = scenario()
     path = tmp_path / "run.rrd"
     with RerunRecorder(path, {"test": 1}) as recorder:
-        pipeline = Pipeline(models=["straight"], estimator="kalman", sensors=sensors, measurements=z, prior=PRIOR,
-                            tau=0.1, recorder=recorder, truth=trajectory)
+        pipeline = Pipeline(
+            models=["straight"],
+            estimator="kalman",
+            sensors=sensors,
+            measurements=z,
+            prior=PRIOR,
+            tau=0.1,
+            recorder=recorder,
+            truth=trajectory,
+        )
         pipeline.step()
         pipeline.step()
 
@@ -153,10 +173,10 @@ def test_known_modes_runner_follows_the_schedule():
     error = run.means - trajectory.states
     nees = np.einsum("ki,kij,kj->k", error, np.linalg.inv(run.covs), error)
     assert nees[10:].mean() < 8  # consistent (χ²(4) mean 4); a filter with the wrong modes diverges
-    straight = Pipeline(models=[("straight", {"noise_cov": Q})], estimator="kalman", sensors=sensors,
-                        measurements=z, prior=PRIOR, tau=0.1).run()
+    straight = Pipeline(
+        models=[("straight", {"noise_cov": Q})], estimator="kalman", sensors=sensors, measurements=z, prior=PRIOR, tau=0.1
+    ).run()
     wrong = straight.means[:, 0] - trajectory.states
     assert np.einsum("ki,kij,kj->k", wrong, np.linalg.inv(straight.covs[:, 0]), wrong)[10:].mean() > 20
     with pytest.raises(ValueError, match="expected 141 steps"):
-        run_known_modes(schedule, estimator="kalman", sensors=sensors, measurements={"a": z["a"][:50]},
-                        prior=PRIOR, tau=0.1)
+        run_known_modes(schedule, estimator="kalman", sensors=sensors, measurements={"a": z["a"][:50]}, prior=PRIOR, tau=0.1)

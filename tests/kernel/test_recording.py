@@ -18,8 +18,15 @@ def run(path, seed=3, steps=40):
     sensors = [PositionSensor(name="a")]
     with RerunRecorder(path, {"seed": seed, "steps": steps}) as recorder:
         truth, z = simulate(schedule, X0, 0.1, sensors, seed=seed, recorder=recorder)
-        pipeline = Pipeline(models=["straight", ("right_turn", {"radius": 5.0})], estimator="kalman", sensors=sensors,
-                            measurements=z, prior=Gaussian(X0, np.eye(4)), tau=0.1, recorder=recorder)
+        pipeline = Pipeline(
+            models=["straight", ("right_turn", {"radius": 5.0})],
+            estimator="kalman",
+            sensors=sensors,
+            measurements=z,
+            prior=Gaussian(X0, np.eye(4)),
+            tau=0.1,
+            recorder=recorder,
+        )
         result = pipeline.run()
         recorder.log_event(7, "a decision", 0.7)
     return truth, z, result

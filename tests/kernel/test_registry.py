@@ -64,7 +64,9 @@ def test_duplicate_names_both_plugins_and_distributions():
     registry.add(Entry("sensor", "straight", Documented, "zigzag"))  # same name, other kind: fine
 
 
-@pytest.mark.parametrize("name, factory, message", [("", Documented, "non-empty string"), (3, Documented, "non-empty string"), ("x", 42, "not callable")])
+@pytest.mark.parametrize(
+    "name, factory, message", [("", Documented, "non-empty string"), (3, Documented, "non-empty string"), ("x", 42, "not callable")]
+)
 def test_bad_entries_are_rejected(name, factory, message):
     with pytest.raises(ValueError, match=message):
         Registry().add(Entry("sensor", name, factory, "p"))

@@ -26,15 +26,19 @@ from hybridtrack.types import Schedule
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "thirdparty_plugin"
 PROJECT = tomllib.loads((EXAMPLE / "pyproject.toml").read_text())["project"]
 SCRIPT = Path(sys.executable).with_name("hybridtrack")
-WEAVE_ROW = {"plugin": "zigzag", "distribution": "hybridtrack-zigzag", "version": PROJECT["version"], "kind": "motion_model", "name": "weave"}
+WEAVE_ROW = {
+    "plugin": "zigzag",
+    "distribution": "hybridtrack-zigzag",
+    "version": PROJECT["version"],
+    "kind": "motion_model",
+    "name": "weave",
+}
 
 
 @pytest.fixture
 def zigzag(install_distribution):
     """The example installed; returns the folder holding its dist-info (for a child's PYTHONPATH)."""
-    install_distribution(
-        PROJECT["name"], PROJECT["entry-points"]["hybridtrack"], version=PROJECT["version"], source_root=EXAMPLE / "src"
-    )
+    install_distribution(PROJECT["name"], PROJECT["entry-points"]["hybridtrack"], version=PROJECT["version"], source_root=EXAMPLE / "src")
     return install_distribution.root
 
 
@@ -90,7 +94,12 @@ def test_the_example_own_tests_pass_with_the_pytest_fixtures(zigzag):
     env.pop("HYBRIDTRACK_DISABLE_PLUGINS", None)
     result = subprocess.run(
         [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-c", str(EXAMPLE / "pyproject.toml"), str(EXAMPLE / "tests")],
-        capture_output=True, text=True, env=env, cwd=EXAMPLE, timeout=120, check=False,
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=EXAMPLE,
+        timeout=120,
+        check=False,
     )
     assert result.returncode == 0, result.stdout + result.stderr
     assert "5 passed" in result.stdout

@@ -57,10 +57,14 @@ def turn(switch_state, radius, left=True, tau=0.1, q=0.001) -> LinearTransition:
     A = np.array([[c, s / w], [-w * s, c]])
     F = np.kron(np.eye(2), A)
     sign = 1.0 if left else -1.0
-    B = np.array([
-        (x - sign * vy / w) * (1 - c), (w * x - sign * vy) * s,
-        (y + sign * vx / w) * (1 - c), (w * y + sign * vx) * s,
-    ])
+    B = np.array(
+        [
+            (x - sign * vy / w) * (1 - c),
+            (w * x - sign * vy) * s,
+            (y + sign * vx / w) * (1 - c),
+            (w * y + sign * vx) * s,
+        ]
+    )
     return LinearTransition(F, B, G4, np.eye(2) * q)
 
 

@@ -96,8 +96,13 @@ def test_contract():
 
 @pytest.mark.parametrize(
     "kwargs, message",
-    [({"sigma": 0.0}, "sigma"), ({"sigma": float("nan")}, "sigma"), ({"convention": "south"}, "convention"),
-     ({"observer": (1.0, 2.0, 3.0)}, "observer"), ({"observer": (np.nan, 0.0)}, "observer")],
+    [
+        ({"sigma": 0.0}, "sigma"),
+        ({"sigma": float("nan")}, "sigma"),
+        ({"convention": "south"}, "convention"),
+        ({"observer": (1.0, 2.0, 3.0)}, "observer"),
+        ({"observer": (np.nan, 0.0)}, "observer"),
+    ],
 )
 def test_bad_parameters(kwargs, message):
     with pytest.raises(ValueError, match=message):

@@ -48,14 +48,17 @@ def test_same_seed_same_scans_and_a_missing_measurement_stays_missing():
     np.testing.assert_array_equal(plain.counts, [1, 0, 1])
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"density": -0.1, "region": REGION}, "clutter_density"),
-    ({"density": np.inf, "region": REGION}, "clutter_density"),
-    ({"density": 0.1, "detection_probability": 0.0, "region": REGION}, "detection_probability"),
-    ({"density": 0.1, "detection_probability": 1.01, "region": REGION}, "detection_probability"),
-    ({"density": 0.1, "region": [[0.0, 0.0], [0.0, 1.0]]}, "region"),
-    ({"density": 0.1}, "region"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"density": -0.1, "region": REGION}, "clutter_density"),
+        ({"density": np.inf, "region": REGION}, "clutter_density"),
+        ({"density": 0.1, "detection_probability": 0.0, "region": REGION}, "detection_probability"),
+        ({"density": 0.1, "detection_probability": 1.01, "region": REGION}, "detection_probability"),
+        ({"density": 0.1, "region": [[0.0, 0.0], [0.0, 1.0]]}, "region"),
+        ({"density": 0.1}, "region"),
+    ],
+)
 def test_bad_clutter_models_raise_value_error(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ClutterModel(**kwargs)
@@ -87,10 +90,16 @@ def test_pipeline_runs_a_pda_bank_on_candidates_and_records_clutter_gates_and_we
     truth, sensor, scans = _scenario()
     path = tmp_path / "clutter.rrd"
     with RerunRecorder(path, {"seed": 2}) as recorder:
-        pipeline = Pipeline(models=["straight", ("right_turn", {"radius": 5.0})],
-                            estimator=("pda", {"detection_probability": 0.9, "clutter_density": 0.5}),
-                            sensors=[sensor], candidates=scans, prior=(np.array([0.0, 0.0, 0.0, 2.0]), np.eye(4) * 0.01),
-                            tau=0.1, recorder=recorder, truth=truth)
+        pipeline = Pipeline(
+            models=["straight", ("right_turn", {"radius": 5.0})],
+            estimator=("pda", {"detection_probability": 0.9, "clutter_density": 0.5}),
+            sensors=[sensor],
+            candidates=scans,
+            prior=(np.array([0.0, 0.0, 0.0, 2.0]), np.eye(4) * 0.01),
+            tau=0.1,
+            recorder=recorder,
+            truth=truth,
+        )
         result = pipeline.run()
     assert result.means.shape == (51, 2, 4)
     assert np.abs(result.means[:20, 0, [0, 2]] - truth.positions[:20]).max() < 0.5  # straight filter on the straight leg
@@ -102,8 +111,9 @@ def test_pipeline_runs_a_pda_bank_on_candidates_and_records_clutter_gates_and_we
         expected = false[k][~np.isnan(false[k, :, 0])]
         np.testing.assert_allclose(points, expected, rtol=1e-6, atol=1e-5)  # float32 positions
     steps, beta = rec.series("estimator/straight/beta")
-    expected = np.array([[r.innovation.associations[0].missed[0], r.innovation.associations[0].weights[0].max(initial=0.0)]
-                         for r in pipeline._results])
+    expected = np.array(
+        [[r.innovation.associations[0].missed[0], r.innovation.associations[0].weights[0].max(initial=0.0)] for r in pipeline._results]
+    )
     np.testing.assert_array_equal(beta, expected)
     steps, loglik = rec.series("estimator/right_turn_r5/association_loglik")
     np.testing.assert_array_equal(loglik, [r.innovation.associations[0].loglik[1] for r in pipeline._results])
@@ -128,8 +138,14 @@ def test_pipeline_candidates_need_an_associating_estimator_and_exclude_measureme
 def test_nearest_neighbour_and_pda_in_the_pipeline_agree_with_direct_updates():
     truth, sensor, scans = _scenario(density=1.0, seed=4)
     for estimator in ("nearest_neighbour", ("pda", {"detection_probability": 0.9, "clutter_density": 1.0})):
-        pipeline = Pipeline(models=["straight"], estimator=estimator, sensors=[sensor], candidates=scans,
-                            prior=(np.array([0.0, 0.0, 0.0, 2.0]), np.eye(4) * 0.01), tau=0.1)
+        pipeline = Pipeline(
+            models=["straight"],
+            estimator=estimator,
+            sensors=[sensor],
+            candidates=scans,
+            prior=(np.array([0.0, 0.0, 0.0, 2.0]), np.eye(4) * 0.01),
+            tau=0.1,
+        )
         result = pipeline.run()
         est = pipeline.estimator
         state = est.initialize(np.array([[0.0, 0.0, 0.0, 2.0]]), np.eye(4)[None] * 0.01)

@@ -15,7 +15,7 @@ def test_glr_statistic_against_brute_force():
     d = GLR(window=5, normalize=False, alpha=0.01)
     values = [d.update_statistic(v) for v in y]
     for n in range(30):
-        brute = max((y[k:n + 1].sum() ** 2) / (2 * (n - k + 1)) for k in range(max(0, n - 4), n + 1))
+        brute = max((y[k : n + 1].sum() ** 2) / (2 * (n - k + 1)) for k in range(max(0, n - 4), n + 1))
         assert values[n] == pytest.approx(brute)
     np.testing.assert_allclose(_h0.glr_statistics(y[None], 5)[0], values)
 
@@ -34,7 +34,9 @@ def test_empirical_normalizer_maps_the_reference_distribution_to_n01():
     assert np.isfinite(normalize(np.array([-1.0, 1e9]))).all()
 
 
-@pytest.mark.parametrize("make", [lambda: GLR(window=10, alpha=0.01, normalize=False), lambda: CUSUM(drift=0.5, alpha=0.01, normalize=False)])
+@pytest.mark.parametrize(
+    "make", [lambda: GLR(window=10, alpha=0.01, normalize=False), lambda: CUSUM(drift=0.5, alpha=0.01, normalize=False)]
+)
 def test_per_step_false_alarm_rate_under_h0_is_alpha(make):
     """Fresh seeded N(0,1) data (not the threshold's simulation): exceedances at steps spaced 50 apart ~ Binomial(n, α)."""
     y = np.random.default_rng(99).standard_normal((2000, 160))

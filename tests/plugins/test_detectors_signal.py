@@ -123,16 +123,26 @@ def test_signal_function_alarms_after_a_mode_change():
     schedule = Schedule.from_rows([("straight", 20), ("left_turn", 40, 3.0)])
     sensors = [PositionSensor()]
     _, z = simulate(schedule, X0, 0.1, sensors, seed=3, noise_cov=np.diag([1e-3, 1e-3]))
-    run = Pipeline(models=[Straight(noise_cov=np.diag([1e-3, 1e-3]))], estimator="kalman", sensors=sensors, measurements=z,
-                   prior=Gaussian(X0, np.eye(4)), tau=0.1, detectors=[SignalFunction(window=10)]).run()
+    run = Pipeline(
+        models=[Straight(noise_cov=np.diag([1e-3, 1e-3]))],
+        estimator="kalman",
+        sensors=sensors,
+        measurements=z,
+        prior=Gaussian(X0, np.eye(4)),
+        tau=0.1,
+        detectors=[SignalFunction(window=10)],
+    ).run()
     assert run.decisions and all(d.step > 20 for d in run.decisions)
 
 
 def test_decentralized_signal_function_equals_the_centralized_one():
     """Each node's NIS from its own information filter + the broadcast terms (seed 000 eq. 22) → same S_k."""
     rng = np.random.default_rng(11)
-    sensors = [PositionSensor(name="a"), PositionSensor(name="b", components="x", noise_cov=[[0.04]]),
-               PositionSensor(name="c", components="y", noise_cov=[[0.02]])]
+    sensors = [
+        PositionSensor(name="a"),
+        PositionSensor(name="b", components="x", noise_cov=[[0.04]]),
+        PositionSensor(name="c", components="y", noise_cov=[[0.02]]),
+    ]
     models = [Straight(), LeftTurn(radius=5.0)]
     transitions = TransitionBank.stack([m.transition(0.1, X0) for m in models])
     central, decentral = KalmanFilter(), DecentralizedFilter()
@@ -146,7 +156,9 @@ def test_decentralized_signal_function_equals_the_centralized_one():
         if k:
             x = models[0].transition(0.1, X0).apply(x) + np.array([0, 0.1, 0, 0.1]) * rng.standard_normal(4)
             sc, sd = central.predict(sc, transitions), decentral.predict(sd, transitions)
-        z = np.concatenate([x[[0, 2]] + 0.1 * rng.standard_normal(2), [x[0] + 0.2 * rng.standard_normal()], [x[2] + 0.14 * rng.standard_normal()]])
+        z = np.concatenate(
+            [x[[0, 2]] + 0.1 * rng.standard_normal(2), [x[0] + 0.2 * rng.standard_normal()], [x[2] + 0.14 * rng.standard_normal()]]
+        )
         sc, inn = central.update(sc, z, sensors, LAYOUT)
         sd, _ = decentral.update(sd, z, sensors, LAYOUT)
         ref = det_c.step(k, inn).statistics["signal"]

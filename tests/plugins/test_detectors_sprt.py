@@ -24,8 +24,12 @@ def test_pairwise_increment_is_seed_001_equation_4():
     S = np.array([[[1.0, 0.2], [0.2, 2.0]], [[3.0, 0.0], [0.0, 1.0]]])
     d = PairwiseSPRT(alpha=0.01, beta=0.01)
     out = d.step(0, gaussian_innovation(nu, S))
-    two_mu = (np.linalg.slogdet(S[1])[1] - np.linalg.slogdet(S[0])[1]
-              + nu[1] @ np.linalg.solve(S[1], nu[1]) - nu[0] @ np.linalg.solve(S[0], nu[0]))
+    two_mu = (
+        np.linalg.slogdet(S[1])[1]
+        - np.linalg.slogdet(S[0])[1]
+        + nu[1] @ np.linalg.solve(S[1], nu[1])
+        - nu[0] @ np.linalg.solve(S[0], nu[0])
+    )
     assert out.statistics["log_ratio"][0] == pytest.approx(two_mu / 2)
     assert out.statistics["log_ratio"][1] == pytest.approx(-two_mu / 2)
 

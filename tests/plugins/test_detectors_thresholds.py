@@ -29,8 +29,16 @@ def test_three_sigma_rule_is_alpha_0027():
 @pytest.mark.parametrize("factory", [PairwiseSPRT, ChangeTimeSPRT])
 @pytest.mark.parametrize(
     "alpha, beta, message",
-    [(0.0, 0.1, "alpha"), (1.0, 0.1, "alpha"), (-0.1, 0.1, "alpha"), (0.1, 0.0, "beta"), (0.1, 1.5, "beta"),
-     (0.6, 0.4, "alpha \\+ beta"), (0.7, 0.5, "alpha \\+ beta"), ("x", 0.1, "alpha")],
+    [
+        (0.0, 0.1, "alpha"),
+        (1.0, 0.1, "alpha"),
+        (-0.1, 0.1, "alpha"),
+        (0.1, 0.0, "beta"),
+        (0.1, 1.5, "beta"),
+        (0.6, 0.4, "alpha \\+ beta"),
+        (0.7, 0.5, "alpha \\+ beta"),
+        ("x", 0.1, "alpha"),
+    ],
 )
 def test_bad_error_probabilities_are_named(factory, alpha, beta, message):
     with pytest.raises(ValueError, match=message):

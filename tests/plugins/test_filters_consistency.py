@@ -70,7 +70,10 @@ def test_linear_modes(mode, kwargs, estimator):
 
 @pytest.mark.parametrize(
     "estimator, sensor",
-    [("ekf", RadarSensor(range_std=10.0, azimuth_std=np.deg2rad(0.1))), ("ekf_sqrt", PolarRadarSensor(range_std=10.0, azimuth_std=np.deg2rad(0.1)))],
+    [
+        ("ekf", RadarSensor(range_std=10.0, azimuth_std=np.deg2rad(0.1))),
+        ("ekf_sqrt", PolarRadarSensor(range_std=10.0, azimuth_std=np.deg2rad(0.1))),
+    ],
     ids=["ekf-radar_cartesian", "ekf_sqrt-radar_polar"],
 )
 def test_ekf_on_ship_model(estimator, sensor):

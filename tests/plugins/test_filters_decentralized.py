@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
+from _filters_support import LAYOUT, bank_of, position_sensor, radii_bank, simulate
 
 import hybridtrack as ht
-
-from _filters_support import LAYOUT, bank_of, position_sensor, radii_bank, simulate
 
 REL = 1e-9
 

@@ -3,11 +3,10 @@ measurement update for every kind of H and R (selection, general, per filter) an
 
 import numpy as np
 import pytest
+from _filters_support import random_spd
 
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._linalg import CholeskyFactor, cholesky
-
-from _filters_support import random_spd
 
 LOG_2PI = np.log(2.0 * np.pi)
 
@@ -115,7 +114,7 @@ def test_joseph_is_the_two_sided_product_for_the_gain_used():
     """P⁺ = (I − K H) P (I − K H)ᵀ + K R Kᵀ with the returned K, also for a badly scaled bank (1e-12 … 1e12)."""
     rng = np.random.default_rng(11)
     M, n = 5, 4
-    P = np.stack([random_spd(rng, n, 10.0 ** e) for e in (-12, -6, 0, 6, 12)])
+    P = np.stack([random_spd(rng, n, 10.0**e) for e in (-12, -6, 0, 6, 12)])
     R = np.diag([1e-3, 4e-3])
     H = np.zeros((2, n))
     H[0, 0] = H[1, 2] = 1.0
@@ -130,9 +129,9 @@ def test_joseph_is_the_two_sided_product_for_the_gain_used():
 
 def test_cached_measurement_step_still_checks_z():
     """After a step has cached the sensors' model, inf in z still raises and NaN still means 'not measured'."""
-    from hybridtrack_plugins.filters.kalman import KalmanFilter
-
     from _filters_support import LAYOUT, bank_of, position_sensor, straight
+
+    from hybridtrack_plugins.filters.kalman import KalmanFilter
 
     est = KalmanFilter(structure=False)
     sensor = position_sensor(np.array([[0.02, 0.005], [0.005, 0.03]]))

@@ -2,11 +2,10 @@
 
 import numpy as np
 import pytest
+from _filters_support import G4, LAYOUT, bank_of, position_sensor, radii_bank, random_spd, simulate
 
 import hybridtrack as ht
 from hybridtrack.interfaces import LinearTransition, TransitionBank
-
-from _filters_support import G4, LAYOUT, bank_of, position_sensor, radii_bank, random_spd, simulate
 
 REL = 1e-9
 FORMS = ["information", "decentralized", "potter", "bierman", "srif", "srif_decentralized"]

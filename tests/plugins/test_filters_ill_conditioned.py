@@ -11,10 +11,9 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from _filters_support import LAYOUT, bank_of, position_sensor, simulate, straight
 
 import hybridtrack as ht
-
-from _filters_support import LAYOUT, bank_of, position_sensor, simulate, straight
 
 STEPS = 100
 

@@ -2,13 +2,12 @@
 
 import numpy as np
 import pytest
+from _filters_support import LAYOUT, MatrixSensor, bank_of, position_sensor, radii_bank, random_spd, simulate, straight, turn
 from filterpy.kalman import KalmanFilter as FilterpyKF
 
 import hybridtrack as ht
 from hybridtrack.interfaces import TransitionBank
 from hybridtrack_plugins.filters.kalman import KalmanFilter
-
-from _filters_support import LAYOUT, MatrixSensor, bank_of, position_sensor, radii_bank, random_spd, simulate, straight, turn
 
 
 def _run(est, transitions, sensors, Z, x0, P0):
@@ -96,7 +95,10 @@ def test_update_forms_agree_on_well_conditioned_problem():
     tr = straight(q=0.01)
     s = position_sensor(np.diag([0.5, 0.5]))
     _, Z = simulate(tr, [s], np.zeros(4), 50, rng)
-    runs = {f: _run(KalmanFilter(form=f), bank_of([tr]), [s], Z[0], np.zeros((1, 4)), np.eye(4)[None]) for f in ("joseph", "symmetric", "conventional")}
+    runs = {
+        f: _run(KalmanFilter(form=f), bank_of([tr]), [s], Z[0], np.zeros((1, 4)), np.eye(4)[None])
+        for f in ("joseph", "symmetric", "conventional")
+    }
     for k in range(50):
         for f in ("symmetric", "conventional"):
             np.testing.assert_allclose(runs[f][k][0].covariance, runs["joseph"][k][0].covariance, rtol=1e-9, atol=1e-15)

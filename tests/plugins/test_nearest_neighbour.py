@@ -3,6 +3,7 @@ equality with the Kalman update on the chosen candidate, per-filter gating in a 
 
 import numpy as np
 import pytest
+from _filters_support import LAYOUT, position_sensor, straight
 from scipy.stats import chi2
 
 from hybridtrack.clutter import Scan
@@ -10,8 +11,6 @@ from hybridtrack.interfaces import TransitionBank
 from hybridtrack.testing import check_estimator
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.filters.nearest_neighbour import NearestNeighbourFilter
-
-from _filters_support import LAYOUT, position_sensor, straight
 
 
 def test_the_nearest_in_mahalanobis_distance_wins_not_the_nearest_in_metres():

@@ -3,6 +3,7 @@ the association likelihood, the bank against single filters, bad input (SPEC §6
 
 import numpy as np
 import pytest
+from _filters_support import LAYOUT, MatrixSensor, position_sensor, straight, turn
 from scipy.stats import chi2, multivariate_normal
 
 from hybridtrack.clutter import Scan
@@ -11,8 +12,6 @@ from hybridtrack.testing import check_estimator
 from hybridtrack_plugins.filters._association import ClutterInnovation
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.filters.pda import PDAFilter
-
-from _filters_support import LAYOUT, MatrixSensor, position_sensor, straight, turn
 
 
 def _hybrid_measurements(rng, steps=40):
@@ -180,22 +179,27 @@ def test_sequential_scans_of_two_sensors_without_clutter_equal_the_centralized_k
         np.testing.assert_allclose(s_pda.P, s_kf.P, rtol=1e-9, atol=1e-12)
         assert inn.measurement_dim == 3 and len(inn.associations) == 2
         # the stacked innovation is consistent: NIS = Σ of the sensors' NIS
-        nis = sum(np.einsum("mi,mi->m", n, np.linalg.solve(S, n[..., None])[..., 0])
-                  for n, S in ((inn.nu[:, :2], inn.S[:, :2, :2]), (inn.nu[:, 2:], inn.S[:, 2:, 2:])))
+        nis = sum(
+            np.einsum("mi,mi->m", n, np.linalg.solve(S, n[..., None])[..., 0])
+            for n, S in ((inn.nu[:, :2], inn.S[:, :2, :2]), (inn.nu[:, 2:], inn.S[:, 2:, 2:]))
+        )
         np.testing.assert_allclose(inn.nis, nis, rtol=1e-9)
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"detection_probability": 0.0}, "detection_probability"),
-    ({"detection_probability": 1.5}, "detection_probability"),
-    ({"detection_probability": float("nan")}, "detection_probability"),
-    ({"clutter_density": -1.0}, "clutter_density"),
-    ({"clutter_density": float("inf")}, "clutter_density"),
-    ({"gate_probability": 0.0}, "gate_probability"),
-    ({"gate_probability": 1.0}, "gate_probability"),
-    ({"gate_probability": 1.2}, "gate_probability"),
-    ({"form": "inverse"}, "form"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"detection_probability": 0.0}, "detection_probability"),
+        ({"detection_probability": 1.5}, "detection_probability"),
+        ({"detection_probability": float("nan")}, "detection_probability"),
+        ({"clutter_density": -1.0}, "clutter_density"),
+        ({"clutter_density": float("inf")}, "clutter_density"),
+        ({"gate_probability": 0.0}, "gate_probability"),
+        ({"gate_probability": 1.0}, "gate_probability"),
+        ({"gate_probability": 1.2}, "gate_probability"),
+        ({"form": "inverse"}, "form"),
+    ],
+)
 def test_bad_parameters_raise_value_error(kwargs, message):
     with pytest.raises(ValueError, match=message):
         PDAFilter(**kwargs)
@@ -253,7 +257,9 @@ def test_pda_agrees_with_stone_soup_on_the_same_measurements():
         z = [truth[[0, 2]] + rng.multivariate_normal(np.zeros(2), R)] if rng.random() < P_D else []
         z += list(truth[[0, 2]] + rng.uniform(-10, 10, (rng.poisson(lam * 400), 2)))
         Z = np.array(z).reshape(-1, 2)
-        hypotheses = associator.associate({track}, {Detection(zi.reshape(-1, 1), timestamp=t, measurement_model=measurement_model) for zi in Z}, t)[track]
+        hypotheses = associator.associate(
+            {track}, {Detection(zi.reshape(-1, 1), timestamp=t, measurement_model=measurement_model) for zi in Z}, t
+        )[track]
         posterior = updater.update(hypotheses)
         track.append(posterior)
         state, innovation = pda.update(pda.predict(state, bank), Scan("pos", Z), [sensor], LAYOUT)

@@ -37,10 +37,12 @@ def test_zero_rate_is_constant_velocity_without_division():
 def test_continuous_in_omega_and_jacobian_matches_differences(omega):
     x = np.array([100.0, 50.0, 7.0, -3.0, omega])
     np.testing.assert_allclose(ShipTurn.jacobian(x, TAU), _numeric_jacobian(x, TAU), rtol=1e-6, atol=1e-6)
-    closed = np.array([
-        x[0] + (x[2] * np.sin(omega * TAU) - x[3] * (1 - np.cos(omega * TAU))) / omega,
-        x[1] + (x[2] * (1 - np.cos(omega * TAU)) + x[3] * np.sin(omega * TAU)) / omega,
-    ])
+    closed = np.array(
+        [
+            x[0] + (x[2] * np.sin(omega * TAU) - x[3] * (1 - np.cos(omega * TAU))) / omega,
+            x[1] + (x[2] * (1 - np.cos(omega * TAU)) + x[3] * np.sin(omega * TAU)) / omega,
+        ]
+    )
     np.testing.assert_allclose(ShipTurn.f(x, TAU)[:2], closed, rtol=1e-9)
 
 

@@ -5,12 +5,12 @@ import warnings
 import numpy as np
 import pytest
 
+from hybridtrack_plugins.sensors.bearing import bearing_gradient
 from hybridtrack_plugins.solvers import _tma_kernel as kernel
 from hybridtrack_plugins.solvers import levenberg_marquardt
 from hybridtrack_plugins.solvers.levenberg_marquardt import BatchLevenbergMarquardt, LMSettings
 from hybridtrack_plugins.solvers.observer import Seed002Scenario, simulate_bearings
 from hybridtrack_plugins.solvers.tma_model import BearingsBatch, ScaledProblem, UnobservabilityWarning, normal_equations, time_powers
-from hybridtrack_plugins.sensors.bearing import bearing_gradient
 
 needs_numba = pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not installed: the numpy path is used")
 
@@ -46,8 +46,11 @@ def test_atan_polynomial_is_reproduced_by_its_derivation():
 @needs_numba
 def test_unit_vectors_match_sin_and_cos():
     rng = np.random.default_rng(2)
-    for X in (rng.uniform(-np.pi, np.pi, 100_000), rng.uniform(-1e4, 1e4, 100_000),
-              np.array([0.0, -0.0, np.pi, -np.pi, np.pi / 2, -np.pi / 2, np.pi / 4, 3 * np.pi / 4, 1e-300])):
+    for X in (
+        rng.uniform(-np.pi, np.pi, 100_000),
+        rng.uniform(-1e4, 1e4, 100_000),
+        np.array([0.0, -0.0, np.pi, -np.pi, np.pi / 2, -np.pi / 2, np.pi / 4, 3 * np.pi / 4, 1e-300]),
+    ):
         sx, cx = np.empty_like(X), np.empty_like(X)
         kernel.unit_vectors(X, sx, cx)
         assert np.abs(sx - np.sin(X)).max() <= 2.3e-16
@@ -140,8 +143,9 @@ def test_compiled_engine_with_per_problem_observers_and_starts():
 
 
 @needs_numba
-@pytest.mark.parametrize("settings", [LMSettings(max_iterations=2), LMSettings(lam0=1e-3, lam_up=1e4, lam_max=1.0),
-                                      LMSettings(F_tol=1e-6, lam0=1e-2)])
+@pytest.mark.parametrize(
+    "settings", [LMSettings(max_iterations=2), LMSettings(lam0=1e-3, lam_up=1e4, lam_max=1.0), LMSettings(F_tol=1e-6, lam0=1e-2)]
+)
 def test_compiled_engine_stops_like_the_numpy_engine(settings):
     batch = _batch(30, 1.0, seed=13, convention="north")
     compiled, reference = _solve(batch, "numba", settings), _solve(batch, "numpy", settings)

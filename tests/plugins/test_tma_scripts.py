@@ -5,7 +5,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -16,7 +15,9 @@ def run(script, *args):
 def test_montecarlo_script_writes_the_table(tmp_path):
     out = tmp_path / "mc.json"
     md = tmp_path / "mc.md"
-    result = run("experiments/tma_montecarlo.py", "--n", "20", "--sigma", "0", "0.5", "--seed", "3", "--json", str(out), "--markdown", str(md))
+    result = run(
+        "experiments/tma_montecarlo.py", "--n", "20", "--sigma", "0", "0.5", "--seed", "3", "--json", str(out), "--markdown", str(md)
+    )
     data = json.loads(out.read_text())
     assert {row["method"] for row in data["rows"]} == {"LM", "N"}
     for row in data["rows"]:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hybridtrack.plugins import load_plugins
+from hybridtrack_plugins.sensors.bearing import bearing_gradient
 from hybridtrack_plugins.solvers.levenberg_marquardt import BatchLevenbergMarquardt, LevenbergMarquardt, LMSettings
 from hybridtrack_plugins.solvers.n_bearings import NBearings
 from hybridtrack_plugins.solvers.observer import Seed002Scenario, simulate_bearings
@@ -19,7 +20,6 @@ from hybridtrack_plugins.solvers.tma_model import (
     normal_equations,
     time_powers,
 )
-from hybridtrack_plugins.sensors.bearing import bearing_gradient
 
 
 def scenario_data(count, sigma_deg, seed, interval=4.0, convention="north"):

@@ -6,7 +6,6 @@ registry; nothing else ties it to hybridtrack.
 """
 
 from hybridtrack import hookimpl
-
 from hybridtrack_zigzag.weave import Weave
 
 __all__ = ["Weave", "register_motion_models"]
