@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from hybridtrack import SEED001_TABLE1, Gaussian
-from hybridtrack.adaptive import KnownSwitchAdaptive
+from hybridtrack.composed.adaptive import KnownSwitchAdaptive
 from hybridtrack.recording import RerunRecorder
 from hybridtrack.simulate import simulate
 from hybridtrack_plugins.sensors.position import PositionSensor

@@ -26,7 +26,7 @@ import argparse
 import numpy as np
 
 from hybridtrack import SEED001_TABLE1, Gaussian, Schedule, Segment
-from hybridtrack.adaptive import KnownSwitchAdaptive
+from hybridtrack.composed.adaptive import KnownSwitchAdaptive
 from hybridtrack.pipeline import Pipeline, run_known_modes
 from hybridtrack.recording import RerunRecorder
 from hybridtrack.simulate import simulate

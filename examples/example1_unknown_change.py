@@ -18,7 +18,7 @@ import argparse
 import numpy as np
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.adaptive import UnknownChangeAdaptive
+from hybridtrack.composed.adaptive import UnknownChangeAdaptive
 from hybridtrack.recording import RerunRecorder
 from hybridtrack.simulate import simulate
 from hybridtrack_plugins.sensors.position import PositionSensor

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from hybridtrack.composed import algorithm4 as wald
 from hybridtrack.interfaces import TransitionBank
-from hybridtrack_plugins.detectors import _wald
-from hybridtrack_plugins.detectors._thresholds import sprt_thresholds
+from hybridtrack.thresholds import sprt_thresholds
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.motion.linear_modes import LeftTurn, RightTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
@@ -43,7 +43,7 @@ PAIRS = {
 def monte_carlo(model_0, model_p, true, alpha, beta, runs, horizon, seed):
     rng = np.random.default_rng(seed)
     t0, tp, tt = (m.transition(TAU, XS) for m in (model_0, model_p, true))
-    P0 = _wald.steady_state_filter(t0.F, H, t0.process_noise, R).P_posterior
+    P0 = wald.steady_state_filter(t0.F, H, t0.process_noise, R).P_posterior
     upper, lower = sprt_thresholds(alpha, beta)
     x = np.tile(XS, (runs, 1))
     start = XS + rng.standard_normal((runs, 4)) @ np.linalg.cholesky(P0).T
@@ -90,8 +90,8 @@ def main(argv=None) -> dict:
         for name, (m0, mp) in PAIRS.items():
             t0, tp = (m.transition(TAU, XS) for m in (m0, mp))
             f0, fp = (t0.F, t0.B, t0.process_noise), (tp.F, tp.B, tp.process_noise)
-            steady = _wald.wald_pair(f0, fp, H, R, XS, alpha, beta, horizon=args.horizon, gains="steady")
-            own = _wald.wald_pair(f0, fp, H, R, XS, alpha, beta, horizon=args.horizon, gains="transient")
+            steady = wald.wald_pair(f0, fp, H, R, XS, alpha, beta, horizon=args.horizon, gains="steady")
+            own = wald.wald_pair(f0, fp, H, R, XS, alpha, beta, horizon=args.horizon, gains="transient")
             row = {
                 "predicted": {
                     "N_0p_steady_limit": steady.n_0p_steady,

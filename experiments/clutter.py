@@ -39,8 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.bank import FilterBank
 from hybridtrack.clutter import ClutterModel, add_clutter, region_around
+from hybridtrack.composed.bank import FilterBank
 from hybridtrack.interfaces import TransitionBank
 from hybridtrack.plugins import get_registry
 from hybridtrack.simulate import simulate_measurements, simulate_trajectory

@@ -186,7 +186,7 @@ def calibration(sigma: float, window: int, burn_in: int, runs: int, seed: int, s
     GLR statistic on ω̂ normalized by that reference (steps ≥ burn_in + W), so the
     null sample is not computed on the values the CDF was fitted to.
     """
-    from hybridtrack_plugins.detectors._h0 import EmpiricalNormalizer, glr_statistics
+    from hybridtrack_plugins.detectors.null_calibration import EmpiricalNormalizer, glr_statistics
 
     p = dict(scenario)
     rng = np.random.default_rng([seed, int(round(sigma * 1000))])

@@ -9,11 +9,11 @@ uses child i of SeedSequence(seed), the same trajectories for every R).
 Three estimators on every trajectory:
 
 * the optimal KF told each segment's mode (seed 001 Table 2);
-* the known-switch adaptive estimator (:class:`hybridtrack.adaptive.KnownSwitchAdaptive`,
+* the known-switch adaptive estimator (:class:`hybridtrack.composed.adaptive.KnownSwitchAdaptive`,
   seed 001 Algorithm 1, the 21-filter bank, α = β = 0.01, the seed's
   ``follow="previous"`` rule);
 * the unknown-change-time adaptive estimator
-  (:class:`hybridtrack.adaptive.UnknownChangeAdaptive`, seed 000 Algorithm 3
+  (:class:`hybridtrack.composed.adaptive.UnknownChangeAdaptive`, seed 000 Algorithm 3
   repeated): filter 0 runs the current mode (straight at the start — nothing
   is known), every step starts one filter per alternative mode from filter 0's
   estimate (a turn's ω and centre fixed from it), ln λ_p averages the
@@ -81,7 +81,7 @@ def run_one(
     steps_scale: float,
 ) -> dict:
     """One trajectory: squared errors of the three estimators, per-segment delays, changes, identifications."""
-    from hybridtrack.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
+    from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
     from hybridtrack.types import Gaussian
 
     if modes not in MODE_SETS:

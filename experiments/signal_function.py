@@ -20,8 +20,8 @@ import numpy as np
 from scipy.stats import beta as beta_dist
 
 from hybridtrack.interfaces import TransitionBank
-from hybridtrack_plugins.detectors import _signal
-from hybridtrack_plugins.detectors._thresholds import THREE_SIGMA_ALPHA
+from hybridtrack.thresholds import THREE_SIGMA_ALPHA
+from hybridtrack_plugins.detectors import signal_bounds
 from hybridtrack_plugins.detectors.signal_function import SignalFunction
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.motion.linear_modes import Straight
@@ -80,14 +80,14 @@ def main(argv=None) -> dict:
     for name, detector, check, dof in cases:
         alarms = count(nis, detector, check)
         n = args.runs * len(check)
-        lower, upper = _signal.bounds(THREE_SIGMA_ALPHA, dof, detector.calibration)
+        lower, upper = signal_bounds.bounds(THREE_SIGMA_ALPHA, dof, detector.calibration)
         results["cases"][name] = {
             "trials": n,
             "alarms": alarms,
             "rate": alarms / n,
             "ci95": clopper_pearson(alarms, n),
             "dof": dof,
-            "exact_chi2_rate": _signal.false_alarm_probability(dof, lower, upper),
+            "exact_chi2_rate": signal_bounds.false_alarm_probability(dof, lower, upper),
         }
         print(name, results["cases"][name])
     out = ROOT / "docs" / "results" / "signal_function"

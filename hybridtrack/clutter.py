@@ -36,7 +36,7 @@ from collections.abc import Mapping, Sequence
 import attrs
 import numpy as np
 
-from hybridtrack._arrays import as_float_array
+from hybridtrack.validation import as_float_array
 
 # --------------------------------------------------------------------------- value types
 

@@ -44,7 +44,7 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack._arrays import as_float_array, check_covariance, readonly_array_field
+from hybridtrack.validation import as_float_array, check_covariance, readonly_array_field
 
 KINDS = ("motion_model", "sensor", "estimator", "detector", "solver")
 

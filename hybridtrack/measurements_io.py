@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack._arrays import as_float_array
+from hybridtrack.validation import as_float_array
 
 
 def _check(measurements: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -13,8 +13,8 @@ import attrs
 import numpy as np
 import scipy.linalg
 
-from hybridtrack._arrays import as_float_array
 from hybridtrack.interfaces import Sensor
+from hybridtrack.validation import as_float_array
 
 
 def _sensors(value) -> tuple[Sensor, ...]:

@@ -23,11 +23,11 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from hybridtrack._arrays import as_float_array, check_covariance
 from hybridtrack.interfaces import MotionModel, Sensor, convert_layout
 from hybridtrack.network import SensorNetwork
 from hybridtrack.registry import Registry
 from hybridtrack.types import Schedule
+from hybridtrack.validation import as_float_array, check_covariance
 
 
 def _rng(seed) -> np.random.Generator:

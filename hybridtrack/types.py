@@ -16,7 +16,7 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from hybridtrack._arrays import readonly_array_field
+from hybridtrack.validation import readonly_array_field
 
 
 @attrs.frozen

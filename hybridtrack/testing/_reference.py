@@ -17,8 +17,8 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.linalg
 
-from hybridtrack._arrays import check_covariance
 from hybridtrack.interfaces import Innovation, LinearTransition, Sensor, TransitionBank
+from hybridtrack.validation import check_covariance
 
 CV_LAYOUT = ("x", "vx", "y", "vy")
 

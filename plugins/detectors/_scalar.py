@@ -6,7 +6,7 @@ e.g. angular-rate estimates) or taken from the bank: the NIS of filter
 of ``reference`` (a sample of the raw signal under H_0); for the NIS without a
 reference, the reference is a seeded sample of χ²(m), the NIS distribution of
 the correct model.  The threshold is λ(α), the (1 − α) quantile of the
-statistic under H_0 from seeded simulation (:mod:`._h0`); setting ``alpha``
+statistic under H_0 from seeded simulation (:mod:`.null_calibration`); setting ``alpha``
 moves it (dynamic thresholds).
 
 The seeded simulation feeds the statistic independent N(0, 1) values (seed 003
@@ -15,7 +15,7 @@ estimate — is N(0, 1) at each step but strongly autocorrelated, so its window
 sums are far wider than under independence and λ(α) from independent input
 gives many more false alarms than α.  ``null_sample`` replaces the simulated
 sample by values of the statistic computed on the actual signal under H_0
-(e.g. :func:`._h0.glr_statistics` on normalized estimates of simulated
+(e.g. :func:`.null_calibration.glr_statistics` on normalized estimates of simulated
 straight runs); λ(α) is then its (1 − α) quantile.
 """
 
@@ -26,10 +26,10 @@ from abc import abstractmethod
 import numpy as np
 
 from hybridtrack.interfaces import DetectorStep
+from hybridtrack.thresholds import check_probability
 from hybridtrack.types import Decision
 from hybridtrack_plugins.detectors._base import ScoreDetector, check_positive_int
-from hybridtrack_plugins.detectors._h0 import EmpiricalNormalizer, h0_quantile
-from hybridtrack_plugins.detectors._thresholds import check_probability
+from hybridtrack_plugins.detectors.null_calibration import EmpiricalNormalizer, h0_quantile
 
 REFERENCE_SIZE = 20000
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from hybridtrack_plugins.detectors._base import check_positive
-from hybridtrack_plugins.detectors._h0 import h0_sample
 from hybridtrack_plugins.detectors._scalar import ScalarDetector
+from hybridtrack_plugins.detectors.null_calibration import h0_sample
 
 
 class CUSUM(ScalarDetector):

@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 
 from hybridtrack.interfaces import Detector, DetectorStep, Innovation
+from hybridtrack.thresholds import check_probability
 from hybridtrack.types import Decision
 from hybridtrack_plugins.detectors._base import check_positive, check_positive_int
-from hybridtrack_plugins.detectors._thresholds import check_probability
 
 
 class SpeedDropCue:

@@ -17,8 +17,8 @@ from collections import deque
 import numpy as np
 
 from hybridtrack_plugins.detectors._base import check_positive_int
-from hybridtrack_plugins.detectors._h0 import h0_sample
 from hybridtrack_plugins.detectors._scalar import ScalarDetector
+from hybridtrack_plugins.detectors.null_calibration import h0_sample
 
 
 class GLR(ScalarDetector):

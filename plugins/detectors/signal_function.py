@@ -7,7 +7,7 @@ For every filter j of the watched bank, over the steps since the last reset
 
 compared with bounds for a two-sided per-step false-alarm probability
 ``alpha`` (default 2(1 − Φ(3)), i.e. the 3σ rule ±3; see
-:mod:`hybridtrack_plugins.detectors._signal` for the ``"chi2"`` calibration).
+:mod:`hybridtrack_plugins.detectors.signal_bounds` for the ``"chi2"`` calibration).
 A value of filter ``watch`` outside the bounds is an alarm ("change"); with
 ``reset_on_alarm`` the accumulation restarts after it.
 
@@ -24,10 +24,10 @@ from collections import deque
 import numpy as np
 
 from hybridtrack.interfaces import DetectorStep
+from hybridtrack.thresholds import THREE_SIGMA_ALPHA, check_probability
 from hybridtrack.types import Decision
-from hybridtrack_plugins.detectors import _signal
+from hybridtrack_plugins.detectors import signal_bounds
 from hybridtrack_plugins.detectors._base import ScoreDetector, check_positive_int
-from hybridtrack_plugins.detectors._thresholds import THREE_SIGMA_ALPHA, check_probability
 
 
 class SignalFunction(ScoreDetector):
@@ -44,8 +44,8 @@ class SignalFunction(ScoreDetector):
         reset_on_alarm: bool = True,
     ):
         self.window = None if window is None else check_positive_int(window, "window")
-        if calibration not in _signal.CALIBRATIONS:
-            raise ValueError(f"calibration: expected one of {_signal.CALIBRATIONS}, got {calibration!r}")
+        if calibration not in signal_bounds.CALIBRATIONS:
+            raise ValueError(f"calibration: expected one of {signal_bounds.CALIBRATIONS}, got {calibration!r}")
         self.calibration = calibration
         self.alpha = alpha
         self.watch = check_positive_int(watch, "watch", minimum=0)
@@ -88,8 +88,8 @@ class SignalFunction(ScoreDetector):
         if self.watch >= nis.shape[0]:
             raise ValueError(f"watch: filter {self.watch} is not in a bank of {nis.shape[0]} filters")
         total, dof = self._accumulate(nis, int(m))
-        signal = _signal.standardize(total, dof)
-        lower, upper = _signal.bounds(self.alpha, dof, self.calibration)
+        signal = signal_bounds.standardize(total, dof)
+        lower, upper = signal_bounds.bounds(self.alpha, dof, self.calibration)
         value = float(signal[self.watch])
         decision = None
         if dof > 0 and not (lower <= value <= upper):

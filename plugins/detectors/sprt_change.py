@@ -40,9 +40,9 @@ import numpy as np
 from scipy.special import logsumexp
 
 from hybridtrack.interfaces import DetectorStep
+from hybridtrack.thresholds import WaldThresholds
 from hybridtrack.types import Decision
 from hybridtrack_plugins.detectors._base import ScoreDetector, check_positive_int
-from hybridtrack_plugins.detectors._thresholds import WaldThresholds
 
 PRUNING_RULES = ("oldest", "nearest_lower")
 AVERAGING = ("uniform", "none")

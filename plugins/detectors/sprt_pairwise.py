@@ -33,9 +33,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from hybridtrack.interfaces import DetectorStep
+from hybridtrack.thresholds import WaldThresholds
 from hybridtrack.types import Decision
 from hybridtrack_plugins.detectors._base import ScoreDetector
-from hybridtrack_plugins.detectors._thresholds import WaldThresholds
 
 
 def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:

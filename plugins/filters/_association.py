@@ -52,11 +52,11 @@ import attrs
 import numpy as np
 from scipy.stats import chi2
 
+from hybridtrack.estimation import BankEstimator, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor
+from hybridtrack.linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
+from hybridtrack.measurements import block_diagonal
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
-from hybridtrack_plugins.filters._linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
-from hybridtrack_plugins.filters._measurements import block_diagonal
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
 # --------------------------------------------------------------------------- checks

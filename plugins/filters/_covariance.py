@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridtrack_plugins.filters._linalg import CholeskyFactor, symmetrize
-from hybridtrack_plugins.filters._measurements import selection_index
+from hybridtrack.linalg import CholeskyFactor, symmetrize
+from hybridtrack.measurements import selection_index
 
 UPDATE_FORMS = ("joseph", "symmetric", "conventional")
 
@@ -52,7 +52,7 @@ def update(x, P, nu, H, R, selection=None, form: str = "joseph"):
     * ``conventional``: P⁺ = (I − K H) P⁻ as printed, no symmetrisation (kept
       to show how it breaks on ill-conditioned problems, docs/estimators.md).
 
-    S⁻¹ comes from :class:`~hybridtrack_plugins.filters._linalg.CholeskyFactor`
+    S⁻¹ comes from :class:`~hybridtrack.linalg.CholeskyFactor`
     (closed forms for m ≤ 2: positive definiteness from a > 0 and det S > 0,
     S⁻¹ by the adjugate; the Cholesky recurrence for larger m), so K is one
     stacked matmul.  H is (m, n) or (M, m, n), R (m, m) or (M, m, m); a shared

@@ -14,10 +14,10 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack.estimation import BankEstimator, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor
+from hybridtrack.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
-from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
-from hybridtrack_plugins.filters._linalg import symmetrize
 
 
 @attrs.frozen(eq=False)

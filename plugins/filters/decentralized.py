@@ -25,10 +25,10 @@ from functools import cached_property
 import attrs
 import numpy as np
 
+from hybridtrack.estimation import BankEstimator, NodeMoments, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.linalg import symmetrize
 from hybridtrack_plugins.filters import _information as info
-from hybridtrack_plugins.filters._base import BankEstimator, NodeMoments, empty_innovation
-from hybridtrack_plugins.filters._linalg import symmetrize
 from hybridtrack_plugins.filters.information import information_predict, stacked_innovation
 
 

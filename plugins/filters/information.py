@@ -17,11 +17,11 @@ from functools import cached_property
 import attrs
 import numpy as np
 
+from hybridtrack.estimation import BankEstimator, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.linalg import cholesky, gaussian_scores, symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _information as info
-from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
-from hybridtrack_plugins.filters._linalg import cholesky, gaussian_scores, symmetrize
 
 
 @attrs.frozen(eq=False, slots=False)

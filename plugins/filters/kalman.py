@@ -22,10 +22,10 @@ from functools import cached_property
 import attrs
 import numpy as np
 
+from hybridtrack.estimation import BankEstimator, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
-from hybridtrack_plugins.filters._base import BankEstimator, empty_innovation
 
 
 @attrs.frozen(eq=False)

@@ -16,9 +16,9 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack.estimation import BankEstimator, NodeMoments, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack_plugins.filters import _sqrt
-from hybridtrack_plugins.filters._base import BankEstimator, NodeMoments, empty_innovation
 from hybridtrack_plugins.filters.srif import SRIFState, srif_innovation
 
 

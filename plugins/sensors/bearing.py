@@ -23,8 +23,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack._arrays import as_float_array, check_covariance
 from hybridtrack.interfaces import Sensor
+from hybridtrack.validation import as_float_array, check_covariance
 
 CONVENTIONS = ("north", "math")
 

@@ -15,8 +15,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack._arrays import check_covariance
 from hybridtrack.interfaces import Sensor
+from hybridtrack.validation import check_covariance
 
 DEFAULT_NOISE = ((0.01, 0.0), (0.0, 0.01))
 

@@ -22,8 +22,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack._arrays import as_float_array
 from hybridtrack.interfaces import Sensor
+from hybridtrack.validation import as_float_array
 
 
 def wrap_to_pi(angle):

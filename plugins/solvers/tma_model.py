@@ -34,8 +34,8 @@ import attrs
 import numpy as np
 from scipy import stats
 
-from hybridtrack._arrays import as_float_array
 from hybridtrack.interfaces import Solution
+from hybridtrack.validation import as_float_array
 from hybridtrack_plugins.sensors.bearing import (
     angle_difference,
     bearing,

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
-from hybridtrack.bank import FilterBank
+from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
+from hybridtrack.composed.bank import FilterBank
 from hybridtrack.simulate import simulate
 from hybridtrack_plugins.motion.linear_modes import Straight
 from hybridtrack_plugins.sensors.position import PositionSensor

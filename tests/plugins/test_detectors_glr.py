@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.stats import binom, norm
 
-from hybridtrack_plugins.detectors import _h0
+from hybridtrack_plugins.detectors import null_calibration
 from hybridtrack_plugins.detectors.cusum import CUSUM
 from hybridtrack_plugins.detectors.dynamic_threshold import DynamicThreshold, SpeedDropCue
 from hybridtrack_plugins.detectors.glr import GLR
@@ -17,18 +17,18 @@ def test_glr_statistic_against_brute_force():
     for n in range(30):
         brute = max((y[k : n + 1].sum() ** 2) / (2 * (n - k + 1)) for k in range(max(0, n - 4), n + 1))
         assert values[n] == pytest.approx(brute)
-    np.testing.assert_allclose(_h0.glr_statistics(y[None], 5)[0], values)
+    np.testing.assert_allclose(null_calibration.glr_statistics(y[None], 5)[0], values)
 
 
 def test_cusum_recursion_by_hand():
     d = CUSUM(drift=0.5, normalize=False, alpha=0.01)
     assert [d.update_statistic(v) for v in (1.0, 1.0, -3.0)] == pytest.approx([0.5, 1.0, 2.5])
-    np.testing.assert_allclose(_h0.cusum_statistics(np.array([[1.0, 1.0, -3.0]]), 0.5)[0], [0.5, 1.0, 2.5])
+    np.testing.assert_allclose(null_calibration.cusum_statistics(np.array([[1.0, 1.0, -3.0]]), 0.5)[0], [0.5, 1.0, 2.5])
 
 
 def test_empirical_normalizer_maps_the_reference_distribution_to_n01():
     rng = np.random.default_rng(2)
-    normalize = _h0.EmpiricalNormalizer(rng.exponential(2.0, 20000))
+    normalize = null_calibration.EmpiricalNormalizer(rng.exponential(2.0, 20000))
     y = normalize(rng.exponential(2.0, 20000))
     assert abs(y.mean()) < 0.03 and y.std() == pytest.approx(1.0, abs=0.03)
     assert np.isfinite(normalize(np.array([-1.0, 1e9]))).all()
@@ -41,7 +41,11 @@ def test_per_step_false_alarm_rate_under_h0_is_alpha(make):
     """Fresh seeded N(0,1) data (not the threshold's simulation): exceedances at steps spaced 50 apart ~ Binomial(n, α)."""
     y = np.random.default_rng(99).standard_normal((2000, 160))
     detector = make()
-    g = _h0.glr_statistics(y, detector.window) if isinstance(detector, GLR) else _h0.cusum_statistics(y, detector.drift)
+    g = (
+        null_calibration.glr_statistics(y, detector.window)
+        if isinstance(detector, GLR)
+        else null_calibration.cusum_statistics(y, detector.drift)
+    )
     hits = int((g[:, [59, 109, 159]] > detector.threshold).sum())
     n = 2000 * 3
     assert binom.ppf(0.0005, n, 0.01) <= hits <= binom.ppf(0.9995, n, 0.01)
@@ -105,12 +109,12 @@ def test_null_sample_calibrates_the_threshold_on_an_autocorrelated_signal():
     """N(0,1) marginals but autocorrelated (as a filtered estimate): λ(α) from independent input gives far more
     than α false alarms per step; λ(α) from a null sample of g on the same kind of signal gives α."""
     rng = np.random.default_rng(5)
-    null = _h0.glr_statistics(_ar1(rng, (1000, 300)), 10)[:, 50:]
+    null = null_calibration.glr_statistics(_ar1(rng, (1000, 300)), 10)[:, 50:]
     calibrated = GLR(window=10, alpha=0.01, normalize=False, null_sample=null)
     independent = GLR(window=10, alpha=0.01, normalize=False)
     assert calibrated.threshold_sample().size == null.size and calibrated.threshold > 2 * independent.threshold
     assert calibrated.threshold == pytest.approx(np.quantile(null, 0.99))
-    fresh = _h0.glr_statistics(_ar1(np.random.default_rng(6), (3000, 160)), 10)[:, [59, 109, 159]]  # 50 steps apart
+    fresh = null_calibration.glr_statistics(_ar1(np.random.default_rng(6), (3000, 160)), 10)[:, [59, 109, 159]]  # 50 steps apart
     n = fresh.size
     hits = int((fresh > calibrated.threshold).sum())
     assert binom.ppf(0.0005, n, 0.01) <= hits <= binom.ppf(0.9995, n, 0.01)

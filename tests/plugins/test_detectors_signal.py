@@ -6,8 +6,8 @@ import pytest
 from scipy.stats import binom, chi2
 
 from hybridtrack.interfaces import TransitionBank
-from hybridtrack_plugins.detectors import _signal
-from hybridtrack_plugins.detectors._thresholds import THREE_SIGMA_ALPHA
+from hybridtrack.thresholds import THREE_SIGMA_ALPHA
+from hybridtrack_plugins.detectors import signal_bounds
 from hybridtrack_plugins.detectors.signal_function import SignalFunction
 from hybridtrack_plugins.filters.decentralized import DecentralizedFilter
 from hybridtrack_plugins.filters.kalman import KalmanFilter
@@ -94,7 +94,7 @@ def test_false_alarm_rate_of_the_3sigma_rule_on_windows_of_10(nis_sample):
     check = {9, 19, 29, 39, 49}
     alarms = alarm_rate(SignalFunction(window=10, reset_on_alarm=False), nis_sample, check)
     n = 4000 * len(check)
-    exact = _signal.false_alarm_probability(20, -3.0, 3.0)
+    exact = signal_bounds.false_alarm_probability(20, -3.0, 3.0)
     assert exact == pytest.approx(chi2.sf(20 + 3 * np.sqrt(40), 20), rel=1e-6)  # lower tail ≈ 2e-10
     low, high = binomial_interval(n, exact)
     assert low <= alarms <= high, (alarms, n * exact)
@@ -110,7 +110,7 @@ def test_chi2_calibrated_bounds_give_the_nominal_0027(nis_sample):
 
 def test_cumulative_statistic_at_step_50_matches_the_chi2_100_tail(nis_sample):
     alarms = alarm_rate(SignalFunction(reset_on_alarm=False), nis_sample, {49})
-    low, high = binomial_interval(4000, _signal.false_alarm_probability(100, -3.0, 3.0))
+    low, high = binomial_interval(4000, signal_bounds.false_alarm_probability(100, -3.0, 3.0))
     assert low <= alarms <= high
 
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from _filters_support import random_spd
 
+from hybridtrack.linalg import CholeskyFactor, cholesky
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._linalg import CholeskyFactor, cholesky
 
 LOG_2PI = np.log(2.0 * np.pi)
 

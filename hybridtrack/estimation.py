@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from hybridtrack._arrays import as_float_array
 from hybridtrack.interfaces import Estimator, Innovation, TransitionBank, check_prior
-from hybridtrack_plugins.filters._measurements import MeasurementAssembler
+from hybridtrack.measurements import MeasurementAssembler
+from hybridtrack.validation import as_float_array
 
 
 class NodeMoments:

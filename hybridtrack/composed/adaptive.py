@@ -1,7 +1,7 @@
 """Adaptive estimation: the estimate follows the filter of the identified motion mode (SPEC §4, §7).
 
 Two drivers compose registered plugins — motion models, an estimator, a
-detector — around a :class:`~hybridtrack.bank.FilterBank` whose membership
+detector — around a :class:`~hybridtrack.composed.bank.FilterBank` whose membership
 changes over time, which a fixed-bank :class:`~hybridtrack.pipeline.Pipeline`
 cannot express:
 
@@ -47,7 +47,7 @@ from typing import Any
 import attrs
 import numpy as np
 
-from hybridtrack.bank import FilterBank
+from hybridtrack.composed.bank import FilterBank
 from hybridtrack.interfaces import Detector, Estimator, MotionModel, Sensor
 from hybridtrack.network import SensorNetwork
 from hybridtrack.pipeline import _registry, resolve
@@ -422,7 +422,7 @@ class UnknownChangeAdaptive:
     # ------------------------------------------------------------------ Algorithm 4
     def algorithm4_bank_size(self, switch_state, horizon: int = 300) -> int:
         """Alternative filters to keep: Algorithm 4's steps per change time × (M − 1), from ``switch_state``."""
-        from hybridtrack_plugins.detectors._wald import algorithm4_bank_size, wald_pair
+        from hybridtrack.composed.algorithm4 import algorithm4_bank_size, wald_pair
 
         x_s = np.asarray(switch_state, dtype=float)
         H = self.network.jacobian(x_s, self.layout)

@@ -41,7 +41,7 @@ import attrs
 import numpy as np
 import scipy.linalg
 
-from hybridtrack_plugins.detectors._thresholds import check_error_probabilities, sprt_thresholds
+from hybridtrack.thresholds import check_error_probabilities, sprt_thresholds
 
 
 @attrs.frozen(eq=False)

@@ -20,8 +20,8 @@ from functools import lru_cache
 import attrs
 import numpy as np
 
-from hybridtrack._arrays import as_float_array
 from hybridtrack.interfaces import Sensor
+from hybridtrack.validation import as_float_array
 
 
 @attrs.frozen(eq=False)
