@@ -287,7 +287,7 @@ def log_associations(
 ) -> None:
     """Gates, association weights and association likelihoods of clutter-aware updates.
 
-    ``innovations`` holds one :class:`~hybridtrack_plugins.filters._association.ClutterInnovation`
+    ``innovations`` holds one :class:`~hybridtrack.interfaces.ClutterInnovation`
     (or plain Innovation, skipped) per step.  Per filter j and sensor s:
 
     * ``world/estimate/<filter>/gate`` — the gate {z : (z − ẑ)ᵀS⁻¹(z − ẑ) ≤ γ}

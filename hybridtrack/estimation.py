@@ -1,7 +1,15 @@
-"""Shared pieces of the bank estimators: input checks, the empty innovation, the reading API.
+"""A base for bank estimators: input checks, measurement assembly, bank operations, the reading API.
 
-Every estimator state object of this family exposes, per step and per filter
-(issue 3 item 5):
+Written for plugin authors (the built-in filters use it exactly as a third
+party would): subclass :class:`BankEstimator`, implement ``initialize``,
+``predict`` and ``update`` for one algebraic form, and declare the state as an
+attrs class whose per-filter arrays are :func:`bank_field` s; ``take`` and
+``concatenate`` (the bank operations of the
+:class:`~hybridtrack.interfaces.Estimator` contract) then work on the state's
+own form — square-root factors and per-node copies are selected and joined,
+never rebuilt from (x, P).
+
+Every estimator state object of this family exposes, per step and per filter:
 
 * ``mean`` (M, n) and ``covariance`` (M, n, n): the current (updated, or just
   predicted) estimate, P assembled from the factors for factor forms;
@@ -16,6 +24,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import attrs
 import numpy as np
 
 from hybridtrack.interfaces import Estimator, Innovation, TransitionBank, check_prior
@@ -46,13 +55,84 @@ class NodeMoments:
         return self._moments[1][0]
 
 
+def bank_field(axis: int = 0, **kwargs):
+    """An attrs field of a bank state stacked over the M filters on ``axis`` (0 for (M, …), 1 for (N, M, …)).
+
+    The value may be an array, a tuple of arrays (each stacked the same way),
+    or None.  :func:`take_rows` and :func:`concatenate_states` act on these
+    fields; the other fields (e.g. the last innovation) describe the last step
+    and are reset to their defaults.
+    """
+    return attrs.field(metadata={"bank_axis": axis}, **kwargs)
+
+
+def _bank_fields(state) -> list:
+    if not attrs.has(type(state)):
+        raise TypeError(f"state: expected an attrs class with bank_field()s, got {type(state).__name__}")
+    return [f for f in attrs.fields(type(state)) if "bank_axis" in f.metadata]
+
+
+def _reset_fields(state) -> dict:
+    """Fields that are not bank fields and have a default (the last step's outputs) go back to it."""
+    return {
+        f.name: f.default.factory() if isinstance(f.default, attrs.Factory) else f.default
+        for f in attrs.fields(type(state))
+        if "bank_axis" not in f.metadata and f.default is not attrs.NOTHING
+    }
+
+
+def _map(value, function):
+    if value is None:
+        return None
+    if isinstance(value, tuple):
+        return tuple(function(v) for v in value)
+    return function(value)
+
+
+def take_rows(state, rows: Sequence[int]):
+    """The state of the filters ``rows`` (in that order, repeats copy a filter) of a bank state with bank_field()s."""
+    rows = np.asarray(rows, dtype=np.intp).reshape(-1)
+    changes = {
+        f.name: _map(getattr(state, f.name), lambda a, axis=f.metadata["bank_axis"]: np.take(a, rows, axis=axis))
+        for f in _bank_fields(state)
+    }
+    return attrs.evolve(state, **changes, **_reset_fields(state))
+
+
+def concatenate_states(states: Sequence):
+    """One state holding the filters of ``states`` (same class, same non-bank fields) in order."""
+    states = list(states)
+    if not states:
+        raise ValueError("states: expected at least one bank state")
+    first = states[0]
+    kind = type(first)
+    if any(type(s) is not kind for s in states):
+        raise TypeError(f"states: expected states of one class, got {sorted({type(s).__name__ for s in states})}")
+    changes = {}
+    for f in _bank_fields(first):
+        values = [getattr(s, f.name) for s in states]
+        axis = f.metadata["bank_axis"]
+        if any(v is None for v in values):
+            changes[f.name] = None
+        elif isinstance(values[0], tuple):
+            changes[f.name] = tuple(np.concatenate(parts, axis=axis) for parts in zip(*values))
+        else:
+            changes[f.name] = np.concatenate(values, axis=axis)
+    return attrs.evolve(first, **changes, **_reset_fields(first))
+
+
 def empty_innovation(bank_size: int) -> Innovation:
     """m = 0: no measurement at this step (prediction only)."""
     return Innovation(np.zeros((bank_size, 0)), np.zeros((bank_size, 0, 0)), np.zeros(bank_size), np.zeros(bank_size))
 
 
 class BankEstimator(Estimator):
-    """Common plumbing; subclasses implement the maths of one form."""
+    """Common plumbing; subclasses implement the maths of one form.
+
+    ``take``/``concatenate`` work on any attrs state whose per-filter arrays
+    are :func:`bank_field` s; override :meth:`conform` when states of one
+    estimator can come in several forms that must be made alike before joining.
+    """
 
     def __init__(self):
         self._assembler = MeasurementAssembler()
@@ -62,9 +142,6 @@ class BankEstimator(Estimator):
     @staticmethod
     def _check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
         return check_prior(mean, cov)
-
-    #: estimators that relinearize (EKF forms) accept nonlinear sensors and a callable for ``transitions``
-    accepts_nonlinear = False
 
     def _check_transitions(self, transitions, bank_size: int, n: int, x: np.ndarray | None = None) -> TransitionBank:
         """F (M, n, n), B (M, n), Q (M, n, n) finite; a bank already checked (same object) is not re-checked.
@@ -112,6 +189,17 @@ class BankEstimator(Estimator):
             raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {names} are nonlinear (use an extended filter)")
         z_pred, H = step.predicted(x, layout)
         return step, step.residual(z_pred), H
+
+    # ------------------------------------------------------------------ bank operations
+    def take(self, state: Any, rows: Sequence[int]) -> Any:
+        return take_rows(state, rows)
+
+    def concatenate(self, states: Sequence[Any]) -> Any:
+        return concatenate_states(self.conform(list(states)))
+
+    def conform(self, states: list) -> list:
+        """Bring states of one bank into one form before :meth:`concatenate` (default: as they are)."""
+        return states
 
     # ------------------------------------------------------------------ reading
     def mean(self, state: Any) -> np.ndarray:

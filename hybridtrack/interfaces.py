@@ -38,7 +38,7 @@ the checks, and ``tests/contract``, can build and exercise it without help):
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
 
 import attrs
@@ -108,6 +108,8 @@ class MotionModel(ABC):
     name: ClassVar[str]
     layout: ClassVar[tuple[str, ...]]
     linear: ClassVar[bool] = True
+    #: the turn radius of a turn mode (labels, reports); None for the others
+    radius: float | None = None
 
     noise_cov: np.ndarray
 
@@ -153,7 +155,7 @@ class Sensor(ABC):
 
     Contract:
 
-    * ``name`` is the node id (unique within a network), ``kind`` the registry
+    * ``name`` is the node id (unique within a network), ``registry_name`` the registry
       name (class attribute), ``measurement_dim`` m, ``noise_cov`` R (m, m)
       symmetric positive definite.
     * ``measure(x, layout)`` is h(x) for x of shape (..., n) → (..., m);
@@ -170,7 +172,7 @@ class Sensor(ABC):
     ``example_layout`` (default ``("x", "vx", "y", "vy")``).
     """
 
-    kind: ClassVar[str]
+    registry_name: ClassVar[str]
     linear: ClassVar[bool] = True
 
     name: str
@@ -208,6 +210,49 @@ class Sensor(ABC):
         return z + rng.standard_normal(z.shape) @ L.T
 
 
+# --------------------------------------------------------------------------- labels
+
+
+class Labelled:
+    """An instance label, separate from the registry name.
+
+    ``name`` (class attribute) is the registry name; ``label`` names this
+    instance in a run (result keys, recorded entity paths) and defaults to
+    ``name``, so two instances of one class with different parameters coexist
+    (``("signal_function", {"window": 10}, "sf10")`` or ``det.label = "sf10"``).
+    """
+
+    name: ClassVar[str]
+
+    @property
+    def label(self) -> str:
+        return self.__dict__.get("_label") or self.name
+
+    @label.setter
+    def label(self, value: str) -> None:
+        if not isinstance(value, str) or not value.strip() or "/" in value:
+            raise ValueError(f"label: expected a non-empty name without '/', got {value!r}")
+        self.__dict__["_label"] = value
+
+
+def require(component: Any, protocol: type, role: str) -> Any:
+    """``component`` if it implements ``protocol`` (an ABC of this module), else a TypeError naming what is missing.
+
+    ``role`` names the argument (e.g. ``"detector"``).  The message lists the
+    protocol's methods and declared attributes the object lacks, so a plugin
+    author learns from it what to implement.
+    """
+    if isinstance(component, protocol):
+        return component
+    wanted = sorted(getattr(protocol, "__abstractmethods__", ())) + list(getattr(protocol, "declared_attributes", ()))
+    missing = [m for m in wanted if not hasattr(component, m)]
+    what = f"; it lacks {', '.join(missing)}" if missing else ""
+    raise TypeError(
+        f"{role}: {type(component).__name__} does not implement hybridtrack.interfaces.{protocol.__name__}"
+        f" (subclass it and implement {', '.join(wanted) or 'its methods'}){what}"
+    )
+
+
 # --------------------------------------------------------------------------- estimators
 
 
@@ -228,6 +273,51 @@ class Innovation:
     @property
     def measurement_dim(self) -> int:
         return self.nu.shape[-1]
+
+
+@attrs.frozen(eq=False)
+class Association:
+    """What one clutter-aware update of a bank did with one sensor's scan (SPEC §6).
+
+    ``candidates`` (L, m); ``predicted`` ẑ (M, m); ``S`` (M, m, m); ``gate`` γ;
+    ``distances`` d² (M, L); ``gated`` (M, L) bool; ``weights`` β_i (M, L)
+    (nearest neighbour: 1 for the chosen candidate); ``missed`` β_0 (M,)
+    (nearest neighbour: 1 when nothing was gated); ``selected`` (M,) the chosen
+    (NN) or most probable (PDA) candidate, −1 for none; ``loglik`` (M,)
+    ln Λ (PDA) or the Gaussian ℓ of the chosen candidate (NN, NaN when none).
+    """
+
+    sensor: str
+    candidates: np.ndarray
+    predicted: np.ndarray
+    S: np.ndarray
+    gate: float
+    distances: np.ndarray
+    gated: np.ndarray
+    weights: np.ndarray
+    missed: np.ndarray
+    selected: np.ndarray
+    loglik: np.ndarray
+
+
+@attrs.frozen(eq=False)
+class ClutterInnovation(Innovation):
+    """An :class:`Innovation` of a clutter-aware update plus its :class:`Association` per scan.
+
+    ``nu`` is the innovation the update used: the combined ν = Σ β_i ν_i (PDA)
+    or the chosen candidate's (NN; 0 for a filter with nothing gated); S, ℓ and
+    NIS go with it as in every Innovation.  ``association_loglik`` (M,) sums
+    ln Λ over the scans of the step (0 when no scan was processed).  The
+    pipeline records gates and weights from ``associations``.
+    """
+
+    associations: tuple[Association, ...] = ()
+
+    @property
+    def association_loglik(self) -> np.ndarray:
+        if not self.associations:
+            return np.zeros(self.nu.shape[0])
+        return np.sum([a.loglik for a in self.associations], axis=0)
 
 
 @attrs.frozen(eq=False)
@@ -261,43 +351,89 @@ class TransitionBank:
         )
 
 
-class Estimator(ABC):
+#: What ``Estimator.predict`` takes: a bank of transitions, or (estimators with
+#: ``accepts_nonlinear``) a callable linearizing the motion at the current
+#: means x (M, n): F = ∂f/∂x(x), B = f(x) − F x, so that F x + B = f(x).
+Transitions = TransitionBank | Callable[[np.ndarray], TransitionBank]
+
+
+class Estimator(Labelled, ABC):
     """A bank of M Kalman-type filters run on the same measurements.
 
     Contract (shapes with M filters, n states, m measured components):
 
     * ``initialize(mean (M, n), cov (M, n, n))`` → an estimator-specific state
       object (covariance, information or factor form).
-    * ``predict(state, transitions: TransitionBank)`` → the predicted state.
+    * ``predict(state, transitions)`` → the predicted state; ``transitions`` is
+      a :class:`TransitionBank` or, for ``accepts_nonlinear`` estimators, a
+      linearizing callable (:data:`Transitions`).
     * ``update(state, z, sensors, layout)`` → ``(state, Innovation)``: ``z`` is
-      the stacked measurement of ``sensors`` (shape (Σ m_i,)); rows of a sensor
-      holding NaN mean that sensor has no measurement at this step; all NaN means
-      prediction only (the state is returned unchanged, ``m == 0``).
+      the stacked measurement of ``sensors`` (shape (Σ m_i,), or (M, Σ m_i) with
+      one row per filter).  A NaN component means that component was not
+      measured at this step: the update uses the remaining components of that
+      sensor (rows of H, the matching block of R); all NaN means prediction
+      only (the state is returned unchanged, ``m == 0``).  Estimators with
+      ``accepts_scans`` also take, as ``z``, a sequence of
+      :class:`~hybridtrack.clutter.Scan` (candidate measurements in clutter,
+      one scan per sensor) and return a :class:`ClutterInnovation`.
     * ``mean(state)`` (M, n) and ``covariance(state)`` (M, n, n) read the state
       back in covariance form whatever the internal form.
+    * Bank operations, so that a bank keeps its own form between steps
+      (square-root factors, per-node states) while it grows and shrinks:
+      ``take(state, rows)`` keeps the filters ``rows`` (in that order, repeats
+      allowed: a repeated row is a copy of that filter); ``concatenate(states)``
+      joins banks of this estimator into one.  Neither goes through (x, P).
+    * ``node_scores(state)``: for decentralized estimators, (ℓ, NIS) each of
+      the N nodes computed locally for every filter, shape (N, M) each (seed
+      000 eq. 22); ``None`` (the default) for a centralized estimator.
     * Bad input (NaN/inf in the prior, wrong shapes) raises ``ValueError``
       naming the argument and the expected shape.
 
+    Capabilities (class attributes with defaults): ``exact_kalman`` (True: the
+    estimator computes the Kalman filter exactly, in any algebraic form);
+    ``accepts_nonlinear`` (False: linear sensors and a TransitionBank only;
+    True: relinearizes, takes nonlinear sensors and a linearizing callable);
+    ``accepts_scans`` (False: ``z`` is an array; True: also candidate scans).
+
     Checked by :func:`hybridtrack.testing.check_estimator` (against the
     covariance-form KF unless the class sets ``exact_kalman = False``).
+    :class:`hybridtrack.estimation.BankEstimator` is a base class with the
+    input checks, measurement assembly and bank operations already written.
     """
 
     name: ClassVar[str]
+    exact_kalman: ClassVar[bool] = True
+    accepts_nonlinear: ClassVar[bool] = False
+    accepts_scans: ClassVar[bool] = False
 
     @abstractmethod
     def initialize(self, mean: np.ndarray, cov: np.ndarray) -> Any: ...
 
     @abstractmethod
-    def predict(self, state: Any, transitions: TransitionBank) -> Any: ...
+    def predict(self, state: Any, transitions: Transitions) -> Any: ...
 
     @abstractmethod
-    def update(self, state: Any, z: np.ndarray, sensors: Sequence[Sensor], layout: Sequence[str]) -> tuple[Any, Innovation]: ...
+    def update(
+        self, state: Any, z: np.ndarray | Sequence[Any], sensors: Sequence[Sensor], layout: Sequence[str]
+    ) -> tuple[Any, Innovation]: ...
 
     @abstractmethod
     def mean(self, state: Any) -> np.ndarray: ...
 
     @abstractmethod
     def covariance(self, state: Any) -> np.ndarray: ...
+
+    @abstractmethod
+    def take(self, state: Any, rows: Sequence[int]) -> Any:
+        """The bank of the filters ``rows`` of ``state`` (in that order; a repeated row copies that filter)."""
+
+    @abstractmethod
+    def concatenate(self, states: Sequence[Any]) -> Any:
+        """One bank holding the filters of ``states`` in order."""
+
+    def node_scores(self, state: Any) -> tuple[np.ndarray, np.ndarray] | None:
+        """(ℓ, NIS) computed at each node, (N, M) each, after an update; None for a centralized estimator."""
+        return None
 
 
 def check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
@@ -326,13 +462,13 @@ class DetectorStep:
     decision: Any = None
 
 
-class Detector(ABC):
+class Detector(Labelled, ABC):
     """A sequential change detector fed one step at a time.
 
     Contract: ``reset()`` forgets the past; ``step(step, innovation)`` consumes
     the :class:`Innovation` of the bank it watches at that step and returns a
-    :class:`DetectorStep`; ``name`` is the registry name.  Detectors are
-    deterministic given their input.
+    :class:`DetectorStep`; ``name`` is the registry name, ``label`` the
+    instance's name in a run.  Detectors are deterministic given their input.
 
     Checked by :func:`hybridtrack.testing.check_detector`, fed
     ``example_innovations(rng)`` when the detector defines it.
@@ -345,6 +481,91 @@ class Detector(ABC):
 
     @abstractmethod
     def step(self, step: int, innovation: Innovation) -> DetectorStep: ...
+
+
+class ScoreDetector(Detector):
+    """A detector that reads only per-filter scores: ℓ (M,), NIS (M,) and m.
+
+    ``observe(step, loglik, nis, m)`` is the entry point; ``step`` calls it
+    with the innovation's scores.  The same detector then runs on the scores
+    a node of a decentralized filter computes locally
+    (:meth:`Estimator.node_scores`), so the adaptive estimators run one copy
+    per node.
+    """
+
+    def step(self, step: int, innovation: Innovation) -> DetectorStep:
+        return self.observe(step, np.asarray(innovation.loglik, float), np.asarray(innovation.nis, float), innovation.measurement_dim)
+
+    @abstractmethod
+    def observe(self, step: int, loglik: np.ndarray, nis: np.ndarray, m: int) -> DetectorStep:
+        """Consume one step's scores: ℓ (M,), NIS (M,), m (0 = no measurement this step)."""
+
+
+class HypothesisTest(ScoreDetector):
+    """A sequential test between the hypotheses of a fixed bank (seed 001 Algorithm 1 drives one).
+
+    Declared attributes, read and set by the driver:
+
+    * ``hypotheses`` (tuple of names, one per filter, or None) — set before
+      :meth:`reset` at every switching moment;
+    * ``decided`` — index of the accepted hypothesis once the test has
+      decided (the step's ``DetectorStep.decision`` is set then), else None;
+    * ``upper``, ``lower`` — the thresholds A and B (recorded beside ln λ).
+
+    ``observe`` reports ``statistics["log_ratio"]`` (M,) and may report
+    ``statistics["active"]`` (M,), 1 for the hypotheses still in play.
+    """
+
+    declared_attributes: ClassVar[tuple[str, ...]] = ("hypotheses", "decided", "upper", "lower")
+    hypotheses: tuple[str, ...] | None = None
+    decided: int | None = None
+    upper: float
+    lower: float
+
+
+class ChangeTimeTest(HypothesisTest):
+    """A test for a change at an unknown time over a growing bank (seed 000 Algorithm 3 drives one).
+
+    Row 0 of the bank is the current mode; the driver starts one filter per
+    alternative at every step and tells the test with :meth:`add`; rows
+    1 … E of each innovation are those entries in the order added.
+
+    Besides :class:`HypothesisTest`'s attributes (``hypotheses[0]`` is the
+    current mode; ``decided`` is the alternative p ≥ 1 on a change, 0 on "no
+    change"): ``alpha``, ``beta`` (error probabilities), ``pruning`` (one of
+    :data:`PRUNING_RULES`), ``starts`` (E,) the change step of each entry,
+    ``chosen_entry`` (the entry followed after a change).
+    """
+
+    PRUNING_RULES: ClassVar[tuple[str, ...]] = ("oldest", "nearest_lower")
+    declared_attributes: ClassVar[tuple[str, ...]] = HypothesisTest.declared_attributes + (
+        "alpha",
+        "beta",
+        "pruning",
+        "starts",
+        "chosen_entry",
+    )
+    alpha: float
+    beta: float
+    pruning: str
+    starts: np.ndarray
+    chosen_entry: int | None = None
+
+    @abstractmethod
+    def add(self, modes: Sequence[int], start: int) -> None:
+        """Append one entry per alternative in ``modes`` (1 … M−1) hypothesising the change at ``start``."""
+
+    @abstractmethod
+    def keep(self, rows: Sequence[int]) -> None:
+        """Keep only the entries ``rows`` (indices into the entries, in order)."""
+
+    @abstractmethod
+    def prune(self, bank_size: int | None = None) -> np.ndarray:
+        """Bound the entries to ``bank_size`` by the pruning rule; return the entry rows kept."""
+
+    @abstractmethod
+    def log_ratios(self) -> np.ndarray:
+        """ln λ_p for each alternative p = 1 … M−1."""
 
 
 # --------------------------------------------------------------------------- solvers

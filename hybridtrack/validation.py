@@ -93,3 +93,21 @@ def readonly_array_field(shape: Sequence[int | None] | None = None, *, covarianc
         hash=False,
         **kwargs,
     )
+
+
+def check_positive_int(value, name: str, minimum: int = 1) -> int:
+    """``value`` as an int ≥ ``minimum`` (bools and floats refused), else a ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name}: expected an integer ≥ {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_positive(value, name: str) -> float:
+    """``value`` as a positive finite float, else a ValueError naming ``name``."""
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a positive number, got {value!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
+    return value

@@ -63,7 +63,7 @@ class LinearPositionSensor(Sensor):
     valid :class:`~hybridtrack.interfaces.Sensor` (and passes ``check_sensor``).
     """
 
-    kind = "contract_position"
+    registry_name = "contract_position"
 
     def __init__(self, name: str = "contract", components: Sequence[str] = ("x", "y"), noise_cov=None):
         self.name = name

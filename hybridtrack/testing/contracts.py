@@ -221,7 +221,7 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
 def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: int = 0) -> None:
     """Check a :class:`~hybridtrack.interfaces.Sensor` against its contract.
 
-    ``kind``/``name``; R symmetric positive definite of size ``measurement_dim``;
+    ``registry_name``/``name``; R symmetric positive definite of size ``measurement_dim``;
     ``measure``/``jacobian`` shapes over leading axes (and row-by-row equal);
     the Jacobian matches finite differences of ``measure`` (and, for a linear
     sensor, h(x) = H x with H the same everywhere); ``residual(z, z) == 0``;
@@ -230,7 +230,7 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     """
     label = _label(sensor, "sensor")
     _require(isinstance(sensor, Sensor), label, "is not a hybridtrack.interfaces.Sensor")
-    _registry_name(sensor, label, "kind")
+    _registry_name(sensor, label, "registry_name")
     _registry_name(sensor, label, "name")
     R = _array(getattr(sensor, "noise_cov", None), label, "noise_cov")
     _require(R.ndim == 2 and R.shape[0] == R.shape[1], label, f"noise_cov must be square (m, m), got {R.shape}")

@@ -25,10 +25,10 @@ from abc import abstractmethod
 
 import numpy as np
 
-from hybridtrack.interfaces import DetectorStep
+from hybridtrack.interfaces import DetectorStep, ScoreDetector
 from hybridtrack.thresholds import check_probability
 from hybridtrack.types import Decision
-from hybridtrack_plugins.detectors._base import ScoreDetector, check_positive_int
+from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.detectors.null_calibration import EmpiricalNormalizer, h0_quantile
 
 REFERENCE_SIZE = 20000

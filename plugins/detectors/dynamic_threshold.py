@@ -26,7 +26,7 @@ import numpy as np
 from hybridtrack.interfaces import Detector, DetectorStep, Innovation
 from hybridtrack.thresholds import check_probability
 from hybridtrack.types import Decision
-from hybridtrack_plugins.detectors._base import check_positive, check_positive_int
+from hybridtrack.validation import check_positive, check_positive_int
 
 
 class SpeedDropCue:

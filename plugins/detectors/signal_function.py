@@ -23,11 +23,11 @@ from collections import deque
 
 import numpy as np
 
-from hybridtrack.interfaces import DetectorStep
+from hybridtrack.interfaces import DetectorStep, ScoreDetector
 from hybridtrack.thresholds import THREE_SIGMA_ALPHA, check_probability
 from hybridtrack.types import Decision
+from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.detectors import signal_bounds
-from hybridtrack_plugins.detectors._base import ScoreDetector, check_positive_int
 
 
 class SignalFunction(ScoreDetector):

@@ -39,16 +39,16 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import logsumexp
 
-from hybridtrack.interfaces import DetectorStep
+from hybridtrack.interfaces import ChangeTimeTest, DetectorStep
 from hybridtrack.thresholds import WaldThresholds
 from hybridtrack.types import Decision
-from hybridtrack_plugins.detectors._base import ScoreDetector, check_positive_int
+from hybridtrack.validation import check_positive_int
 
-PRUNING_RULES = ("oldest", "nearest_lower")
+PRUNING_RULES = ChangeTimeTest.PRUNING_RULES
 AVERAGING = ("uniform", "none")
 
 
-class ChangeTimeSPRT(WaldThresholds, ScoreDetector):
+class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
     """Algorithm 3 of seed 000: log-likelihood ratios averaged over change times, rule (24), bank pruning."""
 
     name = "sprt_unknown_change"

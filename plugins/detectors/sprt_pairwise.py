@@ -32,10 +32,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.interfaces import DetectorStep
+from hybridtrack.interfaces import DetectorStep, HypothesisTest
 from hybridtrack.thresholds import WaldThresholds
 from hybridtrack.types import Decision
-from hybridtrack_plugins.detectors._base import ScoreDetector
 
 
 def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -50,7 +49,7 @@ def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
     return L - rival
 
 
-class PairwiseSPRT(WaldThresholds, ScoreDetector):
+class PairwiseSPRT(WaldThresholds, HypothesisTest):
     """SPRT with pairwise log-likelihood ratios and elimination over a fixed bank (seed 001, rule (5))."""
 
     name = "sprt_pairwise"

@@ -53,7 +53,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from hybridtrack.estimation import BankEstimator, empty_innovation
-from hybridtrack.interfaces import Innovation, Sensor
+from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.measurements import block_diagonal
 from hybridtrack_plugins.filters import _covariance as cov_form
@@ -80,50 +80,6 @@ def gate_threshold(gate_probability: float | None, m: int) -> float:
 
 
 # --------------------------------------------------------------------------- records
-
-
-@attrs.frozen(eq=False)
-class Association:
-    """What one clutter-aware update of a bank did with one sensor's scan.
-
-    ``candidates`` (L, m); ``predicted`` ẑ (M, m); ``S`` (M, m, m); ``gate`` γ;
-    ``distances`` d² (M, L); ``gated`` (M, L) bool; ``weights`` β_i (M, L)
-    (nearest neighbour: 1 for the chosen candidate); ``missed`` β_0 (M,)
-    (nearest neighbour: 1 when nothing was gated); ``selected`` (M,) the chosen
-    (NN) or most probable (PDA) candidate, −1 for none; ``loglik`` (M,)
-    ln Λ (PDA) or the Gaussian ℓ of the chosen candidate (NN, NaN when none).
-    """
-
-    sensor: str
-    candidates: np.ndarray
-    predicted: np.ndarray
-    S: np.ndarray
-    gate: float
-    distances: np.ndarray
-    gated: np.ndarray
-    weights: np.ndarray
-    missed: np.ndarray
-    selected: np.ndarray
-    loglik: np.ndarray
-
-
-@attrs.frozen(eq=False)
-class ClutterInnovation(Innovation):
-    """An :class:`Innovation` of a clutter-aware update plus its :class:`Association` per scan.
-
-    ``nu`` is the innovation the update used: the combined ν = Σ β_i ν_i (PDA)
-    or the chosen candidate's (NN; 0 for a filter with nothing gated); S, ℓ and
-    NIS go with it as in every Innovation.  ``association_loglik`` (M,) sums
-    ln Λ over the scans of the step (0 when no scan was processed).
-    """
-
-    associations: tuple[Association, ...] = ()
-
-    @property
-    def association_loglik(self) -> np.ndarray:
-        if not self.associations:
-            return np.zeros(self.nu.shape[0])
-        return np.sum([a.loglik for a in self.associations], axis=0)
 
 
 # --------------------------------------------------------------------------- maths

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
@@ -24,12 +24,12 @@ from hybridtrack_plugins.filters import _sqrt
 class UDState:
     """x (M, n), U (M, n, n) unit upper triangular, d (M, n): P = U diag(d) Uᵀ; and the last prediction."""
 
-    x: np.ndarray
-    U: np.ndarray
-    d: np.ndarray
-    x_predicted: np.ndarray
-    U_predicted: np.ndarray
-    d_predicted: np.ndarray
+    x: np.ndarray = bank_field(0)
+    U: np.ndarray = bank_field(0)
+    d: np.ndarray = bank_field(0)
+    x_predicted: np.ndarray = bank_field(0)
+    U_predicted: np.ndarray = bank_field(0)
+    d_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
 
     @property

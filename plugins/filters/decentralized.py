@@ -25,7 +25,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, NodeMoments, empty_innovation
+from hybridtrack.estimation import BankEstimator, NodeMoments, bank_field, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.linalg import symmetrize
 from hybridtrack_plugins.filters import _information as info
@@ -36,14 +36,14 @@ from hybridtrack_plugins.filters.information import information_predict, stacked
 class DecentralizedState(NodeMoments):
     """Per-node information states: I (N, M, n, n), s (N, M, n); x⁻, P⁻ (N, M, …)."""
 
-    Y: np.ndarray
-    s: np.ndarray
-    x_predicted: np.ndarray
-    P_predicted: np.ndarray
+    Y: np.ndarray = bank_field(1)
+    s: np.ndarray = bank_field(1)
+    x_predicted: np.ndarray = bank_field(1)
+    P_predicted: np.ndarray = bank_field(1)
     innovation: Innovation | None = None
     node_nis: np.ndarray | None = None
     node_loglik: np.ndarray | None = None
-    moments: tuple | None = None
+    moments: tuple | None = bank_field(1, default=None)
 
     @property
     def nodes(self) -> int:
@@ -83,6 +83,16 @@ class DecentralizedFilter(BankEstimator):
         N = self.nodes or 1
         rep = lambda a: np.broadcast_to(a, (N,) + a.shape).copy()  # noqa: E731
         return DecentralizedState(rep(Y), rep(s), rep(x), rep(P), moments=(rep(x), rep(P)))
+
+    def conform(self, states: list) -> list:
+        """A bank started from one prior has one node copy until its first update: replicate it to the others' N."""
+        N = max(s.nodes for s in states)
+        return [s if s.nodes == N else self._replicate(s, N) for s in states]
+
+    def node_scores(self, state: DecentralizedState):
+        if state.node_loglik is None:
+            return None
+        return state.node_loglik, state.node_nis
 
     def predict(self, state: DecentralizedState, transitions: TransitionBank) -> DecentralizedState:
         N, M, n = state.s.shape

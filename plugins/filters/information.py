@@ -17,7 +17,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.linalg import cholesky, gaussian_scores, symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
@@ -28,13 +28,13 @@ from hybridtrack_plugins.filters import _information as info
 class InformationState:
     """I (M, n, n) and s (M, n), with x⁻, P⁻ of the last prediction."""
 
-    Y: np.ndarray
-    s: np.ndarray
-    x_predicted: np.ndarray
-    P_predicted: np.ndarray
+    Y: np.ndarray = bank_field(0)
+    s: np.ndarray = bank_field(0)
+    x_predicted: np.ndarray = bank_field(0)
+    P_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
     nis_information: np.ndarray | None = None
-    moments: tuple | None = None  # (x, P) when already known, else computed from (I, s) on demand
+    moments: tuple | None = bank_field(0, default=None)  # (x, P) when already known, else computed from (I, s) on demand
 
     @cached_property
     def _moments(self):

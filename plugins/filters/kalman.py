@@ -22,7 +22,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
@@ -32,10 +32,10 @@ from hybridtrack_plugins.filters import _separable as sep
 class CovarianceState:
     """A bank in covariance form: x (M, n), P (M, n, n), plus the last prediction and innovation."""
 
-    x: np.ndarray
-    P: np.ndarray
-    x_predicted: np.ndarray
-    P_predicted: np.ndarray
+    x: np.ndarray = bank_field(0)
+    P: np.ndarray = bank_field(0)
+    x_predicted: np.ndarray = bank_field(0)
+    P_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
 
     @property
@@ -69,10 +69,10 @@ class AxisState:
 
     axes: tuple
     n: int
-    xa: np.ndarray
-    Pa: np.ndarray
-    xa_predicted: np.ndarray
-    Pa_predicted: np.ndarray
+    xa: np.ndarray = bank_field(-1)
+    Pa: np.ndarray = bank_field(-1)
+    xa_predicted: np.ndarray = bank_field(-1)
+    Pa_predicted: np.ndarray = bank_field(-1)
     innovation: Innovation | None = None
 
     @cached_property
@@ -124,6 +124,12 @@ class KalmanFilter(BankEstimator):
     def initialize(self, mean, cov) -> CovarianceState:
         x, P = self._check_prior(mean, cov)
         return CovarianceState(x, P, x, P, None)
+
+    def conform(self, states: list) -> list:
+        """Axis-separable states of one layout join as they are; a mix goes to the dense form (exact)."""
+        if all(isinstance(s, AxisState) and s.axes == states[0].axes for s in states):
+            return states
+        return [CovarianceState(s.x, s.P, s.x_predicted, s.P_predicted) if isinstance(s, AxisState) else s for s in states]
 
     # ------------------------------------------------------------------ predict
     def _split(self, bank: TransitionBank):

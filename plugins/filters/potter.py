@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack.linalg import cholesky, symmetrize
 from hybridtrack_plugins.filters import _sqrt
@@ -24,10 +24,10 @@ from hybridtrack_plugins.filters import _sqrt
 class SquareRootState:
     """x (M, n), S (M, n, n) with P = S Sᵀ; the same for the last prediction."""
 
-    x: np.ndarray
-    S: np.ndarray
-    x_predicted: np.ndarray
-    S_predicted: np.ndarray
+    x: np.ndarray = bank_field(0)
+    S: np.ndarray = bank_field(0)
+    x_predicted: np.ndarray = bank_field(0)
+    S_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
 
     @property

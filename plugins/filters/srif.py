@@ -15,7 +15,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
@@ -25,10 +25,10 @@ from hybridtrack_plugins.filters import _sqrt
 class SRIFState:
     """R (…, M, n, n), ζ (…, M, n) now and after the last prediction; leading node axis for the decentralized form."""
 
-    R: np.ndarray
-    zeta: np.ndarray
-    R_predicted: np.ndarray
-    zeta_predicted: np.ndarray
+    R: np.ndarray = bank_field(-3)
+    zeta: np.ndarray = bank_field(-2)
+    R_predicted: np.ndarray = bank_field(-3)
+    zeta_predicted: np.ndarray = bank_field(-2)
     innovation: Innovation | None = None
 
     @cached_property

@@ -60,6 +60,21 @@ class DecentralizedSRIF(BankEstimator):
         rep = lambda a: np.broadcast_to(a, (N,) + a.shape).copy()  # noqa: E731
         return DecentralizedSRIFState(rep(R), rep(zeta), rep(R), rep(zeta))
 
+    def conform(self, states: list) -> list:
+        """A bank started from one prior has one node copy until its first update: replicate it to the others' N."""
+        N = max(s.nodes for s in states)
+        return [s if s.nodes == N else self._replicate(s, N) for s in states]
+
+    def node_scores(self, state: DecentralizedSRIFState):
+        if state.node_loglik is None:
+            return None
+        return state.node_loglik, state.node_nis
+
+    @staticmethod
+    def _replicate(state: DecentralizedSRIFState, N: int) -> DecentralizedSRIFState:
+        rep = lambda a: np.broadcast_to(a[:1], (N,) + a.shape[1:]).copy()  # noqa: E731
+        return DecentralizedSRIFState(rep(state.R), rep(state.zeta), rep(state.R_predicted), rep(state.zeta_predicted))
+
     def predict(self, state: DecentralizedSRIFState, transitions) -> DecentralizedSRIFState:
         N, M, n = state.zeta.shape
         bank = self._check_transitions(transitions, M, n)
@@ -76,8 +91,7 @@ class DecentralizedSRIF(BankEstimator):
         if N != len(sensors):
             if N != 1:
                 raise ValueError(f"sensors: expected {N} sensors (one per node of this decentralized filter), got {len(sensors)}")
-            rep = lambda a: np.broadcast_to(a, (len(sensors),) + a.shape[1:]).copy()  # noqa: E731
-            state = DecentralizedSRIFState(rep(state.R), rep(state.zeta), rep(state.R_predicted), rep(state.zeta_predicted))
+            state = self._replicate(state, len(sensors))
             N = len(sensors)
         step = self._measurement(z, sensors, layout, M, n)
         if step is None:

@@ -99,7 +99,7 @@ class BearingSensor(Sensor):
     against states (T, n)).  Any state layout naming ``"x"`` and ``"y"`` works.
     """
 
-    kind: ClassVar[str] = "bearing"
+    registry_name: ClassVar[str] = "bearing"
     linear: ClassVar[bool] = False
 
     name: str = "bearing"
@@ -159,4 +159,4 @@ class BearingSensor(Sensor):
         return wrap_angle(z + self.sigma * rng.standard_normal(z.shape))
 
 
-COMPONENTS = {BearingSensor.kind: BearingSensor}
+COMPONENTS = {BearingSensor.registry_name: BearingSensor}

@@ -32,7 +32,7 @@ def _components(value) -> tuple[str, ...]:
 class PositionSensor(Sensor):
     """Linear sensor measuring the named state components (default ``("x", "y")``) with noise R."""
 
-    kind: ClassVar[str] = "position"
+    registry_name: ClassVar[str] = "position"
     linear: ClassVar[bool] = True
 
     name: str = "position"
@@ -67,4 +67,4 @@ class PositionSensor(Sensor):
         return np.broadcast_to(self.matrix(layout), x.shape[:-1] + (len(self.components), len(tuple(layout)))).copy()
 
 
-COMPONENTS = {PositionSensor.kind: PositionSensor}
+COMPONENTS = {PositionSensor.registry_name: PositionSensor}

@@ -95,7 +95,7 @@ class _RadarBase(Sensor):
 class RadarSensor(_RadarBase):
     """Radar as Cartesian pseudo-measurements z = (x, y) with the converted covariance R(z)."""
 
-    kind: ClassVar[str] = "radar"
+    registry_name: ClassVar[str] = "radar"
     linear: ClassVar[bool] = True
 
     def measure(self, x, layout):
@@ -128,7 +128,7 @@ class RadarSensor(_RadarBase):
 class PolarRadarSensor(_RadarBase):
     """Radar as the nonlinear sensor h(x) = (ρ, θ) (for extended filters); ν_θ wrapped to (−π, π]."""
 
-    kind: ClassVar[str] = "radar_polar"
+    registry_name: ClassVar[str] = "radar_polar"
     linear: ClassVar[bool] = False
 
     def measure(self, x, layout):
@@ -156,4 +156,4 @@ class PolarRadarSensor(_RadarBase):
         return self.simulate_polar(x, layout, rng)
 
 
-COMPONENTS = {RadarSensor.kind: RadarSensor, PolarRadarSensor.kind: PolarRadarSensor}
+COMPONENTS = {RadarSensor.registry_name: RadarSensor, PolarRadarSensor.registry_name: PolarRadarSensor}

@@ -107,6 +107,12 @@ class ToyKalman(Estimator):
     def covariance(self, state):
         return state[1]
 
+    def take(self, state, rows):
+        return state[0][rows], state[1][rows]
+
+    def concatenate(self, states):
+        return np.concatenate([s[0] for s in states]), np.concatenate([s[1] for s in states])
+
 
 class NaNAsZero(ToyKalman):
     """Treats a missing measurement as z = 0."""

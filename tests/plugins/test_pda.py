@@ -7,9 +7,8 @@ from _filters_support import LAYOUT, MatrixSensor, position_sensor, straight, tu
 from scipy.stats import chi2, multivariate_normal
 
 from hybridtrack.clutter import Scan
-from hybridtrack.interfaces import TransitionBank
+from hybridtrack.interfaces import ClutterInnovation, TransitionBank
 from hybridtrack.testing import check_estimator
-from hybridtrack_plugins.filters._association import ClutterInnovation
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.filters.pda import PDAFilter
 
