@@ -27,7 +27,8 @@ import numpy as np
 
 from hybridtrack import SEED001_TABLE1, Gaussian, Schedule, Segment
 from hybridtrack.composed.adaptive import KnownSwitchAdaptive
-from hybridtrack.pipeline import Pipeline, run_known_modes
+from hybridtrack.composed.known_modes import run_known_modes
+from hybridtrack.pipeline import Pipeline
 from hybridtrack.recording import RerunRecorder
 from hybridtrack.simulate import simulate
 from hybridtrack_plugins.sensors.position import PositionSensor

@@ -600,3 +600,13 @@ class Solver(ABC):
 
     @abstractmethod
     def solve(self, problem: Any) -> Solution: ...
+
+
+#: The interface of each component kind (the registry's kinds, in order).
+INTERFACES: dict[str, type] = {
+    "motion_model": MotionModel,
+    "sensor": Sensor,
+    "estimator": Estimator,
+    "detector": Detector,
+    "solver": Solver,
+}

@@ -18,7 +18,10 @@ are instead ``candidates``, sensor name → :class:`~hybridtrack.clutter.ScanSeq
 associates them (``nearest_neighbour``, ``pda``: ``accepts_scans = True``).
 
 Components are given as objects or by registered name (``"kalman"``,
-``("left_turn", {"radius": 3.0})``).
+``("left_turn", {"radius": 3.0})``, ``("signal_function", {"window": 10}, "sf10")``
+with a label).  Measurement times are ``times`` (seconds, strictly increasing,
+any spacing: real data) or ``tau`` (regular sampling); each step's transition
+is built for its own Δt, and the recording's ``time`` timeline holds the times.
 """
 
 from __future__ import annotations
@@ -31,35 +34,23 @@ import numpy as np
 
 from hybridtrack.interfaces import Detector, DetectorStep, Estimator, Innovation, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
+from hybridtrack.plugins import resolve
 from hybridtrack.recording import NullRecorder, log_estimate, log_measurements
 from hybridtrack.registry import Registry
+from hybridtrack.timestamps import step_intervals
 from hybridtrack.types import Decision, Gaussian
-
-
-def _registry(registry: Registry | None) -> Registry:
-    if registry is None:
-        from hybridtrack.plugins import get_registry
-
-        registry = get_registry()
-    return registry
-
-
-def resolve(kind: str, spec, base: type, registry: Registry | None = None):
-    """An instance of ``base`` from an object, a registered name, or ``(name, parameters)``."""
-    if isinstance(spec, base):
-        return spec
-    if isinstance(spec, str):
-        return _registry(registry).create(kind, spec)
-    if isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str) and isinstance(spec[1], Mapping):
-        return _registry(registry).create(kind, spec[0], **spec[1])
-    raise TypeError(f"{kind}: expected a {base.__name__}, a registered name or (name, parameters), got {spec!r}")
 
 
 @attrs.frozen(eq=False)
 class StepResult:
-    """One step of a pipeline: the bank's posterior, its innovations and the detectors' outputs."""
+    """One step of a pipeline: its time, the bank's posterior, its innovation and the detectors' outputs (by label).
+
+    With candidates in clutter ``innovation`` is a
+    :class:`~hybridtrack.interfaces.ClutterInnovation` holding the associations.
+    """
 
     step: int
+    time: float
     mean: np.ndarray  # (M, n)
     cov: np.ndarray  # (M, n, n)
     innovation: Innovation
@@ -68,12 +59,13 @@ class StepResult:
 
 @attrs.frozen(eq=False)
 class RunResult:
-    """A whole run: means (K+1, M, n), covs (K+1, M, n, n), nis and loglik (K+1, M), innovations
-    (K+1, M, Σm) (NaN where a step lacked some measurement), detector statistics name → series →
+    """A whole run: times (K+1,), means (K+1, M, n), covs (K+1, M, n, n), nis and loglik (K+1, M), innovations
+    (K+1, M, Σm) (NaN where a step lacked some measurement), detector statistics label → series →
     array over steps, and the decisions."""
 
     layout: tuple[str, ...]
     filters: tuple[str, ...]
+    times: np.ndarray
     means: np.ndarray
     covs: np.ndarray
     nis: np.ndarray
@@ -89,7 +81,8 @@ class Pipeline:
     Parameters: ``models`` (motion models, names or (name, parameters)); ``estimator``;
     ``sensors`` (a :class:`SensorNetwork` or a list of sensors); ``measurements``
     (sensor name → (steps, m_i)); ``prior`` (a :class:`Gaussian` or (mean, cov),
-    in the models' layout); ``tau``; ``detectors``; ``recorder`` (defaults to
+    in the models' layout); ``times`` (seconds, one per measurement step) or
+    ``tau`` (regular sampling); ``detectors`` (labels must be unique); ``recorder`` (defaults to
     :class:`NullRecorder`); ``truth`` (an optional trajectory to record beside
     the estimates); ``filter_names`` to label the bank; ``record_measurements``
     (False when another pipeline on the same recorder already logs them);
@@ -107,7 +100,8 @@ class Pipeline:
         sensors: SensorNetwork | Sequence[Sensor],
         measurements: Mapping[str, np.ndarray] | None = None,
         prior: Gaussian | tuple,
-        tau: float,
+        tau: float | None = None,
+        times=None,
         detectors: Sequence[Any] = (),
         recorder=None,
         truth=None,
@@ -116,14 +110,14 @@ class Pipeline:
         record_measurements: bool = True,
         candidates: Mapping[str, Any] | None = None,
     ):
-        self.models = [resolve("motion_model", m, MotionModel, registry) for m in models]
+        self.models: list[MotionModel] = [resolve("motion_model", m, registry) for m in models]
         if not self.models:
             raise ValueError("models: a bank needs at least one motion model")
         layouts = {m.layout for m in self.models}
         if len(layouts) != 1:
             raise ValueError(f"models: every filter of a bank must share one state layout, got {sorted(layouts)}")
         self.layout = self.models[0].layout
-        self.estimator: Estimator = resolve("estimator", estimator, Estimator, registry)
+        self.estimator: Estimator = resolve("estimator", estimator, registry)
         self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
         self.candidates = self._check_candidates(candidates, measurements)
         if self.candidates is not None:
@@ -131,13 +125,13 @@ class Pipeline:
         elif measurements is None:
             raise ValueError("measurements: required (sensor name → (steps, m_i)) unless candidates are given")
         self.z = self.network.stack(measurements)
-        self.tau = float(tau)
-        if not (np.isfinite(self.tau) and self.tau > 0):
-            raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
-        self.detectors: list[Detector] = [resolve("detector", d, Detector, registry) for d in detectors]
-        names = [d.name for d in self.detectors]
-        if len(set(names)) != len(names):
-            raise ValueError(f"detectors: names must be unique, got {names}")
+        self.times, self.intervals = step_intervals(times, tau, self.z.shape[0])
+        self.detectors: list[Detector] = [resolve("detector", d, registry) for d in detectors]
+        labels = [d.label for d in self.detectors]
+        if len(set(labels)) != len(labels):
+            raise ValueError(
+                f"detectors: labels must be unique, got {labels}; give each instance a label, e.g. ('glr', {{...}}, 'glr_fast')"
+            )
         self.recorder = recorder if recorder is not None else NullRecorder()
         self.record_measurements = record_measurements
         self.truth = truth
@@ -150,12 +144,12 @@ class Pipeline:
             raise ValueError(f"prior: expected a state of the layout {self.layout}, got dimension {prior.dim}")
         self.prior = prior
         M = len(self.models)
-        self._state = self.estimator.initialize(np.tile(prior.mean, (M, 1)), np.tile(prior.cov, (M, 1, 1)))
-        self._transitions = None
-        if all(m.linear for m in self.models):
-            self._transitions = TransitionBank.stack([m.transition(self.tau, prior.mean) for m in self.models])
-        self._results: list[StepResult] = []
-        self._decisions: list[Decision] = []
+        self.state = self.estimator.initialize(np.tile(prior.mean, (M, 1)), np.tile(prior.cov, (M, 1, 1)))
+        self.linear = all(m.linear for m in self.models)
+        self._transitions: tuple[float, TransitionBank] | None = None
+        self.results: list[StepResult] = []
+        self.decisions: list[Decision] = []
+        self._result: RunResult | None = None
         self._recorded = False
 
     def _check_candidates(self, candidates, measurements):
@@ -166,7 +160,7 @@ class Pipeline:
 
         if measurements is not None:
             raise ValueError("candidates: give either measurements or candidates, not both")
-        if not getattr(self.estimator, "accepts_scans", False):
+        if not self.estimator.accepts_scans:
             raise ValueError(
                 f"candidates: estimator {self.estimator.name!r} does not associate candidate measurements; use 'nearest_neighbour' or 'pda'"
             )
@@ -179,10 +173,7 @@ class Pipeline:
         return {name: candidates[name] for name in self.network.names}
 
     def _default_names(self) -> tuple[str, ...]:
-        names = []
-        for model in self.models:
-            radius = getattr(model, "radius", None)
-            names.append(model.name if radius is None else f"{model.name}_r{radius:g}")
+        names = [model.name if model.radius is None else f"{model.name}_r{model.radius:g}" for model in self.models]
         # make repeated names unique
         return tuple(n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names))
 
@@ -193,31 +184,42 @@ class Pipeline:
 
     @property
     def done(self) -> bool:
-        return len(self._results) >= self.steps
+        return len(self.results) >= self.steps
+
+    def transitions(self, dt: float) -> TransitionBank:
+        """The bank's transitions over ``dt`` seconds.
+
+        Linear models: fixed at the prior mean (the switch state) and rebuilt
+        only when Δt changes; nonlinear models: relinearized at each filter's
+        current mean every step (EKF).
+        """
+        if not self.linear:
+            means = self.estimator.mean(self.state)
+            return TransitionBank.stack([m.transition(dt, x) for m, x in zip(self.models, means)])
+        if self._transitions is None or self._transitions[0] != dt:
+            self._transitions = (dt, TransitionBank.stack([m.transition(dt, self.prior.mean) for m in self.models]))
+        return self._transitions[1]
 
     def step(self) -> StepResult:
         """Process the next step and return its result."""
-        k = len(self._results)
+        k = len(self.results)
         if k >= self.steps:
             raise StopIteration(f"all {self.steps} steps processed")
-        state = self._state
+        state = self.state
         if k > 0:
-            transitions = self._transitions
-            if transitions is None:
-                means = self.estimator.mean(state)
-                transitions = TransitionBank.stack([m.transition(self.tau, x) for m, x in zip(self.models, means)])
-            state = self.estimator.predict(state, transitions)
+            state = self.estimator.predict(state, self.transitions(float(self.intervals[k - 1])))
         z = self.z[k] if self.candidates is None else [seq.scan(k) for seq in self.candidates.values()]
         state, innovation = self.estimator.update(state, z, self.network.sensors, self.layout)
-        self._state = state
+        self.state = state
         outputs = {}
         for detector in self.detectors:
             output = detector.step(k, innovation)
-            outputs[detector.name] = output
+            outputs[detector.label] = output
             if output.decision is not None:
-                self._decisions.append(output.decision)
-        result = StepResult(k, self.estimator.mean(state), self.estimator.covariance(state), innovation, outputs)
-        self._results.append(result)
+                self.decisions.append(output.decision)
+        result = StepResult(k, float(self.times[k]), self.estimator.mean(state), self.estimator.covariance(state), innovation, outputs)
+        self.results.append(result)
+        self._result = None
         return result
 
     def run(self) -> RunResult:
@@ -233,12 +235,17 @@ class Pipeline:
         return self.result()
 
     def result(self) -> RunResult:
-        """The steps processed so far as arrays."""
-        if not self._results:
+        """The steps processed so far as arrays (built once per number of steps processed)."""
+        if not self.results:
             raise RuntimeError("no step has been processed yet")
+        if self._result is None:
+            self._result = self._build_result()
+        return self._result
+
+    def _build_result(self) -> RunResult:
         M = len(self.models)
         statistics: dict[str, dict[str, list]] = {}
-        for r in self._results:
+        for r in self.results:
             for name, output in r.detectors.items():
                 series = statistics.setdefault(name, {})
                 for key, value in {**output.statistics, **output.thresholds}.items():
@@ -247,7 +254,7 @@ class Pipeline:
         full = self.network.measurement_dim
         missing = np.full(M, np.nan)
         nis, loglik, innovations = [], [], []
-        for r in self._results:
+        for r in self.results:
             complete = r.innovation.measurement_dim > 0
             nis.append(r.innovation.nis if complete else missing)
             loglik.append(r.innovation.loglik if complete else missing)
@@ -255,24 +262,25 @@ class Pipeline:
         return RunResult(
             layout=self.layout,
             filters=self.filter_names,
-            means=np.stack([r.mean for r in self._results]),
-            covs=np.stack([r.cov for r in self._results]),
+            times=self.times[: len(self.results)],
+            means=np.stack([r.mean for r in self.results]),
+            covs=np.stack([r.cov for r in self.results]),
             nis=np.stack(nis).astype(float),
             loglik=np.stack(loglik).astype(float),
             innovations=np.stack(innovations).astype(float),
             statistics={n: {k: np.asarray(v, dtype=float) for k, v in s.items()} for n, s in statistics.items()},
-            decisions=tuple(self._decisions),
+            decisions=tuple(self.decisions),
         )
 
     def record(self) -> None:
         """Log the truth, measurements, estimates, NIS, detector series and decisions (once)."""
-        if self._recorded or not self._results:
+        if self._recorded or not self.results:
             return
         self._recorded = True
         rec = self.recorder
         result = self.result()
-        steps = np.arange(len(self._results))
-        times = steps * self.tau
+        steps = np.arange(len(self.results))
+        times = result.times
         if self.truth is not None:
             positions = self.truth.positions[: len(steps)]
             rec.log_path("world/truth", steps, positions, times)
@@ -291,72 +299,9 @@ class Pipeline:
         if self.candidates is not None:
             from hybridtrack.clutter import log_associations
 
-            log_associations(rec, self.filter_names, steps, [r.innovation for r in self._results], times)
+            log_associations(rec, self.filter_names, steps, [r.innovation for r in self.results], times)
         for detector, series in result.statistics.items():
             for key, values in series.items():
                 rec.log_scalars(f"detector/{detector}/{key}", steps, values, times)
         for decision in result.decisions:
-            rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", decision.step * self.tau)
-
-
-@attrs.frozen(eq=False)
-class ScheduleRun:
-    """Estimates of a filter told the true modes: means (K+1, n), covs (K+1, n, n), nis (K+1,)."""
-
-    layout: tuple[str, ...]
-    means: np.ndarray
-    covs: np.ndarray
-    nis: np.ndarray
-
-
-def run_known_modes(
-    schedule,
-    *,
-    estimator: Any,
-    sensors: SensorNetwork | Sequence[Sensor],
-    measurements: Mapping[str, np.ndarray],
-    prior: Gaussian | tuple,
-    tau: float,
-    noise_cov=None,
-    recorder=None,
-    name: str = "known_modes",
-    registry: Registry | None = None,
-) -> ScheduleRun:
-    """The filter that knows the schedule (the "optimal KF" of seed 001, Table 2).
-
-    One filter runs segment by segment with the true mode; at each switch the
-    new model's transition is built from the filter's own estimate at the
-    switching moment (a turn's ω and centre from x̂_s, as SPEC §7 found to
-    reproduce seed 001's figures).  All modes must share one state layout.
-    """
-    from hybridtrack.simulate import build_models
-
-    models = build_models(schedule, _registry(registry), noise_cov)
-    network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
-    z = network.stack(measurements)
-    if z.shape[0] != schedule.total_steps + 1:
-        raise ValueError(f"measurements: expected {schedule.total_steps + 1} steps for the schedule, got {z.shape[0]}")
-    prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
-    means, covs, nis = [], [], []
-    start = 0
-    for model, segment in zip(models, schedule.segments):
-        rows = z[start : start + segment.steps + 1].copy()
-        if start > 0:
-            rows[0] = np.nan  # the switch step was already updated by the previous segment
-        pipeline = Pipeline(
-            models=[model], estimator=estimator, sensors=network, measurements=network.split(rows), prior=prior, tau=tau, registry=registry
-        )
-        result = pipeline.run()
-        skip = 0 if start == 0 else 1
-        means.append(result.means[skip:, 0])
-        covs.append(result.covs[skip:, 0])
-        nis.append(result.nis[skip:, 0])
-        prior = Gaussian(result.means[-1, 0], (result.covs[-1, 0] + result.covs[-1, 0].T) / 2)
-        start += segment.steps
-    run = ScheduleRun(models[0].layout, np.concatenate(means), np.concatenate(covs), np.concatenate(nis))
-    if recorder is not None:
-        steps = np.arange(run.means.shape[0])
-        position = [run.layout.index("x"), run.layout.index("y")]
-        log_estimate(recorder, name, steps, run.means, run.covs, position, steps * tau)
-        recorder.log_scalars(f"estimator/{name}/nis", steps, run.nis, steps * tau)
-    return run
+            rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", float(self.times[decision.step]))

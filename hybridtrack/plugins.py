@@ -19,7 +19,7 @@ from __future__ import annotations
 import functools
 import os
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from importlib.metadata import entry_points
 
 import attrs
@@ -169,3 +169,49 @@ def get_registry() -> Registry:
 def reset() -> None:
     """Forget the cached default plugins (after installing a plugin or changing the environment)."""
     _default.cache_clear()
+
+
+def resolve_registry(registry: Registry | None) -> Registry:
+    """``registry``, or the default one when None."""
+    return get_registry() if registry is None else registry
+
+
+def resolve(kind: str, spec, registry: Registry | None = None):
+    """A component of ``kind`` from an object, a registered name, ``(name, parameters)`` or ``(name, parameters, label)``.
+
+    The object (given or built) must implement the interface of ``kind``
+    (:data:`hybridtrack.interfaces.INTERFACES`); a wrong type is a TypeError
+    naming the interface, and a factory returning the wrong type names the
+    registered component.  A label (third item, or a ``"label"`` key in the
+    parameters) names the instance in a run (estimators and detectors).
+    """
+    from hybridtrack.interfaces import INTERFACES, require
+
+    if kind not in INTERFACES:
+        raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(INTERFACES)}")
+    base = INTERFACES[kind]
+    label = None
+    if not isinstance(spec, (str, tuple)):
+        return require(spec, base, kind)
+    if isinstance(spec, str):
+        name, parameters = spec, {}
+    elif (
+        isinstance(spec, tuple)
+        and len(spec) in (2, 3)
+        and isinstance(spec[0], str)
+        and isinstance(spec[1], Mapping)
+        and (len(spec) == 2 or isinstance(spec[2], str))
+    ):
+        name, parameters = spec[0], dict(spec[1])
+        label = spec[2] if len(spec) == 3 else None
+    else:
+        raise TypeError(
+            f"{kind}: expected a {base.__name__}, a registered name, (name, parameters) or (name, parameters, label), got {spec!r}"
+        )
+    label = parameters.pop("label", None) if label is None else label
+    component = require(resolve_registry(registry).create(kind, name, **parameters), base, f"{kind} {name!r}")
+    if label is not None:
+        if not hasattr(type(component), "label"):
+            raise ValueError(f"{kind} {name!r}: a label names estimators and detectors; {kind}s have none")
+        component.label = label
+    return component

@@ -30,13 +30,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from hybridtrack.plugins import resolve
     from hybridtrack.recording import log_measurements, open_recorder
     from hybridtrack.simulate import simulate
     from hybridtrack.types import SEED001_TABLE1, Schedule
-    from hybridtrack_plugins.sensors.position import PositionSensor
 
     schedule = Schedule.from_toml(args.schedule) if args.schedule else SEED001_TABLE1
-    sensor = PositionSensor(name="sensor", noise_cov=args.measurement_noise * np.eye(2))
+    sensor = resolve("sensor", ("position", {"name": "sensor", "noise_cov": args.measurement_noise * np.eye(2)}))
     configuration = {key: value for key, value in vars(args).items() if key not in ("run", "npz", "rrd", "no_record")}
     with open_recorder(None if args.no_record else args.rrd, {"command": "simulate", **configuration}) as recorder:
         truth, z = simulate(

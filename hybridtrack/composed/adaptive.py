@@ -28,7 +28,11 @@ cannot express:
   estimate (``bank_size="algorithm4"``, oldest first).
 
 Step convention (as the Pipeline): step 0 updates the prior with z_0; step
-k ≥ 1 predicts and updates.  With the ``decentralized`` estimator every node's
+k ≥ 1 predicts over Δt_k = t_k − t_{k−1} and updates.  ``run`` takes the
+measurement ``times`` (seconds, strictly increasing, any spacing) or uses
+``tau`` for regular sampling; each step's transitions are built for its Δt.
+The bank keeps the estimator's own state form between steps
+(:class:`~hybridtrack.composed.bank.FilterBank`).  With the ``decentralized`` estimator every node's
 locally computed ℓ and NIS (seed 000 eq. 22) feed node copies of the detector
 and of the signal function, recorded beside the centralized values.
 
@@ -47,13 +51,16 @@ from typing import Any
 import attrs
 import numpy as np
 
+from hybridtrack.composed.algorithm4 import algorithm4_bank_size, wald_pair
 from hybridtrack.composed.bank import FilterBank
-from hybridtrack.interfaces import Detector, Estimator, MotionModel, Sensor
+from hybridtrack.interfaces import ChangeTimeTest, Estimator, HypothesisTest, MotionModel, ScoreDetector, Sensor, require
 from hybridtrack.network import SensorNetwork
-from hybridtrack.pipeline import _registry, resolve
+from hybridtrack.plugins import resolve, resolve_registry
 from hybridtrack.recording import log_estimate, log_measurements
 from hybridtrack.registry import Registry
+from hybridtrack.timestamps import check_tau, step_intervals
 from hybridtrack.types import Decision, Gaussian, Schedule
+from hybridtrack.validation import check_positive_int
 
 # --------------------------------------------------------------------------- composition helpers
 
@@ -63,8 +70,7 @@ def turn_bank(r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=No
 
     Radii r_i = r_min + (i − 1)(r_max − r_min)/(n − 1) (n = 1: r_min alone, which must equal r_max).
     """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n: expected a positive number of radii, got {n!r}")
+    n = check_positive_int(n, "n")
     r_min, r_max = float(r_min), float(r_max)
     if not (np.isfinite(r_min) and r_min > 0):
         raise ValueError(f"r_min: expected a positive radius, got {r_min!r}")
@@ -82,12 +88,12 @@ def turn_bank(r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=No
 
 
 def mode_label(model: MotionModel) -> str:
-    radius = getattr(model, "radius", None)
-    return model.name if radius is None else f"{model.name}_r{radius:g}"
+    """The registry name, with the radius for a turn mode (``left_turn_r3``)."""
+    return model.name if model.radius is None else f"{model.name}_r{model.radius:g}"
 
 
 def _models(modes, registry) -> list[MotionModel]:
-    models = [resolve("motion_model", m, MotionModel, registry) for m in modes]
+    models = [resolve("motion_model", m, registry) for m in modes]
     if not models:
         raise ValueError("modes: expected at least one motion mode, got an empty set")
     layouts = {m.layout for m in models}
@@ -110,19 +116,19 @@ def _record_run(recorder, adaptive, z: np.ndarray, run, hypotheses: Sequence[str
     its 2σ ellipses, ln λ per hypothesis with A (``upper``) and B (``lower``), and the decisions.
     Returns the steps and times for the caller's own series."""
     steps = np.arange(run.means.shape[0])
-    times = steps * adaptive.tau
+    times = run.times
     if truth is not None:
         recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
     network = adaptive.network
     log_measurements(recorder, network.sensors, network.split(z[: steps.size]), steps, times)
     position = [adaptive.layout.index("x"), adaptive.layout.index("y")]
     log_estimate(recorder, adaptive.name, steps, run.means, run.covs, position, times)
-    base = f"detector/{adaptive.detector.name}"
+    base = f"detector/{adaptive.detector.label}"
     _log_columns(recorder, f"{base}/log_ratio", steps, run.log_ratios, hypotheses, times)
     recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
     recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
     for d in run.decisions:
-        recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", d.step * adaptive.tau)
+        recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", times[d.step])
     return steps, times
 
 
@@ -161,6 +167,7 @@ class KnownSwitchRun:
 
     layout: tuple[str, ...]
     hypotheses: tuple[str, ...]
+    times: np.ndarray
     means: np.ndarray
     covs: np.ndarray
     followed: np.ndarray
@@ -200,7 +207,7 @@ class KnownSwitchAdaptive:
         self,
         *,
         sensors: SensorNetwork | Sequence[Sensor],
-        tau: float,
+        tau: float | None = None,
         modes: Sequence[Any] | None = None,
         r_min: float = 1.0,
         r_max: float = 10.0,
@@ -217,27 +224,32 @@ class KnownSwitchAdaptive:
         if follow not in self.FOLLOW:
             raise ValueError(f"follow: expected one of {self.FOLLOW}, got {follow!r}")
         self.follow = follow
-        registry = _registry(registry)
+        registry = resolve_registry(registry)
         self.models = _models(modes if modes is not None else turn_bank(r_min, r_max, n, noise_cov), registry)
         self.hypotheses = _labels(self.models)
         self.layout = self.models[0].layout
         self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
-        self.tau = float(tau)
-        if not (np.isfinite(self.tau) and self.tau > 0):
-            raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
-        self.estimator: Estimator = resolve("estimator", estimator, Estimator, registry)
+        self.tau = None if tau is None else check_tau(tau)
+        self.estimator: Estimator = resolve("estimator", estimator, registry)
         spec = detector if detector is not None else ("sprt_pairwise", {"alpha": alpha, "beta": beta})
-        self.detector: Detector = resolve("detector", spec, Detector, registry)
-        for attribute in ("decided", "hypotheses", "observe"):
-            if not hasattr(self.detector, attribute):
-                raise ValueError(
-                    f"detector: {self.detector.name!r} has no {attribute!r}; Algorithm 1 needs a fixed-bank SPRT such as 'sprt_pairwise'"
-                )
+        self.detector = resolve("detector", spec, registry)
+        require(self.detector, HypothesisTest, "detector (Algorithm 1 needs a test over a fixed bank, e.g. 'sprt_pairwise')")
         self.name = name
 
     def run(
-        self, measurements: Mapping[str, np.ndarray], prior, segments: Schedule | Sequence[int], *, recorder=None, truth=None
+        self,
+        measurements: Mapping[str, np.ndarray],
+        prior,
+        segments: Schedule | Sequence[int],
+        *,
+        times=None,
+        recorder=None,
+        truth=None,
     ) -> KnownSwitchRun:
+        """Algorithm 1 over ``segments`` (step counts, or a Schedule) on measurements of steps 0 … K.
+
+        ``times``: the K+1 measurement times in seconds (default 0, τ, 2τ, …).
+        """
         lengths = [s.steps for s in segments.segments] if isinstance(segments, Schedule) else [int(t) for t in segments]
         if not lengths or min(lengths) < 1:
             raise ValueError(f"segments: expected positive segment lengths, got {lengths}")
@@ -245,29 +257,29 @@ class KnownSwitchAdaptive:
         K = sum(lengths)
         if z.shape[0] != K + 1:
             raise ValueError(f"measurements: expected {K + 1} steps (0 … {K}) for segments totalling {K}, got {z.shape[0]}")
+        t, dt = step_intervals(times, self.tau, K + 1)
         prior = _prior(prior)
         H = len(self.models)
+        sensors = self.network.sensors
         means, covs = np.zeros((K + 1, len(self.layout))), np.zeros((K + 1, len(self.layout), len(self.layout)))
         followed = np.zeros(K + 1, dtype=int)
         ratios = np.full((K + 1, H), np.nan)
-        start_bank = FilterBank(len(self.layout))
-        start_bank.add(prior.mean, prior.cov, self.models[0], self.tau, prior.mean)
-        start_bank.update_only(self.estimator, z[0], self.network.sensors, self.layout)
-        x, P = start_bank.means[0], start_bank.covs[0]
+        bank = FilterBank(self.estimator, self.layout)
+        bank.start(prior.mean, prior.cov, self.models[:1], prior.mean)
+        bank.update_only(z[0], sensors)
+        x, P = bank.means[0], bank.covs[0]
         means[0], covs[0] = x, P
-        q, k = 0, 0
+        q, k, row = 0, 0, 0
         outcomes, decisions = [], []
         detector = self.detector
         for T in lengths:
-            bank = FilterBank(len(self.layout))
-            for i, model in enumerate(self.models):
-                bank.add(x, P, model, self.tau, x, label=i)
+            bank.restart(row, self.models, x, labels=range(H))  # every hypothesis from the followed filter's own state
             detector.hypotheses = self.hypotheses
             detector.reset()
             decision_step = None
             accumulated = np.zeros(H)  # L_i: log-likelihood since the switch
             for step in range(k + 1, k + T + 1):
-                innovation = bank.step(self.estimator, z[step], self.network.sensors, self.layout)
+                innovation = bank.step(dt[step - 1], z[step], sensors)
                 row = 0
                 if decision_step is None:
                     out = detector.observe(step, innovation.loglik, innovation.nis, innovation.measurement_dim)
@@ -285,13 +297,14 @@ class KnownSwitchAdaptive:
                 x, P = bank.means[row], bank.covs[row]
                 if decision_step == step:
                     bank.keep([q])
+                    row = 0
                 means[step], covs[step], followed[step] = x, P, q
-            model = self.models[q]
-            outcomes.append(SegmentOutcome(k, T, self.hypotheses[q], q, getattr(model, "radius", None), decision_step))
+            outcomes.append(SegmentOutcome(k, T, self.hypotheses[q], q, self.models[q].radius, decision_step))
             k += T
         run = KnownSwitchRun(
             self.layout,
             self.hypotheses,
+            t,
             means,
             covs,
             followed,
@@ -334,6 +347,7 @@ class UnknownChangeRun:
 
     layout: tuple[str, ...]
     modes: tuple[str, ...]
+    times: np.ndarray
     means: np.ndarray
     covs: np.ndarray
     mode: np.ndarray
@@ -371,7 +385,7 @@ class UnknownChangeAdaptive:
         *,
         modes: Sequence[Any],
         sensors: SensorNetwork | Sequence[Sensor],
-        tau: float,
+        tau: float | None = None,
         estimator: Any = "kalman",
         detector: Any = None,
         alpha: float = 0.05,
@@ -383,7 +397,7 @@ class UnknownChangeAdaptive:
         name: str = "unknown_change",
         registry: Registry | None = None,
     ):
-        registry = _registry(registry)
+        registry = resolve_registry(registry)
         self.models = _models(modes, registry)
         if len(self.models) < 2:
             raise ValueError(f"modes: a change needs at least two modes, got {len(self.models)}")
@@ -393,46 +407,42 @@ class UnknownChangeAdaptive:
             raise ValueError(f"initial_mode: expected an index in 0 … {len(self.models) - 1}, got {initial_mode!r}")
         self.initial_mode = int(initial_mode)
         self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
-        self.tau = float(tau)
-        if not (np.isfinite(self.tau) and self.tau > 0):
-            raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
-        self.estimator: Estimator = resolve("estimator", estimator, Estimator, registry)
+        self.tau = None if tau is None else check_tau(tau)
+        self.estimator: Estimator = resolve("estimator", estimator, registry)
         spec = detector if detector is not None else ("sprt_unknown_change", {"alpha": alpha, "beta": beta})
-        self.detector: Detector = resolve("detector", spec, Detector, registry)
-        for attribute in ("add", "keep", "prune", "decided", "chosen_entry", "starts", "hypotheses", "observe"):
-            if not hasattr(self.detector, attribute):
-                raise ValueError(
-                    f"detector: {self.detector.name!r} has no {attribute!r}; Algorithm 3 needs a change-time SPRT such as 'sprt_unknown_change'"
-                )
+        self.detector = resolve("detector", spec, registry)
+        require(self.detector, ChangeTimeTest, "detector (Algorithm 3 needs a change-time test, e.g. 'sprt_unknown_change')")
         if pruning is not None:
-            if pruning not in ("oldest", "nearest_lower"):
-                raise ValueError(f"pruning: expected 'oldest' or 'nearest_lower', got {pruning!r}")
+            if pruning not in ChangeTimeTest.PRUNING_RULES:
+                raise ValueError(f"pruning: expected one of {ChangeTimeTest.PRUNING_RULES}, got {pruning!r}")
             self.detector.pruning = pruning
         if isinstance(bank_size, str):
             if bank_size != "algorithm4":
                 raise ValueError(f"bank_size: expected a positive integer, 'algorithm4' or None, got {bank_size!r}")
             if pruning is None:
                 self.detector.pruning = "oldest"
-        elif bank_size is not None and (isinstance(bank_size, bool) or not isinstance(bank_size, (int, np.integer)) or bank_size < 1):
-            raise ValueError(f"bank_size: expected a positive integer, 'algorithm4' or None, got {bank_size!r}")
+        elif bank_size is not None:
+            bank_size = check_positive_int(bank_size, "bank_size")
         self.bank_size = bank_size
-        self.signal: Detector | None = None if signal is None else resolve("detector", signal, Detector, registry)
+        self.signal = None if signal is None else require(resolve("detector", signal, registry), ScoreDetector, "signal")
         self.name = name
 
     # ------------------------------------------------------------------ Algorithm 4
-    def algorithm4_bank_size(self, switch_state, horizon: int = 300) -> int:
-        """Alternative filters to keep: Algorithm 4's steps per change time × (M − 1), from ``switch_state``."""
-        from hybridtrack.composed.algorithm4 import algorithm4_bank_size, wald_pair
+    def algorithm4_bank_size(self, switch_state, horizon: int = 300, dt: float | None = None) -> int:
+        """Alternative filters to keep: Algorithm 4's steps per change time × (M − 1), from ``switch_state``.
 
+        The steps are of ``dt`` seconds (default ``tau``; with irregular times the run uses the first Δt).
+        """
+        dt = check_tau(self.tau if dt is None else dt)
         x_s = np.asarray(switch_state, dtype=float)
         H = self.network.jacobian(x_s, self.layout)
         R = self.network.noise_cov()
-        base = self.models[self.initial_mode].transition(self.tau, x_s)
+        base = self.models[self.initial_mode].transition(dt, x_s)
         pairs = []
         for p, model in enumerate(self.models):
             if p == self.initial_mode:
                 continue
-            t = model.transition(self.tau, x_s)
+            t = model.transition(dt, x_s)
             pairs.append(
                 wald_pair(
                     (base.F, base.B, base.process_noise),
@@ -447,11 +457,11 @@ class UnknownChangeAdaptive:
             )
         return algorithm4_bank_size(pairs) * (len(self.models) - 1)
 
-    def _algorithm4_cached(self, switch_state) -> int:
-        key = (np.asarray(switch_state, dtype=float).tobytes(), self.detector.alpha, self.detector.beta)
+    def _algorithm4_cached(self, switch_state, dt) -> int:
+        key = (np.asarray(switch_state, dtype=float).tobytes(), dt, self.detector.alpha, self.detector.beta)
         cache = self.__dict__.setdefault("_algorithm4", {})
         if key not in cache:
-            cache[key] = self.algorithm4_bank_size(switch_state)
+            cache[key] = self.algorithm4_bank_size(switch_state, dt=dt)
         return cache[key]
 
     # ------------------------------------------------------------------ the run
@@ -462,12 +472,14 @@ class UnknownChangeAdaptive:
             detector.reset()
         return alternatives
 
-    def run(self, measurements: Mapping[str, np.ndarray], prior, *, recorder=None, truth=None) -> UnknownChangeRun:
+    def run(self, measurements: Mapping[str, np.ndarray], prior, *, times=None, recorder=None, truth=None) -> UnknownChangeRun:
+        """Algorithm 3, repeated, on measurements of steps 0 … K at ``times`` (seconds; default 0, τ, 2τ, …)."""
         z = self.network.stack(measurements)
         prior = _prior(prior)
         K = z.shape[0] - 1
+        t, dt = step_intervals(times, self.tau, K + 1)
         n, M = len(self.layout), len(self.models)
-        limit = self._algorithm4_cached(prior.mean) if self.bank_size == "algorithm4" else self.bank_size
+        limit = self._algorithm4_cached(prior.mean, float(dt[0]) if K else self.tau) if self.bank_size == "algorithm4" else self.bank_size
         sensors = self.network.sensors
         detector = self.detector
         signal = self.signal
@@ -487,9 +499,9 @@ class UnknownChangeAdaptive:
         alternatives = self._restart([detector], current)
         if signal is not None:
             signal.reset()
-        bank = FilterBank(n)
-        bank.add(prior.mean, prior.cov, self.models[current], self.tau, prior.mean)
-        innovation = bank.update_only(self.estimator, z[0], sensors, self.layout)
+        bank = FilterBank(self.estimator, self.layout)
+        bank.start(prior.mean, prior.cov, [self.models[current]], prior.mean)
+        innovation = bank.update_only(z[0], sensors)
         if signal is not None:
             out = signal.observe(0, innovation.loglik[:1], innovation.nis[:1], innovation.measurement_dim)
             signal_values[0], bounds[0] = out.statistics["signal"][0], (out.thresholds["lower"], out.thresholds["upper"])
@@ -508,14 +520,12 @@ class UnknownChangeAdaptive:
                     ]
 
         for k in range(1, K + 1):
-            # 1. one new filter per alternative, hypothesising the change at k (from filter 0's estimate)
-            x0, P0 = bank.means[0].copy(), bank.covs[0].copy()
-            for i in alternatives:
-                bank.add(x0, P0, self.models[i], self.tau, x0, label=(i, k))
+            # 1. one new filter per alternative, hypothesising the change at k: a copy of filter 0's state
+            bank.branch(0, [self.models[i] for i in alternatives], bank.means[0], labels=[(i, k) for i in alternatives])
             for d in [detector] + node_detectors:
                 d.add(np.arange(1, M), k)
             # 2. one step of the whole bank, then the ratios (25) and rule (24)
-            innovation = bank.step(self.estimator, z[k], sensors, self.layout)
+            innovation = bank.step(dt[k - 1], z[k], sensors)
             m = innovation.measurement_dim
             out = detector.observe(k, innovation.loglik, innovation.nis, m)
             ratios[k, alternatives] = out.statistics["log_ratio"]
@@ -553,6 +563,7 @@ class UnknownChangeAdaptive:
         run = UnknownChangeRun(
             self.layout,
             self.labels,
+            t,
             means,
             covs,
             mode,
@@ -575,7 +586,7 @@ class UnknownChangeAdaptive:
     def _record(self, recorder, z: np.ndarray, run: UnknownChangeRun, truth) -> None:
         steps, times = _record_run(recorder, self, z, run, run.modes, truth)
         if self.signal is not None:
-            sig = f"detector/{self.signal.name}"
+            sig = f"detector/{self.signal.label}"
             recorder.log_scalars(f"{sig}/signal", steps, run.signal, times)
             recorder.log_scalars(f"{sig}/lower", steps, run.signal_bounds[:, 0], times)
             recorder.log_scalars(f"{sig}/upper", steps, run.signal_bounds[:, 1], times)

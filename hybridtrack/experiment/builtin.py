@@ -30,11 +30,11 @@ def scaled_schedule(schedule: Schedule, factor: float) -> Schedule:
 
 def simulate_seed001(rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0):
     """(schedule, sensors, trajectory, measurements) of one seed-001 run drawn from ``rng``."""
+    from hybridtrack.plugins import resolve
     from hybridtrack.simulate import simulate_measurements, simulate_trajectory
-    from hybridtrack_plugins.sensors.position import PositionSensor
 
     schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
-    sensors = [PositionSensor(name="sensor", noise_cov=float(R) * np.eye(2))]
+    sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
     # two independent streams from the run's generator (simulate() itself takes an int seed only)
     trajectory_rng, measurement_rng = rng.spawn(2)
     truth = simulate_trajectory(schedule, X0, tau, seed=trajectory_rng, noise_cov=float(q) * np.eye(2))
@@ -50,7 +50,7 @@ def squared_errors(means: np.ndarray, truth, layout) -> np.ndarray:
 
 def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman"):
     """The optimal KF of seed 001 (told the modes; prior N(x0, I)) on one run's measurements."""
-    from hybridtrack.pipeline import run_known_modes
+    from hybridtrack.composed.known_modes import run_known_modes
     from hybridtrack.types import Gaussian
 
     return run_known_modes(

@@ -81,7 +81,7 @@ class DynamicThreshold(Detector):
     def __init__(self, detector: Any = "glr", cue: Any = "speed_drop", likelihood_ratio: float = 4.0):
         from hybridtrack.pipeline import resolve
 
-        self.detector: Detector = resolve("detector", detector, Detector)
+        self.detector: Detector = resolve("detector", detector)
         if not hasattr(self.detector, "alpha"):
             raise ValueError(f"detector: {self.detector.name!r} has no settable 'alpha'; its threshold must be a function of α")
         self.cue = _cue(cue)

@@ -118,7 +118,7 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         return rows
 
     # ------------------------------------------------------------------ the test
-    def label(self, p: int) -> str:
+    def hypothesis_name(self, p: int) -> str:
         if self.hypotheses is not None:
             return self.hypotheses[p]
         return f"H{p}"
@@ -158,13 +158,17 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
             decision = Decision(
                 step,
                 self.name,
-                self.label(p),
+                self.hypothesis_name(p),
                 float(ratios[p - 1]),
-                f"change to {self.label(p)} (most likely at step {j}), ln λ = {ratios[p - 1]:.2f} ≥ A = {self.upper:.2f}",
+                f"change to {self.hypothesis_name(p)} (most likely at step {j}), ln λ = {ratios[p - 1]:.2f} ≥ A = {self.upper:.2f}",
             )
         elif finite.size == ratios.size and ratios.size and ratios.max() <= self.lower:
             decision = Decision(
-                step, self.name, self.label(0), float(ratios.max()), f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts"
+                step,
+                self.name,
+                self.hypothesis_name(0),
+                float(ratios.max()),
+                f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts",
             )
             self.decided = 0
         output = ({"log_ratio": ratios, "bank_size": float(self.modes.size)}, {"upper": self.upper, "lower": self.lower}, decision)

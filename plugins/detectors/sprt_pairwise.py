@@ -67,7 +67,7 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
         self.frozen = None  # log_ratio at the moment each hypothesis was dropped
         self.decided: int | None = None
 
-    def label(self, index: int) -> str:
+    def hypothesis_name(self, index: int) -> str:
         if self.hypotheses is not None and index < len(self.hypotheses):
             return self.hypotheses[index]
         return f"H{index}"
@@ -101,9 +101,9 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
                 decision = Decision(
                     step,
                     self.name,
-                    self.label(i),
+                    self.hypothesis_name(i),
                     float(ratio[i]),
-                    f"{self.label(i)} accepted, log-LR margin {ratio[i]:.2f} (A = {self.upper:.2f})",
+                    f"{self.hypothesis_name(i)} accepted, log-LR margin {ratio[i]:.2f} (A = {self.upper:.2f})",
                 )
         ratio = np.where(self.active, margins(self.L, self.active), self.frozen)
         return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision)

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack import Gaussian, Schedule
+from hybridtrack import Gaussian, Schedule, TransitionBank
 from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
 from hybridtrack.composed.bank import FilterBank
 from hybridtrack.simulate import simulate
-from hybridtrack_plugins.motion.linear_modes import Straight
+from hybridtrack_plugins.motion.linear_modes import RightTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = np.array([0.0, 0.0, 0.0, 2.0])
@@ -56,8 +56,10 @@ def test_parameter_errors_of_the_adaptive_estimators():
         UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, bank_size="all")
     with pytest.raises(ValueError, match="initial_mode"):
         UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, initial_mode=3)
-    with pytest.raises(ValueError, match="detector"):
+    with pytest.raises(TypeError, match="detector.*ChangeTimeTest.*lacks add, keep, log_ratios, prune"):
         UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, detector="signal_function")
+    with pytest.raises(TypeError, match="detector.*HypothesisTest.*lacks hypotheses, decided, upper, lower"):
+        KnownSwitchAdaptive(sensors=sensors, tau=0.1, detector="signal_function")
     with pytest.raises(ValueError, match="modes"):
         KnownSwitchAdaptive(modes=[], sensors=sensors, tau=0.1)
     with pytest.raises(ValueError, match="r_min"):
@@ -67,15 +69,39 @@ def test_parameter_errors_of_the_adaptive_estimators():
 
 
 def test_filter_bank_grows_and_shrinks_and_steps_like_the_pipeline_filter():
-    bank = FilterBank(4)
-    for r in (0, 1, 2):
-        bank.add(X0 + r, np.eye(4), Straight(), 0.1, X0, label=r)
-    bank.keep([2, 0])
-    assert bank.labels == [2, 0] and np.allclose(bank.means[:, 0], [2.0, 0.0])
     from hybridtrack_plugins.filters.kalman import KalmanFilter
+    from hybridtrack_plugins.motion.linear_modes import LeftTurn
 
-    innovation = bank.step(KalmanFilter(), np.array([0.1, 0.3]), [PositionSensor()], ("x", "vx", "y", "vy"))
-    assert innovation.nis.shape == (2,) and bank.node_scores() is None
+    layout = ("x", "vx", "y", "vy")
+    sensors = [PositionSensor()]
+    bank = FilterBank(KalmanFilter(), layout)
+    models = [Straight(), LeftTurn(radius=3.0), RightTurn(radius=5.0)]
+    bank.start(X0, np.eye(4), models, X0, labels=[0, 1, 2])
+    bank.step(0.1, np.array([0.1, 0.3]), sensors)
+    before = bank.means.copy(), bank.covs.copy()
+    bank.keep([2, 0])
+    assert bank.labels == [2, 0]
+    np.testing.assert_array_equal(bank.means, before[0][[2, 0]])
+    np.testing.assert_array_equal(bank.covs, before[1][[2, 0]])
+    bank.branch(1, [LeftTurn(radius=3.0)], bank.means[1], labels=["copy"])  # a copy of the straight filter
+    assert len(bank) == 3 and bank.labels == [2, 0, "copy"]
+    np.testing.assert_array_equal(bank.means[2], bank.means[1])
+    innovation = bank.step(0.1, np.array([0.2, 0.5]), sensors)
+    assert innovation.nis.shape == (3,) and bank.node_scores() is None
+    # the same filters stepped directly
+    kf = KalmanFilter()
+    state = kf.initialize(np.stack([X0] * 3), np.stack([np.eye(4)] * 3))
+    state, _ = kf.update(
+        kf.predict(state, TransitionBank.stack([m.transition(0.1, X0) for m in models])), np.array([0.1, 0.3]), sensors, layout
+    )
+    state = kf.take(state, [2, 0, 0])
+    x_s = kf.mean(state)[2]
+    stacked = TransitionBank.stack(
+        [models[2].transition(0.1, X0), models[0].transition(0.1, X0), LeftTurn(radius=3.0).transition(0.1, x_s)]
+    )
+    state, reference = kf.update(kf.predict(state, stacked), np.array([0.2, 0.5]), sensors, layout)
+    np.testing.assert_allclose(bank.means, kf.mean(state), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(innovation.loglik, reference.loglik, rtol=0, atol=1e-12)
 
 
 def test_example1_detects_the_right_turn():
@@ -140,7 +166,7 @@ def test_known_switch_identifies_each_segment():
     assert [s.mode for s in run.segments] == ["left_turn_r3", "right_turn_r5", "straight"]
     assert all(s.decision_step is not None and 0 < s.delay <= 50 for s in run.segments)
     assert run.means.shape == (151, 4) and len(run.decisions) == 3
-    from hybridtrack.pipeline import run_known_modes
+    from hybridtrack.composed.known_modes import run_known_modes
 
     error = np.sqrt(np.mean(np.sum((run.means[:, [0, 2]] - truth.positions) ** 2, axis=1)))
     known = run_known_modes(

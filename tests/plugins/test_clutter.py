@@ -112,11 +112,11 @@ def test_pipeline_runs_a_pda_bank_on_candidates_and_records_clutter_gates_and_we
         np.testing.assert_allclose(points, expected, rtol=1e-6, atol=1e-5)  # float32 positions
     steps, beta = rec.series("estimator/straight/beta")
     expected = np.array(
-        [[r.innovation.associations[0].missed[0], r.innovation.associations[0].weights[0].max(initial=0.0)] for r in pipeline._results]
+        [[r.innovation.associations[0].missed[0], r.innovation.associations[0].weights[0].max(initial=0.0)] for r in pipeline.results]
     )
     np.testing.assert_array_equal(beta, expected)
     steps, loglik = rec.series("estimator/right_turn_r5/association_loglik")
-    np.testing.assert_array_equal(loglik, [r.innovation.associations[0].loglik[1] for r in pipeline._results])
+    np.testing.assert_array_equal(loglik, [r.innovation.associations[0].loglik[1] for r in pipeline.results])
     gate_steps, strips = rec.strips("world/estimate/straight/gate")
     assert len(gate_steps) == 51 and strips[0][0].shape[1] == 2
     assert "/world/measurements/pos" in rec.summary()["entity_paths"]
@@ -149,7 +149,7 @@ def test_nearest_neighbour_and_pda_in_the_pipeline_agree_with_direct_updates():
         result = pipeline.run()
         est = pipeline.estimator
         state = est.initialize(np.array([[0.0, 0.0, 0.0, 2.0]]), np.eye(4)[None] * 0.01)
-        bank = pipeline._transitions
+        bank = pipeline.transitions(0.1)
         for k in range(scans["pos"].steps):
             if k:
                 state = est.predict(state, bank)
