@@ -270,9 +270,11 @@ class Estimator(ABC):
       object (covariance, information or factor form).
     * ``predict(state, transitions: TransitionBank)`` → the predicted state.
     * ``update(state, z, sensors, layout)`` → ``(state, Innovation)``: ``z`` is
-      the stacked measurement of ``sensors`` (shape (Σ m_i,)); rows of a sensor
-      holding NaN mean that sensor has no measurement at this step; all NaN means
-      prediction only (the state is returned unchanged, ``m == 0``).
+      the stacked measurement of ``sensors`` (shape (Σ m_i,)); a NaN component
+      has no measurement at this step: the update uses the sensor's present
+      components (their rows of H and rows/columns of R); a sensor with every
+      component NaN is skipped; all NaN means prediction only (the state is
+      returned unchanged, ``m == 0``).
     * ``mean(state)`` (M, n) and ``covariance(state)`` (M, n, n) read the state
       back in covariance form whatever the internal form.
     * Bad input (NaN/inf in the prior, wrong shapes) raises ``ValueError``
