@@ -3,9 +3,21 @@
 ``update(state, z, sensors, layout)`` receives the stacked measurement of N
 sensors, z = [z_1; …; z_N] of shape (Σ m_i,) (the same data for every filter)
 or (M, Σ m_i) (one row per filter, e.g. Monte Carlo runs stacked as a bank).
-A sensor whose rows hold NaN has no measurement at this step and is skipped;
-all sensors skipped means prediction only.  The present sensors form the
-centralized model H = [H_1; …; H_N], R = blockdiag(R_1, …, R_N).
+Missing data is marked per component by NaN.  A NaN in one component of a
+sensor drops only that component: the update uses the remaining rows of H (of
+h(x) and its Jacobian for a nonlinear sensor) and the sub-block of R on the
+present components (rows and columns).  A sensor with every component NaN has
+no measurement at this step and is skipped; all sensors skipped means
+prediction only.  The missing pattern must be the same for every filter of the
+bank.  The present rows form the centralized model H = [H_1; …; H_N],
+R = blockdiag(R_1, …, R_N).
+
+R of a sensor whose R depends on z (``measurement_noise(z)``, e.g. radar
+pseudo-measurements) is computed from its z row only when the whole row is
+finite; for a partially missing row it is the sub-block of ``noise_cov``
+(R(z) needs the full z).  Angle wrapping stays per component: ``residual``
+is called on full-width arrays (the missing entries of z and ẑ both 0) and
+the present columns are kept.
 
 Linear sensors whose H only picks state components ("selection" H, e.g. the
 position sensor) are detected once and then handled by indexing instead of
@@ -33,16 +45,53 @@ class SensorModel:
     H: np.ndarray | None  # (m, n) for a linear sensor, None for a nonlinear one
     selection: tuple[int, ...] | None  # state indices when H selects components
     plain_residual: bool  # residual is z − ẑ (no angle wrapping)
+    rows: tuple[int, ...] | None = None  # the present components when some are missing (NaN); None: all
+
+    def restricted(self, rows: tuple[int, ...]) -> SensorModel:
+        """This sensor reduced to its components ``rows``: dim, H and selection keep those rows only."""
+        H = selection = None
+        if self.H is not None:
+            H = self.H[list(rows)]
+            H.setflags(write=False)
+        if self.selection is not None:
+            selection = tuple(self.selection[i] for i in rows)
+        return SensorModel(self.sensor, len(rows), H, selection, self.plain_residual, rows)
+
+    def measure(self, x: np.ndarray, layout: Sequence[str]) -> np.ndarray:
+        """ẑ = h(x) (M, dim) of the present components."""
+        if self.H is not None:
+            return x @ self.H.T
+        z_pred = self.sensor.measure(x, layout)
+        return z_pred if self.rows is None else z_pred[..., list(self.rows)]
+
+    def jacobian(self, x: np.ndarray, layout: Sequence[str]) -> np.ndarray:
+        """∂h/∂x (M, dim, n) of the present components."""
+        if self.H is not None:
+            return np.broadcast_to(self.H, (x.shape[0],) + self.H.shape)
+        H = self.sensor.jacobian(x, layout)
+        return H if self.rows is None else H[..., list(self.rows), :]
+
+    def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
+        """ν (…, dim) through the sensor's ``residual``; with missing components it is called on the
+        full-width arrays (missing entries of z and ẑ both 0) and the present columns are kept."""
+        if self.rows is None:
+            return self.sensor.residual(z, z_pred)
+        rows = list(self.rows)
+        full_pred = np.zeros(z_pred.shape[:-1] + (self.sensor.measurement_dim,))
+        full_pred[..., rows] = z_pred
+        full_z = full_pred.copy()
+        full_z[..., rows] = z
+        return np.asarray(self.sensor.residual(full_z, full_pred))[..., rows]
 
 
 @attrs.frozen(eq=False)
 class MeasurementStep:
-    """The present sensors of one step, stacked."""
+    """The present sensors of one step, stacked (a partially missing sensor reduced to its present components)."""
 
-    models: tuple[SensorModel, ...]
-    z: np.ndarray  # (1 or M, m) present rows
+    models: tuple[SensorModel, ...]  # present sensors; ``rows`` set on those with missing components
+    z: np.ndarray  # (1 or M, m) present components
     R: np.ndarray  # (m, m) or (M, m, m)
-    blocks: tuple[slice, ...]  # each present sensor's rows within z
+    blocks: tuple[slice, ...]  # each present sensor's components within z
     H: np.ndarray | None  # (m, n) when every present sensor is linear
     selection: tuple[int, ...] | None  # when every present sensor selects components
     plain_residual: bool
@@ -62,14 +111,8 @@ class MeasurementStep:
             return x[:, selection_index(self.selection)], self.H
         if self.H is not None:
             return x @ self.H.T, self.H
-        z_pred = np.concatenate([model.sensor.measure(x, layout) if model.H is None else x @ model.H.T for model in self.models], axis=-1)
-        H = np.concatenate(
-            [
-                model.sensor.jacobian(x, layout) if model.H is None else np.broadcast_to(model.H, (x.shape[0],) + model.H.shape)
-                for model in self.models
-            ],
-            axis=-2,
-        )
+        z_pred = np.concatenate([model.measure(x, layout) for model in self.models], axis=-1)
+        H = np.concatenate([model.jacobian(x, layout) for model in self.models], axis=-2)
         return z_pred, H
 
     def residual(self, z_pred: np.ndarray) -> np.ndarray:
@@ -77,7 +120,7 @@ class MeasurementStep:
         if self.plain_residual:
             return self.z - z_pred
         z = np.broadcast_to(self.z, z_pred.shape)
-        return np.concatenate([m.sensor.residual(z[..., b], z_pred[..., b]) for m, b in zip(self.models, self.blocks)], axis=-1)
+        return np.concatenate([m.residual(z[..., b], z_pred[..., b]) for m, b in zip(self.models, self.blocks)], axis=-1)
 
 
 @lru_cache(maxsize=256)
@@ -136,8 +179,8 @@ class MeasurementAssembler:
     def assemble(self, z, sensors: Sequence[Sensor], layout: Sequence[str], bank_size: int) -> MeasurementStep | None:
         """The present sensors' stacked model, or None when no sensor measured (prediction only).
 
-        The common case — the same sensors as the previous call, every row
-        finite, R independent of z — reuses the previous step's structure.
+        The common case — the same sensors as the previous call, every
+        component finite, R independent of z — reuses the previous step's structure.
         """
         if isinstance(sensors, Sensor):
             sensors = (sensors,)
@@ -156,6 +199,7 @@ class MeasurementAssembler:
             step is not None
             and z_array is not None
             and len(step.models) == len(sensors)
+            and all(m.rows is None for m in step.models)
             and all(_constant_noise(m.sensor) for m in step.models)
         ):
             self._template = ((tuple(map(id, sensors)), layout, bank_size, z_array.shape), step)
@@ -170,25 +214,33 @@ class MeasurementAssembler:
                 f"z: expected shape ({total},) or ({bank_size}, {total}) (the stacked measurement of {len(models)} sensor(s)), got {z.shape}"
             )
         z2 = z.reshape(-1, total)
+        nan = np.isnan(z2)
         present, blocks, columns = [], [], []
         start = out = 0
         for model in models:
-            rows = z2[:, start : start + model.dim]
-            missing = np.isnan(rows).any(axis=1)
-            if missing.any() and not missing.all():
-                raise ValueError(
-                    f"z: sensor {model.sensor.name!r} has NaN for some filters of the bank and not others; the missing pattern must be the same for the whole bank"
-                )
-            if not missing.any():
-                present.append(model)
-                blocks.append(slice(out, out + model.dim))
-                columns.extend(range(start, start + model.dim))
-                out += model.dim
-            start += model.dim
+            dim = model.dim
+            block_nan = nan[:, start : start + dim]
+            if block_nan.any():
+                missing = block_nan.any(axis=0)  # per component
+                mixed = np.flatnonzero(missing & ~block_nan.all(axis=0))
+                if mixed.size:
+                    raise ValueError(
+                        f"z: sensor {model.sensor.name!r} has NaN in component(s) {mixed.tolist()} for some filters of the bank "
+                        "and not others; the missing pattern must be the same for the whole bank"
+                    )
+                if missing.all():
+                    start += dim
+                    continue
+                model = self._restricted(model, tuple(int(i) for i in np.flatnonzero(~missing)), layout)
+            present.append(model)
+            blocks.append(slice(out, out + model.dim))
+            columns.extend(range(start, start + dim) if model.rows is None else [start + i for i in model.rows])
+            out += model.dim
+            start += dim
         if not present:
             return None
         zp = z2[:, columns]
-        R = block_diagonal([_noise(m.sensor, zp[:, b] if zp.shape[0] > 1 else zp[0, b]) for m, b in zip(present, blocks)])
+        R = block_diagonal([_model_noise(m, zp[:, b] if zp.shape[0] > 1 else zp[0, b]) for m, b in zip(present, blocks)])
         linear = all(m.H is not None for m in present)
         H = np.concatenate([m.H for m in present], axis=0) if linear else None
         selection = None
@@ -198,11 +250,29 @@ class MeasurementAssembler:
         R_diagonal = not np.count_nonzero(R * (1.0 - np.eye(R.shape[-1])))
         return MeasurementStep(tuple(present), zp, R, tuple(blocks), H, selection, plain, R_diagonal)
 
+    def _restricted(self, model: SensorModel, rows: tuple[int, ...], layout: tuple[str, ...]) -> SensorModel:
+        """``model`` reduced to the present components ``rows`` (cached like the full model)."""
+        key = (id(model.sensor), layout, rows)
+        hit = self._cache.get(key)
+        if hit is not None and hit.sensor is model.sensor:
+            return hit
+        restricted = model.restricted(rows)
+        self._cache[key] = restricted
+        return restricted
+
 
 def _constant_noise(sensor: Sensor) -> bool:
     """R does not depend on z (the sensor keeps the default ``measurement_noise``)."""
     method = getattr(type(sensor), "measurement_noise", None)
     return method is None or method is Sensor.measurement_noise
+
+
+def _model_noise(model: SensorModel, z: np.ndarray) -> np.ndarray:
+    """R of the present components: the sensor's R(z) for a complete row, else the rows/columns ``rows`` of ``noise_cov``."""
+    if model.rows is None:
+        return _noise(model.sensor, z)
+    rows = list(model.rows)
+    return np.asarray(model.sensor.noise_cov, dtype=float)[np.ix_(rows, rows)]
 
 
 def _noise(sensor: Sensor, z: np.ndarray) -> np.ndarray:

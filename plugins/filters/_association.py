@@ -182,8 +182,8 @@ class ClutterEstimator(BankEstimator):
     ``update(state, z, sensors, layout)`` accepts, for ``z``:
 
     * the stacked z of :meth:`Estimator.update` (shape (Σ m_i,) or (M, Σ m_i),
-      NaN rows: a sensor without measurement) — the present sensors' stacked
-      vector is then the one candidate of the step;
+      NaN: a missing component, or a sensor without measurement) — the present
+      components' stacked vector is then the one candidate of the step;
     * a :class:`~hybridtrack.clutter.Scan` — the candidates (L, m) of the
       sensor named ``scan.sensor`` (one of ``sensors``), L ≥ 0;
     * a sequence of Scans — processed one sensor after the other (sequential
