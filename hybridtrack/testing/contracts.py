@@ -388,6 +388,7 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
             _close(innovation.S, ref_innovation.S, label, f"innovation S {when}", rtol=1e-7, atol=1e-7)
             _close(innovation.loglik, ref_innovation.loglik, label, f"loglik {when}", rtol=1e-7, atol=1e-7)
 
+    _check_bank_operations(estimator, label, state, bank, sensors, rng)
     bad_priors = (
         ("a NaN in the prior mean", np.where(np.arange(n) == 1, np.nan, mean), cov),
         ("an inf in the prior covariance", mean, np.where(np.eye(n, dtype=bool), np.inf, cov)),
@@ -401,6 +402,33 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
         except Exception as error:
             raise AssertionError(f"{label}: initialize with {what} raised {error!r}, expected ValueError") from error
         raise AssertionError(f"{label}: initialize with {what} did not raise ValueError")
+
+
+def _check_bank_operations(estimator: Estimator, label: str, state, bank, sensors, rng) -> None:
+    """``take`` and ``concatenate`` select and join filters in the estimator's own form: the rows read back as
+    the same rows of the whole bank, and a bank rebuilt from pieces steps exactly like the whole bank."""
+    x, P = np.asarray(estimator.mean(state)), np.asarray(estimator.covariance(state))
+    rows = [2, 0, 0]
+    taken = estimator.take(state, rows)
+    _close(np.asarray(estimator.mean(taken)), x[rows], label, "mean after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
+    _close(np.asarray(estimator.covariance(taken)), P[rows], label, "covariance after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
+    joined = estimator.concatenate([estimator.take(state, [0]), estimator.take(state, [1, 2])])
+    _close(np.asarray(estimator.mean(joined)), x, label, "mean after concatenate of take([0]) and take([1, 2])", rtol=1e-12, atol=1e-12)
+    fresh = estimator.concatenate([estimator.take(state, [0, 1]), estimator.initialize(x[2:], P[2:])])
+    z = np.concatenate([s.simulate(x[0], CV_LAYOUT, rng) for s in sensors])
+    whole, whole_innovation = estimator.update(estimator.predict(state, bank), z.copy(), sensors, CV_LAYOUT)
+    parts, parts_innovation = estimator.update(estimator.predict(joined, bank), z.copy(), sensors, CV_LAYOUT)
+    mixed, _ = estimator.update(estimator.predict(fresh, bank), z.copy(), sensors, CV_LAYOUT)
+    for what, other in (("a concatenated bank", parts), ("a bank joined with a freshly initialized filter", mixed)):
+        _close(
+            np.asarray(estimator.mean(other)),
+            np.asarray(estimator.mean(whole)),
+            label,
+            f"mean of {what} after a step",
+            rtol=1e-9,
+            atol=1e-9,
+        )
+    _close(parts_innovation.loglik, whole_innovation.loglik, label, "loglik of a concatenated bank after a step", rtol=1e-9, atol=1e-9)
 
 
 # --------------------------------------------------------------------------- detectors

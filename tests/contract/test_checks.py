@@ -121,6 +121,13 @@ class NaNAsZero(ToyKalman):
         return super().update(state, np.nan_to_num(np.asarray(z, dtype=float)), sensors, layout)
 
 
+class TakeIgnoresOrder(ToyKalman):
+    """take() returns the rows sorted instead of in the order asked."""
+
+    def take(self, state, rows):
+        return super().take(state, np.sort(rows))
+
+
 class NoPriorCheck(ToyKalman):
     def initialize(self, mean, cov):
         return np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
@@ -215,6 +222,7 @@ def test_correct_components_pass():
         (check_sensor, GlobalNoise(), "simulate with the same seed"),
         (check_sensor, NoNoise(), "simulated noise covariance"),
         (check_estimator, NaNAsZero(), "innovation nu has shape (3, 3), expected (3, 2)"),
+        (check_estimator, TakeIgnoresOrder(), "mean after take([2, 0, 0])"),
         (check_estimator, NoPriorCheck(), "did not raise ValueError"),
         (check_estimator, Biased(), "mean after update at step 0 (both sensors) against the covariance-form KF"),
         (check_detector, NoReset(), "differs after reset()"),
