@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack_plugins.sensors.bearing import wrap_angle
+from hybridtrack.linalg import wrap_angle
 from hybridtrack_plugins.solvers.levenberg_marquardt import BatchLevenbergMarquardt, LMSettings
 from hybridtrack_plugins.solvers.n_bearings import NBearings
 from hybridtrack_plugins.solvers.observer import Seed002Scenario, simulate_bearings

@@ -30,8 +30,8 @@ SMALL_CHOLESKY = 4
 SMALL_SOLVE = 8
 
 
-def _cholesky_entries(S: np.ndarray, what: str) -> list[list[np.ndarray]]:
-    """The entries L_ij (i ≥ j) of chol(S) as stack-shaped arrays, by the recurrence (small m).
+def _cholesky_entries(S: np.ndarray) -> tuple[list[list[np.ndarray]], np.ndarray]:
+    """The entries L_ij (i ≥ j) of chol(S) as stack-shaped arrays, by the recurrence, and where S is positive definite.
 
     L_jj = √(S_jj − Σ_{k<j} L_jk²), L_ij = (S_ij − Σ_{k<j} L_ik L_jk) / L_jj (i > j).
     """
@@ -51,9 +51,36 @@ def _cholesky_entries(S: np.ndarray, what: str) -> list[list[np.ndarray]]:
                 for k in range(j):
                     s = s - entries[i][k] * entries[j][k]
                 entries[i][j] = s / ljj
-    if not ok.all():
-        raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(~ok)[0])})")
-    return entries
+    return entries, ok
+
+
+def _assemble(entries, shape) -> np.ndarray:
+    L = np.zeros(shape)
+    for i in range(shape[-1]):
+        for j in range(i + 1):
+            L[..., i, j] = entries[i][j]
+    return L
+
+
+def masked_cholesky(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower L with A = L Lᵀ for each positive definite A (..., k, k), and ``ok`` (...,) marking them.
+
+    Unlike :func:`cholesky`, a matrix that is not positive definite (or not
+    finite) does not stop the stack: it gets ``ok`` False and an identity
+    factor, so a batch of problems can treat those alone (e.g. raise the
+    Levenberg–Marquardt λ, seed 002 §4.3 step 4) while the others go on.
+    Same recurrence as :func:`cholesky`, at every size.
+    """
+    A = np.asarray(A, dtype=float)
+    k = A.shape[-1]
+    if k == 0:
+        return np.zeros_like(A), np.ones(A.shape[:-2], dtype=bool)
+    entries, ok = _cholesky_entries(A)
+    L = _assemble(entries, A.shape)
+    bad = ~ok
+    if bad.any():
+        L[bad] = np.eye(k)
+    return L, ok
 
 
 def cholesky(S: np.ndarray, what: str = "matrix") -> np.ndarray:
@@ -76,12 +103,10 @@ def cholesky(S: np.ndarray, what: str = "matrix") -> np.ndarray:
         if not np.isfinite(np.diagonal(L, axis1=-2, axis2=-1)).all():  # LAPACK passes NaN through
             raise np.linalg.LinAlgError(f"{what} is not positive definite (NaN)")
         return L
-    entries = _cholesky_entries(S, what)
-    L = np.zeros(S.shape)
-    for i in range(m):
-        for j in range(i + 1):
-            L[..., i, j] = entries[i][j]
-    return L
+    entries, ok = _cholesky_entries(S)
+    if not ok.all():
+        raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(~ok)[0])})")
+    return _assemble(entries, S.shape)
 
 
 class CholeskyFactor:
@@ -125,7 +150,9 @@ class CholeskyFactor:
                 raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(bad)[0])})")
             self.kind = "closed"
         elif 0 < m <= SMALL_CHOLESKY:
-            self.entries = _cholesky_entries(S, what)
+            self.entries, ok = _cholesky_entries(S)
+            if not ok.all():
+                raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(~ok)[0])})")
             self.kind = "entries"
         else:
             self._L = cholesky(S, what)
@@ -293,6 +320,14 @@ def gaussian_scores(nu: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, np.ndarr
         log_det = 2.0 * log_det
     loglik = -0.5 * (m * LOG_2PI + log_det + nis)
     return loglik, nis
+
+
+def wrap_angle(angle):
+    """Angles (radians) wrapped to (−π, π]: a − 2π round(a / 2π), then −π ↦ π."""
+    angle = np.asarray(angle, dtype=float)
+    wrapped = np.asarray(angle - 2.0 * np.pi * np.round(angle / (2.0 * np.pi)))
+    wrapped[wrapped <= -np.pi] += 2.0 * np.pi
+    return wrapped
 
 
 def psd_square_root(Q: np.ndarray) -> np.ndarray:

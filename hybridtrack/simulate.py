@@ -24,6 +24,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.interfaces import MotionModel, Sensor, convert_layout
+from hybridtrack.linalg import psd_square_root
 from hybridtrack.network import SensorNetwork
 from hybridtrack.registry import Registry
 from hybridtrack.types import Schedule
@@ -32,12 +33,6 @@ from hybridtrack.validation import as_float_array, check_covariance
 
 def _rng(seed) -> np.random.Generator:
     return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-
-
-def noise_factor(Q: np.ndarray) -> np.ndarray:
-    """L with L Lᵀ = Q for a symmetric PSD Q (eigen-decomposition, so singular Q works)."""
-    values, vectors = np.linalg.eigh(Q)
-    return vectors * np.sqrt(np.clip(values, 0.0, None))
 
 
 @attrs.frozen(eq=False)
@@ -155,7 +150,7 @@ def simulate_trajectory(
         current_layout = model.layout
         switch_state = x.copy()
         transition = model.transition(tau, switch_state)
-        L = noise_factor(transition.Q)
+        L = psd_square_root(transition.Q)
         for _ in range(segment.steps):
             x = transition.apply(x) if model.linear else model.propagate(x, tau, switch_state)
             if process_noise:

@@ -24,6 +24,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.interfaces import Sensor
+from hybridtrack.linalg import wrap_angle
 from hybridtrack.validation import as_float_array, check_covariance
 
 CONVENTIONS = ("north", "math")
@@ -33,14 +34,6 @@ def check_convention(convention: str) -> str:
     if convention not in CONVENTIONS:
         raise ValueError(f"convention: expected one of {CONVENTIONS}, got {convention!r}")
     return convention
-
-
-def wrap_angle(angle):
-    """Wrap angles (radians) to (−π, π]: a − 2π round(a / 2π), then −π ↦ π."""
-    angle = np.asarray(angle, dtype=float)
-    wrapped = np.asarray(angle - 2.0 * np.pi * np.round(angle / (2.0 * np.pi)))
-    wrapped[wrapped <= -np.pi] += 2.0 * np.pi
-    return wrapped
 
 
 def angle_difference(a, b, out=None):

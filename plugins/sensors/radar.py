@@ -23,12 +23,8 @@ import attrs
 import numpy as np
 
 from hybridtrack.interfaces import Sensor
+from hybridtrack.linalg import wrap_angle
 from hybridtrack.validation import as_float_array
-
-
-def wrap_to_pi(angle):
-    """Angles wrapped to (−π, π]."""
-    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)
 
 
 def _positions(x, layout: Sequence[str]):
@@ -69,7 +65,7 @@ class _RadarBase(Sensor):
         """(ρ, θ) + noise, θ wrapped to (−π, π]."""
         p = self.polar(x, layout)
         p = p + rng.standard_normal(p.shape) * np.array([self.range_std, self.azimuth_std])
-        p[..., 1] = wrap_to_pi(p[..., 1])
+        p[..., 1] = wrap_angle(p[..., 1])
         return p
 
     def to_cartesian(self, polar) -> np.ndarray:
@@ -149,7 +145,7 @@ class PolarRadarSensor(_RadarBase):
 
     def residual(self, z, z_pred):
         nu = np.asarray(z, dtype=float) - z_pred
-        nu[..., 1] = wrap_to_pi(nu[..., 1])
+        nu[..., 1] = wrap_angle(nu[..., 1])
         return nu
 
     def simulate(self, x, layout, rng):

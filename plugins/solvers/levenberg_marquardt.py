@@ -40,8 +40,8 @@ import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from hybridtrack.interfaces import Solver
-from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient, wrap_angle
-from hybridtrack_plugins.solvers._small_linalg import cholesky_solve, masked_cholesky
+from hybridtrack.linalg import cholesky_solve, masked_cholesky, wrap_angle
+from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
 from hybridtrack_plugins.solvers.tma_model import (
     N_PARAMETERS,
     BatchTMASolution,

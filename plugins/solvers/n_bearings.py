@@ -30,8 +30,8 @@ import attrs
 import numpy as np
 
 from hybridtrack.interfaces import Solver
-from hybridtrack_plugins.sensors.bearing import direction, wrap_angle
-from hybridtrack_plugins.solvers._small_linalg import cholesky_solve, masked_cholesky
+from hybridtrack.linalg import cholesky_solve, masked_cholesky, wrap_angle
+from hybridtrack_plugins.sensors.bearing import direction
 from hybridtrack_plugins.solvers.tma_model import (
     N_PARAMETERS,
     BatchTMASolution,

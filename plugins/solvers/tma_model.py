@@ -35,6 +35,7 @@ import numpy as np
 from scipy import stats
 
 from hybridtrack.interfaces import Solution
+from hybridtrack.linalg import wrap_angle
 from hybridtrack.validation import as_float_array
 from hybridtrack_plugins.sensors.bearing import (
     angle_difference,
@@ -42,7 +43,6 @@ from hybridtrack_plugins.sensors.bearing import (
     bearing_gradient,
     check_convention,
     direction,
-    wrap_angle,
 )
 
 #: θ has four components

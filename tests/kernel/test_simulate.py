@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from hybridtrack import SEED001_TABLE1, Schedule
+from hybridtrack.linalg import psd_square_root as noise_factor
 from hybridtrack.network import SensorNetwork
-from hybridtrack.simulate import noise_factor, simulate, simulate_measurements, simulate_trajectory
+from hybridtrack.simulate import simulate, simulate_measurements, simulate_trajectory
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = [0, 0, 0, 2]

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack_plugins.sensors.radar import PolarRadarSensor, RadarSensor, wrap_to_pi
+from hybridtrack.linalg import wrap_angle as wrap_to_pi
+from hybridtrack_plugins.sensors.radar import PolarRadarSensor, RadarSensor
 
 LAYOUT = ("x", "y", "vx", "vy", "omega")
 
