@@ -18,10 +18,13 @@ import numpy as np
 import pytest
 
 from hybridtrack import cli
+from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.pipeline import Pipeline
 from hybridtrack.plugins import load_plugins
-from hybridtrack.simulate import simulate_trajectory
-from hybridtrack.testing import build_example, check_motion_model
-from hybridtrack.types import Schedule
+from hybridtrack.simulate import simulate, simulate_trajectory
+from hybridtrack.testing import build_example, check_detector, check_estimator, check_motion_model
+from hybridtrack.types import Gaussian, Schedule
+from hybridtrack_plugins.sensors.position import PositionSensor
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "thirdparty_plugin"
 PROJECT = tomllib.loads((EXAMPLE / "pyproject.toml").read_text())["project"]
@@ -102,4 +105,90 @@ def test_the_example_own_tests_pass_with_the_pytest_fixtures(zigzag):
         check=False,
     )
     assert result.returncode == 0, result.stdout + result.stderr
-    assert "5 passed" in result.stdout
+    assert "9 passed" in result.stdout
+
+
+# --------------------------------------------------------------------------- the estimator and detector of the example
+# Example 1 of tests/kernel/test_adaptive.py: 20 steps straight, then a right turn of radius 5 m.
+X0 = np.array([0.0, 0.0, 0.0, 2.0])
+NOISE = np.diag([0.01, 0.01])
+MODES = ["straight", ("right_turn", {"radius": 5.0}), ("left_turn", {"radius": 5.0})]
+
+
+def example1(seed, turn=30):
+    sensors = [PositionSensor(noise_cov=NOISE)]
+    schedule = Schedule.from_rows([("straight", 20), ("right_turn", turn, 5.0)])
+    truth, z = simulate(schedule, X0, 0.1, sensors, seed=seed, noise_cov=NOISE)
+    return truth, z, sensors
+
+
+def test_the_new_estimator_and_detector_come_from_the_registry_and_pass_the_contract_checks(zigzag):
+    registry = load_plugins().registry
+    for kind, name in (("estimator", "info_kalman"), ("detector", "cumulative_llr")):
+        entry = registry.entry(kind, name)
+        assert (entry.plugin, entry.distribution) == ("zigzag", "hybridtrack-zigzag")
+    check_estimator(build_example(registry.get("estimator", "info_kalman")))  # against the covariance-form KF
+    for parameters in ({}, {"alpha": 0.2, "beta": 0.2, "pruning": "oldest"}):
+        check_detector(registry.get("detector", "cumulative_llr")(**parameters))
+
+
+def test_a_pipeline_with_the_new_estimator_and_detector_equals_the_builtin_kalman(zigzag):
+    truth, z, sensors = example1(0)
+    prior = Gaussian(X0, np.eye(4))
+    runs = {
+        estimator: Pipeline(
+            models=MODES, estimator=estimator, sensors=sensors, measurements=z, prior=prior, tau=0.1, detectors=["cumulative_llr"]
+        ).run()
+        for estimator in ("info_kalman", "kalman")
+    }
+    ours, builtin = runs["info_kalman"], runs["kalman"]
+    assert ours.means.shape == (51, 3, 4)
+    np.testing.assert_allclose(ours.means, builtin.means, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ours.covs, builtin.covs, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ours.loglik, builtin.loglik, rtol=0, atol=1e-9)
+    ratios = ours.statistics["cumulative_llr"]["log_ratio"]
+    assert ratios.shape == (51, 3)  # one per filter of the fixed bank
+    np.testing.assert_allclose(ratios, builtin.statistics["cumulative_llr"]["log_ratio"], atol=1e-9)
+
+
+def test_known_switch_adaptive_runs_with_the_new_components(zigzag):
+    truth, z, sensors = example1(1)
+    prior, segments = Gaussian(X0, np.eye(4)), [20, 30]
+    options = dict(sensors=sensors, tau=0.1, noise_cov=NOISE, n=4, r_min=2.0, r_max=5.0)
+    ours = KnownSwitchAdaptive(estimator="info_kalman", **options).run(z, prior, segments)
+    builtin = KnownSwitchAdaptive(estimator="kalman", **options).run(z, prior, segments)
+    np.testing.assert_allclose(ours.means, builtin.means, rtol=0, atol=1e-9)
+    assert np.array_equal(ours.followed, builtin.followed) and ours.segments == builtin.segments
+
+    adaptive = KnownSwitchAdaptive(estimator="info_kalman", detector=("cumulative_llr", {"alpha": 0.01, "beta": 0.01}), **options)
+    run = adaptive.run(z, prior, segments)
+    assert run.log_ratios.shape == (51, 9) and run.means.shape == (51, 4) and np.isfinite(run.means).all()
+    straight, turn = run.segments
+    assert straight.mode == "straight"  # undecided or "no change" within its 20 steps: the straight filter throughout
+    assert turn.mode.startswith("right_turn") and turn.decision_step is not None and run.decisions[-1].mode == turn.mode
+    error = np.sqrt(np.mean(np.sum((run.means[:, [0, 2]] - truth.positions) ** 2, axis=1)))
+    assert error < 0.5
+
+
+@pytest.mark.parametrize("pruning, bank_size", [("nearest_lower", None), ("nearest_lower", 10), ("oldest", 20)])
+def test_unknown_change_adaptive_detects_the_right_turn_with_the_new_components(zigzag, pruning, bank_size):
+    detected = 0
+    for seed in range(6):
+        truth, z, sensors = example1(seed)
+        adaptive = UnknownChangeAdaptive(
+            modes=MODES,
+            sensors=sensors,
+            tau=0.1,
+            estimator="info_kalman",
+            detector=("cumulative_llr", {"alpha": 0.01, "beta": 0.01}),
+            bank_size=bank_size,
+            pruning=pruning,
+        )
+        run = adaptive.run(z, Gaussian(X0, np.eye(4)))
+        change = run.first_change(after=20)
+        if not [c for c in run.changes if c.step <= 20] and change is not None and change.mode == "right_turn_r5":
+            detected += 1
+            assert (run.mode[change.step :] == 1).all()
+        if bank_size is not None:
+            assert run.bank_sizes.max() <= 1 + bank_size + 2
+    assert detected >= 4

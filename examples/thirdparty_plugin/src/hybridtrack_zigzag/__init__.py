@@ -1,16 +1,29 @@
-"""hybridtrack-zigzag: an example third-party plugin adding the ``weave`` motion mode.
+"""hybridtrack-zigzag: an example third-party plugin.
 
-hybridtrack finds this module through the entry point ``zigzag`` of the
-``hybridtrack`` group (see ``pyproject.toml``) and calls its hooks with a
-registry; nothing else ties it to hybridtrack.
+It adds the ``weave`` motion mode, the ``info_kalman`` estimator and the
+``cumulative_llr`` detector.  hybridtrack finds this module through the entry
+point ``zigzag`` of the ``hybridtrack`` group (see ``pyproject.toml``) and
+calls its hooks with a registry; nothing else ties it to hybridtrack.
 """
 
 from hybridtrack import hookimpl
+from hybridtrack_zigzag.detector import CumulativeLLR
+from hybridtrack_zigzag.estimator import InfoKalman
 from hybridtrack_zigzag.weave import Weave
 
-__all__ = ["Weave", "register_motion_models"]
+__all__ = ["CumulativeLLR", "InfoKalman", "Weave", "register_detectors", "register_estimators", "register_motion_models"]
 
 
 @hookimpl
 def register_motion_models(registry):
     registry.add("weave", Weave)
+
+
+@hookimpl
+def register_estimators(registry):
+    registry.add("info_kalman", InfoKalman)
+
+
+@hookimpl
+def register_detectors(registry):
+    registry.add("cumulative_llr", CumulativeLLR)
