@@ -5,6 +5,10 @@ A schedule row (mode, steps, radius) runs the motion model registered as
 
     x_k = F_p x_{k-1} + B_p + G_p w_{k-1},  w ~ N(0, Q_p)   (seed 000, eq. 1)
 
+or, with ``times`` (seconds t_0 < t_1 < … < t_K, any spacing, one per state)
+in place of ``tau``, step k of length Δt_k = t_k − t_{k−1} with F_p, B_p, G_p,
+Q_p built for that Δt_k (a schedule row still counts steps).
+
 At each switch the new model ``enter``s the state (layout conversion,
 augmentation on entering constant acceleration) and fixes its transition from
 the state at the switching moment s (a turn's ω = |v_s|/r and centre).  With
@@ -27,6 +31,7 @@ from hybridtrack.interfaces import MotionModel, Sensor, convert_layout
 from hybridtrack.linalg import psd_square_root
 from hybridtrack.network import SensorNetwork
 from hybridtrack.registry import Registry
+from hybridtrack.timestamps import check_tau, check_times
 from hybridtrack.types import Schedule
 from hybridtrack.validation import as_float_array, check_covariance
 
@@ -42,14 +47,16 @@ class Trajectory:
     ``states`` (K+1, n) are in ``layout``, the union of the layouts of the
     schedule's modes (components a mode lacks are zero while it runs);
     ``segment`` (K+1,) is the index of the schedule row that produced each state
-    (row 0 for the initial state); ``times`` = step · τ.
+    (row 0 for the initial state); ``times`` = step · τ, or the times the
+    trajectory was simulated at (then ``tau`` is None).
     """
 
     schedule: Schedule
-    tau: float
+    tau: float | None
     layout: tuple[str, ...]
     states: np.ndarray
     segment: np.ndarray
+    sample_times: np.ndarray | None = None
 
     @property
     def steps(self) -> np.ndarray:
@@ -57,6 +64,8 @@ class Trajectory:
 
     @property
     def times(self) -> np.ndarray:
+        if self.sample_times is not None:
+            return self.sample_times
         return self.steps * self.tau
 
     @property
@@ -73,7 +82,8 @@ class Trajectory:
         return self.states_in(("x", "y"))
 
     def save_npz(self, path: str | Path, **extra: np.ndarray) -> None:
-        """Write states, layout, steps, times, segment and the schedule rows (plus ``extra`` arrays)."""
+        """Write states, layout, steps, times, segment and the schedule rows (plus ``extra`` arrays);
+        ``tau`` is NaN for a trajectory simulated at given times."""
         segments = self.schedule.segments
         np.savez(
             path,
@@ -85,7 +95,7 @@ class Trajectory:
             schedule_mode=np.array([s.mode for s in segments]),
             schedule_steps=np.array([s.steps for s in segments]),
             schedule_radius=np.array([np.nan if s.radius is None else s.radius for s in segments]),
-            tau=self.tau,
+            tau=np.nan if self.tau is None else self.tau,
             **extra,
         )
 
@@ -111,11 +121,23 @@ def build_models(schedule: Schedule, registry: Registry | None = None, noise_cov
     return models
 
 
+def _sampling(tau, times, steps: int) -> tuple[float | None, np.ndarray | None]:
+    """(τ, None) for regular sampling or (None, times (steps + 1,)) for given times; exactly one is given."""
+    if times is None:
+        if tau is None:
+            raise ValueError("tau: give the sampling period tau or the times (seconds) of the states")
+        return check_tau(tau), None
+    if tau is not None:
+        raise ValueError("tau: give either the sampling period tau or the times, not both")
+    return None, check_times(times, "times", steps + 1)
+
+
 def simulate_trajectory(
     schedule: Schedule,
     x0,
-    tau: float,
+    tau: float | None = None,
     *,
+    times=None,
     process_noise: bool = True,
     seed=None,
     noise_cov=None,
@@ -123,14 +145,15 @@ def simulate_trajectory(
     models: Sequence[MotionModel] | None = None,
     recorder=None,
 ) -> Trajectory:
-    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``.
+    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``,
+    or at ``times`` (seconds, strictly increasing, any spacing, one per state: ``schedule.total_steps + 1``).
 
-    ``models`` overrides the registry lookup (one model per schedule row); with
-    a ``recorder`` the true path is logged under ``world/truth``.
+    With ``times`` each step's transition (and its noise) is built for its own
+    Δt; ``tau`` and ``times`` exclude each other.  ``models`` overrides the
+    registry lookup (one model per schedule row); with a ``recorder`` the true
+    path is logged under ``world/truth``.
     """
-    tau = float(tau)
-    if not (np.isfinite(tau) and tau > 0):
-        raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
+    tau, times = _sampling(tau, times, schedule.total_steps)
     if noise_cov is not None:
         noise_cov = check_covariance(noise_cov, "noise_cov")
     models = list(models) if models is not None else build_models(schedule, registry, noise_cov)
@@ -141,6 +164,7 @@ def simulate_trajectory(
         layout += [name for name in model.layout if name not in layout]
     x = as_float_array(x0, "x0", (models[0].state_dim,))
     rng = _rng(seed)
+    intervals = None if times is None else np.diff(times)
 
     states = [convert_layout(x, models[0].layout, layout)]
     segment_index = [0]
@@ -149,17 +173,23 @@ def simulate_trajectory(
         x = model.enter(x, current_layout, {"acceleration": segment.acceleration})
         current_layout = model.layout
         switch_state = x.copy()
-        transition = model.transition(tau, switch_state)
-        L = psd_square_root(transition.Q)
+        if intervals is None:
+            transition = model.transition(tau, switch_state)
+            L = psd_square_root(transition.Q)
         for _ in range(segment.steps):
-            x = transition.apply(x) if model.linear else model.propagate(x, tau, switch_state)
+            dt = tau
+            if intervals is not None:
+                dt = float(intervals[len(states) - 1])
+                transition = model.transition(dt, switch_state)
+                L = psd_square_root(transition.Q)
+            x = transition.apply(x) if model.linear else model.propagate(x, dt, switch_state)
             if process_noise:
                 x = x + transition.G @ (L @ rng.standard_normal(L.shape[1]))
             if not np.all(np.isfinite(x)):
                 raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
             states.append(convert_layout(x, current_layout, layout))
             segment_index.append(i)
-    trajectory = Trajectory(schedule, tau, tuple(layout), np.array(states), np.array(segment_index))
+    trajectory = Trajectory(schedule, tau, tuple(layout), np.array(states), np.array(segment_index), times)
     if recorder is not None:
         recorder.log_path("world/truth", trajectory.steps, trajectory.positions, trajectory.times)
     return trajectory
@@ -173,18 +203,21 @@ def simulate_measurements(trajectory: Trajectory, sensors: Sequence[Sensor] | Se
 
 
 def simulate(
-    schedule: Schedule, x0, tau: float, sensors, *, seed=None, recorder=None, **options
+    schedule: Schedule, x0, tau: float | None = None, sensors=None, *, times=None, seed=None, recorder=None, **options
 ) -> tuple[Trajectory, dict[str, np.ndarray]]:
     """Trajectory and measurements from one seed — an int, a ``SeedSequence`` or a ``Generator`` —
     with independent streams for the two (``spawn``).
 
-    With a ``recorder`` the truth is logged; the measurements are logged by
-    what consumes them (the pipeline), or by
-    :func:`hybridtrack.recording.log_measurements`.
+    Sampling is ``tau`` (regular) or ``times`` (seconds, one per state, any
+    spacing; see :func:`simulate_trajectory`).  With a ``recorder`` the truth
+    is logged; the measurements are logged by what consumes them (the
+    pipeline), or by :func:`hybridtrack.recording.log_measurements`.
     """
+    if sensors is None:
+        raise ValueError("sensors: required (a list of sensors or a SensorNetwork)")
     if isinstance(seed, np.random.Generator):
         trajectory_rng, measurement_rng = seed.spawn(2)
     else:
         trajectory_rng, measurement_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
-    trajectory = simulate_trajectory(schedule, x0, tau, seed=trajectory_rng, recorder=recorder, **options)
+    trajectory = simulate_trajectory(schedule, x0, tau, times=times, seed=trajectory_rng, recorder=recorder, **options)
     return trajectory, simulate_measurements(trajectory, sensors, seed=measurement_rng)

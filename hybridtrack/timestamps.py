@@ -23,14 +23,14 @@ def check_times(times, name: str = "times", steps: int | None = None) -> np.ndar
         raise ValueError(f"{name}: expected {steps} times (one per measurement step), got {t.shape[0]}")
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        raise ValueError(f"{name}: time at index {bad[0]} is {t[bad[0]]} (expected finite seconds)")
+        raise ValueError(f"{name}: time at index {bad[0]} is {float(t[bad[0]])} (expected finite seconds)")
     dt = np.diff(t)
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = int(bad[0]) + 1
         what = "a duplicate of" if dt[bad[0]] == 0 else "earlier than"
         raise ValueError(
-            f"{name}: time at index {i} ({t[i]!r}) is {what} the time at index {i - 1} ({t[i - 1]!r}); times must be strictly increasing"
+            f"{name}: time at index {i} ({float(t[i])!r}) is {what} the time at index {i - 1} ({float(t[i - 1])!r}); times must be strictly increasing"
         )
     t.setflags(write=False)
     return t

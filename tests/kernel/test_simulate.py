@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hybridtrack import SEED001_TABLE1, Schedule
-from hybridtrack.linalg import psd_square_root as noise_factor
+from hybridtrack.linalg import psd_square_root
 from hybridtrack.network import SensorNetwork
 from hybridtrack.simulate import simulate, simulate_measurements, simulate_trajectory
 from hybridtrack_plugins.sensors.position import PositionSensor
@@ -59,11 +59,11 @@ def test_measurement_noise_statistics_and_shapes():
     np.testing.assert_allclose(np.cov((z["a"] - trajectory.positions).T), np.diag([0.01, 0.01]), atol=1e-3)
 
 
-def test_noise_factor_handles_singular_q():
-    L = noise_factor(np.zeros((2, 2)))
+def test_psd_square_root_handles_singular_q():
+    L = psd_square_root(np.zeros((2, 2)))
     assert np.all(L == 0)
     Q = np.array([[1.0, 1.0], [1.0, 1.0]])
-    np.testing.assert_allclose(noise_factor(Q) @ noise_factor(Q).T, Q, atol=1e-12)
+    np.testing.assert_allclose(psd_square_root(Q) @ psd_square_root(Q).T, Q, atol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -121,3 +121,57 @@ def test_schedule_from_toml(tmp_path):
     bad.write_text('[[segment]]\nmode = "straight"\nsteps = 0\n')
     with pytest.raises(ValueError, match="row 0"):
         Schedule.from_toml(bad)
+
+
+def test_times_propagate_each_step_with_its_own_interval():
+    schedule = Schedule.from_rows([("straight", 6), ("left_turn", 8, 3.0), ("constant_acceleration", 5)])
+    times = np.concatenate([[0.0], np.cumsum(np.random.default_rng(2).uniform(0.05, 2.0, schedule.total_steps))])
+    trajectory = simulate_trajectory(schedule, X0, times=times, process_noise=False)
+    assert np.array_equal(trajectory.times, times) and trajectory.tau is None
+    assert trajectory.states.shape == (20, 6) and list(trajectory.segment) == [0] * 7 + [1] * 8 + [2] * 5
+    # noise-free straight: x, y move by v·Δt_k; the turn keeps the speed
+    assert trajectory.layout == ("x", "vx", "y", "vy", "ax", "ay")
+    np.testing.assert_allclose(trajectory.positions[:7, 1], 2.0 * times[:7], rtol=1e-12)
+    velocity = trajectory.states_in(("vx", "vy"))
+    np.testing.assert_allclose(np.hypot(*velocity[6:15].T), 2.0, rtol=1e-12)
+    # a turn of radius r covers the arc |v|·(t_end − t_switch): the chord from the switch point follows
+    angle = 2.0 * (times[14] - times[6]) / 3.0
+    chord = np.hypot(*(trajectory.positions[14] - trajectory.positions[6]))
+    np.testing.assert_allclose(chord, 2 * 3.0 * np.sin(angle / 2), rtol=1e-10)
+
+
+def test_regular_times_agree_with_tau_and_keep_the_reproducibility():
+    tau_run = simulate(SEED001_TABLE1, X0, 0.1, network(), seed=5, noise_cov=np.diag([1e-3, 1e-3]))
+    times = np.arange(SEED001_TABLE1.total_steps + 1) * 0.1
+    times_run = simulate(SEED001_TABLE1, X0, sensors=network(), times=times, seed=5, noise_cov=np.diag([1e-3, 1e-3]))
+    np.testing.assert_allclose(times_run[0].states, tau_run[0].states, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(times_run[1]["a"], tau_run[1]["a"], rtol=0, atol=1e-9)
+    assert np.array_equal(times_run[0].times, times) and np.array_equal(tau_run[0].times, times)
+    again = simulate(SEED001_TABLE1, X0, sensors=network(), times=times, seed=5, noise_cov=np.diag([1e-3, 1e-3]))
+    assert np.array_equal(again[0].states, times_run[0].states)
+
+
+def test_times_trajectory_saves_nan_tau(tmp_path):
+    times = [0.0, 0.5, 0.6, 2.0]
+    simulate_trajectory(Schedule.from_rows([("straight", 3)]), X0, times=times).save_npz(tmp_path / "t.npz")
+    with np.load(tmp_path / "t.npz") as data:
+        assert np.isnan(data["tau"]) and np.array_equal(data["times"], times)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"times": [0.0, 1.0, 1.0, 2.0]}, r"times: time at index 2 \(.*1.0\)+ is a duplicate of the time at index 1"),
+        ({"times": [0.0, 1.0, 0.5, 2.0]}, r"times: time at index 2 \(.*0.5\)+ is earlier than"),
+        ({"times": [0.0, np.nan, 1.0, 2.0]}, "times: time at index 1 is nan"),
+        ({"times": [0.0, 1.0, 2.0, np.inf]}, "times: time at index 3 is inf"),
+        ({"times": [0.0, 1.0, 2.0]}, "times: expected 4 times .* got 3"),
+        ({"times": [0.0, 1.0, 2.0, 3.0], "tau": 0.1}, "either"),
+        ({}, "tau"),
+    ],
+)
+def test_bad_times_are_named(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        simulate_trajectory(Schedule.from_rows([("straight", 3)]), X0, **kwargs)
+    with pytest.raises(ValueError, match=message):
+        simulate(Schedule.from_rows([("straight", 3)]), X0, sensors=network(), **kwargs)
