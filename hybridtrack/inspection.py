@@ -85,6 +85,11 @@ class RecordingFile:
         order = sorted(range(len(pairs)), key=lambda i: pairs[i][0])
         return np.array([pairs[i][0] for i in order], dtype=np.int64), [pairs[i][1] for i in order]
 
+    def times(self, entity: str) -> tuple[np.ndarray, np.ndarray]:
+        """The ``time`` timeline of an entity: steps (K,) and times in seconds (K,) (stored as whole nanoseconds)."""
+        steps, nanoseconds = self._table(entity, "time")
+        return steps, np.array(nanoseconds, dtype=np.int64) / 1e9
+
     def series(self, entity: str) -> tuple[np.ndarray, np.ndarray]:
         """A scalar series: steps (K,) and float64 values (K,) or (K, c) for c series under one entity."""
         steps, values = self._table(entity, "Scalars:scalars")
