@@ -216,7 +216,7 @@ class Pipeline:
             output = detector.step(k, innovation)
             outputs[detector.label] = output
             if output.decision is not None:
-                self.decisions.append(output.decision)
+                self.decisions.append(attrs.evolve(output.decision, time=float(self.times[k])))
         result = StepResult(k, float(self.times[k]), self.estimator.mean(state), self.estimator.covariance(state), innovation, outputs)
         self.results.append(result)
         self._result = None
@@ -304,4 +304,4 @@ class Pipeline:
             for key, values in series.items():
                 rec.log_scalars(f"detector/{detector}/{key}", steps, values, times)
         for decision in result.decisions:
-            rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", float(self.times[decision.step]))
+            rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", decision.time)

@@ -47,10 +47,12 @@ class Measurement:
 
 @attrs.frozen
 class Decision:
-    """A detector's decision event: at ``step`` detector ``detector`` chose ``mode``.
+    """A detector's decision event: at ``step`` detector ``detector`` (its label) chose ``mode``.
 
     ``statistic`` is the value that crossed the threshold (e.g. a log-likelihood
-    ratio or a signal-function value), ``message`` a human-readable line.
+    ratio or a signal-function value), ``message`` a human-readable line;
+    ``time`` the measurement time in seconds of that step, filled in by the
+    pipeline or adaptive estimator that ran the detector (None until then).
     """
 
     step: int
@@ -58,6 +60,7 @@ class Decision:
     mode: str
     statistic: float = attrs.field(converter=float)
     message: str = ""
+    time: float | None = None
 
 
 def _positive_integer(instance, attribute, value):

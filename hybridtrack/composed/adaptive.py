@@ -128,7 +128,7 @@ def _record_run(recorder, adaptive, z: np.ndarray, run, hypotheses: Sequence[str
     recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
     recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
     for d in run.decisions:
-        recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", times[d.step])
+        recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", d.time)
     return steps, times
 
 
@@ -293,7 +293,7 @@ class KnownSwitchAdaptive:
                     if out.decision is not None:
                         q, row, decision_step = int(detector.decided), int(detector.decided), step
                         ratios[step, q] = out.statistics["log_ratio"][q]
-                        decisions.append(out.decision)
+                        decisions.append(attrs.evolve(out.decision, time=float(t[step])))
                 x, P = bank.means[row], bank.covs[row]
                 if decision_step == step:
                     bank.keep([q])
@@ -541,7 +541,7 @@ class UnknownChangeAdaptive:
                     node_signal[k, i] = ns.observe(k, scores[0][i][:1], scores[1][i][:1], m).statistics["signal"][0]
             # 3. act on the decision, or bound the bank
             if out.decision is not None:
-                decisions.append(out.decision)
+                decisions.append(attrs.evolve(out.decision, time=float(t[k])))
                 if detector.decided:  # a change to alternatives[p − 1], followed by its most likely filter
                     entry = int(detector.chosen_entry)
                     change = ChangeEvent(k, self.labels[alternatives[detector.decided - 1]], int(detector.starts[entry]))

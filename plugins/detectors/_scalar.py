@@ -101,7 +101,7 @@ class ScalarDetector(ScoreDetector):
         decision = None
         if g > self.threshold:
             decision = Decision(
-                step, self.name, "change", g, f"{self.name} statistic {g:.2f} > λ(α = {self.alpha:g}) = {self.threshold:.2f}"
+                step, self.label, "change", g, f"{self.name} statistic {g:.2f} > λ(α = {self.alpha:g}) = {self.threshold:.2f}"
             )
             self.reset()
         return DetectorStep({"statistic": g, "normalized": y}, {"threshold": self.threshold}, decision)

@@ -120,7 +120,7 @@ class DynamicThreshold(Detector):
         if decision is not None:
             decision = Decision(
                 decision.step,
-                self.name,
+                self.label,
                 decision.mode,
                 decision.statistic,
                 f"{decision.message} [cue {'on' if self.holds else 'off'}, α = {self.detector.alpha:g}]",

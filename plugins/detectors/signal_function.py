@@ -95,7 +95,7 @@ class SignalFunction(ScoreDetector):
         if dof > 0 and not (lower <= value <= upper):
             side = "above" if value > upper else "below"
             decision = Decision(
-                step, self.name, "change", value, f"signal function {value:.2f} {side} the bound ({lower:.2f}, {upper:.2f}), D = {dof:g}"
+                step, self.label, "change", value, f"signal function {value:.2f} {side} the bound ({lower:.2f}, {upper:.2f}), D = {dof:g}"
             )
             if self.reset_on_alarm:
                 self.reset()

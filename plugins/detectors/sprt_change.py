@@ -157,7 +157,7 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
             j = int(self.starts[self.chosen_entry])
             decision = Decision(
                 step,
-                self.name,
+                self.label,
                 self.hypothesis_name(p),
                 float(ratios[p - 1]),
                 f"change to {self.hypothesis_name(p)} (most likely at step {j}), ln λ = {ratios[p - 1]:.2f} ≥ A = {self.upper:.2f}",
@@ -165,7 +165,7 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         elif finite.size == ratios.size and ratios.size and ratios.max() <= self.lower:
             decision = Decision(
                 step,
-                self.name,
+                self.label,
                 self.hypothesis_name(0),
                 float(ratios.max()),
                 f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts",

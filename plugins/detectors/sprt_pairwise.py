@@ -100,7 +100,7 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
                 self.active = np.zeros(M, dtype=bool)
                 decision = Decision(
                     step,
-                    self.name,
+                    self.label,
                     self.hypothesis_name(i),
                     float(ratio[i]),
                     f"{self.hypothesis_name(i)} accepted, log-LR margin {ratio[i]:.2f} (A = {self.upper:.2f})",

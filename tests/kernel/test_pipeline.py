@@ -180,3 +180,37 @@ def test_known_modes_runner_follows_the_schedule():
     assert np.einsum("ki,kij,kj->k", wrong, np.linalg.inv(straight.covs[:, 0]), wrong)[10:].mean() > 20
     with pytest.raises(ValueError, match="expected 141 steps"):
         run_known_modes(schedule, estimator="kalman", sensors=sensors, measurements={"a": z["a"][:50]}, prior=PRIOR, tau=0.1)
+
+
+def test_two_labelled_instances_of_one_detector_share_a_pipeline():
+    _, sensors, _, z = scenario()
+    times = 0.1 * np.arange(z["a"].shape[0]) + 1000.0
+    pipeline = Pipeline(
+        models=["straight"],
+        estimator="kalman",
+        sensors=sensors,
+        measurements=z,
+        prior=PRIOR,
+        times=times,
+        detectors=[("signal_function", {"window": 5}, "sf5"), ("signal_function", {"window": 20, "label": "sf20"}), "signal_function"],
+    )
+    result = pipeline.run()
+    assert set(result.statistics) == {"sf5", "sf20", "signal_function"}
+    assert not np.array_equal(result.statistics["sf5"]["signal"], result.statistics["sf20"]["signal"])
+    assert result.decisions
+    for decision in result.decisions:
+        assert decision.detector in {"sf5", "sf20", "signal_function"} and decision.time == times[decision.step]
+    with pytest.raises(ValueError, match="labels must be unique.*'signal_function', 'signal_function'"):
+        Pipeline(
+            models=["straight"],
+            estimator="kalman",
+            sensors=sensors,
+            measurements=z,
+            prior=PRIOR,
+            tau=0.1,
+            detectors=["signal_function"] * 2,
+        )
+    with pytest.raises(ValueError, match="label: expected a non-empty name"):
+        Pipeline(
+            models=["straight"], estimator="kalman", sensors=sensors, measurements=z, prior=PRIOR, tau=0.1, detectors=[("glr", {}, "a/b")]
+        )

@@ -151,10 +151,10 @@ class CumulativeLLR(WaldThresholds, ChangeTimeTest):
             self.decided = p
             start = int(self.starts[self.chosen_entry])
             message = f"change to {self._name(p)} (most likely at step {start}), ln λ = {best:.2f} ≥ A = {self.upper:.2f}"
-            decision = Decision(step, self.name, self._name(p), best, message)
+            decision = Decision(step, self.label, self._name(p), best, message)
         elif ratios.size and best <= self.lower:
             self.decided = 0
-            decision = Decision(step, self.name, self._name(0), best, f"no change: every ln λ ≤ B = {self.lower:.2f}")
+            decision = Decision(step, self.label, self._name(0), best, f"no change: every ln λ ≤ B = {self.lower:.2f}")
         thresholds = {"upper": self.upper, "lower": self.lower}
         if self.fixed_bank:
             statistics = {
