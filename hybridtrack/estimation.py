@@ -139,11 +139,10 @@ class BankEstimator(Estimator):
         self._checked_transitions: tuple | None = None
 
     # ------------------------------------------------------------------ checks
-    @staticmethod
-    def _check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
-        return check_prior(mean, cov)
+    #: the prior (mean (M, n), cov (M, n, n) positive definite) checked, ValueError naming the argument
+    check_prior = staticmethod(check_prior)
 
-    def _check_transitions(self, transitions, bank_size: int, n: int, x: np.ndarray | None = None) -> TransitionBank:
+    def check_transitions(self, transitions, bank_size: int, n: int, x: np.ndarray | None = None) -> TransitionBank:
         """F (M, n, n), B (M, n), Q (M, n, n) finite; a bank already checked (same object) is not re-checked.
 
         Extended filters also take a callable ``transitions(x) -> TransitionBank``
@@ -170,18 +169,25 @@ class BankEstimator(Estimator):
         self._checked_transitions = (transitions, (bank_size, n))
         return transitions
 
-    def _measurement(self, z, sensors: Sequence, layout: Sequence[str], bank_size: int, n: int):
+    def measurement_step(self, z, sensors: Sequence, layout: Sequence[str], bank_size: int, n: int):
+        """The present sensors' stacked model of this step (:class:`~hybridtrack.measurements.MeasurementStep`), or None.
+
+        Checks the layout against n and z's shape; NaN components are left
+        out (:mod:`hybridtrack.measurements`); None means nothing was measured.
+        """
         if len(layout) != n:
             raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
         return self._assembler.assemble(z, sensors, layout, bank_size)
 
-    def _linearized(self, x: np.ndarray, z, sensors: Sequence, layout: Sequence[str]):
+    def linearize(self, x: np.ndarray, z, sensors: Sequence, layout: Sequence[str], step=None):
         """(step, ν, H) at x (M, n), or None when nothing was measured (prediction only).
 
         ν = residual(z, h(x)) per sensor (angles wrapped), H = ∂h/∂x at x.
+        ``step``: the step's :meth:`measurement_step`, when the caller already assembled it.
         """
         M, n = x.shape
-        step = self._measurement(z, sensors, layout, M, n)
+        if step is None:
+            step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             return None
         if step.H is None and not self.accepts_nonlinear:

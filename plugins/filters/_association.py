@@ -207,12 +207,12 @@ class ClutterEstimator(BankEstimator):
 
     # ------------------------------------------------------------------ the Estimator API
     def initialize(self, mean, cov) -> CovarianceState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         return CovarianceState(x, P, x, P, None)
 
     def predict(self, state: CovarianceState, transitions) -> CovarianceState:
         M, n = state.x.shape
-        bank = self._check_transitions(transitions, M, n, state.x)
+        bank = self.check_transitions(transitions, M, n, state.x)
         x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
         return CovarianceState(x, P, x, P, None)
 
@@ -254,7 +254,7 @@ class ClutterEstimator(BankEstimator):
 
     # ------------------------------------------------------------------ pieces
     def _update_stacked(self, state, z, sensors, layout):
-        found = self._linearized(state.x, z, sensors, layout)
+        found = self.linearize(state.x, z, sensors, layout)
         if found is None:
             innovation = empty_innovation(state.x.shape[0])
             return attrs.evolve(state, innovation=innovation), innovation

@@ -55,18 +55,18 @@ class BiermanFilter(BankEstimator):
     name = "bierman"
 
     def initialize(self, mean, cov) -> UDState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         U, d = _sqrt.ud_factor(P)
         return UDState(x, U, d, x, U, d)
 
     def predict(self, state: UDState, transitions) -> UDState:
         M, n = state.x.shape
-        bank = self._check_transitions(transitions, M, n, state.x)
+        bank = self.check_transitions(transitions, M, n, state.x)
         x, U, d = _sqrt.thornton_predict(state.x, state.U, state.d, bank.F, bank.B, _sqrt.noise_root(bank))
         return UDState(x, U, d, x, U, d)
 
     def update(self, state: UDState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        found = self._linearized(state.x, z, sensors, layout)
+        found = self.linearize(state.x, z, sensors, layout)
         if found is None:
             innovation = empty_innovation(state.x.shape[0])
             return attrs.evolve(state, innovation=innovation), innovation

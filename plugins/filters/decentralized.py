@@ -78,7 +78,7 @@ class DecentralizedFilter(BankEstimator):
         self.nodes = None if nodes is None else int(nodes)
 
     def initialize(self, mean, cov) -> DecentralizedState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         Y, s = info.to_information(x, P)
         N = self.nodes or 1
         rep = lambda a: np.broadcast_to(a, (N,) + a.shape).copy()  # noqa: E731
@@ -96,7 +96,7 @@ class DecentralizedFilter(BankEstimator):
 
     def predict(self, state: DecentralizedState, transitions: TransitionBank) -> DecentralizedState:
         N, M, n = state.s.shape
-        bank = self._check_transitions(transitions, M, n)
+        bank = self.check_transitions(transitions, M, n)
         flat = lambda a: np.broadcast_to(a, (N,) + a.shape).reshape((N * M,) + a.shape[1:])  # noqa: E731
         Y, s, x, P = information_predict(state.Y.reshape(N * M, n, n), state.s.reshape(N * M, n), flat(bank.F), flat(bank.B), flat(bank.Q))
         shape = lambda a: a.reshape((N, M) + a.shape[1:])  # noqa: E731
@@ -116,7 +116,7 @@ class DecentralizedFilter(BankEstimator):
                 raise ValueError(f"sensors: expected {N} sensors (one per node of this decentralized filter), got {len(sensors)}")
             state = self._replicate(state, len(sensors))
             N = len(sensors)
-        step = self._measurement(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation, node_nis=None, node_loglik=None, moments=state._moments), innovation

@@ -85,19 +85,19 @@ class InformationFilter(BankEstimator):
     name = "information"
 
     def initialize(self, mean, cov) -> InformationState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         Y, s = info.to_information(x, P)
         return InformationState(Y, s, x, P, moments=(x, P))
 
     def predict(self, state: InformationState, transitions: TransitionBank) -> InformationState:
         M, n = state.s.shape
-        bank = self._check_transitions(transitions, M, n)
+        bank = self.check_transitions(transitions, M, n)
         Y, s, x, P = information_predict(state.Y, state.s, bank.F, bank.B, bank.Q)
         return InformationState(Y, s, x, P, moments=(x, P))
 
     def update(self, state: InformationState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.s.shape
-        step = self._measurement(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation, nis_information=None, moments=state._moments), innovation

@@ -122,7 +122,7 @@ class KalmanFilter(BankEstimator):
         self._plan_cache: dict = {}
 
     def initialize(self, mean, cov) -> CovarianceState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         return CovarianceState(x, P, x, P, None)
 
     def conform(self, states: list) -> list:
@@ -142,7 +142,7 @@ class KalmanFilter(BankEstimator):
 
     def predict(self, state, transitions: TransitionBank):
         M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
-        bank = self._check_transitions(
+        bank = self.check_transitions(
             transitions, M, n, state.mean if callable(transitions) and not isinstance(transitions, TransitionBank) else None
         )
         if self.structure:
@@ -212,7 +212,7 @@ class KalmanFilter(BankEstimator):
         M = state.bank_size
         n = state.n if isinstance(state, AxisState) else state.x.shape[1]
         if isinstance(state, AxisState):
-            step = self._measurement(z, sensors, layout, M, n)
+            step = self.measurement_step(z, sensors, layout, M, n)
             if step is None:
                 innovation = empty_innovation(M)
                 return attrs.evolve(state, innovation=innovation), innovation
@@ -220,7 +220,9 @@ class KalmanFilter(BankEstimator):
             if plan is not None:
                 return self._update_axes(state, step, plan)
             state = CovarianceState(state.x, state.P, state.x_predicted, state.P_predicted, state.innovation)
-        found = self._linearized(state.x, z, sensors, layout)
+            found = self.linearize(state.x, z, sensors, layout, step)  # the step assembled above, not again
+        else:
+            found = self.linearize(state.x, z, sensors, layout)
         if found is None:
             innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation), innovation

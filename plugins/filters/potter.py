@@ -60,18 +60,18 @@ class PotterFilter(BankEstimator):
     name = "potter"
 
     def initialize(self, mean, cov) -> SquareRootState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         S = cholesky(P, "cov")
         return SquareRootState(x, S, x, S)
 
     def predict(self, state: SquareRootState, transitions) -> SquareRootState:
         M, n = state.x.shape
-        bank = self._check_transitions(transitions, M, n, state.x)
+        bank = self.check_transitions(transitions, M, n, state.x)
         x, S = _sqrt.potter_predict(state.x, state.S, bank.F, bank.B, _sqrt.noise_root(bank))
         return SquareRootState(x, S, x, S)
 
     def update(self, state: SquareRootState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        found = self._linearized(state.x, z, sensors, layout)
+        found = self.linearize(state.x, z, sensors, layout)
         if found is None:
             innovation = empty_innovation(state.x.shape[0])
             return attrs.evolve(state, innovation=innovation), innovation

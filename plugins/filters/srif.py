@@ -74,19 +74,19 @@ class SquareRootInformationFilter(BankEstimator):
     name = "srif"
 
     def initialize(self, mean, cov) -> SRIFState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         R, zeta = _sqrt.srif_from_moments(x, P)
         return SRIFState(R, zeta, R, zeta)
 
     def predict(self, state: SRIFState, transitions) -> SRIFState:
         M, n = state.zeta.shape
-        bank = self._check_transitions(transitions, M, n, state.mean if callable(transitions) else None)
+        bank = self.check_transitions(transitions, M, n, state.mean if callable(transitions) else None)
         R, zeta = _sqrt.srif_predict(state.R, state.zeta, bank.F, bank.B, _sqrt.noise_root(bank))
         return SRIFState(R, zeta, R, zeta)
 
     def update(self, state: SRIFState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         x = state.mean
-        found = self._linearized(x, z, sensors, layout)
+        found = self.linearize(x, z, sensors, layout)
         if found is None:
             innovation = empty_innovation(x.shape[0])
             return attrs.evolve(state, innovation=innovation), innovation

@@ -54,7 +54,7 @@ class DecentralizedSRIF(BankEstimator):
         self.nodes = None if nodes is None else int(nodes)
 
     def initialize(self, mean, cov) -> DecentralizedSRIFState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         R, zeta = _sqrt.srif_from_moments(x, P)
         N = self.nodes or 1
         rep = lambda a: np.broadcast_to(a, (N,) + a.shape).copy()  # noqa: E731
@@ -77,7 +77,7 @@ class DecentralizedSRIF(BankEstimator):
 
     def predict(self, state: DecentralizedSRIFState, transitions) -> DecentralizedSRIFState:
         N, M, n = state.zeta.shape
-        bank = self._check_transitions(transitions, M, n)
+        bank = self.check_transitions(transitions, M, n)
         flat = lambda a: np.broadcast_to(a, (N,) + a.shape).reshape((N * M,) + a.shape[1:])  # noqa: E731
         W = _sqrt.noise_root(bank)
         R, zeta = _sqrt.srif_predict(state.R.reshape(N * M, n, n), state.zeta.reshape(N * M, n), flat(bank.F), flat(bank.B), flat(W))
@@ -93,7 +93,7 @@ class DecentralizedSRIF(BankEstimator):
                 raise ValueError(f"sensors: expected {N} sensors (one per node of this decentralized filter), got {len(sensors)}")
             state = self._replicate(state, len(sensors))
             N = len(sensors)
-        step = self._measurement(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation, node_nis=None, node_loglik=None), innovation

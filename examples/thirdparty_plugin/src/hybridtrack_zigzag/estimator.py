@@ -64,19 +64,19 @@ class InfoKalman(BankEstimator):
     name = "info_kalman"
 
     def initialize(self, mean, cov) -> InfoState:
-        x, P = self._check_prior(mean, cov)
+        x, P = self.check_prior(mean, cov)
         return InfoState(x, P, x, P)
 
     def predict(self, state: InfoState, transitions: TransitionBank) -> InfoState:
         M, n = state.x.shape
-        bank = self._check_transitions(transitions, M, n)
+        bank = self.check_transitions(transitions, M, n)
         x = np.einsum("mij,mj->mi", bank.F, state.x) + bank.B
         P = symmetrize(bank.F @ state.P @ np.swapaxes(bank.F, -1, -2) + bank.Q)
         return InfoState(x, P, x, P)
 
     def update(self, state: InfoState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
-        found = self._linearized(state.x, z, sensors, layout)
+        found = self.linearize(state.x, z, sensors, layout)
         if found is None:  # nothing measured at this step: prediction only
             innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation), innovation
