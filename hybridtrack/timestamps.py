@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from hybridtrack.validation import check_positive
+
 
 def check_times(times, name: str = "times", steps: int | None = None) -> np.ndarray:
     """``times`` as a float64 array (K,), strictly increasing and finite; a ValueError names the first bad index."""
@@ -38,13 +40,7 @@ def check_times(times, name: str = "times", steps: int | None = None) -> np.ndar
 
 def check_tau(tau) -> float:
     """A positive finite sampling period in seconds."""
-    try:
-        value = float(tau)
-    except (TypeError, ValueError):
-        raise ValueError(f"tau: expected a positive sampling period in seconds, got {tau!r}") from None
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"tau: expected a positive sampling period in seconds, got {tau!r}")
-    return value
+    return check_positive(tau, "tau (the sampling period in seconds)")
 
 
 def step_times(times, tau, steps: int) -> np.ndarray:
