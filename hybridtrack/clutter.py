@@ -36,6 +36,7 @@ from collections.abc import Mapping, Sequence
 import attrs
 import numpy as np
 
+from hybridtrack.interfaces import ClutterInnovation
 from hybridtrack.validation import as_float_array
 
 # --------------------------------------------------------------------------- value types
@@ -301,7 +302,7 @@ def log_associations(
     steps = np.asarray(steps)
     by_sensor: dict[str, list] = {}
     for k, innovation in zip(steps, innovations):
-        for a in getattr(innovation, "associations", ()):
+        for a in innovation.associations if isinstance(innovation, ClutterInnovation) else ():
             by_sensor.setdefault(a.sensor, []).append((k, a))
     times_of = {int(k): t for k, t in zip(steps, times)} if times is not None else None
     several = len(by_sensor) > 1

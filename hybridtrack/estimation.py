@@ -164,7 +164,7 @@ class BankEstimator(Estimator):
         as_float_array(transitions.F, "transitions.F", (bank_size, n, n))
         as_float_array(transitions.B, "transitions.B", (bank_size, n))
         as_float_array(transitions.Q, "transitions.Q", (bank_size, n, n))
-        if getattr(transitions, "noise_root", None) is not None:
+        if transitions.noise_root is not None:
             as_float_array(transitions.noise_root, "transitions.noise_root", (bank_size, n, None))
         self._checked_transitions = (transitions, (bank_size, n))
         return transitions

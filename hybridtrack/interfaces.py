@@ -174,6 +174,9 @@ class Sensor(ABC):
 
     registry_name: ClassVar[str]
     linear: ClassVar[bool] = True
+    #: the state components z measures directly (z = those components + v), e.g. ("x", "y");
+    #: None for other sensors.  Recordings draw a sensor measuring ("x", "y") as points in the world view.
+    components: tuple[str, ...] | None = None
 
     name: str
     noise_cov: np.ndarray

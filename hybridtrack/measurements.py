@@ -263,8 +263,7 @@ class MeasurementAssembler:
 
 def _constant_noise(sensor: Sensor) -> bool:
     """R does not depend on z (the sensor keeps the default ``measurement_noise``)."""
-    method = getattr(type(sensor), "measurement_noise", None)
-    return method is None or method is Sensor.measurement_noise
+    return type(sensor).measurement_noise is Sensor.measurement_noise
 
 
 def _model_noise(model: SensorModel, z: np.ndarray) -> np.ndarray:
@@ -277,6 +276,4 @@ def _model_noise(model: SensorModel, z: np.ndarray) -> np.ndarray:
 
 def _noise(sensor: Sensor, z: np.ndarray) -> np.ndarray:
     """R of ``sensor`` for the measurement z ((m,) or (M, m)); pseudo-measurement sensors depend on z."""
-    noise = getattr(sensor, "measurement_noise", None)
-    R = noise(z) if callable(noise) else sensor.noise_cov
-    return np.asarray(R, dtype=float)
+    return np.asarray(sensor.measurement_noise(z), dtype=float)

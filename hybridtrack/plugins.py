@@ -185,7 +185,7 @@ def resolve(kind: str, spec, registry: Registry | None = None):
     registered component.  A label (third item, or a ``"label"`` key in the
     parameters) names the instance in a run (estimators and detectors).
     """
-    from hybridtrack.interfaces import INTERFACES, require
+    from hybridtrack.interfaces import INTERFACES, Labelled, require
 
     if kind not in INTERFACES:
         raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(INTERFACES)}")
@@ -211,7 +211,7 @@ def resolve(kind: str, spec, registry: Registry | None = None):
     label = parameters.pop("label", None) if label is None else label
     component = require(resolve_registry(registry).create(kind, name, **parameters), base, f"{kind} {name!r}")
     if label is not None:
-        if not hasattr(type(component), "label"):
+        if not isinstance(component, Labelled):
             raise ValueError(f"{kind} {name!r}: a label names estimators and detectors; {kind}s have none")
         component.label = label
     return component

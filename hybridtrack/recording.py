@@ -259,7 +259,7 @@ def log_measurements(recorder, sensors, measurements, steps, times=None) -> None
     for sensor in sensors:
         z = measurements[sensor.name]
         entity = f"world/measurements/{sensor.name}"
-        if tuple(getattr(sensor, "components", ())) == ("x", "y"):
+        if sensor.components is not None and tuple(sensor.components) == ("x", "y"):
             recorder.log_points(entity, steps, z, times)
         else:
             recorder.log_scalars(entity, steps, z, times)
