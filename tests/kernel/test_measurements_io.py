@@ -41,7 +41,7 @@ def test_csv_layout_with_gaps(tmp_path):
         ("step,ax\n0,1\n", "<sensor>.<component>"),
         ("step,a.x\n0,1\n0,2\n", "repeated"),
         ("step,a.x\nzero,1\n", "integer"),
-        ("step,a.x\n0,abc\n", "non-numeric"),
+        ("step,a.x\n0,abc\n", "not a number"),
         ("step,a.x,a.y\n0,1\n", "expected 3 cells"),
     ],
 )
