@@ -43,6 +43,7 @@ from hybridtrack.interfaces import Solver
 from hybridtrack.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
 from hybridtrack_plugins.solvers.tma_model import (
+    CONSTANT_FIT_MESSAGE,
     N_PARAMETERS,
     BatchTMASolution,
     BearingsBatch,
@@ -50,11 +51,17 @@ from hybridtrack_plugins.solvers.tma_model import (
     ScaledProblem,
     Scaling,
     TMASolution,
+    check_start,
+    constant_bearing,
+    constant_bearing_solution,
+    constant_fits_as_well,
     normal_equations,
     require_maneuver,
+    solve_observable_rows,
     summarize,
     time_powers,
     to_solution,
+    warn_constant_bearing,
     warn_unobservable,
 )
 
@@ -166,8 +173,12 @@ class LevenbergMarquardt(Solver):
             raise ValueError(f"problem: expected a BearingsProblem, got {type(problem).__name__}")
         require_maneuver(problem.times, problem.observer)
         theta0 = _initial_guess(problem, self.name)
+        if constant_bearing(problem.bearings, problem.sigma):
+            return constant_bearing_solution(problem, self.name)
         scaled = ScaledProblem.build(problem.times, problem.bearings, problem.observer, theta0, problem.reference_time, problem.convention)
-        s, F, H, it, nf, converged, message = minimize(scaled, scaled.scaling.to_scaled(theta0), self.settings)
+        s0 = scaled.scaling.to_scaled(theta0)
+        check_start(s0, scaled.tau, scaled.ox, scaled.oy, problem.times)
+        s, F, H, it, nf, converged, message = minimize(scaled, s0, self.settings)
         return to_solution(problem, scaled, s, F, H, it, nf, converged, message, self.name)
 
 
@@ -375,6 +386,11 @@ class BatchLevenbergMarquardt(Solver):
         if not isinstance(batch, BearingsBatch):
             raise ValueError(f"batch: expected a BearingsBatch, got {type(batch).__name__}")
         require_maneuver(batch.times, batch.observer)
+        _initial_guess(batch, self.name)
+        return solve_observable_rows(batch, self._solve_rows, self.name)
+
+    def _solve_rows(self, batch: BearingsBatch, numbers: np.ndarray) -> BatchTMASolution:
+        """Solve every problem of ``batch`` (problem ``numbers`` of the caller's batch, for error messages)."""
         B, n = batch.bearings.shape
         theta0 = np.broadcast_to(_initial_guess(batch, self.name), (B, N_PARAMETERS))
         scaling = Scaling.build(batch.times, batch.observer, theta0, batch.reference_time)
@@ -399,13 +415,26 @@ class BatchLevenbergMarquardt(Solver):
                 out = minimize_compiled(tau, o[..., 0], o[..., 1], batch.bearings[rows], batch.convention, s0[rows], self.settings)
             else:
                 chunk = _Chunk(tau, o[..., 0], o[..., 1], wrap_angle(batch.bearings[rows]), batch.convention)
-                out = minimize_batch(chunk, s0[rows].copy(), self.settings)
+                with np.errstate(divide="ignore", invalid="ignore"):  # a zero range gives NaN F or H: checked below
+                    out = minimize_batch(chunk, s0[rows].copy(), self.settings)
             s[rows], F[rows], H[rows], it[rows], nf[rows], status[rows] = out
+            # a start on the observer gives a NaN F or H that no step can leave: name the problem
+            for i in rows.start + np.flatnonzero(~(np.isfinite(F[rows]) & np.isfinite(H[rows]).all(axis=(1, 2)))):
+                one = Scaling.build(batch.times, batch.observer_of(i), theta0[i], batch.reference_time)
+                o1 = one.observer(batch.observer_of(i))
+                check_start(one.to_scaled(theta0[i]), one.tau(batch.times), o1[:, 0], o1[:, 1], batch.times, int(numbers[i]))
         theta, cov, ska, stat, pval, cons, observable = summarize(scaling, s, F, H, n, batch.sigma)
         if not observable.all():
             warn_unobservable(int((~observable).sum()), self.name)
         messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
         messages = tuple(m if o else m + "; unobservable: JᵀJ singular" for m, o in zip(messages, observable))
+        if batch.sigma is None:  # σ unknown: does a constant bearing fit as well? (the pre-check needs σ)
+            fit = observable & constant_fits_as_well(batch.bearings, F)
+            if fit.any():
+                warn_constant_bearing(numbers[fit], self.name, fit=True)
+                cov = np.where(fit[:, None, None], np.nan, cov)
+                observable = observable & ~fit
+                messages = tuple(m + "; " + CONSTANT_FIT_MESSAGE if f else m for m, f in zip(messages, fit))
         return BatchTMASolution(
             parameters=theta,
             covariance=cov,

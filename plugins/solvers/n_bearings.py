@@ -33,14 +33,20 @@ from hybridtrack.interfaces import Solver
 from hybridtrack.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import direction
 from hybridtrack_plugins.solvers.tma_model import (
+    CONSTANT_FIT_MESSAGE,
     N_PARAMETERS,
     BatchTMASolution,
     BearingsBatch,
     BearingsProblem,
     ScaledProblem,
     TMASolution,
+    constant_bearing,
+    constant_bearing_solution,
+    constant_fits_as_well,
     fit_statistics,
     require_maneuver,
+    solve_observable_rows,
+    warn_constant_bearing,
     warn_unobservable,
 )
 
@@ -123,10 +129,16 @@ class NBearings(Solver):
     def solve(self, problem: BearingsProblem) -> TMASolution:
         if not isinstance(problem, BearingsProblem):
             raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
+        require_maneuver(problem.times, problem.observer)
+        if constant_bearing(problem.bearings, problem.sigma):
+            return constant_bearing_solution(problem, self.name)
         (theta, cov, F, ska, stat, pval, cons), ok, r0 = self._run(problem, batch=False)
         converged, message = bool(ok and r0 > 0), "closed form"
         if not ok:
             message = "unobservable: the N-bearings system is rank deficient"
+        elif problem.sigma is None and constant_fits_as_well(problem.bearings, F):
+            warn_constant_bearing(-1, self.name, fit=True)
+            converged, message, cov = False, CONSTANT_FIT_MESSAGE, np.full_like(cov, np.nan)
         elif r0 <= 0:
             message = "range r_0 ≤ 0: the bearings do not fit a target ahead of the observer"
         return TMASolution(
@@ -149,12 +161,22 @@ class NBearings(Solver):
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
         if not isinstance(batch, BearingsBatch):
             raise ValueError(f"batch: expected a BearingsBatch, got {type(batch).__name__}")
+        require_maneuver(batch.times, batch.observer)
+        return solve_observable_rows(batch, self._solve_rows, self.name)
+
+    def _solve_rows(self, batch: BearingsBatch, numbers) -> BatchTMASolution:
         (theta, cov, F, ska, stat, pval, cons), ok, r0 = self._run(batch, batch=True)
         converged = ok & (r0 > 0)
         messages = tuple(
             "closed form" if c else ("unobservable: the N-bearings system is singular" if not o else "range r_0 ≤ 0")
             for c, o in zip(converged, ok)
         )
+        if batch.sigma is None:  # σ unknown: does a constant bearing fit as well? (the pre-check needs σ)
+            fit = ok & constant_fits_as_well(batch.bearings, F)
+            if fit.any():
+                warn_constant_bearing(np.asarray(numbers)[fit], self.name, fit=True)
+                converged, cov = converged & ~fit, np.where(fit[:, None, None], np.nan, cov)
+                messages = tuple(CONSTANT_FIT_MESSAGE if f else m for m, f in zip(messages, fit))
         return BatchTMASolution(
             parameters=theta,
             covariance=cov,

@@ -16,7 +16,16 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from hybridtrack.interfaces import Solver
-from hybridtrack_plugins.solvers.tma_model import BearingsProblem, ScaledProblem, TMASolution, require_maneuver, to_solution
+from hybridtrack_plugins.solvers.tma_model import (
+    BearingsProblem,
+    ScaledProblem,
+    TMASolution,
+    check_start,
+    constant_bearing,
+    constant_bearing_solution,
+    require_maneuver,
+    to_solution,
+)
 
 
 def _tolerance(instance, attribute, value):
@@ -59,13 +68,15 @@ class ScipyLeastSquares(Solver):
         require_maneuver(problem.times, problem.observer)
         if problem.initial is None:
             raise ValueError(f"{self.name}: problem.initial is None; give a starting guess θ")
+        if constant_bearing(problem.bearings, problem.sigma):
+            return constant_bearing_solution(problem, self.name)
         scaled = ScaledProblem.build(
             problem.times, problem.bearings, problem.observer, problem.initial, problem.reference_time, problem.convention
         )
+        s0 = scaled.scaling.to_scaled(problem.initial)
+        check_start(s0, scaled.tau, scaled.ox, scaled.oy, problem.times)
         fun, jac = self.residual_functions(scaled)
-        result = least_squares(
-            fun, scaled.scaling.to_scaled(problem.initial), jac=jac, method=self.method, ftol=self.ftol, xtol=self.xtol, gtol=self.gtol
-        )
+        result = least_squares(fun, s0, jac=jac, method=self.method, ftol=self.ftol, xtol=self.xtol, gtol=self.gtol)
         J = scaled.jacobian(result.x)
         F = float(result.fun @ result.fun)
         njev = result.njev if result.njev is not None else result.nfev

@@ -36,6 +36,7 @@ from scipy import stats
 
 from hybridtrack.interfaces import Solution
 from hybridtrack.linalg import wrap_angle
+from hybridtrack.timestamps import check_times
 from hybridtrack.validation import as_float_array
 from hybridtrack_plugins.sensors.bearing import (
     angle_difference,
@@ -52,6 +53,19 @@ N_PARAMETERS = 4
 MANEUVER_RTOL = 1e-9
 #: reciprocal condition number of the scaled JᵀJ below which θ is declared unobservable
 RCOND_MIN = 1e-12
+#: bearings are radians: a magnitude above 2π cannot be one (degrees passed by mistake)
+MAX_BEARING = 2.0 * np.pi
+#: significance level of the constant-bearing test (σ known): bearings that fit one line of
+#: sight with P(χ²(n−1) ≥ F_c/σ²) ≥ this are "constant within the noise"
+CONSTANT_BEARING_ALPHA = 0.01
+#: bearings all within this many radians of one line of sight (modulo π) are constant whatever σ
+CONSTANT_BEARING_ATOL = 1e-9
+#: message of an answer refused because the bearings are constant
+CONSTANT_BEARING_MESSAGE = (
+    "unobservable: constant bearing (all bearings equal modulo π within the noise), the range is not determined; θ set to NaN"
+)
+#: message suffix of an answer (σ unknown) that a constant bearing fits as well (:func:`constant_fits_as_well`)
+CONSTANT_FIT_MESSAGE = "unobservable: a constant bearing fits the bearings as well (F-test), the range is not determined"
 
 
 class UnobservableError(ValueError):
@@ -70,6 +84,36 @@ def _check_count(n: int) -> None:
         raise ValueError(f"bearings: bearings-only TMA needs at least {N_PARAMETERS} bearings to fit θ = (x0, y0, vx, vy), got {n}")
 
 
+def _check_radians(bearings: np.ndarray, batch: bool) -> None:
+    """Refuse |θ| > 2π: such a bearing cannot be radians (degrees passed by mistake?)."""
+    if np.abs(bearings).max() > MAX_BEARING:
+        bad = np.argwhere(np.abs(bearings) > MAX_BEARING)
+        index = tuple(int(i) for i in bad[0])
+        where = f"problem {index[0]}, bearing {index[1]}" if batch else f"index {index[0]}"
+        raise ValueError(
+            f"bearings: {where} is {float(bearings[index])!r}, not an angle in radians (expected |θ| ≤ 2π);"
+            " were degrees passed by mistake? convert with np.deg2rad"
+        )
+
+
+def _batch_array(value, name: str, shape, expected: str = ""):
+    """``value`` as a read-only float array of ``shape`` (None = free axis) whose first axis is the problem;
+    NaN/inf errors name the problem."""
+    try:
+        array = np.array(value, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name}: expected a numeric array, got {type(value).__name__} ({error})") from None
+    if shape is not None and (array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape))):
+        raise ValueError(f"{name}: expected shape {expected}, got {array.shape}")
+    if not np.isfinite(array).all():
+        bad = np.argwhere(~np.isfinite(array))
+        index = tuple(int(i) for i in bad[0])
+        rest = f" at index {index[1:]}" if len(index) > 1 else ""
+        raise ValueError(f"{name}: problem {index[0]} contains {float(array[index])!r}{rest} (expected finite values)")
+    array.setflags(write=False)
+    return array
+
+
 def _sigma(value):
     if value is None:
         return None
@@ -83,16 +127,18 @@ def _sigma(value):
 class BearingsProblem:
     """One bearings-only TMA problem.
 
-    ``times`` (n,) seconds; ``bearings`` (n,) radians, any finite value (wrapped
-    internally); ``observer`` (n, 2) observer positions (x̃_k, ỹ_k) in metres;
+    ``times`` (n,) seconds, strictly increasing; ``bearings`` (n,) radians, finite
+    with |θ| ≤ 2π (wrapped internally; a larger value is refused as probably
+    degrees); ``observer`` (n, 2) observer positions (x̃_k, ỹ_k) in metres;
     ``sigma`` the bearing noise in radians when known (used for the χ²(n−4) test
     and the covariance σ²(JᵀJ)⁻¹; otherwise σ² is estimated by F/(n−4));
     ``initial`` a guess of θ at ``reference_time`` (default ``times[0]``);
     ``convention`` the bearing convention ("north" default, see the sensor).
-    NaN/inf anywhere, fewer than 4 bearings or mismatched shapes raise ``ValueError``.
+    NaN/inf anywhere, times not strictly increasing, |θ| > 2π, fewer than 4
+    bearings or mismatched shapes raise ``ValueError`` naming the field and index.
     """
 
-    times: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "times", (None,), readonly=True))
+    times: np.ndarray = attrs.field(converter=lambda v: check_times(v, "times"))
     bearings: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "bearings", (None,), readonly=True))
     observer: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "observer", (None, 2), readonly=True))
     sigma: float | None = attrs.field(default=None, converter=_sigma)
@@ -110,6 +156,7 @@ class BearingsProblem:
                 f"times {self.times.shape}, bearings {self.bearings.shape} and observer {self.observer.shape}:"
                 f" expected shapes (n,), (n,), (n, 2) with the same n"
             )
+        _check_radians(self.bearings, batch=False)
         t_r = self.times[0] if self.reference_time is None else self.reference_time
         object.__setattr__(self, "reference_time", float(as_float_array(t_r, "reference_time", ())))
 
@@ -124,21 +171,22 @@ class BearingsBatch:
 
     ``times`` (n,) shared; ``bearings`` (B, n); ``observer`` (n, 2) shared or
     (B, n, 2); ``initial`` (4,) shared or (B, 4); ``sigma`` one value or None;
-    ``reference_time`` and ``convention`` as in :class:`BearingsProblem`.
+    ``reference_time`` and ``convention`` as in :class:`BearingsProblem`.  The
+    same checks as there, plus at least one problem; errors name the problem.
     """
 
-    times: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "times", (None,), readonly=True))
-    bearings: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "bearings", (None, None), readonly=True))
-    observer: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "observer", readonly=True))
+    times: np.ndarray = attrs.field(converter=lambda v: check_times(v, "times"))
+    bearings: np.ndarray = attrs.field(converter=lambda v: _batch_array(v, "bearings", (None, None), "(B, n)"))
+    observer: np.ndarray = attrs.field(converter=lambda v: _batch_array(v, "observer", None))
     sigma: float | None = attrs.field(default=None, converter=_sigma)
-    initial: np.ndarray | None = attrs.field(
-        default=None, converter=lambda v: None if v is None else as_float_array(v, "initial", readonly=True)
-    )
+    initial: np.ndarray | None = attrs.field(default=None, converter=lambda v: None if v is None else _batch_array(v, "initial", None))
     reference_time: float = attrs.field(default=None)
     convention: str = attrs.field(default="north", validator=lambda i, a, v: check_convention(v))
 
     def __attrs_post_init__(self):
         B, n = self.bearings.shape
+        if B == 0:
+            raise ValueError(f"bearings: the batch holds no problem (shape {self.bearings.shape}); expected shape (B, n) with B ≥ 1")
         _check_count(n)
         if self.times.shape != (n,):
             raise ValueError(f"times: expected shape ({n},) to match bearings {self.bearings.shape}, got {self.times.shape}")
@@ -146,6 +194,7 @@ class BearingsBatch:
             raise ValueError(f"observer: expected shape ({n}, 2) or ({B}, {n}, 2), got {self.observer.shape}")
         if self.initial is not None and self.initial.shape not in ((N_PARAMETERS,), (B, N_PARAMETERS)):
             raise ValueError(f"initial: expected shape (4,) or ({B}, 4), got {self.initial.shape}")
+        _check_radians(self.bearings, batch=True)
         t_r = self.times[0] if self.reference_time is None else self.reference_time
         object.__setattr__(self, "reference_time", float(as_float_array(t_r, "reference_time", ())))
 
@@ -163,6 +212,15 @@ class BearingsBatch:
         if self.initial is None:
             return None
         return self.initial if self.initial.ndim == 1 else self.initial[i]
+
+    def subset(self, rows) -> BearingsBatch:
+        """The problems ``rows`` (an index array) as a batch of their own."""
+        return attrs.evolve(
+            self,
+            bearings=self.bearings[rows],
+            observer=self.observer if self.observer.ndim == 2 else self.observer[rows],
+            initial=self.initial if self.initial is None or self.initial.ndim == 1 else self.initial[rows],
+        )
 
     def problem(self, i: int) -> BearingsProblem:
         """Problem ``i`` on its own."""
@@ -198,6 +256,178 @@ def require_maneuver(times, observer) -> None:
         raise UnobservableError(
             "observer never maneuvers (constant velocity): the range is unobservable from bearings alone"
             f"{which}; add a course or speed change"
+        )
+
+
+def _line_deviations(X):
+    """d_k = wrap(2(X_k − φ̄))/2, the deviations of the bearings (..., n) from their best common line φ̄ (mod π)."""
+    doubled = 2.0 * X
+    centre = np.arctan2(np.sin(doubled).sum(axis=-1), np.cos(doubled).sum(axis=-1))
+    d = wrap_angle(doubled - centre[..., None])
+    return wrap_angle(d - d.mean(axis=-1, keepdims=True)) / 2.0
+
+
+def constant_fits_as_well(bearings, F, alpha: float = CONSTANT_BEARING_ALPHA) -> np.ndarray:
+    """True where a constant bearing explains the bearings (..., n) as well as the answer's F (σ unknown).
+
+    F-test of the constant-bearing model (1 parameter, cost F_c, see
+    :func:`constant_bearing`) against uniform motion (4 parameters, cost F):
+    ((F_c − F)/3) / (F/(n − 4)) ~ F(3, n − 4) when the bearing is constant;
+    P ≥ ``alpha`` means the data do not show the bearing change that determines
+    the range.  Always False for n = 4 (no degrees of freedom).
+    """
+    X = np.asarray(bearings, dtype=float)
+    n = X.shape[-1]
+    F = np.asarray(F, dtype=float)
+    if n <= N_PARAMETERS:
+        return np.zeros(F.shape, bool)
+    d = _line_deviations(X)
+    F_c = np.einsum("...k,...k->...", d, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        statistic = ((F_c - F) / (N_PARAMETERS - 1)) / (F / (n - N_PARAMETERS))
+    return stats.f.sf(np.where(np.isnan(statistic), np.inf, statistic), N_PARAMETERS - 1, n - N_PARAMETERS) >= alpha
+
+
+def constant_bearing(bearings, sigma, alpha: float = CONSTANT_BEARING_ALPHA) -> np.ndarray:
+    """True for each problem (bearings (..., n)) whose bearings are all equal modulo π within the noise.
+
+    A constant bearing puts the target on one line of sight at every time: the
+    range (and the radial speed) are not determined by the bearings, whatever the
+    bearing's value — a collision course, a target dead ahead or astern, or a
+    maneuver along the line of sight (seed 002 §6: observability needs the
+    bearing to change).  The line is estimated on doubled angles (so that φ and
+    φ + π are the same line): φ̄ = arg(Σ e^{2iX_k})/2, refined once by the mean
+    deviation; d_k = wrap(2(X_k − φ̄))/2 and F_c = Σ d_k² (the least-squares
+    cost of a constant bearing).  Constant when every |d_k| ≤
+    :data:`CONSTANT_BEARING_ATOL`, or, σ > 0 known, when the χ²(n − 1) test does
+    not reject a constant bearing: P(χ²(n−1) ≥ F_c/σ²) ≥ ``alpha``.
+    """
+    X = np.asarray(bearings, dtype=float)
+    n = X.shape[-1]
+    rows = X.reshape(-1, n)
+    # exact screen, cheap for a large batch: for disjoint pairs (a, b) of bearings, F_c ≥ Σ δ²/2 and every
+    # |d| ≥ |δ|/2 with δ = wrap(2(X_a − X_b))/2, so rows where up to 64 pairs (k, k + n/2) already show
+    # Σ δ²/2 > q σ² (q the 1 − α quantile of χ²(n−1)) and max |δ| > 2·ATOL are not constant: no trigonometry
+    half = n // 2
+    k = np.unique(np.linspace(0, half - 1, min(half, 64)).astype(int))
+    delta = (np.mod(2.0 * (rows[:, k] - rows[:, k + half]) + np.pi, 2.0 * np.pi) - np.pi) / 2.0
+    slack = 1.0 - 1e-9
+    changes = np.abs(delta).max(axis=-1) * slack > 2.0 * CONSTANT_BEARING_ATOL
+    if sigma is not None and sigma > 0:
+        changes &= np.einsum("ik,ik->i", delta, delta) / 2.0 * slack > stats.chi2.isf(alpha, n - 1) * sigma**2
+    candidate = np.flatnonzero(~changes)
+    constant = np.zeros(rows.shape[0], bool)
+    if candidate.size:
+        d = _line_deviations(rows[candidate])
+        test = np.abs(d).max(axis=-1) <= CONSTANT_BEARING_ATOL
+        if sigma is not None and sigma > 0:
+            F_c = np.einsum("...k,...k->...", d, d)
+            test |= stats.chi2.sf(F_c / sigma**2, n - 1) >= alpha
+        constant[candidate] = test
+    return constant.reshape(X.shape[:-1])
+
+
+def warn_constant_bearing(rows, method: str, fit: bool = False) -> None:
+    """Warn (:class:`UnobservabilityWarning`) that the problems ``rows`` (−1: the one problem) have a constant bearing.
+
+    ``fit``: found after solving by :func:`constant_fits_as_well` (σ unknown), only the covariance is NaN.
+    """
+    rows = np.atleast_1d(rows)
+    which = "" if rows.size == 1 and rows[0] < 0 else f" in problem(s) {rows[:10].tolist()}{'…' if rows.size > 10 else ''}"
+    what = "a constant bearing fits as well as uniform motion (F-test)" if fit else "all bearings equal modulo π within the noise"
+    nan = "covariance" if fit else "θ and covariance"
+    warnings.warn(
+        f"{method}: constant bearing{which} ({what}): the range is unobservable ({nan} set to NaN, converged=False)",
+        UnobservabilityWarning,
+        stacklevel=3,
+    )
+
+
+def constant_bearing_solution(problem: BearingsProblem, method: str) -> TMASolution:
+    """The answer to a constant-bearing problem: NaN θ and covariance, ``converged=False`` (warns)."""
+    warn_constant_bearing(-1, method)
+    nan = float("nan")
+    ska, stat, pval, cons = fit_statistics(np.array(nan), problem.size, problem.sigma)
+    return TMASolution(
+        parameters=np.full(N_PARAMETERS, nan),
+        covariance=np.full((N_PARAMETERS, N_PARAMETERS), nan),
+        cost=nan,
+        iterations=0,
+        evaluations=0,
+        converged=False,
+        message=CONSTANT_BEARING_MESSAGE,
+        reference_time=problem.reference_time,
+        sqrt_ka=float(ska),
+        chi2_statistic=float(stat),
+        chi2_dof=problem.size - N_PARAMETERS,
+        chi2_pvalue=float(pval),
+        consistent=None if cons is None else bool(cons),
+        method=method,
+    )
+
+
+def solve_observable_rows(batch: BearingsBatch, solve, method: str) -> BatchTMASolution:
+    """``solve(sub_batch, rows)`` on the problems ``rows`` without a constant bearing; the others get NaN answers.
+
+    Constant-bearing problems (:func:`constant_bearing`) are not solved: their
+    θ, covariance, cost and statistics are NaN, ``converged`` False, their message
+    :data:`CONSTANT_BEARING_MESSAGE` (one :class:`UnobservabilityWarning` names them).
+    """
+    constant = constant_bearing(batch.bearings, batch.sigma)
+    if not constant.any():
+        return solve(batch, np.arange(len(batch)))
+    B, n = batch.bearings.shape
+    rows = np.flatnonzero(~constant)
+    warn_constant_bearing(np.flatnonzero(constant), method)
+    part = solve(batch.subset(rows), rows) if rows.size else None
+    nan = float("nan")
+
+    def merged(name, fill, shape=()):
+        out = np.full((B,) + shape, fill)  # dtype of fill: float NaN, bool False, int 0
+        if part is not None:
+            out[rows] = getattr(part, name)
+        return out
+
+    messages = [CONSTANT_BEARING_MESSAGE] * B
+    if part is not None:
+        for i, m in zip(rows, part.messages):
+            messages[i] = m
+    consistent = None
+    if batch.sigma is not None and batch.sigma > 0 and n > N_PARAMETERS:
+        consistent = merged("consistent", False)
+    return BatchTMASolution(
+        parameters=merged("parameters", nan, (N_PARAMETERS,)),
+        covariance=merged("covariance", nan, (N_PARAMETERS, N_PARAMETERS)),
+        cost=merged("cost", nan),
+        iterations=merged("iterations", 0),
+        evaluations=merged("evaluations", 0),
+        converged=merged("converged", False),
+        sqrt_ka=merged("sqrt_ka", nan),
+        chi2_statistic=merged("chi2_statistic", nan),
+        chi2_dof=n - N_PARAMETERS,
+        chi2_pvalue=merged("chi2_pvalue", nan),
+        consistent=consistent,
+        reference_time=batch.reference_time,
+        messages=tuple(messages),
+        method=method,
+    )
+
+
+def check_start(s, tau, ox, oy, times, problem: int | None = None) -> None:
+    """Refuse a starting guess s (4,) (scaled) whose track meets the observer at a bearing time.
+
+    There the bearing and its gradient (1/ρ²) are undefined, F or JᵀJ is NaN and
+    the LM cannot take a step.  ``problem`` is the problem's number in a batch.
+    """
+    dx, dy = relative(s, tau, ox, oy)
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        bad = np.flatnonzero(~np.isfinite(1.0 / (dx * dx + dy * dy)))
+    if bad.size:
+        which = "" if problem is None else f" of problem {problem}"
+        raise ValueError(
+            f"initial: the starting guess{which} puts the target on the observer at bearing {int(bad[0])}"
+            f" (t = {float(times[bad[0]])!r} s), where the bearing is undefined;"
+            " start at a positive range (e.g. a prior along the first bearing)"
         )
 
 
@@ -438,7 +668,7 @@ def summarize(scaling, s, F, H, n, sigma, alpha=0.01):
 
     Covariance (Cramér–Rao, seed 002 §4.2): C_θ = σ² D (JᵀJ)⁻¹ D with D = ∂θ/∂s, σ²
     the known noise or F/(n − 4).  Answers whose JᵀJ has reciprocal condition
-    below :data:`RCOND_MIN` get a NaN covariance and ``observable`` False.
+    below :data:`RCOND_MIN`, or is not finite, get a NaN covariance and ``observable`` False.
     Returns (theta, covariance, sqrt_ka, chi2_statistic, chi2_pvalue, consistent, observable).
     """
     F = np.asarray(F, dtype=float)
@@ -446,9 +676,11 @@ def summarize(scaling, s, F, H, n, sigma, alpha=0.01):
     dof = n - N_PARAMETERS
     # Jacobi-equilibrate before factorizing: C = E (E H E)⁻¹ E with E = diag(H)^(-1/2)
     d = np.sqrt(np.maximum(np.diagonal(H, axis1=-2, axis2=-1), np.finfo(float).tiny))
-    Hn = H / (d[..., :, None] * d[..., None, :])
-    eig = np.linalg.eigvalsh(Hn)
-    observable = (eig[..., 0] > RCOND_MIN * eig[..., -1]) & np.isfinite(eig).all(axis=-1)
+    with np.errstate(invalid="ignore"):
+        Hn = H / (d[..., :, None] * d[..., None, :])
+    finite = np.isfinite(Hn).all(axis=(-2, -1))  # NaN/inf H (e.g. a zero range): eigvalsh would fail
+    eig = np.linalg.eigvalsh(np.where(finite[..., None, None], Hn, np.eye(4)))
+    observable = (eig[..., 0] > RCOND_MIN * eig[..., -1]) & finite
     Hn_safe = np.where(observable[..., None, None], Hn, np.eye(4))
     Lc = np.linalg.cholesky(Hn_safe)
     Linv = np.linalg.solve(Lc, np.broadcast_to(np.eye(4), Lc.shape))  # 4×4 triangular, off the hot path
@@ -497,6 +729,10 @@ def to_solution(problem: BearingsProblem, scaled: ScaledProblem, s, F, H, iterat
         warn_unobservable(1, method)
         converged = False
         message = (message + "; " if message else "") + "unobservable: JᵀJ singular"
+    elif problem.sigma is None and constant_fits_as_well(problem.bearings, F):
+        warn_constant_bearing(-1, method, fit=True)
+        converged, cov = False, np.full_like(cov, np.nan)
+        message = (message + "; " if message else "") + CONSTANT_FIT_MESSAGE
     return TMASolution(
         parameters=theta,
         covariance=cov,
