@@ -6,6 +6,13 @@ directory.  Results go to ``--out`` (default ``runs/EXPERIMENT``) chunk by
 chunk; running the same command again after an interruption computes only the
 missing runs.  Prints the mean (and standard deviation) of every result over
 the runs, or with ``--json`` the same as JSON.
+
+Exit status: 0 done; 1 a run of the experiment failed (its traceback is
+printed; the runs before it are stored); 2 a user error, one line on stderr
+naming the option or file (unknown experiment, bad option value, a folder of
+another campaign or in use by one, a damaged file in the folder — rerun with
+``--set-aside`` to move it to ``OUT/set_aside/`` —, a malformed or unreachable
+scheduler address); 130 interrupted by Ctrl-C (the finished runs are stored).
 """
 
 from __future__ import annotations
@@ -35,9 +42,29 @@ def _non_negative(text: str) -> int:
     return value
 
 
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
+
+
+def _one_line_errors(parser: argparse.ArgumentParser) -> None:
+    """Report a bad option of this command as one line ``hybridtrack run: error: …`` (no usage block), exit status 2."""
+
+    def error(message: str):
+        parser.exit(2, f"{parser.prog}: error: {' '.join(message.split())}\n")
+
+    parser.error = error
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     from hybridtrack.experiment.executors import EXECUTORS
 
+    _one_line_errors(parser)
     parser.add_argument("experiment", metavar="EXPERIMENT", help="registered name, experiments/NAME.py, or a script path")
     parser.add_argument("--n", type=_positive, default=100, help="number of runs (default 100)")
     parser.add_argument("--executor", choices=EXECUTORS, default="process", help="where runs execute (default process)")
@@ -47,6 +74,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", help="result folder (default runs/EXPERIMENT)")
     parser.add_argument("--seed", type=_non_negative, default=0, help="campaign seed; run i uses child i of SeedSequence(seed)")
     parser.add_argument("--param", action="append", metavar="KEY=VALUE", help="override an experiment parameter (repeatable)")
+    parser.add_argument(
+        "--set-aside",
+        action="store_true",
+        help="move damaged or foreign files of --out into DIR/set_aside/ and recompute their runs instead of stopping",
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=_seconds,
+        default=10.0,
+        metavar="SECONDS",
+        help="how long --executor dask waits for the scheduler (default 10)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
 
@@ -58,9 +97,9 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from hybridtrack.experiment.campaign import Campaign, RunFailed, campaign_parameters
+    from hybridtrack.experiment.campaign import Campaign, CampaignInterrupted, RunFailed, campaign_parameters
     from hybridtrack.experiment.definition import UnknownExperiment
-    from hybridtrack.experiment.store import CampaignMismatch, CorruptResults
+    from hybridtrack.experiment.store import CampaignLocked
 
     if args.executor == "dask" and not args.scheduler:
         print("hybridtrack run: --executor dask needs --scheduler ADDRESS", file=sys.stderr)
@@ -78,14 +117,22 @@ def run(args: argparse.Namespace) -> int:
             workers=args.workers,
             chunk_size=args.chunk,
             progress=not args.no_progress,
+            set_aside=args.set_aside,
+            connect_timeout=args.connect_timeout,
         )
         result = campaign.run()
-    except (UnknownExperiment, CampaignMismatch, ValueError) as error:
-        print(f"hybridtrack run: {error}", file=sys.stderr)
-        return 2
-    except (RunFailed, CorruptResults) as error:
+    except CampaignInterrupted as interrupt:
+        print(f"hybridtrack run: {interrupt}", file=sys.stderr)
+        return 130
+    except RunFailed as error:
         print(f"hybridtrack run: {error}", file=sys.stderr)
         return 1
+    except (UnknownExperiment, CampaignLocked, ValueError, TypeError, OSError) as error:
+        # CampaignMismatch and CorruptResults are ValueErrors; OSError: --out unusable, scheduler unreachable
+        print("hybridtrack run: " + " ".join(str(error).split("\n")), file=sys.stderr)
+        return 2
+    for original, moved, reason in result.set_aside:
+        print(f"hybridtrack run: set aside {original} as {moved} ({reason})", file=sys.stderr)
     summary = {
         "experiment": result.experiment,
         "n": result.n,

@@ -10,7 +10,7 @@
 The command line is ``hybridtrack run EXPERIMENT [--n N] [--executor …] [--out DIR]``.
 """
 
-from hybridtrack.experiment.campaign import Campaign, CampaignResult, RunFailed, run_campaign
+from hybridtrack.experiment.campaign import Campaign, CampaignInterrupted, CampaignResult, RunFailed, run_campaign
 from hybridtrack.experiment.definition import (
     EXPERIMENTS,
     Experiment,
@@ -20,13 +20,15 @@ from hybridtrack.experiment.definition import (
     register_experiment,
 )
 from hybridtrack.experiment.executors import EXECUTORS
-from hybridtrack.experiment.store import CampaignMismatch, CorruptResults, ResultStore
+from hybridtrack.experiment.store import CampaignLocked, CampaignMismatch, CorruptResults, ResultStore
 from hybridtrack.experiment.worker import run_seed
 
 __all__ = [
     "EXECUTORS",
     "EXPERIMENTS",
     "Campaign",
+    "CampaignInterrupted",
+    "CampaignLocked",
     "CampaignMismatch",
     "CampaignResult",
     "CorruptResults",

@@ -11,6 +11,13 @@ resumed.  Missing runs are cut into chunks; every finished chunk is written to
 the result folder at once (:mod:`hybridtrack.experiment.store`).  A failing run
 stops the campaign with :class:`RunFailed` after the runs finished before it
 are stored; running the campaign again resumes from there.
+
+The campaign holds the folder's lock while it runs (a second campaign on the
+same folder gets :class:`~hybridtrack.experiment.store.CampaignLocked`).  A
+Ctrl-C (KeyboardInterrupt) stores the chunks finished so far, cancels the
+rest, ends the workers and raises :class:`CampaignInterrupted`; running the
+campaign again resumes.  ``set_aside=True`` moves unreadable or foreign files
+of the folder into ``OUT/set_aside/`` and recomputes their runs.
 """
 
 from __future__ import annotations
@@ -26,13 +33,26 @@ import attrs
 import numpy as np
 
 from hybridtrack.experiment.definition import Experiment, load_experiment
-from hybridtrack.experiment.executors import EXECUTORS, make_executor
+from hybridtrack.experiment.executors import CONNECT_TIMEOUT, EXECUTORS, check_scheduler_address, make_executor
 from hybridtrack.experiment.store import ResultStore
 from hybridtrack.experiment.worker import run_chunk
 
 
 class RunFailed(RuntimeError):
     """A run raised; the runs finished before it are stored."""
+
+
+class CampaignInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped the campaign; ``stored`` runs (``computed`` of them by this call) are in ``out``."""
+
+    def __init__(self, out: Path, n: int, stored: int, computed: int):
+        super().__init__(
+            f"interrupted: {stored} of {n} runs stored in {out} ({computed} computed by this call); run the same campaign again to resume"
+        )
+        self.out, self.n, self.stored, self.computed = out, n, stored, computed
+
+    def __str__(self) -> str:
+        return str(self.args[0])
 
 
 def _positive_int(instance, attribute, value):
@@ -55,6 +75,16 @@ def _executor(instance, attribute, value):
         raise ValueError(f"unknown executor {value!r}; choose one of {', '.join(EXECUTORS)}")
 
 
+def _timeout(instance, attribute, value):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not 0 < value < math.inf:
+        raise ValueError(f"{attribute.name}: expected a positive number of seconds, got {value!r}")
+
+
+def _boolean(instance, attribute, value):
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{attribute.name}: expected True or False, got {value!r}")
+
+
 def chunks(indices: np.ndarray, size: int) -> list[tuple[int, ...]]:
     """``indices`` (sorted) cut into consecutive pieces of at most ``size``."""
     return [tuple(int(i) for i in indices[start : start + size]) for start in range(0, len(indices), size)]
@@ -71,6 +101,8 @@ class CampaignResult:
     arrays: dict[str, np.ndarray]
     computed: int
     reused: int
+    #: (original path, path in OUT/set_aside/, reason) of every file this call set aside
+    set_aside: tuple[tuple[Path, Path, str], ...] = ()
 
     def summary(self) -> dict[str, dict[str, Any]]:
         """Per result name: mean and standard deviation over runs (for scalars) or the per-run shape."""
@@ -102,7 +134,10 @@ class Campaign:
     address or a ``distributed.Client``); ``workers`` sizes the process pool;
     ``chunk_size`` runs are stored per file (default: about four chunks per
     worker, at most 25 runs); ``progress`` shows a tqdm bar when stderr is a
-    terminal.
+    terminal; ``set_aside`` moves unreadable or foreign chunk files (and a
+    damaged manifest) into ``OUT/set_aside/`` instead of stopping, and their
+    runs are computed again; ``connect_timeout`` is how long the dask
+    executor waits for the scheduler, in seconds.
     """
 
     experiment: Experiment = attrs.field(converter=load_experiment)
@@ -115,19 +150,22 @@ class Campaign:
     workers: int | None = attrs.field(default=None, validator=_optional_positive_int)
     chunk_size: int | None = attrs.field(default=None, validator=_optional_positive_int)
     progress: bool = True
+    set_aside: bool = attrs.field(default=False, validator=_boolean)
+    connect_timeout: float = attrs.field(default=CONNECT_TIMEOUT, validator=_timeout)
 
     def __attrs_post_init__(self):
         object.__setattr__(self, "parameters", self.experiment.with_parameters(**self.parameters))
-        if self.executor == "dask" and self.scheduler in (None, ""):
-            raise ValueError("the dask executor needs a scheduler address (--scheduler tcp://HOST:PORT)")
+        if self.executor == "dask":
+            check_scheduler_address(self.scheduler)
 
     @property
     def store(self) -> ResultStore:
         return ResultStore(self.out)
 
     def missing(self) -> np.ndarray:
-        """Run indices below n that no stored chunk holds."""
-        done = self.store.completed() if self.out.exists() else np.zeros(0, dtype=np.int64)
+        """Run indices below n that no stored chunk holds (reads the folder, changes nothing)."""
+        store = self.store
+        done = store.completed() if store.chunk_files() else np.zeros(0, dtype=np.int64)
         return np.setdiff1d(np.arange(self.n), done)
 
     def _chunk_size(self, missing: int, workers: int) -> int:
@@ -138,34 +176,54 @@ class Campaign:
     def run(self) -> CampaignResult:
         """Compute the missing runs (storing each chunk as it finishes) and return every run's results."""
         store = self.store
-        store.open(experiment=self.experiment.name, locator=self.experiment.locator, parameters=self.parameters, seed=self.seed, n=self.n)
-        missing = self.missing()
-        reused = self.n - len(missing)
-        computed = 0
-        failures: list[tuple[int, str]] = []
-        if len(missing):
-            source = self.experiment.locator or self.experiment
-            with make_executor(self.executor, workers=self.workers, scheduler=self.scheduler) as executor:
-                tasks = [
-                    (source, self.parameters, int(self.seed), chunk)
-                    for chunk in chunks(missing, self._chunk_size(len(missing), executor.workers))
-                ]
-                with _progress(self.n, reused, self.experiment.name, self.progress) as bar:
-                    for outcome in executor.map_unordered(run_chunk, tasks):
-                        if outcome.indices:
-                            store.write_chunk(outcome.indices, outcome.results)
-                            computed += len(outcome.indices)
-                            bar.update(len(outcome.indices))
-                        if outcome.failure is not None:
-                            failures.append(outcome.failure)
-                            executor.cancel_pending()
-        if failures:
-            index, report = min(failures)
-            raise RunFailed(
-                f"experiment {self.experiment.name!r}: run {index} failed "
-                f"({computed} run(s) computed and stored in {self.out}; run again to resume)\n{report}"
+        with store.locked():
+            done = store.open(
+                experiment=self.experiment.name,
+                locator=self.experiment.locator,
+                parameters=self.parameters,
+                seed=self.seed,
+                n=self.n,
+                set_aside=self.set_aside,
             )
-        return CampaignResult(self.experiment.name, self.out, self.n, store.load(self.n), computed, reused)
+            missing = np.setdiff1d(np.arange(self.n), done)
+            reused = self.n - len(missing)
+            stored = [0]  # runs stored by this call, counted as chunks arrive
+            failures: list[tuple[int, str]] = []
+            try:
+                if len(missing):
+                    self._compute(store, missing, reused, stored, failures)
+            except KeyboardInterrupt:
+                raise CampaignInterrupted(self.out, self.n, reused + stored[0], stored[0]) from None
+            computed = stored[0]
+            if failures:
+                index, report = min(failures)
+                raise RunFailed(
+                    f"experiment {self.experiment.name!r}: run {index} failed "
+                    f"({computed} run(s) computed and stored in {self.out}; run again to resume)\n{report}"
+                )
+            arrays = store.load(self.n)
+        return CampaignResult(self.experiment.name, self.out, self.n, arrays, computed, reused, tuple(store.set_aside_files))
+
+    def _compute(self, store: ResultStore, missing: np.ndarray, reused: int, stored: list[int], failures: list) -> None:
+        """Run ``missing`` on the executor, storing every chunk as it arrives (``stored[0]`` counts the runs)."""
+        source = self.experiment.locator or self.experiment
+        executor = make_executor(self.executor, workers=self.workers, scheduler=self.scheduler, timeout=self.connect_timeout)
+        with executor:
+            tasks = [
+                (source, self.parameters, int(self.seed), chunk)
+                for chunk in chunks(missing, self._chunk_size(len(missing), executor.workers))
+            ]
+            with _progress(self.n, reused, self.experiment.name, self.progress) as bar:
+                for outcome in executor.map_unordered(run_chunk, tasks):
+                    if outcome.indices:
+                        store.write_chunk(outcome.indices, outcome.results)
+                        stored[0] += len(outcome.indices)
+                        bar.update(len(outcome.indices))
+                    if outcome.interrupted:
+                        raise KeyboardInterrupt
+                    if outcome.failure is not None:
+                        failures.append(outcome.failure)
+                        executor.cancel_pending()
 
     def results(self) -> dict[str, np.ndarray]:
         """The runs stored so far (index below n), without computing anything."""

@@ -1,43 +1,75 @@
-"""A campaign's result folder: a manifest and one NPZ file per finished chunk of runs.
+"""A campaign's result folder: a manifest, a lock and one NPZ file per finished chunk of runs.
 
 Layout of ``OUT/``::
 
     manifest.json                  experiment, locator, parameters, seed, requested n
-    runs-0000000-0000019.npz       arrays "index" (c,) and one (c, …) array per result name
+    .lock                          held (flock) by the campaign writing here; holds its pid
+    runs-0000000-0000019.npz       arrays "index" (c,), "__campaign__" and one (c, …) array per result name
     runs-0000020-0000039.npz
     …
+    set_aside/                     unusable files moved away by ``set_aside=True`` (``--set-aside``)
 
 Every file is written to a temporary name in the same folder, flushed to disk
 and renamed over its final name (``os.replace`` is atomic on POSIX), so a
 campaign killed at any moment leaves only complete chunk files plus perhaps a
 ``*.tmp-*`` file, which the next :meth:`ResultStore.open` deletes.  The chunk
 files are the record of which runs are done: a resumed campaign computes only
-the indices no chunk holds.  One campaign at a time may write to a folder.
+the indices no chunk holds.
+
+One campaign at a time may write to a folder: :meth:`ResultStore.locked` takes
+an exclusive ``flock`` on ``OUT/.lock`` (released by the kernel when the
+process ends, even by SIGKILL, so no stale lock survives); a second campaign
+gets :class:`CampaignLocked` naming the folder and the holder's pid.
+
+Every chunk records its campaign's identity (format, experiment, parameters,
+seed) as the JSON text array ``__campaign__``, so a chunk of another campaign
+is refused even when ``manifest.json`` is gone.  Every file read is checked:
+an empty, truncated or foreign chunk, or a damaged manifest, raises
+:class:`CorruptResults` naming the file and what is wrong; with
+``set_aside=True`` such files are moved into ``OUT/set_aside/`` instead (with
+a line in ``OUT/set_aside/REASONS.txt``) and their runs are computed again.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import uuid
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+try:  # POSIX; elsewhere the folder is not locked
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None
+
 FORMAT = 1
 MANIFEST = "manifest.json"
+LOCK = ".lock"
+SET_ASIDE = "set_aside"
+#: the reserved chunk array holding the campaign identity as JSON text
+IDENTITY_ARRAY = "__campaign__"
+RESERVED = ("index", IDENTITY_ARRAY)
 _CHUNK_GLOB = "runs-*.npz"
 _IDENTITY = ("experiment", "parameters", "seed")
+_REMEDY = "run again with --set-aside (Python: set_aside=True) to move it to {folder}/set_aside/ and recompute its runs"
 
 
 class CampaignMismatch(ValueError):
-    """The folder holds results of another experiment, other parameters or another seed."""
+    """The folder (its manifest or a chunk file) holds results of another experiment, other parameters or another seed."""
 
 
-class CorruptResults(RuntimeError):
-    """Chunk files that contradict each other (a run stored twice, names or shapes differing)."""
+class CorruptResults(ValueError):
+    """An unreadable or inconsistent file in the result folder (empty, truncated, foreign, damaged manifest,
+    a run stored twice, names or shapes differing); the message names the file."""
+
+
+class CampaignLocked(RuntimeError):
+    """Another campaign (another process, or another :meth:`ResultStore.locked` here) writes to the folder."""
 
 
 def _atomic_write(path: Path, write) -> None:
@@ -60,11 +92,156 @@ def _json_round_trip(value: Any, what: str) -> Any:
         raise ValueError(f"{what} must be JSON-serializable to be recorded in {MANIFEST}: {error}") from error
 
 
+def campaign_identity(experiment: str, parameters: Mapping[str, Any], seed: int) -> dict[str, Any]:
+    """What makes two campaigns the same (format, experiment name, parameters, seed); ``n`` and the locator may differ."""
+    return {
+        "format": FORMAT,
+        "experiment": experiment,
+        "parameters": _json_round_trip(dict(parameters), "experiment parameters"),
+        "seed": int(seed),
+    }
+
+
+def _differences(recorded: Mapping[str, Any], wanted: Mapping[str, Any]) -> str:
+    keys = [key for key in ("format", *_IDENTITY) if recorded.get(key) != wanted.get(key)]
+    return "; ".join(f"{key}: folder has {recorded.get(key)!r}, asked {wanted.get(key)!r}" for key in keys)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _check_manifest(data: Any) -> str | None:
+    """What is wrong with a parsed manifest, or ``None``."""
+    if not isinstance(data, dict):
+        return f"expected a JSON object, got {type(data).__name__}"
+    expected = {
+        "format": (_is_int, "an integer"),
+        "experiment": (lambda v: isinstance(v, str) and v != "", "a non-empty string"),
+        "parameters": (lambda v: isinstance(v, dict), "an object"),
+        "seed": (lambda v: _is_int(v) and v >= 0, "a non-negative integer"),
+        "n": (lambda v: _is_int(v) and v >= 1, "a positive integer"),
+        "locator": (lambda v: v is None or isinstance(v, str), "a string or null"),
+    }
+    for key, (valid, what) in expected.items():
+        if key not in data:
+            return f"has no {key!r} entry"
+        if not valid(data[key]):
+            return f"{key!r} is {data[key]!r}, expected {what}"
+    return None
+
+
+def _chunk_problem(path: Path, arrays: dict[str, np.ndarray]) -> str | None:
+    """What is wrong with the arrays of one chunk file, or ``None``."""
+    if "index" not in arrays:
+        return f"has no 'index' array (holds {sorted(arrays)}); not a chunk written by a campaign"
+    index = arrays["index"]
+    if index.ndim != 1 or index.dtype.kind not in "iu" or index.size == 0:
+        return f"'index' is {index.dtype} with shape {index.shape}, expected a non-empty 1-D integer array"
+    if np.any(index < 0):
+        return f"'index' holds negative run indices {index[index < 0][:5].tolist()}"
+    if len(np.unique(index)) != index.size:
+        return "'index' holds a run index twice"
+    expected_name = f"runs-{int(index.min()):07d}-{int(index.max()):07d}.npz"
+    if path.name != expected_name:
+        return f"holds runs {int(index.min())}-{int(index.max())}, so its name should be {expected_name}"
+    for name, values in arrays.items():
+        if name == IDENTITY_ARRAY:
+            if values.shape != () or values.dtype.kind != "U":
+                return f"{IDENTITY_ARRAY!r} is {values.dtype} with shape {values.shape}, expected JSON text"
+            continue
+        if values.dtype.kind not in "biuf":
+            return f"result {name!r} has dtype {values.dtype}, expected numbers"
+        if values.shape[:1] != index.shape:
+            return f"result {name!r} has {values.shape[:1]} rows for {index.size} runs"
+    return None
+
+
+def read_chunk(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Every array of one chunk file, checked; :class:`CorruptResults` naming the file and the fault otherwise."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if not path.is_file():
+            raise IsADirectoryError(f"{path} is not a file")
+    except OSError as error:
+        raise CorruptResults(f"chunk file {path} cannot be read ({error})") from error
+    if size == 0:
+        raise CorruptResults(f"chunk file {path} is empty (0 bytes), expected an NPZ archive")
+    try:
+        data = np.load(path, allow_pickle=False)
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise ValueError(f"a single {type(data).__name__}, not an NPZ archive")
+        with data:
+            arrays = {name: data[name] for name in data.files}
+    except Exception as error:  # any failure to parse the file is a fault of the file
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise CorruptResults(
+            f"chunk file {path} ({size} bytes) is not a readable NPZ archive (truncated or foreign file: {reason})"
+        ) from error
+    problem = _chunk_problem(path, arrays)
+    if problem is not None:
+        raise CorruptResults(f"chunk file {path} {problem}")
+    return arrays
+
+
+def chunk_identity(path: Path, arrays: Mapping[str, np.ndarray]) -> dict[str, Any] | None:
+    """The campaign identity a chunk records (``None`` for chunks written before identities were recorded)."""
+    if IDENTITY_ARRAY not in arrays:
+        return None
+    try:
+        identity = json.loads(str(arrays[IDENTITY_ARRAY]))
+    except ValueError as error:
+        raise CorruptResults(f"chunk file {path}: {IDENTITY_ARRAY!r} is not valid JSON ({error})") from error
+    if not isinstance(identity, dict) or any(key not in identity for key in ("format", *_IDENTITY)):
+        raise CorruptResults(f"chunk file {path}: {IDENTITY_ARRAY!r} is {identity!r}, expected format, experiment, parameters, seed")
+    return identity
+
+
 class ResultStore:
-    """Reads and writes the result folder of one campaign."""
+    """Reads and writes the result folder of one campaign.
+
+    After :meth:`open`, the store knows its campaign identity: chunks it
+    writes record it and chunks it reads must match it.
+    """
 
     def __init__(self, folder: str | os.PathLike):
         self.folder = Path(folder)
+        self.identity: dict[str, Any] | None = None
+        self._manifest_present = True
+        #: (original path, new path, reason) of every file this store moved into ``set_aside/``
+        self.set_aside_files: list[tuple[Path, Path, str]] = []
+
+    # -- lock ---------------------------------------------------------------
+    @contextlib.contextmanager
+    def locked(self) -> Iterator[None]:
+        """Hold the folder's exclusive lock (creating the folder); :class:`CampaignLocked` when another campaign holds it."""
+        self._make_folder()
+        path = self.folder / LOCK
+        descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            if fcntl is not None:
+                try:
+                    fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    holder = os.pread(descriptor, 64, 0).decode("ascii", "replace").strip() or "unknown"
+                    raise CampaignLocked(
+                        f"{self.folder} is in use by another campaign (process {holder} holds {path}); "
+                        "wait for it to finish or choose another --out folder"
+                    ) from None
+            os.ftruncate(descriptor, 0)
+            os.pwrite(descriptor, f"{os.getpid()}\n".encode("ascii"), 0)
+            try:
+                yield
+            finally:
+                os.ftruncate(descriptor, 0)
+        finally:
+            os.close(descriptor)  # releases the flock
+
+    def _make_folder(self) -> None:
+        if self.folder.exists() and not self.folder.is_dir():
+            raise NotADirectoryError(f"result folder {self.folder} is a file, expected a folder (choose another --out)")
+        self.folder.mkdir(parents=True, exist_ok=True)
 
     # -- manifest -----------------------------------------------------------
     @property
@@ -72,70 +249,186 @@ class ResultStore:
         return self.folder / MANIFEST
 
     def manifest(self) -> dict | None:
-        """The recorded manifest, or ``None`` for a new folder."""
-        if not self.manifest_path.exists():
-            return None
-        return json.loads(self.manifest_path.read_text(encoding="utf-8"))
+        """The recorded manifest, or ``None`` for a new folder; :class:`CorruptResults` naming the file when damaged."""
+        problem = self._manifest_problem()
+        if isinstance(problem, str):
+            remedy = _REMEDY.format(folder=self.folder).replace("recompute its runs", "write a new one")
+            raise CorruptResults(f"manifest {self.manifest_path} {problem}; {remedy}")
+        return problem
 
-    def open(self, *, experiment: str, locator: str | None, parameters: Mapping[str, Any], seed: int, n: int) -> None:
+    def _manifest_problem(self) -> dict | str | None:
+        """The parsed manifest, ``None`` when absent, or a string saying what is wrong with it."""
+        path = self.manifest_path
+        if not path.exists():
+            return None
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            return f"cannot be read ({error})"
+        if not text.strip():
+            return "is empty, expected a JSON object"
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as error:
+            return f"is not valid JSON ({error})"
+        problem = _check_manifest(data)
+        return data if problem is None else problem
+
+    def open(
+        self,
+        *,
+        experiment: str,
+        locator: str | None,
+        parameters: Mapping[str, Any],
+        seed: int,
+        n: int,
+        set_aside: bool = False,
+    ) -> np.ndarray:
         """Create the folder or check that it holds the same campaign; drop leftovers of a killed write.
 
-        Same campaign = same experiment name, parameters and seed; ``n`` may
-        differ (a larger n extends the campaign, run i keeping its seed).
+        Same campaign = same experiment name, parameters and seed, in the
+        manifest and in every chunk file; ``n`` may differ (a larger n extends
+        the campaign, run i keeping its seed).  A damaged manifest or chunk
+        file is an error, or with ``set_aside`` is moved to ``set_aside/``.
+        Call it while holding :meth:`locked`.  Returns the sorted indices of
+        the runs stored.
         """
-        self.folder.mkdir(parents=True, exist_ok=True)
+        self._make_folder()
         for leftover in self.folder.glob("*.tmp-*"):
             leftover.unlink(missing_ok=True)
-        wanted = {
-            "format": FORMAT,
-            "experiment": experiment,
-            "locator": locator,
-            "parameters": _json_round_trip(dict(parameters), "experiment parameters"),
-            "seed": int(seed),
-            "n": int(n),
-        }
-        recorded = self.manifest()
+        identity = campaign_identity(experiment, parameters, seed)
+        wanted = {**identity, "locator": locator, "n": int(n)}
+        recorded = self._manifest_problem()
+        if isinstance(recorded, str):
+            if not set_aside:
+                self.manifest()  # raises, naming the file
+            self._set_aside(self.manifest_path, f"manifest {recorded}")
+            recorded = None
         if recorded is not None:
-            differences = [key for key in _IDENTITY if recorded.get(key) != wanted[key]]
-            if recorded.get("format") != FORMAT:
-                differences.insert(0, "format")
-            if differences:
-                details = "; ".join(f"{key}: folder has {recorded.get(key)!r}, asked {wanted[key]!r}" for key in differences)
+            details = _differences(recorded, identity)
+            if details:
                 raise CampaignMismatch(f"{self.folder} holds another campaign ({details}); choose another --out folder")
-            if recorded.get("n") == wanted["n"] and recorded.get("locator") == locator:
-                return
-        text = json.dumps(wanted, indent=2, sort_keys=True) + "\n"
-        _atomic_write(self.manifest_path, lambda handle: handle.write(text.encode("utf-8")))
+        self.identity = identity
+        self._manifest_present = recorded is not None
+        done = self.completed(set_aside=set_aside)
+        if recorded is None or recorded.get("n") != wanted["n"] or recorded.get("locator") != locator:
+            text = json.dumps(wanted, indent=2, sort_keys=True) + "\n"
+            _atomic_write(self.manifest_path, lambda handle: handle.write(text.encode("utf-8")))
+        return done
+
+    # -- set aside ----------------------------------------------------------
+    def _set_aside(self, path: Path, reason: str) -> Path:
+        """Move ``path`` into ``set_aside/`` (never overwriting) and note why in ``set_aside/REASONS.txt``."""
+        folder = self.folder / SET_ASIDE
+        folder.mkdir(exist_ok=True)
+        target = folder / path.name
+        copy = 1
+        while target.exists():
+            target = folder / f"{path.name}.{copy}"
+            copy += 1
+        os.replace(path, target)
+        with open(folder / "REASONS.txt", "a", encoding="utf-8") as notes:
+            notes.write(f"{target.name}: {reason}\n")
+        self.set_aside_files.append((path, target, reason))
+        return target
 
     # -- chunks -------------------------------------------------------------
     def chunk_files(self) -> list[Path]:
         return sorted(self.folder.glob(_CHUNK_GLOB))
 
-    def completed(self) -> np.ndarray:
-        """Sorted indices of the runs stored so far (an index stored twice is an error)."""
-        parts = []
+    def _reference_identity(self) -> tuple[dict[str, Any] | None, bool]:
+        """The identity chunks must match (this store's, else the manifest's) and whether a manifest vouches for old chunks."""
+        if self.identity is not None:
+            return self.identity, self._manifest_present
+        recorded = self.manifest() if self.folder.is_dir() else None
+        if recorded is None:
+            return None, False
+        return {key: recorded[key] for key in ("format", *_IDENTITY)}, True
+
+    def _chunks(self, set_aside: bool = False) -> Iterator[tuple[Path, dict[str, np.ndarray]]]:
+        """Every usable chunk file with its arrays (identity removed), checked one by one and against each other.
+
+        Result names and shapes must agree between chunks; the layout held by
+        most runs is taken as right and a chunk differing from it is the bad
+        one.  A bad chunk raises, or with ``set_aside`` is moved away.
+        """
+        reference, vouched = self._reference_identity()
+
+        def reject(path: Path, error: CorruptResults | CampaignMismatch) -> None:
+            if not set_aside:
+                raise type(error)(f"{error}; {_REMEDY.format(folder=self.folder)}") from error
+            self._set_aside(path, str(error))
+
+        readable: list[tuple[Path, dict[str, np.ndarray]]] = []
         for path in self.chunk_files():
-            with np.load(path) as data:
-                parts.append(np.asarray(data["index"], dtype=np.int64))
-        indices = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
-        unique, counts = np.unique(indices, return_counts=True)
-        if np.any(counts > 1):
-            raise CorruptResults(f"{self.folder}: run(s) {unique[counts > 1].tolist()} stored more than once")
-        return unique
+            try:
+                arrays = read_chunk(path)
+                identity = chunk_identity(path, arrays)
+                if identity is None and not vouched:
+                    raise CorruptResults(
+                        f"chunk file {path} records no campaign identity (written by an older version) and "
+                        f"{self.manifest_path} is missing, so its seed cannot be checked"
+                    )
+                if identity is not None:
+                    if reference is None:
+                        reference = identity
+                    details = _differences(identity, reference)
+                    if details:
+                        raise CampaignMismatch(f"chunk file {path} belongs to another campaign ({details})")
+            except (CorruptResults, CampaignMismatch) as error:
+                reject(path, error)
+                continue
+            arrays.pop(IDENTITY_ARRAY, None)
+            readable.append((path, arrays))
+
+        runs_per_layout: dict[str, int] = {}
+        first_with: dict[str, Path] = {}
+        for path, arrays in readable:
+            layout = _describe({name: values.shape[1:] for name, values in arrays.items()})
+            runs_per_layout[layout] = runs_per_layout.get(layout, 0) + arrays["index"].size
+            first_with.setdefault(layout, path)
+        majority = max(runs_per_layout, key=runs_per_layout.get) if readable else ""  # ties: the first file's
+        owner: dict[int, Path] = {}
+        for path, arrays in readable:
+            layout = _describe({name: values.shape[1:] for name, values in arrays.items()})
+            try:
+                if layout != majority:
+                    raise CorruptResults(
+                        f"chunk file {path}: result names and shapes per run {layout} differ from "
+                        f"{majority} in {first_with[majority].name} and the other chunks"
+                    )
+                twice = sorted(int(i) for i in arrays["index"] if int(i) in owner)
+                if twice:
+                    raise CorruptResults(f"{self.folder}: run(s) {twice} stored more than once ({owner[twice[0]].name} and {path.name})")
+            except CorruptResults as error:
+                reject(path, error)
+                continue
+            owner.update((int(i), path) for i in arrays["index"])
+            yield path, arrays
+
+    def completed(self, set_aside: bool = False) -> np.ndarray:
+        """Sorted indices of the runs stored so far; a bad or foreign chunk or a run stored twice is an error
+        (or, with ``set_aside``, the offending file is moved to ``set_aside/``)."""
+        parts = [arrays["index"].astype(np.int64) for _, arrays in self._chunks(set_aside)]
+        return np.sort(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
 
     def write_chunk(self, indices: Iterable[int], results: Mapping[str, np.ndarray]) -> Path:
         """Store finished runs: ``results[name]`` has one row per index, in the order of ``indices``."""
         indices = np.asarray(list(indices), dtype=np.int64)
         if indices.size == 0:
             raise ValueError("write_chunk: no runs to store")
-        if "index" in results:
-            raise ValueError("write_chunk: 'index' is reserved for the run indices")
+        for reserved in RESERVED:
+            if reserved in results:
+                raise ValueError(f"write_chunk: {reserved!r} is reserved (run indices, campaign identity)")
         arrays = {"index": indices}
         for name, values in results.items():
             values = np.asarray(values)
             if values.shape[:1] != indices.shape:
                 raise ValueError(f"write_chunk: {name!r} has {values.shape[:1]} rows for {indices.size} runs")
             arrays[name] = values
+        identity = self.identity if self.identity is not None else self._reference_identity()[0]
+        if identity is not None:
+            arrays[IDENTITY_ARRAY] = np.array(json.dumps(identity, sort_keys=True))
         path = self.folder / f"runs-{indices.min():07d}-{indices.max():07d}.npz"
         if path.exists():
             raise CorruptResults(f"{path} exists already: runs {indices.tolist()} would be stored twice")
@@ -145,29 +438,19 @@ class ResultStore:
     def load(self, n: int | None = None) -> dict[str, np.ndarray]:
         """Every stored run (indices below ``n`` when given), sorted by index: name → (runs, …), plus ``index``."""
         columns: dict[str, list[np.ndarray]] = {}
-        names: tuple[str, ...] | None = None
-        shapes: dict[str, tuple] = {}
-        for path in self.chunk_files():
-            with np.load(path) as data:
-                chunk = {name: data[name] for name in data.files}
-            chunk_names = tuple(sorted(chunk))
-            if names is None:
-                names = chunk_names
-            elif chunk_names != names:
-                raise CorruptResults(f"{path.name}: result names {chunk_names} differ from {names} in earlier chunks")
+        for _, chunk in self._chunks():
             for name, values in chunk.items():
-                if shapes.setdefault(name, values.shape[1:]) != values.shape[1:]:
-                    raise CorruptResults(f"{path.name}: {name!r} has shape {values.shape[1:]} per run, earlier {shapes[name]}")
                 columns.setdefault(name, []).append(values)
-        if names is None:
+        if not columns:
             return {"index": np.zeros(0, dtype=np.int64)}
         merged = {name: np.concatenate(parts) for name, parts in columns.items()}
         order = np.argsort(merged["index"], kind="stable")
         merged = {name: values[order] for name, values in merged.items()}
-        index = merged["index"]
-        if np.any(np.diff(index) == 0):
-            raise CorruptResults(f"{self.folder}: run(s) {np.unique(index[:-1][np.diff(index) == 0]).tolist()} stored more than once")
         if n is not None:
-            keep = index < n
+            keep = merged["index"] < n
             merged = {name: values[keep] for name, values in merged.items()}
         return merged
+
+
+def _describe(shapes: Mapping[str, tuple]) -> str:
+    return "{" + ", ".join(f"{name}: {shape}" for name, shape in sorted(shapes.items())) + "}"

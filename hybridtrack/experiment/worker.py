@@ -8,10 +8,21 @@ not on the executor, the chunking, the number of runs or the resume order.
 
 A chunk stops at the first failing run and returns the runs finished before it
 together with the failure, so the campaign can store them before reporting it.
+A Ctrl-C (KeyboardInterrupt) inside a run likewise returns the runs finished
+before it, flagged ``interrupted``.
+
+Process-pool workers start with :func:`worker_init`: they ignore SIGINT (the
+main process handles Ctrl-C and ends them) and a watchdog thread ends the
+worker within :data:`PARENT_POLL` seconds once its parent process is gone (a
+SIGKILLed campaign leaves no worker behind).
 """
 
 from __future__ import annotations
 
+import os
+import signal
+import threading
+import time
 import traceback
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -21,24 +32,54 @@ import numpy as np
 
 from hybridtrack.experiment.definition import Experiment, resolve_locator
 
+#: seconds between two checks of a worker that its parent process is still alive
+PARENT_POLL = 0.2
+#: exit status of a worker ended because its parent process died
+ORPHAN_EXIT = 70
+
 
 def run_seed(seed: int, index: int) -> np.random.SeedSequence:
     """The seed sequence of run ``index``: child ``index`` of ``SeedSequence(seed)``."""
     return np.random.SeedSequence(seed, spawn_key=(int(index),))
 
 
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL)
+    os._exit(ORPHAN_EXIT)  # the parent is gone: nobody will read our results
+
+
+def worker_init(parent: int) -> None:
+    """Set up a pool worker of the process ``parent``: ignore SIGINT, exit as soon as ``parent`` is gone.
+
+    Called in the worker (``ProcessPoolExecutor(initializer=worker_init,
+    initargs=(os.getpid(),))``).  An orphaned process is re-parented (to
+    init or a subreaper), so ``os.getppid()`` differing from ``parent``
+    means the parent died.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if os.getppid() != parent:
+        os._exit(ORPHAN_EXIT)
+    threading.Thread(target=_watch_parent, args=(parent,), name="hybridtrack-parent-watch", daemon=True).start()
+
+
 @attrs.frozen(eq=False)
 class ChunkOutcome:
-    """Runs ``indices`` finished with ``results`` (name → (len(indices), …)); ``failure`` = (index, report) or None."""
+    """Runs ``indices`` finished with ``results`` (name → (len(indices), …)); ``failure`` = (index, report) or None;
+    ``interrupted`` when a KeyboardInterrupt stopped the chunk."""
 
     indices: tuple[int, ...]
     results: dict[str, np.ndarray]
     failure: tuple[int, str] | None = None
+    interrupted: bool = False
 
 
 def _as_row(experiment: str, index: int, name: Any, value: Any) -> np.ndarray:
-    if not isinstance(name, str) or not name or name == "index":
-        raise TypeError(f"experiment {experiment!r}, run {index}: result names must be non-empty strings other than 'index', got {name!r}")
+    if not isinstance(name, str) or not name or name in ("index", "__campaign__"):
+        raise TypeError(
+            f"experiment {experiment!r}, run {index}: result names must be non-empty strings "
+            f"other than 'index' and '__campaign__', got {name!r}"
+        )
     array = np.asarray(value)
     if array.dtype.kind not in "biuf":
         raise TypeError(
@@ -77,6 +118,7 @@ def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int
     done: list[int] = []
     rows: list[dict[str, np.ndarray]] = []
     failure = None
+    interrupted = False
     for index in indices:
         rng = np.random.default_rng(run_seed(seed, index))
         try:
@@ -90,10 +132,13 @@ def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int
         except Exception as error:  # reported with the finished runs, re-raised by the campaign
             failure = (int(index), f"{type(error).__name__}: {error}\n{traceback.format_exc()}")
             break
+        except KeyboardInterrupt:  # the runs finished so far are still stored
+            interrupted = True
+            break
         done.append(int(index))
         rows.append(row)
     try:
         stacked = _stack(experiment.name, done, rows)
     except ValueError as error:
-        return ChunkOutcome((), {}, (done[0], f"ValueError: {error}"))
-    return ChunkOutcome(tuple(done), stacked, failure)
+        return ChunkOutcome((), {}, (done[0], f"ValueError: {error}"), interrupted)
+    return ChunkOutcome(tuple(done), stacked, failure, interrupted)

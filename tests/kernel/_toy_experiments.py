@@ -2,13 +2,15 @@
 
 ``draws`` returns numbers taken from the run's generator, so equal arrays mean
 equal seeds.  ``flaky`` does the same and appends each call's index to
-``log``; the first time it reaches ``fail_at`` it fails (``how="raise"``) or
-kills its own process (``how="kill"``), leaving ``marker`` so the next attempt
-succeeds.
+``log``; the first time it reaches ``fail_at`` it fails (``how="raise"``),
+kills its own process (``how="kill"``) or acts as a Ctrl-C (``how="interrupt"``), leaving ``marker`` so the next attempt
+succeeds.  ``slow`` sleeps ``delay`` seconds, appends "index pid" to ``log`` when
+a run finishes and then returns what ``draws`` returns (the kill tests).
 """
 
 import os
 import signal
+import time
 from pathlib import Path
 
 from hybridtrack.experiment import Experiment
@@ -25,7 +27,16 @@ def flaky(index, rng, *, log, marker, fail_at, how, size=3):
         Path(marker).write_text("failed once")
         if how == "kill":
             os.kill(os.getpid(), signal.SIGKILL)
+        if how == "interrupt":
+            raise KeyboardInterrupt
         raise RuntimeError(f"planned failure at run {index}")
+    return draws(index, rng, size=size)
+
+
+def slow(index, rng, *, delay, log, size=3):
+    time.sleep(delay)
+    with open(log, "a") as handle:
+        handle.write(f"{index} {os.getpid()}\n")
     return draws(index, rng, size=size)
 
 
@@ -36,4 +47,5 @@ def not_numeric(index, rng):
 DRAWS = Experiment("draws", draws, {"size": 3})
 FLAKY = Experiment("flaky", flaky, {"log": "", "marker": "", "fail_at": -1, "how": "raise", "size": 3})
 EXPERIMENT = FLAKY  # what `hybridtrack run tests/kernel/_toy_experiments.py` runs
+SLOW = Experiment("slow", slow, {"delay": 0.1, "log": "", "size": 3})
 NOT_NUMERIC = Experiment("not_numeric", not_numeric)

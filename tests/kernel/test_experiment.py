@@ -2,8 +2,11 @@
 
 import io
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +15,7 @@ import pytest
 from hybridtrack.cli import main
 from hybridtrack.experiment import (
     Campaign,
+    CampaignInterrupted,
     CampaignMismatch,
     CorruptResults,
     Experiment,
@@ -287,3 +291,94 @@ def test_cli_finds_experiments_by_name_in_the_experiments_folder(tmp_path, monke
     assert summary["out"] == str(Path("runs") / "coin") and summary["computed"] == 4
     assert main(["run", "nothing_here"]) == 2
     assert "known experiments: coin, demo_rmse" in capsys.readouterr().err
+
+
+# -- Ctrl-C and SIGKILL of a process-pool campaign ---------------------------------------------------
+
+SLOW = f"{TOY}:SLOW"
+
+
+def test_ctrl_c_inside_a_run_stores_the_finished_runs_and_resumes(tmp_path):
+    log, marker = tmp_path / "calls.log", tmp_path / "interrupted-once"
+    parameters = {"log": str(log), "marker": str(marker), "fail_at": 4, "how": "interrupt"}
+    options = dict(executor="inline", chunk_size=3, seed=2, parameters=parameters, progress=False)
+    with pytest.raises(CampaignInterrupted, match=r"interrupted: 4 of 7 runs stored in .* \(4 computed by this call\)") as caught:
+        run_campaign(FLAKY, 7, tmp_path / "out", **options)
+    assert isinstance(caught.value, KeyboardInterrupt)
+    assert ResultStore(tmp_path / "out").completed().tolist() == [0, 1, 2, 3]  # run 3 of the interrupted chunk kept
+    resumed = run_campaign(FLAKY, 7, tmp_path / "out", **options)
+    assert (resumed.computed, resumed.reused) == (3, 4)
+    assert calls(log) == [0, 1, 2, 3, 4, 4, 5, 6]
+
+
+def _children(pid: int) -> list[int]:
+    """Processes whose parent is ``pid`` (from /proc)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                status = (entry / "status").read_text()
+            except OSError:
+                continue
+            fields = dict(line.split(":\t", 1) for line in status.splitlines() if ":\t" in line)
+            if int(fields.get("PPid", "0")) == pid:
+                found.append(int(entry.name))
+    return found
+
+
+def _running(pid: int) -> bool:
+    """``pid`` exists and is not a zombie."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    return "State:\tZ" not in status
+
+
+def _wait_for(condition, limit: float = 60.0) -> bool:
+    deadline = time.monotonic() + limit
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return condition()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc")
+@pytest.mark.parametrize("how", ["SIGKILL", "Ctrl-C"])
+def test_killing_a_process_pool_campaign_leaves_no_worker_and_resumes_every_run_once(tmp_path, how):
+    """The main process of a 2-worker campaign is SIGKILLed (or gets Ctrl-C on its process group) after 3 chunks."""
+    out, log, n = tmp_path / "out", tmp_path / "runs.log", 10
+    args = ["run", SLOW, "--n", n, "--executor", "process", "--workers", 2, "--chunk", 1, "--out", out, "--seed", 6]
+    args = [*map(str, args), "--param", "delay=0.3", "--param", f"log={log}", "--no-progress"]
+    campaign = subprocess.Popen([sys.executable, "-m", "hybridtrack", *args], stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        assert _wait_for(lambda: len(list(out.glob("runs-*.npz"))) >= 3), "the campaign stored nothing"
+        workers = _children(campaign.pid)
+        assert len(workers) >= 2, workers  # two workers (and perhaps multiprocessing's resource tracker)
+        if how == "SIGKILL":
+            os.kill(campaign.pid, signal.SIGKILL)
+        else:
+            os.killpg(campaign.pid, signal.SIGINT)  # what a terminal's Ctrl-C does
+        status = campaign.wait(timeout=60)
+        err = campaign.stderr.read()
+    finally:
+        if campaign.poll() is None:
+            campaign.kill()
+    assert _wait_for(lambda: not any(_running(pid) for pid in workers), limit=10), "a worker survived its campaign"
+    if how == "SIGKILL":
+        assert status == -signal.SIGKILL
+    else:
+        assert status == 130
+        assert err.strip().splitlines() == [err.strip()] and "interrupted:" in err and "Traceback" not in err, err
+
+    before = ResultStore(out).completed().tolist()
+    assert len(before) >= 3 and len(set(before)) == len(before)
+    logged_before = len(log.read_text().splitlines())
+    assert main([*args, "--json"]) == 0
+    recomputed = [int(line.split()[0]) for line in log.read_text().splitlines()[logged_before:]]
+    assert sorted(recomputed) == sorted(set(range(n)) - set(before)), "a stored run was computed again"
+    results = ResultStore(out).load()
+    clean = run_campaign(DRAWS, n, tmp_path / "clean", executor="inline", seed=6, progress=False)
+    assert_same_results(results, clean.arrays)  # every run exactly once, with its own seed
