@@ -5,13 +5,20 @@ found through the ``hybridtrack`` entry-point group.  The built-ins in
 ``hybridtrack_plugins`` are declared there by this project's own
 ``pyproject.toml``, exactly like a third-party package would.
 
-Loading isolates faults: a plugin that fails to import, implements a misspelt
-hook (pluggy's ``check_pending``) or registers a component name that is taken
-gives a :class:`PluginWarning` naming the plugin and its distribution, and the
-other plugins still load.  This project's own plugins load first, so a
-component name taken by a built-in stays the built-in's.
-``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks
-plugins by entry-point name (or distribution name).
+Loading isolates faults: a plugin that fails to import (any exception,
+``SystemExit`` and other ``BaseException`` subclasses included), implements a
+misspelt hook (pluggy's ``check_pending``), raises in its hook, registers a
+component name that is taken or registers a class that does not implement its
+kind's interface gives a :class:`PluginWarning` naming the plugin and its
+distribution, and the other plugins still load.  ``KeyboardInterrupt`` is the
+one exception let through: a plugin raising it at import cannot be told apart
+from the user pressing Ctrl-C, and a Ctrl-C must interrupt.  This project's
+own plugins load first, so a component name taken by a built-in stays the
+built-in's.  ``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks plugins by
+entry-point name (or distribution name); a name that matches no installed
+plugin gives a warning listing the known names.  A factory (not a class)
+returning the wrong type is caught at first use (:func:`resolve`,
+:func:`check_component`) by a TypeError naming the plugin and distribution.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import attrs
 import pluggy
 
 from hybridtrack import hookspecs
+from hybridtrack.interfaces import INTERFACES, Labelled, require
 from hybridtrack.registry import Registry
 
 ENTRY_POINT_GROUP = "hybridtrack"
@@ -88,6 +96,17 @@ def load_plugins(
             raise PluginError(message)
         warnings.warn(message, PluginWarning, stacklevel=3)
 
+    def _unknown_blocked(points) -> None:
+        known = {point.name for point in points} | {point.dist.name for point in points if getattr(point, "dist", None)}
+        known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
+        unknown = sorted(blocked - known)
+        if unknown:
+            report(
+                f"{DISABLE_ENV if disabled is None else 'disabled'}: no installed plugin or distribution is named"
+                f" {', '.join(map(repr, unknown))}; known: {', '.join(sorted(known)) or 'none'}",
+                False,
+            )
+
     def register(obj: object, info: PluginInfo, from_code: bool) -> None:
         where = f"plugin {info.name!r} (distribution {info.distribution or 'none'})"
         try:
@@ -100,8 +119,12 @@ def load_plugins(
             return
         infos[info.name] = info
 
+    extra = list(extra)
+    points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order)
+    if blocked:
+        _unknown_blocked(points)
     if entrypoints:
-        for point in sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order):
+        for point in points:
             dist = getattr(point, "dist", None)
             info = PluginInfo(point.name, dist.name if dist else None, dist.version if dist else None)
             if point.name in blocked or info.distribution in blocked:
@@ -112,7 +135,9 @@ def load_plugins(
                 continue
             try:
                 obj = point.load()
-            except Exception as error:  # noqa: BLE001
+            except KeyboardInterrupt:  # indistinguishable from the user's Ctrl-C: let it interrupt
+                raise
+            except BaseException as error:  # noqa: BLE001 - SystemExit, GeneratorExit... of a plugin's import must not end the program
                 report(f"plugin {point.name!r} (distribution {info.distribution or 'unknown'}) failed to import: {error!r}", False)
                 continue
             register(obj, info, from_code=False)
@@ -134,12 +159,13 @@ def load_plugins(
                 info.distribution,
                 info.version,
                 on_error=lambda error, fc=from_code: report(str(error), fc),
+                interface=INTERFACES[kind],
             )
             try:
                 impl.function(**{arg: registrar for arg in impl.argnames})
-            except PluginError:
+            except (PluginError, KeyboardInterrupt):
                 raise
-            except Exception as error:  # noqa: BLE001
+            except BaseException as error:  # noqa: BLE001
                 report(f"plugin {info.name!r} (distribution {info.distribution or 'none'}) failed in {hook_name}: {error!r}", from_code)
     return LoadedPlugins(registry, tuple(infos.values()), tuple(problems), manager)
 
@@ -176,17 +202,31 @@ def resolve_registry(registry: Registry | None) -> Registry:
     return get_registry() if registry is None else registry
 
 
+def check_component(kind: str, name: str, component, registry: Registry | None = None):
+    """``component``, built by the factory registered as ``name`` of ``kind``, if it implements the kind's interface.
+
+    Otherwise a TypeError naming the component, the plugin and the
+    distribution that registered the factory, and what the object lacks.
+    """
+    try:
+        return require(component, INTERFACES[kind], f"{kind} {name!r}")
+    except TypeError as error:
+        entry = resolve_registry(registry).entry(kind, name)
+        raise TypeError(
+            f"{error} (the factory of {kind} {name!r} registered by plugin {entry.plugin!r}"
+            f" (distribution {entry.distribution or 'none'}) returned a {type(component).__name__})"
+        ) from None
+
+
 def resolve(kind: str, spec, registry: Registry | None = None):
     """A component of ``kind`` from an object, a registered name, ``(name, parameters)`` or ``(name, parameters, label)``.
 
     The object (given or built) must implement the interface of ``kind``
     (:data:`hybridtrack.interfaces.INTERFACES`); a wrong type is a TypeError
     naming the interface, and a factory returning the wrong type names the
-    registered component.  A label (third item, or a ``"label"`` key in the
+    registered component, its plugin and distribution (:func:`check_component`).  A label (third item, or a ``"label"`` key in the
     parameters) names the instance in a run (estimators and detectors).
     """
-    from hybridtrack.interfaces import INTERFACES, Labelled, require
-
     if kind not in INTERFACES:
         raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(INTERFACES)}")
     base = INTERFACES[kind]
@@ -209,7 +249,8 @@ def resolve(kind: str, spec, registry: Registry | None = None):
             f"{kind}: expected a {base.__name__}, a registered name, (name, parameters) or (name, parameters, label), got {spec!r}"
         )
     label = parameters.pop("label", None) if label is None else label
-    component = require(resolve_registry(registry).create(kind, name, **parameters), base, f"{kind} {name!r}")
+    registry = resolve_registry(registry)
+    component = check_component(kind, name, registry.create(kind, name, **parameters), registry)
     if label is not None:
         if not isinstance(component, Labelled):
             raise ValueError(f"{kind} {name!r}: a label names estimators and detectors; {kind}s have none")

@@ -28,6 +28,27 @@ import numpy as np
 
 APPLICATION_ID = "hybridtrack"
 
+#: the largest |t| in seconds the ``time`` timeline holds: rerun durations are int64 nanoseconds
+MAX_RECORDABLE_SECONDS = (2**63 - 1) / 1e9
+
+
+def check_recordable_times(times, name: str = "times") -> None:
+    """A ValueError naming ``name`` unless every time is finite with |t| < 2⁶³ ns ≈ 9.22e9 s.
+
+    Larger times would wrap or turn into nulls on the int64-nanosecond ``time``
+    timeline, and rerun would silently drop the whole column.
+    """
+    if times is None:
+        return
+    t = np.atleast_1d(np.asarray(times, dtype=np.float64))
+    bad = np.flatnonzero(~(np.abs(t) < MAX_RECORDABLE_SECONDS))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"{name}: time {float(t.flat[i])!r} s (index {i}) does not fit the recording's time axis"
+            f" (int64 nanoseconds: expected finite |t| < {MAX_RECORDABLE_SECONDS:.4g} s)"
+        )
+
 
 @runtime_checkable
 class Recorder(Protocol):
@@ -160,6 +181,7 @@ class RerunRecorder:
 
     # -- helpers
     def _indexes(self, steps, times):
+        check_recordable_times(times)
         rr = self._rr
         steps = np.asarray(steps, dtype=np.int64)
         indexes = [rr.TimeColumn("step", sequence=steps)]
@@ -168,6 +190,7 @@ class RerunRecorder:
         return indexes
 
     def _set_time(self, step, time):
+        check_recordable_times(time, "time")
         self.stream.set_time("step", sequence=int(step))
         if time is not None:
             self.stream.set_time("time", duration=float(time))

@@ -88,13 +88,22 @@ class Registry:
     def entries(self) -> list[Entry]:
         return [entry for kind in KINDS for entry in self._entries[kind].values()]
 
-    def bind(self, kind: str, plugin: str, distribution: str | None, version: str | None, on_error) -> Registrar:
-        return Registrar(self, kind, plugin, distribution, version, on_error)
+    def bind(
+        self, kind: str, plugin: str, distribution: str | None, version: str | None, on_error, interface: type | None = None
+    ) -> Registrar:
+        """A :class:`Registrar` adding entries of ``kind`` for ``plugin``; with ``interface``, a class
+        factory that is not a subclass of it is rejected at registration."""
+        return Registrar(self, kind, plugin, distribution, version, on_error, interface)
 
 
 @attrs.define
 class Registrar:
-    """What a ``register_<kind>s`` hook receives: ``registry.add(name, factory)``."""
+    """What a ``register_<kind>s`` hook receives: ``registry.add(name, factory)``.
+
+    A rejected entry (duplicate or empty name, factory not callable, a class
+    that does not implement ``interface``) goes to ``on_error``; the others
+    still register.
+    """
 
     _registry: Registry
     kind: str
@@ -102,8 +111,17 @@ class Registrar:
     distribution: str | None
     version: str | None
     _on_error: Callable[[Exception], None]
+    interface: type | None = None
 
     def add(self, name: str, factory: Callable[..., Any]) -> None:
+        if isinstance(factory, type) and self.interface is not None and not issubclass(factory, self.interface):
+            self._on_error(
+                TypeError(
+                    f"{self.kind} {name!r} registered by plugin {self.plugin!r} (distribution {self.distribution or 'none'}):"
+                    f" class {factory.__qualname__} does not implement hybridtrack.interfaces.{self.interface.__name__}; not registered"
+                )
+            )
+            return
         try:
             self._registry.add(Entry(self.kind, name, factory, self.plugin, self.distribution, self.version))
         except (DuplicateComponentError, ValueError) as error:

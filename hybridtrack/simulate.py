@@ -100,24 +100,43 @@ class Trajectory:
         )
 
 
-def build_models(schedule: Schedule, registry: Registry | None = None, noise_cov=None) -> list[MotionModel]:
+def takes_keyword(factory, name: str) -> bool:
+    """Whether ``factory`` accepts the keyword argument ``name`` (True when its signature is unknown)."""
+    import inspect
+
+    try:
+        parameters = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):
+        return True
+    return any((p.name == name and p.kind is not p.POSITIONAL_ONLY) or p.kind is p.VAR_KEYWORD for p in parameters)
+
+
+def build_models(
+    schedule: Schedule, registry: Registry | None = None, noise_cov=None, *, noise_cov_where_taken: bool = False
+) -> list[MotionModel]:
     """One motion model per schedule row, created from the registry by mode name.
 
-    ``noise_cov`` (2×2 Q), when given, is passed to every model.
+    ``noise_cov`` (2×2 Q), when given, is passed to every model; with
+    ``noise_cov_where_taken`` only to the models whose factory takes a
+    ``noise_cov`` keyword (the others, e.g. ``ship_turn`` with its own
+    ``sigma_velocity`` and ``sigma_rate``, keep their own process noise).
+    A factory returning something that is not a MotionModel is a TypeError
+    naming the plugin that registered it.
     """
-    if registry is None:
-        from hybridtrack.plugins import get_registry
+    from hybridtrack.plugins import check_component, get_registry
 
+    if registry is None:
         registry = get_registry()
     models = []
     for i, segment in enumerate(schedule.segments):
         parameters = segment.parameters()
-        if noise_cov is not None:
+        if noise_cov is not None and (not noise_cov_where_taken or takes_keyword(registry.get("motion_model", segment.mode), "noise_cov")):
             parameters["noise_cov"] = noise_cov
         try:
-            models.append(registry.create("motion_model", segment.mode, **parameters))
+            model = registry.create("motion_model", segment.mode, **parameters)
         except (TypeError, ValueError) as error:
             raise ValueError(f"schedule row {i} ({segment.mode}): {error}") from error
+        models.append(check_component("motion_model", segment.mode, model, registry))
     return models
 
 

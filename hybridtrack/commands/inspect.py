@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
-from hybridtrack.cli import Command
+from hybridtrack.cli import Command, UsageError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -24,9 +23,8 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         summary = RecordingFile(args.file).summary()
-    except (FileNotFoundError, ValueError) as error:
-        print(f"hybridtrack inspect: {error}", file=sys.stderr)
-        return 1
+    except (OSError, ValueError) as error:  # missing, unreadable or not a recording: a user error (status 2)
+        raise UsageError(f"{error.filename}: {error.strerror}" if isinstance(error, OSError) and error.filename else str(error)) from None
     print(json.dumps(summary, indent=2) if args.json else format_summary(summary))
     return 0
 

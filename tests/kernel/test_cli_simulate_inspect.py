@@ -56,5 +56,5 @@ def test_simulate_toml_schedule_noise_free_without_recording(tmp_path, capsys):
 
 
 def test_inspect_missing_file_fails_cleanly(tmp_path, capsys):
-    assert main(["inspect", str(tmp_path / "nope.rrd")]) == 1
+    assert main(["inspect", str(tmp_path / "nope.rrd")]) == 2
     assert "no such recording" in capsys.readouterr().err
