@@ -2,7 +2,12 @@
 
 Prints the application and recording id, the run configuration, the entity
 paths, the step range, the decision events and the final estimates
-(:class:`hybridtrack.inspection.RecordingFile`).
+(:class:`hybridtrack.inspection.RecordingFile`, which reads the file as a stream).
+
+Exit status: 0 for a complete file; 1 when the file is missing or not a
+readable recording; 3 when it is truncated (no end-of-stream footer, e.g. the
+recording process was killed): what was readable is printed as usual (``--json``:
+``"truncated": true`` and ``"problem"``), plus one warning line on stderr.
 """
 
 from __future__ import annotations
@@ -12,6 +17,8 @@ import json
 import sys
 
 from hybridtrack.cli import Command
+
+EXIT_TRUNCATED = 3
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -28,6 +35,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"hybridtrack inspect: {error}", file=sys.stderr)
         return 1
     print(json.dumps(summary, indent=2) if args.json else format_summary(summary))
+    if summary["truncated"]:
+        print(f"hybridtrack inspect: {args.file}: truncated recording: {summary['problem']}", file=sys.stderr)
+        return EXIT_TRUNCATED
     return 0
 
 
