@@ -1,89 +1,232 @@
-"""Reading .rrd recordings back offline, without a viewer.
+"""Reading .rrd recordings back offline, without a viewer, as a stream.
 
-:class:`RecordingFile` gathers a file's chunks (``rerun.chunk.RrdReader``) per
-entity path and gives them back as numpy arrays sorted by step:
+:class:`RecordingFile` reads a file chunk by chunk (``rerun.chunk.RrdReader``)
+and keeps only the summary — entity paths, step range, decision events, last
+estimates, configuration — so its memory does not grow with the file.  The
+accessors read the file again, keeping only the chunks of the entity asked for,
+and give the values back as numpy arrays sorted by step:
 
     rec = RecordingFile("demo.rrd")
     steps, nis = rec.series("/estimator/nis")        # (K,), (K, c) float64
     steps, points = rec.points("/world/truth")       # (K,), (K, 2) float32 → float64
     rec.events()                                     # [(step, level, text), …]
     rec.summary()                                    # what ``hybridtrack inspect`` prints
+    rec.truncated                                    # True: no end-of-stream footer (a killed run)
+
+A complete file ends with rerun's end-of-stream message and footer.  A file
+without them (the process was killed, the disk filled up) is *truncated*:
+:class:`RecordingFile` then reads every whole message before the cut (copying
+that prefix to a temporary file when the cut falls inside a message) and sets
+:attr:`RecordingFile.truncated` and :attr:`RecordingFile.problem`.
 """
 
 from __future__ import annotations
 
 import json
-from functools import cached_property
+import shutil
+import struct
+import tempfile
+import warnings
+import weakref
 from pathlib import Path
 
 import numpy as np
+
+_MAGIC = b"RRF2"  # rerun's stream header: magic, version (4 bytes), options (4 bytes)
+_STREAM_HEADER = 12
+_MESSAGE_HEADER = struct.Struct("<QQ")  # message kind (0 = end of stream), payload length
+_FOOTER_MAGIC = b"RRF2FOOT"  # in the stream footer that closes a complete file (followed by a 4-byte version)
 
 
 def _entity(path: str) -> str:
     return path if path.startswith("/") else "/" + path
 
 
+def scan_frames(path: Path) -> tuple[bool, int, str | None]:
+    """Walk the message headers of an .rrd file without decoding payloads.
+
+    Returns (complete, readable, problem): ``complete`` when the stream ends
+    with the end-of-stream message and footer; ``readable`` the byte length of
+    the whole messages at the start of the file; ``problem`` says where and why a
+    file is not complete (None when it is).  A file that does not start with
+    rerun's header is left to rerun to reject (returned as complete).
+    """
+    size = path.stat().st_size
+    with path.open("rb") as f:
+        header = f.read(_STREAM_HEADER)
+        if len(header) < _STREAM_HEADER or header[:4] != _MAGIC:
+            return True, size, None
+        position = _STREAM_HEADER
+        while True:
+            if position == size:
+                return False, position, f"no end-of-stream footer after byte {position} (the writer stopped before closing the file)"
+            raw = f.read(_MESSAGE_HEADER.size)
+            if len(raw) < _MESSAGE_HEADER.size:
+                return False, position, f"cut inside a message header at byte {position} of {size}"
+            kind, length = _MESSAGE_HEADER.unpack(raw)
+            end = position + _MESSAGE_HEADER.size + length
+            if end > size:
+                return False, position, f"cut inside a message at byte {position} ({length} bytes announced, {size - position} present)"
+            if kind == 0:  # end of stream: what follows is the footer
+                f.seek(end)
+                tail = f.read()
+                if _FOOTER_MAGIC in tail[-16:]:
+                    return True, size, None
+                return False, end, f"end-of-stream message at byte {position} without a complete footer"
+            f.seek(end)
+            position = end
+
+
 class RecordingFile:
-    """The data of one .rrd file, per entity path and column."""
+    """The summary of one .rrd file, read as a stream; per-entity values on demand.
+
+    Attributes: ``path``, ``application_id``, ``recording_id``, ``truncated``
+    (the file lacks its end-of-stream footer, or a chunk failed to decode),
+    ``problem`` (why, or None), ``readable_bytes`` (the length of the part read).
+    """
 
     def __init__(self, path: str | Path):
-        import pyarrow as pa
-        import rerun as rr
-
         self.path = Path(path)
         if not self.path.is_file():
             raise FileNotFoundError(f"{self.path}: no such recording")
+        complete, readable, problem = scan_frames(self.path)
+        self.truncated = not complete
+        self.problem = problem
+        self.readable_bytes = readable
+        self._source = self.path
+        if self.truncated and readable < self.path.stat().st_size:
+            if readable <= _STREAM_HEADER:
+                raise ValueError(f"{self.path}: not a readable rerun recording ({problem}; no whole message to read)")
+            self._source = self._copy_prefix(readable)
         try:
-            self._reader = rr.chunk.RrdReader(str(self.path))
-            recordings = [entry for entry in self._reader.recordings() if entry.kind == "recording"]
-            chunks = list(self._reader.stream().to_chunks())
+            reader = self._reader()
+            recordings = [entry for entry in reader.recordings() if entry.kind == "recording"]
         except Exception as error:  # noqa: BLE001 - rerun raises its own types for unreadable files
             raise ValueError(f"{self.path}: not a readable rerun recording ({error})") from None
         if not recordings:
-            raise ValueError(f"{self.path}: holds no recording")
+            cut = f" before the cut ({problem})" if self.truncated else ""
+            raise ValueError(f"{self.path}: holds no recording{cut}")
         self.application_id = recordings[0].application_id
         self.recording_id = recordings[0].recording_id
-        # entity → column → values, all columns of an entity kept row-aligned (None where a chunk lacks one)
-        self._columns: dict[str, dict[str, list]] = {}
-        rows_so_far: dict[str, int] = {}
-        for chunk in chunks:
-            batch = chunk.to_record_batch()
-            entity = chunk.entity_path
-            table = self._columns.setdefault(entity, {})
-            before = rows_so_far.get(entity, 0)
-            names = [n for n in batch.schema.names if n != "rerun.controls.RowId"]
-            for name in names:
-                column = batch.column(name)
-                if pa.types.is_temporal(column.type):  # time indexes and timestamps as integer nanoseconds
-                    column = column.cast(pa.int64())
-                table.setdefault(name, [None] * before).extend(column.to_pylist())
-            for name in set(table) - set(names):
-                table[name].extend([None] * batch.num_rows)
-            rows_so_far[entity] = before + batch.num_rows
+        self._scan(reader)
 
-    @cached_property
+    def _copy_prefix(self, length: int) -> Path:
+        """Copy the first ``length`` bytes (the whole messages) to a temporary file removed with this object."""
+        folder = tempfile.mkdtemp(prefix="hybridtrack-inspect-")
+        weakref.finalize(self, shutil.rmtree, folder, True)
+        target = Path(folder) / self.path.name
+        with self.path.open("rb") as source, target.open("wb") as sink:
+            remaining = length
+            while remaining:
+                block = source.read(min(remaining, 1 << 20))
+                if not block:
+                    break
+                sink.write(block)
+                remaining -= len(block)
+        return target
+
+    def _reader(self):
+        import rerun as rr
+
+        with warnings.catch_warnings():
+            if self.truncated:  # rerun warns that the footer is missing: reported by ``truncated`` instead
+                warnings.filterwarnings("ignore", message=".*no footer.*")
+            return rr.chunk.RrdReader(str(self._source))
+
+    def _chunks(self, entity: str | None = None):
+        """Record batches (entity path, batch) one chunk at a time; a decode error partway marks the file truncated."""
+        stream = self._reader().stream()
+        if entity is not None:
+            stream = stream.filter(content=entity)
+        iterator = iter(stream)
+        while True:
+            try:
+                chunk = next(iterator)
+            except StopIteration:
+                return
+            except Exception as error:  # noqa: BLE001 - rerun raises its own types for corrupt chunks
+                self.truncated = True
+                self.problem = f"a chunk failed to decode ({error}); what came before it was read"
+                return
+            yield chunk.entity_path, chunk.to_record_batch()
+
+    def _scan(self, reader) -> None:
+        """One pass over the chunks keeping only the summary."""
+        import pyarrow.compute as pc
+
+        self._components: dict[str, set[str]] = {}
+        low = high = None
+        events: list[tuple[int, str, str]] = []
+        last: dict[str, tuple[int, list[float]]] = {}
+        configuration = None
+        for entity, batch in self._chunks():
+            names = set(batch.schema.names) - {"rerun.controls.RowId"}
+            self._components.setdefault(entity, set()).update(names)
+            if entity == "/__properties/configuration" and "json" in names:
+                values = [v for v in batch.column("json").to_pylist() if v]
+                if values:
+                    configuration = values[-1][0]
+            if "step" not in names or batch.num_rows == 0:
+                continue
+            steps = batch.column("step")
+            lo, hi = pc.min(steps).as_py(), pc.max(steps).as_py()
+            if lo is not None:
+                low = lo if low is None else min(low, lo)
+                high = hi if high is None else max(high, hi)
+            if entity == "/events/decisions" and "TextLog:text" in names:
+                levels = batch.column("TextLog:level").to_pylist() if "TextLog:level" in names else [None] * batch.num_rows
+                for s, level, text in zip(steps.to_pylist(), levels, batch.column("TextLog:text").to_pylist()):
+                    if s is not None and text:
+                        events.append((int(s), level[0] if level else "", text[0]))
+            if entity.startswith("/world/estimate/") and "Points2D:positions" in names:
+                step_values = steps.to_numpy(zero_copy_only=False)
+                positions = batch.column("Points2D:positions")
+                valid = [i for i in np.argsort(step_values, kind="stable")[::-1] if positions[int(i)].is_valid]
+                if valid and (entity not in last or step_values[valid[0]] >= last[entity][0]):
+                    value = positions[int(valid[0])].as_py()
+                    if value:
+                        last[entity] = (int(step_values[valid[0]]), [float(c) for c in value[0]])
+        self._step_range = None if low is None else (int(low), int(high))
+        self._events = sorted(events, key=lambda e: e[0])
+        self._last_positions = last
+        self._configuration = json.loads(configuration) if configuration else {}
+
+    @property
     def entity_paths(self) -> list[str]:
         """Every entity path with data, properties excluded."""
-        return sorted(p for p in self._columns if not p.startswith("/__properties"))
+        return sorted(p for p in self._components if not p.startswith("/__properties"))
 
-    @cached_property
+    @property
     def configuration(self) -> dict:
         """The run configuration stored by :class:`~hybridtrack.recording.RerunRecorder` ({} if none)."""
-        values = self._columns.get("/__properties/configuration", {}).get("json")
-        return json.loads(values[-1][0]) if values else {}
+        return dict(self._configuration)
 
     def _table(self, entity: str, component: str) -> tuple[np.ndarray, list]:
+        """Steps (sorted) and the values of one component of one entity, reading only that entity's chunks."""
+        import pyarrow as pa
+
         entity = _entity(entity)
-        if entity not in self._columns:
+        if entity not in self._components:
             raise KeyError(f"{self.path}: no entity {entity!r}; entities: {', '.join(self.entity_paths)}")
-        table = self._columns[entity]
-        if component not in table:
-            raise KeyError(f"{self.path}: entity {entity!r} has no {component} column (has {sorted(table)})")
-        if "step" not in table:
+        columns = self._components[entity]
+        if component not in columns:
+            raise KeyError(f"{self.path}: entity {entity!r} has no {component} column (has {sorted(columns)})")
+        if "step" not in columns:
             raise KeyError(f"{self.path}: entity {entity!r} is not on the 'step' timeline")
-        pairs = [(s, v) for s, v in zip(table["step"], table[component]) if s is not None and v is not None]
-        order = sorted(range(len(pairs)), key=lambda i: pairs[i][0])
-        return np.array([pairs[i][0] for i in order], dtype=np.int64), [pairs[i][1] for i in order]
+        steps: list[int] = []
+        values: list = []
+        for name, batch in self._chunks(entity):
+            if name != entity or "step" not in batch.schema.names or component not in batch.schema.names:
+                continue
+            column = batch.column(component)
+            if pa.types.is_temporal(column.type):  # time indexes and timestamps as integer nanoseconds
+                column = column.cast(pa.int64())
+            for s, v in zip(batch.column("step").to_pylist(), column.to_pylist()):
+                if s is not None and v is not None:
+                    steps.append(s)
+                    values.append(v)
+        order = sorted(range(len(steps)), key=steps.__getitem__)
+        return np.array([steps[i] for i in order], dtype=np.int64), [values[i] for i in order]
 
     def times(self, entity: str) -> tuple[np.ndarray, np.ndarray]:
         """The ``time`` timeline of an entity: steps (K,) and times in seconds (K,) (stored as whole nanoseconds)."""
@@ -113,28 +256,22 @@ class RecordingFile:
 
     def events(self) -> list[tuple[int, str, str]]:
         """Text events on ``/events/decisions``: (step, level, text) sorted by step."""
-        if "/events/decisions" not in self._columns:
-            return []
-        steps, texts = self._table("/events/decisions", "TextLog:text")
-        _, levels = self._table("/events/decisions", "TextLog:level")
-        return [(int(s), (lv[0] if lv else ""), t[0]) for s, lv, t in zip(steps, levels, texts)]
+        return list(self._events)
 
     def step_range(self) -> tuple[int, int] | None:
-        steps = [s for table in self._columns.values() for s in table.get("step", []) if s is not None]
-        return (int(min(steps)), int(max(steps))) if steps else None
+        """The smallest and largest step of any entity on the ``step`` timeline (None if there is none)."""
+        return self._step_range
 
     def final_estimates(self) -> dict[str, dict]:
         """The last logged position of every ``/world/estimate/<filter>`` entity."""
-        out = {}
-        for entity in self.entity_paths:
-            if entity.startswith("/world/estimate/") and "Points2D:positions" in self._columns[entity]:
-                steps, positions = self.points(entity)
-                if len(steps):
-                    out[entity.removeprefix("/world/estimate/")] = {"step": int(steps[-1]), "position": positions[-1].tolist()}
-        return out
+        return {
+            entity.removeprefix("/world/estimate/"): {"step": step, "position": position}
+            for entity, (step, position) in sorted(self._last_positions.items())
+        }
 
     def summary(self) -> dict:
-        """Application and recording id, configuration, entity paths, step range, decisions, final estimates."""
+        """Application and recording id, configuration, entity paths, step range, decisions, final estimates,
+        and whether the file is truncated (``truncated``, ``problem``, ``readable_bytes``)."""
         step_range = self.step_range()
         return {
             "file": str(self.path),
@@ -145,6 +282,9 @@ class RecordingFile:
             "step_range": list(step_range) if step_range else None,
             "decisions": [{"step": s, "level": lv, "text": t} for s, lv, t in self.events()],
             "final_estimates": self.final_estimates(),
+            "truncated": self.truncated,
+            "problem": self.problem,
+            "readable_bytes": self.readable_bytes,
         }
 
 
@@ -166,4 +306,8 @@ def format_summary(summary: dict) -> str:
             for name, e in summary["final_estimates"].items()
         ],
     ]
+    if summary.get("truncated"):
+        lines.append(
+            f"WARNING: truncated recording: {summary['problem']}; the above is what the first {summary['readable_bytes']} bytes hold"
+        )
     return "\n".join(lines)

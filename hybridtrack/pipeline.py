@@ -22,12 +22,22 @@ Components are given as objects or by registered name (``"kalman"``,
 with a label).  Measurement times are ``times`` (seconds, strictly increasing,
 any spacing: real data) or ``tau`` (regular sampling); each step's transition
 is built for its own Δt, and the recording's ``time`` timeline holds the times.
+
+Memory: the per-step results live in arrays preallocated for the K steps of the
+measurements (means (K, M, n), covariances (K, M, n, n), NIS, ℓ, ν and S, the
+detectors' series), not in one object per step; :meth:`Pipeline.result` returns
+read-only views of them and ``pipeline.results[k]`` rebuilds the
+:class:`StepResult` of step k from them.  Recording is streamed: the rows
+processed since the last flush are sent to the recorder every ``record_every``
+steps or ``record_seconds`` seconds of wall time, whichever comes first, and the
+recorder is flushed to disk, so a killed run loses at most that much work.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, overload
 
 import attrs
 import numpy as np
@@ -75,6 +85,38 @@ class RunResult:
     decisions: tuple[Decision, ...]
 
 
+class StepResults(Sequence):
+    """The steps processed so far, ``pipeline.results``: ``len``, ``results[k]`` (negative k and slices too), iteration.
+
+    Each :class:`StepResult` is rebuilt from the pipeline's preallocated arrays
+    (copies, so changing one does not change the pipeline).  The innovation of a
+    step with every measurement component is an :class:`Innovation` of the stored
+    ν, S, ℓ and NIS; other steps (missing components, clutter associations) keep
+    the estimator's own object.  Detector outputs hold every series the detector
+    has reported so far (NaN at steps where it did not report one).
+    """
+
+    def __init__(self, pipeline: Pipeline):
+        self._pipeline = pipeline
+
+    def __len__(self) -> int:
+        return self._pipeline._count
+
+    @overload
+    def __getitem__(self, k: int) -> StepResult: ...
+    @overload
+    def __getitem__(self, k: slice) -> list[StepResult]: ...
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self._pipeline._step_result(i) for i in range(*k.indices(len(self)))]
+        if not isinstance(k, (int, np.integer)) or isinstance(k, bool):
+            raise TypeError(f"results[{k!r}]: expected an integer step or a slice")
+        n = len(self)
+        if not -n <= k < n:
+            raise IndexError(f"results[{k}]: step out of range, {n} steps processed")
+        return self._pipeline._step_result(int(k) % n)
+
+
 class Pipeline:
     """A bank of filters (one per motion model) on a network's measurements, with detectors and a recorder.
 
@@ -89,7 +131,10 @@ class Pipeline:
     ``candidates`` (sensor name → :class:`~hybridtrack.clutter.ScanSequence`, one
     per sensor) in place of ``measurements`` when tracking in clutter: each step
     passes the sensors' :class:`~hybridtrack.clutter.Scan` list to an estimator
-    with ``accepts_scans``; clutter, gates and association weights are recorded.
+    with ``accepts_scans``; clutter, gates and association weights are recorded;
+    ``record_every`` (steps, default 10,000) and ``record_seconds`` (wall-clock
+    seconds, default 2.0; None: by steps only, so that two runs with the same seed
+    always give the same chunks) bound how much work a killed recorded run loses.
     """
 
     def __init__(
@@ -109,6 +154,8 @@ class Pipeline:
         registry: Registry | None = None,
         record_measurements: bool = True,
         candidates: Mapping[str, Any] | None = None,
+        record_every: int = 10_000,
+        record_seconds: float | None = 2.0,
     ):
         self.models: list[MotionModel] = [resolve("motion_model", m, registry) for m in models]
         if not self.models:
@@ -147,10 +194,35 @@ class Pipeline:
         self.state = self.estimator.initialize(np.tile(prior.mean, (M, 1)), np.tile(prior.cov, (M, 1, 1)))
         self.linear = all(m.linear for m in self.models)
         self._transitions: tuple[float, TransitionBank] | None = None
-        self.results: list[StepResult] = []
+        if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
+            raise ValueError(f"record_every: expected a whole number of steps ≥ 1, got {record_every!r}")
+        if record_seconds is not None and not (isinstance(record_seconds, (int, float)) and record_seconds > 0):
+            raise ValueError(f"record_seconds: expected a positive number of seconds or None, got {record_seconds!r}")
+        self.record_every = int(record_every)
+        self.record_seconds = record_seconds
+        self._allocate(M)
+        self.results = StepResults(self)
         self.decisions: list[Decision] = []
         self._result: RunResult | None = None
-        self._recorded = False
+        self._logged = 0  # steps already sent to the recorder
+        self._static_logged = 0  # number of steps the static path lines were logged for
+        self._last_flush = time.monotonic()
+
+    def _allocate(self, M: int) -> None:
+        """Preallocate the per-step arrays for the K measurement steps (pages are touched only as steps fill them)."""
+        K, n, m = self.steps, len(self.layout), self.network.measurement_dim
+        self._count = 0
+        self._means = np.empty((K, M, n))
+        self._covs = np.empty((K, M, n, n))
+        self._nis = np.empty((K, M))
+        self._loglik = np.empty((K, M))
+        self._nu = np.empty((K, M, m))  # NaN rows where a step lacked some measurement
+        self._S = np.empty((K, M, m, m))
+        self._innovation_objects: dict[int, Innovation] = {}  # steps whose innovation is not a complete plain one
+        self._series: dict[str, dict[str, np.ndarray]] = {}  # detector label → series → (K, ...) NaN-filled
+        self._threshold_keys: dict[str, set[str]] = {}
+        self._statistic_keys: dict[str, set[str]] = {}
+        self._decision_at: dict[tuple[int, str], Decision] = {}
 
     def _check_candidates(self, candidates, measurements):
         """Validate ``candidates`` (one ScanSequence per network sensor) against the estimator."""
@@ -184,7 +256,7 @@ class Pipeline:
 
     @property
     def done(self) -> bool:
-        return len(self.results) >= self.steps
+        return self._count >= self.steps
 
     def transitions(self, dt: float) -> TransitionBank:
         """The bank's transitions over ``dt`` seconds.
@@ -201,8 +273,8 @@ class Pipeline:
         return self._transitions[1]
 
     def step(self) -> StepResult:
-        """Process the next step and return its result."""
-        k = len(self.results)
+        """Process the next step, store it, stream the recording when due, and return the step's result."""
+        k = self._count
         if k >= self.steps:
             raise StopIteration(f"all {self.steps} steps processed")
         state = self.state
@@ -216,16 +288,75 @@ class Pipeline:
             output = detector.step(k, innovation)
             outputs[detector.label] = output
             if output.decision is not None:
-                self.decisions.append(attrs.evolve(output.decision, time=float(self.times[k])))
-        result = StepResult(k, float(self.times[k]), self.estimator.mean(state), self.estimator.covariance(state), innovation, outputs)
-        self.results.append(result)
+                decision = attrs.evolve(output.decision, time=float(self.times[k]))
+                self.decisions.append(decision)
+                self._decision_at[(k, detector.label)] = decision
+        mean, cov = self.estimator.mean(state), self.estimator.covariance(state)
+        self._store(k, mean, cov, innovation, outputs)
+        self._count = k + 1
         self._result = None
-        return result
+        if self._count - self._logged >= self.record_every or (
+            self.record_seconds is not None and time.monotonic() - self._last_flush >= self.record_seconds
+        ):
+            self._stream()
+        return StepResult(k, float(self.times[k]), mean, cov, innovation, outputs)
+
+    def _store(self, k: int, mean, cov, innovation: Innovation, outputs: dict[str, DetectorStep]) -> None:
+        """Write step k into the preallocated arrays (see :class:`RunResult` for the NaN conventions)."""
+        M, m = self._nu.shape[1:]
+        self._means[k] = mean
+        self._covs[k] = cov
+        dim = innovation.measurement_dim
+        self._nis[k] = innovation.nis if dim > 0 else np.nan
+        self._loglik[k] = innovation.loglik if dim > 0 else np.nan
+        complete = dim == m and np.shape(innovation.nu) == (M, m) and np.shape(innovation.S) == (M, m, m)
+        if complete:
+            self._nu[k] = innovation.nu
+            self._S[k] = innovation.S
+        else:
+            self._nu[k] = np.nan
+            self._S[k] = np.nan
+        if not complete or type(innovation) is not Innovation:
+            self._innovation_objects[k] = innovation
+        for label, output in outputs.items():
+            series = self._series.setdefault(label, {})
+            self._statistic_keys.setdefault(label, set()).update(output.statistics)
+            self._threshold_keys.setdefault(label, set()).update(output.thresholds)
+            for key, value in {**output.statistics, **output.thresholds}.items():
+                value = np.asarray(value, dtype=float)
+                if key not in series:
+                    series[key] = np.full((self.steps, *value.shape), np.nan)
+                elif series[key].shape[1:] != value.shape:
+                    raise ValueError(
+                        f"detector {label!r}: series {key!r} changed shape at step {k}: "
+                        f"got {value.shape}, expected {series[key].shape[1:]} as at its earlier steps"
+                    )
+                series[key][k] = value
+
+    def _step_result(self, k: int) -> StepResult:
+        """The :class:`StepResult` of processed step k, rebuilt from the stored arrays."""
+        innovation = self._innovation_objects.get(k)
+        if innovation is None:
+            innovation = Innovation(self._nu[k].copy(), self._S[k].copy(), self._loglik[k].copy(), self._nis[k].copy())
+        outputs = {}
+        for detector in self.detectors:
+            label = detector.label
+            series = self._series.get(label, {})
+            value = {key: (float(a[k]) if a.ndim == 1 else a[k].copy()) for key, a in series.items()}
+            thresholds = self._threshold_keys.get(label, set())
+            statistics = self._statistic_keys.get(label, set())
+            outputs[label] = DetectorStep(
+                statistics={key: v for key, v in value.items() if key in statistics},
+                thresholds={key: v for key, v in value.items() if key in thresholds},
+                decision=self._decision_at.get((k, label)),
+            )
+        return StepResult(k, float(self.times[k]), self._means[k].copy(), self._covs[k].copy(), innovation, outputs)
 
     def run(self) -> RunResult:
         """Process the remaining steps, record the run and return it.
 
-        If a step raises, what was processed before is still recorded.
+        If a step raises, what was processed before is still recorded.  While it
+        runs, the recording is streamed (see ``record_every``/``record_seconds``).
         """
         try:
             while not self.done:
@@ -235,73 +366,99 @@ class Pipeline:
         return self.result()
 
     def result(self) -> RunResult:
-        """The steps processed so far as arrays (built once per number of steps processed)."""
-        if not self.results:
+        """The steps processed so far as arrays: read-only views of the pipeline's storage (no copy)."""
+        if not self._count:
             raise RuntimeError("no step has been processed yet")
         if self._result is None:
             self._result = self._build_result()
         return self._result
 
     def _build_result(self) -> RunResult:
-        M = len(self.models)
-        statistics: dict[str, dict[str, list]] = {}
-        for r in self.results:
-            for name, output in r.detectors.items():
-                series = statistics.setdefault(name, {})
-                for key, value in {**output.statistics, **output.thresholds}.items():
-                    series.setdefault(key, []).append(value)
+        k = self._count
 
-        full = self.network.measurement_dim
-        missing = np.full(M, np.nan)
-        nis, loglik, innovations = [], [], []
-        for r in self.results:
-            complete = r.innovation.measurement_dim > 0
-            nis.append(r.innovation.nis if complete else missing)
-            loglik.append(r.innovation.loglik if complete else missing)
-            innovations.append(r.innovation.nu if r.innovation.measurement_dim == full else np.full((M, full), np.nan))
+        def view(array):
+            out = array[:k]
+            out.flags.writeable = False
+            return out
+
         return RunResult(
             layout=self.layout,
             filters=self.filter_names,
-            times=self.times[: len(self.results)],
-            means=np.stack([r.mean for r in self.results]),
-            covs=np.stack([r.cov for r in self.results]),
-            nis=np.stack(nis).astype(float),
-            loglik=np.stack(loglik).astype(float),
-            innovations=np.stack(innovations).astype(float),
-            statistics={n: {k: np.asarray(v, dtype=float) for k, v in s.items()} for n, s in statistics.items()},
+            times=view(self.times),
+            means=view(self._means),
+            covs=view(self._covs),
+            nis=view(self._nis),
+            loglik=view(self._loglik),
+            innovations=view(self._nu),
+            statistics={label: {key: view(a) for key, a in series.items()} for label, series in self._series.items()},
             decisions=tuple(self.decisions),
         )
 
     def record(self) -> None:
-        """Log the truth, measurements, estimates, NIS, detector series and decisions (once)."""
-        if self._recorded or not self.results:
-            return
-        self._recorded = True
-        rec = self.recorder
-        result = self.result()
-        steps = np.arange(len(self.results))
-        times = result.times
-        if self.truth is not None:
-            positions = self.truth.positions[: len(steps)]
-            rec.log_path("world/truth", steps, positions, times)
-        if self.record_measurements and self.candidates is not None:
-            from hybridtrack.clutter import log_scans
+        """Bring the recording up to date: the steps not yet streamed, then the static path lines, then a flush.
 
-            log_scans(rec, list(self.candidates.values()), steps, times)
-        elif self.record_measurements:
-            log_measurements(rec, self.network.sensors, self.network.split(self.z[: len(steps)]), steps, times)
+        Logs the truth, measurements, estimates (points and 2σ ellipses), NIS, ℓ,
+        ν, clutter associations, detector series and decisions of the new steps;
+        calling it again without new steps logs nothing.
+        """
+        if self._count == 0 or self._static_logged == self._count or isinstance(self.recorder, NullRecorder):
+            return
+        self._stream(flush=False)
+        rec = self.recorder
+        k = self._count
+        steps, times = np.arange(k), self.times[:k]
+        if self.truth is not None:
+            rec.log_path("world/truth", steps, self.truth.positions[:k], times, points=False)
         position = [self.layout.index("x"), self.layout.index("y")]
         for j, name in enumerate(self.filter_names):
-            log_estimate(rec, name, steps, result.means[:, j], result.covs[:, j], position, times)
-            rec.log_scalars(f"estimator/{name}/nis", steps, result.nis[:, j], times)
-            rec.log_scalars(f"estimator/{name}/loglik", steps, result.loglik[:, j], times)
-            rec.log_scalars(f"estimator/{name}/innovation", steps, result.innovations[:, j], times)
+            rec.log_path(f"world/estimate/{name}", steps, self._means[:k, j][:, position], times, points=False)
+        self._static_logged = k
+        self._flush_recorder()
+
+    def _flush_recorder(self) -> None:
+        flush = getattr(self.recorder, "flush", None)
+        if flush is not None:
+            flush()
+        self._last_flush = time.monotonic()
+
+    def _stream(self, flush: bool = True) -> None:
+        """Log steps [logged, processed) to the recorder (per-step rows only; the static path lines come in :meth:`record`)."""
+        start, stop = self._logged, self._count
+        if stop <= start or isinstance(self.recorder, NullRecorder):
+            self._logged = stop
+            self._last_flush = time.monotonic()
+            return
+        rec = self.recorder
+        rows = slice(start, stop)
+        steps, times = np.arange(start, stop), self.times[rows]
+        if self.truth is not None:
+            positions = self.truth.positions[rows]
+            rec.log_path("world/truth", steps[: len(positions)], positions, times[: len(positions)], line=False)
+        if self.record_measurements and self.candidates is not None:
+            for seq in self.candidates.values():  # as hybridtrack.clutter.log_scans, for rows start..stop
+                if seq.measurement_dim == 2:
+                    rec.log_points(f"world/measurements/{seq.sensor}", steps, seq.target_measurements()[rows], times)
+                    false = seq.false_measurements()[rows]
+                    if false.shape[1]:
+                        rec.log_points(f"world/clutter/{seq.sensor}", steps, false, times)
+        elif self.record_measurements:
+            log_measurements(rec, self.network.sensors, self.network.split(self.z[rows]), steps, times)
+        position = [self.layout.index("x"), self.layout.index("y")]
+        for j, name in enumerate(self.filter_names):
+            log_estimate(rec, name, steps, self._means[rows, j], self._covs[rows, j], position, times, line=False)
+            rec.log_scalars(f"estimator/{name}/nis", steps, self._nis[rows, j], times)
+            rec.log_scalars(f"estimator/{name}/loglik", steps, self._loglik[rows, j], times)
+            rec.log_scalars(f"estimator/{name}/innovation", steps, self._nu[rows, j], times)
         if self.candidates is not None:
             from hybridtrack.clutter import log_associations
 
-            log_associations(rec, self.filter_names, steps, [r.innovation for r in self.results], times)
-        for detector, series in result.statistics.items():
+            log_associations(rec, self.filter_names, steps, [self._innovation_objects.get(i) for i in steps], times)
+        for label, series in self._series.items():
             for key, values in series.items():
-                rec.log_scalars(f"detector/{detector}/{key}", steps, values, times)
-        for decision in result.decisions:
-            rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", decision.time)
+                rec.log_scalars(f"detector/{label}/{key}", steps, values[rows], times)
+        for decision in self.decisions:
+            if start <= decision.step < stop:
+                rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", decision.time)
+        self._logged = stop
+        if flush:
+            self._flush_recorder()

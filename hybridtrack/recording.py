@@ -4,7 +4,10 @@ Components never touch rerun's global stream.  :class:`RerunRecorder` owns one
 ``rerun.RecordingStream`` (application id ``hybridtrack``) with a file sink;
 :class:`NullRecorder` records nothing (Monte Carlo).  Both are context managers;
 leaving the context (normally or by an exception) flushes and closes the file so
-it is always complete.
+it is always complete; :meth:`RerunRecorder.flush` pushes what was logged so far
+to the file during a run (the pipeline streams its rows and flushes every few
+seconds), so a killed process leaves a file — without its footer — holding
+everything logged up to the last flush.
 
 Series are logged as whole columns (``send_columns``) on the timelines ``step``
 (sequence) and ``time`` (duration in seconds, when times are given).  Entity
@@ -54,8 +57,18 @@ def check_recordable_times(times, name: str = "times") -> None:
 class Recorder(Protocol):
     """What components log through.  ``steps`` (K,) ints; ``times`` (K,) seconds or None."""
 
-    def log_path(self, entity: str, steps: np.ndarray, positions: np.ndarray, times: np.ndarray | None = None) -> None:
-        """A 2-D trajectory: positions (K, 2), one point per step and the whole path as a line."""
+    def log_path(
+        self,
+        entity: str,
+        steps: np.ndarray,
+        positions: np.ndarray,
+        times: np.ndarray | None = None,
+        *,
+        points: bool = True,
+        line: bool = True,
+    ) -> None:
+        """A 2-D trajectory: positions (K, 2), one point per step (``points``) and the whole path as a static line
+        ``<entity>/path`` (``line``; a streamed run logs the points chunk by chunk and the line once at the end)."""
 
     def log_points(self, entity: str, steps: np.ndarray, points: np.ndarray, times: np.ndarray | None = None) -> None:
         """2-D points (K, 2) per step, or a variable number per step as (K, L, 2) NaN-padded (e.g. clutter);
@@ -77,6 +90,9 @@ class Recorder(Protocol):
     def log_lines(self, entity: str, steps: np.ndarray, starts: np.ndarray, ends: np.ndarray, times: np.ndarray | None = None) -> None:
         """One or more 2-D segments per step: starts, ends of shape (K, 2) or (K, L, 2) (e.g. bearing lines)."""
 
+    def flush(self) -> None:
+        """Write what was logged so far to the sink (blocks until it reached the file)."""
+
     def close(self) -> None:
         """Flush and close; idempotent."""
 
@@ -84,7 +100,7 @@ class Recorder(Protocol):
 class NullRecorder:
     """Records nothing (recording turned off)."""
 
-    def log_path(self, entity, steps, positions, times=None):
+    def log_path(self, entity, steps, positions, times=None, *, points=True, line=True):
         pass
 
     def log_points(self, entity, steps, points, times=None):
@@ -100,6 +116,9 @@ class NullRecorder:
         pass
 
     def log_lines(self, entity, steps, starts, ends, times=None):
+        pass
+
+    def flush(self):
         pass
 
     def close(self):
@@ -211,11 +230,13 @@ class RerunRecorder:
             columns=self._rr.Points2D.columns(positions=points[keep]).partition(counts[present].astype(np.int64)),
         )
 
-    def log_path(self, entity, steps, positions, times=None):
+    def log_path(self, entity, steps, positions, times=None, *, points=True, line=True):
         positions = np.asarray(positions, dtype=np.float64)
-        self.log_points(entity, steps, positions, times)
-        finite = positions[np.all(np.isfinite(positions), axis=-1)]
-        self.stream.log(f"{entity}/path", self._rr.LineStrips2D([finite]), static=True)
+        if points:
+            self.log_points(entity, steps, positions, times)
+        if line:
+            finite = positions[np.all(np.isfinite(positions), axis=-1)]
+            self.stream.log(f"{entity}/path", self._rr.LineStrips2D([finite]), static=True)
 
     def log_scalars(self, entity, steps, values, times=None, names=None):
         rr = self._rr
@@ -263,6 +284,11 @@ class RerunRecorder:
         finite = np.all(np.isfinite(segments), axis=(-1, -2))  # (K, L)
         self._log_strips(entity, steps, segments[finite], finite.sum(axis=1), times)
 
+    def flush(self):
+        """Block until everything logged so far is written to the file (no footer yet: that comes with :meth:`close`)."""
+        if not self._closed:
+            self.stream.flush()
+
     def close(self):
         if not self._closed:
             self._closed = True
@@ -288,13 +314,14 @@ def log_measurements(recorder, sensors, measurements, steps, times=None) -> None
             recorder.log_scalars(entity, steps, z, times)
 
 
-def log_estimate(recorder, name, steps, means, covs, position, times=None) -> None:
+def log_estimate(recorder, name, steps, means, covs, position, times=None, *, line: bool = True) -> None:
     """An estimate's path under ``world/estimate/<name>`` and its 2σ position ellipses under ``…/ellipse``.
 
-    ``means`` (K, n), ``covs`` (K, n, n); ``position`` the indices of x and y in the layout.
+    ``means`` (K, n), ``covs`` (K, n, n); ``position`` the indices of x and y in the layout;
+    ``line=False`` leaves out the static path line (a streamed chunk of a longer run).
     """
     index = np.ix_(position, position)
-    recorder.log_path(f"world/estimate/{name}", steps, means[:, position], times)
+    recorder.log_path(f"world/estimate/{name}", steps, means[:, position], times, line=line)
     recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, index[0], index[1]], times)
 
 

@@ -2,7 +2,12 @@
 
 Prints the application and recording id, the run configuration, the entity
 paths, the step range, the decision events and the final estimates
-(:class:`hybridtrack.inspection.RecordingFile`).
+(:class:`hybridtrack.inspection.RecordingFile`, which reads the file as a stream).
+
+Exit status: 0 for a complete file; 1 when the file is missing or not a
+readable recording; 3 when it is truncated (no end-of-stream footer, e.g. the
+recording process was killed): what was readable is printed as usual (``--json``:
+``"truncated": true`` and ``"problem"``), plus one warning line on stderr.
 """
 
 from __future__ import annotations
@@ -11,6 +16,8 @@ import argparse
 import json
 
 from hybridtrack.cli import Command, UsageError
+
+EXIT_TRUNCATED = 3
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -26,6 +33,9 @@ def run(args: argparse.Namespace) -> int:
     except (OSError, ValueError) as error:  # missing, unreadable or not a recording: a user error (status 2)
         raise UsageError(f"{error.filename}: {error.strerror}" if isinstance(error, OSError) and error.filename else str(error)) from None
     print(json.dumps(summary, indent=2) if args.json else format_summary(summary))
+    if summary["truncated"]:
+        print(f"hybridtrack inspect: {args.file}: truncated recording: {summary['problem']}", file=sys.stderr)
+        return EXIT_TRUNCATED
     return 0
 
 

@@ -5,9 +5,11 @@ import pytest
 
 from hybridtrack import Gaussian, Schedule
 from hybridtrack.inspection import RecordingFile, format_summary
+from hybridtrack.interfaces import Detector, DetectorStep
 from hybridtrack.pipeline import Pipeline
 from hybridtrack.recording import NullRecorder, RerunRecorder, ellipse_outlines, open_recorder, recording_id
 from hybridtrack.simulate import simulate
+from hybridtrack.types import Decision
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = np.array([0.0, 0.0, 0.0, 2.0])
@@ -107,3 +109,118 @@ def test_inspection_errors(tmp_path):
         recorder.log_scalars("detector/x", [0, 1], [1.0, 2.0])
     with pytest.raises(KeyError, match="no entity '/nope'"):
         RecordingFile(path).series("nope")
+
+
+class NisAbove(Detector):
+    """A tiny detector: reports NIS of filter 0 and decides 'change' the first time it exceeds 5."""
+
+    name = label = "nis_threshold"
+
+    def __init__(self):
+        self.reset()
+
+    def reset(self):
+        self.fired = False
+
+    def step(self, step, innovation):
+        nis = float(innovation.nis[0]) if innovation.measurement_dim else 0.0
+        decision = None
+        if nis > 5 and not self.fired:
+            self.fired = True
+            decision = Decision(step, self.name, "change", nis, "NIS above 5")
+        return DetectorStep({"nis": nis}, {"threshold": 5.0}, decision)
+
+
+def streamed_run(path, record_every, steps=60):
+    schedule = Schedule.from_rows([("straight", steps // 2), ("right_turn", steps // 2, 5.0)])
+    sensors = [PositionSensor(name="a")]
+    truth, z = simulate(schedule, X0, 0.1, sensors, seed=11)
+    with RerunRecorder(path, {"seed": 11}) as recorder:
+        pipeline = Pipeline(
+            models=["straight", ("right_turn", {"radius": 5.0})],
+            estimator="kalman",
+            sensors=sensors,
+            measurements=z,
+            prior=Gaussian(X0, np.eye(4)),
+            tau=0.1,
+            recorder=recorder,
+            truth=truth,
+            detectors=[NisAbove()],
+            record_every=record_every,
+            record_seconds=None,
+        )
+        result = pipeline.run()
+    return pipeline, result
+
+
+def test_streamed_recording_holds_the_same_values_in_more_chunks(tmp_path):
+    """Streaming in chunks of 7 steps records exactly what one chunk records, and the static lines once."""
+    _, result = streamed_run(tmp_path / "one.rrd", record_every=10_000)
+    _, _ = streamed_run(tmp_path / "many.rrd", record_every=7)
+    one, many = RecordingFile(tmp_path / "one.rrd"), RecordingFile(tmp_path / "many.rrd")
+    assert one.entity_paths == many.entity_paths and not one.truncated and not many.truncated
+    assert one.summary()["final_estimates"] == many.summary()["final_estimates"] and one.events() == many.events()
+    assert len(one.events()) == 1
+    for entity in ("estimator/straight/nis", "estimator/right_turn_r5/innovation", "detector/nis_threshold/nis"):
+        for rec in (one, many):
+            steps, values = rec.series(entity)
+            assert np.array_equal(steps, np.arange(61))
+        np.testing.assert_array_equal(one.series(entity)[1], many.series(entity)[1])
+    np.testing.assert_array_equal(many.series("estimator/straight/nis")[1], result.nis[:, 0])
+    for entity in ("world/truth", "world/estimate/straight"):
+        np.testing.assert_array_equal(one.points(entity)[1], many.points(entity)[1])
+    assert len(many.strips("world/estimate/straight/ellipse")[0]) == 61
+
+
+def test_step_results_are_rebuilt_from_the_stored_arrays(tmp_path):
+    pipeline, result = streamed_run(tmp_path / "r.rrd", record_every=10_000)
+    assert len(pipeline.results) == 61 and pipeline.done
+    last = pipeline.results[-1]
+    assert last.step == 60 and np.array_equal(last.mean, result.means[60]) and np.array_equal(last.cov, result.covs[60])
+    assert np.array_equal(last.innovation.nis, result.nis[60]) and last.innovation.S.shape == (2, 2, 2)
+    assert last.detectors["nis_threshold"].statistics["nis"] == result.statistics["nis_threshold"]["nis"][60]
+    assert [r.step for r in pipeline.results[58:]] == [58, 59, 60]
+    assert not result.means.flags.writeable  # views of the pipeline's storage: read-only
+    with pytest.raises(IndexError, match=r"results\[61\]: step out of range, 61 steps processed"):
+        pipeline.results[61]
+    with pytest.raises(TypeError, match=r"results\['a'\]"):
+        pipeline.results["a"]
+
+
+@pytest.mark.parametrize(
+    "option, value, message",
+    [
+        ("record_every", 0, r"record_every: expected a whole number of steps ≥ 1, got 0"),
+        ("record_every", 2.5, r"record_every: .* got 2.5"),
+        ("record_seconds", -1.0, r"record_seconds: expected a positive number of seconds or None, got -1.0"),
+        ("record_seconds", "2", r"record_seconds: .* got '2'"),
+    ],
+)
+def test_bad_streaming_options_are_named(option, value, message):
+    sensors = [PositionSensor(name="a")]
+    with pytest.raises(ValueError, match=message):
+        Pipeline(
+            models=["straight"],
+            estimator="kalman",
+            sensors=sensors,
+            measurements={"a": np.zeros((3, 2))},
+            prior=(X0, np.eye(4)),
+            tau=0.1,
+            **{option: value},
+        )
+
+
+def test_memory_benchmark_runs_at_a_tiny_size(tmp_path):
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = tmp_path / "memory.json"
+    script = Path(__file__).resolve().parents[2] / "benchmarks" / "memory.py"
+    done = subprocess.run([sys.executable, str(script), "--steps", "300", "--json", str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    cases = {case["name"]: case for case in json.loads(out.read_text())["cases"]}
+    assert set(cases) == {"run", "run_recorded", "inspect"}
+    for case in cases.values():
+        assert case["peak_bytes"] >= 0 and case["reference_bytes"] > 0 and case["ratio"] == case["peak_bytes"] / case["reference_bytes"]
