@@ -4,7 +4,7 @@ Prints the application and recording id, the run configuration, the entity
 paths, the step range, the decision events and the final estimates
 (:class:`hybridtrack.inspection.RecordingFile`, which reads the file as a stream).
 
-Exit status: 0 for a complete file; 1 when the file is missing or not a
+Exit status: 0 for a complete file; 2 when the file is missing or not a
 readable recording; 3 when it is truncated (no end-of-stream footer, e.g. the
 recording process was killed): what was readable is printed as usual (``--json``:
 ``"truncated": true`` and ``"problem"``), plus one warning line on stderr.
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from hybridtrack.cli import Command, UsageError
 

@@ -155,7 +155,7 @@ def test_a_file_cut_before_its_recording_is_a_clear_error(tmp_path, capsys):
     cut.write_bytes(data[:200])
     with pytest.raises(ValueError, match="early.rrd.*(not a readable rerun recording|holds no recording before the cut)"):
         RecordingFile(cut)
-    assert main(["inspect", str(cut)]) == 1
+    assert main(["inspect", str(cut)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "early.rrd" in err and "Traceback" not in err
 
@@ -166,6 +166,6 @@ def test_a_file_with_no_whole_message_is_a_clear_error(tmp_path, content, capsys
     bad.write_bytes(content)
     with pytest.raises(ValueError, match="stub.rrd.*not a readable rerun recording"):
         RecordingFile(bad)
-    assert main(["inspect", str(bad)]) == 1
+    assert main(["inspect", str(bad)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "stub.rrd" in err and "Traceback" not in err
