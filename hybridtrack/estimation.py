@@ -21,7 +21,9 @@ Every estimator state object of this family exposes, per step and per filter:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+import math
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import attrs
@@ -29,7 +31,7 @@ import numpy as np
 
 from hybridtrack.interfaces import Estimator, Innovation, TransitionBank, check_prior
 from hybridtrack.measurements import MeasurementAssembler
-from hybridtrack.validation import as_float_array
+from hybridtrack.validation import FILTER_MAGNITUDE_LIMIT, as_float_array
 
 
 class NodeMoments:
@@ -126,6 +128,55 @@ def empty_innovation(bank_size: int) -> Innovation:
     return Innovation(np.zeros((bank_size, 0)), np.zeros((bank_size, 0, 0)), np.zeros(bank_size), np.zeros(bank_size))
 
 
+def guarded(method: Callable) -> Callable:
+    """Run an estimator's ``predict``/``update`` with numpy's floating-point warnings silenced.
+
+    An overflow or invalid operation inside the step then leaves inf/NaN in
+    its outputs, which the step's :meth:`BankEstimator.check_finite` call (and,
+    for ``update``, the check of the returned innovation's ℓ and NIS here)
+    turns into a ValueError naming what overflowed — never NaN/inf results
+    with a RuntimeWarning.
+    """
+
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+            result = method(self, *args, **kwargs)
+            if isinstance(result, tuple) and len(result) == 2 and isinstance(result[1], Innovation):
+                check_innovation_scores(result[1], self.name)
+        return result
+
+    return run
+
+
+def _overflow_message(name: str, what: str, array: np.ndarray, bad: np.ndarray, estimator: str) -> str:
+    index = tuple(int(i) for i in np.argwhere(bad)[0])
+    finite = np.abs(array[np.isfinite(array)])
+    largest = f" (the largest finite |value| is {float(finite.max()):.3g})" if finite.size and finite.max() > 0 else ""
+    return (
+        f"{name}: the {what} of {estimator!r} has value {float(array[index])} at index {index}{largest}: the values exceed "
+        f"the float64 arithmetic of the filter (measurement, prior mean and prior covariance magnitudes up to "
+        f"{FILTER_MAGNITUDE_LIMIT:.0e} are processed, but their products at this step overflowed)"
+    )
+
+
+def check_innovation_scores(innovation: Innovation, estimator: str) -> None:
+    """ℓ and NIS of an update finite, else a ValueError naming the first non-finite quantity:
+    the innovation covariance S, the innovation ν, or the scores themselves."""
+    loglik, nis = np.asarray(innovation.loglik, dtype=float).reshape(-1), np.asarray(innovation.nis, dtype=float).reshape(-1)
+    if math.isfinite(loglik @ nis):  # one BLAS dot: NaN/inf whenever an entry is (an overflow of the finite dot is searched below)
+        return
+    for name, what, array in (
+        ("innovation", "innovation covariance S", innovation.S),
+        ("innovation", "innovation ν = z − ẑ", innovation.nu),
+        ("innovation", "NIS νᵀS⁻¹ν", innovation.nis),
+        ("innovation", "log-likelihood ℓ (ln det S)", innovation.loglik),
+    ):
+        bad = ~np.isfinite(np.asarray(array, dtype=float))
+        if bad.any():
+            raise ValueError(_overflow_message(name, what, np.asarray(array, dtype=float), bad, estimator))
+
+
 class BankEstimator(Estimator):
     """Common plumbing; subclasses implement the maths of one form.
 
@@ -168,6 +219,28 @@ class BankEstimator(Estimator):
             as_float_array(transitions.noise_root, "transitions.noise_root", (bank_size, n, None))
         self._checked_transitions = (transitions, (bank_size, n))
         return transitions
+
+    def check_finite(self, stage: str, **arrays: np.ndarray) -> None:
+        """The arrays a step produced (keyword: what they are, e.g. ``predicted_covariance=P``) are finite.
+
+        One BLAS dot a·a per array on the hot path (NaN/inf whenever an entry
+        is; call it inside a :func:`guarded` method, whose ``np.errstate`` keeps
+        that quiet); only then are the entries searched (a dot that overflowed
+        on finite entries finds nothing and the step goes on), and a ValueError names
+        the first non-finite quantity, its value and index, and says that the
+        values exceed the float64 arithmetic of the filter.  ``stage`` is
+        ``"predict"`` or ``"update"``.
+        """
+        for array in arrays.values():
+            flat = array.reshape(-1)
+            if not math.isfinite(flat @ flat):
+                break
+        else:
+            return
+        for key, array in arrays.items():
+            bad = ~np.isfinite(array)
+            if bad.any():
+                raise ValueError(_overflow_message(stage, key.replace("_", " "), array, bad, self.name))
 
     def measurement_step(self, z, sensors: Sequence, layout: Sequence[str], bank_size: int, n: int):
         """The present sensors' stacked model of this step (:class:`~hybridtrack.measurements.MeasurementStep`), or None.

@@ -44,7 +44,7 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack.validation import as_float_array, check_covariance, readonly_array_field
+from hybridtrack.validation import FILTER_MAGNITUDE_LIMIT, as_float_array, check_covariance, check_magnitude, readonly_array_field
 
 KINDS = ("motion_model", "sensor", "estimator", "detector", "solver")
 
@@ -440,10 +440,26 @@ class Estimator(Labelled, ABC):
 
 
 def check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
-    """Validate a bank prior: mean (M, n), cov (M, n, n) symmetric positive definite."""
+    """Validate a bank prior: mean (M, n), cov (M, n, n) symmetric positive definite, within the filters' arithmetic.
+
+    Every entry of mean and cov must have |value| ≤ ``FILTER_MAGNITUDE_LIMIT``
+    (1e150) and every variance be ≥ its inverse 1e-150 (the information forms
+    invert P): beyond, the filters' products overflow float64.  Errors are
+    ValueErrors naming the argument.
+    """
     mean = as_float_array(mean, "mean", (None, None))
     M, n = mean.shape
     cov = as_float_array(cov, "cov", (M, n, n))
+    check_magnitude(mean, "mean", "prior mean")
+    check_magnitude(cov, "cov", "prior covariance")
+    variances = np.diagonal(cov, axis1=-2, axis2=-1)
+    tiny = (variances > 0) & (variances < 1.0 / FILTER_MAGNITUDE_LIMIT)
+    if tiny.any():
+        index = tuple(int(i) for i in np.argwhere(tiny)[0])
+        raise ValueError(
+            f"cov: prior variance {float(variances[index]):.3g} at index {index + index[-1:]} is too small for the float64 "
+            f"arithmetic of the filter (its inverse, the information, overflows); expected variances ≥ {1.0 / FILTER_MAGNITUDE_LIMIT:.0e}"
+        )
     check_covariance(cov, "cov", n, definite=True)
     return mean, cov
 

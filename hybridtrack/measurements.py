@@ -9,7 +9,9 @@ h(x) and its Jacobian for a nonlinear sensor) and the sub-block of R on the
 present components (rows and columns).  A sensor with every component NaN has
 no measurement at this step and is skipped; all sensors skipped means
 prediction only.  The missing pattern must be the same for every filter of the
-bank.  The present rows form the centralized model H = [H_1; …; H_N],
+bank.  A finite component with |value| > ``FILTER_MAGNITUDE_LIMIT`` (1e150)
+raises a ValueError naming ``z``: its square overflows float64 in the filters.
+The present rows form the centralized model H = [H_1; …; H_N],
 R = blockdiag(R_1, …, R_N).
 
 R of a sensor whose R depends on z (``measurement_noise(z)``, e.g. radar
@@ -33,7 +35,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.interfaces import Sensor
-from hybridtrack.validation import as_float_array
+from hybridtrack.validation import FILTER_MAGNITUDE_LIMIT, as_float_array, check_magnitude
 
 
 @attrs.frozen(eq=False)
@@ -191,7 +193,7 @@ class MeasurementAssembler:
             template is not None
             and z_array is not None
             and template[0] == (tuple(map(id, sensors)), layout, bank_size, z_array.shape)
-            and np.isfinite(z_array).all()  # NaN or ±inf anywhere: the full path below decides (missing sensor or error)
+            and (np.abs(z_array) <= FILTER_MAGNITUDE_LIMIT).all()  # NaN, ±inf or a too large value: the full path below decides
         ):
             return template[1].with_z(z_array.reshape(-1, template[1].dim))
         step = self._assemble(z, sensors, layout, bank_size)
@@ -208,7 +210,7 @@ class MeasurementAssembler:
     def _assemble(self, z, sensors: Sequence[Sensor], layout: tuple[str, ...], bank_size: int) -> MeasurementStep | None:
         models = [self.sensor_model(s, layout) for s in sensors]
         total = sum(m.dim for m in models)
-        z = as_float_array(z, "z", allow_nan=True)
+        z = check_magnitude(as_float_array(z, "z", allow_nan=True), "z", "measurement")
         if z.shape not in ((total,), (bank_size, total)):
             raise ValueError(
                 f"z: expected shape ({total},) or ({bank_size}, {total}) (the stacked measurement of {len(models)} sensor(s)), got {z.shape}"

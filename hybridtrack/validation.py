@@ -111,3 +111,28 @@ def check_positive(value, name: str) -> float:
     if not (np.isfinite(value) and value > 0):
         raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
     return value
+
+
+#: the largest magnitude a filter input (measurement, prior mean, prior covariance entry) may have:
+#: the filters square and multiply such values (ν², P Hᵀ, x ᵀ I x, F P Fᵀ), and float64 overflows
+#: above about 1.8e308, so values beyond about √1.8e308 ≈ 1.3e154 cannot be processed; 1e150
+#: leaves room for the few further factors of a step.
+FILTER_MAGNITUDE_LIMIT = 1e150
+
+
+def check_magnitude(array: np.ndarray, name: str, what: str) -> np.ndarray:
+    """``array`` (finite or NaN entries) if every finite entry has |value| ≤ :data:`FILTER_MAGNITUDE_LIMIT`.
+
+    Otherwise a ValueError naming ``name``, the value and where it is, saying
+    that ``what`` exceeds the float64 arithmetic of the filter.  NaN entries
+    (missing data) are not compared.
+    """
+    with np.errstate(invalid="ignore"):
+        big = np.abs(array) > FILTER_MAGNITUDE_LIMIT
+    if big.any():
+        index = tuple(int(i) for i in np.argwhere(big)[0])
+        raise ValueError(
+            f"{name}: {what} value {float(array[index]):.3g} at index {index} exceeds the float64 arithmetic of the filter "
+            f"(its square or products overflow); expected |value| ≤ {FILTER_MAGNITUDE_LIMIT:.0e}"
+        )
+    return array

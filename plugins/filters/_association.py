@@ -52,10 +52,11 @@ import attrs
 import numpy as np
 from scipy.stats import chi2
 
-from hybridtrack.estimation import BankEstimator, empty_innovation
+from hybridtrack.estimation import BankEstimator, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.measurements import block_diagonal
+from hybridtrack.validation import check_magnitude
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
@@ -210,12 +211,15 @@ class ClutterEstimator(BankEstimator):
         x, P = self.check_prior(mean, cov)
         return CovarianceState(x, P, x, P, None)
 
+    @guarded
     def predict(self, state: CovarianceState, transitions) -> CovarianceState:
         M, n = state.x.shape
         bank = self.check_transitions(transitions, M, n, state.x)
         x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
+        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
         return CovarianceState(x, P, x, P, None)
 
+    @guarded
     def update(self, state: CovarianceState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
         if len(layout) != n:
@@ -239,6 +243,7 @@ class ClutterEstimator(BankEstimator):
                 raise ValueError(f"sensors: {self.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
             if scan.measurement_dim != model.dim:
                 raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
+            check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
             z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
             candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
             predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
@@ -272,6 +277,9 @@ class ClutterEstimator(BankEstimator):
         L = check_innovation_covariance(S)
         gamma = gate_threshold(self.gate_probability, S.shape[-1])
         d2 = distances(nu, L)
+        self.check_finite(
+            "update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2
+        )  # an inf d² would drop a candidate silently
         gated = d2 <= gamma
         beta, beta0, selected, loglik = self.associate(d2, gated, L)
         record = Association(sensor_name, np.asarray(candidates), z_pred, S, gamma, d2, gated, beta, beta0, selected, loglik)
@@ -279,6 +287,7 @@ class ClutterEstimator(BankEstimator):
             return x, P, np.zeros(x.shape[:1] + S.shape[-1:]), S, record
         combined, spread = combine(nu, beta)
         x_new, P_correct, _, _, K = cov_form.update(x, P, combined, H, R, selection, self.form)
+        self.check_finite("update", updated_mean=x_new)
         P_new = beta0[:, None, None] * P + (1.0 - beta0)[:, None, None] * P_correct + K @ spread @ np.swapaxes(K, -1, -2)
         return x_new, symmetrize(P_new), combined, S, record
 

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
@@ -59,12 +59,15 @@ class BiermanFilter(BankEstimator):
         U, d = _sqrt.ud_factor(P)
         return UDState(x, U, d, x, U, d)
 
+    @guarded
     def predict(self, state: UDState, transitions) -> UDState:
         M, n = state.x.shape
         bank = self.check_transitions(transitions, M, n, state.x)
         x, U, d = _sqrt.thornton_predict(state.x, state.U, state.d, bank.F, bank.B, _sqrt.noise_root(bank))
+        self.check_finite("predict", predicted_mean=x, predicted_variances_d=d, predicted_covariance_factor_U=U)
         return UDState(x, U, d, x, U, d)
 
+    @guarded
     def update(self, state: UDState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         found = self.linearize(state.x, z, sensors, layout)
         if found is None:
@@ -75,6 +78,7 @@ class BiermanFilter(BankEstimator):
         HU = H @ state.U
         S = symmetrize((HU * state.d[..., None, :]) @ np.swapaxes(HU, -1, -2) + step.R)
         innovation = Innovation(nu, S, loglik, nis)
+        self.check_finite("update", innovation_covariance=S, updated_mean=x)
         return UDState(x, U, d, state.x_predicted, state.U_predicted, state.d_predicted, innovation), innovation
 
 

@@ -3,14 +3,19 @@
 Every node i keeps its own copy (I_i, s_i) of every filter of the bank and:
 
 1. predicts locally: x_i⁻ = F x_i⁺ + B, (P_i⁻)⁻¹ = (F P_i⁺ Fᵀ + G Q Gᵀ)⁻¹       (eqs. 16–17)
-2. computes its contribution ΔI_i = H_iᵀR_i⁻¹H_i, Δs_i = H_iᵀR_i⁻¹z_i         (eqs. 18–19)
-   (and z_iᵀR_i⁻¹z_i, ln det R_i for local detection, SPEC §4)
+2. computes its contribution ΔI_i = H_iᵀR_i⁻¹H_i and, about the prediction
+   (ν_i = z_i − H_i x⁻), g_i = H_iᵀR_i⁻¹ν_i (= Δs_i − ΔI_i x⁻), q_i = ν_iᵀR_i⁻¹ν_i
+   and ln det R_i                                                        (eqs. 18–19)
 3. broadcasts them; every node assimilates all of them:
-   I_i⁺ = I_i⁻ + Σ_j ΔI_j,  x_i⁺ = (I_i⁺)⁻¹ (I_i⁻ x_i⁻ + Σ_j Δs_j)           (eqs. 20–21)
+   I_i⁺ = I_i⁻ + Σ_j ΔI_j,  x_i⁺ = x_i⁻ + (I_i⁺)⁻¹ Σ_j g_j
+   (= (I_i⁺)⁻¹ (I_i⁻ x_i⁻ + Σ_j Δs_j))                                    (eqs. 20–21)
 
 The nodes are the sensors passed to ``update`` (node j = ``sensors[j]``); a node
 without a measurement at a step broadcasts nothing.  Each node also computes
-NIS and ℓ locally (seed 000 eq. 22 and the determinant lemma), kept as
+NIS and ℓ locally (seed 000 eq. 22 rewritten about the prediction,
+NIS = Σ_j q_j − gᵀ(I⁺)⁻¹g, and the determinant lemma; see
+``_information.local_scores``), exact at any distance from the coordinate
+origin (eq. 22 as printed loses accuracy with its square), kept as
 ``state.node_nis`` / ``state.node_loglik`` (N, M).  The returned
 :class:`Innovation` is that of the stacked (centralized) model at node 0, for
 comparison with the centralized filter (``kalman`` given all sensors), which
@@ -25,9 +30,8 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, NodeMoments, bank_field, empty_innovation
+from hybridtrack.estimation import BankEstimator, NodeMoments, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
-from hybridtrack.linalg import symmetrize
 from hybridtrack_plugins.filters import _information as info
 from hybridtrack_plugins.filters.information import information_predict, stacked_innovation
 
@@ -94,11 +98,21 @@ class DecentralizedFilter(BankEstimator):
             return None
         return state.node_loglik, state.node_nis
 
+    @guarded
     def predict(self, state: DecentralizedState, transitions: TransitionBank) -> DecentralizedState:
         N, M, n = state.s.shape
         bank = self.check_transitions(transitions, M, n)
         flat = lambda a: np.broadcast_to(a, (N,) + a.shape).reshape((N * M,) + a.shape[1:])  # noqa: E731
-        Y, s, x, P = information_predict(state.Y.reshape(N * M, n, n), state.s.reshape(N * M, n), flat(bank.F), flat(bank.B), flat(bank.Q))
+        x, P = state._moments
+        Y, s, x, P = information_predict(
+            state.Y.reshape(N * M, n, n),
+            state.s.reshape(N * M, n),
+            flat(bank.F),
+            flat(bank.B),
+            flat(bank.Q),
+            (x.reshape(N * M, n), P.reshape(N * M, n, n)),
+            self.check_finite,
+        )
         shape = lambda a: a.reshape((N, M) + a.shape[1:])  # noqa: E731
         return DecentralizedState(shape(Y), shape(s), shape(x), shape(P), moments=(shape(x), shape(P)))
 
@@ -107,6 +121,7 @@ class DecentralizedFilter(BankEstimator):
         x, P = state._moments
         return DecentralizedState(rep(state.Y), rep(state.s), rep(state.x_predicted), rep(state.P_predicted), moments=(rep(x), rep(P)))
 
+    @guarded
     def update(self, state: DecentralizedState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         if isinstance(sensors, Sensor):
             sensors = (sensors,)
@@ -122,22 +137,20 @@ class DecentralizedFilter(BankEstimator):
             return attrs.evolve(state, innovation=innovation, node_nis=None, node_loglik=None, moments=state._moments), innovation
         if step.H is None:
             raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
-        # Local measurement update at each node that measured (eqs. 18–19).
-        broadcast = []
-        for model, block in zip(step.models, step.blocks):
-            R_j = step.R[..., block, block]
-            broadcast.append(info.measurement_information(model.H, R_j, step.z[:, block]))
-        # Communication: every node receives every contribution and sums them.
-        dY = sum(b[0] for b in broadcast)
-        ds = sum(b[1] for b in broadcast)
-        zRz = sum(b[2] for b in broadcast)
-        log_det_R = sum(b[3] for b in broadcast)
-        # Assimilation at every node (eqs. 20–21).
+        # Each node's contribution (eqs. 18–19), formed about the prediction: ν_j = z_j − H_j x⁻.
+        # Every node holds the same x⁻ (Algorithm 2 keeps them in step), so node i evaluates the
+        # broadcast (ΔI_j, g_j, q_j, ln det R_j) about its own x_i⁻ (N, M, n).
         x_prior, P_prior = state._moments
-        Y = symmetrize(state.Y + dY)
-        s = state.s + ds
-        x_post, P_post = info.to_covariance(Y, s)
-        node_loglik, node_nis = info.local_scores(x_prior, state.Y, x_post, Y, zRz, log_det_R, step.dim)
+        dY = g = q = log_det_R = 0.0
+        for model, block in zip(step.models, step.blocks):
+            nu_j = step.z[:, block] - x_prior @ model.H.T  # (N, M, m_j)
+            dY_j, g_j, q_j, ldr_j = info.innovation_information(model.H, step.R[..., block, block], nu_j)
+            # Communication: every node receives every contribution and sums them.
+            dY, g, q, log_det_R = dY + dY_j, g + g_j, q + q_j, log_det_R + ldr_j
+        # Assimilation at every node (eqs. 20–21) and the node's own NIS and ℓ (eq. 22, innovation form).
+        Y, s, x_post, P_post, delta = info.assimilate(x_prior, state.Y, dY, g)
+        node_loglik, node_nis = info.local_scores(state.Y, Y, g, delta, q, log_det_R, step.dim)
+        self.check_finite("update", updated_mean=x_post, node_NIS=node_nis, node_loglik=node_loglik)
         innovation = stacked_innovation(step, x_prior[0], P_prior[0], layout)
         new = DecentralizedState(Y, s, state.x_predicted, state.P_predicted, innovation, node_nis, node_loglik, (x_post, P_post))
         return new, innovation

@@ -1,11 +1,13 @@
 """Information filter bank (SPEC §3, seed 000 eqs. 10–13).
 
-State I = P⁻¹, s = I x.  Predict in covariance form (F may be singular, e.g.
+State I = P⁻¹, s = I x (and x, P).  Predict in covariance form (F may be singular, e.g.
 the stop mode): P⁺ = (I⁺)⁻¹, P⁻ = F P⁺ Fᵀ + G Q Gᵀ, I⁻ = (P⁻)⁻¹, s⁻ = I⁻ x⁻
 (seed 000 eq. 17), all by Cholesky solves.  Update:
-I⁺ = I⁻ + Hᵀ R⁻¹ H,  s⁺ = s⁻ + Hᵀ R⁻¹ z  (eqs. 10–13).
+I⁺ = I⁻ + Hᵀ R⁻¹ H,  s⁺ = s⁻ + Hᵀ R⁻¹ z  (eqs. 10–13), evaluated about the
+prediction: x⁺ = x⁻ + (I⁺)⁻¹ Hᵀ R⁻¹ ν, s⁺ = I⁺ x⁺ (the same, exact far from the origin).
 ν = z − H x⁻ and S = H P⁻ Hᵀ + R are reported as in the covariance form; the
-NIS is also computed from information quantities alone (seed 000 eq. 22) and
+NIS is also computed from information quantities alone (seed 000 eq. 22, in
+the innovation form of ``_information.local_scores``) and
 kept as ``state.nis_information``.
 """
 
@@ -17,7 +19,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.linalg import cholesky, gaussian_scores, symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
@@ -62,10 +64,18 @@ class InformationState:
         return self.Y
 
 
-def information_predict(Y, s, F, B, Q):
-    """(I⁻, s⁻, x⁻, P⁻) from (I⁺, s⁺) through the covariance prediction (seed 000 eqs. 16–17)."""
-    x, P = info.to_covariance(Y, s)
+def information_predict(Y, s, F, B, Q, moments=None, check=None):
+    """(I⁻, s⁻, x⁻, P⁻) from (I⁺, s⁺) through the covariance prediction (seed 000 eqs. 16–17).
+
+    ``moments``: (x⁺, P⁺) when the state already holds them (then x⁺ is not
+    recovered from s⁺ = I⁺x⁺ by a solve, whose error grows with |x|).  ``check``:
+    called as ``check("predict", predicted_mean=x⁻, predicted_covariance=P⁻)``
+    before P⁻ is inverted (e.g. :meth:`BankEstimator.check_finite`).
+    """
+    x, P = info.to_covariance(Y, s) if moments is None else moments
     x_pred, P_pred = cov_form.predict(x, P, F, B, Q)
+    if check is not None:
+        check("predict", predicted_mean=x_pred, predicted_covariance=P_pred)
     Y_pred, s_pred = info.to_information(x_pred, P_pred)
     return Y_pred, s_pred, x_pred, P_pred
 
@@ -89,12 +99,14 @@ class InformationFilter(BankEstimator):
         Y, s = info.to_information(x, P)
         return InformationState(Y, s, x, P, moments=(x, P))
 
+    @guarded
     def predict(self, state: InformationState, transitions: TransitionBank) -> InformationState:
         M, n = state.s.shape
         bank = self.check_transitions(transitions, M, n)
-        Y, s, x, P = information_predict(state.Y, state.s, bank.F, bank.B, bank.Q)
+        Y, s, x, P = information_predict(state.Y, state.s, bank.F, bank.B, bank.Q, state._moments, self.check_finite)
         return InformationState(Y, s, x, P, moments=(x, P))
 
+    @guarded
     def update(self, state: InformationState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.s.shape
         step = self.measurement_step(z, sensors, layout, M, n)
@@ -103,13 +115,12 @@ class InformationFilter(BankEstimator):
             return attrs.evolve(state, innovation=innovation, nis_information=None, moments=state._moments), innovation
         if step.H is None:
             raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
-        dY, ds, zRz, log_det_R = info.measurement_information(step.H, step.R, step.z)
-        Y = symmetrize(state.Y + dY)
-        s = state.s + ds
         x_prior, P_prior = state.mean, state.covariance  # the prior of this update
         innovation = stacked_innovation(step, x_prior, P_prior, layout)
-        x_post, P_post = info.to_covariance(Y, s)
-        _, nis_local = info.local_scores(x_prior, state.Y, x_post, Y, zRz, log_det_R, step.dim)
+        dY, g, q, log_det_R = info.innovation_information(step.H, step.R, innovation.nu)  # about x⁻ (eq. 22 rewritten)
+        Y, s, x_post, P_post, delta = info.assimilate(x_prior, state.Y, dY, g)
+        self.check_finite("update", updated_mean=x_post)
+        _, nis_local = info.local_scores(state.Y, Y, g, delta, q, log_det_R, step.dim)
         new = InformationState(Y, s, state.x_predicted, state.P_predicted, innovation, nis_local, (x_post, P_post))
         return new, innovation
 

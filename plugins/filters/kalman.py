@@ -22,7 +22,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
@@ -140,6 +140,7 @@ class KalmanFilter(BankEstimator):
         self._split_cache = (bank, split)
         return split
 
+    @guarded
     def predict(self, state, transitions: TransitionBank):
         M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
         bank = self.check_transitions(
@@ -156,8 +157,10 @@ class KalmanFilter(BankEstimator):
                     xa = None
                 if xa is not None:
                     xa, Pa = sep.predict(xa, Pa, split)
+                    self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
                     return AxisState(split.axes, n, xa, Pa, xa, Pa, None)
         x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, self._transposed(bank))
+        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
         return CovarianceState(x, P, x, P, None)
 
     def _transposed(self, bank: TransitionBank) -> np.ndarray:
@@ -208,7 +211,10 @@ class KalmanFilter(BankEstimator):
         innovation = Innovation(nu, S, loglik, nis)
         return AxisState(state.axes, state.n, xa, Pa, state.xa_predicted, state.Pa_predicted, innovation), innovation
 
+    @guarded
     def update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        """The Kalman update (dense or axis-separable).  Overflow: :func:`guarded` checks ℓ and NIS, which are
+        non-finite whenever S or ν is (x⁺ = x⁻ + K ν is finite for a finite x⁻, ν and positive definite S)."""
         M = state.bank_size
         n = state.n if isinstance(state, AxisState) else state.x.shape[1]
         if isinstance(state, AxisState):

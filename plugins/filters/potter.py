@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack.linalg import cholesky, symmetrize
 from hybridtrack_plugins.filters import _sqrt
@@ -64,12 +64,15 @@ class PotterFilter(BankEstimator):
         S = cholesky(P, "cov")
         return SquareRootState(x, S, x, S)
 
+    @guarded
     def predict(self, state: SquareRootState, transitions) -> SquareRootState:
         M, n = state.x.shape
         bank = self.check_transitions(transitions, M, n, state.x)
         x, S = _sqrt.potter_predict(state.x, state.S, bank.F, bank.B, _sqrt.noise_root(bank))
+        self.check_finite("predict", predicted_mean=x, predicted_covariance_factor=S)
         return SquareRootState(x, S, x, S)
 
+    @guarded
     def update(self, state: SquareRootState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         found = self.linearize(state.x, z, sensors, layout)
         if found is None:
@@ -78,6 +81,7 @@ class PotterFilter(BankEstimator):
         step, nu, H = found
         x, S, loglik, nis = _sqrt.potter_update(state.x, state.S, H, nu, step.R)
         innovation = factored_innovation(nu, H, state.S, step.R, loglik, nis)
+        self.check_finite("update", innovation_covariance=innovation.S, updated_mean=x)
         return SquareRootState(x, S, state.x_predicted, state.S_predicted, innovation), innovation
 
 

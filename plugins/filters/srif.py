@@ -15,7 +15,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
@@ -78,12 +78,15 @@ class SquareRootInformationFilter(BankEstimator):
         R, zeta = _sqrt.srif_from_moments(x, P)
         return SRIFState(R, zeta, R, zeta)
 
+    @guarded
     def predict(self, state: SRIFState, transitions) -> SRIFState:
         M, n = state.zeta.shape
         bank = self.check_transitions(transitions, M, n, state.mean if callable(transitions) else None)
         R, zeta = _sqrt.srif_predict(state.R, state.zeta, bank.F, bank.B, _sqrt.noise_root(bank))
+        self.check_finite("predict", predicted_information_factor=R, predicted_information_state=zeta)
         return SRIFState(R, zeta, R, zeta)
 
+    @guarded
     def update(self, state: SRIFState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         x = state.mean
         found = self.linearize(x, z, sensors, layout)
@@ -95,6 +98,7 @@ class SquareRootInformationFilter(BankEstimator):
         R, zeta, e2 = _sqrt.srif_update(state.R, state.zeta, [(Ht, zt)])
         loglik = _sqrt.srif_scores(state.R, R, log_det_R, e2, step.dim)
         innovation = Innovation(nu, srif_innovation(nu, H, state.R, step.R), loglik, e2)
+        self.check_finite("update", innovation_covariance=innovation.S, updated_information_state=zeta)
         return SRIFState(R, zeta, state.R_predicted, state.zeta_predicted, innovation), innovation
 
 

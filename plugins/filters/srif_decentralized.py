@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, NodeMoments, empty_innovation
+from hybridtrack.estimation import BankEstimator, NodeMoments, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor
 from hybridtrack_plugins.filters import _sqrt
 from hybridtrack_plugins.filters.srif import SRIFState, srif_innovation
@@ -75,15 +75,18 @@ class DecentralizedSRIF(BankEstimator):
         rep = lambda a: np.broadcast_to(a[:1], (N,) + a.shape[1:]).copy()  # noqa: E731
         return DecentralizedSRIFState(rep(state.R), rep(state.zeta), rep(state.R_predicted), rep(state.zeta_predicted))
 
+    @guarded
     def predict(self, state: DecentralizedSRIFState, transitions) -> DecentralizedSRIFState:
         N, M, n = state.zeta.shape
         bank = self.check_transitions(transitions, M, n)
         flat = lambda a: np.broadcast_to(a, (N,) + a.shape).reshape((N * M,) + a.shape[1:])  # noqa: E731
         W = _sqrt.noise_root(bank)
         R, zeta = _sqrt.srif_predict(state.R.reshape(N * M, n, n), state.zeta.reshape(N * M, n), flat(bank.F), flat(bank.B), flat(W))
+        self.check_finite("predict", predicted_information_factor=R, predicted_information_state=zeta)
         R, zeta = R.reshape(N, M, n, n), zeta.reshape(N, M, n)
         return DecentralizedSRIFState(R, zeta, R, zeta)
 
+    @guarded
     def update(self, state: DecentralizedSRIFState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         if isinstance(sensors, Sensor):
             sensors = (sensors,)
@@ -112,6 +115,9 @@ class DecentralizedSRIF(BankEstimator):
         z_pred, H = step.predicted(x_prior, layout)
         nu = step.residual(z_pred)
         innovation = Innovation(nu, srif_innovation(nu, H, state.R[0], step.R), node_loglik[0], e2[0])
+        self.check_finite(
+            "update", innovation_covariance=innovation.S, updated_information_state=zeta, node_NIS=e2, node_loglik=node_loglik
+        )
         new = DecentralizedSRIFState(R, zeta, state.R_predicted, state.zeta_predicted, innovation, e2, node_loglik)
         return new, innovation
 
