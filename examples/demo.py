@@ -8,8 +8,9 @@ data:
 * the adaptive estimator of seed 001 (Algorithm 1): at every switching moment
   a bank of 21 Kalman filters (straight, left and right turns of radii 1…10 m)
   and Wald's pairwise SPRT pick the mode and radius; the estimate follows the
-  decided filter, and before the decision the most likely filter still in play
-  (``follow="most_likely"``; the seed follows the previous segment's model);
+  decided filter, and before the decision the likelihood-weighted mixture of
+  the filters still in play (the default ``follow="mixture"``; the seed
+  follows the previous segment's model);
 * the filter told the true modes (the optimal KF of seed 001);
 * a single straight-motion filter with inflated process noise.
 
@@ -65,7 +66,7 @@ def main(argv=None) -> dict:
         truth, measurements = simulate(schedule, X0, TAU, sensors, seed=args.seed, noise_cov=Q, recorder=recorder)
         prior = Gaussian(X0, np.eye(4))
         adaptive = KnownSwitchAdaptive(
-            sensors=sensors, tau=TAU, r_min=1.0, r_max=10.0, n=10, noise_cov=Q, alpha=0.01, beta=0.01, name="adaptive", follow="most_likely"
+            sensors=sensors, tau=TAU, r_min=1.0, r_max=10.0, n=10, noise_cov=Q, alpha=0.01, beta=0.01, name="adaptive"
         )
         identified = adaptive.run(measurements, prior, schedule, recorder=recorder)
         known = run_known_modes(

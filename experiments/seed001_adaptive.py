@@ -18,12 +18,20 @@ the segment); the fraction of segments whose motion type (straight / left /
 right) was identified (``modes_correct``).  The protocol adds the fraction with
 the exact radius too, and how many segments ended undecided.
 
-The rows use the seed's rule before a decision (Algorithm 1 line 9: follow the
-hypothesis of the previous segment, ``follow="previous"``).  Unless
-``--follow previous`` is given, the same trajectories are also run with
-``follow="most_likely"`` (follow the hypothesis still in play with the largest
-accumulated log-likelihood); its figures go to ``protocol.supplementary[i]
-["follow_most_likely"]`` and to a second table in the markdown.
+The rows use the estimator users get by default (:data:`DEFAULT_RULE`: before a
+decision the likelihood-weighted mixture of the hypotheses in play, the
+hypothesis test's bank started from (x̂_s, 4 P_s)).  On the same trajectories:
+the seed's literal rule (:data:`SEED_RULE`: follow the previous segment's
+hypothesis, covariance as it is) goes to ``protocol.supplementary[i]
+["seed_rule"]``; the steps between the two (:data:`ABLATION`, one change at a
+time) to ``…["steps"]``; the default rule on ``--replicates`` further
+independent sets of trajectories (campaign seeds seed+1, …) to
+``…["replicates"]`` and ``…["replicate_spread"]``.  Decision times are
+reported over the decided segments (``mean_decision_steps``) and with an
+undecided segment counted as its full length
+(``mean_decision_steps_undecided_as_length``), beside ``undecided_fraction``.
+Every bank, the first included, is built from the given initial state x0
+(Algorithm 1: x̂ := x0).
 
     python experiments/seed001_adaptive.py --json results/seed001_adaptive.json [--n 100] [--executor process]
 
@@ -45,6 +53,17 @@ from hybridtrack.experiment.builtin import X0, known_modes_estimate, pooled_rmse
 from hybridtrack.reporting import Column, markdown_table, write_report
 
 R_VALUES = (1.0, 0.1, 0.01)
+#: the estimator users get by default (``KnownSwitchAdaptive``'s defaults)
+DEFAULT_RULE = {"follow": "mixture", "switch_estimate": "filtered", "switch_inflation": 4.0}
+#: seed 001 Algorithm 1 as written (line 9: follow the previous hypothesis until the decision)
+SEED_RULE = {"follow": "previous", "switch_estimate": "filtered", "switch_inflation": 1.0}
+#: from the seed's rule to ours, one change at a time (and the joint switch estimate beside)
+ABLATION = (
+    {"follow": "most_likely", "switch_estimate": "filtered", "switch_inflation": 1.0},
+    {"follow": "mixture", "switch_estimate": "filtered", "switch_inflation": 1.0},
+    {"follow": "mixture", "switch_estimate": "joint", "switch_inflation": 1.0},
+    {"follow": "mixture", "switch_estimate": "joint", "switch_inflation": 4.0},
+)
 SEGMENTS = 6
 TURN_TYPES = ("straight", "left_turn", "right_turn")
 
@@ -100,7 +119,9 @@ def run_one(
     r_max: float,
     n_radii: int,
     steps_scale: float,
-    follow: str = "previous",
+    follow: str = "mixture",
+    switch_estimate: str = "filtered",
+    switch_inflation: float = 4.0,
 ) -> dict:
     """One trajectory: both estimators' squared errors, per-segment decision delays and identifications."""
     from hybridtrack.composed.adaptive import KnownSwitchAdaptive
@@ -109,7 +130,17 @@ def run_one(
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
     optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
     adaptive = KnownSwitchAdaptive(
-        sensors=sensors, tau=tau, r_min=r_min, r_max=r_max, n=n_radii, noise_cov=q * np.eye(2), alpha=alpha, beta=beta, follow=follow
+        sensors=sensors,
+        tau=tau,
+        r_min=r_min,
+        r_max=r_max,
+        n=n_radii,
+        noise_cov=q * np.eye(2),
+        alpha=alpha,
+        beta=beta,
+        follow=follow,
+        switch_estimate=switch_estimate,
+        switch_inflation=switch_inflation,
     )
     run = adaptive.run(measurements, Gaussian(np.array(X0), np.eye(4)), schedule)
     delays, type_right, radius_right = [], [], []
@@ -123,6 +154,7 @@ def run_one(
         "squared_error_adaptive": squared_errors(run.means, truth, run.layout),
         "steps": schedule.total_steps,
         "decision_steps": np.array(delays),
+        "segment_steps": np.array([segment.steps for segment in schedule.segments], dtype=float),
         "type_correct": np.array(type_right),
         "radius_correct": np.array(radius_right),
     }
@@ -141,7 +173,7 @@ EXPERIMENT = Experiment(
         "r_max": 10.0,
         "n_radii": 10,
         "steps_scale": 1.0,
-        "follow": "previous",
+        **DEFAULT_RULE,
     },
     description="seed 001 Tables 2-4: optimal KF vs adaptive estimator (Algorithm 1) on the Table 1 schedule",
 )
@@ -169,6 +201,7 @@ def aggregate(arrays: dict[str, np.ndarray], R: float) -> tuple[dict, dict]:
         "R": float(R),
         "runs": int(delays.shape[0]),
         "mean_decision_steps": float(np.nanmean(delays)) if decided.any() else None,
+        "mean_decision_steps_undecided_as_length": float(np.mean(np.where(decided, delays, arrays["segment_steps"]))),
         "undecided_fraction": float(1 - decided.mean()),
         "radius_correct": float(np.mean(arrays["radius_correct"])),
         "modes_correct_per_segment": np.mean(arrays["type_correct"], axis=0).tolist(),
@@ -209,37 +242,50 @@ def main(argv=None) -> dict:
     parser.add_argument("--workers", type=int)
     parser.add_argument("--out", default="runs/seed001_adaptive", help="campaign folders (one per R)")
     parser.add_argument("--no-progress", action="store_true")
-    parser.add_argument(
-        "--follow",
-        default="both",
-        choices=("previous", "both"),
-        help="rule before a decision: the seed's only, or also 'most_likely' (supplementary)",
-    )
+    parser.add_argument("--replicates", type=int, default=2, help="further independent sets of trajectories for the default rule")
+    parser.add_argument("--no-ablation", action="store_true", help="skip the one-change-at-a-time steps")
     args = parser.parse_args(argv)
 
     experiment = load_experiment(str(Path(__file__).resolve()))
 
-    def campaign_for(R: float, follow: str):
-        folder = Path(args.out) / f"alpha{args.alpha:g}_beta{args.beta:g}_scale{args.steps_scale:g}_follow-{follow}" / f"R{R:g}"
+    def campaign_for(R: float, rule: dict, seed: int):
+        tag = "_".join(f"{key}-{value}" for key, value in rule.items())
+        folder = Path(args.out) / f"alpha{args.alpha:g}_beta{args.beta:g}_scale{args.steps_scale:g}_{tag}_seed{seed}" / f"R{R:g}"
         return Campaign(
             experiment,
             args.n,
             folder,
-            seed=args.seed,
+            seed=seed,
             executor=args.executor,
             scheduler=args.scheduler,
             workers=args.workers,
             progress=not args.no_progress,
-            parameters={"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale, "follow": follow},
+            parameters={"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale, **rule},
         )
 
-    rows, supplementary, most_likely = [], [], []
+    def brief(row: dict, extra: dict) -> dict:
+        keep = ("mean_decision_steps", "mean_decision_steps_undecided_as_length", "undecided_fraction", "radius_correct")
+        return {**row, **{key: extra[key] for key in keep}}
+
+    rows, supplementary, seed_rows = [], [], []
     for R in args.R:
-        row, extra = aggregate(campaign_for(R, "previous").run().arrays, R)
-        if args.follow == "both":
-            other, other_extra = aggregate(campaign_for(R, "most_likely").run().arrays, R)
-            extra["follow_most_likely"] = {**other, **{k: v for k, v in other_extra.items() if k != "R"}}
-            most_likely.append(other)
+        row, extra = aggregate(campaign_for(R, DEFAULT_RULE, args.seed).run().arrays, R)
+        seed_row, seed_extra = aggregate(campaign_for(R, SEED_RULE, args.seed).run().arrays, R)
+        extra["seed_rule"] = brief(seed_row, seed_extra)
+        seed_rows.append(seed_row)
+        extra["steps"] = []
+        for rule in () if args.no_ablation else ABLATION:
+            step_row, step_extra = aggregate(campaign_for(R, rule, args.seed).run().arrays, R)
+            extra["steps"].append({**rule, **brief(step_row, step_extra)})
+        extra["replicates"] = [{"seed": args.seed, "adaptive_nrmse": row["adaptive_nrmse"], "modes_correct": row["modes_correct"]}]
+        for seed in range(args.seed + 1, args.seed + 1 + args.replicates):
+            other, _ = aggregate(campaign_for(R, DEFAULT_RULE, seed).run().arrays, R)
+            extra["replicates"].append({"seed": seed, "adaptive_nrmse": other["adaptive_nrmse"], "modes_correct": other["modes_correct"]})
+        values = np.array([(x["adaptive_nrmse"], x["modes_correct"]) for x in extra["replicates"]])
+        extra["replicate_spread"] = {
+            "adaptive_nrmse": {"mean": float(values[:, 0].mean()), "min": float(values[:, 0].min()), "max": float(values[:, 0].max())},
+            "modes_correct": {"mean": float(values[:, 1].mean()), "min": float(values[:, 1].min()), "max": float(values[:, 1].max())},
+        }
         rows.append(row)
         supplementary.append(extra)
     protocol = {
@@ -260,9 +306,11 @@ def main(argv=None) -> dict:
         "rmse": "sqrt(mean over runs and steps k = 1..K of (x_i - xhat_i)^2); nRMSE = ||RMSE||_2; state (x, vx, y, vy)",
         "decision_steps": "per segment: mean over runs that decided in the segment of (decision step - switch step)",
         "modes_correct": "fraction of the 6 x n segments whose motion type (straight/left/right) was identified",
-        "follow": "rows: 'previous' (seed 001 Algorithm 1 line 9: until the decision, follow the previous segment's hypothesis); "
-        "supplementary[i]['follow_most_likely']: the same trajectories with 'most_likely' (follow the in-play "
-        "hypothesis with the largest accumulated log-likelihood; an undecided segment ends on it)",
+        "rules": {"rows": DEFAULT_RULE, "seed_rule": SEED_RULE, "steps": list(ABLATION)},
+        "follow": "rows: the default rule (follow='mixture': before the decision the likelihood-weighted mixture of the "
+        "hypotheses in play; the test's bank from (x_s, 4 P_s)); supplementary[i]['seed_rule']: seed 001 Algorithm 1 "
+        "as written on the same trajectories; supplementary[i]['steps']: one change at a time between the two",
+        "first_bank": "built from the given initial state x0 (Algorithm 1: x := x0), transitions fixed there; z_0 updates it",
         "supplementary": supplementary,
         "seed_figures": {str(R): figures for R, figures in SEED.items()},
         "command": "python experiments/seed001_adaptive.py " + " ".join(sys.argv[1:] if argv is None else argv),
@@ -279,11 +327,26 @@ def main(argv=None) -> dict:
             for e in supplementary
         )
     )
-    if most_likely:
-        notes += (
-            '\nThe same trajectories with `follow="most_likely"` (before the decision, follow the hypothesis in play '
-            "with the largest accumulated log-likelihood):\n\n" + markdown_table(most_likely, COLUMNS)
+    notes += "\nThe same trajectories with the seed's rule (Algorithm 1 as written):\n\n" + markdown_table(seed_rows, COLUMNS)
+    notes += (
+        "\nFrom the seed's rule to ours, one change at a time (nRMSE / modes right / mean decision, undecided as full length):\n\n"
+        + "| R | rule | nRMSE | modes right | decision (steps) | undecided |\n|---|---|---|---|---|---|\n"
+        + "".join(
+            f"| {e['R']:g} | {s['follow']}, {s['switch_estimate']}, κ = {s['switch_inflation']:g} | {s['adaptive_nrmse']:.3f} | "
+            f"{s['modes_correct']:.3f} | {s['mean_decision_steps_undecided_as_length']:.1f} | {s['undecided_fraction']:.3f} |\n"
+            for e in supplementary
+            for s in [{**SEED_RULE, **e["seed_rule"]}, *e["steps"]]
         )
+        + "\nReplication spread of the default rule (independent sets of trajectories):\n\n"
+        + "| R | sets | nRMSE mean (min–max) | modes right mean (min–max) |\n|---|---|---|---|\n"
+        + "".join(
+            f"| {e['R']:g} | {len(e['replicates'])} | {e['replicate_spread']['adaptive_nrmse']['mean']:.3f} "
+            f"({e['replicate_spread']['adaptive_nrmse']['min']:.3f}–{e['replicate_spread']['adaptive_nrmse']['max']:.3f}) | "
+            f"{e['replicate_spread']['modes_correct']['mean']:.3f} ({e['replicate_spread']['modes_correct']['min']:.3f}–"
+            f"{e['replicate_spread']['modes_correct']['max']:.3f}) |\n"
+            for e in supplementary
+        )
+    )
     write_report(args.json, rows, protocol, columns=COLUMNS, title="Seed 001, Tables 2–4 (reproduced)", notes=notes)
     for row, extra in zip(rows, supplementary):
         print(

@@ -90,7 +90,15 @@ def run_one(
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
     prior = Gaussian(np.array(X0), np.eye(4))
     optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
-    known = KnownSwitchAdaptive(sensors=sensors, tau=tau, noise_cov=q * np.eye(2), alpha=known_alpha, beta=known_alpha)
+    known = KnownSwitchAdaptive(
+        sensors=sensors,
+        tau=tau,
+        noise_cov=q * np.eye(2),
+        alpha=known_alpha,
+        beta=known_alpha,
+        follow="previous",
+        switch_inflation=1.0,
+    )
     known_run = known.run(measurements, prior, schedule)
     unknown = UnknownChangeAdaptive(
         modes=turn_bank(r_min, r_max, n, q * np.eye(2)),

@@ -7,6 +7,7 @@ fails early with a ``ValueError`` naming the argument and what was expected.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 
 import attrs
@@ -76,15 +77,38 @@ def check_covariance(value, name: str, dim: int | None = None, *, definite: bool
     return array
 
 
+#: read-only float64 arrays owning their data (so immutable) already checked as covariances, by id
+_CHECKED_COVARIANCES: dict[int, weakref.ref] = {}
+
+
+def _immutable(value) -> bool:
+    return isinstance(value, np.ndarray) and value.dtype == np.float64 and not value.flags.writeable and value.base is None
+
+
+def _checked_covariance(value, name: str) -> np.ndarray:
+    """check_covariance(value, readonly=True), once per immutable array: a model passing its own (immutable)
+    Q to every transition it builds is checked the first time only; any other value is copied and checked."""
+    if _immutable(value):
+        ref = _CHECKED_COVARIANCES.get(id(value))
+        if ref is not None and ref() is value:
+            return value
+        check_covariance(value, name)
+        key = id(value)
+        _CHECKED_COVARIANCES[key] = weakref.ref(value, lambda _, key=key: _CHECKED_COVARIANCES.pop(key, None))
+        return value
+    return check_covariance(value, name, readonly=True)
+
+
 def readonly_array_field(shape: Sequence[int | None] | None = None, *, covariance: bool = False, allow_nan: bool = False, **kwargs):
-    """An attrs field holding a read-only float64 copy, compared with ``np.array_equal``.
+    """An attrs field holding a read-only float64 array (a private copy, or the value itself when it is already
+    an immutable float64 array), compared with ``np.array_equal``.
 
     Errors name the field.  ``covariance=True`` adds the symmetric-PSD check.
     """
 
     def convert(value, field):
         if covariance:
-            return check_covariance(value, field.name, readonly=True)
+            return _checked_covariance(value, field.name)
         return as_float_array(value, field.name, shape, allow_nan=allow_nan, readonly=True)
 
     return attrs.field(

@@ -38,6 +38,8 @@ def test_seed001_adaptive_writes_the_agreed_json_layout_small(tmp_path):
             "--out",
             str(tmp_path / "runs"),
             "--no-progress",
+            "--replicates",
+            "1",
         ]
     )
     written = json.loads(out.read_text())
@@ -52,13 +54,21 @@ def test_seed001_adaptive_writes_the_agreed_json_layout_small(tmp_path):
         assert 0 < row["optimal_nrmse"] < row["adaptive_nrmse"]  # the filter told the modes is the better one
     protocol = written["protocol"]
     assert protocol["trajectories_per_R"] == 2 and protocol["alpha"] == 0.01 and protocol["bank"]["filters"] == 21
-    for extra, row in zip(protocol["supplementary"], written["rows"]):  # the 'most_likely' rule on the same trajectories
-        other = extra["follow_most_likely"]
-        assert other["optimal_nrmse"] == row["optimal_nrmse"] and math.isclose(
-            other["adaptive_nrmse"], float(np.linalg.norm(other["rmse_adaptive"]))
+    for extra, row in zip(protocol["supplementary"], written["rows"]):  # the seed's rule and the steps, same trajectories
+        for other in [extra["seed_rule"], *extra["steps"]]:
+            assert other["optimal_nrmse"] == row["optimal_nrmse"] and math.isclose(
+                other["adaptive_nrmse"], float(np.linalg.norm(other["rmse_adaptive"]))
+            )
+            assert other["mean_decision_steps_undecided_as_length"] >= 0 and 0 <= other["undecided_fraction"] <= 1
+        assert len(extra["steps"]) == 4 and len(extra["replicates"]) == 2
+        assert (
+            extra["replicate_spread"]["adaptive_nrmse"]["min"]
+            <= row["adaptive_nrmse"]
+            <= extra["replicate_spread"]["adaptive_nrmse"]["max"]
         )
     table = out.with_suffix(".md").read_text()
-    assert table.count("\n| 0.1 |") == 4 and "Seed 001" in table  # ours, the seed's, the supplementary table, most_likely
+    # ours, the seed's figures, the supplementary table, the seed's rule, five rules of the steps table, the replicates
+    assert table.count("\n| 0.1 |") == 10 and "Seed 001" in table
 
 
 def test_report_tables_and_strict_json(tmp_path):

@@ -78,6 +78,13 @@ class FilterBank:
         if self._moments is not None:
             self._moments = (self._moments[0][rows], self._moments[1][rows])
 
+    def replace_models(self, models: Sequence[MotionModel]) -> None:
+        """Run the filters on ``models`` from now on (one per filter), keeping their states and switch states."""
+        if len(models) != len(self.models):
+            raise ValueError(f"models: expected {len(self.models)} models (one per filter), got {len(models)}")
+        self.models = list(models)
+        self._transitions = None
+
     def _reset_members(self, models, switch_state, labels) -> None:
         self.models, self.labels = [], []
         self.switch_states = np.zeros((0, len(self.layout)))
@@ -108,7 +115,16 @@ class FilterBank:
 
     # ------------------------------------------------------------------ steps
     def transitions(self, dt: float) -> TransitionBank:
-        """Every filter's transition over ``dt`` seconds (rebuilt only when Δt changes)."""
+        """Every filter's transition over ``dt`` seconds.
+
+        Linear models: fixed at each filter's switch state, rebuilt only when
+        Δt changes.  A bank with a nonlinear model is relinearized at every
+        filter's current mean each step (EKF; MotionModel contract:
+        F x̂ + B = f(x̂)).
+        """
+        if not all(m.linear for m in self.models):
+            self._transitions = None
+            return TransitionBank.stack([m.transition(dt, x) for m, x in zip(self.models, self.means)])
         if self._transitions is None or dt != self._dt:
             self._dt = dt
             self._transitions = TransitionBank.stack([m.transition(dt, x) for m, x in zip(self.models, self.switch_states)])

@@ -52,10 +52,12 @@ def _close(a, b):
 def test_known_switch_propagates_factors_and_equals_the_kalman_filter(name):
     schedule, sensors, z = _example()
     estimator, calls = counted(name)
-    kwargs = dict(sensors=sensors, tau=0.1, r_min=3.0, r_max=5.0, n=2, follow="most_likely")
+    kwargs = dict(
+        sensors=sensors, tau=0.1, r_min=3.0, r_max=5.0, n=2, follow="most_likely", switch_estimate="filtered", switch_inflation=1.0
+    )
     run = KnownSwitchAdaptive(estimator=estimator, **kwargs).run(z, Gaussian(X0, np.eye(4)), schedule)
     reference = KnownSwitchAdaptive(estimator="kalman", **kwargs).run(z, Gaussian(X0, np.eye(4)), schedule)
-    assert calls == [1]  # one bank created from the prior; every segment's bank copies the followed filter's factors
+    assert calls == [5]  # one bank created from the prior; every later segment's bank copies the followed filter's factors
     _close(run.means, reference.means)
     _close(run.covs, reference.covs)
     np.testing.assert_array_equal(run.followed, reference.followed)
@@ -75,6 +77,17 @@ def test_unknown_change_grows_by_copying_factors_and_equals_the_kalman_filter(na
     _close(run.covs, reference.covs)
     np.testing.assert_array_equal(run.mode, reference.mode)
     np.testing.assert_array_equal(run.bank_sizes, reference.bank_sizes)
+
+
+@pytest.mark.parametrize("name", FACTORED)
+def test_the_joint_switch_estimate_equals_the_kalman_filter(name):
+    schedule, sensors, z = _example()
+    kwargs = dict(sensors=sensors, tau=0.1, r_min=3.0, r_max=5.0, n=2)  # defaults: mixture, joint switch state
+    run = KnownSwitchAdaptive(estimator=name, **kwargs).run(z, Gaussian(X0, np.eye(4)), schedule)
+    reference = KnownSwitchAdaptive(estimator="kalman", **kwargs).run(z, Gaussian(X0, np.eye(4)), schedule)
+    _close(run.means, reference.means)
+    _close(run.covs, reference.covs)
+    assert [d.step for d in run.decisions] == [d.step for d in reference.decisions]
 
 
 @pytest.mark.parametrize("name", FACTORED)
