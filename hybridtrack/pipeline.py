@@ -185,6 +185,12 @@ class Pipeline:
         self.filter_names = tuple(filter_names) if filter_names is not None else self._default_names()
         if len(self.filter_names) != len(self.models):
             raise ValueError(f"filter_names: expected {len(self.models)} names, got {len(self.filter_names)}")
+        bad = [n for n in self.filter_names if not isinstance(n, str) or not n.strip() or "/" in n]
+        if bad:
+            raise ValueError(f"filter_names: expected non-empty names without '/' (each names recorded entities), got {bad!r}")
+        repeated = sorted({n for n in self.filter_names if self.filter_names.count(n) > 1})
+        if repeated:
+            raise ValueError(f"filter_names: names must be unique (each names the filter's recorded entities), {repeated} repeated")
 
         prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
         if prior.dim != len(self.layout):

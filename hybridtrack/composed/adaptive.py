@@ -45,6 +45,7 @@ and the decisions as events.
 from __future__ import annotations
 
 import copy
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -479,7 +480,11 @@ class UnknownChangeAdaptive:
     ``alpha``, ``beta``); ``bank_size`` bounds the alternative filters (an int,
     ``"algorithm4"`` or None for the growing bank of the seed); ``pruning``
     overrides the detector's rule.  ``signal``: a signal-function detector
-    watching filter 0 (None to skip).
+    watching filter 0 (None to skip).  ``max_bank_size``: a growing bank
+    (``bank_size=None``) that passes this many alternative filters — e.g.
+    through a long gap without measurements, where every step adds M − 1
+    filters and nothing decides — gets a RuntimeWarning and is pruned to that
+    size by the detector's rule from then on.
     """
 
     def __init__(
@@ -496,6 +501,7 @@ class UnknownChangeAdaptive:
         bank_size: int | str | None = None,
         pruning: str | None = None,
         signal: Any = "signal_function",
+        max_bank_size: int = 5000,
         name: str = "unknown_change",
         registry: Registry | None = None,
     ):
@@ -526,6 +532,7 @@ class UnknownChangeAdaptive:
         elif bank_size is not None:
             bank_size = check_positive_int(bank_size, "bank_size")
         self.bank_size = bank_size
+        self.max_bank_size = check_positive_int(max_bank_size, "max_bank_size")
         self.signal = None if signal is None else require(resolve("detector", signal, registry), ScoreDetector, "signal")
         self.name = name
 
@@ -587,6 +594,7 @@ class UnknownChangeAdaptive:
         signal = self.signal
         node_detectors: list = []
         node_signals: list = []
+        capped = False
 
         means, covs = np.zeros((K + 1, n)), np.zeros((K + 1, n, n))
         mode = np.zeros(K + 1, dtype=int)
@@ -657,7 +665,19 @@ class UnknownChangeAdaptive:
                     bank.keep([0])
                 alternatives = self._restart([detector] + node_detectors, current)
             else:
-                rows = detector.prune(limit)
+                cap = limit
+                if cap is None and len(bank) - 1 > self.max_bank_size:  # the growing bank, e.g. through a long gap
+                    if not capped:
+                        warnings.warn(
+                            f"{self.name}: the growing bank reached {len(bank) - 1} alternative filters at step {k} "
+                            f"(max_bank_size = {self.max_bank_size}); pruning to {self.max_bank_size} by the "
+                            f"{detector.pruning!r} rule from now on",
+                            RuntimeWarning,
+                            stacklevel=2,
+                        )
+                        capped = True
+                    cap = self.max_bank_size
+                rows = detector.prune(cap)
                 for d in node_detectors:
                     d.keep(rows)
                 bank.keep(np.concatenate([[0], rows + 1]))

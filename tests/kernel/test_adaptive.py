@@ -232,3 +232,17 @@ def test_example1_script_runs_small(tmp_path):
     spec.loader.exec_module(module)
     summary = module.main(["--out", str(tmp_path / "e.rrd"), "--turn-steps", "20", "--bank-size", "8", "--pruning", "nearest_lower"])
     assert summary["steps"] == 41 and summary["max_bank_size"] <= 11
+
+
+def test_a_growing_bank_through_a_long_gap_warns_and_is_pruned():
+    sensors = [PositionSensor(noise_cov=NOISE)]
+    _, z = example1(2, turn=200)
+    gap = {name: values.copy() for name, values in z.items()}
+    for values in gap.values():
+        values[25:200] = np.nan  # a long gap: nothing can decide, the bank grows by 2 filters a step
+    adaptive = UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, alpha=0.05, beta=0.05, max_bank_size=60)
+    with pytest.warns(RuntimeWarning, match="growing bank reached 62 alternative filters at step .*max_bank_size = 60"):
+        run = adaptive.run(gap, Gaussian(X0, np.eye(4)))
+    assert run.bank_sizes.max() <= 1 + 60 + 2
+    with pytest.raises(ValueError, match="max_bank_size"):
+        UnknownChangeAdaptive(modes=MODES, sensors=sensors, tau=0.1, max_bank_size=0)

@@ -214,3 +214,13 @@ def test_two_labelled_instances_of_one_detector_share_a_pipeline():
         Pipeline(
             models=["straight"], estimator="kalman", sensors=sensors, measurements=z, prior=PRIOR, tau=0.1, detectors=[("glr", {}, "a/b")]
         )
+
+
+@pytest.mark.parametrize(
+    ("names", "message"),
+    [(["a", "a"], r"unique.*\['a'\] repeated"), (["", "b"], "non-empty"), (["a/b", "c"], "without '/'"), ([" ", "c"], "non-empty")],
+)
+def test_filter_names_that_would_merge_recorded_entities_are_refused(names, message):
+    _, sensors, _, z = scenario()
+    with pytest.raises(ValueError, match=f"filter_names: .*{message}"):
+        Pipeline(models=["straight", "stop"], estimator="kalman", sensors=sensors, measurements=z, prior=PRIOR, tau=0.1, filter_names=names)
