@@ -374,9 +374,9 @@ class KnownSwitchAdaptive:
                 else:
                     x, P = estimate.means[row, :n], estimate.covs[row, :n, :n]
                 if decision_step == step:
-                    for bank in {id(test): test, id(estimate): estimate}.values():
-                        bank.keep([q])
+                    test.keep([q])
                     if joint:  # the chosen hypothesis refines ω and the centre with the switch estimate (EKF)
+                        estimate.keep([q])
                         estimate.replace_models([SwitchAugmented(self.models[q], relinearize=True)])
                         since = np.zeros(2)
                     row = 0
