@@ -45,6 +45,7 @@ from hybridtrack_plugins.solvers.tma_model import (
     constant_fits_as_well,
     fit_statistics,
     require_maneuver,
+    solution,
     solve_observable_rows,
     warn_constant_bearing,
     warn_unobservable,
@@ -141,22 +142,7 @@ class NBearings(Solver):
             converged, message, cov = False, CONSTANT_FIT_MESSAGE, np.full_like(cov, np.nan)
         elif r0 <= 0:
             message = "range r_0 ≤ 0: the bearings do not fit a target ahead of the observer"
-        return TMASolution(
-            parameters=theta,
-            covariance=cov,
-            cost=float(F),
-            iterations=0,
-            evaluations=0,
-            converged=converged,
-            message=message,
-            reference_time=problem.reference_time,
-            sqrt_ka=float(ska),
-            chi2_statistic=float(stat),
-            chi2_dof=problem.size - N_PARAMETERS,
-            chi2_pvalue=float(pval),
-            consistent=None if cons is None else bool(cons),
-            method=self.name,
-        )
+        return solution(problem, theta, cov, F, (ska, stat, pval, cons), 0, 0, converged, message, self.name)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
         if not isinstance(batch, BearingsBatch):

@@ -343,19 +343,18 @@ def warn_constant_bearing(rows, method: str, fit: bool = False) -> None:
     )
 
 
-def constant_bearing_solution(problem: BearingsProblem, method: str) -> TMASolution:
-    """The answer to a constant-bearing problem: NaN θ and covariance, ``converged=False`` (warns)."""
-    warn_constant_bearing(-1, method)
-    nan = float("nan")
-    ska, stat, pval, cons = fit_statistics(np.array(nan), problem.size, problem.sigma)
+def solution(problem: BearingsProblem, theta, cov, cost, statistics, iterations, evaluations, converged, message, method) -> TMASolution:
+    """A :class:`TMASolution` of one problem from θ, its covariance, the cost F and ``statistics`` =
+    (√Ka, χ², p-value, consistent) of :func:`fit_statistics`."""
+    ska, stat, pval, cons = statistics
     return TMASolution(
-        parameters=np.full(N_PARAMETERS, nan),
-        covariance=np.full((N_PARAMETERS, N_PARAMETERS), nan),
-        cost=nan,
-        iterations=0,
-        evaluations=0,
-        converged=False,
-        message=CONSTANT_BEARING_MESSAGE,
+        parameters=theta,
+        covariance=cov,
+        cost=float(cost),
+        iterations=int(iterations),
+        evaluations=int(evaluations),
+        converged=bool(converged),
+        message=message,
         reference_time=problem.reference_time,
         sqrt_ka=float(ska),
         chi2_statistic=float(stat),
@@ -364,6 +363,15 @@ def constant_bearing_solution(problem: BearingsProblem, method: str) -> TMASolut
         consistent=None if cons is None else bool(cons),
         method=method,
     )
+
+
+def constant_bearing_solution(problem: BearingsProblem, method: str) -> TMASolution:
+    """The answer to a constant-bearing problem: NaN θ and covariance, ``converged=False`` (warns)."""
+    warn_constant_bearing(-1, method)
+    nan = float("nan")
+    statistics = fit_statistics(np.array(nan), problem.size, problem.sigma)
+    theta, cov = np.full(N_PARAMETERS, nan), np.full((N_PARAMETERS, N_PARAMETERS), nan)
+    return solution(problem, theta, cov, nan, statistics, 0, 0, False, CONSTANT_BEARING_MESSAGE, method)
 
 
 def solve_observable_rows(batch: BearingsBatch, solve, method: str) -> BatchTMASolution:
@@ -733,22 +741,7 @@ def to_solution(problem: BearingsProblem, scaled: ScaledProblem, s, F, H, iterat
         warn_constant_bearing(-1, method, fit=True)
         converged, cov = False, np.full_like(cov, np.nan)
         message = (message + "; " if message else "") + CONSTANT_FIT_MESSAGE
-    return TMASolution(
-        parameters=theta,
-        covariance=cov,
-        cost=float(F),
-        iterations=int(iterations),
-        evaluations=int(evaluations),
-        converged=bool(converged),
-        message=message,
-        reference_time=problem.reference_time,
-        sqrt_ka=float(ska),
-        chi2_statistic=float(stat),
-        chi2_dof=problem.size - N_PARAMETERS,
-        chi2_pvalue=float(pval),
-        consistent=None if cons is None else bool(cons),
-        method=method,
-    )
+    return solution(problem, theta, cov, F, (ska, stat, pval, cons), iterations, evaluations, converged, message, method)
 
 
 # --------------------------------------------------------------------------- kinematics
