@@ -395,3 +395,17 @@ def test_parameter_errors():
     with pytest.raises(ValueError, match="prior"):
         estimator.run({"position": np.zeros((3, 2))}, (np.zeros(5), np.eye(5)))
     assert LAYOUT_4 == estimator.layout
+
+
+@pytest.mark.parametrize("estimator", ["information", "potter", "bierman", "srif", "ekf"])
+def test_any_registered_exact_estimator_gives_the_same_imm(estimator):
+    models, sensor, x0, P0, z = two_cv_problem(K=30)
+    Pi = [[0.9, 0.1], [0.2, 0.8]]
+    reference_run = MultipleModelEstimator(models, Pi, sensors=[sensor], tau=1.0).run({"position": z}, (x0, P0))
+    run = MultipleModelEstimator(models, Pi, sensors=[sensor], tau=1.0, estimator=estimator, method="gpb2").run({"position": z}, (x0, P0))
+    gpb2 = MultipleModelEstimator(models, Pi, sensors=[sensor], tau=1.0, method="gpb2").run({"position": z}, (x0, P0))
+    imm = MultipleModelEstimator(models, Pi, sensors=[sensor], tau=1.0, estimator=estimator).run({"position": z}, (x0, P0))
+    np.testing.assert_allclose(imm.means, reference_run.means, atol=1e-8)
+    np.testing.assert_allclose(imm.covs, reference_run.covs, atol=1e-8)
+    np.testing.assert_allclose(imm.log_mode_probabilities, reference_run.log_mode_probabilities, atol=1e-8)
+    np.testing.assert_allclose(run.means, gpb2.means, atol=1e-8)
