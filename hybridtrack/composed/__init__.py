@@ -6,6 +6,7 @@ detector that implements them works here exactly as a built-in does.
 
 * :mod:`.bank` — a bank of filters whose membership changes between steps;
 * :mod:`.adaptive` — the adaptive estimators (seed 001 Algorithm 1, seed 000 Algorithm 3);
+* :mod:`.multiple_model` — IMM, GPB1 and GPB2 with Markov switching (mode probabilities in log space);
 * :mod:`.algorithm4` — Wald's expected sample sizes and the bank size of seed 000 Algorithm 4;
 * :mod:`.known_modes` — the filter told the true schedule (the "optimal KF" of seed 001).
 """
