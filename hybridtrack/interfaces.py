@@ -31,6 +31,12 @@ the checks, and ``tests/contract``, can build and exercise it without help):
 * ``exact_kalman`` (Estimator, default True): the estimator computes the Kalman
   filter exactly (in any algebraic form), so the checks compare it with the
   covariance form; an approximate one (e.g. PDA in clutter) sets it False.
+* ``sampling`` (Estimator, default False): the estimator represents each
+  filter by random samples (a particle filter): ℓ is its own estimate of
+  ln p(z_k | z_1:k−1), not the Gaussian formula of (ν, S), and a filter
+  re-initialized from its (x, P) draws new samples, so the checks compare
+  only the filters that kept their state (each filter draws from its own
+  stream, carried in its state).
 * ``example_problem()`` (Solver): a problem ``solve`` accepts, small enough to
   solve in well under a second; without it the checks skip the solve.
 """
@@ -264,7 +270,8 @@ class Innovation:
     """What one measurement update of a bank of M filters exposes (SPEC §3–4).
 
     nu (M, m) innovation ν = z − h(x⁻); S (M, m, m) its covariance H P⁻ Hᵀ + R;
-    loglik (M,) ℓ = −½(m ln 2π + ln det S + νᵀS⁻¹ν); nis (M,) νᵀS⁻¹ν.
+    loglik (M,) ℓ = −½(m ln 2π + ln det S + νᵀS⁻¹ν) (a ``sampling`` estimator
+    gives its own estimate of ln p(z_k | z_1:k−1) instead); nis (M,) νᵀS⁻¹ν.
     ``m == 0`` (no measurement at this step) gives empty ν, S and ℓ = nis = 0.
     """
 
@@ -396,7 +403,10 @@ class Estimator(Labelled, ABC):
     estimator computes the Kalman filter exactly, in any algebraic form);
     ``accepts_nonlinear`` (False: linear sensors and a TransitionBank only;
     True: relinearizes, takes nonlinear sensors and a linearizing callable);
-    ``accepts_scans`` (False: ``z`` is an array; True: also candidate scans).
+    ``accepts_scans`` (False: ``z`` is an array; True: also candidate scans);
+    ``sampling`` (False; True: a particle filter, see the module docstring —
+    every draw of a filter comes from a stream carried in its own state, so a
+    step of a filter depends on that filter's state only).
 
     Checked by :func:`hybridtrack.testing.check_estimator` (against the
     covariance-form KF unless the class sets ``exact_kalman = False``).
@@ -408,6 +418,7 @@ class Estimator(Labelled, ABC):
     exact_kalman: ClassVar[bool] = True
     accepts_nonlinear: ClassVar[bool] = False
     accepts_scans: ClassVar[bool] = False
+    sampling: ClassVar[bool] = False
 
     @abstractmethod
     def initialize(self, mean: np.ndarray, cov: np.ndarray) -> Any: ...

@@ -1,0 +1,345 @@
+"""Bootstrap particle filter bank (SIR) with systematic resampling (Gordon, Salmond & Smith 1993; Arulampalam et al. 2002).
+
+Each of the M filters of the bank carries N particles x⁽ⁱ⁾ with log-weights
+ln w⁽ⁱ⁾ (normalised: Σ w⁽ⁱ⁾ = 1); the state holds them stacked, particles
+(M, N, n) and log-weights (M, N), and every step is one vectorized operation
+over filters and particles (Arulampalam et al. 2002, Algorithm 4, "SIR"):
+
+* predict (the bootstrap proposal, the transition density):
+  x⁽ⁱ⁾ ← F x⁽ⁱ⁾ + B + W e⁽ⁱ⁾, e⁽ⁱ⁾ ~ N(0, I), W Wᵀ = G Q Gᵀ (W is the
+  bank's ``noise_root`` G chol(Q_w), else :func:`hybridtrack.linalg.psd_square_root`
+  of G Q Gᵀ).  A linearizing callable (nonlinear motion, ``accepts_nonlinear``)
+  is evaluated at every particle, x (M·N, n) → a bank of M·N transitions, so
+  F x⁽ⁱ⁾ + B = f(x⁽ⁱ⁾) is the exact nonlinear step of each particle;
+* update: w⁽ⁱ⁾ ∝ w⁽ⁱ⁾⁻ p(z | x⁽ⁱ⁾) with
+  ln p(z | x) = −½(m ln 2π + ln det R + νᵀR⁻¹ν), ν = residual(z, h(x)) (angles
+  wrapped by the sensor; R from ``measurement_noise``; NaN components left out
+  as in every estimator, :mod:`hybridtrack.measurements`);
+* the step's log-likelihood, the SIR estimate of ln p(z_k | z_1:k−1):
+  ℓ = ln Σ_i w⁽ⁱ⁾⁻ p(z | x⁽ⁱ⁾) (the log of the mean unnormalised weight when
+  the prior weights are uniform), computed in log space (log-sum-exp);
+* effective sample size N_eff = 1 / Σ_i (w⁽ⁱ⁾)² (Arulampalam et al. eq. 51);
+  where N_eff < ``threshold`` · N the filter is resampled systematically
+  (Kitagawa 1996; Arulampalam et al. Algorithm 2): one U ~ U[0, 1) per filter,
+  u_j = (j + U)/N, particle i copied once for each u_j in
+  [c_{i−1}, c_i), c_i = Σ_{l≤i} w⁽ˡ⁾; the weights become 1/N;
+* optional regularisation after resampling (``regularize=True``; Musso, Oudjane
+  & Le Gland 2001; Arulampalam et al. Algorithm 6): x⁽ⁱ⁾ ← x⁽ⁱ⁾ + h D ε⁽ⁱ⁾,
+  ε ~ N(0, I), D Dᵀ the weighted covariance of the particles before resampling,
+  h = A N^{−1/(n+4)}, A = (4/(n+2))^{1/(n+4)} (Silverman 1986's rule for the
+  Gaussian kernel).
+
+The :class:`~hybridtrack.interfaces.Innovation` of an update holds, besides ℓ,
+the particle prediction of the measurement: ν̄ = Σ w⁽ⁱ⁾⁻ ν⁽ⁱ⁾ (z against the
+particle mean of h(x), the residuals wrapped per particle),
+S = Σ w⁽ⁱ⁾⁻ (ν⁽ⁱ⁾ − ν̄)(ν⁽ⁱ⁾ − ν̄)ᵀ + R (the sample covariance of h(x) plus R)
+and NIS = ν̄ᵀS⁻¹ν̄; :class:`ParticleInnovation` adds N_eff, whether each filter
+was resampled, and the Gaussian ℓ of (ν̄, S).  ``mean`` and ``covariance`` are
+the weighted moments Σ w x and Σ w (x − x̄)(x − x̄)ᵀ.
+
+Random numbers: each filter carries its own stream key (drawn from ``seed`` at
+``initialize``) and a step counter, and every draw of a step comes from a
+generator seeded by (key, stage, counter).  A step of a filter is therefore a
+function of its own state: the same seed reproduces a run, ``take`` and
+``concatenate`` commute with the steps, and a repeated row (a copy) draws the
+same noise as its original (common random numbers across hypotheses).  The
+estimator is ``sampling``: its state is more than (x, P), so a filter
+re-initialized from its mean and covariance draws new particles.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Sequence
+from functools import cached_property
+
+import attrs
+import numpy as np
+from scipy.special import logsumexp
+
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
+
+#: stages of a step, part of each draw's seed so that the draws of one step never share a stream
+_INITIALIZE, _PREDICT, _RESAMPLE = 0, 1, 2
+
+
+@attrs.frozen(eq=False)
+class ParticleInnovation(Innovation):
+    """The :class:`Innovation` of a particle update plus what the resampling did.
+
+    ``loglik`` is the SIR estimate ℓ = ln Σ_i w⁽ⁱ⁾⁻ p(z | x⁽ⁱ⁾); ``gaussian_loglik``
+    (M,) the Gaussian −½(m ln 2π + ln det S + NIS) of (ν̄, S);
+    ``effective_sample_size`` (M,) N_eff = 1/Σ w² of the updated weights (before
+    resampling); ``resampled`` (M,) bool, the filters resampled at this step.
+    """
+
+    gaussian_loglik: np.ndarray = None
+    effective_sample_size: np.ndarray = None
+    resampled: np.ndarray = None
+
+
+def weighted_moments(particles: np.ndarray, log_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x̄ = Σ w x (M, n) and P = Σ w (x − x̄)(x − x̄)ᵀ (M, n, n) of particles (M, N, n) with normalised log-weights (M, N)."""
+    w = np.exp(log_weights)
+    mean = np.einsum("mk,mki->mi", w, particles)
+    d = particles - mean[:, None, :]
+    cov = np.swapaxes(d * w[..., None], -1, -2) @ d
+    return mean, symmetrize(cov)
+
+
+def effective_sample_size(log_weights: np.ndarray) -> np.ndarray:
+    """N_eff = 1 / Σ w² (Arulampalam et al. 2002 eq. 51) of normalised log-weights (..., N), in log space."""
+    return np.exp(-logsumexp(2.0 * log_weights, axis=-1))
+
+
+def systematic_resample(log_weights: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Indices (R, N) of systematic resampling (Kitagawa 1996; Arulampalam et al. 2002 Algorithm 2).
+
+    ``log_weights`` (R, N) normalised, ``u`` (R,) one U[0, 1) draw per row: with
+    c_i = Σ_{l≤i} w_l, index j takes the first i with c_i > (j + u)/N.  Particle i
+    is copied ⌊N w_i⌋ or ⌈N w_i⌉ times.  One ``searchsorted`` over all rows (each
+    row's c and u shifted by its row number, so the rows stay apart).
+    """
+    R, N = log_weights.shape
+    c = np.cumsum(np.exp(log_weights), axis=1)
+    c[:, -1] = 1.0  # the total is 1 up to rounding; the last particle closes the row
+    offsets = np.arange(R, dtype=float)[:, None]
+    points = (np.arange(N) + u[:, None]) / N
+    index = np.searchsorted((c + offsets).ravel(), (points + offsets).ravel(), side="right").reshape(R, N)
+    return np.minimum(index - N * np.arange(R)[:, None], N - 1)
+
+
+def silverman_bandwidth(N: int, n: int) -> float:
+    """h = A N^{−1/(n+4)}, A = (4/(n+2))^{1/(n+4)}: Silverman's (1986) rule for a Gaussian kernel (Arulampalam et al. 2002 eq. 82)."""
+    return (4.0 / (n + 2)) ** (1.0 / (n + 4)) * N ** (-1.0 / (n + 4))
+
+
+@attrs.frozen(eq=False, slots=False)
+class ParticleState:
+    """A bank of M particle filters: particles (M, N, n), normalised log-weights (M, N), random-stream keys (M, 2)
+    and step counters (M,), plus the moments of the last prediction and the last innovation."""
+
+    particles: np.ndarray = bank_field(0)
+    log_weights: np.ndarray = bank_field(0)
+    keys: np.ndarray = bank_field(0)
+    counters: np.ndarray = bank_field(0)
+    x_predicted: np.ndarray = bank_field(0)
+    P_predicted: np.ndarray = bank_field(0)
+    innovation: Innovation | None = None
+
+    @cached_property
+    def _moments(self) -> tuple[np.ndarray, np.ndarray]:
+        return weighted_moments(self.particles, self.log_weights)
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self._moments[0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self._moments[1]
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.P_predicted
+
+    @property
+    def weights(self) -> np.ndarray:
+        """w (M, N), Σ_i w⁽ⁱ⁾ = 1."""
+        return np.exp(self.log_weights)
+
+    @property
+    def effective_sample_size(self) -> np.ndarray:
+        """N_eff = 1/Σ w² (M,) of the current weights."""
+        return effective_sample_size(self.log_weights)
+
+    @property
+    def bank_size(self) -> int:
+        return self.particles.shape[0]
+
+    @property
+    def particle_count(self) -> int:
+        return self.particles.shape[1]
+
+
+def _check_seed(seed) -> np.random.Generator:
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if seed is None:
+        return np.random.default_rng()
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
+        raise TypeError(f"seed: expected an int ≥ 0, a numpy.random.Generator or None, got {type(seed).__name__} {seed!r}")
+    if seed < 0:
+        raise ValueError(f"seed: expected an int ≥ 0, got {seed}")
+    return np.random.default_rng(int(seed))
+
+
+class ParticleFilter(BankEstimator):
+    """Bootstrap particle filter bank (SIR, systematic resampling when N_eff < threshold · N); see the module docstring.
+
+    ``particles`` N ≥ 1 per filter; ``threshold`` in (0, 1] (default ½: resample
+    when N_eff < N/2; 1 resamples at every measured step); ``regularize``
+    (default False): Gaussian kernel jitter after resampling with Silverman's
+    bandwidth; ``seed``: an int ≥ 0, a ``numpy.random.Generator`` (consumed at
+    each ``initialize``), or None (fresh entropy, not reproducible).  The
+    moments of N < n + 1 particles are singular.
+    """
+
+    name = "particle"
+    exact_kalman = False
+    accepts_nonlinear = True
+    sampling = True
+    example_parameters = {"particles": 400, "seed": 0}
+
+    def __init__(self, particles: int = 1000, threshold: float = 0.5, regularize: bool = False, seed=0):
+        super().__init__()
+        if isinstance(particles, bool) or not isinstance(particles, numbers.Integral):
+            raise TypeError(f"particles: expected an int ≥ 1 (particles per filter), got {type(particles).__name__} {particles!r}")
+        if particles < 1:
+            raise ValueError(f"particles: expected an int ≥ 1 (particles per filter), got {particles}")
+        if isinstance(threshold, bool) or not isinstance(threshold, numbers.Real):
+            raise TypeError(f"threshold: expected a number in (0, 1] (resample when N_eff < threshold · N), got {threshold!r}")
+        if not 0.0 < threshold <= 1.0:
+            raise ValueError(f"threshold: expected a number in (0, 1] (resample when N_eff < threshold · N), got {threshold}")
+        if not isinstance(regularize, (bool, np.bool_)):
+            raise TypeError(f"regularize: expected a bool, got {regularize!r}")
+        self.particles = int(particles)
+        self.threshold = float(threshold)
+        self.regularize = bool(regularize)
+        self._seeds = _check_seed(seed)
+        self._root_cache: tuple | None = None
+
+    # ------------------------------------------------------------------ random numbers
+    @staticmethod
+    def _generators(keys: np.ndarray, counters: np.ndarray, stage: int, rows=None):
+        """One generator per filter (of ``rows``), seeded by (key, stage, counter): a filter's draws depend on its state only."""
+        rows = range(keys.shape[0]) if rows is None else rows
+        for r in rows:
+            k0, k1 = keys[r]
+            yield np.random.Generator(np.random.PCG64(np.random.SeedSequence([int(k0), int(k1), stage, int(counters[r])])))
+
+    def _normals(self, state_keys, counters, stage, shape) -> np.ndarray:
+        return np.stack([g.standard_normal(shape) for g in self._generators(state_keys, counters, stage)])
+
+    # ------------------------------------------------------------------ initialize
+    def initialize(self, mean, cov) -> ParticleState:
+        """N particles per filter drawn from N(mean, cov); uniform weights; a fresh stream key per filter."""
+        x, P = self.check_prior(mean, cov)
+        M, n = x.shape
+        keys = self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True)
+        counters = np.zeros(M, dtype=np.int64)
+        e = self._normals(keys, counters, _INITIALIZE, (self.particles, n))
+        particles = x[:, None, :] + e @ np.swapaxes(cholesky(P, "cov"), -1, -2)
+        log_weights = np.full((M, self.particles), -math.log(self.particles))
+        mean_, cov_ = weighted_moments(particles, log_weights)
+        return ParticleState(particles, log_weights, keys, counters + 1, mean_, cov_, None)
+
+    # ------------------------------------------------------------------ predict
+    def _noise_root(self, bank: TransitionBank) -> np.ndarray:
+        """W (K, n, r) with W Wᵀ = G Q Gᵀ: the bank's ``noise_root``, else the PSD square root of Q (cached per bank)."""
+        if bank.noise_root is not None:
+            return np.asarray(bank.noise_root, dtype=float)
+        cached = self._root_cache
+        if cached is not None and cached[0] is bank and cached[1] is bank.Q:
+            return cached[2]
+        root = psd_square_root(np.asarray(bank.Q, dtype=float))
+        self._root_cache = (bank, bank.Q, root)
+        return root
+
+    @guarded
+    def predict(self, state: ParticleState, transitions) -> ParticleState:
+        """x⁽ⁱ⁾ ← F x⁽ⁱ⁾ + B + W e⁽ⁱ⁾ per filter (TransitionBank) or per particle (a linearizing callable, F x + B = f(x))."""
+        if not isinstance(state, ParticleState):
+            raise TypeError(f"state: expected a ParticleState (from initialize), got {type(state).__name__}")
+        M, N, n = state.particles.shape
+        if callable(transitions) and not isinstance(transitions, TransitionBank):
+            flat = state.particles.reshape(M * N, n)
+            bank = self.check_transitions(transitions, M * N, n, flat)
+            root = self._noise_root(bank)
+            e = self._normals(state.keys, state.counters, _PREDICT, (N, root.shape[-1]))
+            moved = np.einsum("kij,kj->ki", bank.F, flat) + bank.B + np.einsum("kij,kj->ki", root, e.reshape(M * N, -1))
+            particles = moved.reshape(M, N, n)
+        else:
+            bank = self.check_transitions(transitions, M, n)
+            root = self._noise_root(bank)
+            e = self._normals(state.keys, state.counters, _PREDICT, (N, root.shape[-1]))
+            particles = state.particles @ np.swapaxes(bank.F, -1, -2)
+            particles += bank.B[:, None, :]
+            particles += e @ np.swapaxes(root, -1, -2)
+        self.check_finite("predict", predicted_particles=particles)
+        x, P = weighted_moments(particles, state.log_weights)
+        return ParticleState(particles, state.log_weights, state.keys, state.counters + 1, x, P, None)
+
+    # ------------------------------------------------------------------ update
+    def _residuals(self, step, particles: np.ndarray, layout) -> np.ndarray:
+        """ν⁽ⁱ⁾ = residual(z, h(x⁽ⁱ⁾)) (M, N, m) of the present components, through the step's sensor models."""
+        M, N, n = particles.shape
+        flat = particles.reshape(M * N, n)
+        if step.H is not None:
+            z_pred = step.predicted(flat, layout)[0]
+        else:
+            z_pred = np.concatenate([model.measure(flat, layout) for model in step.models], axis=-1)
+        z = np.broadcast_to(step.z[:, None, :], (M, N, step.dim)).reshape(M * N, step.dim)
+        return np.asarray(step.with_z(z).residual(z_pred)).reshape(M, N, step.dim)
+
+    @guarded
+    def update(self, state: ParticleState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        """SIR update: w ∝ w⁻ p(z | x) in log space, ℓ, N_eff, systematic resampling where N_eff < threshold · N."""
+        if not isinstance(state, ParticleState):
+            raise TypeError(f"state: expected a ParticleState (from initialize), got {type(state).__name__}")
+        M, N, n = state.particles.shape
+        step = self.measurement_step(z, sensors, layout, M, n)
+        if step is None:
+            innovation = empty_innovation(M)
+            return attrs.evolve(state, innovation=innovation), innovation
+        nu = self._residuals(step, state.particles, layout)
+        R = np.asarray(step.R, dtype=float)
+        particle_loglik, _ = CholeskyFactor(R if R.ndim == 2 else R[:, None], "measurement noise R").scores(nu)
+        prior = state.log_weights
+        joint = prior + particle_loglik
+        loglik = logsumexp(joint, axis=1)
+        log_weights = joint - loglik[:, None]
+        # the particle prediction of z: ν̄ = Σ w⁻ ν, S = Σ w⁻ (ν − ν̄)(ν − ν̄)ᵀ + R
+        w_prior = np.exp(prior)
+        nu_mean = np.einsum("mk,mki->mi", w_prior, nu)
+        d = nu - nu_mean[:, None, :]
+        S = symmetrize(np.swapaxes(d * w_prior[..., None], -1, -2) @ d + R)
+        gaussian_loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu_mean)
+        ess = effective_sample_size(log_weights)
+        resampled = ess < self.threshold * N
+        particles = state.particles
+        if resampled.any():
+            particles, log_weights = self._resample(state, particles, log_weights, np.flatnonzero(resampled))
+        counters = state.counters + 1
+        innovation = ParticleInnovation(nu_mean, S, loglik, nis, gaussian_loglik, ess, resampled)
+        new = ParticleState(particles, log_weights, state.keys, counters, state.x_predicted, state.P_predicted, innovation)
+        self.check_finite("update", updated_mean=new.mean)
+        return new, innovation
+
+    def _resample(self, state: ParticleState, particles, log_weights, rows: np.ndarray):
+        """Systematic resampling of the filters ``rows`` (then weights 1/N), with the regularisation jitter if enabled."""
+        M, N, n = particles.shape
+        generators = list(self._generators(state.keys, state.counters, _RESAMPLE, rows))
+        u = np.array([g.random() for g in generators])
+        index = systematic_resample(log_weights[rows], u)
+        chosen = np.take_along_axis(particles[rows], index[..., None], axis=1)
+        if self.regularize:
+            _, spread = weighted_moments(particles[rows], log_weights[rows])
+            D = psd_square_root(spread)
+            eps = np.stack([g.standard_normal((N, n)) for g in generators])
+            chosen = chosen + silverman_bandwidth(N, n) * (eps @ np.swapaxes(D, -1, -2))
+        particles = particles.copy()
+        particles[rows] = chosen
+        log_weights = log_weights.copy()
+        log_weights[rows] = -math.log(N)
+        return particles, log_weights
+
+
+COMPONENTS = {ParticleFilter.name: ParticleFilter}
