@@ -54,10 +54,14 @@ def _kernel():
     return _kalman_kernel
 
 
-def _stack3(A: np.ndarray) -> np.ndarray:
-    """A (r, c) shared by the bank as a (1, r, c) stack, or a per-filter (M, r, c) stack, C-contiguous float."""
-    A = np.ascontiguousarray(A, dtype=float)
-    return A[None] if A.ndim == 2 else A
+def _flat(A: np.ndarray, shape: tuple) -> np.ndarray:
+    """A as a C-contiguous float array of the given shape (a view when it already is one)."""
+    return np.ascontiguousarray(A, dtype=float).reshape(shape)
+
+
+def _stack_flat(A: np.ndarray) -> np.ndarray:
+    """A (r, c) shared by the bank as (1, r c), or a per-filter (M, r, c) stack as (M, r c), C-contiguous float."""
+    return _flat(A, (1 if A.ndim == 2 else A.shape[0], -1))
 
 
 def predict(
@@ -77,10 +81,10 @@ def predict(
     (:func:`._kalman_kernel.predict_bank`).
     """
     if engine == "numba":
-        c = np.ascontiguousarray
-        x, P = c(x, dtype=float), c(P, dtype=float)
-        x_pred, P_pred = np.empty(x.shape), np.empty(P.shape)
-        _kernel().predict_bank(x, P, c(F, dtype=float), c(B, dtype=float), c(Q, dtype=float), x_pred, P_pred)
+        M, n = x.shape
+        x, P, F, Q = (_flat(A, (M, -1)) for A in (x, P, F, Q))
+        x_pred, P_pred = np.empty((M, n)), np.empty((M, n, n))
+        _kernel().predict_bank(x, P, F, _flat(B, (M, n)), Q, x_pred, P_pred.reshape(M, n * n), (0,) * n)
         return x_pred, P_pred
     x_pred = np.einsum("mij,mj->mi", F, x)
     x_pred += B
@@ -143,13 +147,25 @@ def update_scored(x, P, nu, H, R, selection=None, form: str = "joseph", engine: 
 def _update_scored_compiled(x, P, nu, H, R, form):
     if form not in UPDATE_FORMS:
         raise ValueError(f"form: expected one of {UPDATE_FORMS}, got {form!r}")
-    c = np.ascontiguousarray
-    x, P, nu = c(x, dtype=float), c(P, dtype=float), c(nu, dtype=float)
     (M, n), m = x.shape, nu.shape[-1]
     x_new, P_new, S = np.empty((M, n)), np.empty((M, n, n)), np.empty((M, m, m))
     loglik, nis = np.empty(M), np.empty(M)
     kernel = _kernel()
-    bad = kernel.update_bank(x, P, nu, _stack3(H), _stack3(R), kernel.FORMS[form], x_new, P_new, S, loglik, nis)
+    bad = kernel.update_bank(
+        _flat(x, (M, n)),
+        _flat(P, (M, n * n)),
+        _flat(nu, (M, m)),
+        _stack_flat(H),
+        _stack_flat(R),
+        kernel.FORMS[form],
+        x_new,
+        P_new.reshape(M, n * n),
+        S.reshape(M, m * m),
+        loglik,
+        nis,
+        (0,) * n,
+        (0,) * m,
+    )
     if bad >= 0:
         raise np.linalg.LinAlgError(f"innovation covariance S is not positive definite (stack index ({bad},))")
     return x_new, P_new, S, loglik, nis

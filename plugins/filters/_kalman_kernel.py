@@ -5,7 +5,11 @@ forms) and :class:`hybridtrack.linalg.CholeskyFactor` (S⁻¹ and the scores),
 run filter by filter in compiled loops over the bank: each call is one pass
 over the M filters, every intermediate (F P, P Hᵀ, S, S⁻¹, K, T, D) an n × n,
 n × m or m × m scratch array reused from filter to filter, nothing stacked.
-Per filter i (H, R shared or per filter):
+The sizes n and m are compile-time constants (each kernel takes tuples of
+lengths n and m, whose types carry the lengths, so numba compiles one version
+per (n, m) with unrolled, vectorizable loops, cached like the rest) and the
+matrices come flattened row-major to (M, n²) etc.  Per filter i (H, R shared
+or per filter):
 
 * :func:`predict_bank`: x⁻ = F x⁺ + B, C = (F P⁺) Fᵀ + Q, P⁻ = ½(C + Cᵀ)
   (seed 000 eqs. 4–5);
@@ -57,189 +61,195 @@ def _njit(function):
 
 
 @_njit
-def predict_bank(x, P, F, B, Q, x_out, P_out):  # pragma: no cover - compiled
-    """x⁻ = F x⁺ + B, P⁻ = ½(C + Cᵀ), C = (F P⁺) Fᵀ + Q, for each filter of the bank (outputs written in place)."""
-    M, n = x.shape
-    FP = np.empty((n, n))
-    C = np.empty((n, n))
+def predict_bank(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no cover - compiled
+    """x⁻ = F x⁺ + B, P⁻ = ½(C + Cᵀ), C = (F P⁺) Fᵀ + Q, for each filter (outputs written in place).
+
+    Matrices flattened row-major to (M, n²); ``n_tuple`` any tuple of length n
+    (its type fixes n at compile time, so the loops are unrolled and vectorized).
+    """
+    N = len(n_tuple)
+    M = x.shape[0]
+    FP = np.empty(N * N)
     for i in range(M):
-        for j in range(n):
+        Fi, Pi, xi, Qi, Po = F[i], P[i], x[i], Q[i], P_out[i]
+        for j in range(N):
             acc = 0.0
-            for k in range(n):
-                acc += F[i, j, k] * x[i, k]
+            for k in range(N):
+                acc += Fi[j * N + k] * xi[k]
             x_out[i, j] = acc + B[i, j]
-        for j in range(n):
-            for k in range(n):
+        for j in range(N):
+            for k in range(N):
                 acc = 0.0
-                for q in range(n):
-                    acc += F[i, j, q] * P[i, q, k]
-                FP[j, k] = acc
-        for j in range(n):
-            for k in range(n):
-                acc = 0.0
-                for q in range(n):
-                    acc += FP[j, q] * F[i, k, q]
-                C[j, k] = acc + Q[i, j, k]
-        for j in range(n):
-            P_out[i, j, j] = C[j, j]
-            for k in range(j + 1, n):
-                P_out[i, j, k] = P_out[i, k, j] = 0.5 * (C[j, k] + C[k, j])
+                for q in range(N):
+                    acc += Fi[j * N + q] * Pi[q * N + k]
+                FP[j * N + k] = acc
+        for j in range(N):
+            for k in range(j, N):
+                c_jk = 0.0
+                c_kj = 0.0
+                for q in range(N):
+                    c_jk += FP[j * N + q] * Fi[k * N + q]
+                    c_kj += FP[k * N + q] * Fi[j * N + q]
+                if j == k:
+                    Po[j * N + j] = c_jk + Qi[j * N + j]
+                else:
+                    Po[j * N + k] = Po[k * N + j] = 0.5 * ((c_jk + Qi[j * N + k]) + (c_kj + Qi[k * N + j]))
 
 
 @_njit
-def update_bank(x, P, nu, H, R, form, x_out, P_out, S_out, loglik, nis):  # pragma: no cover - compiled
+def update_bank(x, P, nu, H, R, form, x_out, P_out, S_out, loglik, nis, n_tuple, m_tuple):  # pragma: no cover - compiled
     """The measurement update and scores of each filter (outputs written in place); the first filter whose S is
-    not positive definite, or −1.  H (1 or M, m, n), R (1 or M, m, m): one shared or one per filter."""
-    M, n = x.shape
-    m = nu.shape[1]
-    PHt = np.empty((n, m))
-    HP = np.empty((m, n))
-    S = np.empty((m, m))
-    Si = np.empty((m, m))
-    L = np.zeros((m, m))
-    Li = np.zeros((m, m))
-    w = np.empty(m)
-    K = np.empty((n, m))
-    T = np.empty((n, n))
-    D = np.empty((n, m))
+    not positive definite, or −1.  Matrices flattened row-major: P (M, n²), H (1 or M, m n) shared or per filter,
+    R (1 or M, m²), S_out (M, m²); ``n_tuple``, ``m_tuple`` any tuples of lengths n and m (compile-time sizes)."""
+    N, Mm = len(n_tuple), len(m_tuple)
+    M = x.shape[0]
+    PHt = np.empty(N * Mm)
+    HP = np.empty(Mm * N)
+    S = np.empty(Mm * Mm)
+    Si = np.empty(Mm * Mm)
+    L = np.zeros(Mm * Mm)
+    Li = np.zeros(Mm * Mm)
+    w = np.empty(Mm)
+    K = np.empty(N * Mm)
+    T = np.empty(N * N)
+    D = np.empty(N * Mm)
     per_h, per_r = H.shape[0] > 1, R.shape[0] > 1
     for i in range(M):
-        h = i if per_h else 0
-        r = i if per_r else 0
+        Pi, Hi, Ri, nui = P[i], H[i if per_h else 0], R[i if per_r else 0], nu[i]
         # P Hᵀ, S = ½(C + Cᵀ), C = H (P Hᵀ) + R
-        for a in range(n):
-            for b in range(m):
+        for a in range(N):
+            for b in range(Mm):
                 acc = 0.0
-                for q in range(n):
-                    acc += P[i, a, q] * H[h, b, q]
-                PHt[a, b] = acc
-        for a in range(m):
-            for b in range(m):
+                for q in range(N):
+                    acc += Pi[a * N + q] * Hi[b * N + q]
+                PHt[a * Mm + b] = acc
+        for a in range(Mm):
+            for b in range(Mm):
                 acc = 0.0
-                for q in range(n):
-                    acc += H[h, a, q] * PHt[q, b]
-                S[a, b] = acc + R[r, a, b]
-        for a in range(m):
-            for b in range(a + 1, m):
-                S[a, b] = S[b, a] = 0.5 * (S[a, b] + S[b, a])
+                for q in range(N):
+                    acc += Hi[a * N + q] * PHt[q * Mm + b]
+                S[a * Mm + b] = acc + Ri[a * Mm + b]
+        for a in range(Mm):
+            for b in range(a + 1, Mm):
+                S[a * Mm + b] = S[b * Mm + a] = 0.5 * (S[a * Mm + b] + S[b * Mm + a])
         # S⁻¹ and the scores
-        if m <= 2:
-            sa = S[0, 0]
-            if m == 1:
+        if Mm <= 2:
+            sa = S[0]
+            if Mm == 1:
                 det = sa
-                if not sa > 0.0:
+                if not sa > 0.0:  # also catches NaN
                     return i
-                Si[0, 0] = 1.0 / sa
+                Si[0] = 1.0 / sa
             else:
-                sb, sc = S[1, 0], S[1, 1]
+                sb, sc = S[2], S[3]
                 det = sa * sc - sb * sb
                 if not (sa > 0.0 and det > 0.0):  # also catches NaN
                     return i
                 rd = 1.0 / det
-                Si[0, 0] = sc * rd
-                Si[1, 1] = sa * rd
-                Si[0, 1] = Si[1, 0] = -(sb * rd)
-            t = nu[i, 0] / sa
-            s_nis = nu[i, 0] * t
-            if m == 2:
-                res = nu[i, 1] - S[1, 0] * t
+                Si[0] = sc * rd
+                Si[3] = sa * rd
+                Si[1] = Si[2] = -(sb * rd)
+            t = nui[0] / sa
+            s_nis = nui[0] * t
+            if Mm == 2:
+                res = nui[1] - S[2] * t
                 s_nis += sa * (res * res) / det
             log_det = math.log(det)
         else:
-            for j in range(m):
-                d = S[j, j]
+            for j in range(Mm):
+                d = S[j * Mm + j]
                 for k in range(j):
-                    d = d - L[j, k] * L[j, k]
+                    d = d - L[j * Mm + k] * L[j * Mm + k]
                 if not d > 0.0:
                     return i
-                L[j, j] = math.sqrt(d)
-                for a in range(j + 1, m):
-                    s = S[a, j]
+                L[j * Mm + j] = math.sqrt(d)
+                for a in range(j + 1, Mm):
+                    s = S[a * Mm + j]
                     for k in range(j):
-                        s = s - L[a, k] * L[j, k]
-                    L[a, j] = s / L[j, j]
-            for a in range(m):  # L⁻¹, row by row
-                Li[a, a] = 1.0 / L[a, a]
+                        s = s - L[a * Mm + k] * L[j * Mm + k]
+                    L[a * Mm + j] = s / L[j * Mm + j]
+            for a in range(Mm):  # L⁻¹, row by row
+                Li[a * Mm + a] = 1.0 / L[a * Mm + a]
                 for j in range(a - 1, -1, -1):
-                    acc = L[a, j] * Li[j, j]
+                    acc = L[a * Mm + j] * Li[j * Mm + j]
                     for k in range(j + 1, a):
-                        acc = acc + L[a, k] * Li[k, j]
-                    Li[a, j] = -acc / L[a, a]
-            for a in range(m):  # S⁻¹ = L⁻ᵀ L⁻¹
-                for j in range(a, m):
-                    acc = Li[j, a] * Li[j, j]
-                    for k in range(j + 1, m):
-                        acc = acc + Li[k, a] * Li[k, j]
-                    Si[a, j] = Si[j, a] = acc
-            log_det = math.log(L[0, 0])
-            for a in range(1, m):
-                log_det += math.log(L[a, a])
+                        acc = acc + L[a * Mm + k] * Li[k * Mm + j]
+                    Li[a * Mm + j] = -acc / L[a * Mm + a]
+            for a in range(Mm):  # S⁻¹ = L⁻ᵀ L⁻¹
+                for j in range(a, Mm):
+                    acc = Li[j * Mm + a] * Li[j * Mm + j]
+                    for k in range(j + 1, Mm):
+                        acc = acc + Li[k * Mm + a] * Li[k * Mm + j]
+                    Si[a * Mm + j] = Si[j * Mm + a] = acc
+            log_det = math.log(L[0])
+            for a in range(1, Mm):
+                log_det += math.log(L[a * Mm + a])
             log_det *= 2.0
             s_nis = 0.0
-            for a in range(m):  # w = L⁻¹ ν
-                acc = nu[i, a]
+            for a in range(Mm):  # w = L⁻¹ ν
+                acc = nui[a]
                 for j in range(a):
-                    acc = acc - L[a, j] * w[j]
-                w[a] = acc / L[a, a]
+                    acc = acc - L[a * Mm + j] * w[j]
+                w[a] = acc / L[a * Mm + a]
                 s_nis = s_nis + w[a] * w[a]
         nis[i] = s_nis
-        loglik[i] = -0.5 * (m * LOG_2PI + log_det + s_nis)
-        for a in range(m):
-            for b in range(m):
-                S_out[i, a, b] = S[a, b]
+        loglik[i] = -0.5 * (Mm * LOG_2PI + log_det + s_nis)
+        So = S_out[i]
+        for a in range(Mm * Mm):
+            So[a] = S[a]
         # K = P Hᵀ S⁻¹, x⁺ = x⁻ + K ν
-        for a in range(n):
-            for b in range(m):
+        for a in range(N):
+            for b in range(Mm):
                 acc = 0.0
-                for q in range(m):
-                    acc += PHt[a, q] * Si[q, b]
-                K[a, b] = acc
-        for a in range(n):
+                for q in range(Mm):
+                    acc += PHt[a * Mm + q] * Si[q * Mm + b]
+                K[a * Mm + b] = acc
+        for a in range(N):
             acc = 0.0
-            for b in range(m):
-                acc += K[a, b] * nu[i, b]
+            for b in range(Mm):
+                acc += K[a * Mm + b] * nui[b]
             x_out[i, a] = x[i, a] + acc
         # T = P − K (H P) (Joseph) or P − K (P Hᵀ)ᵀ
         if form == 0:
-            for a in range(m):
-                for b in range(n):
+            for a in range(Mm):
+                for b in range(N):
                     acc = 0.0
-                    for q in range(n):
-                        acc += H[h, a, q] * P[i, q, b]
-                    HP[a, b] = acc
+                    for q in range(N):
+                        acc += Hi[a * N + q] * Pi[q * N + b]
+                    HP[a * N + b] = acc
         else:
-            for a in range(m):
-                for b in range(n):
-                    HP[a, b] = PHt[b, a]
-        for a in range(n):
-            for b in range(n):
+            for a in range(Mm):
+                for b in range(N):
+                    HP[a * N + b] = PHt[b * Mm + a]
+        for a in range(N):
+            for b in range(N):
                 acc = 0.0
-                for q in range(m):
-                    acc += K[a, q] * HP[q, b]
-                T[a, b] = P[i, a, b] - acc
+                for q in range(Mm):
+                    acc += K[a * Mm + q] * HP[q * N + b]
+                T[a * N + b] = Pi[a * N + b] - acc
         if form == 0:  # D = K R − T Hᵀ, T += D Kᵀ
-            for a in range(n):
-                for b in range(m):
+            for a in range(N):
+                for b in range(Mm):
                     acc = 0.0
-                    for q in range(m):
-                        acc += K[a, q] * R[r, q, b]
+                    for q in range(Mm):
+                        acc += K[a * Mm + q] * Ri[q * Mm + b]
                     acc2 = 0.0
-                    for q in range(n):
-                        acc2 += T[a, q] * H[h, b, q]
-                    D[a, b] = acc - acc2
-            for a in range(n):
-                for b in range(n):
+                    for q in range(N):
+                        acc2 += T[a * N + q] * Hi[b * N + q]
+                    D[a * Mm + b] = acc - acc2
+            for a in range(N):
+                for b in range(N):
                     acc = 0.0
-                    for q in range(m):
-                        acc += D[a, q] * K[b, q]
-                    T[a, b] += acc
+                    for q in range(Mm):
+                        acc += D[a * Mm + q] * K[b * Mm + q]
+                    T[a * N + b] += acc
+        Po = P_out[i]
         if form == 2:
-            for a in range(n):
-                for b in range(n):
-                    P_out[i, a, b] = T[a, b]
+            for a in range(N * N):
+                Po[a] = T[a]
         else:
-            for a in range(n):
-                P_out[i, a, a] = T[a, a]
-                for b in range(a + 1, n):
-                    P_out[i, a, b] = P_out[i, b, a] = 0.5 * (T[a, b] + T[b, a])
+            for a in range(N):
+                Po[a * N + a] = T[a * N + a]
+                for b in range(a + 1, N):
+                    Po[a * N + b] = Po[b * N + a] = 0.5 * (T[a * N + b] + T[b * N + a])
     return -1
