@@ -14,19 +14,34 @@ is imported):
   path is taken since F, Q, P0 are block diagonal and R is diagonal);
 * ``hybridtrack_dense``: the same estimator with ``structure=False``, which
   forces the general dense (M, n, n) path (the one correlated R, mixed sensors,
-  the 6-state mode, per-filter H or R and the EKF use) on the same bank;
+  the 6-state mode, per-filter H or R and the EKF use) on the same bank, with
+  its default ``engine="auto"``: the compiled numba kernel (the kernel is
+  compiled or loaded from its cache in an untimed warm-up before any timing);
+* ``hybridtrack_dense_numpy``: the dense path with ``engine="numpy"`` (stacked
+  numpy operations, the path before the compiled kernel);
 * ``numpy_batched``: a straightforward batched numpy bank written out here —
   stacked matmuls, closed-form 2×2 S⁻¹, Joseph update, no validation or
   symmetrisation — the yardstick for the dense path;
 * ``filterpy``: a loop over M ``filterpy.kalman.KalmanFilter`` objects, reading
   ``kf.log_likelihood`` each step;
-* ``numpy_loop``: a plain per-filter numpy loop (solve, slogdet).
+* ``numpy_loop``: a plain per-filter numpy loop (solve, slogdet);
+* ``simdkalman``: simdkalman's ``KalmanFilter`` (vectorized numpy over the M
+  filters, per-filter F and Q as (M, n, n) stacks), stepped with its
+  ``predict_next`` and ``update(..., log_likelihood=True)`` — the two calls its
+  own ``compute`` makes per observation (``compute`` itself takes only a shared
+  F).  It has no input term B, so its state is augmented with a constant 1:
+  F' = [[F, B], [0, 1]], Q' = blockdiag(Q, 0), H' = [H, 0], x0' = (x0, 1),
+  P0' = blockdiag(P0, 0).  Its update is the conventional P⁻ − K H P⁻ with
+  ``inv(S)`` (not Joseph) and its log-likelihood omits −(m/2) ln 2π, which is
+  added back here.  Optional: ``pip install simdkalman`` (not a dependency of
+  hybridtrack); without it the case is skipped with a message and the JSON says so.
 
 The per-filter loops may be timed on fewer steps (``--loop-steps``; by default
 36 at M = 2001) and scaled: their cost is linear in steps.  The JSON says so
 per case (``timed_steps``, ``scaled``).  Results are checked equal: the
 log-likelihoods of all steps timed by an implementation (relative 1e-8) and,
-where all 360 steps ran, the final x and P.
+where all 360 steps ran, the final x and P; the JSON records the largest
+log-likelihood difference between simdkalman and hybridtrack.
 
 Usage: ``python benchmarks/bank.py --json docs/results/bank_bench.json``
 """
@@ -88,9 +103,9 @@ def problem(M, seed=0):
 # --------------------------------------------------------------------------- implementations
 
 
-def run_hybridtrack(transitions, Z, x0, P0, steps, structure=True):
+def run_hybridtrack(transitions, Z, x0, P0, steps, structure=True, engine="auto"):
     registry = ht.load_plugins().registry
-    est = registry.create("estimator", "kalman", structure=structure)
+    est = registry.create("estimator", "kalman", structure=structure, engine=engine)
     sensor = registry.create("sensor", "position", noise_cov=np.eye(2) * R_VAR)
     bank = TransitionBank.stack(transitions)
     M = len(transitions)
@@ -189,20 +204,67 @@ def run_numpy_loop(transitions, Z, x0, P0, steps):
     return elapsed, logliks, np.array(xs), np.array(Ps)
 
 
+def run_simdkalman(transitions, Z, x0, P0, steps):
+    """simdkalman on the bank, its state augmented with a constant 1 to carry B (it has no input term)."""
+    import simdkalman
+
+    bank = TransitionBank.stack(transitions)
+    M, n = bank.B.shape
+    F_aug = np.zeros((M, n + 1, n + 1))
+    F_aug[:, :n, :n], F_aug[:, :n, n], F_aug[:, n, n] = bank.F, bank.B, 1.0
+    Q_aug = np.zeros((M, n + 1, n + 1))
+    Q_aug[:, :n, :n] = bank.Q
+    H_aug = np.hstack([H, np.zeros((2, 1))])
+    kf = simdkalman.KalmanFilter(state_transition=F_aug, process_noise=Q_aug, observation_model=H_aug, observation_noise=np.eye(2) * R_VAR)
+    m = np.tile(np.append(x0, 1.0), (M, 1))[:, :, None]
+    P = np.zeros((M, n + 1, n + 1))
+    P[:, :n, :n] = P0
+    Y = np.ascontiguousarray(np.broadcast_to(Z[:, None, :, None], (len(Z), M, 2, 1)))  # (steps, M, m, 1), as compute() slices it
+    logliks = np.empty((steps, M))
+    t = time.perf_counter()
+    for k in range(steps):
+        m, P = kf.predict_next(m, P)
+        m, P, _, loglik = kf.update(m, P, Y[k], log_likelihood=True)
+        logliks[k] = loglik
+    elapsed = time.perf_counter() - t
+    logliks -= np.log(2 * np.pi)  # simdkalman's ℓ omits −(m/2) ln 2π, m = 2
+    return elapsed, logliks, m[:, :n, 0], P[:, :n, :n]
+
+
+def simdkalman_version():
+    """simdkalman's version, or None when it is not installed."""
+    try:
+        from importlib.metadata import PackageNotFoundError, version
+
+        return version("simdkalman")
+    except PackageNotFoundError:
+        return None
+
+
 IMPLEMENTATIONS = {
     "hybridtrack": lambda *a: run_hybridtrack(*a, structure=True),
     "hybridtrack_dense": lambda *a: run_hybridtrack(*a, structure=False),
+    "hybridtrack_dense_numpy": lambda *a: run_hybridtrack(*a, structure=False, engine="numpy"),
     "numpy_batched": run_numpy_batched,
     "filterpy": run_filterpy,
     "numpy_loop": run_numpy_loop,
+    "simdkalman": run_simdkalman,
 }
 PER_FILTER_LOOPS = ("filterpy", "numpy_loop")
 
 
-def bench(M, repeats, loop_steps):
+def warm_up():
+    """Compile (or load from numba's cache) the dense path's kernel on a small bank, untimed; seconds taken."""
+    transitions, Z, x0, P0 = problem(5)
+    t = time.perf_counter()
+    run_hybridtrack(transitions, Z, x0, P0, 2, structure=False)
+    return time.perf_counter() - t
+
+
+def bench(M, repeats, loop_steps, implementations):
     transitions, Z, x0, P0 = problem(M)
     cases, results = [], {}
-    for impl, run in IMPLEMENTATIONS.items():
+    for impl, run in implementations.items():
         steps = loop_steps if impl in PER_FILTER_LOOPS else STEPS
         times = []
         for _ in range(repeats):
@@ -236,8 +298,28 @@ def bench(M, repeats, loop_steps):
         "vs_numpy_batched": speed["hybridtrack_dense"] / speed["numpy_batched"],
         "vs_filterpy": speed["hybridtrack_dense"] / speed["filterpy"],
         "vs_loop": speed["hybridtrack_dense"] / speed["numpy_loop"],
+        "compiled_vs_numpy_engine": speed["hybridtrack_dense"] / speed["hybridtrack_dense_numpy"],
+        "numpy_engine_vs_numpy_batched": speed["hybridtrack_dense_numpy"] / speed["numpy_batched"],
+        "numpy_engine_vs_filterpy": speed["hybridtrack_dense_numpy"] / speed["filterpy"],
     }
-    return cases, ratios, speed["hybridtrack"] / speed["hybridtrack_dense"], dense
+    simd = None
+    if "simdkalman" in speed:
+        ll = results["simdkalman"][1]
+        diff = np.abs(ll - ref_ll)
+        simd = {
+            "ratios": {
+                "hybridtrack": speed["hybridtrack"] / speed["simdkalman"],
+                "hybridtrack_dense": speed["hybridtrack_dense"] / speed["simdkalman"],
+                "hybridtrack_dense_numpy": speed["hybridtrack_dense_numpy"] / speed["simdkalman"],
+            },
+            "loglik_agreement": {
+                "max_abs_diff": float(diff.max()),
+                "max_abs_diff_over_max_abs_loglik": float(diff.max() / np.abs(ref_ll).max()),
+                "max_rel_diff": float((diff / np.abs(ref_ll)).max()),
+                "steps_compared": int(ll.shape[0]),
+            },
+        }
+    return cases, ratios, speed["hybridtrack"] / speed["hybridtrack_dense"], dense, simd
 
 
 def main(argv=None):
@@ -249,19 +331,38 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.repeats < 3:
         parser.error("--repeats must be at least 3")
-    all_cases, ratios, vs_dense, dense_ratios, loads = [], {}, {}, {}, {}
+    implementations = dict(IMPLEMENTATIONS)
+    simd_version = simdkalman_version()
+    if simd_version is None:
+        del implementations["simdkalman"]
+        print("simdkalman is not installed: its case is skipped (pip install simdkalman to time it)", flush=True)
+    engine = ht.load_plugins().registry.create("estimator", "kalman", structure=False).dense_engine(4, 2)
+    warm_up_s = warm_up()
+    print(f"dense path engine: {engine}; warm-up (compile or cache load, untimed) {warm_up_s:.2f} s", flush=True)
+    all_cases, ratios, vs_dense, dense_ratios, simd_ratios, simd_agreement, loads = [], {}, {}, {}, {}, {}, {}
     for M in args.sizes:
         loop_steps = args.loop_steps or (36 if M >= 2001 else STEPS)
         load_before = os.getloadavg()[0]
-        cases, r, dense, dense_r = bench(M, args.repeats, loop_steps)
+        cases, r, dense, dense_r, simd = bench(M, args.repeats, loop_steps, implementations)
         loads[str(M)] = {"before": load_before, "after": os.getloadavg()[0]}
         all_cases += cases
         ratios[str(M)] = r
         vs_dense[str(M)] = dense
         dense_ratios[str(M)] = dense_r
+        if simd is not None:
+            simd_ratios[str(M)] = simd["ratios"]
+            simd_agreement[str(M)] = simd["loglik_agreement"]
         print(
             f"M={M}: {r['vs_filterpy']:.0f}x filterpy, {r['vs_loop']:.0f}x numpy loop, {dense:.2f}x dense bank; "
-            f"dense bank {dense_r['vs_numpy_batched']:.2f}x the batched numpy bank (load {load_before:.2f})",
+            f"dense bank {dense_r['vs_numpy_batched']:.2f}x the batched numpy bank, "
+            f"{dense_r['compiled_vs_numpy_engine']:.2f}x its numpy engine"
+            + (
+                f"; vs simdkalman {simd['ratios']['hybridtrack']:.1f}x (separable), {simd['ratios']['hybridtrack_dense']:.1f}x (dense), "
+                f"max |Δℓ| {simd['loglik_agreement']['max_abs_diff']:.2g}"
+                if simd
+                else ""
+            )
+            + f" (load {load_before:.2f})",
             flush=True,
         )
     import filterpy
@@ -271,6 +372,8 @@ def main(argv=None):
         "ratios": ratios,
         "hybridtrack_vs_dense_bank": vs_dense,
         "dense_ratios": dense_ratios,
+        "simdkalman_ratios": simd_ratios if simd_version else "simdkalman not installed: case skipped (pip install simdkalman)",
+        "simdkalman_loglik_agreement": simd_agreement if simd_version else None,
         "load_average_1min": loads,
         "settings": {
             "steps": STEPS,
@@ -280,7 +383,17 @@ def main(argv=None):
             "per_filter_loops_scaled": "filterpy and numpy_loop cases with scaled = true were timed on timed_steps steps and scaled linearly to 360",
             "equality": "log-likelihoods of every timed step equal to hybridtrack's (rtol 1e-8); final x, P equal where all 360 steps ran",
             "hybridtrack_dense": "the kalman estimator with structure=False: the general dense (M, n, n) path on the same bank",
+            "hybridtrack_dense_engine": engine,
+            "hybridtrack_dense_numpy": "the dense path with engine='numpy' (stacked numpy operations: the dense path before the compiled kernel)",
+            "warm_up_s": warm_up_s,
+            "warm_up": "the dense path's numba kernel compiled or loaded from its cache on a 5-filter bank before any timing (not counted)",
             "numpy_batched": "a straightforward batched numpy bank (stacked matmuls, adjugate S^-1, Joseph, no checks), timed in the same run",
+            "simdkalman": (
+                "simdkalman.KalmanFilter with per-filter (M, 5, 5) F' = [[F, B], [0, 1]], Q' = blockdiag(Q, 0), H' = [H, 0] "
+                "(state augmented with a constant 1: no input term), stepped by predict_next + update(log_likelihood=True); "
+                "conventional update P - K H P with inv(S); its log-likelihood + (-ln 2 pi) compared with hybridtrack's"
+            ),
+            "simdkalman_version": simd_version,
             "blas_threads": 1,
             "OPENBLAS_CORETYPE": os.environ.get("OPENBLAS_CORETYPE"),
             "repeats": args.repeats,

@@ -1,9 +1,16 @@
 """Covariance-form Kalman filter maths over stacked arrays (SPEC §3, seed 000 Algorithm 1).
 
 x has shape (M, n), P (M, n, n); F (M, n, n), B (M, n), Q (M, n, n) = G Q_w Gᵀ.
+
+``engine`` of :func:`predict` and :func:`update_scored`: ``"numpy"`` (default;
+stacked operations over the bank, the reference) or ``"numba"`` (the compiled
+one-pass kernels of :mod:`._kalman_kernel`, same results to rounding);
+:func:`resolve_engine` turns an estimator's ``"auto"`` into one of them.
 """
 
 from __future__ import annotations
+
+import importlib.util
 
 import numpy as np
 
@@ -11,16 +18,74 @@ from hybridtrack.linalg import CholeskyFactor, symmetrize
 from hybridtrack.measurements import selection_index
 
 UPDATE_FORMS = ("joseph", "symmetric", "conventional")
+ENGINES = ("auto", "numba", "numpy")
+#: numba is installed (the kernel module is imported on first compiled call only, so loading the plugins
+#: does not import numba)
+NUMBA_AVAILABLE = importlib.util.find_spec("numba") is not None
+#: "auto" takes the compiled kernel up to these sizes (state n, measurement m): there one pass of scalar
+#: loops per filter beats a dozen stacked numpy operations; larger systems are BLAS-sized products
+AUTO_MAX_STATE, AUTO_MAX_MEASUREMENT = 6, 3
+
+
+def check_engine(engine: str) -> str:
+    """``engine`` one of :data:`ENGINES`; "numba" needs numba installed.  ValueError naming it otherwise."""
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
+    if engine == "numba" and not NUMBA_AVAILABLE:
+        raise ValueError("engine: 'numba' asked for but numba is not installed (pip install numba); use 'auto' or 'numpy'")
+    return engine
+
+
+def resolve_engine(engine: str, n: int, m: int = 0) -> str:
+    """ "numba" or "numpy" for a step of state size n and measurement size m.
+
+    "auto": the compiled kernel when numba is installed and n ≤ 6, m ≤ 3
+    (:data:`AUTO_MAX_STATE`, :data:`AUTO_MAX_MEASUREMENT`), else numpy;
+    "numba" and "numpy" as given (the kernel's loops take any size).
+    """
+    if engine == "auto":
+        return "numba" if NUMBA_AVAILABLE and n <= AUTO_MAX_STATE and m <= AUTO_MAX_MEASUREMENT else "numpy"
+    return engine
+
+
+def _kernel():
+    from hybridtrack_plugins.filters import _kalman_kernel
+
+    return _kalman_kernel
+
+
+def _flat(A: np.ndarray, shape: tuple) -> np.ndarray:
+    """A as a C-contiguous float array of the given shape (a view when it already is one)."""
+    return np.ascontiguousarray(A, dtype=float).reshape(shape)
+
+
+def _stack_flat(A: np.ndarray) -> np.ndarray:
+    """A (r, c) shared by the bank as (1, r c), or a per-filter (M, r, c) stack as (M, r c), C-contiguous float."""
+    return _flat(A, (1 if A.ndim == 2 else A.shape[0], -1))
 
 
 def predict(
-    x: np.ndarray, P: np.ndarray, F: np.ndarray, B: np.ndarray, Q: np.ndarray, Ft: np.ndarray | None = None
+    x: np.ndarray,
+    P: np.ndarray,
+    F: np.ndarray,
+    B: np.ndarray,
+    Q: np.ndarray,
+    Ft: np.ndarray | None = None,
+    engine: str = "numpy",
 ) -> tuple[np.ndarray, np.ndarray]:
     """x⁻ = F x⁺ + B u, P⁻ = F P⁺ Fᵀ + G Q Gᵀ (seed 000 eqs. 4–5), P⁻ symmetrised.
 
     ``Ft``: Fᵀ as a contiguous stack, if the caller keeps one (a stacked matmul
-    with a transposed view is about twice as slow as with a contiguous operand).
+    with a transposed view is about twice as slow as with a contiguous operand;
+    unused by the compiled kernel).  ``engine``: "numpy" or "numba"
+    (:func:`._kalman_kernel.predict_bank`).
     """
+    if engine == "numba":
+        M, n = x.shape
+        x, P, F, Q = (_flat(A, (M, -1)) for A in (x, P, F, Q))
+        x_pred, P_pred = np.empty((M, n)), np.empty((M, n, n))
+        _kernel().predict_bank(x, P, F, _flat(B, (M, n)), Q, x_pred, P_pred.reshape(M, n * n), (0,) * n)
+        return x_pred, P_pred
     x_pred = np.einsum("mij,mj->mi", F, x)
     x_pred += B
     if Ft is None:
@@ -64,13 +129,45 @@ def update(x, P, nu, H, R, selection=None, form: str = "joseph"):
     return x_new, P_new, S, factor.L, K
 
 
-def update_scored(x, P, nu, H, R, selection=None, form: str = "joseph"):
+def update_scored(x, P, nu, H, R, selection=None, form: str = "joseph", engine: str = "numpy"):
     """:func:`update` plus the innovation scores from the same factor of S.
 
     Returns x⁺, P⁺, S, ℓ, NIS with ℓ = −½(m ln 2π + ln det S + NIS), NIS = νᵀS⁻¹ν (SPEC §4).
+    ``engine``: "numpy" or "numba" (:func:`._kalman_kernel.update_bank`, one pass
+    over the filters; H is used as given, so a selection H multiplies by its
+    zeros and ones, which is exact).
     """
+    if engine == "numba":
+        return _update_scored_compiled(x, P, nu, H, R, form)
     x_new, P_new, S, factor, _ = _update(x, P, nu, H, R, selection, form)
     loglik, nis = factor.scores(nu)
+    return x_new, P_new, S, loglik, nis
+
+
+def _update_scored_compiled(x, P, nu, H, R, form):
+    if form not in UPDATE_FORMS:
+        raise ValueError(f"form: expected one of {UPDATE_FORMS}, got {form!r}")
+    (M, n), m = x.shape, nu.shape[-1]
+    x_new, P_new, S = np.empty((M, n)), np.empty((M, n, n)), np.empty((M, m, m))
+    loglik, nis = np.empty(M), np.empty(M)
+    kernel = _kernel()
+    bad = kernel.update_bank(
+        _flat(x, (M, n)),
+        _flat(P, (M, n * n)),
+        _flat(nu, (M, m)),
+        _stack_flat(H),
+        _stack_flat(R),
+        kernel.FORMS[form],
+        x_new,
+        P_new.reshape(M, n * n),
+        S.reshape(M, m * m),
+        loglik,
+        nis,
+        (0,) * n,
+        (0,) * m,
+    )
+    if bad >= 0:
+        raise np.linalg.LinAlgError(f"innovation covariance S is not positive definite (stack index ({bad},))")
     return x_new, P_new, S, loglik, nis
 
 

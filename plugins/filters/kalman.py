@@ -106,20 +106,29 @@ class KalmanFilter(BankEstimator):
     or ``"conventional"`` ((I − K H) P⁻ unsymmetrised, for comparisons only).
     ``structure`` (default True): use the axis-separable fast path when the
     bank, the prior and the sensors allow it (same results to rounding).
+    ``engine`` of the dense path: ``"auto"`` (default: the compiled numba kernel
+    of ``_kalman_kernel`` for n ≤ 6, m ≤ 3 when numba is installed, numpy
+    otherwise), ``"numba"`` (the kernel at every size) or ``"numpy"`` (stacked
+    numpy operations, the reference); same results to rounding.
     Linear sensors only; the ``ekf`` estimator takes nonlinear ones.
     """
 
     name = "kalman"
 
-    def __init__(self, form: str = "joseph", structure: bool = True):
+    def __init__(self, form: str = "joseph", structure: bool = True, engine: str = "auto"):
         super().__init__()
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
+        self.engine = cov_form.check_engine(engine)
         self.form = form
         self.structure = bool(structure) and form != "conventional"
         self._split_cache: tuple | None = None
         self._transposed_cache: tuple | None = None
         self._plan_cache: dict = {}
+
+    def dense_engine(self, n: int, m: int = 0) -> str:
+        """ "numba" or "numpy": what runs a dense step of state size n and measurement size m under ``engine``."""
+        return cov_form.resolve_engine(self.engine, n, m)
 
     def initialize(self, mean, cov) -> CovarianceState:
         x, P = self.check_prior(mean, cov)
@@ -159,7 +168,9 @@ class KalmanFilter(BankEstimator):
                     xa, Pa = sep.predict(xa, Pa, split)
                     self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
                     return AxisState(split.axes, n, xa, Pa, xa, Pa, None)
-        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, self._transposed(bank))
+        engine = self.dense_engine(n)
+        Ft = self._transposed(bank) if engine == "numpy" else None
+        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, Ft, engine=engine)
         self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
         return CovarianceState(x, P, x, P, None)
 
@@ -233,7 +244,8 @@ class KalmanFilter(BankEstimator):
             innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation), innovation
         step, nu, H = found
-        x, P, S, loglik, nis = cov_form.update_scored(state.x, state.P, nu, H, step.R, step.selection, self.form)
+        engine = self.dense_engine(n, nu.shape[-1])
+        x, P, S, loglik, nis = cov_form.update_scored(state.x, state.P, nu, H, step.R, step.selection, self.form, engine)
         innovation = Innovation(nu, S, loglik, nis)
         return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
 

@@ -1,0 +1,255 @@
+"""Compiled steps of the dense covariance Kalman filter (SPEC §3, seed 000 Algorithm 1), by numba.
+
+The same arithmetic as :mod:`._covariance` (predict; update with the three
+forms) and :class:`hybridtrack.linalg.CholeskyFactor` (S⁻¹ and the scores),
+run filter by filter in compiled loops over the bank: each call is one pass
+over the M filters, every intermediate (F P, P Hᵀ, S, S⁻¹, K, T, D) an n × n,
+n × m or m × m scratch array reused from filter to filter, nothing stacked.
+The sizes n and m are compile-time constants (each kernel takes tuples of
+lengths n and m, whose types carry the lengths, so numba compiles one version
+per (n, m) with unrolled, vectorizable loops, cached like the rest) and the
+matrices come flattened row-major to (M, n²) etc.  Per filter i (H, R shared
+or per filter):
+
+* :func:`predict_bank`: x⁻ = F x⁺ + B, C = (F P⁺) Fᵀ + Q, P⁻ = ½(C + Cᵀ)
+  (seed 000 eqs. 4–5);
+* :func:`update_bank`: S = ½(C + Cᵀ), C = H P⁻ Hᵀ + R; S⁻¹ and the scores by
+  the closed forms for m ≤ 2 (S = [[a, b], [b, c]], det S = a c − b²,
+  S⁻¹ = [[c, −b], [−b, a]] / det S, NIS = ν₀²/a + a r² / det S with
+  r = ν₁ − (b/a) ν₀) and by the Cholesky recurrence for m ≥ 3
+  (L_jj = √(S_jj − Σ_{k<j} L_jk²), L_ij = (S_ij − Σ_{k<j} L_ik L_jk) / L_jj,
+  S⁻¹ = L⁻ᵀ L⁻¹, NIS = |L⁻¹ν|², ln det S = 2 Σ ln L_jj);
+  K = P⁻ Hᵀ S⁻¹, x⁺ = x⁻ + K ν, and P⁺ by ``form``: 0 Joseph,
+  T = P⁻ − K (H P⁻), P⁺ = ½(U + Uᵀ), U = T + (K R − T Hᵀ) Kᵀ (the
+  (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ of seed 000 eq. 9 as corrected by SPEC §3,
+  in the evaluation order of :func:`._covariance.update`); 1 symmetric,
+  P⁺ = ½(T + Tᵀ), T = P⁻ − K (P⁻ Hᵀ)ᵀ; 2 conventional, P⁺ = T unsymmetrised.
+  ℓ = −½(m ln 2π + ln det S + NIS) (SPEC §4).
+
+The results equal the numpy path to rounding (tests/plugins/test_kalman_kernel.py:
+≤ 1e-12 relative over random SPD systems, n = 2 … 6, m = 1 … 3).  A filter
+whose S is not positive definite (or NaN) stops the pass: :func:`update_bank`
+returns its index (−1 when all are) and the caller raises the same
+``LinAlgError`` as the numpy path.  No ``fastmath``: IEEE semantics as in
+numpy, so an overflow leaves inf/NaN for the estimator's finiteness checks.
+``error_model="numpy"``: a division by zero gives inf/NaN, not an exception.
+``cache=True``: the first call in a fresh checkout compiles (a few seconds)
+and caches the machine code next to this file (``__pycache__``).
+
+Imported only on first use by :mod:`._covariance` (loading the plugins does
+not import numba); ``AVAILABLE`` is False without numba.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+try:
+    import numba
+except ImportError:  # pragma: no cover - exercised only without numba
+    numba = None
+
+AVAILABLE = numba is not None
+LOG_2PI = float(np.log(2.0 * np.pi))
+FORMS = {"joseph": 0, "symmetric": 1, "conventional": 2}
+
+
+def _njit(function):
+    return numba.njit(cache=True, error_model="numpy", nogil=True)(function) if AVAILABLE else function
+
+
+@_njit
+def predict_bank(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no cover - compiled
+    """x⁻ = F x⁺ + B, P⁻ = ½(C + Cᵀ), C = (F P⁺) Fᵀ + Q, for each filter (outputs written in place).
+
+    Matrices flattened row-major to (M, n²); ``n_tuple`` any tuple of length n
+    (its type fixes n at compile time, so the loops are unrolled and vectorized).
+    """
+    N = len(n_tuple)
+    M = x.shape[0]
+    FP = np.empty(N * N)
+    for i in range(M):
+        Fi, Pi, xi, Qi, Po = F[i], P[i], x[i], Q[i], P_out[i]
+        for j in range(N):
+            acc = 0.0
+            for k in range(N):
+                acc += Fi[j * N + k] * xi[k]
+            x_out[i, j] = acc + B[i, j]
+        for j in range(N):
+            for k in range(N):
+                acc = 0.0
+                for q in range(N):
+                    acc += Fi[j * N + q] * Pi[q * N + k]
+                FP[j * N + k] = acc
+        for j in range(N):
+            for k in range(j, N):
+                c_jk = 0.0
+                c_kj = 0.0
+                for q in range(N):
+                    c_jk += FP[j * N + q] * Fi[k * N + q]
+                    c_kj += FP[k * N + q] * Fi[j * N + q]
+                if j == k:
+                    Po[j * N + j] = c_jk + Qi[j * N + j]
+                else:
+                    Po[j * N + k] = Po[k * N + j] = 0.5 * ((c_jk + Qi[j * N + k]) + (c_kj + Qi[k * N + j]))
+
+
+@_njit
+def update_bank(x, P, nu, H, R, form, x_out, P_out, S_out, loglik, nis, n_tuple, m_tuple):  # pragma: no cover - compiled
+    """The measurement update and scores of each filter (outputs written in place); the first filter whose S is
+    not positive definite, or −1.  Matrices flattened row-major: P (M, n²), H (1 or M, m n) shared or per filter,
+    R (1 or M, m²), S_out (M, m²); ``n_tuple``, ``m_tuple`` any tuples of lengths n and m (compile-time sizes)."""
+    N, Mm = len(n_tuple), len(m_tuple)
+    M = x.shape[0]
+    PHt = np.empty(N * Mm)
+    HP = np.empty(Mm * N)
+    S = np.empty(Mm * Mm)
+    Si = np.empty(Mm * Mm)
+    L = np.zeros(Mm * Mm)
+    Li = np.zeros(Mm * Mm)
+    w = np.empty(Mm)
+    K = np.empty(N * Mm)
+    T = np.empty(N * N)
+    D = np.empty(N * Mm)
+    per_h, per_r = H.shape[0] > 1, R.shape[0] > 1
+    for i in range(M):
+        Pi, Hi, Ri, nui = P[i], H[i if per_h else 0], R[i if per_r else 0], nu[i]
+        # P Hᵀ, S = ½(C + Cᵀ), C = H (P Hᵀ) + R
+        for a in range(N):
+            for b in range(Mm):
+                acc = 0.0
+                for q in range(N):
+                    acc += Pi[a * N + q] * Hi[b * N + q]
+                PHt[a * Mm + b] = acc
+        for a in range(Mm):
+            for b in range(Mm):
+                acc = 0.0
+                for q in range(N):
+                    acc += Hi[a * N + q] * PHt[q * Mm + b]
+                S[a * Mm + b] = acc + Ri[a * Mm + b]
+        for a in range(Mm):
+            for b in range(a + 1, Mm):
+                S[a * Mm + b] = S[b * Mm + a] = 0.5 * (S[a * Mm + b] + S[b * Mm + a])
+        # S⁻¹ and the scores
+        if Mm <= 2:
+            sa = S[0]
+            if Mm == 1:
+                det = sa
+                if not sa > 0.0:  # also catches NaN
+                    return i
+                Si[0] = 1.0 / sa
+            else:
+                sb, sc = S[2], S[3]
+                det = sa * sc - sb * sb
+                if not (sa > 0.0 and det > 0.0):  # also catches NaN
+                    return i
+                rd = 1.0 / det
+                Si[0] = sc * rd
+                Si[3] = sa * rd
+                Si[1] = Si[2] = -(sb * rd)
+            t = nui[0] / sa
+            s_nis = nui[0] * t
+            if Mm == 2:
+                res = nui[1] - S[2] * t
+                s_nis += sa * (res * res) / det
+            log_det = math.log(det)
+        else:
+            for j in range(Mm):
+                d = S[j * Mm + j]
+                for k in range(j):
+                    d = d - L[j * Mm + k] * L[j * Mm + k]
+                if not d > 0.0:
+                    return i
+                L[j * Mm + j] = math.sqrt(d)
+                for a in range(j + 1, Mm):
+                    s = S[a * Mm + j]
+                    for k in range(j):
+                        s = s - L[a * Mm + k] * L[j * Mm + k]
+                    L[a * Mm + j] = s / L[j * Mm + j]
+            for a in range(Mm):  # L⁻¹, row by row
+                Li[a * Mm + a] = 1.0 / L[a * Mm + a]
+                for j in range(a - 1, -1, -1):
+                    acc = L[a * Mm + j] * Li[j * Mm + j]
+                    for k in range(j + 1, a):
+                        acc = acc + L[a * Mm + k] * Li[k * Mm + j]
+                    Li[a * Mm + j] = -acc / L[a * Mm + a]
+            for a in range(Mm):  # S⁻¹ = L⁻ᵀ L⁻¹
+                for j in range(a, Mm):
+                    acc = Li[j * Mm + a] * Li[j * Mm + j]
+                    for k in range(j + 1, Mm):
+                        acc = acc + Li[k * Mm + a] * Li[k * Mm + j]
+                    Si[a * Mm + j] = Si[j * Mm + a] = acc
+            log_det = math.log(L[0])
+            for a in range(1, Mm):
+                log_det += math.log(L[a * Mm + a])
+            log_det *= 2.0
+            s_nis = 0.0
+            for a in range(Mm):  # w = L⁻¹ ν
+                acc = nui[a]
+                for j in range(a):
+                    acc = acc - L[a * Mm + j] * w[j]
+                w[a] = acc / L[a * Mm + a]
+                s_nis = s_nis + w[a] * w[a]
+        nis[i] = s_nis
+        loglik[i] = -0.5 * (Mm * LOG_2PI + log_det + s_nis)
+        So = S_out[i]
+        for a in range(Mm * Mm):
+            So[a] = S[a]
+        # K = P Hᵀ S⁻¹, x⁺ = x⁻ + K ν
+        for a in range(N):
+            for b in range(Mm):
+                acc = 0.0
+                for q in range(Mm):
+                    acc += PHt[a * Mm + q] * Si[q * Mm + b]
+                K[a * Mm + b] = acc
+        for a in range(N):
+            acc = 0.0
+            for b in range(Mm):
+                acc += K[a * Mm + b] * nui[b]
+            x_out[i, a] = x[i, a] + acc
+        # T = P − K (H P) (Joseph) or P − K (P Hᵀ)ᵀ
+        if form == 0:
+            for a in range(Mm):
+                for b in range(N):
+                    acc = 0.0
+                    for q in range(N):
+                        acc += Hi[a * N + q] * Pi[q * N + b]
+                    HP[a * N + b] = acc
+        else:
+            for a in range(Mm):
+                for b in range(N):
+                    HP[a * N + b] = PHt[b * Mm + a]
+        for a in range(N):
+            for b in range(N):
+                acc = 0.0
+                for q in range(Mm):
+                    acc += K[a * Mm + q] * HP[q * N + b]
+                T[a * N + b] = Pi[a * N + b] - acc
+        if form == 0:  # D = K R − T Hᵀ, T += D Kᵀ
+            for a in range(N):
+                for b in range(Mm):
+                    acc = 0.0
+                    for q in range(Mm):
+                        acc += K[a * Mm + q] * Ri[q * Mm + b]
+                    acc2 = 0.0
+                    for q in range(N):
+                        acc2 += T[a * N + q] * Hi[b * N + q]
+                    D[a * Mm + b] = acc - acc2
+            for a in range(N):
+                for b in range(N):
+                    acc = 0.0
+                    for q in range(Mm):
+                        acc += D[a * Mm + q] * K[b * Mm + q]
+                    T[a * N + b] += acc
+        Po = P_out[i]
+        if form == 2:
+            for a in range(N * N):
+                Po[a] = T[a]
+        else:
+            for a in range(N):
+                Po[a * N + a] = T[a * N + a]
+                for b in range(a + 1, N):
+                    Po[a * N + b] = Po[b * N + a] = 0.5 * (T[a * N + b] + T[b * N + a])
+    return -1
