@@ -51,6 +51,17 @@ from hybridtrack.timestamps import step_intervals
 from hybridtrack.types import Decision, Gaussian
 
 
+def mode_label(model: MotionModel) -> str:
+    """The registry name, with the radius for a turn mode (``left_turn_r3``)."""
+    return model.name if model.radius is None else f"{model.name}_r{model.radius:g}"
+
+
+def mode_labels(models: Sequence[MotionModel]) -> tuple[str, ...]:
+    """:func:`mode_label` of each model, a repeated one suffixed with its index (``straight_0``, ``straight_2``)."""
+    labels = [mode_label(m) for m in models]
+    return tuple(x if labels.count(x) == 1 else f"{x}_{i}" for i, x in enumerate(labels))
+
+
 @attrs.frozen(eq=False)
 class StepResult:
     """One step of a pipeline: its time, the bank's posterior, its innovation and the detectors' outputs (by label).
@@ -251,9 +262,7 @@ class Pipeline:
         return {name: candidates[name] for name in self.network.names}
 
     def _default_names(self) -> tuple[str, ...]:
-        names = [model.name if model.radius is None else f"{model.name}_r{model.radius:g}" for model in self.models]
-        # make repeated names unique
-        return tuple(n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names))
+        return mode_labels(self.models)
 
     @property
     def steps(self) -> int:

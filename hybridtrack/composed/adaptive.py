@@ -57,6 +57,7 @@ from hybridtrack.composed.bank import FilterBank
 from hybridtrack.composed.switch_state import SwitchAugmented, augmented_layout, augmented_prior
 from hybridtrack.interfaces import ChangeTimeTest, Estimator, HypothesisTest, MotionModel, ScoreDetector, Sensor, require
 from hybridtrack.network import SensorNetwork
+from hybridtrack.pipeline import mode_labels
 from hybridtrack.plugins import resolve, resolve_registry
 from hybridtrack.recording import log_estimate, log_measurements
 from hybridtrack.registry import Registry
@@ -89,11 +90,6 @@ def turn_bank(r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=No
     )
 
 
-def mode_label(model: MotionModel) -> str:
-    """The registry name, with the radius for a turn mode (``left_turn_r3``)."""
-    return model.name if model.radius is None else f"{model.name}_r{model.radius:g}"
-
-
 def _models(modes, registry) -> list[MotionModel]:
     models = [resolve("motion_model", m, registry) for m in modes]
     if not models:
@@ -102,11 +98,6 @@ def _models(modes, registry) -> list[MotionModel]:
     if len(layouts) != 1:
         raise ValueError(f"modes: every mode must share one state layout, got {sorted(layouts)}")
     return models
-
-
-def _labels(models) -> tuple[str, ...]:
-    labels = [mode_label(m) for m in models]
-    return tuple(x if labels.count(x) == 1 else f"{x}_{i}" for i, x in enumerate(labels))
 
 
 def _prior(prior) -> Gaussian:
@@ -279,7 +270,7 @@ class KnownSwitchAdaptive:
         self.switch_inflation = check_positive(switch_inflation, "switch_inflation")
         registry = resolve_registry(registry)
         self.models = _models(modes if modes is not None else turn_bank(r_min, r_max, n, noise_cov), registry)
-        self.hypotheses = _labels(self.models)
+        self.hypotheses = mode_labels(self.models)
         self.layout = self.models[0].layout
         joint = switch_estimate == "joint"
         self.bank_models = [SwitchAugmented(m) for m in self.models] if joint else self.models
@@ -509,7 +500,7 @@ class UnknownChangeAdaptive:
         self.models = _models(modes, registry)
         if len(self.models) < 2:
             raise ValueError(f"modes: a change needs at least two modes, got {len(self.models)}")
-        self.labels = _labels(self.models)
+        self.labels = mode_labels(self.models)
         self.layout = self.models[0].layout
         if isinstance(initial_mode, bool) or not isinstance(initial_mode, (int, np.integer)) or not 0 <= initial_mode < len(self.models):
             raise ValueError(f"initial_mode: expected an index in 0 … {len(self.models) - 1}, got {initial_mode!r}")

@@ -79,9 +79,9 @@ import attrs
 import numpy as np
 import scipy.linalg
 
-from hybridtrack.composed.adaptive import mode_label
 from hybridtrack.interfaces import Estimator, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
+from hybridtrack.pipeline import mode_label
 from hybridtrack.plugins import resolve, resolve_registry
 from hybridtrack.recording import log_estimate, log_measurements
 from hybridtrack.registry import Registry
