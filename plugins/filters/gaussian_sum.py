@@ -1,0 +1,400 @@
+"""Gaussian-sum filter bank: each filter a weighted mixture of EKF components (Sorenson & Alspach 1971).
+
+Each of the M filters of the bank carries C Gaussian components
+(x_c (M, C, n), P_c (M, C, n, n), ln w_c (M, C), Σ_c w_c = 1); a slot with
+ln w_c = −∞ is empty (banks whose filters hold different numbers of
+components share one array width C).
+
+* Predict, component by component as an EKF (:mod:`._covariance`,
+  seed 000 eqs. 4–5; a linearizing ``transitions`` callable is evaluated at
+  each component mean, F = ∂f/∂x(x_c), B = f(x_c) − F x_c):
+  x_c⁻ = F_c x_c + B_c, P_c⁻ = F_c P_c F_cᵀ + Q; the weights are unchanged.
+* Update, component by component (ẑ_c = h(x_c⁻), H_c = ∂h/∂x(x_c⁻),
+  ν_c = residual(z, ẑ_c) with angles wrapped, S_c = H_c P_c⁻ H_cᵀ + R, Joseph
+  update by default) and the weights by Bayes' rule in log space:
+  ℓ_c = ln N(ν_c; 0, S_c),  ℓ = ln Σ_c w_c⁻ N(ν_c; 0, S_c) = logsumexp_c(ln w_c⁻ + ℓ_c),
+  ln w_c⁺ = ln w_c⁻ + ℓ_c − ℓ (Alspach & Sorenson 1972, eq. 16; SPEC §4 for ℓ_c).
+  ℓ is the mixture's predictive log-likelihood ln p(z_k | z_1:k−1).  The
+  reported innovation is the moment-matched one of that predictive density:
+  ν = Σ_c w_c⁻ ν_c, S = Σ_c w_c⁻ (S_c + (ν_c − ν)(ν_c − ν)ᵀ), NIS = νᵀS⁻¹ν
+  (ℓ is *not* the Gaussian score of (ν, S) when C > 1).
+* Reduction after each update: pruning (components with w_c < ``prune_threshold``
+  dropped, the heaviest always kept), merging (greedy, heaviest first: every
+  component j with d²_ij = (x_j − x_i)ᵀ P_i⁻¹ (x_j − x_i) ≤ ``merge_threshold``
+  joins the leader i, the cluster replaced by its moment-matched Gaussian
+  W = Σ w_j, x̄ = Σ w_j x_j / W, P̄ = Σ w_j (P_j + (x_j − x̄)(x_j − x̄)ᵀ) / W —
+  Salmond 1990's joining of close components, the Mahalanobis criterion of
+  Vo & Ma 2006 (GM-PHD, Table II); Runnalls 2007 shows the moment-matched merge
+  is the KL-optimal one), then at most ``max_components`` kept (the heaviest),
+  and the weights renormalised.
+* Read-out: mean = Σ_c w_c x_c, covariance = Σ_c w_c (P_c + (x_c − x̄)(x_c − x̄)ᵀ)
+  (the moment-matched mixture); one component is exactly the EKF.
+
+:func:`range_parameterised` builds the range-parameterised initial mixture for
+bearings-only tracking (Peach 1995; Arulampalam & Ristic 2000).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.estimation import BankEstimator, bank_field, guarded
+from hybridtrack.interfaces import Innovation, Sensor, TransitionBank, check_prior
+from hybridtrack.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
+from hybridtrack.validation import as_float_array
+from hybridtrack_plugins.filters import _covariance as cov_form
+from hybridtrack_plugins.sensors.bearing import check_convention, direction
+
+_LAYOUT = ("x", "vx", "y", "vy")
+
+
+def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
+    """ln Σ exp(a) along ``axis``, shifted by the maximum (−∞ entries allowed; all −∞ gives −∞)."""
+    top = np.max(a, axis=axis, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.log(np.sum(np.exp(a - top), axis=axis)) + np.squeeze(top, axis=axis)
+
+
+def mixture_moments(x: np.ndarray, P: np.ndarray, log_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Moment-matched Gaussian of mixtures over axis −2 of x (..., C, n):
+    x̄ = Σ w_c x_c / W, P̄ = Σ w_c (P_c + (x_c − x̄)(x_c − x̄)ᵀ) / W, W = Σ w_c (empty slots: w = 0)."""
+    w = np.exp(log_weights - logsumexp(log_weights)[..., None])
+    mean = np.einsum("...c,...ci->...i", w, x)
+    d = x - mean[..., None, :]
+    cov = np.einsum("...c,...cij->...ij", w, P) + np.einsum("...c,...ci,...cj->...ij", w, d, d)
+    return mean, symmetrize(cov)
+
+
+@attrs.frozen(eq=False)
+class MixtureState:
+    """A Gaussian-sum bank: components x (M, C, n), P (M, C, n, n), ln w (M, C) (−∞: empty slot),
+    the moment-matched mean (M, n) / covariance (M, n, n) and those of the last prediction."""
+
+    x: np.ndarray = bank_field(0)
+    P: np.ndarray = bank_field(0)
+    log_weights: np.ndarray = bank_field(0)
+    mean: np.ndarray = bank_field(0)
+    covariance: np.ndarray = bank_field(0)
+    predicted_mean: np.ndarray = bank_field(0)
+    predicted_covariance: np.ndarray = bank_field(0)
+    innovation: Innovation | None = None
+
+    @property
+    def bank_size(self) -> int:
+        return self.x.shape[0]
+
+    @property
+    def weights(self) -> np.ndarray:
+        """w_c (M, C), 0 for empty slots."""
+        return np.exp(self.log_weights)
+
+    @property
+    def component_count(self) -> np.ndarray:
+        """Number of occupied components per filter (M,)."""
+        return np.isfinite(self.log_weights).sum(axis=1)
+
+
+def _compact(x, P, log_weights):
+    """Sort every filter's components by weight (heaviest first), trim the common width to the largest
+    occupied count, and fill empty slots with a copy of the filter's heaviest component (finite arithmetic)."""
+    order = np.argsort(-log_weights, axis=1, kind="stable")
+    log_weights = np.take_along_axis(log_weights, order, axis=1)
+    x = np.take_along_axis(x, order[..., None], axis=1)
+    P = np.take_along_axis(P, order[..., None, None], axis=1)
+    width = max(int(np.isfinite(log_weights).sum(axis=1).max()), 1)
+    log_weights, x, P = log_weights[:, :width].copy(), x[:, :width].copy(), P[:, :width].copy()
+    empty = ~np.isfinite(log_weights)
+    if empty.any():
+        x = np.where(empty[..., None], x[:, :1], x)
+        P = np.where(empty[..., None, None], P[:, :1], P)
+    return x, P, log_weights
+
+
+class GaussianSumFilter(BankEstimator):
+    """Gaussian-sum (weighted bank of EKF components) filter bank.
+
+    ``merge_threshold`` (default 4.0): components within this squared
+    Mahalanobis distance d² of a heavier one are merged into it (``None``: no merging);
+    ``prune_threshold`` (default 1e-5): weights below it are dropped;
+    ``max_components`` (default 16): cap on the components per filter;
+    ``form``/``engine``: the component update of :mod:`._covariance`
+    (``"joseph"``, numpy/numba as the ``kalman`` estimator).
+    """
+
+    name = "gaussian_sum"
+    exact_kalman = False
+    accepts_nonlinear = True
+
+    def __init__(
+        self,
+        merge_threshold: float | None = 4.0,
+        prune_threshold: float = 1e-5,
+        max_components: int = 16,
+        form: str = "joseph",
+        engine: str = "auto",
+    ):
+        super().__init__()
+        if merge_threshold is not None:
+            merge_threshold = float(merge_threshold)
+            if not (math.isfinite(merge_threshold) and merge_threshold >= 0):
+                raise ValueError(f"merge_threshold: expected a finite squared Mahalanobis distance ≥ 0 or None, got {merge_threshold!r}")
+        prune_threshold = float(prune_threshold)
+        if not (0.0 <= prune_threshold < 1.0):
+            raise ValueError(f"prune_threshold: expected a weight in [0, 1), got {prune_threshold!r}")
+        if isinstance(max_components, bool) or not isinstance(max_components, (int, np.integer)) or max_components < 1:
+            raise ValueError(f"max_components: expected an integer ≥ 1, got {max_components!r}")
+        if form not in cov_form.UPDATE_FORMS:
+            raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
+        self.merge_threshold = merge_threshold
+        self.prune_threshold = prune_threshold
+        self.max_components = int(max_components)
+        self.form = form
+        self.engine = cov_form.check_engine(engine)
+
+    # ------------------------------------------------------------------ initialize
+    def initialize(self, mean, cov) -> MixtureState:
+        """One component per filter (weight 1): the EKF's prior."""
+        x, P = check_prior(mean, cov)
+        return self._state(x[:, None], P[:, None], np.zeros((x.shape[0], 1)), predicted=None)
+
+    def initialize_mixture(self, means, covs, weights) -> MixtureState:
+        """A prior mixture per filter: means (M, C, n), covs (M, C, n, n) positive definite, weights (M, C) ≥ 0
+        (each row with a positive sum; renormalised; zero weights are empty slots)."""
+        means = as_float_array(means, "means", (None, None, None))
+        M, C, n = means.shape
+        covs = as_float_array(covs, "covs", (M, C, n, n))
+        weights = as_float_array(weights, "weights", (M, C))
+        if (weights < 0).any():
+            raise ValueError(f"weights: expected weights ≥ 0, got a minimum of {float(weights.min())!r}")
+        total = weights.sum(axis=1)
+        if not (total > 0).all():
+            raise ValueError(f"weights: every filter needs a positive total weight, got sums {total.tolist()}")
+        check_prior(means.reshape(M * C, n), covs.reshape(M * C, n, n))
+        with np.errstate(divide="ignore"):
+            log_weights = np.log(weights / total[:, None])
+        x, P, log_weights = _compact(means, covs, log_weights)
+        return self._state(x, P, log_weights, predicted=None)
+
+    @staticmethod
+    def _state(x, P, log_weights, predicted, innovation=None) -> MixtureState:
+        mean, cov = mixture_moments(x, P, log_weights)
+        pm, pc = (mean, cov) if predicted is None else predicted
+        return MixtureState(x, P, log_weights, mean, cov, pm, pc, innovation)
+
+    def conform(self, states: list) -> list:
+        """Pad every state to the widest component count with empty slots (ln w = −∞, copies of component 0)."""
+        width = max(s.x.shape[1] for s in states)
+        out = []
+        for s in states:
+            pad = width - s.x.shape[1]
+            if pad:
+                x = np.concatenate([s.x, np.repeat(s.x[:, :1], pad, axis=1)], axis=1)
+                P = np.concatenate([s.P, np.repeat(s.P[:, :1], pad, axis=1)], axis=1)
+                lw = np.concatenate([s.log_weights, np.full((s.bank_size, pad), -np.inf)], axis=1)
+                s = attrs.evolve(s, x=x, P=P, log_weights=lw)
+            out.append(s)
+        return out
+
+    def components(self, state: MixtureState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x (M, C, n), P (M, C, n, n), w (M, C)) of the mixture (w = 0 in empty slots)."""
+        return state.x, state.P, state.weights
+
+    # ------------------------------------------------------------------ predict
+    @guarded
+    def predict(self, state: MixtureState, transitions) -> MixtureState:
+        """Every component predicted as an EKF; a linearizing callable is evaluated at each component mean."""
+        M, C, n = state.x.shape
+        if callable(transitions) and not isinstance(transitions, TransitionBank):
+            banks = [self.check_transitions(transitions, M, n, state.x[:, c]) for c in range(C)]
+            F, B, Q = (np.stack([getattr(b, k) for b in banks], axis=1).reshape((M * C,) + getattr(banks[0], k).shape[1:]) for k in "FBQ")
+        else:
+            bank = self.check_transitions(transitions, M, n)
+            F, B, Q = (np.repeat(getattr(bank, k), C, axis=0) for k in "FBQ")
+        engine = cov_form.resolve_engine(self.engine, n)
+        x, P = cov_form.predict(state.x.reshape(M * C, n), state.P.reshape(M * C, n, n), F, B, Q, engine=engine)
+        x, P = x.reshape(M, C, n), P.reshape(M, C, n, n)
+        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
+        return self._state(x, P, state.log_weights, predicted=None)
+
+    # ------------------------------------------------------------------ update
+    @guarded
+    def update(self, state: MixtureState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        """Component-wise EKF updates, Bayes weights in log space, then pruning and merging (module docstring)."""
+        M, C, n = state.x.shape
+        z = np.asarray(z, dtype=float)
+        z_rows = np.repeat(z, C, axis=0) if z.ndim == 2 else z  # one row per component
+        found = self.linearize(state.x.reshape(M * C, n), z_rows, sensors, layout)
+        predicted = (state.predicted_mean, state.predicted_covariance)
+        if found is None:
+            innovation = Innovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M))
+            return attrs.evolve(state, innovation=innovation), innovation
+        step, nu, H = found
+        m = nu.shape[-1]
+        engine = cov_form.resolve_engine(self.engine, n, m)
+        x, P, S, loglik_c, _ = cov_form.update_scored(
+            state.x.reshape(M * C, n), state.P.reshape(M * C, n, n), nu, H, step.R, step.selection, self.form, engine
+        )
+        x, P = x.reshape(M, C, n), P.reshape(M, C, n, n)
+        nu, S, loglik_c = nu.reshape(M, C, m), S.reshape(M, C, m, m), loglik_c.reshape(M, C)
+        joint = state.log_weights + loglik_c
+        loglik = logsumexp(joint)
+        log_weights = joint - loglik[:, None]
+        # the moment-matched predictive innovation (prior weights)
+        w = np.exp(state.log_weights)
+        nu_mix = np.einsum("mc,mci->mi", w, nu)
+        d = nu - nu_mix[:, None]
+        S_mix = symmetrize(np.einsum("mc,mcij->mij", w, S) + np.einsum("mc,mci,mcj->mij", w, d, d))
+        _, nis = CholeskyFactor(S_mix, "mixture innovation covariance S").scores(nu_mix)
+        innovation = Innovation(nu_mix, S_mix, loglik, nis)
+        x, P, log_weights = self.reduce(x, P, log_weights)
+        self.check_finite("update", updated_mean=x, updated_covariance=P)
+        return self._state(x, P, log_weights, predicted, innovation), innovation
+
+    # ------------------------------------------------------------------ reduction
+    def reduce(self, x, P, log_weights):
+        """Prune (w < prune_threshold, the heaviest kept), merge (d² ≤ merge_threshold), cap at max_components,
+        renormalise; returns compacted (x, P, ln w)."""
+        log_weights = self.prune(log_weights)
+        x, P, log_weights = _compact(x, P, log_weights)
+        if self.merge_threshold is not None and x.shape[1] > 1:
+            x, P, log_weights = merge(x, P, log_weights, self.merge_threshold)
+        if x.shape[1] > self.max_components:  # compacted: heaviest first
+            x, P, log_weights = x[:, : self.max_components], P[:, : self.max_components], log_weights[:, : self.max_components]
+        log_weights = log_weights - logsumexp(log_weights)[:, None]
+        return _compact(x, P, log_weights)
+
+    def prune(self, log_weights: np.ndarray) -> np.ndarray:
+        """ln w with the components of normalised weight below ``prune_threshold`` emptied (−∞; each filter's
+        heaviest component kept) and the rest renormalised."""
+        log_weights = log_weights - logsumexp(log_weights)[:, None]
+        if self.prune_threshold > 0:
+            keep = (log_weights >= math.log(self.prune_threshold)) | (log_weights == log_weights.max(axis=1, keepdims=True))
+            log_weights = np.where(keep, log_weights, -np.inf)
+            log_weights = log_weights - logsumexp(log_weights)[:, None]
+        return log_weights
+
+
+def merge(x: np.ndarray, P: np.ndarray, log_weights: np.ndarray, threshold: float):
+    """Greedy moment-matched merging of every filter's components (sorted heaviest first, see :func:`_compact`).
+
+    For i = 0, 1, …: if component i is occupied and not yet merged it leads a cluster of the unmerged
+    components j ≥ i with d²_ij = (x_j − x_i)ᵀ P_i⁻¹ (x_j − x_i) ≤ threshold (Cholesky solve with P_i);
+    each cluster becomes W = Σ w_j, x̄ = Σ w_j x_j / W, P̄ = Σ w_j (P_j + (x_j − x̄)(x_j − x̄)ᵀ) / W
+    (Salmond 1990; Vo & Ma 2006, Table II; Runnalls 2007).  Vectorized over the M filters.
+    """
+    M, C, n = x.shape
+    leader = np.full((M, C), -1)
+    occupied = np.isfinite(log_weights)
+    rows = np.arange(M)
+    for i in range(C):
+        leads = occupied[:, i] & (leader[:, i] < 0)
+        if not leads.any():
+            continue
+        L = cholesky(P[:, i], "component covariance P")
+        r = forward_substitute(L[:, None], x - x[:, i : i + 1])  # (M, C, n)
+        d2 = np.einsum("mci,mci->mc", r, r)
+        join = leads[:, None] & occupied & (leader < 0) & (d2 <= threshold)
+        join[:, :i] = False
+        join[rows, i] |= leads
+        leader = np.where(join, i, leader)
+    one_hot = (leader[:, None, :] == np.arange(C)[None, :, None]) & occupied[:, None, :]  # (M, leader, member)
+    member_lw = np.where(one_hot, log_weights[:, None, :], -np.inf)
+    merged_lw = logsumexp(member_lw)  # (M, C): −∞ where i leads nothing
+    with np.errstate(invalid="ignore"):
+        r = np.exp(member_lw - np.where(np.isfinite(merged_lw), merged_lw, 0.0)[..., None])  # w_j / W within a cluster
+    xm = np.einsum("mij,mjk->mik", r, x)
+    d = x[:, None, :, :] - xm[:, :, None, :]  # (M, leader, member, n)
+    Pm = np.einsum("mij,mjkl->mikl", r, P) + np.einsum("mij,mijk,mijl->mikl", r, d, d)
+    empty = ~np.isfinite(merged_lw)
+    xm = np.where(empty[..., None], x, xm)
+    Pm = np.where(empty[..., None, None], P, symmetrize(Pm))
+    return _compact(xm, Pm, merged_lw)
+
+
+def range_parameterised(
+    observer_position,
+    bearing,
+    sigma_bearing: float,
+    r_min: float,
+    r_max: float,
+    components: int,
+    speed_sigma: float,
+    velocity=(0.0, 0.0),
+    layout: Sequence[str] = _LAYOUT,
+    convention: str = "north",
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Range-parameterised initial mixture for bearings-only tracking (Peach 1995; Arulampalam & Ristic 2000).
+
+    The range interval [r_min, r_max] is cut into C intervals in geometric
+    steps, ρ = (r_max / r_min)^{1/C}, interval c = [r_min ρ^c, r_min ρ^{c+1}];
+    component c is the moment-matched Gaussian of a uniform density on it:
+    r_c = (r_min/2)(ρ^c + ρ^{c+1}), σ_c = r_min(ρ^{c+1} − ρ^c)/√12, so that
+    σ_c / r_c = 2(ρ − 1)/(√12 (ρ + 1)) is the same for every component (the
+    condition of Peach 1995 for each EKF to stay well conditioned).  Position
+    mean = observer + r_c u(β) along the first bearing β (u: the unit vector
+    of ``convention``), position covariance = σ_c² u uᵀ + (r_c σ_β)² u⊥ u⊥ᵀ;
+    velocity ``velocity`` ± ``speed_sigma`` per axis, uncorrelated; equal
+    weights 1/C (a prior uniform in ln r).
+
+    ``observer_position`` (2,) or (M, 2), ``bearing`` scalar or (M,) (radians);
+    returns means (M, C, n), covs (M, C, n, n), weights (M, C) for
+    :meth:`GaussianSumFilter.initialize_mixture` (M = 1 for scalar input).
+    """
+    check_convention(convention)
+    bearing = as_float_array(np.atleast_1d(bearing), "bearing", (None,))
+    M = bearing.shape[0]
+    observer = as_float_array(
+        np.broadcast_to(np.asarray(observer_position, dtype=float), (M, 2)) if np.ndim(observer_position) == 1 else observer_position,
+        "observer_position",
+        (M, 2),
+    )
+    for name, value in (("sigma_bearing", sigma_bearing), ("speed_sigma", speed_sigma)):
+        if not (math.isfinite(float(value)) and float(value) > 0):
+            raise ValueError(f"{name}: expected a positive finite value, got {value!r}")
+    r_min, r_max = float(r_min), float(r_max)
+    if not (math.isfinite(r_min) and math.isfinite(r_max) and 0 < r_min < r_max):
+        raise ValueError(f"r_min, r_max: expected 0 < r_min < r_max (finite), got r_min={r_min!r}, r_max={r_max!r}")
+    if isinstance(components, bool) or not isinstance(components, (int, np.integer)) or components < 1:
+        raise ValueError(f"components: expected an integer ≥ 1, got {components!r}")
+    velocity = as_float_array(velocity, "velocity", (2,))
+    layout = tuple(layout)
+    missing = [k for k in ("x", "y", "vx", "vy") if k not in layout]
+    if missing:
+        raise ValueError(f"layout: expected a layout naming x, y, vx, vy, got {layout} (missing {missing})")
+    if len(layout) != 4:
+        raise ValueError(f"layout: range parameterisation sets x, y, vx, vy only, got {layout}")
+    n = len(layout)
+    ix, iy, ivx, ivy = (layout.index(k) for k in ("x", "y", "vx", "vy"))
+    C = int(components)
+    rho = (r_max / r_min) ** (1.0 / C)
+    edges = r_min * rho ** np.arange(C + 1)
+    r = 0.5 * (edges[:-1] + edges[1:])  # (C,)
+    sigma_r = (edges[1:] - edges[:-1]) / math.sqrt(12.0)
+    ux, uy = direction(bearing, convention)  # (M,)
+    u = np.stack([ux, uy], axis=-1)  # (M, 2)
+    v = np.stack([-uy, ux], axis=-1)  # perpendicular
+    pos = observer[:, None, :] + r[None, :, None] * u[:, None, :]  # (M, C, 2)
+    cross = (r * float(sigma_bearing)) ** 2
+    Pxy = (
+        sigma_r[None, :, None, None] ** 2 * np.einsum("mi,mj->mij", u, u)[:, None]
+        + cross[None, :, None, None] * np.einsum("mi,mj->mij", v, v)[:, None]
+    )
+    means = np.zeros((M, C, n))
+    means[..., ix], means[..., iy] = pos[..., 0], pos[..., 1]
+    means[..., ivx], means[..., ivy] = velocity[0], velocity[1]
+    covs = np.zeros((M, C, n, n))
+    covs[:, :, ix, ix], covs[:, :, ix, iy] = Pxy[..., 0, 0], Pxy[..., 0, 1]
+    covs[:, :, iy, ix], covs[:, :, iy, iy] = Pxy[..., 1, 0], Pxy[..., 1, 1]
+    covs[:, :, ivx, ivx] = covs[:, :, ivy, ivy] = float(speed_sigma) ** 2
+    weights = np.full((M, C), 1.0 / C)
+    return means, covs, weights
+
+
+GaussianSumFilter.range_parameterised = staticmethod(range_parameterised)
+
+COMPONENTS = {"gaussian_sum": GaussianSumFilter}
