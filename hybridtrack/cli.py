@@ -40,6 +40,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "hybridtrack.commands.simulate",
     "hybridtrack.commands.inspect",
     "hybridtrack.commands.run",
+    "hybridtrack.commands.track",
 )
 
 

@@ -1,0 +1,193 @@
+"""``hybridtrack track``: a configured estimator over every object of a position file (hybridtrack.tracking)."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybridtrack.cli import main
+from hybridtrack.inspection import RecordingFile
+from hybridtrack.tracking import load_config, segments_of, track_file
+
+ROOT = Path(__file__).resolve().parents[2]
+SOLENT = ROOT / "data" / "solent_ais" / "SolentAIS_20160112_130211.csv"
+
+CONFIG = """
+[reader]
+time = "t"
+x = "east"
+y = "north"
+id = "name"
+min_reports = 5
+
+[measurement]
+sigma = 5.0
+
+[prior]
+velocity = "two_fixes"
+position_sigma = 50.0
+velocity_sigma = 5.0
+
+[estimator]
+kind = "{kind}"
+process_noise = 0.05
+modes = ["straight", "left_turn", "right_turn"]
+radii = [200.0, 1000.0]
+{extra}
+"""
+UNKNOWN_CHANGE = "alpha = 0.01\nbeta = 0.01\nbank_size = 20"
+IMM = "sojourn = 60.0"
+
+DT, SPEED, RADIUS, STRAIGHT, TURN = 2.0, 10.0, 200.0, 40, 40  # the turn: 80 s of 10 m/s on 200 m = 229° of heading
+
+
+def leg(direction: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Times and noisy positions: north at SPEED for STRAIGHT steps, then a turn of RADIUS (+1 left, −1 right)."""
+    t = np.arange(STRAIGHT + TURN + 1) * DT
+    pos = np.zeros((t.size, 2))
+    pos[: STRAIGHT + 1, 1] = SPEED * t[: STRAIGHT + 1]
+    start = pos[STRAIGHT]
+    centre = start + np.array([-direction * RADIUS, 0.0])  # heading north: left centre to the west
+    angle = SPEED / RADIUS * (t[STRAIGHT:] - t[STRAIGHT])  # turned so far
+    pos[STRAIGHT:] = centre + RADIUS * np.stack([direction * np.cos(angle), np.sin(angle)], axis=1)
+    return t, pos + rng.normal(0.0, 5.0, pos.shape)
+
+
+def write_csv(path: Path) -> Path:
+    rng = np.random.default_rng(7)
+    rows = ["t,name,east,north"]
+    for name, direction in (("port", 1), ("starboard", -1)):
+        t, pos = leg(direction, rng)
+        rows += [f"{a:.1f},{name},{x:.3f},{y:.3f}" for a, (x, y) in zip(t, pos)]
+    rows += ["0.0,short,0.0,0.0", "1.0,short,1.0,0.0"]  # too few reports: skipped
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def write_config(path: Path, kind: str = "unknown_change") -> Path:
+    path.write_text(CONFIG.format(kind=kind, extra=UNKNOWN_CHANGE if kind == "unknown_change" else IMM))
+    return path
+
+
+@pytest.mark.parametrize("direction", [1, -1])
+def test_synthetic_leg_geometry(direction):
+    """The synthetic turn is a circle of RADIUS tangent to the straight leg, turning left (+1) or right (−1)."""
+    t, pos = leg(direction, np.random.default_rng(0))
+    clean = pos - np.random.default_rng(0).normal(0.0, 5.0, pos.shape)
+    v = np.diff(clean, axis=0) / DT
+    assert np.allclose(np.linalg.norm(v, axis=1), SPEED, rtol=2e-3)  # chord of a 0.1 rad arc: 0.04 % short
+    heading = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
+    assert np.allclose(np.diff(heading[STRAIGHT:]), direction * SPEED / RADIUS * DT)  # ω = v/r, + counter-clockwise
+
+
+@pytest.mark.parametrize("kind", ["unknown_change", "imm"])
+def test_track_writes_outputs_and_finds_the_turn(tmp_path, capsys, rerun_cli, kind):
+    csv, cfg, out = write_csv(tmp_path / "legs.csv"), write_config(tmp_path / "c.toml", kind), tmp_path / "out"
+    status = main(["track", str(csv), "--config", str(cfg), "--out", str(out), "--no-progress"])
+    assert status == 0, capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary) == {"objects", "skipped"}
+    assert summary["skipped"] == [{"id": "short", "reason": "2 reports < min_reports 5"}]
+    assert [o["id"] for o in summary["objects"]] == ["port", "starboard"]
+    t_turn = STRAIGHT * DT
+    for obj, expected in zip(summary["objects"], ("left_turn", "right_turn")):
+        assert set(obj) == {"id", "segments", "decisions"}
+        for s in obj["segments"]:
+            assert set(s) == {"start", "end", "mode", "radius"}
+            assert s["mode"] in {"straight", "left_turn", "right_turn"}
+            assert (s["radius"] is None) == (s["mode"] == "straight")
+        for d in obj["decisions"]:
+            assert set(d) == {"time", "mode"} and isinstance(d["time"], float)
+        segs = obj["segments"]
+        assert segs[0]["start"] == 0.0 and segs[-1]["end"] == (STRAIGHT + TURN) * DT
+        assert all(a["end"] == b["start"] for a, b in zip(segs, segs[1:]))
+
+        # after a warm-up of 10 reports (the IMM's modes are alike while the velocity is uncertain) the straight leg is
+        # straight, and most of the turn is identified as a turn in the right direction
+        def overlap(mode, a, b, segs=segs):
+            return sum(max(0.0, min(s["end"], b) - max(s["start"], a)) for s in segs if s["mode"] == mode)
+
+        assert overlap("straight", 10 * DT, t_turn) > 0.8 * (t_turn - 10 * DT), segs
+        turning = overlap(expected, t_turn, t_turn + TURN * DT)
+        wrong = overlap(({"left_turn", "right_turn"} - {expected}).pop(), 10 * DT, t_turn + TURN * DT)
+        assert turning > 0.6 * TURN * DT and wrong < 0.1 * TURN * DT, segs
+        with np.load(out / f"{obj['id']}.npz") as npz:
+            assert npz["times"].shape == (STRAIGHT + TURN + 1,)
+            assert npz["means"].shape == (STRAIGHT + TURN + 1, 4) and npz["covariances"].shape == (STRAIGHT + TURN + 1, 4, 4)
+            assert list(npz["layout"]) == ["x", "vx", "y", "vy"]
+            # the per-step modes merge into exactly the summary's segments
+            radii = [None if np.isnan(r) else float(r) for r in npz["radii"]]
+            assert segments_of(npz["times"], [str(m) for m in npz["modes"]], radii) == segs
+            assert np.all(np.linalg.eigvalsh(npz["covariances"]) > 0)
+        rrd = out / f"{obj['id']}.rrd"
+        assert RecordingFile(rrd).application_id == "hybridtrack"
+        assert rerun_cli("rrd", "verify", rrd).returncode == 0
+
+
+def test_id_selects_objects(tmp_path):
+    csv, cfg = write_csv(tmp_path / "legs.csv"), write_config(tmp_path / "c.toml")
+    summary = track_file(csv, cfg, tmp_path / "out", ids=["starboard"])
+    assert [o["id"] for o in summary["objects"]] == ["starboard"] and summary["skipped"] == []
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["starboard.npz", "starboard.rrd", "summary.json"]
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda c: c.replace("[measurement]", "[measurement]\nsigmaa = 3.0"), "unknown key(s) ['sigmaa'] in [measurement]"),
+        (lambda c: c.replace('kind = "unknown_change"', 'kind = "kalman_bank"'), "kind = 'kalman_bank'"),
+        (lambda c: c.replace('"straight", "left_turn"', '"straight", "zigzag", "left_turn"'), "unknown motion model 'zigzag'"),
+        (lambda c: c + "\n[tracker]\n", "unknown section(s) ['tracker']"),
+        (lambda c: c.replace("alpha = 0.01", "alpha = 0.7"), "alpha = 0.7"),
+        (lambda c: c.replace("alpha = 0.01", "sojourn = 3.0"), "belong to kind 'imm'"),
+        (lambda c: c.replace("sigma = 5.0", "sigma = 5.0 5"), "not a valid TOML file"),
+    ],
+)
+def test_bad_config_is_one_line_and_status_2(tmp_path, capsys, edit, message):
+    csv, cfg = write_csv(tmp_path / "legs.csv"), write_config(tmp_path / "c.toml")
+    cfg.write_text(edit(cfg.read_text()))
+    status = main(["track", str(csv), "--config", str(cfg), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and err.startswith("hybridtrack track: error:"), err
+    assert message in err
+
+
+@pytest.mark.parametrize("which", ["config", "file", "id", "column"])
+def test_missing_inputs_are_one_line_and_status_2(tmp_path, capsys, which):
+    csv, cfg = write_csv(tmp_path / "legs.csv"), write_config(tmp_path / "c.toml")
+    argv = ["track", str(csv), "--config", str(cfg), "--out", str(tmp_path / "out")]
+    if which == "config":
+        argv[3] = str(tmp_path / "nope.toml")
+    elif which == "file":
+        argv[1] = str(tmp_path / "nope.csv")
+    elif which == "id":
+        argv += ["--id", "ghost"]
+    else:
+        cfg.write_text(cfg.read_text().replace('x = "east"', 'x = "easting"'))
+    status = main(argv)
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and err.startswith("hybridtrack track: error:"), err
+    assert {"config": "nope.toml", "file": "nope.csv", "id": "'ghost'", "column": "'easting'"}[which] in err
+
+
+def test_example_configs_load():
+    ships = load_config(ROOT / "examples" / "ships.toml")
+    assert ships["measurement"]["sigma"] == 25.0 and ships["reader"]["id"] == "MMSI"
+    assert len(ships["estimator"]["modes"]) == 1 + 2 * 4
+    aircraft = load_config(ROOT / "examples" / "aircraft.toml")
+    assert aircraft["estimator"]["kind"] == "imm"
+
+
+@pytest.mark.slow
+def test_first_three_solent_vessels_with_the_ships_config(tmp_path):
+    from hybridtrack.tracks_io import SOLENT_AIS, read_tracks
+
+    ids = list(read_tracks(SOLENT, **SOLENT_AIS, warn=False).tracks)[:3]
+    summary = track_file(SOLENT, ROOT / "examples" / "ships.toml", tmp_path, ids=ids)
+    assert [o["id"] for o in summary["objects"]] == ids
+    for obj in summary["objects"]:
+        segs = obj["segments"]
+        assert segs[0]["start"] < segs[-1]["end"] and all(a["end"] == b["start"] for a, b in zip(segs, segs[1:]))
+        with np.load(tmp_path / f"{obj['id']}.npz") as npz:
+            assert np.all(np.isfinite(npz["means"]))
