@@ -1,0 +1,365 @@
+"""Track-oriented multiple hypothesis tracking of one target in clutter (SPEC §6; seed 004).
+
+Blackman & Popoli 1999, *Design and Analysis of Modern Tracking Systems*, §6
+(track score, §6.2; hypothesis pruning, §6.6 and §16.3); Bar-Shalom, Li &
+Kirubarajan 2001 §11 (the likelihood ratio of an association); Singer, Sea &
+Housewright 1974, IEEE Trans. IT-20(4) (hypotheses that agree on the last N
+scans treated as one: the "N-scan-back" rule); seed 004 ("метод
+многогипотезного сопровождения").
+
+Every filter j of the bank carries up to ``max_hypotheses`` hypotheses h, each a
+Kalman filter (x_h, P_h) conditioned on one association history, with a track
+score (log-likelihood ratio, target vs clutter) Σ_h.  At each scan of L
+candidates every hypothesis branches into "missed" and one child per gated
+candidate i (d²_hi = ν_hiᵀ S_h⁻¹ ν_hi ≤ γ, P(χ²_m ≤ γ) = P_G), with the score
+increments (Blackman & Popoli 1999 §6.2, eqs. 6.11–6.13)
+
+    missed:        ΔΣ = ln(1 − P_D P_G)
+    candidate i:   ΔΣ = ln(P_D / λ) + ℓ_hi,   ℓ_hi = −½ (d²_hi + ln|2π S_h|)
+
+(λ the clutter density, false measurements per unit measurement volume per
+step).  The candidate child is the Kalman update of h with ν_hi; the missed
+child is h unchanged.  Then
+
+* N-scan rule: children whose last N decisions (one per scan: a candidate index
+  or "missed") are equal differ only in branches older than N scans; only the
+  best-scoring of them is kept (Singer et al. 1974);
+* cap: the ``max_hypotheses`` best children by score are kept (Blackman &
+  Popoli 1999 §16.3.3, pruning by score).
+
+The hypothesis probabilities are the softmax of the scores,
+p_h = exp(Σ_h) / Σ_g exp(Σ_g) (Blackman & Popoli 1999 §6.4), and the bank's
+estimate (``mean``/``covariance``) is that of the best hypothesis, which is
+kept in slot 0 (hypotheses are stored sorted by score, best first).
+
+With ``window = 1`` and ``max_hypotheses = 1`` the best child of the single
+hypothesis is the gated candidate nearest in Mahalanobis distance, unless the
+missed branch scores higher (d² > 2[ln(P_D/λ) − ln√|2πS| − ln(1 − P_D P_G)]):
+whenever that threshold exceeds γ this is exactly the nearest-neighbour filter.
+With P_D = 1, no gate (P_G = 1) and one candidate per scan the missed branch
+has score −∞ and every hypothesis is the Kalman filter.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import attrs
+import numpy as np
+
+from hybridtrack.clutter import check_detection_probability
+from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.linalg import cholesky, gaussian_scores
+from hybridtrack.measurements import block_diagonal
+from hybridtrack.validation import check_magnitude
+from hybridtrack_plugins.filters import _covariance as cov_form
+from hybridtrack_plugins.filters._association import (
+    _as_scans,
+    check_gate_probability,
+    check_innovation_covariance,
+    distances,
+    gate_threshold,
+    innovation_covariance,
+    log_half_det_2pi_s,
+)
+
+#: history entry of a scan not yet seen (the root hypothesis); −1 is "missed", i ≥ 0 candidate i
+_NO_SCAN = -2
+
+
+@attrs.frozen(eq=False)
+class MHTState:
+    """Hypotheses of a bank of M filters, H = ``max_hypotheses`` slots each, sorted by score (best first).
+
+    x (M, H, n), P (M, H, n, n), their last prediction, ``scores`` Σ (M, H) (−∞:
+    an empty slot), ``history`` (M, H, N) the last N decisions (−1 missed, i ≥ 0
+    candidate i, −2 before the first scan).  ``mean``/``covariance`` are the best
+    hypothesis's (slot 0).
+    """
+
+    x: np.ndarray = bank_field(0)
+    P: np.ndarray = bank_field(0)
+    x_predicted: np.ndarray = bank_field(0)
+    P_predicted: np.ndarray = bank_field(0)
+    scores: np.ndarray = bank_field(0)
+    history: np.ndarray = bank_field(0)
+    innovation: ClutterInnovation | None = None
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.x[:, 0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self.P[:, 0]
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted[:, 0]
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.P_predicted[:, 0]
+
+    @property
+    def count(self) -> np.ndarray:
+        """Number of live hypotheses per filter (M,)."""
+        return np.isfinite(self.scores).sum(axis=1)
+
+    @property
+    def probabilities(self) -> np.ndarray:
+        """p_h = exp(Σ_h) / Σ_g exp(Σ_g) (M, H), 0 for an empty slot."""
+        return hypothesis_probabilities(self.scores)
+
+
+@attrs.frozen(eq=False)
+class MHTInnovation(ClutterInnovation):
+    """A :class:`ClutterInnovation` of the best hypothesis plus every hypothesis's score and probability (M, H)."""
+
+    scores: np.ndarray | None = None
+    probabilities: np.ndarray | None = None
+
+
+def hypothesis_probabilities(scores: np.ndarray) -> np.ndarray:
+    """Softmax of the scores over each row (M, H); −∞ slots get 0."""
+    top = scores.max(axis=1, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    weights = np.exp(scores - top)
+    return weights / weights.sum(axis=1, keepdims=True)
+
+
+def _positive_int(value, name: str, what: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name}: expected an integer ≥ 1 ({what}), got {value!r}")
+    return int(value)
+
+
+def _rows(A: np.ndarray, M: int, H: int) -> np.ndarray:
+    """A per-filter stack (M, …) repeated for the H hypotheses of each filter → (M H, …); shared arrays as they are."""
+    return np.repeat(A, H, axis=0) if A.ndim == 3 else A
+
+
+class MHTFilter(BankEstimator):
+    """Track-oriented MHT over a bank (module docstring).
+
+    ``detection_probability`` P_D in (0, 1], ``clutter_density`` λ > 0,
+    ``gate_probability`` P_G in (0, 1) or ``None`` (no gate, P_G = 1),
+    ``window`` N ≥ 1 (scans of the N-scan rule), ``max_hypotheses`` ≥ 1 (the
+    cap), ``form`` the covariance update form as for ``kalman``.
+    """
+
+    name = "mht"
+    exact_kalman = False
+    accepts_scans = True
+    example_parameters = {"detection_probability": 0.9, "clutter_density": 0.01, "gate_probability": 0.99, "window": 2, "max_hypotheses": 4}
+
+    def __init__(
+        self,
+        detection_probability: float = 0.9,
+        clutter_density: float = 0.01,
+        gate_probability: float | None = 0.99,
+        window: int = 3,
+        max_hypotheses: int = 10,
+        form: str = "joseph",
+    ):
+        super().__init__()
+        if form not in cov_form.UPDATE_FORMS:
+            raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
+        self.detection_probability = check_detection_probability(detection_probability)
+        lam = float(clutter_density)
+        if not (math.isfinite(lam) and lam > 0.0):
+            raise ValueError(f"clutter_density: expected a finite λ > 0 (the score has ln(P_D/λ)), got {clutter_density!r}")
+        self.clutter_density = lam
+        self.gate_probability = check_gate_probability(gate_probability)
+        self.window = _positive_int(window, "window", "the N of N-scan pruning")
+        self.max_hypotheses = _positive_int(max_hypotheses, "max_hypotheses", "the cap on hypotheses per filter")
+        self.form = form
+        P_G = 1.0 if self.gate_probability is None else self.gate_probability
+        miss = 1.0 - self.detection_probability * P_G
+        #: ln(1 − P_D P_G), −∞ when a miss is impossible (P_D = 1, no gate)
+        self.log_miss = math.log(miss) if miss > 0 else -math.inf
+        #: ln(P_D / λ)
+        self.log_detect = math.log(self.detection_probability) - math.log(lam)
+
+    # ------------------------------------------------------------------ the Estimator API
+    def initialize(self, mean, cov) -> MHTState:
+        x, P = self.check_prior(mean, cov)
+        M, n = x.shape
+        H, N = self.max_hypotheses, self.window
+        xs = np.repeat(x[:, None], H, axis=1)
+        Ps = np.repeat(P[:, None], H, axis=1)
+        scores = np.full((M, H), -np.inf)
+        scores[:, 0] = 0.0
+        history = np.full((M, H, N), _NO_SCAN, dtype=np.int64)
+        return MHTState(xs, Ps, xs, Ps, scores, history, None)
+
+    @guarded
+    def predict(self, state: MHTState, transitions) -> MHTState:
+        M, H, n = state.x.shape
+        bank = self.check_transitions(transitions, M, n, state.x[:, 0])
+        F, B, Q = (np.repeat(A, H, axis=0) for A in (bank.F, bank.B, bank.Q))
+        x, P = cov_form.predict(state.x.reshape(M * H, n), state.P.reshape(M * H, n, n), F, B, Q)
+        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
+        x, P = x.reshape(M, H, n), P.reshape(M, H, n, n)
+        return MHTState(x, P, x, P, state.scores, state.history, None)
+
+    @guarded
+    def update(self, state: MHTState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        M, H, n = state.x.shape
+        if len(layout) != n:
+            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        scans = _as_scans(z)
+        current = state
+        if scans is None:
+            step = self.measurement_step(z, sensors, layout, M, n)
+            if step is None:
+                innovation = empty_innovation(M)
+                return attrs.evolve(state, innovation=innovation), innovation
+            if step.H is None:
+                names = [m.sensor.name for m in step.models if m.H is None]
+                raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {names} are nonlinear")
+            if step.z.shape[0] > 1:
+                step = step.with_z(np.repeat(step.z, H, axis=0))
+            z_pred, Hm = step.predicted(state.x.reshape(M * H, n), layout)
+            nu = step.residual(z_pred)[:, None, :]
+            name = "+".join(m.sensor.name for m in step.models)
+            R = _rows(np.asarray(step.R), M, H)
+            current, record, nu_best, S_best = self._branch(current, nu, Hm, R, step.selection, name, step.z, z_pred)
+            return self._finish(current, [nu_best], [S_best], [record])
+        if isinstance(sensors, Sensor):
+            sensors = (sensors,)
+        by_name = {s.name: s for s in sensors}
+        used, blocks, records = [], [], []
+        for scan in scans:
+            sensor = by_name.get(scan.sensor)
+            if sensor is None:
+                raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
+            model = self._assembler.sensor_model(sensor, tuple(layout))
+            if model.H is None:
+                raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
+            if type(sensor).measurement_noise is not Sensor.measurement_noise:
+                raise ValueError(f"sensors: {self.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
+            if scan.measurement_dim != model.dim:
+                raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
+            check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
+            x = current.x.reshape(M * H, n)
+            z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
+            candidates = np.broadcast_to(scan.z[None, :, :], (M * H,) + scan.z.shape)
+            predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
+            nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+            current, record, nu_best, S_best = self._branch(
+                current, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred
+            )
+            records.append(record)
+            if scan.size:
+                used.append(nu_best)
+                blocks.append(S_best)
+        return self._finish(current, used, blocks, records)
+
+    # ------------------------------------------------------------------ pieces
+    def _branch(self, state: MHTState, nu, Hm, R, selection, sensor_name, candidates, z_pred):
+        """One scan: every hypothesis branches (missed, each gated candidate), scored, N-scan rule, cap.
+
+        ν (M H, L, m) → the new state, the Association, the best hypothesis's ν (M, m) and S (M, m, m).
+        """
+        M, H, n = state.x.shape
+        L, N = nu.shape[1], self.window
+        x, P = state.x.reshape(M * H, n), state.P.reshape(M * H, n, n)
+        S = innovation_covariance(P, Hm, R, selection)
+        chol = check_innovation_covariance(S)
+        gamma = gate_threshold(self.gate_probability, S.shape[-1])
+        d2 = distances(nu, chol)
+        self.check_finite("update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2)
+        gated = d2 <= gamma
+        ell = -0.5 * d2 - log_half_det_2pi_s(chol)[:, None]  # ℓ_hi (M H, L)
+        # child scores (M, H, 1 + L): column 0 missed, column 1 + i candidate i
+        parent = state.scores[:, :, None]
+        child = np.empty((M, H, 1 + L))
+        child[:, :, 0] = parent[:, :, 0] + self.log_miss
+        child[:, :, 1:] = np.where(gated.reshape(M, H, L), parent + self.log_detect + ell.reshape(M, H, L), -np.inf)
+        dead = ~np.isfinite(child).any(axis=(1, 2))  # a miss impossible and nothing gated: no information, keep as missed
+        if dead.any():
+            child[dead, :, 0] = state.scores[dead]
+        decisions = np.arange(-1, L)  # (1 + L,)
+        child_history = np.empty((M, H, 1 + L, N), dtype=np.int64)
+        child_history[..., :-1] = state.history[:, :, None, 1:]
+        child_history[..., -1] = decisions
+        flat_scores = child.reshape(M, H * (1 + L))
+        flat_history = child_history.reshape(M, H * (1 + L), N)
+        chosen, kept_scores = self._select(flat_scores, flat_history)  # (M, H) child ids, scores
+        parents, columns = np.divmod(chosen, 1 + L)
+        picked = decisions[columns]  # (M, H): −1 missed, i candidate i
+        rows = (np.arange(M)[:, None] * H + parents).reshape(-1)  # flat parent index
+        nu_m = nu.reshape(M * H, L, -1)
+        take = picked.reshape(-1)
+        nu_sel = np.zeros((M * H, S.shape[-1]))
+        hit = take >= 0
+        nu_sel[hit] = nu_m[rows[hit], take[hit]]
+        x_par, P_par = x[rows], P[rows]
+        x_new, P_new = x_par.copy(), P_par.copy()
+        if hit.any():
+            R_rows = R[rows[hit]] if R.ndim == 3 and R.shape[0] == M * H else R
+            xu, Pu, _, _, _ = cov_form.update(x_par[hit], P_par[hit], nu_sel[hit], Hm, R_rows, selection, self.form)
+            x_new[hit], P_new[hit] = xu, Pu
+        self.check_finite("update", updated_mean=x_new, updated_covariance=P_new)
+        history = np.take_along_axis(flat_history, chosen[:, :, None], axis=1)
+        new = MHTState(x_new.reshape(M, H, n), P_new.reshape(M, H, n, n), state.x_predicted, state.P_predicted, kept_scores, history, None)
+        # the record: the best hypothesis's parent (gate, d², ẑ, S) and its choice; β marginal over hypotheses
+        best = rows.reshape(M, H)[:, 0]
+        probabilities = hypothesis_probabilities(kept_scores)
+        weights = np.zeros((M, L))
+        for column in range(1, 1 + L):
+            weights[:, column - 1] = np.where(picked == column - 1, probabilities, 0.0).sum(axis=1)
+        missed = np.where(picked == -1, probabilities, 0.0).sum(axis=1)
+        selected = picked[:, 0].astype(np.int64)
+        loglik = np.full(M, np.nan)
+        chose = selected >= 0
+        loglik[chose] = ell[best[chose], selected[chose]]
+        zp = z_pred.reshape(M * H, -1)[best] if z_pred.shape[0] == M * H else z_pred
+        record = Association(
+            sensor_name, np.asarray(candidates), zp, S[best], gamma, d2[best], gated[best], weights, missed, selected, loglik
+        )
+        return new, record, nu_sel.reshape(M, H, -1)[:, 0], S[best]
+
+    def _select(self, scores: np.ndarray, history: np.ndarray):
+        """Per filter: children sorted by score; of those with equal last-N histories the best only; the first H.
+
+        scores (M, C), history (M, C, N) → chosen child ids (M, H) and their scores (−∞ padding, pointing at the best).
+        """
+        M, C = scores.shape
+        H = self.max_hypotheses
+        order = np.argsort(-scores, axis=1, kind="stable")
+        s = np.take_along_axis(scores, order, axis=1)
+        hist = np.take_along_axis(history, order[:, :, None], axis=1)
+        alive = np.isfinite(s)
+        # among live children with equal (filter, last-N history) the first in score order is kept
+        filters, positions = np.nonzero(alive)  # row-major: per filter in score order
+        keys = np.concatenate([filters[:, None], hist[filters, positions]], axis=1)
+        _, first_seen = np.unique(keys, axis=0, return_index=True)
+        keep = np.zeros_like(alive)
+        keep[filters[first_seen], positions[first_seen]] = True
+        rank = np.where(keep, np.arange(C), C + np.arange(C))
+        first = np.argsort(rank, axis=1, kind="stable")[:, :H]
+        if first.shape[1] < H:  # fewer children than slots (L = 0 and H > 1 parents already fill this)
+            first = np.concatenate([first, np.zeros((M, H - first.shape[1]), dtype=first.dtype)], axis=1)
+        valid = np.take_along_axis(keep, first, axis=1)
+        first = np.where(valid, first, 0)  # empty slots copy the best child
+        chosen = np.take_along_axis(order, first, axis=1)
+        kept = np.where(valid, np.take_along_axis(s, first, axis=1), -np.inf)
+        return chosen, kept
+
+    def _finish(self, state: MHTState, used, blocks, records):
+        M = state.x.shape[0]
+        if used:
+            nu = np.concatenate(used, axis=-1)
+            S = block_diagonal(blocks)
+            loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
+        else:
+            nu, S, loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+        innovation = MHTInnovation(nu, S, loglik, nis, tuple(records), state.scores, state.probabilities)
+        return attrs.evolve(state, innovation=innovation), innovation
+
+
+COMPONENTS = {"mht": MHTFilter}
