@@ -233,17 +233,7 @@ class ClutterEstimator(BankEstimator):
         x, P = state.x, state.P
         used, blocks, associations = [], [], []
         for scan in scans:
-            sensor = by_name.get(scan.sensor)
-            if sensor is None:
-                raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
-            model = self._assembler.sensor_model(sensor, tuple(layout))
-            if model.H is None:
-                raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
-            if type(sensor).measurement_noise is not Sensor.measurement_noise:
-                raise ValueError(f"sensors: {self.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
-            if scan.measurement_dim != model.dim:
-                raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
-            check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
+            sensor, model = scan_sensor_model(self, scan, by_name, layout)
             z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
             candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
             predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
@@ -305,6 +295,23 @@ class ClutterEstimator(BankEstimator):
     @abstractmethod
     def associate(self, d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
         """(β_i (M, L), β_0 (M,), selected (M,), ln Λ or ℓ (M,)) from d² (M, L), the gate mask and chol S."""
+
+
+def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Sequence[str]):
+    """(sensor, its cached SensorModel) for a clutter scan, checked: the sensor is among those given, linear, with
+    a measurement-independent R, of the scan's dimension, and the candidates within the filter's arithmetic."""
+    sensor = by_name.get(scan.sensor)
+    if sensor is None:
+        raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
+    model = estimator._assembler.sensor_model(sensor, tuple(layout))
+    if model.H is None:
+        raise ValueError(f"sensors: {estimator.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
+    if type(sensor).measurement_noise is not Sensor.measurement_noise:
+        raise ValueError(f"sensors: {estimator.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
+    if scan.measurement_dim != model.dim:
+        raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
+    check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
+    return sensor, model
 
 
 def _as_scans(z):

@@ -53,7 +53,6 @@ from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, 
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import cholesky, gaussian_scores
 from hybridtrack.measurements import block_diagonal
-from hybridtrack.validation import check_magnitude
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
@@ -63,6 +62,7 @@ from hybridtrack_plugins.filters._association import (
     gate_threshold,
     innovation_covariance,
     log_half_det_2pi_s,
+    scan_sensor_model,
 )
 
 #: history entry of a scan not yet seen (the root hypothesis); −1 is "missed", i ≥ 0 candidate i
@@ -233,17 +233,7 @@ class MHTFilter(BankEstimator):
         by_name = {s.name: s for s in sensors}
         used, blocks, records = [], [], []
         for scan in scans:
-            sensor = by_name.get(scan.sensor)
-            if sensor is None:
-                raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
-            model = self._assembler.sensor_model(sensor, tuple(layout))
-            if model.H is None:
-                raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
-            if type(sensor).measurement_noise is not Sensor.measurement_noise:
-                raise ValueError(f"sensors: {self.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
-            if scan.measurement_dim != model.dim:
-                raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
-            check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
+            sensor, model = scan_sensor_model(self, scan, by_name, layout)
             x = current.x.reshape(M * H, n)
             z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
             candidates = np.broadcast_to(scan.z[None, :, :], (M * H,) + scan.z.shape)
