@@ -73,7 +73,6 @@ are missing, repeated, empty or hold a ``.``, and a ``step`` CSV longer than
 from __future__ import annotations
 
 import csv
-import io
 import math
 import os
 import re
@@ -84,6 +83,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hybridtrack.csv_text import csv_records, decode_csv_text
 from hybridtrack.timestamps import check_times
 from hybridtrack.validation import as_float_array
 
@@ -166,38 +166,6 @@ def _existing(path: Path, kind: str) -> None:
         raise FileNotFoundError(f"{path}: no such file (expected a {kind} measurement file)")
 
 
-def _decode(path: Path, data: bytes) -> str:
-    """UTF-8 text, a leading byte-order mark stripped; anything else is refused naming the file."""
-    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise ValueError(f"{path}: the file is UTF-16 text; save it as UTF-8 ({_CSV_HINT})")
-    if data.startswith(b"PK\x03\x04"):
-        raise ValueError(f"{path}: the file is a zip archive (an NPZ file?), not a text CSV; name it .npz if it is one")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as error:
-        raise ValueError(f"{path}: not a UTF-8 text CSV (byte 0x{data[error.start]:02x} at offset {error.start}); {_CSV_HINT}") from None
-    if "\x00" in text:
-        raise ValueError(f"{path}: not a UTF-8 text CSV (NUL byte at offset {text.index(chr(0))}); {_CSV_HINT}")
-    return text
-
-
-def _rows(path: Path, text: str) -> list[tuple[int, list[str]]]:
-    """(line, cells) for each non-blank record, the separator ``,`` or — if the header has no comma — ``;``."""
-    first_line = next((line for line in text.splitlines() if line.strip()), "")
-    delimiter = ";" if "," not in first_line and ";" in first_line else ","
-    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
-    rows = []
-    try:
-        start = 1
-        for row in reader:
-            if any(cell.strip() for cell in row):
-                rows.append((start, row))
-            start = reader.line_num + 1
-    except csv.Error as error:
-        raise ValueError(f"{path}:{reader.line_num}: malformed CSV ({error})") from None
-    return rows
-
-
 def _header(path: Path, line: int, header: list[str]) -> tuple[str, dict[str, list[int]]]:
     """The first column (``step``/``time``) and sensor → column indices; names the bad column."""
     first = header[0]
@@ -262,8 +230,8 @@ def _steps(path: Path, body) -> list[int]:
 def _read_csv(path: str | Path) -> MeasurementFile:
     path = _path(path)
     _existing(path, ".csv")
-    text = _decode(path, path.read_bytes())
-    rows = _rows(path, text)
+    text = decode_csv_text(path, path.read_bytes(), _CSV_HINT)
+    rows = csv_records(path, text)
     if not rows:
         raise ValueError(f"{path}: empty file; {_CSV_HINT}")
     header_line, header = rows[0]

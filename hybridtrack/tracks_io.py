@@ -88,9 +88,7 @@ warning summarises them (``warn=False`` to silence it).  What happens to the row
 
 from __future__ import annotations
 
-import csv
 import gzip
-import io
 import math
 import os
 import re
@@ -103,6 +101,7 @@ from pathlib import Path
 import attrs
 import numpy as np
 
+from hybridtrack.csv_text import csv_records, decode_csv_text
 from hybridtrack.validation import check_positive
 
 #: WGS-84 semi-major axis a (m) and flattening f (NIMA TR8350.2, 3rd ed., table 3.1)
@@ -384,31 +383,7 @@ def _text(path: Path) -> str:
             data = gzip.decompress(data)
         except (OSError, EOFError) as error:
             raise ValueError(f"{path}: not a readable gzip file ({error})") from None
-    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise ValueError(f"{path}: the file is UTF-16 text; save it as UTF-8 ({_HINT})")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as error:
-        raise ValueError(f"{path}: not UTF-8 text (byte 0x{data[error.start]:02x} at offset {error.start}); {_HINT}") from None
-    if "\x00" in text:
-        raise ValueError(f"{path}: not a text CSV (NUL byte at offset {text.index(chr(0))}); {_HINT}")
-    return text
-
-
-def _records(path: Path, text: str) -> list[tuple[int, list[str]]]:
-    first = next((line for line in text.splitlines() if line.strip()), "")
-    delimiter = ";" if "," not in first and ";" in first else ","
-    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
-    records = []
-    try:
-        start = 1
-        for row in reader:
-            if any(cell.strip() for cell in row):
-                records.append((start, [cell.strip() for cell in row]))
-            start = reader.line_num + 1
-    except csv.Error as error:
-        raise ValueError(f"{path}:{reader.line_num}: malformed CSV ({error})") from None
-    return records
+    return decode_csv_text(path, data, _HINT)
 
 
 def _number(cell: str) -> float | None:
@@ -488,7 +463,7 @@ def read_tracks(
     else:
         origin = _origin(origin)
 
-    records = _records(path, _text(path))
+    records = csv_records(path, _text(path), strip=True)
     if not records:
         raise ValueError(f"{path}: empty file; {_HINT}")
     header_line, header = records[0]
