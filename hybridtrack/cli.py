@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import codecs
 import importlib
+import math
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -57,6 +58,36 @@ class UsageError(Exception):
 
     The message names the option or file, the value and what is expected.
     """
+
+
+def integer_option(minimum: int, expected: str) -> Callable[[str], int]:
+    """An argparse ``type``: an integer ≥ ``minimum``, else an error saying ``expected``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    return parse
+
+
+def number_option(check: Callable[[float], bool], expected: str) -> Callable[[str], float]:
+    """An argparse ``type``: a finite float passing ``check``, else an error saying ``expected``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if not (math.isfinite(value) and check(value)):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    return parse
 
 
 class _Parser(argparse.ArgumentParser):

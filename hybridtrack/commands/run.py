@@ -19,37 +19,11 @@ from __future__ import annotations
 
 import argparse
 
-from hybridtrack.cli import Command
+from hybridtrack.cli import Command, integer_option, number_option
 
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
-def _non_negative(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
-
-
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}") from None
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
-    return value
+_positive = integer_option(1, "a positive integer")
+_non_negative = integer_option(0, "a non-negative integer")
+_seconds = number_option(lambda v: v > 0, "a positive number of seconds")
 
 
 def _one_line_errors(parser: argparse.ArgumentParser) -> None:

@@ -23,41 +23,20 @@ path given (numpy would append ``.npz`` to other names).
 from __future__ import annotations
 
 import argparse
-import math
 
-from hybridtrack.cli import Command, UsageError
+from hybridtrack.cli import Command, UsageError, integer_option, number_option
 
 #: the default initial state, by component name (converted to the first mode's layout)
 DEFAULT_X0 = {"x": 0.0, "vx": 0.0, "y": 0.0, "vy": 2.0}
 DEFAULT_PROCESS_NOISE = 1e-3
 
 
-def _number(check, expected: str):
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
-        if not (math.isfinite(value) and check(value)):
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
-        return value
-
-    return parse
+_finite = number_option(lambda v: True, "a finite number")
+_positive = number_option(lambda v: v > 0, "a positive finite number")
+_non_negative = number_option(lambda v: v >= 0, "a finite number ≥ 0")
 
 
-_finite = _number(lambda v: True, "a finite number")
-_positive = _number(lambda v: v > 0, "a positive finite number")
-_non_negative = _number(lambda v: v >= 0, "a finite number ≥ 0")
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
+_seed = integer_option(0, "a non-negative integer")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
