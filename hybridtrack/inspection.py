@@ -313,21 +313,27 @@ class RecordingFile:
         return steps, [[_coordinates(np.array(strip, dtype=np.float64), dims) for strip in step] for step in values]
 
     def blueprint_views(self) -> list[dict]:
-        """The views of the embedded blueprint (the last one in the file): ``name``, ``class`` (``3D``,
-        ``TimeSeries``, ``TextLog``, …), ``origin`` and ``contents`` (the entity-path filter rules)."""
+        """The views of the embedded blueprint — the one sent last (latest ``log_time``: the layout
+        :class:`~hybridtrack.recording.RerunRecorder` makes active when it closes the file): ``name``,
+        ``class`` (``3D``, ``TimeSeries``, ``TextLog``, …), ``origin`` and ``contents`` (entity-path filter rules)."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
         reader = self._reader()
-        stores = reader.blueprints()
-        if not stores:
-            return []
+        latest, chosen = None, []
+        for store in reader.blueprints():
+            chunks = [(chunk.entity_path, chunk.to_record_batch()) for chunk in reader.stream(store=store)]
+            times = [pc.max(batch.column("log_time").cast(pa.int64())).as_py() for _, batch in chunks if "log_time" in batch.schema.names]
+            sent = max((t for t in times if t is not None), default=-1)
+            if latest is None or sent >= latest:
+                latest, chosen = sent, chunks
         views: dict[str, dict] = {}
-        for chunk in reader.stream(store=stores[-1]):
-            path, batch = chunk.entity_path, chunk.to_record_batch()
+        for path, batch in chosen:
             names = batch.schema.names
             if not path.startswith("/view/"):
                 continue
             view = views.setdefault(path.split("/")[2], {"name": None, "class": None, "origin": "/", "contents": ["$origin/**"]})
             last = functools.partial(_last_value, batch)
-
             if path.endswith("/ViewContents") and "ViewContents:query" in names:
                 view["contents"] = last("ViewContents:query") or []
             for column, key in (

@@ -45,7 +45,7 @@ import numpy as np
 from hybridtrack.interfaces import Detector, DetectorStep, Estimator, Innovation, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
 from hybridtrack.plugins import resolve
-from hybridtrack.recording import NullRecorder, log_estimate, log_measurements
+from hybridtrack.recording import NullRecorder, decision_text, log_estimate, log_measurements, nis_bounds
 from hybridtrack.registry import Registry
 from hybridtrack.timestamps import step_intervals
 from hybridtrack.types import Decision, Gaussian
@@ -202,6 +202,9 @@ class Pipeline:
         repeated = sorted({n for n in self.filter_names if self.filter_names.count(n) > 1})
         if repeated:
             raise ValueError(f"filter_names: names must be unique (each names the filter's recorded entities), {repeated} repeated")
+        for detector in self.detectors:  # decisions and recorded series name the filters, not H0, H1, …
+            if getattr(detector, "hypotheses", ()) is None:
+                detector.hypotheses = self.filter_names
 
         prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
         if prior.dim != len(self.layout):
@@ -464,16 +467,22 @@ class Pipeline:
             rec.log_scalars(f"estimator/{name}/nis", steps, self._nis[rows, j], times)
             rec.log_scalars(f"estimator/{name}/loglik", steps, self._loglik[rows, j], times)
             rec.log_scalars(f"estimator/{name}/innovation", steps, self._nu[rows, j], times)
+        rec.log_scalars(
+            "estimator/nis_bounds", steps, nis_bounds(np.isfinite(self.z[rows]).sum(axis=1)), times, names=["χ² 2.5 %", "χ² 97.5 %"]
+        )
         if self.candidates is not None:
             from hybridtrack.clutter import log_associations
 
             log_associations(rec, self.filter_names, steps, [self._innovation_objects.get(i) for i in steps], times)
-        for label, series in self._series.items():
-            for key, values in series.items():
-                rec.log_scalars(f"detector/{label}/{key}", steps, values[rows], times)
+        for detector in self.detectors:
+            hypotheses = tuple(getattr(detector, "hypotheses", None) or self.filter_names)
+            for key, values in self._series.get(detector.label, {}).items():
+                width = values.shape[1] if values.ndim == 2 else 0
+                names = hypotheses if width == len(hypotheses) else hypotheses[1:] if width == len(hypotheses) - 1 else None
+                rec.log_scalars(f"detector/{detector.label}/{key}", steps, values[rows], times, names=names)
         for decision in self.decisions:
             if start <= decision.step < stop:
-                rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", decision.time)
+                rec.log_event(decision.step, decision_text(decision), decision.time)
         self._logged = stop
         if flush:
             self._flush_recorder()

@@ -754,6 +754,29 @@ def log_estimate(recorder, name, steps, means, covs, position, times=None, *, li
     recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, index[0], index[1]], times)
 
 
+def nis_bounds(dims: np.ndarray, probability: float = 0.95) -> np.ndarray:
+    """The two-sided χ² interval of the NIS per step: (K, 2) = F⁻¹_{χ²(m_k)}((1 ∓ p)/2), NaN where m_k = 0.
+
+    Under a consistent filter νᵀS⁻¹ν ~ χ²(m) with m the measured components (Bar-Shalom, Li and
+    Kirubarajan 2001, §5.4.2): a fraction ``probability`` of the steps falls inside.
+    """
+    from scipy.stats import chi2
+
+    m = np.asarray(dims, dtype=np.float64)
+    tails = np.array([(1 - probability) / 2, (1 + probability) / 2])
+    with np.errstate(invalid="ignore"):
+        bounds = chi2.ppf(tails[None, :], np.where(m > 0, m, np.nan)[:, None])
+    return bounds
+
+
+def decision_text(decision) -> str:
+    """The event line of a decision: ``<detector>: <message>`` naming the accepted hypothesis
+    (``<detector>: <mode> (<message>)`` when the message does not name it)."""
+    if decision.message and decision.mode in decision.message:
+        return f"{decision.detector}: {decision.message}"
+    return f"{decision.detector}: {decision.mode}" + (f" ({decision.message})" if decision.message else "")
+
+
 def open_recorder(path: str | Path | None, configuration: dict | None = None):
     """A :class:`RerunRecorder` writing ``path``, or a :class:`NullRecorder` when ``path`` is None."""
     return NullRecorder() if path is None else RerunRecorder(path, configuration)

@@ -588,3 +588,4 @@ class MultipleModelEstimator:
         for j, mode in enumerate(self.modes):
             recorder.log_scalars(f"estimator/{self.name}/mode_probability/{mode}", steps, run.mode_probabilities[:, j], times)
         recorder.log_scalars(f"estimator/{self.name}/mode", steps, run.most_probable.astype(float), times)
+        recorder.log_modes(f"world/estimate/{self.name}", steps, run.most_probable, self.modes, times)
