@@ -148,6 +148,9 @@ def recording_id(configuration: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
+#: a time-series panel shows its legend when it holds at most this many entities
+LEGEND_SERIES = 3
+
 #: how many steps of points (truth, measurements, estimates, ellipses) the world view shows behind the time cursor
 TRAIL_STEPS = 25
 
@@ -219,6 +222,8 @@ def series_style(entity: str, columns: int, names: Sequence[str] | None = None) 
     """
     parts = entity.strip("/").split("/")
     name, colour = parts[-1], palette(parts[-1])
+    if parts[0] == "estimator" and len(parts) == 2 and names is not None and len(names) == columns:  # estimator/nis_bounds
+        return list(names), [palette("threshold")] * columns
     if parts[0] == "detector" and len(parts) >= 3:
         signal = "signal" in parts[1]
         if parts[2] == "log_ratio" and len(parts) > 3:
@@ -373,15 +378,21 @@ def content_blueprint(content: Mapping[str, str] | None = None, *, time_step: fl
             other.append(rrb.View(class_identifier=view_class, origin=f"/{root}", name=root))
 
     panels: dict[tuple, tuple[str, list[str]]] = {}
+    counts: dict[tuple, int] = {}
     for path, view_class in content.items():
         if view_class == "TimeSeries":
             key, title, rule = _panel(path, content)
             rules = panels.setdefault(key, (title, []))[1]
+            counts[key] = counts.get(key, 0) + 1
             if rule not in rules:
                 rules.append(rule)
+
+    def legend(key):  # a legend only where it does not hide the plot; the names show on hover everywhere
+        return rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=counts[key] <= LEGEND_SERIES)
+
     series = [
-        rrb.TimeSeriesView(origin="/", contents=rules, name=title, plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=True))
-        for _, (title, rules) in sorted(panels.items(), key=lambda item: tuple(str(k) for k in item[0]))
+        rrb.TimeSeriesView(origin="/", contents=rules, name=title, plot_legend=legend(key))
+        for key, (title, rules) in sorted(panels.items(), key=lambda item: tuple(str(k) for k in item[0]))
     ]
     texts = sorted({path.split("/")[0] for path, c in content.items() if c == "TextLog"})
     logs = [rrb.TextLogView(origin=f"/{root}", name="Events" if root == "events" else root) for root in texts]
@@ -392,10 +403,10 @@ def content_blueprint(content: Mapping[str, str] | None = None, *, time_step: fl
     if left:
         columns.append(rrb.Vertical(*left, row_shares=shares) if len(left) > 1 else left[0])
     if series:
-        columns.append(rrb.Grid(*series, grid_columns=2 if len(series) > 3 else 1, name="Time series"))
+        columns.append(rrb.Grid(*series, grid_columns=2 if len(series) > 4 else 1, name="Time series"))
     if not columns:
         columns = [rrb.TextLogView(origin="/events", name="Events")]
-    root = rrb.Horizontal(*columns, column_shares=[3, 2]) if len(columns) == 2 else columns[0]
+    root = rrb.Horizontal(*columns, column_shares=[1, 1]) if len(columns) == 2 else columns[0]
     return rrb.Blueprint(root, collapse_panels=True)
 
 
@@ -691,7 +702,7 @@ class RerunRecorder:
                 rr.Points3D(
                     points[at],
                     colors=[palette("decision")],
-                    labels=[text if len(text) <= 80 else text[:79] + "…" for _, _, text in self._events],
+                    labels=[text if len(text) <= 40 else text[:39] + "…" for _, _, text in self._events],
                     radii=[rr.Radius.ui_points(5.0)],
                 ),
                 static=True,
