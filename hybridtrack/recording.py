@@ -175,7 +175,7 @@ def palette(name: str) -> tuple[int, int, int]:
     ``threshold``, ``decision``) have fixed colours; a motion family (``straight``,
     ``left_turn``, ``right_turn``, ``cv``, ``ca``, ``ct``) a fixed hue, and its radius
     suffix ``_r<ρ>`` a lightness step (ρ = 1 … 10: light to dark, hue +2.5° per metre);
-    any other name the hue given by the first 32 bits of its SHA-256.
+    any other name the hue given by the first 32 bits of its SHA-256 (outside 20°–70°, the measurements' amber).
     """
     if not isinstance(name, str):
         raise TypeError(f"name: expected a str, got {type(name).__name__}")
@@ -188,8 +188,9 @@ def palette(name: str) -> tuple[int, int, int]:
             step = (float(match["radius"]) - 1.0) % 10.0
             lightness, hue = 0.72 - 0.035 * step, hue + 2.5 * step
         rgb = colorsys.hls_to_rgb((hue % 360.0) / 360.0, lightness, 0.8)
-    else:
-        rgb = colorsys.hls_to_rgb(int(hashlib.sha256(name.encode()).hexdigest()[:8], 16) / 2**32, 0.6, 0.75)
+    else:  # hues 20°–70° (the measurements' amber) are skipped: 310° of hue for the hash
+        hue = 310.0 * int(hashlib.sha256(name.encode()).hexdigest()[:8], 16) / 2**32
+        rgb = colorsys.hls_to_rgb(((hue + 50.0 if hue > 20.0 else hue) % 360.0) / 360.0, 0.6, 0.75)
     return tuple(round(255 * c) for c in rgb)
 
 
