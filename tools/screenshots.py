@@ -21,8 +21,8 @@
    free port, ``HOME`` and ``XDG_RUNTIME_DIR`` in a temporary folder so nothing
    is written to the user's home) opens the file with the layout embedded in
    it; :class:`rerun.experimental.ViewerClient` moves the time cursor to the end
-   of the ``time`` timeline (``step`` or ``run`` when there is no ``time``),
-   pauses, and saves the window (1920×1080).  If the headless viewer cannot
+   of the ``step`` timeline (``run`` for a campaign summary), pauses, and saves
+   the window (1920×1080).  If the headless viewer cannot
    start, ``xvfb-run rerun FILE --new --screenshot-to PNG --window-size
    1600x900`` takes the shot instead (the time cursor then stays where the
    viewer puts it).
@@ -54,6 +54,8 @@ VESSELS = ("235007473", "235013375")
 #: Debian packages: software Vulkan (lavapipe) for the headless viewer, X server and GL for the fallback
 PACKAGES = ("mesa-vulkan-drivers", "libgl1-mesa-dri", "xvfb", "xauth")
 MAX_BYTES = 300_000
+#: seconds after the viewer's start before the shot (its start-up notifications fade in about five)
+SETTLE = 7.0
 WINDOW = "1600x900"
 
 
@@ -150,12 +152,19 @@ def free_port() -> int:
 
 
 def headless_screenshot(recording: Path, png: Path, timeout: float = 120.0) -> list[str]:
-    """Open ``recording`` in a fresh headless viewer, put the time cursor at the end, save the window; the views' warnings."""
+    """Open ``recording`` in a fresh headless viewer, put the time cursor at the end, save the window; the views' warnings.
+
+    The file is loaded in the background (``navigate=False``) and shown only once loaded; the cursor goes to
+    the end of ``step`` (``run`` for a campaign summary, else ``time``): on the ``time`` timeline of a long
+    real-data run the viewer's plots show only a window around the cursor.  The shot is taken at least
+    :data:`SETTLE` seconds after the viewer started, when its start-up notifications have faded.
+    """
     from rerun.experimental import ViewerClient
 
+    started = time.monotonic()
     client = ViewerClient.spawn(headless=True, port=free_port(), hide_welcome_screen=True, executable_path=str(RERUN))
     try:
-        client.open(str(recording))
+        client.open(str(recording), navigate=False)
         deadline = time.monotonic() + timeout
         while True:
             state = client.get_state()
@@ -164,8 +173,10 @@ def headless_screenshot(recording: Path, png: Path, timeout: float = 120.0) -> l
             if time.monotonic() > deadline:
                 raise TimeoutError(f"{recording}: the viewer did not finish loading within {timeout:g} s")
             time.sleep(0.3)
-        timelines = {timeline.name: timeline for timeline in state.recordings[0].timelines}
-        for name in ("time", "step", "run"):
+        shown = state.recordings[0]
+        client.set_location(shown.location)
+        timelines = {timeline.name: timeline for timeline in shown.timelines}
+        for name in ("step", "run", "time"):
             timeline = timelines.get(name)
             if timeline is None or timeline.end is None:
                 continue
@@ -174,7 +185,7 @@ def headless_screenshot(recording: Path, png: Path, timeout: float = 120.0) -> l
             else:
                 client.set_time(name, sequence=int(timeline.end), play_state="paused")
             break
-        time.sleep(1.0)  # a few frames to lay out the views and their legends at the new time
+        time.sleep(max(1.0, SETTLE - (time.monotonic() - started)))  # lay out the views; let the notifications fade
         client.save_screenshot(str(png))
         state = client.get_state()
         return [f"view {view.name!r}: {report.severity}: {report.summary}" for view in state.views for report in view.reports]
@@ -188,8 +199,8 @@ def xvfb_screenshot(recording: Path, png: Path, environment: dict) -> None:
     subprocess.run(command, check=True, env=environment, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=300)
 
 
-def shrink(raw: Path, png: Path) -> int:
-    """``raw`` reduced to 128 colours (scaled down if still above :data:`MAX_BYTES`) into ``png``; its size in bytes."""
+def shrink(raw: Path, png: Path, limit: int = MAX_BYTES) -> int:
+    """``raw`` reduced to 128 colours (scaled down by 0.85 at a time while above ``limit`` bytes) into ``png``; its size."""
     from PIL import Image
 
     image = Image.open(raw).convert("RGB")
@@ -199,7 +210,7 @@ def shrink(raw: Path, png: Path) -> int:
         reduced = (image if scale == 1.0 else image.resize(size, Image.LANCZOS)).quantize(colors=128, method=Image.Quantize.MEDIANCUT)
         png.parent.mkdir(parents=True, exist_ok=True)
         reduced.save(png, optimize=True)
-        if png.stat().st_size <= MAX_BYTES or scale < 0.4:
+        if png.stat().st_size <= limit or scale < 0.2:
             return png.stat().st_size
         scale *= 0.85
 
@@ -219,7 +230,8 @@ def main(argv=None) -> int:
     home.mkdir()
     runtime.mkdir(mode=0o700)
     # the rerun CLI and viewer write analytics and state under HOME: keep them out of the user's
-    os.environ.update(HOME=str(home), XDG_RUNTIME_DIR=str(runtime), MPLBACKEND="Agg")
+    # RUST_LOG=error: fewer viewer notifications on the screenshots and a quiet terminal
+    os.environ.update(HOME=str(home), XDG_RUNTIME_DIR=str(runtime), MPLBACKEND="Agg", RUST_LOG="error")
     environment = dict(os.environ)
     work = args.work or scratch / "recordings"
     work.mkdir(parents=True, exist_ok=True)

@@ -114,7 +114,7 @@ def _summary_blueprint(entities: list[str]):
 
     return rrb.Blueprint(
         rrb.Grid(*[rrb.TimeSeriesView(origin=f"/{entity}", name=entity.removeprefix("campaign/")) for entity in entities]),
-        rrb.TimePanel(timeline=RUN_TIMELINE),
+        rrb.TimePanel(timeline=RUN_TIMELINE, state="collapsed"),
         collapse_panels=True,
     )
 
