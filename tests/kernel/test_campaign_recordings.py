@@ -110,3 +110,11 @@ def test_cli_record_errors_are_one_line_and_computed_nothing(tmp_path, capsys):
     assert "not allowed with" in capsys.readouterr().err
     assert main(["run", "demo_rmse", "--record-runs", "a,b"]) == 2
     assert "run indices" in capsys.readouterr().err
+
+
+def test_a_replay_that_differs_from_the_stored_run_is_reported(tmp_path, capsys):
+    out = tmp_path / "impure"
+    assert main(["run", f"{TOY}:IMPURE", "--n", "2", "--out", str(out), "--executor", "inline", "--record-runs", "1"]) == 0
+    captured = capsys.readouterr()
+    assert "warning: the recording of run 1" in captured.err and "outside the generator" in captured.err
+    assert (out / "recordings" / "run_00001.rrd").is_file()
