@@ -12,6 +12,11 @@ measured at the start of the observation (t = 0, where the targets are drawn,
 the primary ``ref``) and at its end (t = last bearing, ``ref_end``).  A target
 counts for Ref_j when all four errors are inside region j.  √Ka, Nf and Iter are
 means over the targets.
+
+``--plot [PNG]`` draws the success fractions Ref1–Ref4 against σ, ours and
+the seed's, for both methods (:func:`plot`, default
+``docs/images/tma_montecarlo.png``); ``--plot-only JSON`` only draws, from an
+existing report.
 """
 
 from __future__ import annotations
@@ -172,8 +177,62 @@ def markdown(result) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: where ``--plot`` writes by default
+PLOT = Path(__file__).resolve().parents[1] / "docs" / "images" / "tma_montecarlo.png"
+_COLOURS = {"LM": "#1f77b4", "N": "#d62728"}
+
+
+def plot(report: str | Path, png: str | Path = PLOT) -> Path:
+    """Success fractions Ref1–Ref4 against the bearing noise σ, from the JSON report: a PNG at ``png``.
+
+    One panel per success region (seed 002 §5.1, :data:`REFS`); per method
+    (LM, N-bearings) our fractions at the start of the observation (``rows[i]
+    ["ref"]``, solid) and the seed's table at every σ it gives
+    (:data:`SEED_TABLE`, dashed).  With a single σ in the report each panel
+    still shows that point against the seed's curve.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = json.loads(Path(report).read_text(encoding="utf-8"))
+    rows = data["rows"]
+    figure, axes = plt.subplots(1, len(REFS), figsize=(13, 3.4), sharey=True)
+    for j, axis in enumerate(axes):
+        for method in ("LM", "N"):
+            seed = sorted((sigma, ref[j]) for m, sigma, ref, *_ in SEED_TABLE if m == method)
+            ours = sorted((row["sigma_deg"], row["ref"][j]) for row in rows if row["method"] == method)
+            name = "N-bearings" if method == "N" else "LM"
+            axis.plot(*zip(*seed), "--", color=_COLOURS[method], alpha=0.6, label=f"{name}, seed 002")
+            if ours:
+                axis.plot(*zip(*ours), "o-", color=_COLOURS[method], label=f"{name}, ours")
+        region = REFS[j]
+        axis.set_title(
+            f"Ref{j + 1}: bearing {region[0]:g}°, range {100 * region[1]:g} %,\ncourse {region[2]:g}°, speed {100 * region[3]:g} %",
+            fontsize=9,
+        )
+        axis.set_xlabel("bearing noise σ (°)")
+        axis.grid(alpha=0.3)
+    axes[0].set_ylabel("fraction of targets inside the region")
+    axes[0].set_ylim(-0.02, 1.02)
+    handles, labels = axes[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    figure.suptitle(f"Seed 002 §5.1 Monte Carlo ({data['protocol'].get('targets', '?')} targets): success fractions vs σ", fontsize=10)
+    figure.tight_layout(rect=(0, 0.07, 1, 1))
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(png, dpi=100)
+    plt.close(figure)
+    return png
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--plot", nargs="?", const=PLOT, type=Path, metavar="PNG", help="draw the figure (default docs/images/tma_montecarlo.png)"
+    )
+    parser.add_argument("--plot-only", type=Path, metavar="JSON", help="only draw the figure from an existing report")
     parser.add_argument("--n", type=int, default=10_000, help="number of targets (default 10000)")
     parser.add_argument("--sigma", type=float, nargs="+", default=[0.1, 0.5, 1.0], help="bearing noise σ in degrees")
     parser.add_argument("--seed", type=int, default=2021)
@@ -181,6 +240,11 @@ def main(argv=None) -> int:
     parser.add_argument("--markdown", type=Path, help="write the markdown table here (default: stdout only)")
     parser.add_argument("--tie", choices=("right", "left"), default="right", help="direction of the 180° turn")
     args = parser.parse_args(argv)
+    if args.plot_only:
+        print(f"wrote {plot(args.plot_only, args.plot or PLOT)}")
+        return 0
+    if args.plot and not args.json:
+        parser.error("--plot draws from the JSON report: give --json PATH too")
     if args.n < 1:
         parser.error("--n must be ≥ 1")
     if any(s < 0 for s in args.sigma):
@@ -194,6 +258,8 @@ def main(argv=None) -> int:
     if args.markdown:
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
         args.markdown.write_text(table)
+    if args.plot:
+        print(f"wrote {plot(args.json, args.plot)}")
     return 0
 
 
