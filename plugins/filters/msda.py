@@ -126,7 +126,7 @@ class MSDAFilter(BankEstimator):
     example_parameters = {"gate_probability": 0.99, "window": 1}
 
     def __init__(
-        self, gate_probability: float | None = 0.99, window: int = 4, wavelet: str = "haar", level: int | None = None, form: str = "joseph"
+        self, gate_probability: float | None = 0.99, window: int = 2, wavelet: str = "haar", level: int | None = None, form: str = "joseph"
     ):
         super().__init__()
         if form not in cov_form.UPDATE_FORMS:

@@ -35,7 +35,9 @@ EM for the MAP estimate X̂ = argmax ln p(X) + Σ_t ln p(Z_t | x_t):
       C_t = P_t Fᵀ_{t+1} (P⁻_{t+1})⁻¹,  x̂_t = x_t + C_t (x̂_{t+1} − x⁻_{t+1}),
       P̂_t = P_t + C_t (P̂_{t+1} − P⁻_{t+1}) C_tᵀ         (Cholesky solves with P⁻);
 
-  a scan with W_t = 0 (nothing gated) is prediction only;
+  a scan with W_t < ``MIN_WEIGHT`` = 1e-9 (nothing gated, or every candidate far
+  off) is prediction only — its gain K ∝ W_t would move the estimate by a
+  negligible fraction of P and R / W_t would overflow;
 * the objective J(X̂) = ln p(X̂) + Σ_{t,r} ln(λ + P_D N(z_{t,r}; H x̂_t, R)) (the
   log posterior up to a constant; EM never decreases it).  ln p(X̂) at the
   smoother's output is −½[Σ_t ν_tᵀS_t⁻¹ν_t − Σ_t W_t (z̃_t − H x̂_t)ᵀR⁻¹(z̃_t − H x̂_t)]
@@ -93,6 +95,9 @@ from hybridtrack_plugins.filters._association import (
     scan_sensor_model,
 )
 
+#: total association weight W_t below which a scan is prediction only (module docstring)
+MIN_WEIGHT = 1e-9
+
 
 def positive_int(value, name: str, what: str) -> int:
     """An integer ≥ 1, else a ValueError naming ``name``."""
@@ -122,7 +127,7 @@ class PMHTState:
     the transition ``F``, ``B``, ``Q`` (identity, 0, 0 in an empty slot), ``H``
     (M, W, m̄, n) and ``R`` (M, W, m̄, m̄) zero-/identity-padded to the widest
     measurement m̄, ``pad`` (M, W) the number of padded components,
-    ``candidates`` (M, W, L̄, m̄) with ``present`` (M, W, L̄) (gated, not padding),
+    ``candidates`` (M, W, L̄, m̄) the gated candidates (first, padded), ``present`` (M, W, L̄) (not padding),
     the last EM's ``weights`` (M, W, L̄), ``smoothed_mean`` (M, W, n),
     ``smoothed_covariance`` (M, W, n, n) and filtered ``filtered_mean``/``filtered_covariance``.
     """
@@ -372,7 +377,13 @@ class PMHTFilter(BankEstimator):
         leaving = state.valid[:, 0]
         prior_x = np.where(leaving[:, None], state.filtered_mean[:, 0], state.prior_x)
         prior_P = np.where(leaving[:, None, None], state.filtered_covariance[:, 0], state.prior_P)
-        s = _widen(state, m, L)
+        # keep only the gated candidates, first (a stable sort), padded to the largest count of the bank
+        order = np.argsort(~gated, axis=1, kind="stable")
+        Lg = int(gated.sum(axis=1).max(initial=0))
+        order = order[:, :Lg]
+        kept = np.take_along_axis(cands, order[:, :, None], axis=1)
+        kept_present = np.take_along_axis(gated, order, axis=1)
+        s = _widen(state, m, Lg)
         mb, Lb = s.H.shape[2], s.candidates.shape[2]
         Hs = np.zeros((M, mb, n))
         Hs[:, :m] = H
@@ -380,9 +391,9 @@ class PMHTFilter(BankEstimator):
         Rs[:, :m, :m] = R
         Rs[:, m:, m:] = np.eye(mb - m)
         cs = np.zeros((M, Lb, mb))
-        cs[:, :L, :m] = cands
+        cs[:, :Lg, :m] = kept
         pr = np.zeros((M, Lb), dtype=bool)
-        pr[:, :L] = gated
+        pr[:, :Lg] = kept_present
 
         def shift(a, new):
             return np.concatenate([a[:, 1:], new[:, None]], axis=1)
@@ -399,9 +410,10 @@ class PMHTFilter(BankEstimator):
         guess = shift(s.smoothed_mean, state.x)  # the new scan starts from the prediction
         xs, Ps, xf, Pf, xp_T, Pp_T, weights, iterations = self._em(prior_x, prior_P, valid, F, B, Q, Hw, Rw, pad, cw, pw, guess)
         # the newest scan's synthetic innovation ν = z̃ − H x⁻ (real components only), S = H P⁻ Hᵀ + R / W
-        w_T = weights[:, -1, :L]
+        w_T = np.zeros((M, L))  # back to the scan's candidate order
+        np.put_along_axis(w_T, order, weights[:, -1, :Lg], axis=1)
         W_T = w_T.sum(axis=1)
-        has = W_T > 0
+        has = W_T >= MIN_WEIGHT
         safe = np.where(has, W_T, 1.0)
         z_syn = np.einsum("ml,mli->mi", w_T, cands) / safe[:, None]
         nu = np.where(has[:, None], z_syn - xp_T @ H.T, 0.0)
@@ -471,7 +483,7 @@ class PMHTFilter(BankEstimator):
             # J = ln p(X̂) + Σ ln(λ + P_D N) at the smoother's output (module docstring)
             resid = zsyn - np.einsum("mwij,mwj->mwi", Hw, xs)
             u = forward_substitute(LR, resid)
-            quad = (Wsum * np.einsum("...i,...i->...", u, u)).sum(axis=1)
+            quad = np.where(Wsum >= MIN_WEIGHT, Wsum * np.einsum("...i,...i->...", u, u), 0.0).sum(axis=1)
             _, meas = self._estep(xs, Hw, cw, pw, LR, logdet_R)
             J = -0.5 * (nis_sum - quad) + meas
             if best is None:
@@ -497,7 +509,7 @@ class PMHTFilter(BankEstimator):
         """Kalman filter and RTS smoother over the window on the synthetic measurements of the weights w."""
         M, W, n = F.shape[:3]
         Wsum = w.sum(axis=2)  # (M, W)
-        has = Wsum > 0
+        has = Wsum >= MIN_WEIGHT
         safe = np.where(has, Wsum, 1.0)
         zsyn = np.einsum("mwl,mwli->mwi", w, cw) / safe[:, :, None]
         xp = np.empty((M, W, n))
