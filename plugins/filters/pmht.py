@@ -128,7 +128,8 @@ class PMHTState:
     (M, W, m̄, n) and ``R`` (M, W, m̄, m̄) zero-/identity-padded to the widest
     measurement m̄, ``pad`` (M, W) the number of padded components,
     ``candidates`` (M, W, L̄, m̄) the gated candidates (first, padded), ``present`` (M, W, L̄) (not padding),
-    the last EM's ``weights`` (M, W, L̄), ``smoothed_mean`` (M, W, n),
+    the last EM's ``weights`` (M, W, L̄), ``iterations`` (M,), the objective J it reached ``log_posterior``
+    (M,, up to a constant), ``smoothed_mean`` (M, W, n),
     ``smoothed_covariance`` (M, W, n, n) and filtered ``filtered_mean``/``filtered_covariance``.
     """
 
@@ -156,6 +157,7 @@ class PMHTState:
     filtered_mean: np.ndarray = bank_field(0)
     filtered_covariance: np.ndarray = bank_field(0)
     iterations: np.ndarray = bank_field(0)
+    log_posterior: np.ndarray = bank_field(0)
     innovation: ClutterInnovation | None = None
 
     @property
@@ -285,6 +287,7 @@ class PMHTFilter(BankEstimator):
             filtered_mean=np.repeat(x[:, None], W, axis=1),
             filtered_covariance=np.repeat(P[:, None], W, axis=1),
             iterations=np.zeros(M, dtype=np.int64),
+            log_posterior=np.zeros(M),
         )
 
     def conform(self, states: list) -> list:
@@ -408,7 +411,9 @@ class PMHTFilter(BankEstimator):
         cw = shift(s.candidates, cs)
         pw = shift(s.present, pr)
         guess = shift(s.smoothed_mean, state.x)  # the new scan starts from the prediction
-        xs, Ps, xf, Pf, xp_T, Pp_T, weights, iterations = self._em(prior_x, prior_P, valid, F, B, Q, Hw, Rw, pad, cw, pw, guess)
+        xs, Ps, xf, Pf, xp_T, Pp_T, weights, iterations, log_posterior = self._em(
+            prior_x, prior_P, valid, F, B, Q, Hw, Rw, pad, cw, pw, guess
+        )
         # the newest scan's synthetic innovation ν = z̃ − H x⁻ (real components only), S = H P⁻ Hᵀ + R / W
         w_T = np.zeros((M, L))  # back to the scan's candidate order
         np.put_along_axis(w_T, order, weights[:, -1, :Lg], axis=1)
@@ -448,6 +453,7 @@ class PMHTFilter(BankEstimator):
             filtered_mean=xf,
             filtered_covariance=Pf,
             iterations=iterations,
+            log_posterior=log_posterior,
         )
         return new, nu, S, record
 
@@ -471,20 +477,19 @@ class PMHTFilter(BankEstimator):
         LR = cholesky(Rw, "measurement noise R")
         # ln |2π R| of the real components: the padded identity block adds pad · ln 2π
         logdet_R = mb * LOG_2PI + log_det_from_cholesky(LR) - pad * LOG_2PI
-        X = guess
+        w, _ = self._estep(guess, Hw, cw, pw, LR, logdet_R)
         active = np.ones(M, dtype=bool)
         best = None
         last_J = np.full(M, -np.inf)
         iterations = np.zeros(M, dtype=np.int64)
         for iteration in range(self.max_iterations):
-            w, _ = self._estep(X, Hw, cw, pw, LR, logdet_R)
             result = self._smooth(prior_x, prior_P, F, B, Q, Hw, Rw, cw, w)
             xs, _, _, _, _, _, nis_sum, Wsum, zsyn = result
             # J = ln p(X̂) + Σ ln(λ + P_D N) at the smoother's output (module docstring)
             resid = zsyn - np.einsum("mwij,mwj->mwi", Hw, xs)
             u = forward_substitute(LR, resid)
             quad = np.where(Wsum >= MIN_WEIGHT, Wsum * np.einsum("...i,...i->...", u, u), 0.0).sum(axis=1)
-            _, meas = self._estep(xs, Hw, cw, pw, LR, logdet_R)
+            w_next, meas = self._estep(xs, Hw, cw, pw, LR, logdet_R)  # also the next iteration's E-step
             J = -0.5 * (nis_sum - quad) + meas
             if best is None:
                 best = (result, w)
@@ -500,10 +505,10 @@ class PMHTFilter(BankEstimator):
             active = active & ~converged
             if not active.any():
                 break
-            X = np.where(active[:, None, None], xs, X)
+            w = np.where(active[:, None, None], w_next, w)
         (xs, Ps, xf, Pf, xp_T, Pp_T, _, _, _), w = best
         self.check_finite("update", smoothed_mean=xs, smoothed_covariance=Ps)
-        return xs, Ps, xf, Pf, xp_T, Pp_T, w, iterations
+        return xs, Ps, xf, Pf, xp_T, Pp_T, w, iterations, last_J
 
     def _smooth(self, prior_x, prior_P, F, B, Q, Hw, Rw, cw, w):
         """Kalman filter and RTS smoother over the window on the synthetic measurements of the weights w."""

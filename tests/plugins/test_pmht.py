@@ -252,3 +252,24 @@ def test_pipeline_runs_the_bank_on_candidates_and_records_the_weights(tmp_path, 
         [[r.innovation.associations[0].missed[0], r.innovation.associations[0].weights[0].max(initial=0.0)] for r in pipeline.results]
     )
     np.testing.assert_array_equal(beta, expected)
+
+
+def test_em_never_lowers_the_log_posterior():
+    # the same state and scan with max_iterations = 1, 2, …: J after each EM iteration is nondecreasing
+    truth, scans, sensor, bank, x0 = _turning_scans(seed=6, density=0.3)
+    pmht = PMHTFilter(0.9, 0.3, 0.99, window=4)
+    state = pmht.initialize(x0[None], np.eye(4)[None] * 0.1)
+    for k in range(12):
+        if k:
+            state = pmht.predict(state, bank)
+        state, _ = pmht.update(state, scans.scan(k), [sensor], LAYOUT)
+    state = pmht.predict(state, bank)
+    values = []
+    for iterations in range(1, 8):
+        after, _ = PMHTFilter(0.9, 0.3, 0.99, window=4, max_iterations=iterations, tolerance=1e-300).update(
+            state, scans.scan(12), [sensor], LAYOUT
+        )
+        assert after.iterations[0] == iterations
+        values.append(after.log_posterior[0])
+    assert np.all(np.diff(values) >= -1e-9), values
+    assert values[-1] > values[0]
