@@ -335,19 +335,20 @@ class PMHTFilter(BankEstimator):
                 sensor, model = scan_sensor_model(self, scan, by_name, layout)
                 if not model.plain_residual:
                     raise ValueError(f"sensors: {self.name!r} needs sensors whose residual is z − H x; {sensor.name!r} wraps angles")
-                if scan.size == 0:
-                    continue
                 cands = np.broadcast_to(scan.z[None], (M,) + scan.z.shape)
                 pieces.append((cands, model.H, np.asarray(sensor.noise_cov), sensor.name, scan.z))
         current = state
         used, blocks, records = [], [], []
         for cands, H, R, name, raw in pieces:
+            if cands.shape[1] == 0:  # an empty scan: no slot, prediction only; its record says so
+                records.append(self._empty_record(current, H, R, name, raw))
+                continue
             current, nu, S, record = self._scan(current, cands, H, R, name, raw)
             used.append(nu)
             blocks.append(S)
             records.append(record)
         if not used:
-            innovation = ClutterInnovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M), ())
+            innovation = ClutterInnovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M), tuple(records))
             return attrs.evolve(state, innovation=innovation), innovation
         nu = np.concatenate(used, axis=-1)
         S = block_diagonal(blocks)
@@ -356,6 +357,15 @@ class PMHTFilter(BankEstimator):
         return attrs.evolve(current, innovation=innovation), innovation
 
     # ------------------------------------------------------------------ one scan
+    def _empty_record(self, state: PMHTState, H, R, name, raw) -> Association:
+        M, m = state.x.shape[0], H.shape[0]
+        S = innovation_covariance(state.P, H, R)
+        none = np.zeros((M, 0))
+        gamma = gate_threshold(self.gate_probability, m)
+        return Association(
+            name, np.asarray(raw), state.x @ H.T, S, gamma, none, none.astype(bool), none, np.ones(M), np.full(M, -1), np.zeros(M)
+        )
+
     def _scan(self, state: PMHTState, cands: np.ndarray, H: np.ndarray, R: np.ndarray, name: str, raw):
         """Gate the scan at the prediction, add it as the newest slot (sliding the window), run EM."""
         M, n = state.x.shape

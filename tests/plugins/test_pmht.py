@@ -273,3 +273,15 @@ def test_em_never_lowers_the_log_posterior():
         values.append(after.log_posterior[0])
     assert np.all(np.diff(values) >= -1e-9), values
     assert values[-1] > values[0]
+
+
+def test_an_empty_scan_is_prediction_only_with_a_record():
+    sensor = position_sensor()
+    pmht = PMHTFilter(0.9, 0.1, 0.99, window=3)
+    state = pmht.predict(pmht.initialize(X0[None], P0[None]), TransitionBank.stack([straight()]))
+    after, innovation = pmht.update(state, Scan(sensor.name, np.zeros((0, 2))), [sensor], LAYOUT)
+    np.testing.assert_array_equal(after.x, state.x)
+    np.testing.assert_array_equal(after.valid, state.valid)
+    assert innovation.measurement_dim == 0
+    (record,) = innovation.associations
+    assert record.selected[0] == -1 and record.missed[0] == 1.0 and record.weights.shape == (1, 0)
