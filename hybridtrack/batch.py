@@ -20,8 +20,11 @@ paid once for all runs:
   ``concatenate`` and ``take`` (the bank keeps its own form, e.g. square-root
   factors);
 * **detectors**: each run has its own copy of every detector (a deep copy of
-  the one given, as a fresh per-run pipeline would have), fed the slice of the
-  step's innovation that belongs to its run (:func:`innovation_rows`);
+  the one given, as a fresh per-run pipeline would have); a step of all runs
+  is one call of the class's ``observe_runs`` (score detectors: ℓ and NIS
+  (R, M)) or ``step_runs`` (others: each run's slice of the step's innovation,
+  :func:`innovation_rows`) — loops over the copies by default, vectorized over
+  the runs where the class overrides them (``Detector`` contract);
 * **sampling estimators** (particle filters): each run's bank is initialized
   by its own copy of the estimator, so run r draws what a per-run pipeline
   with that estimator draws; later steps draw from streams carried in each
@@ -41,7 +44,7 @@ from typing import Any
 import attrs
 import numpy as np
 
-from hybridtrack.interfaces import Association, DetectorStep, Innovation, TransitionBank
+from hybridtrack.interfaces import Association, DetectorStep, Innovation, ScoreDetector, TransitionBank
 from hybridtrack.pipeline import Pipeline, RunResult, store_detector_outputs
 from hybridtrack.plugins import resolve
 from hybridtrack.timestamps import step_intervals
@@ -275,11 +278,20 @@ def run_pipeline_batch(
             nu[runs, k] = np.asarray(innovation.nu).reshape(G, M, m) if complete else np.nan
             if not pristine:
                 continue
+            columns = []  # per detector: its output for each run of the group
+            for d, template_detector in enumerate(pristine):
+                kind = type(template_detector)
+                copies = [run_detectors[r][d] for r in runs]
+                if isinstance(template_detector, ScoreDetector) and kind.step is ScoreDetector.step:
+                    scores = np.asarray(innovation.loglik, dtype=float), np.asarray(innovation.nis, dtype=float)
+                    columns.append(kind.observe_runs(copies, k, scores[0].reshape(G, M), scores[1].reshape(G, M), dim))
+                else:
+                    own = [innovation if G == 1 else innovation_rows(innovation, p * M + filters, G * M) for p in range(G)]
+                    columns.append(kind.step_runs(copies, k, own))
             for position, r in enumerate(runs):
-                own = innovation if G == 1 else innovation_rows(innovation, position * M + filters, G * M)
                 outputs: dict[str, DetectorStep] = {}
-                for detector in run_detectors[r]:
-                    output = detector.step(k, own)
+                for detector, column in zip(run_detectors[r], columns):
+                    output = column[position]
                     outputs[detector.label] = output
                     if output.decision is not None:
                         decisions[r].append(attrs.evolve(output.decision, time=float(T[r, k])))

@@ -1,10 +1,12 @@
 """Pipeline.run_batch: R runs as one stacked bank equal the per-run Pipeline to 1e-12, for every registered
 estimator and detector the pipeline accepts, with irregular per-run times, per-run priors and NaN components."""
 
+import copy
+
 import numpy as np
 import pytest
 
-from hybridtrack import Gaussian, Schedule
+from hybridtrack import Decision, Detector, DetectorStep, Gaussian, Schedule
 from hybridtrack.batch import innovation_rows
 from hybridtrack.interfaces import Innovation
 from hybridtrack.pipeline import Pipeline
@@ -144,3 +146,35 @@ def test_bad_batch_inputs_are_named():
         Pipeline.run_batch(z, (prior[0][:2], prior[1][:2]), times=times, **options)
     with pytest.raises(ValueError, match="recorders"):
         Pipeline.run_batch(z, prior, times=times, recorders={RUNS: None}, **options)
+
+
+class NisAbove(Detector):
+    """A third-party detector (plain Detector, no batch method): decides once when NIS of filter 1 exceeds 3."""
+
+    name = "nis_above"
+
+    def __init__(self):
+        self.reset()
+
+    def reset(self):
+        self.fired = False
+
+    def step(self, step, innovation):
+        nis = float(innovation.nis[1]) if innovation.measurement_dim else 0.0
+        decision = None
+        if nis > 3 and not self.fired:
+            self.fired = True
+            decision = Decision(step, self.name, "change", nis, "NIS above 3")
+        return DetectorStep({"nis": nis}, {"threshold": 3.0}, decision)
+
+
+@pytest.mark.parametrize("window", [None, 3])
+def test_vectorized_signal_function_and_a_third_party_detector_decide_as_per_run(window):
+    z, times, prior = batch_data()
+    detectors = [("signal_function", {"window": window, "alpha": 0.3, "watch": 1}, "sf"), NisAbove()]
+    options = {"models": MODELS, "sensors": SENSORS, "estimator": "kalman"}
+    singles = [per_run(z, times, prior, r, detectors=copy.deepcopy(detectors), **options) for r in range(RUNS)]
+    assert sum(len(s.decisions) for s in singles) >= 2 * RUNS, "the scenario should make both detectors decide"
+    batched = Pipeline.run_batch(z, prior, times=times, detectors=detectors, **options)
+    for b, s in zip(batched, singles):
+        assert_same(b, s)
