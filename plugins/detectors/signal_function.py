@@ -126,7 +126,11 @@ class SignalFunction(ScoreDetector):
             totals = totals + nis
             dofs = dofs + m
         signals = signal_bounds.standardize(totals, dofs[:, None])
-        limits = {dof: signal_bounds.bounds(first.alpha, float(dof), first.calibration) for dof in np.unique(dofs)}
+        if first.calibration == "normal":  # ±Φ⁻¹(1 − α/2) whatever D: one quantile for all runs
+            common = signal_bounds.bounds(first.alpha, 0.0, "normal")
+            limits = {dof: common for dof in np.unique(dofs)}
+        else:
+            limits = {dof: signal_bounds.bounds(first.alpha, float(dof), first.calibration) for dof in np.unique(dofs)}
         outputs = []
         for r, d in enumerate(detectors):
             d._sum, d._dof = totals[r], float(dofs[r])

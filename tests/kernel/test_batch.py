@@ -168,10 +168,11 @@ class NisAbove(Detector):
         return DetectorStep({"nis": nis}, {"threshold": 3.0}, decision)
 
 
-@pytest.mark.parametrize("window", [None, 3])
-def test_vectorized_signal_function_and_a_third_party_detector_decide_as_per_run(window):
+@pytest.mark.parametrize(("window", "calibration"), [(None, "normal"), (None, "chi2"), (3, "normal")])
+def test_vectorized_signal_function_and_a_third_party_detector_decide_as_per_run(window, calibration):
     z, times, prior = batch_data()
-    detectors = [("signal_function", {"window": window, "alpha": 0.3, "watch": 1}, "sf"), NisAbove()]
+    parameters = {"window": window, "alpha": 0.3, "watch": 1, "calibration": calibration}
+    detectors = [("signal_function", parameters, "sf"), NisAbove()]
     options = {"models": MODELS, "sensors": SENSORS, "estimator": "kalman"}
     singles = [per_run(z, times, prior, r, detectors=copy.deepcopy(detectors), **options) for r in range(RUNS)]
     assert sum(len(s.decisions) for s in singles) >= 2 * RUNS, "the scenario should make both detectors decide"
