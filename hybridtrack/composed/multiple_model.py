@@ -77,7 +77,6 @@ from typing import Any
 
 import attrs
 import numpy as np
-import scipy.linalg
 
 from hybridtrack.interfaces import Estimator, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
@@ -168,16 +167,26 @@ def markov_matrix(transition_matrix, modes: int) -> np.ndarray:
     return P / sums[:, None]
 
 
-def sojourn_matrix(sojourn: np.ndarray, dt: float) -> np.ndarray:
-    """Π(Δt) = expm(Λ Δt), Λ_ii = −1/T_i, Λ_ij = 1/(T_i (r − 1)): mean sojourn T_i, equal rates to the others."""
+def sojourn_matrix(sojourn: np.ndarray, dt) -> np.ndarray:
+    """Π(Δt) = expm(Λ Δt), Λ_ii = −1/T_i, Λ_ij = 1/(T_i (r − 1)): mean sojourn T_i, equal rates to the others.
+
+    Λ = D A with D = diag(1/T_i) and the symmetric A = (J − r I)/(r − 1) (J all ones), so Λ is similar to the
+    symmetric S = D^½ A D^½ = U diag(λ) Uᵀ and expm(Λ Δt) = D^½ U diag(e^{λ Δt}) Uᵀ D^−½ (Moler & Van Loan
+    2003, SIAM Review 45(1), method 14, for a matrix similar to a symmetric one): one eigendecomposition for
+    every Δt.  ``dt`` one step (→ (r, r)) or an array of steps (D,) (→ (D, r, r)).  Entries are clipped
+    at 0 and the rows renormalized against rounding.
+    """
     r = sojourn.shape[0]
+    steps = np.asarray(dt, dtype=float)
     if r == 1:
-        return np.ones((1, 1))
-    rate = 1.0 / sojourn
-    generator = np.repeat((rate / (r - 1))[:, None], r, axis=1)
-    np.fill_diagonal(generator, -rate)
-    P = np.clip(scipy.linalg.expm(generator * dt), 0.0, None)
-    return P / P.sum(axis=1, keepdims=True)
+        return np.ones(steps.shape + (1, 1))
+    root = np.sqrt(1.0 / sojourn)
+    A = (np.ones((r, r)) - r * np.eye(r)) / (r - 1)
+    lam, U = np.linalg.eigh(root[:, None] * A * root[None, :])
+    left, right = root[:, None] * U, U.T / root[None, :]
+    P = left @ (np.exp(lam * steps[..., None])[..., :, None] * right)
+    P = np.clip(P, 0.0, None)
+    return P / P.sum(axis=-1, keepdims=True)
 
 
 # --------------------------------------------------------------------------- state and result
@@ -353,6 +362,18 @@ class MultipleModelEstimator:
                 self._log_matrices[key] = np.log(matrix)
         return self._log_matrices[key]
 
+    def log_transition_matrices(self, dt) -> np.ndarray:
+        """ln Π(Δt_r) for steps ``dt`` (R,) → (R, r, r); the Δt not seen before are computed in one expm call."""
+        if self._matrix is not None:
+            return np.broadcast_to(self.log_transition_matrix(None), (len(dt),) + self._matrix.shape)
+        keys = [float(d) for d in dt]
+        new = sorted({key for key in keys if key not in self._log_matrices})
+        if new:
+            with np.errstate(divide="ignore"):
+                for key, matrix in zip(new, np.log(sojourn_matrix(self._sojourn, np.array(new)))):
+                    self._log_matrices[key] = matrix
+        return np.stack([self._log_matrices[key] for key in keys])
+
     # ------------------------------------------------------------------ layouts
     def expand(self, means: np.ndarray, covs: np.ndarray, model: int) -> tuple[np.ndarray, np.ndarray]:
         """Model ``model``'s (…, n_j) means and covariances in the union layout, lacking components filled."""
@@ -468,7 +489,7 @@ class MultipleModelEstimator:
         if np.ndim(dt) == 0:
             log_pi = self.log_transition_matrix(float(dt))[None]
         else:
-            log_pi = np.stack([self.log_transition_matrix(float(d)) for d in dt])  # ln Π(Δt_r) per run, (R, r, r)
+            log_pi = self.log_transition_matrices(dt)  # ln Π(Δt_r) per run, (R, r, r)
         log_mu = state.log_mode_probabilities
         joint_prior = log_pi + log_mu[:, :, None]  # ln π_ij μ_i, (R, i, j)
         log_cbar = log_sum_exp(joint_prior, axis=1)  # ln c̄_j (R, j)

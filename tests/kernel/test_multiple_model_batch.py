@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian
-from hybridtrack.composed.multiple_model import RUN_FIELDS, MultipleModelEstimator
+from hybridtrack.composed.multiple_model import RUN_FIELDS, MultipleModelEstimator, sojourn_matrix
 from hybridtrack.recording import RerunRecorder
 from hybridtrack_plugins.motion.linear_modes import ConstantAcceleration, LeftTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
@@ -76,3 +76,17 @@ def test_batch_input_errors_name_the_argument():
         mm.run_batch({n: a[0] for n, a in z.items()}, prior, times=times)
     with pytest.raises(ValueError, match="recorders"):
         mm.run_batch(z, prior, times=times, recorders={RUNS: None})
+
+
+def test_sojourn_matrices_equal_scipy_expm_one_at_a_time_and_stacked():
+    import scipy.linalg
+
+    sojourn = np.array([1.0, 2.0, 5.0, 0.5])
+    r = sojourn.size
+    generator = np.repeat((1 / sojourn / (r - 1))[:, None], r, axis=1)
+    np.fill_diagonal(generator, -1 / sojourn)
+    steps = np.array([1e-4, 0.1, 1.0, 7.5])
+    stacked = sojourn_matrix(sojourn, steps)
+    for dt, P in zip(steps, stacked):
+        np.testing.assert_allclose(P, scipy.linalg.expm(generator * dt), rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(sojourn_matrix(sojourn, dt), P, rtol=1e-14, atol=1e-16)
