@@ -38,22 +38,27 @@ estimation for tracking and guidance using the bootstrap filter", J. Guidance
 18(6), eq. 12; Bar-Shalom, Li & Kirubarajan 2001 §11.7.4 for the ratio to the
 clutter-only density):
 
-    Λ(x) = (1 − P_D) + (P_D / λ) Σ_r N(z_r; h(x), R)         (λ > 0)
-    Λ(x) = P_D Σ_r N(z_r; h(x), R)  (L ≥ 1),  1 − P_D  (L = 0)   (λ = 0)
+    Λ(x) = (1 − P_D P_G) + (P_D / λ) Σ_r N(z_r; h(x), R)             (λ > 0)
+    Λ(x) = P_D Σ_r N(z_r; h(x), R)  (r gated),  1 − P_D P_G  (none)   (λ = 0)
+
+(no gate: P_G = 1 and every r; with ``gate_probability`` only the candidates
+with d²_r = ν_rᵀS⁻¹ν_r ≤ γ, P(χ²_m ≤ γ) = P_G, against the particle prediction
+(ẑ, S) below count, as in PDA — in dense clutter most candidates are then never
+evaluated at the particles)
 
 w⁽ⁱ⁾ ∝ w⁽ⁱ⁾⁻ Λ(x⁽ⁱ⁾), vectorized over filters, particles and candidates
 (ν (M, N, L, m)); the step's log-likelihood is ℓ = ln Σ_i w⁽ⁱ⁾⁻ Λ(x⁽ⁱ⁾), the SIR
 estimate of PDA's association likelihood ln Λ (no gate: P_G = 1), which is what
 the detectors compare across a bank in clutter.  The association weights are
 the posterior probabilities of "candidate r is the target" and "none is",
-β_r ∝ (P_D/λ) Σ_i w⁽ⁱ⁾⁻ N(z_r; h(x⁽ⁱ⁾), R), β_0 ∝ 1 − P_D (Σ β = 1), recorded
+β_r ∝ (P_D/λ) Σ_i w⁽ⁱ⁾⁻ N(z_r; h(x⁽ⁱ⁾), R), β_0 ∝ 1 − P_D P_G (Σ β = 1), recorded
 in a :class:`~hybridtrack.interfaces.Association` per scan with the particle
-prediction ẑ, S and d²_r = ν_rᵀS⁻¹ν_r (gate γ = ∞).  The innovation reported
+prediction ẑ, S, d²_r and the gate.  The innovation reported
 is the combined ν = Σ_r β_r ν_r, ν_r = residual(z_r, ẑ), with S and its NIS;
 several scans of one step are applied one after the other.  With P_D = 1,
 λ = 0 and one candidate, Λ(x) = N(z; h(x), R) and the update is the ordinary
-one.  With P_D = 1 an empty scan is impossible under the model and is taken as
-no measurement (weights unchanged).
+one.  A scan impossible under the model (P_D P_G = 1 and nothing gated) is
+taken as no measurement (weights unchanged, ℓ = 0).
 
 The :class:`~hybridtrack.interfaces.Innovation` of an update holds, besides ℓ,
 the particle prediction of the measurement: ν̄ = Σ w⁽ⁱ⁾⁻ ν⁽ⁱ⁾ (z against the
@@ -90,7 +95,7 @@ from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, S
 from hybridtrack.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import as_float_array, check_magnitude
-from hybridtrack_plugins.filters._association import _as_scans, distances
+from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold
 
 #: stages of a step, part of each draw's seed so that the draws of one step never share a stream
 _INITIALIZE, _PREDICT, _RESAMPLE = 0, 1, 2
@@ -237,7 +242,8 @@ class ParticleFilter(BankEstimator):
     moments of N < n + 1 particles are singular.  For scans (clutter):
     ``detection_probability`` P_D in (0, 1] and ``clutter_density`` λ ≥ 0
     (false measurements per unit measurement volume per step) of the scan
-    likelihood Λ(x); an array ``z`` ignores them.
+    likelihood Λ(x), ``gate_probability`` P_G in (0, 1) or None (default: no
+    gate, every candidate evaluated); an array ``z`` ignores them.
     """
 
     name = "particle"
@@ -255,10 +261,12 @@ class ParticleFilter(BankEstimator):
         seed=0,
         detection_probability: float = 1.0,
         clutter_density: float = 0.0,
+        gate_probability: float | None = None,
     ):
         super().__init__()
         self.detection_probability = check_detection_probability(detection_probability)
         self.clutter_density = check_clutter_density(clutter_density)
+        self.gate_probability = check_gate_probability(gate_probability)
         if isinstance(particles, bool) or not isinstance(particles, numbers.Integral):
             raise TypeError(f"particles: expected an int ≥ 1 (particles per filter), got {type(particles).__name__} {particles!r}")
         if particles < 1:
@@ -434,12 +442,10 @@ class ParticleFilter(BankEstimator):
             sensor, model, R = self._scan_model(scan, by_name, layout)
             log_weights, scan_loglik, record, combined, S = self._scan_weights(log_weights, state.particles, scan, sensor, model, R, layout)
             records.append(record)
+            loglik = loglik + np.where(np.isfinite(scan_loglik), scan_loglik, 0.0)  # −∞: impossible under the model, no measurement
             if scan.size:
-                loglik = loglik + scan_loglik
                 used.append(combined)
                 blocks.append(S)
-            elif self.detection_probability < 1.0:
-                loglik = loglik + scan_loglik  # ln(1 − P_D); with P_D = 1 an empty scan is no measurement
         if used:
             nu = np.concatenate(used, axis=-1)
             S = block_diagonal(blocks)
@@ -488,40 +494,44 @@ class ParticleFilter(BankEstimator):
         d = delta - delta_mean[:, None, :]
         S = symmetrize(np.swapaxes(d * w[..., None], -1, -2) @ d + R)
         chol_S = cholesky(S, "innovation covariance S")
+        P_G = 1.0 if self.gate_probability is None else self.gate_probability
         with np.errstate(divide="ignore"):
-            log_miss = math.log1p(-P_D) if P_D < 1.0 else -math.inf
+            log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
-        if L:
-            cand = np.broadcast_to(scan.z[None, None, :, :], (M, N, L, m))
-            pred = np.broadcast_to(h[:, :, None, :], (M, N, L, m))
+        gamma = gate_threshold(self.gate_probability, m)
+        cand_r = np.broadcast_to(scan.z[None], (M, L, m))
+        pred_r = np.broadcast_to(z_hat[:, None, :], (M, L, m))
+        nu_r = cand_r - pred_r if model.plain_residual else np.asarray(sensor.residual(cand_r, pred_r))
+        d2 = distances(nu_r, chol_S)  # (M, L)
+        gated = d2 <= gamma
+        cols = np.flatnonzero(gated.any(axis=0))  # candidates inside some filter's gate: the only ones evaluated
+        any_gated = gated.any(axis=1)
+        miss_term = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
+        beta = np.zeros((M, L))
+        if cols.size:
+            Lg = cols.size
+            cand = np.broadcast_to(scan.z[cols][None, None, :, :], (M, N, Lg, m))
+            pred = np.broadcast_to(h[:, :, None, :], (M, N, Lg, m))
             nu_i = cand - pred if model.plain_residual else np.asarray(sensor.residual(cand, pred))
-            log_n, _ = CholeskyFactor(R, "measurement noise R").scores(nu_i)  # (M, N, L)
-            log_detected = log_detect + log_n
-            miss_term = log_miss if lam > 0 else -math.inf  # λ = 0, L ≥ 1: no miss term
-            terms = np.concatenate([np.full((M, N, 1), miss_term), log_detected], axis=2)
+            log_n, _ = CholeskyFactor(R, "measurement noise R").scores(nu_i)  # (M, N, Lg)
+            log_detected = np.where(gated[:, None, cols], log_detect + log_n, -np.inf)
+            terms = np.concatenate([np.broadcast_to(miss_term[:, None, None], (M, N, 1)), log_detected], axis=2)
             particle_loglik = logsumexp(terms, axis=2)  # ln Λ(x⁽ⁱ⁾) (M, N)
             joint = log_weights + particle_loglik
             loglik = logsumexp(joint, axis=1)
-            new_log_weights = joint - loglik[:, None]
-            # association weights: β_0 ∝ 1 − P_D (λ > 0), β_r ∝ (P_D/λ) Σ_i w_i N(z_r; h(x_i), R)
-            per_candidate = logsumexp(log_weights[:, :, None] + log_detected, axis=1)  # (M, L)
-            beta_terms = np.concatenate([np.full((M, 1), miss_term), per_candidate], axis=1)
-            beta_all = np.exp(beta_terms - loglik[:, None])
-            beta0, beta = beta_all[:, 0], beta_all[:, 1:]
-            cand_r = np.broadcast_to(scan.z[None], (M, L, m))
-            pred_r = np.broadcast_to(z_hat[:, None, :], (M, L, m))
-            nu_r = cand_r - pred_r if model.plain_residual else np.asarray(sensor.residual(cand_r, pred_r))
-            d2 = distances(nu_r, chol_S)
-            combined = np.einsum("jl,jli->ji", beta, nu_r)
-            selected = np.argmax(beta, axis=1).astype(np.int64)
+            ok = np.isfinite(loglik)
+            new_log_weights = np.where(ok[:, None], joint - np.where(ok, loglik, 0.0)[:, None], log_weights)
+            # association weights: β_0 ∝ 1 − P_D P_G, β_r ∝ (P_D/λ) Σ_i w_i N(z_r; h(x_i), R) over the gated r
+            per_candidate = logsumexp(log_weights[:, :, None] + log_detected, axis=1)  # (M, Lg)
+            beta[:, cols] = np.where(ok[:, None], np.exp(per_candidate - np.where(ok, loglik, 0.0)[:, None]), 0.0)
+            beta0 = np.where(ok, np.exp(miss_term - np.where(ok, loglik, 0.0)), 1.0)
         else:
             new_log_weights = log_weights
             loglik = np.full(M, log_miss)
-            beta0, beta = np.ones(M), np.zeros((M, 0))
-            d2 = np.zeros((M, 0))
-            combined = np.zeros((M, m))
-            selected = np.full(M, -1, dtype=np.int64)
-        record = Association(sensor.name, scan.z, z_hat, S, math.inf, d2, np.ones((M, L), dtype=bool), beta, beta0, selected, loglik)
+            beta0 = np.ones(M)
+        combined = np.einsum("jl,jli->ji", beta, nu_r)
+        selected = np.where(any_gated & (beta.sum(axis=1) > 0), np.argmax(beta, axis=1) if L else -1, -1).astype(np.int64)
+        record = Association(sensor.name, scan.z, z_hat, S, gamma, d2, gated, beta, beta0, selected, loglik)
         return new_log_weights, loglik, record, combined, S
 
     def _resample(self, state: ParticleState, particles, log_weights, rows: np.ndarray):

@@ -59,16 +59,18 @@ def test_one_candidate_without_clutter_and_certain_detection_is_the_ordinary_upd
     assert resampled > 0  # the resampling path was exercised too
 
 
-def test_from_a_gaussian_prior_one_scan_gives_the_ungated_pda_posterior_and_likelihood():
-    """The exact posterior of one scan from N(x⁻, P⁻) has PDA's mean and covariance (Bar-Shalom & Fortmann 1988 §6.4)."""
+@pytest.mark.parametrize("gate", [None, 0.99])
+def test_from_a_gaussian_prior_one_scan_gives_the_pda_posterior_and_likelihood(gate):
+    """The exact posterior of one scan from N(x⁻, P⁻) has PDA's mean and covariance (Bar-Shalom & Fortmann 1988 §6.4);
+    with a gate, the candidate far away is left out by both."""
     sensor = REGISTRY.create("sensor", "position", noise_cov=np.eye(2) * 0.2)
     layout = _model().layout
     x, P = np.array([1.0, 0.5, -1.0, 0.2]), np.diag([0.6, 0.1, 0.4, 0.1])
     scan = Scan(sensor.name, np.array([[1.3, -0.8], [0.2, -1.9], [1.9, -0.2], [5.0, 5.0]]))
     P_D, lam = 0.8, 0.3
-    pda = PDAFilter(P_D, lam, gate_probability=None)
+    pda = PDAFilter(P_D, lam, gate_probability=gate)
     s_pda, i_pda = pda.update(pda.initialize(x[None], P[None]), scan, [sensor], layout)
-    pf = ParticleFilter(particles=200_000, seed=1, detection_probability=P_D, clutter_density=lam, threshold=1e-9)
+    pf = ParticleFilter(particles=200_000, seed=1, detection_probability=P_D, clutter_density=lam, threshold=1e-9, gate_probability=gate)
     s_pf, i_pf = pf.update(pf.initialize(x[None], P[None]), scan, [sensor], layout)
     # Monte Carlo error ~ σ/√N_eff ≈ 1e-3 here
     np.testing.assert_allclose(pf.mean(s_pf), s_pda.x, atol=1e-2)
@@ -78,7 +80,8 @@ def test_from_a_gaussian_prior_one_scan_gives_the_ungated_pda_posterior_and_like
     np.testing.assert_allclose(a_pf.weights, a_pda.weights, atol=5e-3)
     np.testing.assert_allclose(a_pf.missed, a_pda.missed, atol=5e-3)
     np.testing.assert_allclose(a_pf.weights.sum(axis=1) + a_pf.missed, 1.0, atol=1e-12)
-    assert np.isinf(a_pf.gate) and a_pf.gated.all()
+    np.testing.assert_array_equal(a_pf.gated, a_pda.gated)
+    assert a_pf.gate == a_pda.gate
     assert a_pf.selected[0] == a_pda.selected[0]
 
 
