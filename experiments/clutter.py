@@ -380,7 +380,7 @@ def markdown(result: dict) -> str:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=20, help="tracking runs per (P_D, clutter density)")
+    parser.add_argument("--runs", type=int, default=10, help="tracking runs per (P_D, clutter density)")
     parser.add_argument("--detection-runs", type=int, default=60, help="Example 1 runs per clutter density")
     parser.add_argument(
         "--methods", nargs="+", default=list(METHODS), metavar="NAME", help=f"registry names of the methods (default: {' '.join(METHODS)})"

@@ -87,7 +87,6 @@ from functools import cached_property
 
 import attrs
 import numpy as np
-from scipy.special import logsumexp
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
 from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
@@ -129,6 +128,14 @@ class ParticleClutterInnovation(ClutterInnovation):
     gaussian_loglik: np.ndarray = None
     effective_sample_size: np.ndarray = None
     resampled: np.ndarray = None
+
+
+def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
+    """ln Σ exp(a) along ``axis``, shifted by the maximum; −∞ where every entry is −∞ (no warning, no NaN)."""
+    top = np.max(a, axis=axis, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.log(np.sum(np.exp(a - top), axis=axis)) + np.squeeze(top, axis=axis)
 
 
 def weighted_moments(particles: np.ndarray, log_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -331,8 +338,10 @@ class ParticleFilter(BankEstimator):
         counters = np.zeros(M, dtype=np.int64)
         generators = list(self._generators(keys, counters, _INITIALIZE))
         u = np.array([g.random() for g in generators])
-        with np.errstate(divide="ignore"):
-            component = systematic_resample(np.log(weights / total[:, None]), u)  # (M, N)
+        c = np.cumsum(weights / total[:, None], axis=1)
+        c[:, -1] = 1.0
+        points = (np.arange(self.particles) + u[:, None]) / self.particles  # (M, N), systematic points in [0, 1)
+        component = np.minimum((points[:, :, None] >= c[:, None, :]).sum(axis=2), C - 1)  # first c with c_c > point
         e = np.stack([g.standard_normal((self.particles, n)) for g in generators])
         rows = np.arange(M)[:, None]
         particles = means[rows, component] + np.einsum("mkij,mkj->mki", roots[rows, component], e)

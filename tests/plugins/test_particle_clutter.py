@@ -169,3 +169,22 @@ def test_bad_scans_raise():
         pf.update(state, Scan(sensor.name, np.zeros((1, 3))), [sensor], layout)
     with pytest.raises(ValueError, match="one scan per sensor"):
         pf.update(state, [Scan(sensor.name, np.zeros((1, 2)))] * 2, [sensor], layout)
+
+
+def test_initialize_mixture_allocates_particles_systematically_and_matches_the_mixture_moments():
+    means = np.array([[[0.0, 0.0, 0.0, 0.0], [10.0, 1.0, -5.0, 0.0]]])
+    covs = np.stack([np.eye(4), 2.0 * np.eye(4)])[None]
+    weights = np.array([[1.0, 3.0]])  # renormalised to ¼, ¾
+    pf = ParticleFilter(particles=40_000, seed=9)
+    state = pf.initialize_mixture(means, covs, weights)
+    assert state.particles.shape == (1, 40_000, 4)
+    near_second = np.linalg.norm(state.particles[0] - means[0, 1], axis=1) < np.linalg.norm(state.particles[0] - means[0, 0], axis=1)
+    assert abs(near_second.mean() - 0.75) < 0.01  # exactly 30,000 drawn from the second (a few cross over)
+    w = np.array([0.25, 0.75])
+    mean = w @ means[0]
+    d = means[0] - mean
+    cov = np.einsum("c,cij->ij", w, covs[0]) + np.einsum("c,ci,cj->ij", w, d, d)
+    np.testing.assert_allclose(pf.mean(state)[0], mean, atol=0.05)
+    np.testing.assert_allclose(pf.covariance(state)[0], cov, atol=0.3)
+    with pytest.raises(ValueError, match="weights"):
+        pf.initialize_mixture(means, covs, np.array([[0.0, 0.0]]))
