@@ -14,7 +14,7 @@ counts for Ref_j when all four errors are inside region j.  √Ka, Nf and Iter a
 means over the targets.
 
 Recursive filters (seed 004 / issue 17): at σ = ``FILTER_SIGMA`` (0.5°) the first
-``--filter-n`` targets (default 200) are also tracked, on the same bearings, by
+``--filter-n`` targets (default 50; the docs use 200) are also tracked, on the same bearings, by
 ``particle`` (``--particles`` per target, regularised) and ``gaussian_sum``
 (EKF components), both started from the range-parameterised prior of the first
 bearing (:func:`hybridtrack_plugins.filters.gaussian_sum.range_parameterised`:
@@ -142,7 +142,7 @@ def run(
     chunk: int = 2000,
     settings: LMSettings | None = None,
     scenario=None,
-    filter_n: int = 200,
+    filter_n: int = 50,
     particles: int = 2000,
 ):
     """The Monte Carlo; returns the result dict (rows + protocol)."""
@@ -300,7 +300,7 @@ def main(argv=None) -> int:
     parser.add_argument("--json", type=Path, help="write the rows and protocol here")
     parser.add_argument("--markdown", type=Path, help="write the markdown table here (default: stdout only)")
     parser.add_argument("--tie", choices=("right", "left"), default="right", help="direction of the 180° turn")
-    parser.add_argument("--filter-n", type=int, default=200, help=f"targets tracked by the filters at σ = {FILTER_SIGMA}° (0: none)")
+    parser.add_argument("--filter-n", type=int, default=50, help=f"targets tracked by the filters at σ = {FILTER_SIGMA}° (0: none)")
     parser.add_argument("--particles", type=int, default=2000, help="particles per target of the particle filter")
     args = parser.parse_args(argv)
     if args.filter_n < 0 or args.particles < 1:
