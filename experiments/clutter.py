@@ -1,6 +1,9 @@
 """Tracking in clutter (seed 004, SPEC §6): nearest neighbour vs PDA, and mode-change detection in clutter.
 
-    python experiments/clutter.py [--runs 40] [--detection-runs 60]
+    python experiments/clutter.py [--runs 10] [--detection-runs 60] [--methods NAME …] [--plot [PNG]]
+
+(``--runs 0`` or ``--detection-runs 0`` skips that part and keeps its rows from
+the existing output file.)
 
 Part 1 — RMSE and track loss.  The seed-001 Table 1 trajectory (L 50 r3, R 75 r5,
 S 50, L 75 r3, S 50, L 60 r4; x0 = [0, 0, 0, 2], τ = 0.1 s, Q = 0.001 I),
@@ -250,16 +253,14 @@ def detection_run(seed: int, density: float, detection_probability: float, model
             signal_alarms.append(k)
 
     alternatives = restart()
-    bank = FilterBank(4)
-    bank.add(X0, np.eye(4), models[current], TAU, X0)
-    observe_signal(0, bank.update_only(estimator, scans.scan(0), [sensor], LAYOUT))
+    bank = FilterBank(estimator, LAYOUT)
+    bank.start(X0, np.eye(4), [models[current]], X0)
+    observe_signal(0, bank.update_only(scans.scan(0), [sensor]))
     max_bank = 1
     for k in range(1, scans.steps):
-        x0, P0 = bank.means[0].copy(), bank.covs[0].copy()
-        for i in alternatives:
-            bank.add(x0, P0, models[i], TAU, x0, label=(i, k))
+        bank.branch(0, [models[i] for i in alternatives], bank.means[0].copy(), labels=[(i, k) for i in alternatives])
         detector.add(np.arange(1, len(models)), k)
-        innovation = bank.step(estimator, scans.scan(k), [sensor], LAYOUT)
+        innovation = bank.step(TAU, scans.scan(k), [sensor])
         max_bank = max(max_bank, len(bank))
         out = detector.observe(k, innovation.association_loglik, innovation.nis, innovation.measurement_dim)
         observe_signal(k, innovation)
@@ -394,19 +395,28 @@ def main(argv=None) -> dict:
         help="write the track-loss figure (default path docs/images/clutter_loss.png)",
     )
     args = parser.parse_args(argv)
-    if args.runs < 1 or args.detection_runs < 0:
-        parser.error("--runs must be ≥ 1 and --detection-runs ≥ 0")
+    if args.runs < 0 or args.detection_runs < 0:
+        parser.error("--runs and --detection-runs must be ≥ 0")
     known = get_registry().names("estimator")
     unknown = [m for m in args.methods if m not in known]
     if unknown:
         parser.error(f"--methods: unknown estimator(s) {unknown}; registered: {known}")
     start = time.perf_counter()
+    out = Path(args.out)
+    # a part run with 0 runs keeps its rows from the existing output file (to re-run the other part alone)
+    previous = json.loads(out.read_text()) if out.exists() and not (args.runs and args.detection_runs) else {}
     result = {"tracking_runs": args.runs, "detection_runs": args.detection_runs, "methods": list(args.methods)}
     result["settings"] = {"particles": PARTICLES, **{k: v for k, v in SETTINGS.items() if k in args.methods}, "gate_probability": GATE}
-    result["tracking"] = tracking_table(args.runs, args.methods)
-    result["detection"] = detection_table(args.detection_runs) if args.detection_runs else []
+    if args.runs:
+        result["tracking"] = tracking_table(args.runs, args.methods)
+    else:
+        for key in ("tracking_runs", "methods", "settings", "tracking"):
+            result[key] = previous.get(key, [] if key in ("tracking", "methods") else result[key])
+    if args.detection_runs:
+        result["detection"] = detection_table(args.detection_runs)
+    else:
+        result["detection_runs"], result["detection"] = previous.get("detection_runs", 0), previous.get("detection", [])
     result["seconds"] = round(time.perf_counter() - start, 1)
-    out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n")
     out.with_suffix(".md").write_text(markdown(result))

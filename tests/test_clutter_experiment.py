@@ -50,3 +50,12 @@ def test_one_seeded_run_is_reproducible_and_the_report_has_every_method(tmp_path
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with pytest.raises(SystemExit):
         clutter.main(["--methods", "no_such_method", "--out", str(tmp_path / "x.json")])
+
+
+def test_one_detection_run_of_example_1_in_clutter():
+    clutter = load()
+    registry = get_registry()
+    specs = [("straight", {}), ("right_turn", {"radius": 5.0}), ("left_turn", {"radius": 5.0})]
+    models = [registry.create("motion_model", name, noise_cov=clutter.EXAMPLE1_NOISE, **params) for name, params in specs]
+    out = clutter.detection_run(0, 0.5, 0.9, models, ("straight", "right_turn_r5", "left_turn_r5"))
+    assert out["mode"] in (None, "straight", "right_turn_r5", "left_turn_r5") and out["max_bank"] >= 3
