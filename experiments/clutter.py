@@ -208,6 +208,7 @@ def plot_loss(result: dict, path: Path) -> None:
             ax.plot([r["density"] for r in mine], [r[name]["track_loss_rate"] for r in mine], marker="o", label=LABELS[name])
         ax.set_xscale("log")
         ax.set_xticks(DENSITIES, [f"{d:g}" for d in DENSITIES])
+        ax.minorticks_off()
         ax.set_xlabel("clutter density λ (false measurements per m² per step)")
         ax.set_title(f"P_D = {pd_:g}")
         ax.grid(True, alpha=0.3)
