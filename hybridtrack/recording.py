@@ -113,6 +113,9 @@ class NullRecorder:
     def log_points(self, entity, steps, points, times=None):
         pass
 
+    def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
+        pass
+
     def log_scalars(self, entity, steps, values, times=None, names=None):
         pass
 
@@ -554,6 +557,25 @@ class RerunRecorder:
             columns=self._rr.Points3D.columns(positions=points[keep]).partition(counts[present].astype(np.int64)),
         )
         self._style_points(entity)
+
+    def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
+        """Optional extension of the Recorder protocol: points (K, L, 2 or 3) with weights (K, L) ≥ 0 drawn as radii,
+        r = max_radius · √(w / max_step w) (area ∝ weight; particle clouds, mixture components).  Rows with NaN skipped."""
+        points, weights = _xyz(points), np.asarray(weights, dtype=np.float64)
+        keep = np.all(np.isfinite(points), axis=-1) & np.isfinite(weights)
+        if not keep.any():
+            return
+        top = np.max(np.where(keep, weights, 0.0), axis=-1, keepdims=True)
+        radii = max_radius * np.sqrt(np.clip(weights, 0.0, None) / np.where(top > 0, top, 1.0))
+        counts = keep.sum(axis=1)
+        present = counts > 0
+        times = None if times is None else np.asarray(times)[present]
+        self.stream.send_columns(
+            entity,
+            indexes=self._indexes(np.asarray(steps)[present], times),
+            columns=self._rr.Points3D.columns(positions=points[keep], radii=radii[keep]).partition(counts[present].astype(np.int64)),
+        )
+        self._note(entity, "3D")
 
     def log_path(self, entity, steps, positions, times=None, *, points=True, line=True):
         positions = _xyz(positions)
