@@ -43,6 +43,7 @@ the checks, and ``tests/contract``, can build and exercise it without help):
 
 from __future__ import annotations
 
+import copy
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
@@ -551,6 +552,63 @@ class HypothesisTest(ScoreDetector):
     decided: int | None = None
     upper: float
     lower: float
+
+    def batch(self, runs: int) -> HypothesisTestBatch:
+        """``runs`` independent copies of this test fed together (Monte Carlo runs stacked in one bank).
+
+        Optional: the default loops over deep copies (:class:`HypothesisTestBatch`),
+        so a third-party test needs nothing; a test overrides it with a
+        vectorized version whose outputs equal the copies' (``sprt_pairwise``).
+        """
+        return HypothesisTestBatch(self, runs)
+
+
+@attrs.frozen(eq=False)
+class BatchStep:
+    """One step of a :class:`HypothesisTestBatch` for the U runs observed: ``log_ratio`` (U, H), ``active``
+    (U, H) (1 for the hypotheses in play), ``decided`` (U,) the accepted hypothesis or −1, ``decisions`` (U,)
+    the step's Decision of each run or None."""
+
+    log_ratio: np.ndarray
+    active: np.ndarray
+    decided: np.ndarray
+    decisions: tuple
+
+
+class HypothesisTestBatch:
+    """R independent copies of one :class:`HypothesisTest` over banks of H hypotheses (the batch contract).
+
+    ``reset(hypotheses)`` starts every copy anew (a switching moment of all
+    runs); ``observe(step, runs, loglik (U, H), nis (U, H), m (U,))`` feeds the
+    runs ``runs`` (indices into 0 … R−1) and returns a :class:`BatchStep`; each
+    copy sees exactly what ``observe(step, loglik[u], nis[u], m[u])`` of a
+    single test would.  This default keeps deep copies and loops over them (the
+    fallback for tests without a vectorized batch).
+    """
+
+    def __init__(self, detector: HypothesisTest, runs: int):
+        self.detector = detector
+        self.runs = int(runs)
+        self.upper, self.lower = detector.upper, detector.lower
+        self.copies = [copy.deepcopy(detector) for _ in range(self.runs)]
+
+    def reset(self, hypotheses: tuple[str, ...] | None) -> None:
+        for c in self.copies:
+            c.hypotheses = hypotheses
+            c.reset()
+
+    def observe(self, step: int, runs: np.ndarray, loglik: np.ndarray, nis: np.ndarray, m: np.ndarray) -> BatchStep:
+        runs = np.asarray(runs, dtype=int)
+        U, H = np.shape(loglik)
+        ratio, active, decided, decisions = np.zeros((U, H)), np.zeros((U, H)), np.full(U, -1), []
+        for u, r in enumerate(runs):
+            out = self.copies[r].observe(step, loglik[u], nis[u], int(m[u]))
+            ratio[u] = out.statistics["log_ratio"]
+            active[u] = np.asarray(out.statistics.get("active", np.ones(H)), dtype=float)
+            if out.decision is not None:
+                decided[u] = int(self.copies[r].decided)
+            decisions.append(out.decision)
+        return BatchStep(ratio, active, decided, tuple(decisions))
 
 
 class ChangeTimeTest(HypothesisTest):

@@ -1,0 +1,177 @@
+"""Batched runs of the adaptive estimators (issue #14): ``run_batch`` equals ``[run(...) for each run]`` to 1e-12.
+
+Several estimators (covariance, information, Potter, Bierman, SRIF), the
+detectors they drive (pairwise SPRT vectorized; the change-time SPRT and the
+signal function per run; a third-party-like test through the looped fallback),
+per-run irregular times and a NaN measurement in one run only.
+"""
+
+import numpy as np
+import pytest
+
+from hybridtrack import Gaussian, Schedule
+from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.interfaces import HypothesisTestBatch
+from hybridtrack.simulate import simulate
+from hybridtrack_plugins.detectors.sprt_pairwise import PairwiseSPRT, batch_margins, margins
+from hybridtrack_plugins.sensors.position import PositionSensor
+
+X0 = np.array([0.0, 0.0, 0.0, 2.0])
+NOISE = np.diag([0.01, 0.01])
+MODES = ["straight", ("right_turn", {"radius": 5.0}), ("left_turn", {"radius": 5.0})]
+RUNS = 4
+TOL = dict(rtol=0, atol=1e-12)
+
+
+def batch_data(schedule, runs=RUNS, irregular=True, nan=True, noise=NOISE, seed=0):
+    """Per-run measurements (runs, K+1, 2) at per-run times; one run misses x at one step and everything at another."""
+    K1 = schedule.total_steps + 1
+    rng = np.random.default_rng(seed)
+    times = np.cumsum(np.concatenate([np.zeros((runs, 1)), rng.uniform(0.07, 0.13, (runs, K1 - 1))], axis=1), axis=1)
+    sensor = PositionSensor(noise_cov=noise)
+    z = []
+    for r in range(runs):
+        _, measured = simulate(schedule, X0, None if irregular else 0.1, [sensor], times=times[r] if irregular else None, seed=seed + r)
+        z.append(measured[sensor.name])
+    z = np.stack(z)
+    if nan:
+        z[1, 7, 0] = np.nan  # one component missing in run 1 only
+        z[2, 12] = np.nan  # nothing measured in run 2 at step 12
+    return sensor, z, (times if irregular else None)
+
+
+def assert_runs_equal(batched, single, fields):
+    for b, s in zip(batched, single, strict=True):
+        for name in fields:
+            np.testing.assert_allclose(getattr(b, name), getattr(s, name), **TOL, err_msg=name)
+        assert len(b.decisions) == len(s.decisions)
+        for db, ds in zip(b.decisions, s.decisions):
+            assert (db.step, db.detector, db.mode, db.message, db.time) == (ds.step, ds.detector, ds.mode, ds.message, ds.time)
+            assert db.statistic == pytest.approx(ds.statistic, rel=0, abs=1e-12)
+
+
+def single_runs(adaptive, sensor, z, times, prior, *args):
+    return [
+        adaptive.run(
+            {sensor.name: z[r]},
+            prior if isinstance(prior, Gaussian) else Gaussian(prior[0][r], prior[1]),
+            *args,
+            times=None if times is None else times[r],
+        )
+        for r in range(z.shape[0])
+    ]
+
+
+@pytest.mark.parametrize("estimator", ["kalman", "information", "potter", "bierman", "srif"])
+@pytest.mark.parametrize("follow, inflation", [("mixture", 4.0), ("previous", 1.0), ("most_likely", 1.0)])
+def test_known_switch_batch_equals_the_runs(estimator, follow, inflation):
+    schedule = Schedule.from_rows([("straight", 12), ("left_turn", 14, 3.0), ("straight", 10)])
+    sensor, z, times = batch_data(schedule)
+    adaptive = KnownSwitchAdaptive(
+        sensors=[sensor], tau=0.1, n=3, r_min=2.0, r_max=4.0, noise_cov=NOISE, alpha=0.05, beta=0.05,
+        estimator=estimator, follow=follow, switch_inflation=inflation,
+    )  # fmt: skip
+    prior = (X0 + np.arange(RUNS)[:, None] * 0.01, np.eye(4))
+    lengths = [s.steps for s in schedule.segments]
+    batched = adaptive.run_batch({sensor.name: z}, prior, schedule, times=times)
+    single = single_runs(adaptive, sensor, z, times, prior, lengths)
+    assert_runs_equal(batched, single, ("times", "means", "covs", "followed", "log_ratios"))
+    for b, s in zip(batched, single):
+        assert b.segments == s.segments
+    assert any(o.decision_step is not None for b in batched for o in b.segments)
+
+
+def test_known_switch_batch_with_a_looped_test_and_regular_sampling():
+    """A test without a vectorized batch (the HypothesisTestBatch fallback) gives the same runs."""
+
+    class Looped(PairwiseSPRT):
+        def batch(self, runs):
+            return HypothesisTestBatch(self, runs)
+
+    schedule = Schedule.from_rows([("straight", 10), ("right_turn", 12, 3.0)])
+    sensor, z, _ = batch_data(schedule, irregular=False, nan=False)
+    kwargs = dict(sensors=[sensor], tau=0.1, n=3, r_min=2.0, r_max=4.0, noise_cov=NOISE)
+    vectorized = KnownSwitchAdaptive(**kwargs).run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule)
+    looped = KnownSwitchAdaptive(**kwargs, detector=Looped(0.01, 0.01)).run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule)
+    assert_runs_equal(vectorized, looped, ("means", "covs", "followed", "log_ratios"))
+
+
+def test_batch_margins_equal_margins_row_by_row_with_ties():
+    rng = np.random.default_rng(3)
+    L = np.round(rng.normal(size=(50, 5)), 1)  # ties
+    active = rng.random((50, 5)) < 0.6
+    expected = np.stack([margins(L[i], active[i]) for i in range(50)])
+    np.testing.assert_array_equal(batch_margins(L, active), expected)
+
+
+@pytest.mark.parametrize("estimator", ["kalman", "information", "potter", "srif"])
+@pytest.mark.parametrize("bank_size, pruning", [(None, None), (3, "nearest_lower"), (4, "oldest"), ("algorithm4", None)])
+def test_unknown_change_batch_equals_the_runs(estimator, bank_size, pruning):
+    schedule = Schedule.from_rows([("straight", 15), ("right_turn", 20, 5.0)])
+    sensor, z, times = batch_data(schedule)
+    adaptive = UnknownChangeAdaptive(
+        modes=MODES, sensors=[sensor], tau=0.1, alpha=0.1, beta=0.1, estimator=estimator, bank_size=bank_size, pruning=pruning
+    )
+    prior = Gaussian(X0, np.eye(4))
+    batched = adaptive.run_batch({sensor.name: z}, prior, times=times)
+    single = single_runs(adaptive, sensor, z, times, prior)
+    assert_runs_equal(batched, single, ("times", "means", "covs", "mode", "log_ratios", "bank_sizes", "signal", "signal_bounds"))
+    for b, s in zip(batched, single):
+        assert b.changes == s.changes and b.bank_limit == s.bank_limit
+    if bank_size is None:
+        assert any(b.changes for b in batched)
+
+
+class ListRecorder:
+    """Keeps every logging call (name, arguments) so two recordings can be compared."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __getattr__(self, name):
+        if not name.startswith("log_"):
+            raise AttributeError(name)
+        return lambda *args, **kwargs: self.calls.append((name, args, kwargs))
+
+
+def same_calls(a, b):
+    assert len(a.calls) == len(b.calls)
+    for (na, aa, ka), (nb, ab, kb) in zip(a.calls, b.calls):
+        assert na == nb and ka.keys() == kb.keys() and len(aa) == len(ab)
+        for x, y in zip(list(aa) + list(ka.values()), list(ab) + list(kb.values())):
+            if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+                np.testing.assert_allclose(np.asarray(x, float), np.asarray(y, float), **TOL)
+            elif isinstance(x, str) and x.startswith("sprt"):
+                assert x.split("margin")[0] == y.split("margin")[0]
+            else:
+                assert x == pytest.approx(y, rel=0, abs=1e-12) if isinstance(x, float) else x == y
+
+
+def test_batch_records_the_requested_runs_like_the_single_run():
+    schedule = Schedule.from_rows([("straight", 8), ("right_turn", 12, 5.0)])
+    sensor, z, _ = batch_data(schedule, runs=3, irregular=False, nan=False)
+    adaptive = UnknownChangeAdaptive(modes=MODES, sensors=[sensor], tau=0.1, alpha=0.1, beta=0.1)
+    batched, single = ListRecorder(), ListRecorder()
+    adaptive.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), recorders={1: batched})
+    adaptive.run({sensor.name: z[1]}, Gaussian(X0, np.eye(4)), recorder=single)
+    assert batched.calls and any(c[0] == "log_scalars" for c in batched.calls)
+    same_calls(batched, single)
+    known = KnownSwitchAdaptive(sensors=[sensor], tau=0.1, n=3, r_min=2.0, r_max=5.0, noise_cov=NOISE)
+    batched, single = ListRecorder(), ListRecorder()
+    known.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule, recorders={2: batched})
+    known.run({sensor.name: z[2]}, Gaussian(X0, np.eye(4)), schedule, recorder=single)
+    same_calls(batched, single)
+
+
+def test_batch_input_errors():
+    schedule = Schedule.from_rows([("straight", 5)])
+    sensor, z, _ = batch_data(schedule, runs=2, irregular=False, nan=False)
+    adaptive = KnownSwitchAdaptive(sensors=[sensor], tau=0.1, n=2, r_min=2.0, r_max=4.0)
+    with pytest.raises(ValueError, match="measurements"):
+        adaptive.run_batch({sensor.name: z[0]}, Gaussian(X0, np.eye(4)), schedule)
+    with pytest.raises(ValueError, match="times"):
+        adaptive.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule, times=np.zeros((3, 6)))
+    with pytest.raises(ValueError, match="prior"):
+        adaptive.run_batch({sensor.name: z}, (np.zeros((3, 4)), np.eye(4)), schedule)
+    with pytest.raises(ValueError, match="recorders"):
+        adaptive.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule, recorders={5: None})
