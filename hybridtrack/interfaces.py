@@ -128,6 +128,15 @@ class MotionModel(ABC):
     def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
         """F, B, G, Q of one step of length ``tau`` (see the class contract)."""
 
+    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
+        """This mode's transitions at each of the switch states (S, n), stacked as a :class:`TransitionBank`.
+
+        Optional (used by batched runs, where many runs switch at once): the
+        default stacks ``transition(tau, x)`` for every row; a model may
+        vectorize it, with entries equal to the default's (the motion tests check).
+        """
+        return TransitionBank.stack([self.transition(tau, x) for x in np.asarray(switch_states, dtype=float)])
+
     def propagate(self, x: np.ndarray, tau: float, switch_state: np.ndarray) -> np.ndarray:
         """Noise-free step of x (..., n)."""
         return self.transition(tau, switch_state).apply(x)

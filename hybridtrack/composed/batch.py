@@ -127,6 +127,7 @@ class RunBank:
         self.run = np.zeros(0, dtype=int)
         self._dt = np.zeros(0)  # Δt each filter's cached transition was built for (NaN: none)
         self._F = self._B = self._Q = self._root = None
+        self._bank: TransitionBank | None = None  # the same object while nothing changes (estimators cache per bank)
         self._moments: tuple | None = None
 
     def __len__(self) -> int:
@@ -143,6 +144,7 @@ class RunBank:
         self.switch_states, self.run = np.asarray(switch_states, dtype=float), np.asarray(run, dtype=int)
         self._dt = np.full(len(self.models), np.nan)
         self._F = self._B = self._Q = self._root = None
+        self._bank = None
         self._moments = None
 
     def take(self, rows: np.ndarray, fresh: np.ndarray | None = None) -> None:
@@ -160,6 +162,7 @@ class RunBank:
         self._dt = self._dt[rows]
         if fresh is not None:
             self._dt = np.where(fresh, np.nan, self._dt)
+        self._bank = None
         if self._F is not None:
             self._F, self._B, self._Q = self._F[rows], self._B[rows], self._Q[rows]
             self._root = None if self._root is None else self._root[rows]
@@ -171,15 +174,14 @@ class RunBank:
         """Every filter's transition over its own Δt (F,), each built at its switch state (rebuilt where Δt
         changed or the filter is new); a bank with a nonlinear model relinearizes at the current means."""
         dt = np.asarray(dt, dtype=float)
-        if not all(m.linear for m in self.models):
+        if not all(m.linear for m in {id(m): m for m in self.models}.values()):
             self._F = None
             return TransitionBank.stack([m.transition(float(d), x) for m, d, x in zip(self.models, dt, self.means)])
         stale = np.flatnonzero(~(dt == self._dt))
         if self._F is None:
             stale = np.arange(len(self.models))
         if stale.size:
-            built = [self.models[i].transition(float(dt[i]), self.switch_states[i]) for i in stale]
-            new = TransitionBank.stack(built)
+            new = self._build(stale, dt)
             if self._F is None or stale.size == len(self.models):
                 self._F, self._B, self._Q, self._root = (np.array(new.F), np.array(new.B), np.array(new.Q), new.noise_root)
             else:
@@ -189,7 +191,34 @@ class RunBank:
                 else:
                     self._root = None
             self._dt = dt.copy()
-        return TransitionBank(self._F, self._B, self._Q, self._root)
+            self._bank = None
+        if self._bank is None:
+            self._bank = TransitionBank(self._F, self._B, self._Q, self._root)
+        return self._bank
+
+    def _build(self, rows: np.ndarray, dt: np.ndarray) -> TransitionBank:
+        """The transitions of filters ``rows``: one :meth:`~hybridtrack.interfaces.MotionModel.transition_bank`
+        call per (model, Δt) group (vectorized over the runs that switched together)."""
+        keys = [(id(self.models[i]), float(dt[i])) for i in rows]
+        groups: dict = {}
+        for j, key in enumerate(keys):
+            groups.setdefault(key, []).append(j)
+        n = len(self.layout)
+        F, B, Q = np.zeros((rows.size, n, n)), np.zeros((rows.size, n)), np.zeros((rows.size, n, n))
+        roots, positions = [], []
+        for (_, d), members in groups.items():
+            members = np.asarray(members)
+            model = self.models[rows[members[0]]]
+            bank = model.transition_bank(d, self.switch_states[rows[members]])
+            F[members], B[members], Q[members] = bank.F, bank.B, bank.Q
+            roots.append(bank.noise_root)
+            positions.append(members)
+        root = None
+        if all(r is not None for r in roots) and len({r.shape[1:] for r in roots}) == 1:
+            root = np.zeros((rows.size,) + roots[0].shape[1:])
+            for members, r in zip(positions, roots):
+                root[members] = r
+        return TransitionBank(F, B, Q, root)
 
     def step(self, dt: np.ndarray | None, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predict every filter over ``dt`` (F,) (None: update only), update it with its row of ``z`` (F, Σm).

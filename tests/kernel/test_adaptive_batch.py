@@ -175,3 +175,33 @@ def test_batch_input_errors():
         adaptive.run_batch({sensor.name: z}, (np.zeros((3, 4)), np.eye(4)), schedule)
     with pytest.raises(ValueError, match="recorders"):
         adaptive.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule, recorders={5: None})
+
+
+@pytest.mark.parametrize("estimator", ["kalman", "bierman"])
+def test_known_modes_batch_equals_the_runs(estimator):
+    from hybridtrack.composed.known_modes import run_known_modes, run_known_modes_batch
+
+    schedule = Schedule.from_rows([("straight", 10), ("left_turn", 12, 3.0), ("straight", 8)])
+    sensor, z, times = batch_data(schedule)
+    kwargs = dict(estimator=estimator, sensors=[sensor], prior=Gaussian(X0, np.eye(4)), tau=0.1, noise_cov=NOISE)
+    batched = run_known_modes_batch(schedule, measurements={sensor.name: z}, times=times, **kwargs)
+    for r, b in enumerate(batched):
+        s = run_known_modes(schedule, measurements={sensor.name: z[r]}, times=times[r], **kwargs)
+        for name in ("times", "means", "covs", "nis"):
+            np.testing.assert_allclose(getattr(b, name), getattr(s, name), **TOL, err_msg=name)
+
+
+@pytest.mark.parametrize("mode", ["straight", "stop", ("left_turn", {"radius": 3.0}), ("right_turn", {"radius": 7.0})])
+def test_vectorized_transition_bank_equals_the_stacked_transitions(mode):
+    from hybridtrack.interfaces import MotionModel, TransitionBank
+    from hybridtrack.plugins import resolve
+
+    model = resolve("motion_model", mode)
+    states = np.random.default_rng(5).normal(size=(6, 4))
+    states[0, [1, 3]] = 0.0  # zero speed: ω = 0, the straight motion
+    fast = model.transition_bank(0.1, states)
+    reference = MotionModel.transition_bank(model, 0.1, states)
+    stacked = TransitionBank.stack([model.transition(0.1, x) for x in states])
+    for name in ("F", "B", "Q", "noise_root"):
+        np.testing.assert_allclose(getattr(fast, name), getattr(stacked, name), **TOL, err_msg=name)
+        np.testing.assert_allclose(getattr(reference, name), getattr(stacked, name), **TOL, err_msg=name)
