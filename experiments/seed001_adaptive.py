@@ -173,6 +173,23 @@ def run_one(
     return _outcome(schedule, truth, optimal, run)
 
 
+def draw_batch(rngs, *, R: float, q: float, tau: float, steps_scale: float):
+    """:func:`~hybridtrack.experiment.builtin.simulate_seed001` for many runs: the same draws from each run's
+    generator (its two spawned streams), the trajectories propagated together (``simulate_trajectories``).
+    Returns (schedule, sensors, truths, measurements name → (runs, K+1, m))."""
+    from hybridtrack.experiment.builtin import scaled_schedule
+    from hybridtrack.plugins import resolve
+    from hybridtrack.simulate import simulate_measurements, simulate_trajectories
+    from hybridtrack.types import SEED001_TABLE1
+
+    schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
+    sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
+    streams = [rng.spawn(2) for rng in rngs]
+    truths = simulate_trajectories(schedule, X0, tau, seeds=[s[0] for s in streams], noise_cov=float(q) * np.eye(2))
+    drawn = [simulate_measurements(truth, sensors, seed=s[1]) for truth, s in zip(truths, streams)]
+    return schedule, sensors, truths, {name: np.stack([d[name] for d in drawn]) for name in drawn[0]}
+
+
 def run_batch(
     indices,
     rngs,
@@ -196,9 +213,7 @@ def run_batch(
     from hybridtrack.composed.known_modes import run_known_modes_batch
     from hybridtrack.types import Gaussian
 
-    drawn = [simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale) for rng in rngs]
-    schedule, sensors = drawn[0][0], drawn[0][1]
-    z = {name: np.stack([d[3][name] for d in drawn]) for name in drawn[0][3]}
+    schedule, sensors, truths, z = draw_batch(rngs, R=R, q=q, tau=tau, steps_scale=steps_scale)
     prior = Gaussian(np.array(X0), np.eye(4))
     optimal = run_known_modes_batch(
         schedule, estimator="kalman", sensors=sensors, measurements=z, prior=prior, tau=tau, noise_cov=float(q) * np.eye(2)
@@ -206,7 +221,7 @@ def run_batch(
     rule = {"follow": follow, "switch_estimate": switch_estimate, "switch_inflation": switch_inflation}
     adaptive = _adaptive(sensors, tau=tau, r_min=r_min, r_max=r_max, n_radii=n_radii, q=q, alpha=alpha, beta=beta, **rule)
     runs = adaptive.run_batch(z, prior, schedule)
-    return [_outcome(schedule, d[2], o, run) for d, o, run in zip(drawn, optimal, runs)]
+    return [_outcome(schedule, truth, o, run) for truth, o, run in zip(truths, optimal, runs)]
 
 
 def batch_arrays(parameters: dict, n: int, seed: int, chunk: int = 100) -> dict[str, np.ndarray]:

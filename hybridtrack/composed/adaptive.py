@@ -954,11 +954,8 @@ class UnknownChangeAdaptive:
             bank.take(np.concatenate(rows), np.concatenate(fresh))
             sizes = sizes + (M - 1)
             offsets = _offsets(sizes)
-            for r in runs:
-                start = offsets[r] + sizes[r] - (M - 1)
-                for j, i in enumerate(alternatives[r]):
-                    bank.models[start + j] = self.models[i]
-                bank.switch_states[start : start + M - 1] = switch[r]
+            rows = (offsets + sizes - (M - 1))[:, None] + np.arange(M - 1)
+            bank.assign(rows, [self.models[i] for r in runs for i in alternatives[r]], np.repeat(switch, M - 1, axis=0))
             # 2. one step of the whole bank, then each run's ratios (25) and rule (24)
             loglik, nis, m = bank.step(dt[bank.run, k - 1], z[bank.run, k])
             keep = []

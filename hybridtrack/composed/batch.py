@@ -128,6 +128,7 @@ class RunBank:
         self._dt = np.zeros(0)  # Δt each filter's cached transition was built for (NaN: none)
         self._F = self._B = self._Q = self._root = None
         self._bank: TransitionBank | None = None  # the same object while nothing changes (estimators cache per bank)
+        self._linear: bool | None = None  # every model linear (None: not known yet)
         self._moments: tuple | None = None
 
     def __len__(self) -> int:
@@ -145,7 +146,18 @@ class RunBank:
         self._dt = np.full(len(self.models), np.nan)
         self._F = self._B = self._Q = self._root = None
         self._bank = None
+        self._linear = None
         self._moments = None
+
+    def assign(self, rows: np.ndarray, models: Sequence[MotionModel], switch_states: np.ndarray) -> None:
+        """Give the filters ``rows`` new models and switch states (their transitions are rebuilt at the next step)."""
+        rows = np.asarray(rows, dtype=np.intp).reshape(-1)
+        for i, model in zip(rows, models):
+            self.models[i] = model
+        self.switch_states[rows] = switch_states
+        self._dt[rows] = np.nan
+        if self._linear:
+            self._linear = all(m.linear for m in models)
 
     def take(self, rows: np.ndarray, fresh: np.ndarray | None = None) -> None:
         """Keep the filters ``rows`` in that order (repeats copy a filter's state).
@@ -160,6 +172,8 @@ class RunBank:
         self.switch_states = self.switch_states[rows]
         self.run = self.run[rows]
         self._dt = self._dt[rows]
+        if self._linear is False:  # the nonlinear models may have gone
+            self._linear = None
         if fresh is not None:
             self._dt = np.where(fresh, np.nan, self._dt)
         self._bank = None
@@ -174,9 +188,14 @@ class RunBank:
         """Every filter's transition over its own Δt (F,), each built at its switch state (rebuilt where Δt
         changed or the filter is new); a bank with a nonlinear model relinearizes at the current means."""
         dt = np.asarray(dt, dtype=float)
-        if not all(m.linear for m in {id(m): m for m in self.models}.values()):
+        if self._linear is None:
+            self._linear = all(m.linear for m in {id(m): m for m in self.models}.values())
+        if not self._linear:  # as FilterBank: a run whose bank has a nonlinear model relinearizes all its filters
             self._F = None
-            return TransitionBank.stack([m.transition(float(d), x) for m, d, x in zip(self.models, dt, self.means)])
+            nonlinear = np.zeros(int(self.run.max()) + 1, dtype=bool)
+            nonlinear[self.run[[not m.linear for m in self.models]]] = True
+            at = np.where(nonlinear[self.run][:, None], self.means, self.switch_states)
+            return TransitionBank.stack([m.transition(float(d), x) for m, d, x in zip(self.models, dt, at)])
         stale = np.flatnonzero(~(dt == self._dt))
         if self._F is None:
             stale = np.arange(len(self.models))

@@ -205,3 +205,38 @@ def test_vectorized_transition_bank_equals_the_stacked_transitions(mode):
     for name in ("F", "B", "Q", "noise_root"):
         np.testing.assert_allclose(getattr(fast, name), getattr(stacked, name), **TOL, err_msg=name)
         np.testing.assert_allclose(getattr(reference, name), getattr(stacked, name), **TOL, err_msg=name)
+
+
+def test_simulate_trajectories_draw_what_each_run_draws():
+    from hybridtrack.simulate import simulate_trajectories, simulate_trajectory
+
+    schedule = Schedule.from_rows([("straight", 6), ("left_turn", 7, 3.0), ("right_turn", 5, 4.0)])
+    seeds = [np.random.SeedSequence(7, spawn_key=(i,)) for i in range(3)]
+    batch = simulate_trajectories(schedule, X0, 0.1, seeds=[np.random.default_rng(s) for s in seeds], noise_cov=NOISE)
+    for s, b in zip(seeds, batch):
+        single = simulate_trajectory(schedule, X0, 0.1, seed=np.random.default_rng(s), noise_cov=NOISE)
+        np.testing.assert_allclose(b.states, single.states, **TOL)
+        np.testing.assert_array_equal(b.segment, single.segment)
+        assert b.layout == single.layout
+    with pytest.raises(ValueError, match="seeds"):
+        simulate_trajectories(schedule, X0, 0.1, seeds=[])
+
+
+def test_seed001_experiment_batch_equals_the_runner(tmp_path):
+    """experiments/seed001_adaptive.py: the batched arrays equal run_one's (small schedule, default and seed rule)."""
+    import importlib.util
+    from pathlib import Path
+
+    from hybridtrack.experiment.worker import run_seed
+
+    path = Path(__file__).resolve().parents[2] / "experiments" / "seed001_adaptive.py"
+    spec = importlib.util.spec_from_file_location("_seed001_batch_test", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    for rule in (module.DEFAULT_RULE, module.SEED_RULE):
+        parameters = module.EXPERIMENT.with_parameters(R=0.1, steps_scale=0.2, **rule)
+        batched = module.batch_arrays(parameters, 3, 1)
+        for i in range(3):
+            row = module.run_one(i, np.random.default_rng(run_seed(1, i)), **parameters)
+            for name, value in row.items():
+                np.testing.assert_allclose(batched[name][i], value, **TOL, err_msg=name)
