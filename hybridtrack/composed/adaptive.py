@@ -918,7 +918,7 @@ class UnknownChangeAdaptive:
             self._algorithm4_cached(x0[r], float(dt[r, 0]) if K else self.tau) if self.bank_size == "algorithm4" else self.bank_size
             for r in runs
         ]
-        detectors = [copy.deepcopy(self.detector) for _ in runs]
+        test = self.detector.batch(R)  # Algorithm 3's test of every run (vectorized for sprt_unknown_change)
         signals = [None if self.signal is None else copy.deepcopy(self.signal) for _ in runs]
         capped = np.zeros(R, dtype=bool)
         means, covs = np.zeros((R, K + 1, n)), np.zeros((R, K + 1, n, n))
@@ -929,7 +929,9 @@ class UnknownChangeAdaptive:
         bounds = np.full((R, K + 1, 2), np.nan)
         decisions, changes = [[] for _ in runs], [[] for _ in runs]
         current = np.full(R, self.initial_mode)
-        alternatives = [self._restart([d], self.initial_mode) for d in detectors]
+        others = np.array([[i for i in range(M) if i != c] for c in range(M)])  # the alternatives of each current mode
+        names = [(self.labels[c],) + tuple(self.labels[i] for i in others[c]) for c in range(M)]
+        test.restart(runs, [names[self.initial_mode]] * R)
         for s_ in signals:
             if s_ is not None:
                 s_.reset()
@@ -946,59 +948,68 @@ class UnknownChangeAdaptive:
             # 1. one new filter per alternative in every run, hypothesising the change at k: copies of its filter 0
             offsets = _offsets(sizes)
             switch = bank.means[offsets]
-            rows, fresh = [], []
-            for r in runs:
-                rows += [np.arange(offsets[r], offsets[r] + sizes[r]), np.full(M - 1, offsets[r])]
-                fresh += [np.zeros(sizes[r], dtype=bool), np.ones(M - 1, dtype=bool)]
-                detectors[r].add(np.arange(1, M), k)
-            bank.take(np.concatenate(rows), np.concatenate(fresh))
-            sizes = sizes + (M - 1)
-            offsets = _offsets(sizes)
-            rows = (offsets + sizes - (M - 1))[:, None] + np.arange(M - 1)
-            bank.assign(rows, [self.models[i] for r in runs for i in alternatives[r]], np.repeat(switch, M - 1, axis=0))
-            # 2. one step of the whole bank, then each run's ratios (25) and rule (24)
+            grown = _offsets(sizes + (M - 1))
+            rows = np.empty(len(bank) + R * (M - 1), dtype=int)
+            rows[grown[bank.run] + np.arange(len(bank)) - offsets[bank.run]] = np.arange(len(bank))
+            added = (grown + sizes)[:, None] + np.arange(M - 1)
+            rows[added] = offsets[:, None]
+            fresh = np.zeros(rows.size, dtype=bool)
+            fresh[added] = True
+            bank.take(rows, fresh)
+            sizes, offsets = sizes + (M - 1), grown
+            alternatives = others[current]
+            bank.assign(added, [self.models[i] for i in alternatives.reshape(-1)], np.repeat(switch, M - 1, axis=0))
+            test.add(k)
+            # 2. one step of the whole bank, then every run's ratios (25) and rule (24)
             loglik, nis, m = bank.step(dt[bank.run, k - 1], z[bank.run, k])
-            keep = []
-            for r in runs:
-                detector, signal = detectors[r], signals[r]
-                block = slice(offsets[r], offsets[r] + sizes[r])
-                mk = int(m[offsets[r]])
-                out = detector.observe(k, loglik[block], nis[block], mk)
-                ratios[r, k, alternatives[r]] = out.statistics["log_ratio"]
-                bank_sizes[r, k] = sizes[r]
+            entries = np.ones(len(bank), dtype=bool)
+            entries[offsets] = False
+            entry_rows = np.flatnonzero(entries)
+            out = test.observe(k, loglik[offsets], loglik[entry_rows], nis[offsets], nis[entry_rows], m[offsets])
+            ratios[runs[:, None], k, alternatives] = out.log_ratio
+            bank_sizes[:, k] = sizes
+            for r, signal in enumerate(signals):
                 if signal is not None:
-                    s = signal.observe(k, loglik[block][:1], nis[block][:1], mk)
+                    s = signal.observe(k, loglik[offsets[r] : offsets[r] + 1], nis[offsets[r] : offsets[r] + 1], int(m[offsets[r]]))
                     signal_values[r, k], bounds[r, k] = s.statistics["signal"][0], (s.thresholds["lower"], s.thresholds["upper"])
-                # 3. act on the decision, or bound the bank
-                if out.decision is not None:
-                    decisions[r].append(attrs.evolve(out.decision, time=float(t[r, k])))
-                    if detector.decided:
-                        entry = int(detector.chosen_entry)
-                        changes[r].append(ChangeEvent(k, self.labels[alternatives[r][detector.decided - 1]], int(detector.starts[entry])))
-                        current[r] = alternatives[r][detector.decided - 1]
-                        local = np.array([1 + entry])
-                        if signal is not None:
-                            signal.reset()
-                    else:
-                        local = np.array([0])
-                    alternatives[r] = self._restart([detector], int(current[r]))
-                else:
-                    cap = limits[r]
-                    if cap is None and sizes[r] - 1 > self.max_bank_size:
-                        if not capped[r]:
-                            warnings.warn(
-                                f"{self.name}: the growing bank reached {sizes[r] - 1} alternative filters at step {k} "
-                                f"(max_bank_size = {self.max_bank_size}); pruning to {self.max_bank_size} by the "
-                                f"{detector.pruning!r} rule from now on",
-                                RuntimeWarning,
-                                stacklevel=2,
-                            )
-                            capped[r] = True
-                        cap = self.max_bank_size
-                    local = np.concatenate([[0], detector.prune(cap) + 1])
-                keep.append(offsets[r] + local)
-                sizes[r] = local.size
-            bank.take(np.concatenate(keep))
+            # 3. act on the decisions, or bound the banks
+            open_ = np.flatnonzero(out.decided < 0)
+            caps = np.full(open_.size, -1)
+            for u, r in enumerate(open_):
+                cap = limits[r]
+                if cap is None and sizes[r] - 1 > self.max_bank_size:  # the growing bank, e.g. through a long gap
+                    if not capped[r]:
+                        warnings.warn(
+                            f"{self.name}: the growing bank reached {sizes[r] - 1} alternative filters at step {k} "
+                            f"(max_bank_size = {self.max_bank_size}); pruning to {self.max_bank_size} by the "
+                            f"{test.pruning!r} rule from now on",
+                            RuntimeWarning,
+                            stacklevel=2,
+                        )
+                        capped[r] = True
+                    cap = self.max_bank_size
+                caps[u] = -1 if cap is None else cap
+            kept = test.prune(open_, caps)
+            keep = np.zeros(len(bank), dtype=bool)
+            keep[offsets[open_]] = True
+            is_open = np.zeros(R, dtype=bool)
+            is_open[open_] = True
+            keep[entry_rows[kept & is_open[bank.run[entry_rows]]]] = True
+            done = np.flatnonzero(out.decided >= 0)
+            for r in done:
+                decisions[r].append(attrs.evolve(out.decisions[r], time=float(t[r, k])))
+                if out.decided[r] > 0:  # a change to alternatives[p − 1], followed by its most likely filter
+                    current[r] = alternatives[r, out.decided[r] - 1]
+                    changes[r].append(ChangeEvent(k, self.labels[current[r]], int(out.chosen_start[r])))
+                    keep[offsets[r] + 1 + out.chosen_entry[r]] = True
+                    if signals[r] is not None:
+                        signals[r].reset()
+                else:  # H_0 accepted: the test restarts with filter 0 alone
+                    keep[offsets[r]] = True
+            if done.size:
+                test.restart(done, [names[c] for c in current[done]])
+            bank.take(np.flatnonzero(keep))
+            sizes = np.bincount(bank.run, minlength=R)
             first = _offsets(sizes)
             means[:, k], covs[:, k], mode[:, k] = bank.means[first], bank.covs[first], current
         results = []
@@ -1016,8 +1027,8 @@ class UnknownChangeAdaptive:
                 bounds[r],
                 tuple(decisions[r]),
                 tuple(changes[r]),
-                float(detectors[r].upper),
-                float(detectors[r].lower),
+                float(test.upper),
+                float(test.lower),
                 limits[r],
             )
             if r in recorders:

@@ -240,3 +240,23 @@ def test_seed001_experiment_batch_equals_the_runner(tmp_path):
             row = module.run_one(i, np.random.default_rng(run_seed(1, i)), **parameters)
             for name, value in row.items():
                 np.testing.assert_allclose(batched[name][i], value, **TOL, err_msg=name)
+
+
+@pytest.mark.parametrize("bank_size, pruning", [(None, None), (3, "nearest_lower"), (4, "oldest")])
+def test_unknown_change_batch_with_a_looped_test_equals_the_vectorized_one(bank_size, pruning):
+    """A change-time test without a vectorized batch (the ChangeTimeTestBatch fallback) gives the same runs."""
+    from hybridtrack.interfaces import ChangeTimeTestBatch
+    from hybridtrack_plugins.detectors.sprt_change import ChangeTimeSPRT
+
+    class Looped(ChangeTimeSPRT):
+        def batch(self, runs):
+            return ChangeTimeTestBatch(self, runs)
+
+    schedule = Schedule.from_rows([("straight", 15), ("right_turn", 20, 5.0)])
+    sensor, z, times = batch_data(schedule, seed=3)
+    kwargs = dict(modes=MODES, sensors=[sensor], tau=0.1, bank_size=bank_size, pruning=pruning)
+    vectorized = UnknownChangeAdaptive(**kwargs, alpha=0.1, beta=0.1).run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), times=times)
+    looped = UnknownChangeAdaptive(**kwargs, detector=Looped(0.1, 0.1)).run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), times=times)
+    assert_runs_equal(vectorized, looped, ("means", "covs", "mode", "log_ratios", "bank_sizes", "signal"))
+    for a, b in zip(vectorized, looped):
+        assert a.changes == b.changes
