@@ -101,7 +101,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--json", metavar="PATH", help="write the cases here")
     parser.add_argument("--runs", type=int, default=100, help="seed-001 trajectories per R (default 100)")
     parser.add_argument("--example1-runs", type=int, default=200)
-    parser.add_argument("--clutter-runs", type=int, default=10, help="tracking runs per clutter density (0: skip)")
+    parser.add_argument("--clutter-runs", type=int, default=3, help="tracking runs per clutter density (0: skip)")
     args = parser.parse_args(argv)
     cases = [seed001_campaign(args.runs), example1(args.example1_runs)]
     if args.clutter_runs:
