@@ -55,11 +55,11 @@ def case(name: str, batched_s: float | None, per_run_s: float) -> dict:
     return {"name": name, "batched_s": batched_s, "per_run_s": per_run_s, "speedup": speedup}
 
 
-def seed001_campaign(runs: int, r_values=(1.0, 0.1, 0.01), seed: int = 1) -> dict:
+def seed001_campaign(runs: int, r_values=(1.0, 0.1, 0.01), seed: int = 1, steps_scale: float = 1.0) -> dict:
     from hybridtrack.experiment.worker import run_seed
 
     module = load("seed001_adaptive")
-    parameters = [module.EXPERIMENT.with_parameters(R=R, **module.DEFAULT_RULE) for R in r_values]
+    parameters = [module.EXPERIMENT.with_parameters(R=R, steps_scale=steps_scale, **module.DEFAULT_RULE) for R in r_values]
     warm = module.EXPERIMENT.with_parameters(R=0.1, steps_scale=0.1, **module.DEFAULT_RULE)  # imports, numba compilation
     module.batch_arrays(warm, 2, seed)
     module.run_one(0, np.random.default_rng(run_seed(seed, 0)), **warm)
@@ -76,7 +76,8 @@ def seed001_campaign(runs: int, r_values=(1.0, 0.1, 0.01), seed: int = 1) -> dic
     for a, b in zip(batched, single):
         for name in a:
             np.testing.assert_allclose(a[name], b[name], rtol=1e-12, atol=1e-12, err_msg=name)
-    return case(f"seed001_campaign ({runs} runs x {len(r_values)} R, default rule)", batched_s, per_run_s)
+    scaled = "" if steps_scale == 1 else f", schedule scaled by {steps_scale:g}"
+    return case(f"seed001_campaign ({runs} runs x {len(r_values)} R, default rule{scaled})", batched_s, per_run_s)
 
 
 def example1(runs: int) -> dict:
@@ -100,10 +101,11 @@ def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", metavar="PATH", help="write the cases here")
     parser.add_argument("--runs", type=int, default=100, help="seed-001 trajectories per R (default 100)")
+    parser.add_argument("--steps-scale", type=float, default=1.0, help="scale the seed-001 schedule (tests)")
     parser.add_argument("--example1-runs", type=int, default=200)
     parser.add_argument("--clutter-runs", type=int, default=3, help="tracking runs per clutter density (0: skip)")
     args = parser.parse_args(argv)
-    cases = [seed001_campaign(args.runs), example1(args.example1_runs)]
+    cases = [seed001_campaign(args.runs, steps_scale=args.steps_scale), example1(args.example1_runs)]
     if args.clutter_runs:
         cases.append(clutter(args.clutter_runs))
     result = {"cases": cases}

@@ -260,3 +260,40 @@ def test_unknown_change_batch_with_a_looped_test_equals_the_vectorized_one(bank_
     assert_runs_equal(vectorized, looped, ("means", "covs", "mode", "log_ratios", "bank_sizes", "signal"))
     for a, b in zip(vectorized, looped):
         assert a.changes == b.changes
+
+
+def test_unknown_change_batch_with_a_nonlinear_mode_relinearizes_like_the_runs():
+    """A run whose bank holds a nonlinear mode relinearizes all its filters at their means (as FilterBank does):
+    switch-state-augmented modes, the turns refining their switch state (EKF)."""
+    from hybridtrack.composed.switch_state import SwitchAugmented
+    from hybridtrack_plugins.motion.linear_modes import LeftTurn, RightTurn, Straight
+
+    schedule = Schedule.from_rows([("straight", 8), ("right_turn", 10, 5.0)])
+    sensor, z, times = batch_data(schedule, runs=3)
+    modes = [SwitchAugmented(Straight(noise_cov=NOISE)), SwitchAugmented(RightTurn(radius=5.0, noise_cov=NOISE), relinearize=True)]
+    modes.append(SwitchAugmented(LeftTurn(radius=5.0, noise_cov=NOISE)))
+    adaptive = UnknownChangeAdaptive(modes=modes, sensors=[sensor], tau=0.1, alpha=0.1, beta=0.1, estimator="ekf", bank_size=6)
+    mean = np.concatenate([X0, X0])
+    prior = Gaussian(mean, np.eye(8))
+    batched = adaptive.run_batch({sensor.name: z}, prior, times=times)
+    single = single_runs(adaptive, sensor, z, times, prior)
+    assert_runs_equal(batched, single, ("means", "covs", "mode", "log_ratios", "bank_sizes"))
+
+
+def test_campaign_benchmark_runs_small(tmp_path):
+    """benchmarks/campaign.py at a tiny size: the agreed JSON layout (batched and per-run results checked equal inside)."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "campaign.py"
+    spec = importlib.util.spec_from_file_location("_campaign_bench_test", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    out = tmp_path / "bench.json"
+    module.main(["--json", str(out), "--runs", "2", "--steps-scale", "0.1", "--example1-runs", "2", "--clutter-runs", "0"])
+    written = json.loads(out.read_text())
+    assert set(written) == {"cases"} and len(written["cases"]) == 2
+    for case in written["cases"]:
+        assert set(case) == {"name", "batched_s", "per_run_s", "speedup"}
+        assert case["batched_s"] > 0 and case["per_run_s"] > 0 and case["speedup"] == pytest.approx(case["per_run_s"] / case["batched_s"])
