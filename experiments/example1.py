@@ -3,7 +3,9 @@
     python experiments/example1.py [--runs 200] [--plot [PNG]]
     python experiments/example1.py --plot-only docs/results/example1.json
 
-Writes docs/results/example1.json and docs/results/example1.md.  The change is
+Writes docs/results/example1.json and docs/results/example1.md.  The runs go
+as one batch (``UnknownChangeAdaptive.run_batch``, equal to the per-run results
+to rounding); ``--per-run`` runs them one by one.  The change is
 at step 20 (x_21 is the first state of the turn); delay = decision step − 20.
 ``--plot`` draws the distribution of the detection delay for each α = β from
 the JSON (:func:`plot`, default docs/images/example1.png); ``--plot-only JSON``
@@ -25,10 +27,22 @@ example1 = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(example1)
 
 
-def outcomes(adaptive, runs: int, first_seed: int = 0) -> list[dict]:
+def batch_runs(adaptive, seeds) -> list:
+    """Example 1 on every seed (drawn as ``run_once`` draws it), run as one batch (``run_batch``)."""
+    data = [
+        example1.simulate(example1.schedule(), example1.X0, example1.TAU, adaptive.network, seed=seed, noise_cov=example1.NOISE)[1]
+        for seed in seeds
+    ]
+    z = {name: np.stack([d[name] for d in data]) for name in data[0]}
+    return adaptive.run_batch(z, example1.Gaussian(example1.X0, np.eye(4)))
+
+
+def outcomes(adaptive, runs: int, first_seed: int = 0, per_run: bool = False) -> list[dict]:
+    """Each run's detection outcome; the runs go as one batch unless ``per_run`` (equal results)."""
+    seeds = range(first_seed, first_seed + runs)
+    results = [example1.run_once(seed, adaptive)[1] for seed in seeds] if per_run else batch_runs(adaptive, seeds)
     rows = []
-    for seed in range(first_seed, first_seed + runs):
-        _, run = example1.run_once(seed, adaptive)
+    for seed, run in zip(seeds, results):
         change = run.first_change(after=example1.CHANGE_STEP)
         rows.append(
             {
@@ -122,6 +136,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--plot", nargs="?", const=str(PLOT), metavar="PNG", help="draw the figure (default docs/images/example1.png)")
     parser.add_argument("--plot-only", metavar="JSON", help="only draw the figure from an existing report")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results" / "example1"))
+    parser.add_argument("--per-run", action="store_true", help="run each seed alone instead of one batch (the same results)")
     args = parser.parse_args(argv)
     if args.plot_only:
         print(f"wrote {plot(args.plot_only, args.plot or PLOT)}")
@@ -142,7 +157,7 @@ def main(argv=None) -> dict:
         "by_error_probabilities": {},
     }
     for alpha, beta in ((0.1, 0.1), (0.05, 0.05), (0.01, 0.01)):
-        rows = outcomes(example1.estimator(alpha=alpha, beta=beta), args.runs)
+        rows = outcomes(example1.estimator(alpha=alpha, beta=beta), args.runs, per_run=args.per_run)
         results["by_error_probabilities"][f"alpha={alpha},beta={beta}"] = summarize(rows)
         print(alpha, beta, json.dumps(results["by_error_probabilities"][f"alpha={alpha},beta={beta}"]))
     out = Path(args.out)

@@ -40,8 +40,10 @@ Every bank, the first included, is built from the given initial state x0
 (seed 001 Table 3) against the seed's figures, per R, from the JSON report
 (:func:`plot`); ``--plot-only JSON`` only draws, from an existing report.
 
-Runs are stored under ``--out`` (one campaign per R) and reused when the
-command is repeated; ``hybridtrack run experiments/seed001_adaptive.py
+Each R's trajectories run as one batch (``run_batch``: stacked banks, equal to
+the per-run results to rounding); with ``--per-run`` every trajectory runs
+alone through the campaign runner, stored under ``--out`` (one campaign per R)
+and reused when the command is repeated; ``hybridtrack run experiments/seed001_adaptive.py
 --param R=0.1`` runs one R through the generic runner.
 """
 
@@ -111,6 +113,43 @@ def _motion_type(mode: str) -> str:
     return mode
 
 
+def _adaptive(sensors, *, tau, r_min, r_max, n_radii, q, alpha, beta, follow, switch_estimate, switch_inflation):
+    from hybridtrack.composed.adaptive import KnownSwitchAdaptive
+
+    return KnownSwitchAdaptive(
+        sensors=sensors,
+        tau=tau,
+        r_min=r_min,
+        r_max=r_max,
+        n=n_radii,
+        noise_cov=q * np.eye(2),
+        alpha=alpha,
+        beta=beta,
+        follow=follow,
+        switch_estimate=switch_estimate,
+        switch_inflation=switch_inflation,
+    )
+
+
+def _outcome(schedule, truth, optimal, run) -> dict:
+    """One trajectory's figures from the optimal KF's and the adaptive estimator's runs."""
+    delays, type_right, radius_right = [], [], []
+    for outcome, segment in zip(run.segments, schedule.segments):
+        delays.append(np.nan if outcome.delay is None else float(outcome.delay))
+        same_type = _motion_type(outcome.mode) == segment.mode
+        type_right.append(float(same_type))
+        radius_right.append(float(same_type and (segment.radius is None or outcome.radius == segment.radius)))
+    return {
+        "squared_error_optimal": squared_errors(optimal.means, truth, optimal.layout),
+        "squared_error_adaptive": squared_errors(run.means, truth, run.layout),
+        "steps": schedule.total_steps,
+        "decision_steps": np.array(delays),
+        "segment_steps": np.array([segment.steps for segment in schedule.segments], dtype=float),
+        "type_correct": np.array(type_right),
+        "radius_correct": np.array(radius_right),
+    }
+
+
 def run_one(
     index: int,
     rng: np.random.Generator,
@@ -129,40 +168,77 @@ def run_one(
     switch_inflation: float = 4.0,
 ) -> dict:
     """One trajectory: both estimators' squared errors, per-segment decision delays and identifications."""
-    from hybridtrack.composed.adaptive import KnownSwitchAdaptive
     from hybridtrack.types import Gaussian
 
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
     optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
-    adaptive = KnownSwitchAdaptive(
-        sensors=sensors,
-        tau=tau,
-        r_min=r_min,
-        r_max=r_max,
-        n=n_radii,
-        noise_cov=q * np.eye(2),
-        alpha=alpha,
-        beta=beta,
-        follow=follow,
-        switch_estimate=switch_estimate,
-        switch_inflation=switch_inflation,
-    )
+    rule = {"follow": follow, "switch_estimate": switch_estimate, "switch_inflation": switch_inflation}
+    adaptive = _adaptive(sensors, tau=tau, r_min=r_min, r_max=r_max, n_radii=n_radii, q=q, alpha=alpha, beta=beta, **rule)
     run = adaptive.run(measurements, Gaussian(np.array(X0), np.eye(4)), schedule)
-    delays, type_right, radius_right = [], [], []
-    for outcome, segment in zip(run.segments, schedule.segments):
-        delays.append(np.nan if outcome.delay is None else float(outcome.delay))
-        same_type = _motion_type(outcome.mode) == segment.mode
-        type_right.append(float(same_type))
-        radius_right.append(float(same_type and (segment.radius is None or outcome.radius == segment.radius)))
-    return {
-        "squared_error_optimal": squared_errors(optimal.means, truth, optimal.layout),
-        "squared_error_adaptive": squared_errors(run.means, truth, run.layout),
-        "steps": schedule.total_steps,
-        "decision_steps": np.array(delays),
-        "segment_steps": np.array([segment.steps for segment in schedule.segments], dtype=float),
-        "type_correct": np.array(type_right),
-        "radius_correct": np.array(radius_right),
-    }
+    return _outcome(schedule, truth, optimal, run)
+
+
+def draw_batch(rngs, *, R: float, q: float, tau: float, steps_scale: float):
+    """:func:`~hybridtrack.experiment.builtin.simulate_seed001` for many runs: the same draws from each run's
+    generator (its two spawned streams), the trajectories propagated together (``simulate_trajectories``).
+    Returns (schedule, sensors, truths, measurements name → (runs, K+1, m))."""
+    from hybridtrack.experiment.builtin import scaled_schedule
+    from hybridtrack.plugins import resolve
+    from hybridtrack.simulate import simulate_measurements, simulate_trajectories
+    from hybridtrack.types import SEED001_TABLE1
+
+    schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
+    sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
+    streams = [rng.spawn(2) for rng in rngs]
+    truths = simulate_trajectories(schedule, X0, tau, seeds=[s[0] for s in streams], noise_cov=float(q) * np.eye(2))
+    drawn = [simulate_measurements(truth, sensors, seed=s[1]) for truth, s in zip(truths, streams)]
+    return schedule, sensors, truths, {name: np.stack([d[name] for d in drawn]) for name in drawn[0]}
+
+
+def run_batch(
+    indices,
+    rngs,
+    *,
+    R: float,
+    q: float,
+    tau: float,
+    alpha: float,
+    beta: float,
+    r_min: float,
+    r_max: float,
+    n_radii: int,
+    steps_scale: float,
+    follow: str = "mixture",
+    switch_estimate: str = "filtered",
+    switch_inflation: float = 4.0,
+) -> list[dict]:
+    """:func:`run_one` of the runs ``indices`` (with their generators ``rngs``) as one batch: the trajectories are
+    drawn run by run as there, both estimators run as stacked banks (``run_known_modes_batch``,
+    ``KnownSwitchAdaptive.run_batch``); equal to the per-run results to rounding."""
+    from hybridtrack.composed.known_modes import run_known_modes_batch
+    from hybridtrack.types import Gaussian
+
+    schedule, sensors, truths, z = draw_batch(rngs, R=R, q=q, tau=tau, steps_scale=steps_scale)
+    prior = Gaussian(np.array(X0), np.eye(4))
+    optimal = run_known_modes_batch(
+        schedule, estimator="kalman", sensors=sensors, measurements=z, prior=prior, tau=tau, noise_cov=float(q) * np.eye(2)
+    )
+    rule = {"follow": follow, "switch_estimate": switch_estimate, "switch_inflation": switch_inflation}
+    adaptive = _adaptive(sensors, tau=tau, r_min=r_min, r_max=r_max, n_radii=n_radii, q=q, alpha=alpha, beta=beta, **rule)
+    runs = adaptive.run_batch(z, prior, schedule)
+    return [_outcome(schedule, truth, o, run) for truth, o, run in zip(truths, optimal, runs)]
+
+
+def batch_arrays(parameters: dict, n: int, seed: int, chunk: int = 100) -> dict[str, np.ndarray]:
+    """Every run's results stacked (name → (n, …)), as a campaign returns them, computed by :func:`run_batch`
+    in chunks of ``chunk`` runs; run i uses child i of SeedSequence(seed), as in the campaign."""
+    from hybridtrack.experiment.worker import run_seed
+
+    rows = []
+    for first in range(0, n, chunk):
+        indices = list(range(first, min(n, first + chunk)))
+        rows += run_batch(indices, [np.random.default_rng(run_seed(seed, i)) for i in indices], **parameters)
+    return {name: np.stack([np.asarray(row[name]) for row in rows]) for name in rows[0]}
 
 
 EXPERIMENT = Experiment(
@@ -301,6 +377,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--no-progress", action="store_true")
     parser.add_argument("--replicates", type=int, default=2, help="further independent sets of trajectories for the default rule")
     parser.add_argument("--no-ablation", action="store_true", help="skip the one-change-at-a-time steps")
+    parser.add_argument(
+        "--per-run",
+        action="store_true",
+        help="run each trajectory alone through the campaign runner (stored under --out, resumable) instead of one batch per R",
+    )
     args = parser.parse_args(argv)
     if args.plot_only:
         print(f"wrote {plot(args.plot_only, args.plot or PLOT)}")
@@ -325,23 +406,30 @@ def main(argv=None) -> dict:
             parameters={"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale, **rule},
         )
 
+    def arrays_for(R: float, rule: dict, seed: int) -> dict[str, np.ndarray]:
+        """Every run's results at R under ``rule``: one batch in-process, or the campaign runner (``--per-run``)."""
+        if args.per_run:
+            return campaign_for(R, rule, seed).run().arrays
+        parameters = {"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale, **rule}
+        return batch_arrays(experiment.with_parameters(**parameters), args.n, seed)
+
     def brief(row: dict, extra: dict) -> dict:
         keep = ("mean_decision_steps", "mean_decision_steps_undecided_as_length", "undecided_fraction", "radius_correct")
         return {**row, **{key: extra[key] for key in keep}}
 
     rows, supplementary, seed_rows = [], [], []
     for R in args.R:
-        row, extra = aggregate(campaign_for(R, DEFAULT_RULE, args.seed).run().arrays, R)
-        seed_row, seed_extra = aggregate(campaign_for(R, SEED_RULE, args.seed).run().arrays, R)
+        row, extra = aggregate(arrays_for(R, DEFAULT_RULE, args.seed), R)
+        seed_row, seed_extra = aggregate(arrays_for(R, SEED_RULE, args.seed), R)
         extra["seed_rule"] = brief(seed_row, seed_extra)
         seed_rows.append(seed_row)
         extra["steps"] = []
         for rule in () if args.no_ablation else ABLATION:
-            step_row, step_extra = aggregate(campaign_for(R, rule, args.seed).run().arrays, R)
+            step_row, step_extra = aggregate(arrays_for(R, rule, args.seed), R)
             extra["steps"].append({**rule, **brief(step_row, step_extra)})
         extra["replicates"] = [{"seed": args.seed, "adaptive_nrmse": row["adaptive_nrmse"], "modes_correct": row["modes_correct"]}]
         for seed in range(args.seed + 1, args.seed + 1 + args.replicates):
-            other, _ = aggregate(campaign_for(R, DEFAULT_RULE, seed).run().arrays, R)
+            other, _ = aggregate(arrays_for(R, DEFAULT_RULE, seed), R)
             extra["replicates"].append({"seed": seed, "adaptive_nrmse": other["adaptive_nrmse"], "modes_correct": other["modes_correct"]})
         values = np.array([(x["adaptive_nrmse"], x["modes_correct"]) for x in extra["replicates"]])
         extra["replicate_spread"] = {

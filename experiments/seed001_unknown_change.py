@@ -39,6 +39,10 @@ segment's last step has the right motion type (for Algorithm 1: the mode it
 identified, as in ``seed001_adaptive.py``).
 
     python experiments/seed001_unknown_change.py --json docs/results/seed001_unknown_change.json [--n 50] [--modes seed001]
+
+Each R's trajectories run as one batch (``run_batch``: stacked banks, equal to
+the per-run results to rounding); ``--per-run`` runs each alone through the
+campaign runner (stored under ``--out``, resumable).
 """
 
 from __future__ import annotations
@@ -66,30 +70,13 @@ def motion_type(mode: str) -> str:
     return mode
 
 
-def run_one(
-    index: int,
-    rng: np.random.Generator,
-    *,
-    R: float,
-    q: float,
-    tau: float,
-    alpha: float,
-    beta: float,
-    known_alpha: float,
-    modes: str,
-    bank_size: int,
-    steps_scale: float,
-) -> dict:
-    """One trajectory: squared errors of the three estimators, per-segment delays, changes, identifications."""
+def _estimators(sensors, *, q, tau, alpha, beta, known_alpha, modes, bank_size):
+    """(Algorithm 1, Algorithm 3 repeated) as configured by the protocol."""
     from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
-    from hybridtrack.types import Gaussian
 
     if modes not in MODE_SETS:
         raise ValueError(f"modes: expected one of {sorted(MODE_SETS)}, got {modes!r}")
     r_min, r_max, n = MODE_SETS[modes]
-    schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
-    prior = Gaussian(np.array(X0), np.eye(4))
-    optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
     known = KnownSwitchAdaptive(
         sensors=sensors,
         tau=tau,
@@ -99,7 +86,6 @@ def run_one(
         follow="previous",
         switch_inflation=1.0,
     )
-    known_run = known.run(measurements, prior, schedule)
     unknown = UnknownChangeAdaptive(
         modes=turn_bank(r_min, r_max, n, q * np.eye(2)),
         sensors=sensors,
@@ -110,8 +96,11 @@ def run_one(
         pruning="nearest_lower",
         signal=None,
     )
-    run = unknown.run(measurements, prior)
+    return known, unknown
 
+
+def _outcome(schedule, truth, optimal, known_run, run) -> dict:
+    """One trajectory's figures from the three estimators' runs."""
     starts = np.cumsum([0] + [s.steps for s in schedule.segments])
     true_type = np.empty(schedule.total_steps + 1, dtype=object)
     for i, segment in enumerate(schedule.segments):
@@ -135,6 +124,89 @@ def run_one(
         "changes": float(len(run.changes)),
         "max_bank": float(run.bank_sizes.max()),
     }
+
+
+def run_one(
+    index: int,
+    rng: np.random.Generator,
+    *,
+    R: float,
+    q: float,
+    tau: float,
+    alpha: float,
+    beta: float,
+    known_alpha: float,
+    modes: str,
+    bank_size: int,
+    steps_scale: float,
+) -> dict:
+    """One trajectory: squared errors of the three estimators, per-segment delays, changes, identifications."""
+    from hybridtrack.types import Gaussian
+
+    schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
+    known, unknown = _estimators(sensors, q=q, tau=tau, alpha=alpha, beta=beta, known_alpha=known_alpha, modes=modes, bank_size=bank_size)
+    prior = Gaussian(np.array(X0), np.eye(4))
+    optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
+    return _outcome(schedule, truth, optimal, known.run(measurements, prior, schedule), unknown.run(measurements, prior))
+
+
+def draw_batch(rngs, *, R: float, q: float, tau: float, steps_scale: float):
+    """:func:`~hybridtrack.experiment.builtin.simulate_seed001` for many runs: the same draws from each run's
+    generator (its two spawned streams), the trajectories propagated together (``simulate_trajectories``).
+    Returns (schedule, sensors, truths, measurements name → (runs, K+1, m))."""
+    from hybridtrack.experiment.builtin import scaled_schedule
+    from hybridtrack.plugins import resolve
+    from hybridtrack.simulate import simulate_measurements, simulate_trajectories
+    from hybridtrack.types import SEED001_TABLE1
+
+    schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
+    sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
+    streams = [rng.spawn(2) for rng in rngs]
+    truths = simulate_trajectories(schedule, X0, tau, seeds=[s[0] for s in streams], noise_cov=float(q) * np.eye(2))
+    drawn = [simulate_measurements(truth, sensors, seed=s[1]) for truth, s in zip(truths, streams)]
+    return schedule, sensors, truths, {name: np.stack([d[name] for d in drawn]) for name in drawn[0]}
+
+
+def run_batch(
+    indices,
+    rngs,
+    *,
+    R: float,
+    q: float,
+    tau: float,
+    alpha: float,
+    beta: float,
+    known_alpha: float,
+    modes: str,
+    bank_size: int,
+    steps_scale: float,
+) -> list[dict]:
+    """:func:`run_one` of the runs ``indices`` (generators ``rngs``) as one batch: trajectories drawn run by run,
+    the three estimators as stacked banks (``run_known_modes_batch``, ``run_batch``); equal to the per-run results
+    to rounding."""
+    from hybridtrack.composed.known_modes import run_known_modes_batch
+    from hybridtrack.types import Gaussian
+
+    schedule, sensors, truths, z = draw_batch(rngs, R=R, q=q, tau=tau, steps_scale=steps_scale)
+    known, unknown = _estimators(sensors, q=q, tau=tau, alpha=alpha, beta=beta, known_alpha=known_alpha, modes=modes, bank_size=bank_size)
+    prior = Gaussian(np.array(X0), np.eye(4))
+    optimal = run_known_modes_batch(
+        schedule, estimator="kalman", sensors=sensors, measurements=z, prior=prior, tau=tau, noise_cov=float(q) * np.eye(2)
+    )
+    known_runs, runs = known.run_batch(z, prior, schedule), unknown.run_batch(z, prior)
+    return [_outcome(schedule, truth, o, k, u) for truth, o, k, u in zip(truths, optimal, known_runs, runs)]
+
+
+def batch_arrays(parameters: dict, n: int, seed: int, chunk: int = 50) -> dict[str, np.ndarray]:
+    """Every run's results stacked (name → (n, …)), as a campaign returns them, computed by :func:`run_batch` in
+    chunks of ``chunk`` runs; run i uses child i of SeedSequence(seed), as in the campaign."""
+    from hybridtrack.experiment.worker import run_seed
+
+    rows = []
+    for first in range(0, n, chunk):
+        indices = list(range(first, min(n, first + chunk)))
+        rows += run_batch(indices, [np.random.default_rng(run_seed(seed, i)) for i in indices], **parameters)
+    return {name: np.stack([np.asarray(row[name]) for row in rows]) for name in rows[0]}
 
 
 EXPERIMENT = Experiment(
@@ -213,6 +285,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--workers", type=int)
     parser.add_argument("--out", default="runs/seed001_unknown_change", help="campaign folders (one per R)")
     parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument(
+        "--per-run",
+        action="store_true",
+        help="run each trajectory alone through the campaign runner (stored under --out, resumable) instead of one batch per R",
+    )
     args = parser.parse_args(argv)
 
     experiment = load_experiment(str(Path(__file__).resolve()))
@@ -226,19 +303,22 @@ def main(argv=None) -> dict:
             "bank_size": args.bank_size,
             "steps_scale": args.steps_scale,
         }
-        folder = Path(args.out) / f"{args.modes}_alpha{args.alpha:g}_bank{args.bank_size}_scale{args.steps_scale:g}" / f"R{R:g}"
-        campaign = Campaign(
-            experiment,
-            args.n,
-            folder,
-            seed=args.seed,
-            executor=args.executor,
-            scheduler=args.scheduler,
-            workers=args.workers,
-            progress=not args.no_progress,
-            parameters=parameters,
-        )
-        rows.append(aggregate(campaign.run().arrays, R))
+        if not args.per_run:
+            rows.append(aggregate(batch_arrays(experiment.with_parameters(**parameters), args.n, args.seed), R))
+        else:
+            folder = Path(args.out) / f"{args.modes}_alpha{args.alpha:g}_bank{args.bank_size}_scale{args.steps_scale:g}" / f"R{R:g}"
+            campaign = Campaign(
+                experiment,
+                args.n,
+                folder,
+                seed=args.seed,
+                executor=args.executor,
+                scheduler=args.scheduler,
+                workers=args.workers,
+                progress=not args.no_progress,
+                parameters=parameters,
+            )
+            rows.append(aggregate(campaign.run().arrays, R))
         r = rows[-1]
         print(
             f"R = {R:g}: nRMSE optimal {r['optimal_nrmse']:.4f}, known-switch {r['known_switch_nrmse']:.4f}, "

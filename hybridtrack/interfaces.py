@@ -43,6 +43,7 @@ the checks, and ``tests/contract``, can build and exercise it without help):
 
 from __future__ import annotations
 
+import copy
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
@@ -126,6 +127,15 @@ class MotionModel(ABC):
     @abstractmethod
     def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
         """F, B, G, Q of one step of length ``tau`` (see the class contract)."""
+
+    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
+        """This mode's transitions at each of the switch states (S, n), stacked as a :class:`TransitionBank`.
+
+        Optional (used by batched runs, where many runs switch at once): the
+        default stacks ``transition(tau, x)`` for every row; a model may
+        vectorize it, with entries equal to the default's (the motion tests check).
+        """
+        return TransitionBank.stack([self.transition(tau, x) for x in np.asarray(switch_states, dtype=float)])
 
     def propagate(self, x: np.ndarray, tau: float, switch_state: np.ndarray) -> np.ndarray:
         """Noise-free step of x (..., n)."""
@@ -574,6 +584,63 @@ class HypothesisTest(ScoreDetector):
     upper: float
     lower: float
 
+    def batch(self, runs: int) -> HypothesisTestBatch:
+        """``runs`` independent copies of this test fed together (Monte Carlo runs stacked in one bank).
+
+        Optional: the default loops over deep copies (:class:`HypothesisTestBatch`),
+        so a third-party test needs nothing; a test overrides it with a
+        vectorized version whose outputs equal the copies' (``sprt_pairwise``).
+        """
+        return HypothesisTestBatch(self, runs)
+
+
+@attrs.frozen(eq=False)
+class BatchStep:
+    """One step of a :class:`HypothesisTestBatch` for the U runs observed: ``log_ratio`` (U, H), ``active``
+    (U, H) (1 for the hypotheses in play), ``decided`` (U,) the accepted hypothesis or −1, ``decisions`` (U,)
+    the step's Decision of each run or None."""
+
+    log_ratio: np.ndarray
+    active: np.ndarray
+    decided: np.ndarray
+    decisions: tuple
+
+
+class HypothesisTestBatch:
+    """R independent copies of one :class:`HypothesisTest` over banks of H hypotheses (the batch contract).
+
+    ``reset(hypotheses)`` starts every copy anew (a switching moment of all
+    runs); ``observe(step, runs, loglik (U, H), nis (U, H), m (U,))`` feeds the
+    runs ``runs`` (indices into 0 … R−1) and returns a :class:`BatchStep`; each
+    copy sees exactly what ``observe(step, loglik[u], nis[u], m[u])`` of a
+    single test would.  This default keeps deep copies and loops over them (the
+    fallback for tests without a vectorized batch).
+    """
+
+    def __init__(self, detector: HypothesisTest, runs: int):
+        self.detector = detector
+        self.runs = int(runs)
+        self.upper, self.lower = detector.upper, detector.lower
+        self.copies = [copy.deepcopy(detector) for _ in range(self.runs)]
+
+    def reset(self, hypotheses: tuple[str, ...] | None) -> None:
+        for c in self.copies:
+            c.hypotheses = hypotheses
+            c.reset()
+
+    def observe(self, step: int, runs: np.ndarray, loglik: np.ndarray, nis: np.ndarray, m: np.ndarray) -> BatchStep:
+        runs = np.asarray(runs, dtype=int)
+        U, H = np.shape(loglik)
+        ratio, active, decided, decisions = np.zeros((U, H)), np.zeros((U, H)), np.full(U, -1), []
+        for u, r in enumerate(runs):
+            out = self.copies[r].observe(step, loglik[u], nis[u], int(m[u]))
+            ratio[u] = out.statistics["log_ratio"]
+            active[u] = np.asarray(out.statistics.get("active", np.ones(H)), dtype=float)
+            if out.decision is not None:
+                decided[u] = int(self.copies[r].decided)
+            decisions.append(out.decision)
+        return BatchStep(ratio, active, decided, tuple(decisions))
+
 
 class ChangeTimeTest(HypothesisTest):
     """A test for a change at an unknown time over a growing bank (seed 000 Algorithm 3 drives one).
@@ -618,6 +685,85 @@ class ChangeTimeTest(HypothesisTest):
     @abstractmethod
     def log_ratios(self) -> np.ndarray:
         """ln λ_p for each alternative p = 1 … M−1."""
+
+    def batch(self, runs: int) -> ChangeTimeTestBatch:
+        """``runs`` independent copies of this test fed together (optional; default: looped deep copies,
+        :class:`ChangeTimeTestBatch`; ``sprt_unknown_change`` vectorizes it)."""
+        return ChangeTimeTestBatch(self, runs)
+
+
+@attrs.frozen(eq=False)
+class ChangeTimeStep:
+    """One step of a :class:`ChangeTimeTestBatch` for all R runs: ``log_ratio`` (R, P) ln λ_p; ``decided`` (R,)
+    −1 (continue), 0 (no change: the run's test restarted) or the alternative p ≥ 1; ``chosen_entry`` (R,) the
+    entry followed after a change (index among the run's entries, −1 otherwise) and ``chosen_start`` (R,) its
+    change step; ``decisions`` (R,) the step's Decision or None."""
+
+    log_ratio: np.ndarray
+    decided: np.ndarray
+    chosen_entry: np.ndarray
+    chosen_start: np.ndarray
+    decisions: tuple
+
+
+class ChangeTimeTestBatch:
+    """R independent copies of one :class:`ChangeTimeTest` (the batch contract of Algorithm 3's test).
+
+    The entries of all runs form one flat sequence, run by run (the rows of the
+    runs' stacked banks without each run's filter 0).  ``restart(runs,
+    hypotheses)`` resets those runs' tests with new hypothesis names (one tuple
+    per run); ``add(start)`` appends, in every run, one entry per alternative
+    1 … P hypothesising the change at ``start``; ``observe(step, loglik0 (R,),
+    loglik (E,), nis0 (R,), nis (E,), m (R,))`` feeds filter 0's and the
+    entries' scores and returns a :class:`ChangeTimeStep`; ``prune(runs,
+    caps)`` bounds the entries of ``runs`` (cap −1: the test's own
+    ``bank_size``) by the pruning rule and returns the kept mask over the
+    entries (E,); ``counts`` (R,) entries per run.  Each copy sees what a
+    single test would.  This default keeps deep copies and loops over them.
+    """
+
+    def __init__(self, detector: ChangeTimeTest, runs: int):
+        self.detector = detector
+        self.runs = int(runs)
+        self.upper, self.lower, self.pruning = detector.upper, detector.lower, detector.pruning
+        self.copies = [copy.deepcopy(detector) for _ in range(self.runs)]
+
+    @property
+    def counts(self) -> np.ndarray:
+        return np.array([c.starts.size for c in self.copies], dtype=int)
+
+    def restart(self, runs: Sequence[int], hypotheses: Sequence[tuple[str, ...]]) -> None:
+        for r, names in zip(runs, hypotheses):
+            self.copies[r].hypotheses = tuple(names)
+            self.copies[r].reset()
+
+    def add(self, start: int) -> None:
+        for c in self.copies:
+            c.add(np.arange(1, len(c.hypotheses)), start)
+
+    def observe(self, step: int, loglik0, loglik, nis0, nis, m) -> ChangeTimeStep:
+        counts = self.counts
+        ends = np.cumsum(counts)
+        ratios, decided, entry, start, decisions = [], np.full(self.runs, -1), np.full(self.runs, -1), np.full(self.runs, -1), []
+        for r, c in enumerate(self.copies):
+            block = slice(ends[r] - counts[r], ends[r])
+            out = c.observe(step, np.concatenate([[loglik0[r]], loglik[block]]), np.concatenate([[nis0[r]], nis[block]]), int(m[r]))
+            ratios.append(np.asarray(out.statistics["log_ratio"], dtype=float))
+            decisions.append(out.decision)
+            if out.decision is not None:
+                decided[r] = int(c.decided or 0)
+                if c.decided:
+                    entry[r] = int(c.chosen_entry)
+                    start[r] = int(c.starts[entry[r]])
+        return ChangeTimeStep(np.stack(ratios), decided, entry, start, tuple(decisions))
+
+    def prune(self, runs: Sequence[int], caps: Sequence[int]) -> np.ndarray:
+        keep = [np.ones(c.starts.size, dtype=bool) for c in self.copies]
+        for r, cap in zip(runs, caps):
+            rows = self.copies[r].prune(None if cap < 0 else int(cap))
+            keep[r] = np.zeros(keep[r].size, dtype=bool)
+            keep[r][rows] = True
+        return np.concatenate(keep) if keep else np.zeros(0, dtype=bool)
 
 
 # --------------------------------------------------------------------------- solvers

@@ -242,3 +242,63 @@ def simulate(
         trajectory_rng, measurement_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
     trajectory = simulate_trajectory(schedule, x0, tau, times=times, seed=trajectory_rng, recorder=recorder, **options)
     return trajectory, simulate_measurements(trajectory, sensors, seed=measurement_rng)
+
+
+def simulate_trajectories(
+    schedule: Schedule,
+    x0,
+    tau: float,
+    *,
+    seeds: Sequence,
+    noise_cov=None,
+    registry: Registry | None = None,
+    models: Sequence[MotionModel] | None = None,
+) -> list[Trajectory]:
+    """:func:`simulate_trajectory` for R runs at once (regular sampling ``tau``, linear modes), one seed per run.
+
+    Run r draws exactly what ``simulate_trajectory(schedule, x0, tau,
+    seed=seeds[r], …)`` draws — each segment's process noise w comes from the
+    run's own stream in the same order, as one (steps, q) block — and the
+    states are propagated for all runs together, x_k = F_r x_{k−1} + B_r +
+    G L w_k (each run's transition fixed at its own switch state, SPEC §1),
+    so the trajectories equal the per-run ones to rounding.  A nonlinear mode
+    or irregular times: use :func:`simulate_trajectory` run by run.
+    """
+    tau = check_tau(tau)
+    if noise_cov is not None:
+        noise_cov = check_covariance(noise_cov, "noise_cov")
+    models = list(models) if models is not None else build_models(schedule, registry, noise_cov)
+    if len(models) != len(schedule.segments):
+        raise ValueError(f"models: expected {len(schedule.segments)} models (one per schedule row), got {len(models)}")
+    if not all(m.linear for m in models):
+        raise ValueError("models: simulate_trajectories propagates linear modes only; use simulate_trajectory per run")
+    rngs = [_rng(seed) for seed in seeds]
+    if not rngs:
+        raise ValueError("seeds: expected one seed per run, got none")
+    layout: list[str] = []
+    for model in models:
+        layout += [name for name in model.layout if name not in layout]
+    R = len(rngs)
+    x = np.repeat(as_float_array(x0, "x0", (models[0].state_dim,))[None], R, axis=0)
+    states = np.zeros((R, schedule.total_steps + 1, len(layout)))
+    states[:, 0] = convert_layout(x, models[0].layout, layout)
+    segment_index = np.zeros(schedule.total_steps + 1, dtype=int)
+    current_layout, k = models[0].layout, 0
+    for i, (segment, model) in enumerate(zip(schedule.segments, models)):
+        x = np.stack([model.enter(row, current_layout, {"acceleration": segment.acceleration}) for row in x])
+        current_layout = model.layout
+        transitions = [model.transition(tau, row.copy()) for row in x]
+        F = np.stack([t.F for t in transitions])
+        B = np.stack([t.B for t in transitions])
+        GL = np.stack([t.G @ psd_square_root(t.Q) for t in transitions])
+        noise = np.stack([rng.standard_normal((segment.steps, GL.shape[2])) for rng in rngs])  # (R, steps, q)
+        block = np.zeros((R, segment.steps, model.state_dim))
+        for j in range(segment.steps):
+            x = np.einsum("rij,rj->ri", F, x) + B + np.einsum("rij,rj->ri", GL, noise[:, j])
+            block[:, j] = x
+        if not np.all(np.isfinite(block)):
+            raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
+        states[:, k + 1 : k + segment.steps + 1] = convert_layout(block, current_layout, layout)
+        segment_index[k + 1 : k + segment.steps + 1] = i
+        k += segment.steps
+    return [Trajectory(schedule, tau, tuple(layout), states[r], segment_index.copy(), None) for r in range(R)]

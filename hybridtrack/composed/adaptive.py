@@ -54,6 +54,7 @@ import numpy as np
 
 from hybridtrack.composed.algorithm4 import algorithm4_bank_size, wald_pair
 from hybridtrack.composed.bank import FilterBank
+from hybridtrack.composed.batch import RunBank, batch_measurements, batch_prior, batch_times, batchable, check_recorders, per_run
 from hybridtrack.composed.switch_state import SwitchAugmented, augmented_layout, augmented_prior
 from hybridtrack.interfaces import ChangeTimeTest, Estimator, HypothesisTest, MotionModel, ScoreDetector, Sensor, require
 from hybridtrack.network import SensorNetwork
@@ -136,6 +137,26 @@ def _mixture(means: np.ndarray, covs: np.ndarray, loglik: np.ndarray) -> tuple[n
     d = means - x
     P = np.einsum("i,ijk->jk", w, covs) + np.einsum("i,ij,ik->jk", w, d, d)
     return x, 0.5 * (P + P.T)
+
+
+def _mixtures(means: np.ndarray, covs: np.ndarray, loglik: np.ndarray, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_mixture` of each run's filters in play: means (U, H, n), covs (U, H, n, n), L (U, H), active (U, H)."""
+    top = np.max(np.where(active, loglik, -np.inf), axis=1, keepdims=True)
+    w = np.where(active, np.exp(np.where(active, loglik - top, 0.0)), 0.0)
+    w /= w.sum(axis=1, keepdims=True)
+    x = np.einsum("ui,uij->uj", w, means)
+    d = means - x[:, None, :]
+    P = np.einsum("ui,uijk->ujk", w, covs) + np.einsum("ui,uij,uik->ujk", w, d, d)
+    return x, 0.5 * (P + np.swapaxes(P, -1, -2))
+
+
+def _offsets(sizes: np.ndarray) -> np.ndarray:
+    """First filter of each run in a bank ordered run by run, from the runs' bank sizes."""
+    return np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
+
+
+def _split_runs(network, z: np.ndarray, r: int) -> dict[str, np.ndarray]:
+    return network.split(z[r])
 
 
 def _log_columns(recorder, entity: str, steps, values: np.ndarray, names: Sequence[str], times) -> None:
@@ -391,6 +412,170 @@ class KnownSwitchAdaptive:
         if recorder is not None:
             self._record(recorder, z, run, truth)
         return run
+
+    def run_batch(
+        self,
+        measurements: Mapping[str, np.ndarray],
+        prior,
+        segments: Schedule | Sequence[int],
+        *,
+        times=None,
+        truth=None,
+        recorders=None,
+    ) -> list[KnownSwitchRun]:
+        """Algorithm 1 on R runs at once: equal to ``[self.run(...) for each run]`` (to rounding, 1e-12).
+
+        ``measurements``: sensor name → (R, K+1, m); ``times`` (K+1,) shared or
+        (R, K+1) per run (default 0, τ, 2τ, …); ``prior`` one Gaussian or
+        per-run (means (R, n), covs (n, n) or (R, n, n)); ``segments`` shared by
+        the runs; ``truth`` one per run (recordings only); ``recorders`` run
+        index → Recorder for the runs to record.  The R banks are one stacked
+        bank (:class:`~hybridtrack.composed.batch.RunBank`): the switch
+        re-creates every run's bank, a run's decision keeps its chosen filter
+        (index arrays through the estimator's ``take``), the detector runs as
+        ``detector.batch(R)`` (vectorized for ``sprt_pairwise``).  The joint
+        switch estimate, decentralized and sampling estimators run the runs
+        one after the other.
+        """
+        lengths = [s.steps for s in segments.segments] if isinstance(segments, Schedule) else [int(t) for t in segments]
+        if not lengths or min(lengths) < 1:
+            raise ValueError(f"segments: expected positive segment lengths, got {lengths}")
+        z = batch_measurements(self.network, measurements)
+        R, K = z.shape[0], sum(lengths)
+        if z.shape[1] != K + 1:
+            raise ValueError(f"measurements: expected {K + 1} steps (0 … {K}) for segments totalling {K}, got {z.shape[1]}")
+        t, dt = batch_times(times, self.tau, R, K + 1)
+        H, n = len(self.models), len(self.layout)
+        x0, P0 = batch_prior(prior, R, n)
+        truths = per_run(truth, R, "truth")
+        recorders = check_recorders(recorders, R)
+        if self.switch_estimate == "joint" or not batchable(self.estimator):
+            return [
+                self.run(
+                    _split_runs(self.network, z, r),
+                    Gaussian(x0[r], P0[r]),
+                    lengths,
+                    times=t[r] if times is not None else None,
+                    recorder=recorders.get(r),
+                    truth=truths[r],
+                )
+                for r in range(R)
+            ]
+        means, covs = np.zeros((R, K + 1, n)), np.zeros((R, K + 1, n, n))
+        followed = np.zeros((R, K + 1), dtype=int)
+        ratios = np.full((R, K + 1, H), np.nan)
+        bank = RunBank(self.estimator, self.layout, self.network.sensors)
+        runs = np.arange(R)
+        every = np.repeat(runs, H)
+        # Algorithm 1: x̂ := x0; the first bank's transitions come from the given initial state
+        bank.set(
+            self.estimator.initialize(np.repeat(x0, H, axis=0), np.repeat(P0, H, axis=0)), self.models * R, np.repeat(x0, H, axis=0), every
+        )
+        bank.step(None, z[every, 0])
+        sizes = np.full(R, H)
+        first = _offsets(sizes)
+        x, P = bank.means[first], bank.covs[first]
+        means[:, 0], covs[:, 0] = x, P
+        q, row = np.zeros(R, dtype=int), np.zeros(R, dtype=int)  # row −1: the estimate is a mixture
+        outcomes, decisions = [[] for _ in runs], [[] for _ in runs]
+        batch = self.detector.batch(R)
+        k = 0
+        for number, T in enumerate(lengths):
+            if number:  # new banks at the switch, from the estimate followed at the end of the last segment
+                self._start_batch(bank, x, P, row, _offsets(sizes))
+                sizes = np.full(R, H)
+            batch.reset(self.hypotheses)
+            decision_step = np.full(R, -1)
+            accumulated = np.zeros((R, H))  # L_i: log-likelihood since the switch
+            for step in range(k + 1, k + T + 1):
+                offsets = _offsets(sizes)
+                loglik, nis, m = bank.step(dt[bank.run, step - 1], z[bank.run, step])
+                row = np.zeros(R, dtype=int)
+                open_ = np.flatnonzero(decision_step < 0)
+                newly = np.zeros(0, dtype=int)
+                mix = np.zeros(0, dtype=int)
+                if open_.size:
+                    idx = offsets[open_, None] + np.arange(H)
+                    out = batch.observe(step, open_, loglik[idx], nis[idx], m[offsets[open_]])
+                    active = out.active > 0
+                    ratios[open_, step] = np.where(active, out.log_ratio, np.nan)
+                    accumulated[open_] += loglik[idx]
+                    chosen = q[open_]
+                    if self.follow != "previous":
+                        best = np.argmax(np.where(active, accumulated[open_], -np.inf), axis=1)
+                        chosen = np.where(active.any(axis=1), best, chosen)
+                    done = out.decided >= 0
+                    chosen = np.where(done, out.decided, chosen)
+                    q[open_], row[open_] = chosen, chosen
+                    newly = open_[done]
+                    decision_step[newly] = step
+                    ratios[newly, step, q[newly]] = out.log_ratio[done, q[newly]]
+                    for u in np.flatnonzero(done):
+                        r = open_[u]
+                        decisions[r].append(attrs.evolve(out.decisions[u], time=float(t[r, step])))
+                    if self.follow == "mixture":
+                        pick = ~done & active.any(axis=1)
+                        mix = open_[pick]
+                        if mix.size:
+                            sub = idx[pick]
+                            x_mix, P_mix = _mixtures(bank.means[sub], bank.covs[sub], accumulated[mix], active[pick])
+                chosen_rows = offsets + row
+                x, P = bank.means[chosen_rows].copy(), bank.covs[chosen_rows].copy()
+                if mix.size:
+                    x[mix], P[mix] = x_mix, P_mix
+                    row[mix] = -1  # the next bank (if the segment ends undecided) starts from the mixture
+                if newly.size:  # the decided runs keep only the chosen filter
+                    keep = np.ones(len(bank), dtype=bool)
+                    keep[(offsets[newly, None] + np.arange(H)).reshape(-1)] = False
+                    keep[offsets[newly] + q[newly]] = True
+                    bank.take(np.flatnonzero(keep))
+                    sizes[newly] = 1
+                    row[newly] = 0
+                means[:, step], covs[:, step], followed[:, step] = x, P, q
+            for r in runs:
+                decided_at = None if decision_step[r] < 0 else int(decision_step[r])
+                outcomes[r].append(SegmentOutcome(k, T, self.hypotheses[q[r]], int(q[r]), self.models[q[r]].radius, decided_at))
+            k += T
+        results = []
+        for r in runs:
+            run = KnownSwitchRun(
+                self.layout,
+                self.hypotheses,
+                t[r],
+                means[r],
+                covs[r],
+                followed[r],
+                ratios[r],
+                tuple(outcomes[r]),
+                tuple(decisions[r]),
+                float(batch.upper),
+                float(batch.lower),
+            )
+            if r in recorders:
+                self._record(recorders[r], z[r], run, truths[r])
+            results.append(run)
+        return results
+
+    def _start_batch(self, bank: RunBank, x: np.ndarray, P: np.ndarray, row: np.ndarray, offsets: np.ndarray) -> None:
+        """:meth:`_start_banks` for every run of a stacked bank: a run whose estimate is a filter (row ≥ 0) with
+        κ = 1 copies that filter in its own state form; the others start from (x, κ P)."""
+        H, R = len(self.models), x.shape[0]
+        inflation = self.switch_inflation
+        copy_runs = np.flatnonzero(row >= 0) if inflation == 1 else np.zeros(0, dtype=int)
+        init_runs = np.setdiff1d(np.arange(R), copy_runs)
+        parts, order = [], []
+        if copy_runs.size:
+            parts.append(self.estimator.take(bank.state, np.repeat(offsets[copy_runs] + row[copy_runs], H)))
+            order.append(copy_runs)
+        if init_runs.size:
+            parts.append(self.estimator.initialize(np.repeat(x[init_runs], H, axis=0), np.repeat(inflation * P[init_runs], H, axis=0)))
+            order.append(init_runs)
+        state = parts[0] if len(parts) == 1 else self.estimator.concatenate(parts)
+        if len(parts) > 1:
+            position = np.empty(R, dtype=int)
+            position[np.concatenate(order)] = np.arange(R)
+            state = self.estimator.take(state, (position[:, None] * H + np.arange(H)).reshape(-1))
+        bank.set(state, self.models * R, np.repeat(x, H, axis=0), np.repeat(np.arange(R), H))
 
     def _start_banks(
         self, test: FilterBank, estimate: FilterBank, x: np.ndarray, P: np.ndarray, row: int | None = None, inflation: float | None = None
@@ -697,6 +882,161 @@ class UnknownChangeAdaptive:
         if recorder is not None:
             self._record(recorder, z, run, truth)
         return run
+
+    def run_batch(self, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None) -> list[UnknownChangeRun]:
+        """Algorithm 3, repeated, on R runs at once: equal to ``[self.run(...) for each run]`` (to rounding, 1e-12).
+
+        ``measurements``: sensor name → (R, K+1, m); ``times`` (K+1,) shared or
+        (R, K+1) per run; ``prior`` one Gaussian or per-run (means (R, n), covs
+        (n, n) or (R, n, n)); ``truth`` one per run; ``recorders`` run index →
+        Recorder.  Every run's growing bank lives in one stacked bank
+        (:class:`~hybridtrack.composed.batch.RunBank`, run by run): the new
+        filters of all runs are added, and decisions and pruning applied, by
+        one index array per step through the estimator's ``take``.  The
+        change-time test and the signal function keep per-run bookkeeping
+        (entries, change times, pruning), so each run has its own copy of them.
+        Decentralized and sampling estimators run the runs one after the other.
+        """
+        z = batch_measurements(self.network, measurements)
+        R, K = z.shape[0], z.shape[1] - 1
+        t, dt = batch_times(times, self.tau, R, K + 1)
+        n, M = len(self.layout), len(self.models)
+        x0, P0 = batch_prior(prior, R, n)
+        truths = per_run(truth, R, "truth")
+        recorders = check_recorders(recorders, R)
+        if not batchable(self.estimator):
+            return [
+                self.run(
+                    _split_runs(self.network, z, r),
+                    Gaussian(x0[r], P0[r]),
+                    times=t[r] if times is not None else None,
+                    recorder=recorders.get(r),
+                    truth=truths[r],
+                )
+                for r in range(R)
+            ]
+        runs = np.arange(R)
+        limits = [
+            self._algorithm4_cached(x0[r], float(dt[r, 0]) if K else self.tau) if self.bank_size == "algorithm4" else self.bank_size
+            for r in runs
+        ]
+        test = self.detector.batch(R)  # Algorithm 3's test of every run (vectorized for sprt_unknown_change)
+        signals = [None if self.signal is None else copy.deepcopy(self.signal) for _ in runs]
+        capped = np.zeros(R, dtype=bool)
+        means, covs = np.zeros((R, K + 1, n)), np.zeros((R, K + 1, n, n))
+        mode = np.zeros((R, K + 1), dtype=int)
+        ratios = np.full((R, K + 1, M), np.nan)
+        bank_sizes = np.zeros((R, K + 1), dtype=int)
+        signal_values = np.full((R, K + 1), np.nan)
+        bounds = np.full((R, K + 1, 2), np.nan)
+        decisions, changes = [[] for _ in runs], [[] for _ in runs]
+        current = np.full(R, self.initial_mode)
+        others = np.array([[i for i in range(M) if i != c] for c in range(M)])  # the alternatives of each current mode
+        names = [(self.labels[c],) + tuple(self.labels[i] for i in others[c]) for c in range(M)]
+        test.restart(runs, [names[self.initial_mode]] * R)
+        for s_ in signals:
+            if s_ is not None:
+                s_.reset()
+        bank = RunBank(self.estimator, self.layout, self.network.sensors)
+        bank.set(self.estimator.initialize(x0, P0), [self.models[self.initial_mode]] * R, x0, runs)
+        loglik, nis, m = bank.step(None, z[:, 0])
+        for r, s_ in enumerate(signals):
+            if s_ is not None:
+                out = s_.observe(0, loglik[r : r + 1], nis[r : r + 1], int(m[r]))
+                signal_values[r, 0], bounds[r, 0] = out.statistics["signal"][0], (out.thresholds["lower"], out.thresholds["upper"])
+        means[:, 0], covs[:, 0], mode[:, 0], bank_sizes[:, 0] = bank.means, bank.covs, current, 1
+        sizes = np.ones(R, dtype=int)
+        for k in range(1, K + 1):
+            # 1. one new filter per alternative in every run, hypothesising the change at k: copies of its filter 0
+            offsets = _offsets(sizes)
+            switch = bank.means[offsets]
+            grown = _offsets(sizes + (M - 1))
+            rows = np.empty(len(bank) + R * (M - 1), dtype=int)
+            rows[grown[bank.run] + np.arange(len(bank)) - offsets[bank.run]] = np.arange(len(bank))
+            added = (grown + sizes)[:, None] + np.arange(M - 1)
+            rows[added] = offsets[:, None]
+            fresh = np.zeros(rows.size, dtype=bool)
+            fresh[added] = True
+            bank.take(rows, fresh)
+            sizes, offsets = sizes + (M - 1), grown
+            alternatives = others[current]
+            bank.assign(added, [self.models[i] for i in alternatives.reshape(-1)], np.repeat(switch, M - 1, axis=0))
+            test.add(k)
+            # 2. one step of the whole bank, then every run's ratios (25) and rule (24)
+            loglik, nis, m = bank.step(dt[bank.run, k - 1], z[bank.run, k])
+            entries = np.ones(len(bank), dtype=bool)
+            entries[offsets] = False
+            entry_rows = np.flatnonzero(entries)
+            out = test.observe(k, loglik[offsets], loglik[entry_rows], nis[offsets], nis[entry_rows], m[offsets])
+            ratios[runs[:, None], k, alternatives] = out.log_ratio
+            bank_sizes[:, k] = sizes
+            for r, signal in enumerate(signals):
+                if signal is not None:
+                    s = signal.observe(k, loglik[offsets[r] : offsets[r] + 1], nis[offsets[r] : offsets[r] + 1], int(m[offsets[r]]))
+                    signal_values[r, k], bounds[r, k] = s.statistics["signal"][0], (s.thresholds["lower"], s.thresholds["upper"])
+            # 3. act on the decisions, or bound the banks
+            open_ = np.flatnonzero(out.decided < 0)
+            caps = np.full(open_.size, -1)
+            for u, r in enumerate(open_):
+                cap = limits[r]
+                if cap is None and sizes[r] - 1 > self.max_bank_size:  # the growing bank, e.g. through a long gap
+                    if not capped[r]:
+                        warnings.warn(
+                            f"{self.name}: the growing bank reached {sizes[r] - 1} alternative filters at step {k} "
+                            f"(max_bank_size = {self.max_bank_size}); pruning to {self.max_bank_size} by the "
+                            f"{test.pruning!r} rule from now on",
+                            RuntimeWarning,
+                            stacklevel=2,
+                        )
+                        capped[r] = True
+                    cap = self.max_bank_size
+                caps[u] = -1 if cap is None else cap
+            kept = test.prune(open_, caps)
+            keep = np.zeros(len(bank), dtype=bool)
+            keep[offsets[open_]] = True
+            is_open = np.zeros(R, dtype=bool)
+            is_open[open_] = True
+            keep[entry_rows[kept & is_open[bank.run[entry_rows]]]] = True
+            done = np.flatnonzero(out.decided >= 0)
+            for r in done:
+                decisions[r].append(attrs.evolve(out.decisions[r], time=float(t[r, k])))
+                if out.decided[r] > 0:  # a change to alternatives[p − 1], followed by its most likely filter
+                    current[r] = alternatives[r, out.decided[r] - 1]
+                    changes[r].append(ChangeEvent(k, self.labels[current[r]], int(out.chosen_start[r])))
+                    keep[offsets[r] + 1 + out.chosen_entry[r]] = True
+                    if signals[r] is not None:
+                        signals[r].reset()
+                else:  # H_0 accepted: the test restarts with filter 0 alone
+                    keep[offsets[r]] = True
+            if done.size:
+                test.restart(done, [names[c] for c in current[done]])
+            bank.take(np.flatnonzero(keep))
+            sizes = np.bincount(bank.run, minlength=R)
+            first = _offsets(sizes)
+            means[:, k], covs[:, k], mode[:, k] = bank.means[first], bank.covs[first], current
+        results = []
+        for r in runs:
+            run = UnknownChangeRun(
+                self.layout,
+                self.labels,
+                t[r],
+                means[r],
+                covs[r],
+                mode[r],
+                ratios[r],
+                bank_sizes[r],
+                signal_values[r],
+                bounds[r],
+                tuple(decisions[r]),
+                tuple(changes[r]),
+                float(test.upper),
+                float(test.lower),
+                limits[r],
+            )
+            if r in recorders:
+                self._record(recorders[r], z[r], run, truths[r])
+            results.append(run)
+        return results
 
     def _record(self, recorder, z: np.ndarray, run: UnknownChangeRun, truth) -> None:
         steps, times = _record_run(recorder, self, z, run, run.modes, truth)

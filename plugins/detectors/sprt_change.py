@@ -39,13 +39,141 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import logsumexp
 
-from hybridtrack.interfaces import ChangeTimeTest, DetectorStep
+from hybridtrack.interfaces import ChangeTimeStep, ChangeTimeTest, ChangeTimeTestBatch, DetectorStep
 from hybridtrack.thresholds import WaldThresholds
 from hybridtrack.types import Decision
 from hybridtrack.validation import check_positive_int
 
 PRUNING_RULES = ChangeTimeTest.PRUNING_RULES
 AVERAGING = ("uniform", "none")
+
+
+def _offsets(counts: np.ndarray) -> np.ndarray:
+    return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+
+
+class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
+    """R copies of :class:`ChangeTimeSPRT` as flat arrays over every run's entries (run by run): mode, change
+    step and ln ψ per entry, k per run.  ln λ is the same log-sum-exp as scipy's (the largest term taken out:
+    ln λ = a + ln c + log1p(Σ_{others} e^{ψ−a} / c), a the largest ln ψ of the group, c how many reach it)."""
+
+    def __init__(self, detector: ChangeTimeSPRT, runs: int):
+        self.detector = detector
+        self.runs = int(runs)
+        self.upper, self.lower, self.pruning = detector.upper, detector.lower, detector.pruning
+        self.uniform = detector.averaging == "uniform"
+        self.bank_size = detector.bank_size
+        self.hypotheses: list = [detector.hypotheses] * self.runs
+        self.run = np.zeros(0, dtype=int)
+        self.modes = np.zeros(0, dtype=int)
+        self.starts = np.zeros(0, dtype=int)
+        self.log_psi = np.zeros(0)
+        self.k = np.zeros(self.runs, dtype=int)
+
+    @property
+    def counts(self) -> np.ndarray:
+        return np.bincount(self.run, minlength=self.runs)
+
+    def _keep(self, mask: np.ndarray) -> None:
+        self.run, self.modes, self.starts, self.log_psi = self.run[mask], self.modes[mask], self.starts[mask], self.log_psi[mask]
+
+    def restart(self, runs, hypotheses) -> None:
+        runs = np.asarray(runs, dtype=int)
+        for r, names in zip(runs, hypotheses):
+            names = tuple(str(h) for h in names)
+            if len(names) < 2:
+                raise ValueError(f"hypotheses: expected the current mode and at least one alternative, got {names!r}")
+            self.hypotheses[r] = names
+        self._keep(~np.isin(self.run, runs))
+        self.k[runs] = 0
+
+    def add(self, start: int) -> None:
+        P = len(self.hypotheses[0]) - 1
+        counts = self.counts
+        old = _offsets(counts)
+        new = _offsets(counts + P)
+        E = counts.sum() + P * self.runs
+        position = new[self.run] + (np.arange(self.run.size) - old[self.run])
+        added = (new + counts)[:, None] + np.arange(P)
+        run, modes, starts, psi = np.zeros(E, dtype=int), np.zeros(E, dtype=int), np.zeros(E, dtype=int), np.zeros(E)
+        run[position], modes[position], starts[position], psi[position] = self.run, self.modes, self.starts, self.log_psi
+        run[added] = np.arange(self.runs)[:, None]
+        modes[added] = np.arange(1, P + 1)
+        starts[added] = int(start)
+        self.run, self.modes, self.starts, self.log_psi = run, modes, starts, psi
+
+    def _log_ratios(self, P: int) -> np.ndarray:
+        group = self.run * P + (self.modes - 1)
+        top = np.full(self.runs * P, -np.inf)
+        np.maximum.at(top, group, self.log_psi)
+        at_top = self.log_psi == top[group]
+        count = np.bincount(group, weights=at_top, minlength=self.runs * P)
+        rest = np.bincount(group, weights=np.where(at_top, 0.0, np.exp(self.log_psi - top[group])), minlength=self.runs * P)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = np.where(
+                count > 0, np.log1p(np.where(count > 0, rest / np.maximum(count, 1), 0.0)) + np.log(np.maximum(count, 1)) + top, -np.inf
+            )
+        out = out.reshape(self.runs, P)
+        if self.uniform:
+            out = out - np.where(self.k > 0, np.log(np.maximum(self.k, 1)), 0.0)[:, None]
+        return out
+
+    def observe(self, step, loglik0, loglik, nis0, nis, m) -> ChangeTimeStep:
+        P = len(self.hypotheses[0]) - 1
+        loglik0, loglik, m = np.asarray(loglik0, dtype=float), np.asarray(loglik, dtype=float), np.asarray(m)
+        if loglik.size != self.run.size:
+            raise ValueError(f"loglik: expected {self.run.size} entries, got {loglik.size}")
+        self.k += 1
+        self.log_psi = np.where(m[self.run] > 0, self.log_psi + (loglik - loglik0[self.run]), self.log_psi)
+        ratios = self._log_ratios(P)
+        best = ratios.max(axis=1) if P else np.full(self.runs, -np.inf)
+        change = best >= self.upper
+        stay = ~change & np.isfinite(ratios).all(axis=1) & (best <= self.lower) & (P > 0)
+        decided, entry, start = np.full(self.runs, -1), np.full(self.runs, -1), np.full(self.runs, -1)
+        decisions = [None] * self.runs
+        offsets = _offsets(self.counts)
+        for r in np.flatnonzero(change):
+            p = int(np.argmax(ratios[r])) + 1
+            rows = np.flatnonzero((self.run == r) & (self.modes == p))
+            chosen = int(rows[np.argmax(self.log_psi[rows])])
+            decided[r], entry[r], start[r] = p, chosen - offsets[r], int(self.starts[chosen])
+            name = self.hypotheses[r][p]
+            decisions[r] = Decision(
+                step,
+                self.detector.label,
+                name,
+                float(ratios[r, p - 1]),
+                f"change to {name} (most likely at step {start[r]}), ln λ = {ratios[r, p - 1]:.2f} ≥ A = {self.upper:.2f}",
+            )
+        for r in np.flatnonzero(stay):
+            decided[r] = 0
+            decisions[r] = Decision(
+                step,
+                self.detector.label,
+                self.hypotheses[r][0],
+                float(best[r]),
+                f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts",
+            )
+        if stay.any():  # restart with the same (fixed) bank
+            self.log_psi = np.where(stay[self.run], 0.0, self.log_psi)
+            self.k[stay] = 0
+        return ChangeTimeStep(ratios, decided, entry, start, tuple(decisions))
+
+    def prune(self, runs, caps) -> np.ndarray:
+        runs, caps = np.asarray(runs, dtype=int), np.asarray(caps, dtype=int)
+        bound = np.full(self.runs, -1)
+        bound[runs] = np.where(caps < 0, -1 if self.bank_size is None else self.bank_size, caps)
+        if (bound[runs] == 0).any():
+            raise ValueError("bank_size: expected a positive integer, got 0")
+        index = np.arange(self.run.size)
+        key = -self.starts if self.pruning == "oldest" else -self.log_psi
+        order = np.lexsort((index, key, self.run))
+        rank = np.empty_like(index)
+        rank[order] = index - _offsets(self.counts)[self.run[order]]
+        limit = bound[self.run]
+        keep = (limit < 0) | (rank < limit)
+        self._keep(keep)
+        return keep
 
 
 class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
@@ -179,6 +307,10 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         else:
             self._last = (output[0], output[1], None)
         return DetectorStep(*output)
+
+    def batch(self, runs: int) -> ChangeTimeSPRTBatch:
+        """``runs`` copies of this test vectorized over the runs (each equal to a copy of this test)."""
+        return ChangeTimeSPRTBatch(self, runs)
 
 
 COMPONENTS = {ChangeTimeSPRT.name: ChangeTimeSPRT}

@@ -32,7 +32,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.interfaces import DetectorStep, HypothesisTest
+from hybridtrack.interfaces import BatchStep, DetectorStep, HypothesisTest, HypothesisTestBatch
 from hybridtrack.thresholds import WaldThresholds
 from hybridtrack.types import Decision
 
@@ -47,6 +47,86 @@ def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
     best, second = masked[order[0]], masked[order[1]]
     rival = np.where(np.arange(L.shape[0]) == order[0], second, best)
     return L - rival
+
+
+def batch_margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """:func:`margins` of every row of L (U, H) with its row of ``active`` (U, H), vectorized over the rows.
+
+    The leader's margin is over the runner-up, the others' over the leader;
+    ties give the same values whichever tied filter is taken as the leader.
+    """
+    U, H = L.shape
+    if H < 2:
+        return np.zeros_like(L)
+    pool = np.where(active.sum(axis=1, keepdims=True) >= 2, active, True)
+    masked = np.where(pool, L, -np.inf)
+    lead = np.argmax(masked, axis=1)
+    rows = np.arange(U)
+    best = masked[rows, lead]
+    masked[rows, lead] = -np.inf
+    second = masked.max(axis=1)
+    rival = np.where(np.arange(H) == lead[:, None], second[:, None], best[:, None])
+    return L - rival
+
+
+class PairwiseSPRTBatch(HypothesisTestBatch):
+    """R copies of :class:`PairwiseSPRT` as arrays (U runs per step vectorized): L, in-play and frozen values (R, H)."""
+
+    def __init__(self, detector: PairwiseSPRT, runs: int):
+        self.detector = detector
+        self.runs = int(runs)
+        self.upper, self.lower = detector.upper, detector.lower
+        self.reset(detector.hypotheses)
+
+    def reset(self, hypotheses) -> None:
+        self.hypotheses = hypotheses
+        self.L = self.active = self.frozen = None
+        self.decided = np.full(self.runs, -1)
+
+    def observe(self, step, runs, loglik, nis, m) -> BatchStep:
+        runs = np.asarray(runs, dtype=int)
+        loglik = np.asarray(loglik, dtype=float)
+        U, H = loglik.shape
+        if self.L is None:
+            self.L, self.active, self.frozen = np.zeros((self.runs, H)), np.ones((self.runs, H), dtype=bool), np.zeros((self.runs, H))
+        if self.L.shape[1] != H:
+            raise ValueError(f"loglik: the bank changed from {self.L.shape[1]} to {H} filters; call reset() first")
+        if self.hypotheses is not None and len(self.hypotheses) != H:
+            raise ValueError(f"hypotheses: {len(self.hypotheses)} names for a bank of {H} filters")
+        live = self.decided[runs] < 0
+        L, active, frozen = self.L[runs], self.active[runs], self.frozen[runs]
+        L = np.where((live & (np.asarray(m) > 0))[:, None], L + loglik, L)
+        ratio = batch_margins(L, active)
+        dropped = live[:, None] & active & (ratio <= self.lower)
+        frozen = np.where(dropped, ratio, frozen)
+        active = active & ~dropped
+        ratio = batch_margins(L, active)
+        winners = live[:, None] & active & (ratio >= self.upper)
+        count = active.sum(axis=1)
+        deciding = live & ((count == 1) | winners.any(axis=1))
+        chosen = np.where(count == 1, np.argmax(active, axis=1), np.argmax(np.where(winners, ratio, -np.inf), axis=1))
+        decided = np.full(U, -1)
+        decisions = [None] * U
+        if deciding.any():
+            rows = np.flatnonzero(deciding)
+            full = batch_margins(L[rows], np.ones((rows.size, H), dtype=bool))
+            for j, u in enumerate(rows):
+                i = int(chosen[u])
+                frozen[u, i] = full[j, i]
+                active[u] = False
+                decided[u] = i
+                self.decided[runs[u]] = i
+                name = self.hypotheses[i] if self.hypotheses is not None and i < len(self.hypotheses) else f"H{i}"
+                decisions[u] = Decision(
+                    step,
+                    self.detector.label,
+                    name,
+                    float(ratio[u, i]),
+                    f"{name} accepted, log-LR margin {ratio[u, i]:.2f} (A = {self.upper:.2f})",
+                )
+        self.L[runs], self.active[runs], self.frozen[runs] = L, active, frozen
+        out = np.where(active, batch_margins(L, active), frozen)
+        return BatchStep(out, active.astype(float), decided, tuple(decisions))
 
 
 class PairwiseSPRT(WaldThresholds, HypothesisTest):
@@ -107,6 +187,10 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
                 )
         ratio = np.where(self.active, margins(self.L, self.active), self.frozen)
         return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision)
+
+    def batch(self, runs: int) -> PairwiseSPRTBatch:
+        """``runs`` copies of this test vectorized over the runs (each equal to a copy of this test)."""
+        return PairwiseSPRTBatch(self, runs)
 
 
 COMPONENTS = {PairwiseSPRT.name: PairwiseSPRT}

@@ -32,7 +32,7 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack.interfaces import LinearTransition, MotionModel, convert_layout
+from hybridtrack.interfaces import LinearTransition, MotionModel, TransitionBank, convert_layout
 from hybridtrack.validation import as_float_array, check_covariance
 
 LAYOUT_4 = ("x", "vx", "y", "vy")
@@ -78,6 +78,17 @@ class _FixedMatrixMode(MotionModel):
     def transition(self, tau: float, switch_state: np.ndarray | None = None) -> LinearTransition:
         tau = _check_tau(tau)
         return LinearTransition(_blockdiag(self.axis_matrix(tau)), np.zeros(self.state_dim), self.G, self.noise_cov)
+
+    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
+        """The one transition (Φ does not depend on the switch state) repeated for the S switch states."""
+        S = np.shape(switch_states)[0]
+        return _repeat(TransitionBank.stack([self.transition(tau)]), S)
+
+
+def _repeat(bank: TransitionBank, S: int) -> TransitionBank:
+    """A one-filter bank repeated S times."""
+    root = None if bank.noise_root is None else np.repeat(bank.noise_root, S, axis=0)
+    return TransitionBank(np.repeat(bank.F, S, axis=0), np.repeat(bank.B, S, axis=0), np.repeat(bank.Q, S, axis=0), root)
 
 
 @attrs.frozen
@@ -167,6 +178,31 @@ class _Turn(MotionModel):
             ]
         )
         return LinearTransition(F, B, G_4, self.noise_cov)
+
+    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
+        """:meth:`transition` at S switch states at once (the same formulas, vectorized over the rows)."""
+        tau = _check_tau(tau)
+        x, vx, y, vy = as_float_array(switch_states, "switch_states", (None, 4)).T
+        w = np.hypot(vx, vy) / self.radius
+        c, s = np.cos(w * tau), np.sin(w * tau)
+        sin_over_w = tau * np.sinc(w * tau / np.pi)
+        one_minus_cos_over_w = w * (tau * np.sinc(w * tau / (2 * np.pi))) ** 2 / 2
+        F = np.zeros((w.size, 4, 4))
+        F[:, 0, 0] = F[:, 1, 1] = F[:, 2, 2] = F[:, 3, 3] = c
+        F[:, 0, 1] = F[:, 2, 3] = sin_over_w
+        F[:, 1, 0] = F[:, 3, 2] = -w * s
+        d = self.direction
+        B = np.stack(
+            [
+                x * (1 - c) - d * vy * one_minus_cos_over_w,
+                (w * x - d * vy) * s,
+                y * (1 - c) + d * vx * one_minus_cos_over_w,
+                (w * y + d * vx) * s,
+            ],
+            axis=1,
+        )
+        noise = _repeat(TransitionBank.stack([LinearTransition(np.eye(4), np.zeros(4), G_4, self.noise_cov)]), w.size)
+        return TransitionBank(F, B, noise.Q, noise.noise_root)
 
 
 @attrs.frozen

@@ -1,0 +1,122 @@
+"""Monte Carlo campaigns batched vs run by run, in one process (issue #14).
+
+    python benchmarks/campaign.py --json docs/results/campaign_bench.json [--runs 100] [--example1-runs 200]
+
+Cases (each timed both ways on the same runs, the results checked equal):
+
+* ``seed001_campaign`` — experiments/seed001_adaptive.py with the default rule:
+  100 trajectories × R ∈ {1, 0.1, 0.01} of the seed-001 schedule (360 steps),
+  each with the optimal KF told the modes and the 21-filter known-switch
+  adaptive estimator.  Per run: ``run_one`` for every trajectory; batched:
+  ``run_batch`` of all 100 trajectories of an R (trajectories propagated
+  together, both estimators as stacked banks).
+* ``example1`` — experiments/example1.py: Example 1 of seed 000 (α = β = 0.1)
+  on 200 seeds with the growing bank of Algorithm 3; per run: ``run`` per seed,
+  batched: ``UnknownChangeAdaptive.run_batch`` of the 200 runs.
+* ``clutter`` — experiments/clutter.py has no batched path yet: only the per-run
+  time of its tracking table is measured (``--clutter-runs`` runs per clutter
+  density; its detection table fails on main today, ``FilterBank(4)``), with
+  ``batched_s`` and ``speedup`` null and the name saying so.
+
+Writes ``{"cases": [{"name", "batched_s", "per_run_s", "speedup"}]}``.  The
+timings depend on the machine's load (the 2-core machine is shared); each case
+is timed once, batched first, after an untimed warm-up of both paths (imports,
+numba compilation).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load(name: str):
+    spec = importlib.util.spec_from_file_location(f"_bench_{name}", ROOT / "experiments" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def timed(function):
+    start = time.perf_counter()
+    value = function()
+    return time.perf_counter() - start, value
+
+
+def case(name: str, batched_s: float | None, per_run_s: float) -> dict:
+    speedup = None if batched_s is None else per_run_s / batched_s
+    return {"name": name, "batched_s": batched_s, "per_run_s": per_run_s, "speedup": speedup}
+
+
+def seed001_campaign(runs: int, r_values=(1.0, 0.1, 0.01), seed: int = 1, steps_scale: float = 1.0) -> dict:
+    from hybridtrack.experiment.worker import run_seed
+
+    module = load("seed001_adaptive")
+    parameters = [module.EXPERIMENT.with_parameters(R=R, steps_scale=steps_scale, **module.DEFAULT_RULE) for R in r_values]
+    warm = module.EXPERIMENT.with_parameters(R=0.1, steps_scale=0.1, **module.DEFAULT_RULE)  # imports, numba compilation
+    module.batch_arrays(warm, 2, seed)
+    module.run_one(0, np.random.default_rng(run_seed(seed, 0)), **warm)
+    batched_s, batched = timed(lambda: [module.batch_arrays(p, runs, seed) for p in parameters])
+
+    def per_run():
+        out = []
+        for p in parameters:
+            rows = [module.run_one(i, np.random.default_rng(run_seed(seed, i)), **p) for i in range(runs)]
+            out.append({name: np.stack([np.asarray(row[name]) for row in rows]) for name in rows[0]})
+        return out
+
+    per_run_s, single = timed(per_run)
+    for a, b in zip(batched, single):
+        for name in a:
+            np.testing.assert_allclose(a[name], b[name], rtol=1e-12, atol=1e-12, err_msg=name)
+    scaled = "" if steps_scale == 1 else f", schedule scaled by {steps_scale:g}"
+    return case(f"seed001_campaign ({runs} runs x {len(r_values)} R, default rule{scaled})", batched_s, per_run_s)
+
+
+def example1(runs: int) -> dict:
+    module = load("example1")
+    adaptive = module.example1.estimator(alpha=0.1, beta=0.1)
+    module.outcomes(adaptive, 2), module.outcomes(adaptive, 2, per_run=True)  # warm-up
+    batched_s, batched = timed(lambda: module.outcomes(adaptive, runs))
+    per_run_s, single = timed(lambda: module.outcomes(adaptive, runs, per_run=True))
+    if batched != single:
+        raise AssertionError("example1: the batched outcomes differ from the per-run ones")
+    return case(f"example1 ({runs} runs, alpha = beta = 0.1)", batched_s, per_run_s)
+
+
+def clutter(runs: int) -> dict:
+    module = load("clutter")
+    per_run_s, _ = timed(lambda: module.tracking_table(runs))
+    return case(f"clutter (tracking table, {runs} runs per density; per-run only: no batched path yet)", None, per_run_s)
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", metavar="PATH", help="write the cases here")
+    parser.add_argument("--runs", type=int, default=100, help="seed-001 trajectories per R (default 100)")
+    parser.add_argument("--steps-scale", type=float, default=1.0, help="scale the seed-001 schedule (tests)")
+    parser.add_argument("--example1-runs", type=int, default=200)
+    parser.add_argument("--clutter-runs", type=int, default=3, help="tracking runs per clutter density (0: skip)")
+    args = parser.parse_args(argv)
+    cases = [seed001_campaign(args.runs, steps_scale=args.steps_scale), example1(args.example1_runs)]
+    if args.clutter_runs:
+        cases.append(clutter(args.clutter_runs))
+    result = {"cases": cases}
+    for c in cases:
+        speed = "" if c["speedup"] is None else f", batched {c['batched_s']:.2f} s, speedup {c['speedup']:.1f}x"
+        print(f"{c['name']}: per run {c['per_run_s']:.2f} s{speed}", flush=True)
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
+if __name__ == "__main__":
+    main()
