@@ -182,10 +182,11 @@ class RerunRecorder:
 
     ``configuration`` (a JSON-able dict, seed included) gives the recording id,
     so the same run twice gives the same id, and is stored as the recording
-    property ``configuration``.  The default blueprint is embedded.
+    property ``configuration``.  The default blueprint is embedded (``blueprint``: another layout, e.g.
+    :func:`hybridtrack.tracking.track_blueprint`).
     """
 
-    def __init__(self, path: str | Path, configuration: dict | None = None, *, recording_id_: str | None = None):
+    def __init__(self, path: str | Path, configuration: dict | None = None, *, recording_id_: str | None = None, blueprint=None):
         import rerun as rr
 
         self._rr = rr
@@ -194,7 +195,7 @@ class RerunRecorder:
         self.configuration = dict(configuration or {})
         self.recording_id = recording_id_ or recording_id(self.configuration)
         self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
-        self.stream.save(str(self.path), default_blueprint=default_blueprint())
+        self.stream.save(str(self.path), default_blueprint=default_blueprint() if blueprint is None else blueprint)
         self.stream.send_property("configuration", rr.AnyValues(json=json.dumps(self.configuration, sort_keys=True, default=str)))
         self._closed = False
 
