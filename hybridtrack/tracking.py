@@ -455,7 +455,9 @@ def segments_of(times: np.ndarray, modes: Sequence[str], radii: Sequence[float |
     return out
 
 
-def _safe_name(identifier: str) -> str:
+def output_name(identifier: str) -> str:
+    """The file stem of an object's outputs (``<stem>.rrd``, ``<stem>.npz``): the id with characters other than
+    letters, digits, ``.``, ``_``, ``-`` replaced by ``_`` (a leading ``.`` gets a ``_`` before it)."""
     name = re.sub(r"[^A-Za-z0-9._-]", "_", identifier) or "track"
     return "_" + name if name.startswith(".") else name
 
@@ -481,7 +483,7 @@ def track_one(
     layout = estimator.layout
     prior = _prior(track, config, layout)
     z = {sensor.name: np.asarray(track.positions[:, :2], dtype=float)}
-    name = _safe_name(track.id)
+    name = output_name(track.id)
     heights = None
     if track.positions.shape[1] == 3:
         heights = np.asarray(track.positions[:, 2], dtype=float)
