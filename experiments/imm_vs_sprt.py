@@ -264,10 +264,10 @@ def score_run(case: Case, positions, types, seconds, probabilities, window: floa
             continue
         span = range(c, bounds[i + 1])
         if probabilities is None:
-            hits = [k for k in span if types[k] == new]
+            detected = [k for k in span if types[k] == new]
         else:
-            hits = [k for k in span if probabilities[k, TYPES.index(new)] > threshold]
-        found = hits[0] if hits else None
+            detected = [k for k in span if probabilities[k, TYPES.index(new)] > threshold]
+        found = detected[0] if detected else None
         delays.append(None if found is None else float(t[found] - case.change_times[i]))
     false = 0
     for k in range(1, len(types)):
