@@ -1,10 +1,10 @@
-# Two commands: `make demo` and `make test`.  Each creates .venv when missing.
+# `make demo`, `make test`, `make screenshots` (docs/images/rerun_*.png, tools/screenshots.py).  Each creates .venv when missing.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test venv clean
+.PHONY: demo test venv clean screenshots
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -18,6 +18,10 @@ venv: $(STAMP)
 
 demo: $(STAMP)
 	$(BIN)/python examples/demo.py --out demo.rrd
+
+# the real Rerun viewer, headless, on the recordings of the demo and every example (installs lavapipe/Xvfb via apt-get if missing)
+screenshots: $(STAMP)
+	$(BIN)/python tools/screenshots.py
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

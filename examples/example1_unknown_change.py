@@ -89,6 +89,7 @@ def main(argv=None) -> dict:
     }
     for key, value in summary.items():
         print(f"{key}: {value}")
+    print(f"recording: {args.out}   open it with: .venv/bin/rerun {args.out}")
     return summary
 
 

@@ -1,6 +1,9 @@
 """Tracking in clutter (seed 004, SPEC §6): nearest neighbour vs PDA, and mode-change detection in clutter.
 
-    python experiments/clutter.py [--runs 40] [--detection-runs 60]
+    python experiments/clutter.py [--runs 10] [--detection-runs 60] [--methods NAME …] [--plot [PNG]]
+
+(``--runs 0`` or ``--detection-runs 0`` skips that part and keeps its rows from
+the existing output file.)
 
 Part 1 — RMSE and track loss.  The seed-001 Table 1 trajectory (L 50 r3, R 75 r5,
 S 50, L 75 r3, S 50, L 60 r4; x0 = [0, 0, 0, 2], τ = 0.1 s, Q = 0.001 I),
@@ -33,6 +36,7 @@ Writes docs/results/clutter.json and docs/results/clutter.md (tables also in doc
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import time
 from pathlib import Path
@@ -47,7 +51,6 @@ from hybridtrack.simulate import simulate_measurements, simulate_trajectory
 from hybridtrack.types import Schedule
 from hybridtrack_plugins.detectors.signal_function import SignalFunction
 from hybridtrack_plugins.detectors.sprt_change import ChangeTimeSPRT
-from hybridtrack_plugins.filters.nearest_neighbour import NearestNeighbourFilter
 from hybridtrack_plugins.filters.pda import PDAFilter
 from hybridtrack_plugins.sensors.position import PositionSensor
 
@@ -66,11 +69,30 @@ TABLE1 = [
     ("left_turn", 60, 4.0),
 ]
 TRACKING_R = 0.1
-TRACKING_PD = 0.9
 TRACKER_Q = 0.1
 GATE = 0.99
 LOSS_DISTANCE, LOSS_STEPS = 2.0, 5
-DENSITIES = [0.0, 0.025, 0.05, 0.1, 0.2, 0.4]
+DENSITIES = [0.025, 0.05, 0.1, 0.2]
+DETECTION_PROBABILITIES = [0.9, 0.7]
+
+#: the seven methods of seed 004 (registry names), in table order
+METHODS = ("nearest_neighbour", "pda", "mht", "pmht", "msda", "particle", "gaussian_sum")
+LABELS = {
+    "nearest_neighbour": "NN",
+    "pda": "PDA",
+    "mht": "MHT",
+    "pmht": "PMHT",
+    "msda": "MSDA",
+    "particle": "particle",
+    "gaussian_sum": "Gaussian sum",
+}
+#: settings beyond the clutter model (P_D, the true λ and P_G = 0.99 go to every method whose factory takes them)
+PARTICLES = 1000
+SETTINGS = {
+    "mht": {"window": 3, "max_hypotheses": 10},
+    "particle": {"particles": PARTICLES},
+    "gaussian_sum": {"max_components": 8},
+}
 
 # Part 2
 CHANGE_STEP = 20
@@ -93,61 +115,109 @@ def _lost_at(errors: np.ndarray) -> int | None:
     return None
 
 
-def track_run(seed: int, density: float, models) -> dict:
+def make_estimator(registry, name: str, detection_probability: float, density: float, seed: int):
+    """The registered estimator ``name`` with the clutter model (P_D, λ, P_G) and :data:`SETTINGS`, passing only the
+    parameters its factory takes (nearest neighbour takes the gate only)."""
+    factory = registry.get("estimator", name)
+    accepted = inspect.signature(factory).parameters
+    wanted = {"detection_probability": detection_probability, "clutter_density": density, "gate_probability": GATE, "seed": seed}
+    wanted.update(SETTINGS.get(name, {}))
+    estimator = factory(**{k: v for k, v in wanted.items() if k in accepted})
+    if not estimator.accepts_scans:
+        raise ValueError(f"--methods: estimator {name!r} does not take clutter scans")
+    return estimator
+
+
+def track_run(seed: int, density: float, detection_probability: float, methods, registry, models) -> dict:
+    """One seeded truth + clutter realisation, every method on the same scans: loss step, squared errors, time per step."""
     trajectory_seed, measurement_seed, clutter_seed = np.random.SeedSequence([seed, 1]).spawn(3)
     schedule = Schedule.from_rows(TABLE1)
     truth = simulate_trajectory(schedule, X0, TAU, seed=np.random.default_rng(trajectory_seed), noise_cov=np.eye(2) * 0.001)
     sensor = PositionSensor("pos", ("x", "y"), np.eye(2) * TRACKING_R)
     clean = simulate_measurements(truth, [sensor], seed=np.random.default_rng(measurement_seed))
-    clutter = ClutterModel(density, TRACKING_PD, region_around(truth.positions, 3.0))
+    clutter = ClutterModel(density, detection_probability, region_around(truth.positions, 3.0))
     scans = add_clutter(clean, clutter, seed=np.random.default_rng(clutter_seed))["pos"]
     positions = truth.states_in(LAYOUT)[:, [0, 2]]
     bank = TransitionBank.stack([models["tracker"].transition(TAU, X0)])
+    steps = [scans.scan(k) for k in range(scans.steps)]
     out = {"expected_false_per_step": clutter.expected_false}
-    for name, estimator in (("nearest_neighbour", NearestNeighbourFilter(GATE)), ("pda", PDAFilter(TRACKING_PD, density, GATE))):
+    for name in methods:
+        estimator = make_estimator(registry, name, detection_probability, density, seed)
         state = estimator.initialize(X0[None], np.eye(4)[None] * 0.1)
         errors = np.empty(scans.steps)
-        gated = 0.0
-        for k in range(scans.steps):
+        started = time.perf_counter()
+        for k, scan in enumerate(steps):
             if k:
                 state = estimator.predict(state, bank)
-            state, innovation = estimator.update(state, scans.scan(k), [sensor], LAYOUT)
-            gated += innovation.associations[0].gated[0].sum()
-            errors[k] = np.hypot(*(state.x[0, [0, 2]] - positions[k]))
-        lost = _lost_at(errors)
+            state, _ = estimator.update(state, scan, [sensor], LAYOUT)
+            errors[k] = np.hypot(*(estimator.mean(state)[0, [0, 2]] - positions[k]))
+        elapsed = time.perf_counter() - started
         out[name] = {
-            "lost_at": lost,
+            "lost_at": _lost_at(errors),
             "sum_sq_error": float(np.sum(errors**2)),
             "steps": int(errors.size),
-            "mean_gated": gated / scans.steps,
+            "seconds_per_step": elapsed / scans.steps,
         }
     return out
 
 
-def tracking_table(runs: int) -> list[dict]:
+def tracking_table(runs: int, methods) -> list[dict]:
     registry = get_registry()
     models = {"tracker": registry.create("motion_model", "straight", noise_cov=np.eye(2) * TRACKER_Q)}
     rows = []
-    for density in DENSITIES:
-        results = [track_run(seed, density, models) for seed in range(runs)]
-        row = {"density": density, "runs": runs, "expected_false_per_step": float(np.mean([r["expected_false_per_step"] for r in results]))}
-        for name in ("nearest_neighbour", "pda"):
-            kept = [r[name] for r in results if r[name]["lost_at"] is None]
-            row[name] = {
-                "track_loss_rate": 1.0 - len(kept) / runs,
-                "rmse_kept": float(np.sqrt(sum(r["sum_sq_error"] for r in kept) / sum(r["steps"] for r in kept))) if kept else None,
-                "mean_loss_step": float(np.mean([r[name]["lost_at"] for r in results if r[name]["lost_at"] is not None]))
-                if len(kept) < runs
-                else None,
-                "mean_gated_candidates": float(np.mean([r[name]["mean_gated"] for r in results])),
+    for detection_probability in DETECTION_PROBABILITIES:
+        for density in DENSITIES:
+            results = [track_run(seed, density, detection_probability, methods, registry, models) for seed in range(runs)]
+            row = {
+                "density": density,
+                "detection_probability": detection_probability,
+                "runs": runs,
+                "expected_false_per_step": float(np.mean([r["expected_false_per_step"] for r in results])),
             }
-        rows.append(row)
-        print(
-            f"λ = {density}: NN loss {row['nearest_neighbour']['track_loss_rate']:.3f} rmse {row['nearest_neighbour']['rmse_kept']}, "
-            f"PDA loss {row['pda']['track_loss_rate']:.3f} rmse {row['pda']['rmse_kept']}",
-            flush=True,
-        )
+            for name in methods:
+                kept = [r[name] for r in results if r[name]["lost_at"] is None]
+                lost = [r[name]["lost_at"] for r in results if r[name]["lost_at"] is not None]
+                row[name] = {
+                    "track_loss_rate": 1.0 - len(kept) / runs,
+                    "rmse_kept": float(np.sqrt(sum(r["sum_sq_error"] for r in kept) / sum(r["steps"] for r in kept))) if kept else None,
+                    "mean_loss_step": float(np.mean(lost)) if lost else None,
+                    "time_per_step_us": float(1e6 * np.mean([r[name]["seconds_per_step"] for r in results])),
+                }
+            rows.append(row)
+            print(
+                f"P_D = {detection_probability}, λ = {density}: "
+                + ", ".join(f"{LABELS[n]} loss {row[n]['track_loss_rate']:.2f} rmse {_f(row[n]['rmse_kept'])}" for n in methods),
+                flush=True,
+            )
     return rows
+
+
+def plot_loss(result: dict, path: Path) -> None:
+    """Track-loss rate against λ per method, one panel per P_D (docs/images/clutter_loss.png)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = result["tracking"]
+    methods = result["methods"]
+    fig, axes = plt.subplots(1, len(DETECTION_PROBABILITIES), figsize=(10, 4), sharey=True)
+    for ax, pd_ in zip(np.atleast_1d(axes), DETECTION_PROBABILITIES):
+        mine = [r for r in rows if r["detection_probability"] == pd_]
+        for name in methods:
+            ax.plot([r["density"] for r in mine], [r[name]["track_loss_rate"] for r in mine], marker="o", label=LABELS[name])
+        ax.set_xscale("log")
+        ax.set_xticks(DENSITIES, [f"{d:g}" for d in DENSITIES])
+        ax.minorticks_off()
+        ax.set_xlabel("clutter density λ (false measurements per m² per step)")
+        ax.set_title(f"P_D = {pd_:g}")
+        ax.grid(True, alpha=0.3)
+    np.atleast_1d(axes)[0].set_ylabel(f"track-loss rate ({result['tracking_runs']} runs)")
+    np.atleast_1d(axes)[-1].legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 # --------------------------------------------------------------------------- part 2
@@ -184,16 +254,14 @@ def detection_run(seed: int, density: float, detection_probability: float, model
             signal_alarms.append(k)
 
     alternatives = restart()
-    bank = FilterBank(4)
-    bank.add(X0, np.eye(4), models[current], TAU, X0)
-    observe_signal(0, bank.update_only(estimator, scans.scan(0), [sensor], LAYOUT))
+    bank = FilterBank(estimator, LAYOUT)
+    bank.start(X0, np.eye(4), [models[current]], X0)
+    observe_signal(0, bank.update_only(scans.scan(0), [sensor]))
     max_bank = 1
     for k in range(1, scans.steps):
-        x0, P0 = bank.means[0].copy(), bank.covs[0].copy()
-        for i in alternatives:
-            bank.add(x0, P0, models[i], TAU, x0, label=(i, k))
+        bank.branch(0, [models[i] for i in alternatives], bank.means[0].copy(), labels=[(i, k) for i in alternatives])
         detector.add(np.arange(1, len(models)), k)
-        innovation = bank.step(estimator, scans.scan(k), [sensor], LAYOUT)
+        innovation = bank.step(TAU, scans.scan(k), [sensor])
         max_bank = max(max_bank, len(bank))
         out = detector.observe(k, innovation.association_loglik, innovation.nis, innovation.measurement_dim)
         observe_signal(k, innovation)
@@ -269,21 +337,28 @@ def _f(value, digits=3):
 
 
 def markdown(result: dict) -> str:
+    methods = result["methods"]
     lines = [
-        "### NN vs PDA: RMSE and track loss (seed-001 Table 1 trajectory, R = 0.1 I, P_D = 0.9)",
+        "### Seven methods in clutter: track loss, RMSE and cost (seed-001 Table 1 trajectory, R = 0.1 I)",
         "",
-        f"{result['tracking_runs']} seeded runs per density, 361 steps; track lost after {LOSS_STEPS} consecutive steps "
-        f"with position error > {LOSS_DISTANCE} m; RMSE (m) over the runs not lost.",
-        "",
-        "| λ (1/m² per step) | mean false per step | NN track loss | PDA track loss | NN RMSE (m) | PDA RMSE (m) | NN gated | PDA gated |",
-        "|---|---|---|---|---|---|---|---|",
+        f"{result['tracking_runs']} seeded runs per (P_D, λ), 361 steps, every method on the same scans; track lost after "
+        f"{LOSS_STEPS} consecutive steps with position error > {LOSS_DISTANCE} m. Each cell: track-loss rate · RMSE (m) over "
+        "the runs not lost · mean time per step (µs, predict + update, one filter; timings depend on the machine's load).",
     ]
-    for row in result["tracking"]:
-        nn, pda = row["nearest_neighbour"], row["pda"]
-        lines.append(
-            f"| {row['density']:g} | {row['expected_false_per_step']:.1f} | {nn['track_loss_rate']:.3f} | {pda['track_loss_rate']:.3f} | "
-            f"{_f(nn['rmse_kept'])} | {_f(pda['rmse_kept'])} | {nn['mean_gated_candidates']:.2f} | {pda['mean_gated_candidates']:.2f} |"
-        )
+    for pd_ in DETECTION_PROBABILITIES:
+        mine = [r for r in result["tracking"] if r["detection_probability"] == pd_]
+        if not mine:
+            continue
+        lines += [
+            "",
+            f"P_D = {pd_:g}; mean false measurements per step: " + ", ".join(f"{r['expected_false_per_step']:.0f}" for r in mine),
+            "",
+            "| method | " + " | ".join(f"λ = {r['density']:g} /m²" for r in mine) + " |",
+            "|---|" + "---|" * len(mine),
+        ]
+        for name in methods:
+            cells = [f"{r[name]['track_loss_rate']:.2f} · {_f(r[name]['rmse_kept'])} · {r[name]['time_per_step_us']:.0f}" for r in mine]
+            lines.append(f"| {LABELS[name]} | " + " | ".join(cells) + " |")
     lines += [
         "",
         "### Example 1 in clutter: the right turn detected by the change-time SPRT on PDA filters",
@@ -307,19 +382,47 @@ def markdown(result: dict) -> str:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=40, help="tracking runs per clutter density")
+    parser.add_argument("--runs", type=int, default=10, help="tracking runs per (P_D, clutter density)")
     parser.add_argument("--detection-runs", type=int, default=60, help="Example 1 runs per clutter density")
+    parser.add_argument(
+        "--methods", nargs="+", default=list(METHODS), metavar="NAME", help=f"registry names of the methods (default: {' '.join(METHODS)})"
+    )
     parser.add_argument("--out", default=str(ROOT / "docs" / "results" / "clutter.json"))
+    parser.add_argument(
+        "--plot",
+        nargs="?",
+        const=str(ROOT / "docs" / "images" / "clutter_loss.png"),
+        default=None,
+        help="write the track-loss figure (default path docs/images/clutter_loss.png)",
+    )
     args = parser.parse_args(argv)
+    if args.runs < 0 or args.detection_runs < 0:
+        parser.error("--runs and --detection-runs must be ≥ 0")
+    known = get_registry().names("estimator")
+    unknown = [m for m in args.methods if m not in known]
+    if unknown:
+        parser.error(f"--methods: unknown estimator(s) {unknown}; registered: {known}")
     start = time.perf_counter()
-    result = {"tracking_runs": args.runs, "detection_runs": args.detection_runs}
-    result["tracking"] = tracking_table(args.runs)
-    result["detection"] = detection_table(args.detection_runs)
-    result["seconds"] = round(time.perf_counter() - start, 1)
     out = Path(args.out)
+    # a part run with 0 runs keeps its rows from the existing output file (to re-run the other part alone)
+    previous = json.loads(out.read_text()) if out.exists() and not (args.runs and args.detection_runs) else {}
+    result = {"tracking_runs": args.runs, "detection_runs": args.detection_runs, "methods": list(args.methods)}
+    result["settings"] = {"particles": PARTICLES, **{k: v for k, v in SETTINGS.items() if k in args.methods}, "gate_probability": GATE}
+    if args.runs:
+        result["tracking"] = tracking_table(args.runs, args.methods)
+    else:
+        for key in ("tracking_runs", "methods", "settings", "tracking"):
+            result[key] = previous.get(key, [] if key in ("tracking", "methods") else result[key])
+    if args.detection_runs:
+        result["detection"] = detection_table(args.detection_runs)
+    else:
+        result["detection_runs"], result["detection"] = previous.get("detection_runs", 0), previous.get("detection", [])
+    result["seconds"] = round(time.perf_counter() - start, 1)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n")
     out.with_suffix(".md").write_text(markdown(result))
+    if args.plot:
+        plot_loss(result, Path(args.plot))
     print(markdown(result))
     return result
 

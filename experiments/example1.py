@@ -1,9 +1,13 @@
 """Example 1 of seed 000 over many seeded runs: detection of the right turn and the decision delay.
 
-    python experiments/example1.py [--runs 200] [--alpha 0.1 --beta 0.1]
+    python experiments/example1.py [--runs 200] [--plot [PNG]]
+    python experiments/example1.py --plot-only docs/results/example1.json
 
 Writes docs/results/example1.json and docs/results/example1.md.  The change is
 at step 20 (x_21 is the first state of the turn); delay = decision step − 20.
+``--plot`` draws the distribution of the detection delay for each α = β from
+the JSON (:func:`plot`, default docs/images/example1.png); ``--plot-only JSON``
+only draws, from an existing report.
 """
 
 from __future__ import annotations
@@ -62,11 +66,66 @@ def summarize(rows: list[dict], horizon: int = 30) -> dict:
     }
 
 
+#: where ``--plot`` writes by default
+PLOT = ROOT / "docs" / "images" / "example1.png"
+
+
+def plot(report: str | Path, png: str | Path = PLOT) -> Path:
+    """The detection delay's distribution per α = β, from the JSON report: a PNG at ``png``.
+
+    Left: the fraction of the runs whose right turn was accepted d steps after
+    the change (``delay_histogram`` / ``runs``), one step curve per α = β, the
+    median marked.  Right: the cumulative fraction detected within d steps
+    (it ends at the share of runs that detected the right turn within the 30
+    turn steps; the rest detected another mode or nothing).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = json.loads(Path(report).read_text(encoding="utf-8"))
+    horizon = int(data["setup"].get("turn_steps", 30))
+    delays = np.arange(1, horizon + 1)
+    figure, (density, cumulative) = plt.subplots(1, 2, figsize=(11, 3.6))
+    for key, summary in data["by_error_probabilities"].items():
+        alpha = key.split(",")[0].split("=")[1]
+        counts = np.array([summary["delay_histogram"].get(str(d), 0) for d in delays], dtype=float)
+        fraction = counts / summary["runs"]
+        label = f"α = β = {alpha} (median {summary['delay_median']:.0f}, detected {100 * summary['detected_right_turn']:.1f} %)"
+        (line,) = density.step(delays, fraction, where="mid", label=label)
+        if summary["delay_median"] is not None:
+            density.axvline(summary["delay_median"], color=line.get_color(), linestyle=":", alpha=0.8)
+        cumulative.step(delays, np.cumsum(fraction), where="post", color=line.get_color(), label=f"α = β = {alpha}")
+    density.set_xlabel("detection delay (steps after the change)")
+    density.set_ylabel("fraction of the runs")
+    density.legend(fontsize=8)
+    cumulative.set_xlabel("d (steps)")
+    cumulative.set_ylabel("fraction detected within d steps")
+    cumulative.set_ylim(0, 1)
+    cumulative.legend(fontsize=8, loc="upper left")
+    for axis in (density, cumulative):
+        axis.grid(alpha=0.3)
+    runs = next(iter(data["by_error_probabilities"].values()))["runs"]
+    figure.suptitle(f"Seed 000 Example 1: delay of the right-turn decision ({runs} runs per α = β, change at step 20)", fontsize=10)
+    figure.tight_layout()
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(png, dpi=100)
+    plt.close(figure)
+    return png
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=200)
+    parser.add_argument("--plot", nargs="?", const=str(PLOT), metavar="PNG", help="draw the figure (default docs/images/example1.png)")
+    parser.add_argument("--plot-only", metavar="JSON", help="only draw the figure from an existing report")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results" / "example1"))
     args = parser.parse_args(argv)
+    if args.plot_only:
+        print(f"wrote {plot(args.plot_only, args.plot or PLOT)}")
+        return {}
     results = {
         "setup": {
             "tau": example1.TAU,
@@ -101,6 +160,8 @@ def main(argv=None) -> dict:
             f"{s['delay_quartiles'][0]:.0f}–{s['delay_quartiles'][1]:.0f} | {s['within_10_steps']:.1%} | {s['within_15_steps']:.1%} |"
         )
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
+    if args.plot:
+        print(f"wrote {plot(out.with_suffix('.json'), args.plot)}")
     return results
 
 

@@ -33,7 +33,12 @@ undecided segment counted as its full length
 Every bank, the first included, is built from the given initial state x0
 (Algorithm 1: x̂ := x0).
 
-    python experiments/seed001_adaptive.py --json results/seed001_adaptive.json [--n 100] [--executor process]
+    python experiments/seed001_adaptive.py --json results/seed001_adaptive.json [--n 100] [--executor process] [--plot PNG]
+    python experiments/seed001_adaptive.py --plot-only docs/results/seed001_adaptive.json [--plot docs/images/seed001_adaptive.png]
+
+``--plot`` draws the adaptive estimator's RMSE per component and nRMSE
+(seed 001 Table 3) against the seed's figures, per R, from the JSON report
+(:func:`plot`); ``--plot-only JSON`` only draws, from an existing report.
 
 Runs are stored under ``--out`` (one campaign per R) and reused when the
 command is repeated; ``hybridtrack run experiments/seed001_adaptive.py
@@ -228,9 +233,61 @@ def seed_table() -> str:
     return markdown_table(rows, COLUMNS)
 
 
+#: where ``--plot`` writes by default
+PLOT = Path(__file__).resolve().parents[1] / "docs" / "images" / "seed001_adaptive.png"
+
+
+def plot(report: str | Path, png: str | Path = PLOT) -> Path:
+    """Seed 001 Table 3 against ours, from the JSON report: a PNG at ``png``.
+
+    One panel per R: the adaptive estimator's RMSE of x, vx, y, vy and its
+    nRMSE = ‖RMSE‖₂, the seed's figures (``protocol.seed_figures``, Table 3)
+    beside ours (``rows``); the optimal KF's (Table 2, ours) as dots; the
+    share of segments whose motion type was identified in each panel's title.
+    """
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = json.loads(Path(report).read_text(encoding="utf-8"))
+    rows = data["rows"]
+    seed = data["protocol"]["seed_figures"]
+    labels = ["x", "vx", "y", "vy", "nRMSE"]
+    figure, axes = plt.subplots(1, len(rows), figsize=(4.2 * len(rows), 3.6), sharey=False, squeeze=False)
+    position = np.arange(len(labels))
+    for axis, row in zip(axes[0], rows):
+        theirs = seed.get(str(float(row["R"])))  # keys are str(R) as written by main()
+        ours = [*row["rmse_adaptive"], row["adaptive_nrmse"]]
+        optimal = [*row["rmse_optimal"], row["optimal_nrmse"]]
+        if theirs is not None:
+            axis.bar(position - 0.2, [*theirs["rmse_adaptive"], theirs["adaptive_nrmse"]], 0.4, label="seed 001 (Table 3)", color="#bbbbbb")
+        axis.bar(position + 0.2, ours, 0.4, label="ours (adaptive)", color="#1f77b4")
+        axis.plot(position + 0.2, optimal, "o", color="black", markersize=4, label="ours, optimal KF (Table 2)")
+        title = f"R = {row['R']:g}·I: modes right {100 * row['modes_correct']:.1f} %"
+        if theirs is not None:
+            title += f" (seed {100 * theirs['modes_correct']:.1f} %)"
+        axis.set_title(title, fontsize=9)
+        axis.set_xticks(position, labels)
+        axis.set_ylabel("RMSE (m, m/s)")
+        axis.grid(axis="y", alpha=0.3)
+    axes[0][0].legend(fontsize=8, loc="upper left")
+    figure.suptitle("Seed 001, adaptive estimator (Algorithm 1): RMSE per component, ours vs the seed's Table 3", fontsize=10)
+    figure.tight_layout()
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(png, dpi=100)
+    plt.close(figure)
+    return png
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", required=True, metavar="PATH", help="report to write (markdown table beside it, .md)")
+    parser.add_argument("--json", metavar="PATH", help="report to write (markdown table beside it, .md); required unless --plot-only")
+    parser.add_argument("--plot", nargs="?", const=str(PLOT), metavar="PNG", help=f"draw the figure (default {PLOT.name} in docs/images)")
+    parser.add_argument("--plot-only", metavar="JSON", help="only draw the figure from an existing report")
     parser.add_argument("--n", type=int, default=100, help="trajectories per R (default 100)")
     parser.add_argument("--R", type=float, nargs="+", default=list(R_VALUES), help="measurement noise levels r (R = r·I)")
     parser.add_argument("--alpha", type=float, default=0.01)
@@ -245,6 +302,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--replicates", type=int, default=2, help="further independent sets of trajectories for the default rule")
     parser.add_argument("--no-ablation", action="store_true", help="skip the one-change-at-a-time steps")
     args = parser.parse_args(argv)
+    if args.plot_only:
+        print(f"wrote {plot(args.plot_only, args.plot or PLOT)}")
+        return {}
+    if not args.json:
+        parser.error("--json PATH is required (or --plot-only JSON)")
 
     experiment = load_experiment(str(Path(__file__).resolve()))
 
@@ -354,6 +416,8 @@ def main(argv=None) -> dict:
             f"adaptive nRMSE {row['adaptive_nrmse']:.4f} (seed {SEED.get(row['R'], {}).get('adaptive_nrmse', '–')}), "
             f"modes right {row['modes_correct']:.3f}, mean decision {extra['mean_decision_steps']}"
         )
+    if args.plot:
+        print(f"wrote {plot(args.json, args.plot)}")
     return {"rows": rows, "protocol": protocol}
 
 

@@ -22,6 +22,7 @@ that prefix to a temporary file when the cut falls inside a message) and sets
 
 from __future__ import annotations
 
+import functools
 import json
 import shutil
 import struct
@@ -40,6 +41,57 @@ _FOOTER_MAGIC = b"RRF2FOOT"  # in the stream footer that closes a complete file 
 
 def _entity(path: str) -> str:
     return path if path.startswith("/") else "/" + path
+
+
+#: position and strip columns, 3-D (east, north, up) first
+_POSITIONS = ("Points3D:positions", "Points2D:positions")
+_STRIPS = ("LineStrips3D:strips", "LineStrips2D:strips")
+
+
+def _coordinates(points: np.ndarray, dims: int) -> np.ndarray:
+    """Points (N, 2 or 3) as (N, dims): the first ``dims`` coordinates (z = 0 added to 2-D data)."""
+    if dims not in (2, 3):
+        raise ValueError(f"dims: expected 2 (east, north) or 3 (east, north, up), got {dims!r}")
+    if points.size == 0:
+        return np.zeros((0, dims))
+    points = points.reshape(1, -1) if points.ndim == 1 else points
+    if dims == 3 and points.shape[-1] == 2:
+        return np.concatenate([points, np.zeros(points.shape[:-1] + (1,))], axis=-1)
+    return points[..., :dims]
+
+
+def _last_value(batch, column: str):
+    """The last non-empty value of a blueprint column (a list), or None."""
+    values = [v for v in batch.column(column).to_pylist() if v]
+    return values[-1] if values else None
+
+
+def view_selects(contents: list[str], origin: str, entity: str) -> bool:
+    """Whether a view's entity-path filter selects ``entity`` (rerun's rules).
+
+    Each rule is ``+ path`` or ``- path`` (``+`` if no sign), ``$origin`` replaced by
+    the view's origin; ``path/**`` matches the path and everything below it, a path
+    without it only itself.  The most specific matching rule decides (a longer path;
+    on the same path an exact rule before a subtree rule, an exclusion before an
+    inclusion); no matching rule: not selected.
+    """
+    entity = _entity(entity).rstrip("/") or "/"
+    best = None
+    for raw in contents:
+        rule = raw.strip()
+        include = not rule.startswith("-")
+        rule = rule.lstrip("+-").strip().replace("$origin", origin.rstrip("/"))
+        subtree = rule.endswith("/**")
+        path = _entity(rule[:-3] if subtree else rule).rstrip("/") or "/"
+        if subtree:
+            matches = path == "/" or entity == path or entity.startswith(path + "/")
+        else:
+            matches = entity == path
+        if matches:
+            rank = (path.count("/") if path != "/" else 0, not subtree, not include)
+            if best is None or rank > best[0]:
+                best = (rank, include)
+    return bool(best and best[1])
 
 
 def scan_frames(path: Path) -> tuple[bool, int, str | None]:
@@ -178,9 +230,10 @@ class RecordingFile:
                 for s, level, text in zip(steps.to_pylist(), levels, batch.column("TextLog:text").to_pylist()):
                     if s is not None and text:
                         events.append((int(s), level[0] if level else "", text[0]))
-            if entity.startswith("/world/estimate/") and "Points2D:positions" in names:
+            column = next((c for c in _POSITIONS if c in names), None)
+            if entity.startswith("/world/estimate/") and column is not None:
                 step_values = steps.to_numpy(zero_copy_only=False)
-                positions = batch.column("Points2D:positions")
+                positions = batch.column(column)
                 valid = [i for i in np.argsort(step_values, kind="stable")[::-1] if positions[int(i)].is_valid]
                 if valid and (entity not in last or step_values[valid[0]] >= last[entity][0]):
                     value = positions[int(valid[0])].as_py()
@@ -239,20 +292,73 @@ class RecordingFile:
         array = np.array(values, dtype=np.float64)
         return steps, array[:, 0] if array.ndim == 2 and array.shape[1] == 1 else array
 
-    def points(self, entity: str) -> tuple[np.ndarray, np.ndarray]:
-        """One 2-D point per step: steps (K,), positions (K, 2) (stored as float32)."""
-        steps, values = self._table(entity, "Points2D:positions")
-        return steps, np.array([v[0] for v in values], dtype=np.float64).reshape(-1, 2)
+    def _column(self, entity: str, candidates: tuple[str, ...]) -> str:
+        """The first of ``candidates`` (3-D before 2-D) the entity has (the first one if none, for the error)."""
+        columns = self._components.get(_entity(entity), set())
+        return next((c for c in candidates if c in columns), candidates[0])
 
-    def point_sets(self, entity: str) -> tuple[np.ndarray, list[np.ndarray]]:
-        """Any number of 2-D points per step (e.g. clutter): steps (K,) and, per step, an (L, 2) array."""
-        steps, values = self._table(entity, "Points2D:positions")
-        return steps, [np.array(list(v), dtype=np.float64).reshape(-1, 2) for v in values]
+    def points(self, entity: str, dims: int = 2) -> tuple[np.ndarray, np.ndarray]:
+        """One point per step: steps (K,), positions (K, dims) (stored as float32): dims = 2 east-north, 3 with up."""
+        steps, values = self._table(entity, self._column(entity, _POSITIONS))
+        return steps, _coordinates(np.array([v[0] for v in values], dtype=np.float64), dims)
 
-    def strips(self, entity: str) -> tuple[np.ndarray, list[list[np.ndarray]]]:
-        """Line strips per step (ellipses, bearing lines): steps and, per step, a list of (P, 2) arrays."""
-        steps, values = self._table(entity, "LineStrips2D:strips")
-        return steps, [[np.array(strip, dtype=np.float64) for strip in step] for step in values]
+    def point_sets(self, entity: str, dims: int = 2) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Any number of points per step (e.g. clutter): steps (K,) and, per step, an (L, dims) array."""
+        steps, values = self._table(entity, self._column(entity, _POSITIONS))
+        return steps, [_coordinates(np.array(list(v), dtype=np.float64), dims) for v in values]
+
+    def strips(self, entity: str, dims: int = 2) -> tuple[np.ndarray, list[list[np.ndarray]]]:
+        """Line strips per step (ellipses, bearing lines): steps and, per step, a list of (P, dims) arrays."""
+        steps, values = self._table(entity, self._column(entity, _STRIPS))
+        return steps, [[_coordinates(np.array(strip, dtype=np.float64), dims) for strip in step] for step in values]
+
+    def blueprint_views(self) -> list[dict]:
+        """The views of the embedded blueprint — the one sent last (latest ``log_time``: the layout
+        :class:`~hybridtrack.recording.RerunRecorder` makes active when it closes the file): ``name``,
+        ``class`` (``3D``, ``TimeSeries``, ``TextLog``, …), ``origin`` and ``contents`` (entity-path filter rules)."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        reader = self._reader()
+        latest, chosen = None, []
+        for store in reader.blueprints():
+            chunks = [(chunk.entity_path, chunk.to_record_batch()) for chunk in reader.stream(store=store)]
+            times = [pc.max(batch.column("log_time").cast(pa.int64())).as_py() for _, batch in chunks if "log_time" in batch.schema.names]
+            sent = max((t for t in times if t is not None), default=-1)
+            if latest is None or sent >= latest:
+                latest, chosen = sent, chunks
+        views: dict[str, dict] = {}
+        for path, batch in chosen:
+            names = batch.schema.names
+            if not path.startswith("/view/"):
+                continue
+            view = views.setdefault(path.split("/")[2], {"name": None, "class": None, "origin": "/", "contents": ["$origin/**"]})
+            last = functools.partial(_last_value, batch)
+            if path.endswith("/ViewContents") and "ViewContents:query" in names:
+                view["contents"] = last("ViewContents:query") or []
+            for column, key in (
+                ("ViewBlueprint:class_identifier", "class"),
+                ("ViewBlueprint:display_name", "name"),
+                ("ViewBlueprint:space_origin", "origin"),
+            ):
+                if column in names and last(column):
+                    view[key] = last(column)[0]
+        return [v for v in views.values() if v["class"] is not None]
+
+    def unviewed_entities(self) -> list[str]:
+        """Entity paths with data that no view of the embedded blueprint shows: each needs a view whose
+        contents select it (:func:`view_selects`) and whose class shows one of its archetypes
+        (:data:`hybridtrack.recording.VIEW_CLASSES`)."""
+        from hybridtrack.recording import VIEW_CLASSES
+
+        views = self.blueprint_views()
+        missing = []
+        for entity in self.entity_paths:
+            archetypes = {c.split(":")[0] for c in self._components[entity] if ":" in c}
+            classes = {VIEW_CLASSES[a] for a in archetypes if a in VIEW_CLASSES}
+            if not any((not classes or v["class"] in classes) and view_selects(v["contents"], v["origin"], entity) for v in views):
+                missing.append(entity)
+        return missing
 
     def events(self) -> list[tuple[int, str, str]]:
         """Text events on ``/events/decisions``: (step, level, text) sorted by step."""

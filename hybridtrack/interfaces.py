@@ -512,6 +512,16 @@ class Detector(Labelled, ABC):
     @abstractmethod
     def step(self, step: int, innovation: Innovation) -> DetectorStep: ...
 
+    @classmethod
+    def step_runs(cls, detectors: Sequence[Detector], step: int, innovations: Sequence[Innovation]) -> list[DetectorStep]:
+        """One step of R runs at once: ``detectors[r]`` (instances of this class, one per run) fed ``innovations[r]``.
+
+        Batched pipelines (``Pipeline.run_batch``) call it with each run's own
+        copy of a detector; the result must equal ``[d.step(step, i) for …]``
+        (the default), which a class may override to vectorize over the runs.
+        """
+        return [detector.step(step, innovation) for detector, innovation in zip(detectors, innovations)]
+
 
 class ScoreDetector(Detector):
     """A detector that reads only per-filter scores: ℓ (M,), NIS (M,) and m.
@@ -529,6 +539,18 @@ class ScoreDetector(Detector):
     @abstractmethod
     def observe(self, step: int, loglik: np.ndarray, nis: np.ndarray, m: int) -> DetectorStep:
         """Consume one step's scores: ℓ (M,), NIS (M,), m (0 = no measurement this step)."""
+
+    @classmethod
+    def observe_runs(cls, detectors: Sequence[ScoreDetector], step: int, loglik: np.ndarray, nis: np.ndarray, m: int) -> list[DetectorStep]:
+        """:meth:`observe` for R runs at once: ``detectors[r]`` (one per run, instances of this class) fed row r of
+        ℓ (R, M) and NIS (R, M); m is shared (the runs of one call measured the same components).
+
+        Batched pipelines call it instead of :meth:`Detector.step_runs` when the
+        class keeps ScoreDetector's ``step``.  The result must equal
+        ``[d.observe(step, loglik[r], nis[r], m) for …]`` (the default); a class
+        may override it to vectorize over the runs.
+        """
+        return [detector.observe(step, loglik[r], nis[r], m) for r, detector in enumerate(detectors)]
 
 
 class HypothesisTest(ScoreDetector):

@@ -45,7 +45,7 @@ import numpy as np
 from hybridtrack.interfaces import Detector, DetectorStep, Estimator, Innovation, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
 from hybridtrack.plugins import resolve
-from hybridtrack.recording import NullRecorder, log_estimate, log_measurements
+from hybridtrack.recording import NullRecorder, decision_text, log_estimate, log_measurements, nis_bounds
 from hybridtrack.registry import Registry
 from hybridtrack.timestamps import step_intervals
 from hybridtrack.types import Decision, Gaussian
@@ -94,6 +94,32 @@ class RunResult:
     innovations: np.ndarray
     statistics: dict[str, dict[str, np.ndarray]]
     decisions: tuple[Decision, ...]
+
+
+def store_detector_outputs(
+    series: dict[str, dict[str, np.ndarray]],
+    statistic_keys: dict[str, set[str]],
+    threshold_keys: dict[str, set[str]],
+    k: int,
+    steps: int,
+    outputs: Mapping[str, DetectorStep],
+) -> None:
+    """Write the detectors' outputs of step k (label → DetectorStep) into ``series`` (label → name → (steps, …),
+    NaN where a detector did not report that name) and note which names are statistics and which thresholds."""
+    for label, output in outputs.items():
+        table = series.setdefault(label, {})
+        statistic_keys.setdefault(label, set()).update(output.statistics)
+        threshold_keys.setdefault(label, set()).update(output.thresholds)
+        for key, value in {**output.statistics, **output.thresholds}.items():
+            value = np.asarray(value, dtype=float)
+            if key not in table:
+                table[key] = np.full((steps, *value.shape), np.nan)
+            elif table[key].shape[1:] != value.shape:
+                raise ValueError(
+                    f"detector {label!r}: series {key!r} changed shape at step {k}: "
+                    f"got {value.shape}, expected {table[key].shape[1:]} as at its earlier steps"
+                )
+            table[key][k] = value
 
 
 class StepResults(Sequence):
@@ -202,6 +228,9 @@ class Pipeline:
         repeated = sorted({n for n in self.filter_names if self.filter_names.count(n) > 1})
         if repeated:
             raise ValueError(f"filter_names: names must be unique (each names the filter's recorded entities), {repeated} repeated")
+        for detector in self.detectors:  # decisions and recorded series name the filters, not H0, H1, …
+            if getattr(detector, "hypotheses", ()) is None:
+                detector.hypotheses = self.filter_names
 
         prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
         if prior.dim != len(self.layout):
@@ -333,20 +362,7 @@ class Pipeline:
             self._S[k] = np.nan
         if not complete or type(innovation) is not Innovation:
             self._innovation_objects[k] = innovation
-        for label, output in outputs.items():
-            series = self._series.setdefault(label, {})
-            self._statistic_keys.setdefault(label, set()).update(output.statistics)
-            self._threshold_keys.setdefault(label, set()).update(output.thresholds)
-            for key, value in {**output.statistics, **output.thresholds}.items():
-                value = np.asarray(value, dtype=float)
-                if key not in series:
-                    series[key] = np.full((self.steps, *value.shape), np.nan)
-                elif series[key].shape[1:] != value.shape:
-                    raise ValueError(
-                        f"detector {label!r}: series {key!r} changed shape at step {k}: "
-                        f"got {value.shape}, expected {series[key].shape[1:]} as at its earlier steps"
-                    )
-                series[key][k] = value
+        store_detector_outputs(self._series, self._statistic_keys, self._threshold_keys, k, self.steps, outputs)
 
     def _step_result(self, k: int) -> StepResult:
         """The :class:`StepResult` of processed step k, rebuilt from the stored arrays."""
@@ -379,6 +395,45 @@ class Pipeline:
         finally:
             self.record()
         return self.result()
+
+    @classmethod
+    def run_batch(
+        cls, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None, **options
+    ) -> list[RunResult]:
+        """Run R measurement sequences as one stacked bank of R × M filters: one :class:`RunResult` per run,
+        equal to ``Pipeline(..., measurements=run r).run()`` (see :func:`hybridtrack.batch.run_pipeline_batch`,
+        which takes the same ``options`` as the constructor: ``models``, ``estimator``, ``sensors``, ``tau``,
+        ``detectors``, ``filter_names``, ``registry``)."""
+        from hybridtrack.batch import run_pipeline_batch
+
+        return run_pipeline_batch(measurements, prior, times=times, truth=truth, recorders=recorders, **options)
+
+    def replay(self, result: RunResult, threshold_keys: Mapping[str, set[str]] | None = None) -> None:
+        """Load a finished run (e.g. one run of :meth:`run_batch`) of this pipeline's measurements into its storage
+        and record it; ``threshold_keys`` (label → names) tells thresholds from statistics in ``results[k]``."""
+        if self._count:
+            raise RuntimeError("replay: this pipeline has already processed steps")
+        k = result.means.shape[0]
+        if k != self.steps or result.means.shape[1:] != self._means.shape[1:]:
+            raise ValueError(f"result: expected a run of {self.steps} steps of this bank, got means of shape {result.means.shape}")
+        self._means[:], self._covs[:], self._nis[:], self._loglik[:], self._nu[:] = (
+            result.means,
+            result.covs,
+            result.nis,
+            result.loglik,
+            result.innovations,
+        )
+        self._S[:] = np.nan
+        threshold_keys = threshold_keys or {}
+        for label, series in result.statistics.items():
+            self._series[label] = {key: np.array(values) for key, values in series.items()}
+            self._threshold_keys[label] = set(threshold_keys.get(label, ()))
+            self._statistic_keys[label] = set(series) - self._threshold_keys[label]
+        self.decisions = list(result.decisions)
+        self._decision_at = {(d.step, d.detector): d for d in result.decisions}
+        self._count = k
+        self._result = None
+        self.record()
 
     def result(self) -> RunResult:
         """The steps processed so far as arrays: read-only views of the pipeline's storage (no copy)."""
@@ -464,16 +519,22 @@ class Pipeline:
             rec.log_scalars(f"estimator/{name}/nis", steps, self._nis[rows, j], times)
             rec.log_scalars(f"estimator/{name}/loglik", steps, self._loglik[rows, j], times)
             rec.log_scalars(f"estimator/{name}/innovation", steps, self._nu[rows, j], times)
+        rec.log_scalars(
+            "estimator/nis_bounds", steps, nis_bounds(np.isfinite(self.z[rows]).sum(axis=1)), times, names=["χ² 2.5 %", "χ² 97.5 %"]
+        )
         if self.candidates is not None:
             from hybridtrack.clutter import log_associations
 
             log_associations(rec, self.filter_names, steps, [self._innovation_objects.get(i) for i in steps], times)
-        for label, series in self._series.items():
-            for key, values in series.items():
-                rec.log_scalars(f"detector/{label}/{key}", steps, values[rows], times)
+        for detector in self.detectors:
+            hypotheses = tuple(getattr(detector, "hypotheses", None) or self.filter_names)
+            for key, values in self._series.get(detector.label, {}).items():
+                width = values.shape[1] if values.ndim == 2 else 0
+                names = hypotheses if width == len(hypotheses) else hypotheses[1:] if width == len(hypotheses) - 1 else None
+                rec.log_scalars(f"detector/{detector.label}/{key}", steps, values[rows], times, names=names)
         for decision in self.decisions:
             if start <= decision.step < stop:
-                rec.log_event(decision.step, f"{decision.detector}: {decision.mode} ({decision.message})", decision.time)
+                rec.log_event(decision.step, decision_text(decision), decision.time)
         self._logged = stop
         if flush:
             self._flush_recorder()

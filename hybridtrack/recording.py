@@ -10,20 +10,22 @@ seconds), so a killed process leaves a file — without its footer — holding
 everything logged up to the last flush.
 
 Series are logged as whole columns (``send_columns``) on the timelines ``step``
-(sequence) and ``time`` (duration in seconds, when times are given).  Entity
-paths used by the built-in components:
-
-The full list of entity paths is in ``docs/recording.md``.  Every file
-carries the default blueprint of :func:`default_blueprint` (trajectories,
-likelihood ratios, signal functions, events) and the run's configuration as
-the recording property ``configuration``.
+(sequence) and ``time`` (duration in seconds, when times are given).  Spatial
+data is 3-D, east-north-up (``world`` carries ``ViewCoordinates.RIGHT_HAND_Z_UP``).
+The full list of entity paths is in ``docs/recording.md``.  A file closed
+normally carries the blueprint built from what the run logged
+(:func:`content_blueprint`: a 3-D world view, a space-time view, one time-series
+panel per quantity, the events) and the run's configuration as the recording
+property ``configuration``.
 """
 
 from __future__ import annotations
 
+import colorsys
 import hashlib
 import json
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
@@ -67,8 +69,9 @@ class Recorder(Protocol):
         points: bool = True,
         line: bool = True,
     ) -> None:
-        """A 2-D trajectory: positions (K, 2), one point per step (``points``) and the whole path as a static line
-        ``<entity>/path`` (``line``; a streamed run logs the points chunk by chunk and the line once at the end)."""
+        """A trajectory: positions (K, 2) east-north (z = 0) or (K, 3) with altitude, one point per step
+        (``points``) and the whole path as a static line ``<entity>/path`` (``line``; a streamed run logs the
+        points chunk by chunk and the line once at the end)."""
 
     def log_points(self, entity: str, steps: np.ndarray, points: np.ndarray, times: np.ndarray | None = None) -> None:
         """2-D points (K, 2) per step, or a variable number per step as (K, L, 2) NaN-padded (e.g. clutter);
@@ -81,6 +84,10 @@ class Recorder(Protocol):
 
     def log_event(self, step: int, text: str, time: float | None = None, level: str = "INFO") -> None:
         """A text event (decisions, warnings) at ``step``."""
+
+    def log_modes(self, entity: str, steps: np.ndarray, modes: np.ndarray, names: Sequence[str], times: np.ndarray | None = None) -> None:
+        """The mode of a trajectory per step: ``modes`` (K,) indices into ``names`` (−1: none yet).  Colours the
+        entity's path in the space-time view by mode and marks the changes (truth: switches; estimate: identified)."""
 
     def log_ellipses(
         self, entity: str, steps: np.ndarray, centers: np.ndarray, covs: np.ndarray, times: np.ndarray | None = None, sigmas: float = 2.0
@@ -106,10 +113,19 @@ class NullRecorder:
     def log_points(self, entity, steps, points, times=None):
         pass
 
+    def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
+        pass
+
+    def log_geo_path(self, entity, steps, lat_lon, times=None):
+        pass
+
     def log_scalars(self, entity, steps, values, times=None, names=None):
         pass
 
     def log_event(self, step, text, time=None, level="INFO"):
+        pass
+
+    def log_modes(self, entity, steps, modes, names, times=None):
         pass
 
     def log_ellipses(self, entity, steps, centers, covs, times=None, sigmas=2.0):
@@ -138,24 +154,283 @@ def recording_id(configuration: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
+#: a time-series panel shows its legend when it holds at most this many entities
+LEGEND_SERIES = 3
+
+#: how many steps of points (truth, measurements, estimates, ellipses) the world view shows behind the time cursor
+TRAIL_STEPS = 25
+
+_FIXED_COLOURS = {
+    "truth": (235, 235, 235),
+    "measurements": (255, 196, 0),
+    "clutter": (140, 140, 140),
+    "observer": (0, 200, 255),
+    "bearings": (110, 120, 170),
+    "threshold": (160, 160, 160),
+    "decision": (255, 70, 70),
+}
+#: hue (degrees) of each motion family; the radius sets a lightness step (and shifts the hue a little) within it
+_FAMILY_HUES = {"straight": 215.0, "left_turn": 130.0, "right_turn": 5.0, "cv": 215.0, "ca": 275.0, "ct": 300.0}
+_RADIUS_NAME = re.compile(r"(?P<family>[a-z_]+?)(?:_r(?P<radius>\d+(?:\.\d+)?))?")
+
+
+def palette(name: str) -> tuple[int, int, int]:
+    """The fixed RGB colour of a hypothesis, filter, mode or role ``name``: the same in every view and every run.
+
+    Roles (``truth``, ``measurements``, ``clutter``, ``observer``, ``bearings``,
+    ``threshold``, ``decision``) have fixed colours; a motion family (``straight``,
+    ``left_turn``, ``right_turn``, ``cv``, ``ca``, ``ct``) a fixed hue, and its radius
+    suffix ``_r<ρ>`` a lightness step (ρ = 1 … 10: light to dark, hue +2.5° per metre);
+    any other name the hue given by the first 32 bits of its SHA-256 (outside 20°–70°, the measurements' amber).
+    """
+    if not isinstance(name, str):
+        raise TypeError(f"name: expected a str, got {type(name).__name__}")
+    if name in _FIXED_COLOURS:
+        return _FIXED_COLOURS[name]
+    match = _RADIUS_NAME.fullmatch(name)
+    if match and match["family"] in _FAMILY_HUES:
+        hue, lightness = _FAMILY_HUES[match["family"]], 0.55
+        if match["radius"] is not None:
+            step = (float(match["radius"]) - 1.0) % 10.0
+            lightness, hue = 0.72 - 0.035 * step, hue + 2.5 * step
+        rgb = colorsys.hls_to_rgb((hue % 360.0) / 360.0, lightness, 0.8)
+    else:  # hues 20°–70° (the measurements' amber) are skipped: 310° of hue for the hash
+        hue = 310.0 * int(hashlib.sha256(name.encode()).hexdigest()[:8], 16) / 2**32
+        rgb = colorsys.hls_to_rgb(((hue + 50.0 if hue > 20.0 else hue) % 360.0) / 360.0, 0.6, 0.75)
+    return tuple(round(255 * c) for c in rgb)
+
+
+def _shade(colour, i: int) -> tuple[int, int, int]:
+    """Column i of a multi-column series: the colour mixed 30 % per column towards white."""
+    f = min(0.3 * i, 0.8)
+    return tuple(round(c + (255 - c) * f) for c in colour)
+
+
+def spatial_style(entity: str) -> tuple[tuple[int, int, int], str]:
+    """Colour and label of a spatial entity from its path: ``…/truth``, ``…/measurements/<sensor>``,
+    ``…/clutter/<sensor>``, ``…/estimate/<name>[/…]`` (the palette colour of ``name``), ``…/observer``, ``…/bearings``."""
+    parts = entity.strip("/").split("/")[1:] or [entity.strip("/")]
+    role = parts[0]
+    if role == "estimate" and len(parts) > 1:
+        return palette(parts[1]), parts[1]
+    if role in ("truth", "measurements", "clutter", "observer", "bearings"):
+        return palette(role), role if len(parts) == 1 else f"{role} {parts[1]}"
+    return palette(parts[-1]), parts[-1]
+
+
+def series_style(entity: str, columns: int, names: Sequence[str] | None = None) -> tuple[list[str], list[tuple[int, int, int]]]:
+    """Legend names and colours of the ``columns`` series of a scalar entity, from its path.
+
+    ``detector/<d>/log_ratio/<h>`` → h in the colour of h; ``detector/<d>/upper``/``lower`` → A/B (signal
+    functions: the ±3 bounds) in the threshold colour; ``estimator/<f>/<quantity>[/<sub>]`` → f (or "f: sub")
+    in the colour of f (of sub below ``mode_probability``); ``solver/<method>/…`` → method;
+    ``world/measurements/<sensor>`` → sensor.  Several columns: ``names`` (or ``[i]``) after the name,
+    the colour lightened per column.
+    """
+    parts = entity.strip("/").split("/")
+    name, colour = parts[-1], palette(parts[-1])
+    if parts[0] == "estimator" and len(parts) == 2 and names is not None and len(names) == columns:  # estimator/nis_bounds
+        return list(names), [palette("threshold")] * columns
+    if parts[0] == "detector" and len(parts) >= 3:
+        signal = "signal" in parts[1]
+        if parts[2] == "log_ratio" and len(parts) > 3:
+            name, colour = parts[3], palette(parts[3])
+        elif parts[-1] in ("upper", "lower") and len(parts) == 3:
+            bound = {"upper": ("+3 bound", "A (upper)"), "lower": ("−3 bound", "B (lower)")}[parts[-1]]
+            name, colour = bound[0] if signal else bound[1], palette("threshold")
+        else:
+            name, colour = "/".join(parts[2:]), palette(parts[1] if len(parts) == 3 else parts[-1])
+    elif parts[0] == "estimator" and len(parts) >= 3:
+        if len(parts) > 3:
+            name, colour = f"{parts[1]}: {'/'.join(parts[3:])}", palette(parts[-1])
+        else:
+            name, colour = parts[1], palette(parts[1])
+    elif parts[0] == "solver" and len(parts) >= 2:
+        name, colour = parts[1], palette(parts[1])
+    elif parts[:2] == ["world", "measurements"] and len(parts) > 2:
+        name, colour = parts[2], palette("measurements")
+    if columns == 1:
+        return [name], [colour]
+    labels = list(names) if names is not None else [f"[{i}]" for i in range(columns)]
+    return [f"{name} {label}" for label in labels], [_shade(colour, i) for i in range(columns)]
+
+
+#: the view class that shows each archetype (a component ``Archetype:field`` needs a view of this class)
+VIEW_CLASSES = {
+    "Scalars": "TimeSeries",
+    "SeriesLines": "TimeSeries",
+    "SeriesPoints": "TimeSeries",
+    "Points3D": "3D",
+    "LineStrips3D": "3D",
+    "ViewCoordinates": "3D",
+    "Ellipsoids3D": "3D",
+    "Boxes3D": "3D",
+    "Arrows3D": "3D",
+    "Transform3D": "3D",
+    "Points2D": "2D",
+    "LineStrips2D": "2D",
+    "TextLog": "TextLog",
+    "GeoPoints": "Map",
+    "GeoLineStrings": "Map",
+}
+
+#: time-series panels of ``estimator/<filter>/<quantity>``: quantity → (panel, title), in display order
+_ESTIMATOR_PANELS = {
+    "bank_size": ("bank_size", "Bank size (filters running)"),
+    "mode": ("mode", "Identified mode / followed hypothesis (index)"),
+    "followed": ("mode", "Identified mode / followed hypothesis (index)"),
+    "mode_probability": ("mode_probability", "Mode probabilities μ"),
+    "nis": ("nis", "NIS νᵀS⁻¹ν with the χ² 95 % bounds"),
+    "nis_bounds": ("nis", "NIS νᵀS⁻¹ν with the χ² 95 % bounds"),
+    "innovation": ("innovation", "Innovations ν"),
+    "loglik": ("loglik", "Log-likelihood ℓ"),
+    "beta": ("beta", "Association weights β"),
+    "gated": ("gated", "Candidates in the gate"),
+    "association_loglik": ("association_loglik", "Association ln Λ"),
+}
+_PANEL_ORDER = ["bank_size", "mode", "mode_probability", "nis", "innovation", "loglik", "beta", "gated", "association_loglik"]
+
+
+def _panel(entity: str, content: Mapping[str, str]) -> tuple[tuple, str, str]:
+    """(sort key, title, contents rule) of the time-series panel that shows a scalar entity: one panel per quantity."""
+    parts = entity.split("/")
+    if parts[0] == "detector" and len(parts) >= 2:
+        rule = f"+ /detector/{parts[1]}/**"
+        if "signal" in parts[1]:
+            return (0, parts[1]), f"Signal function with its bounds ({parts[1]})", rule
+        if any(p.startswith(f"detector/{parts[1]}/log_ratio") for p in content):
+            return (0, parts[1]), f"ln λ per hypothesis with A and B ({parts[1]})", rule
+        return (0, parts[1]), f"Detector {parts[1]}: statistics and thresholds", rule
+    if parts[0] == "estimator" and len(parts) == 2 and parts[1] in _ESTIMATOR_PANELS:  # estimator/nis_bounds
+        key, title = _ESTIMATOR_PANELS[parts[1]]
+        return (1, _PANEL_ORDER.index(key), key), title, f"+ /{entity}/**"
+    if parts[0] == "estimator" and len(parts) >= 3:
+        key, title = _ESTIMATOR_PANELS.get(parts[2], (parts[2], parts[2].replace("_", " ")))
+        order = _PANEL_ORDER.index(key) if key in _PANEL_ORDER else len(_PANEL_ORDER)
+        return (1, order, key), title, f"+ /estimator/{parts[1]}/{parts[2]}/**"
+    if parts[0] == "solver" and len(parts) >= 3:
+        title = "Bearing residuals (degrees)" if parts[-1] == "residual" else parts[-1].replace("_", " ")
+        return (2, parts[-1]), title, f"+ /{entity}/**"
+    if parts[:2] == ["world", "measurements"]:
+        return (3, "measurements"), "Scalar measurements", f"+ /{entity}"
+    parent = "/".join(parts[:-1]) or parts[0]
+    return (4, parent), parent, f"+ /{entity}"
+
+
+def content_blueprint(content: Mapping[str, str] | None = None, *, time_step: float | None = None, eyes: Mapping[str, tuple] | None = None):
+    """The layout embedded in a file, built from what the run logged.
+
+    ``content`` maps every logged entity path to the view class that shows it
+    (:data:`VIEW_CLASSES`: ``3D``, ``TimeSeries``, ``TextLog``, …).  Views:
+
+    * **World (east, north, up)** — a 3-D view of ``/world`` (right-handed, z up:
+      a left turn is anticlockwise seen from above), points of the last
+      :data:`TRAIL_STEPS` steps (``time_step`` s each on the ``time`` timeline) and the
+      whole paths;
+    * **Space-time** — a 3-D view of ``/spacetime`` (x, y, scaled time);
+    * one **time-series panel per quantity**: each detector (ln λ with A and B, or the
+      signal function with its bounds), then bank size, mode / followed hypothesis,
+      mode probabilities, NIS with its χ² bounds, innovations, log-likelihood,
+      association weights, gated candidates, bearing residuals, scalar measurements
+      — each listing the logged entities explicitly, so each fits its own range;
+    * **Events** — the text log;
+    * a view of the right class for any other root, so every entity is in some view.
+
+    ``eyes`` (origin → (position, look_target)) places the 3-D cameras.
+    """
+    import rerun.blueprint as rrb
+
+    content = {p.strip("/"): c for p, c in (content or {"world": "3D", "events/decisions": "TextLog"}).items()}
+    eyes = eyes or {}
+    trail = [
+        rrb.VisibleTimeRange(
+            "step", start=rrb.TimeRangeBoundary.cursor_relative(seq=-TRAIL_STEPS), end=rrb.TimeRangeBoundary.cursor_relative(seq=0)
+        )
+    ]
+    if time_step is not None and np.isfinite(time_step) and time_step > 0:
+        seconds = TRAIL_STEPS * float(time_step)
+        trail.append(
+            rrb.VisibleTimeRange(
+                "time",
+                start=rrb.TimeRangeBoundary.cursor_relative(seconds=-seconds),
+                end=rrb.TimeRangeBoundary.cursor_relative(seconds=0.0),
+            )
+        )
+
+    def eye(origin):
+        if origin not in eyes:
+            return None
+        position, target = eyes[origin]
+        return rrb.EyeControls3D(position=position, look_target=target, eye_up=(0.0, 0.0, 1.0))
+
+    spatial, other = [], []
+    roots: dict[tuple[str, str], None] = {}
+    for path, view_class in content.items():
+        if view_class not in ("TimeSeries", "TextLog"):
+            roots.setdefault((path.split("/")[0], view_class), None)
+    for root, view_class in roots:
+        if view_class == "3D" and root == "world":
+            spatial.insert(
+                0, rrb.Spatial3DView(origin="/world", name="World (east, north, up)", time_ranges=trail, eye_controls=eye("/world"))
+            )
+        elif view_class == "3D" and root == "spacetime":
+            spatial.append(rrb.Spatial3DView(origin="/spacetime", name="Space-time (x, y, scaled time)", eye_controls=eye("/spacetime")))
+        elif view_class == "3D":
+            spatial.append(rrb.Spatial3DView(origin=f"/{root}", name=root))
+        elif view_class == "2D":
+            other.append(rrb.Spatial2DView(origin=f"/{root}", name=root))
+        elif view_class == "Map":
+            other.append(rrb.MapView(origin=f"/{root}", name=root))
+        else:
+            other.append(rrb.View(class_identifier=view_class, origin=f"/{root}", name=root))
+
+    panels: dict[tuple, tuple[str, list[str]]] = {}
+    counts: dict[tuple, int] = {}
+    for path, view_class in content.items():
+        if view_class == "TimeSeries":
+            key, title, rule = _panel(path, content)
+            rules = panels.setdefault(key, (title, []))[1]
+            counts[key] = counts.get(key, 0) + 1
+            if rule not in rules:
+                rules.append(rule)
+
+    def legend(key):  # a legend only where it does not hide the plot; the names show on hover everywhere
+        return rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=counts[key] <= LEGEND_SERIES)
+
+    series = [
+        rrb.TimeSeriesView(origin="/", contents=rules, name=title, plot_legend=legend(key))
+        for key, (title, rules) in sorted(panels.items(), key=lambda item: tuple(str(k) for k in item[0]))
+    ]
+    texts = sorted({path.split("/")[0] for path, c in content.items() if c == "TextLog"})
+    logs = [rrb.TextLogView(origin=f"/{root}", name="Events" if root == "events" else root) for root in texts]
+
+    left = spatial + other + logs
+    shares = [3.0] * len(spatial) + [2.0] * len(other) + [1.0] * len(logs)
+    columns = []
+    if left:
+        columns.append(rrb.Vertical(*left, row_shares=shares) if len(left) > 1 else left[0])
+    if series:
+        columns.append(rrb.Grid(*series, grid_columns=2 if len(series) > 4 else 1, name="Time series"))
+    if not columns:
+        columns = [rrb.TextLogView(origin="/events", name="Events")]
+    root = rrb.Horizontal(*columns, column_shares=[1, 1]) if len(columns) == 2 else columns[0]
+    return rrb.Blueprint(root, collapse_panels=True)
+
+
 def default_blueprint():
-    """The layout stored in every file: trajectories, likelihood ratios, signal functions, events."""
+    """The layout written at the start of every file, for a file whose run never closed it (killed): the world
+    view, the events and one time-series view per root; :meth:`RerunRecorder.close` replaces it by
+    :func:`content_blueprint`."""
     import rerun.blueprint as rrb
 
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin="/world", name="Trajectories"),
             rrb.Vertical(
-                rrb.TimeSeriesView(
-                    origin="/detector",
-                    contents=["+ /detector/**", "- /detector/signal_function/**"],
-                    name="Likelihood ratios and statistics",
-                ),
-                rrb.TimeSeriesView(
-                    origin="/", contents=["+ /detector/signal_function/**", "+ /estimator/**"], name="Signal functions, NIS, bank size"
-                ),
+                rrb.Spatial3DView(origin="/world", name="World (east, north, up)"),
                 rrb.TextLogView(origin="/events", name="Events"),
+                row_shares=[3, 1],
             ),
+            rrb.Vertical(*[rrb.TimeSeriesView(origin=f"/{root}", name=root) for root in ("detector", "estimator", "solver")]),
             column_shares=[3, 2],
         ),
         collapse_panels=True,
@@ -177,16 +452,40 @@ def ellipse_outlines(centers: np.ndarray, covs: np.ndarray, sigmas: float = 2.0,
     return centers[:, None, :] + sigmas * circle @ root  # √P is symmetric: u·√Pᵀ = u·√P
 
 
+def _xyz(points: np.ndarray) -> np.ndarray:
+    """East-north points (..., 2) with z = 0 appended; (..., 3) (altitude as z) unchanged."""
+    points = np.asarray(points, dtype=np.float64)
+    if points.shape[-1] == 3:
+        return points
+    if points.shape[-1] != 2:
+        raise ValueError(f"positions: expected (..., 2) east-north or (..., 3) east-north-up coordinates, got shape {points.shape}")
+    return np.concatenate([points, np.zeros(points.shape[:-1] + (1,))], axis=-1)
+
+
+#: at most this many points per path in the space-time view (longer paths are thinned evenly)
+SPACETIME_POINTS = 4000
+
+
 class RerunRecorder:
     """A file recording (.rrd) on its own ``rerun.RecordingStream``.
 
     ``configuration`` (a JSON-able dict, seed included) gives the recording id,
     so the same run twice gives the same id, and is stored as the recording
-    property ``configuration``.  The default blueprint is embedded (``blueprint``: another layout, e.g.
-    :func:`hybridtrack.tracking.track_blueprint`).
+    property ``configuration``.
+
+    Everything spatial is 3-D in east-north-up coordinates: the ``world`` (and
+    ``spacetime``) entity carries ``ViewCoordinates.RIGHT_HAND_Z_UP``; 2-D
+    positions get z = 0, (K, 3) positions keep their altitude.  Each entity is
+    styled once from its path (:func:`spatial_style`, :func:`series_style`:
+    colours from :func:`palette`, legend names).  The recorder notes every
+    entity it logs; :meth:`close` adds the space-time view (``spacetime/…``:
+    every whole path as (x, y, s·t), s = the largest horizontal extent over the
+    time span, coloured by mode where :meth:`log_modes` gave one, with the mode
+    changes and the decisions marked) and embeds the blueprint built from that
+    content (:func:`content_blueprint`) as the file's active and default layout.
     """
 
-    def __init__(self, path: str | Path, configuration: dict | None = None, *, recording_id_: str | None = None, blueprint=None):
+    def __init__(self, path: str | Path, configuration: dict | None = None, *, recording_id_: str | None = None):
         import rerun as rr
 
         self._rr = rr
@@ -195,8 +494,13 @@ class RerunRecorder:
         self.configuration = dict(configuration or {})
         self.recording_id = recording_id_ or recording_id(self.configuration)
         self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
-        self.stream.save(str(self.path), default_blueprint=default_blueprint() if blueprint is None else blueprint)
+        self.stream.save(str(self.path), default_blueprint=default_blueprint())
         self.stream.send_property("configuration", rr.AnyValues(json=json.dumps(self.configuration, sort_keys=True, default=str)))
+        self.content: dict[str, str] = {}  # entity path → view class (VIEW_CLASSES)
+        self._tracks: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
+        self._modes: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, ...]]] = {}
+        self._events: list[tuple[int, float | None, str]] = []
+        self._time_step: float | None = None
         self._closed = False
 
     # -- helpers
@@ -206,7 +510,12 @@ class RerunRecorder:
         steps = np.asarray(steps, dtype=np.int64)
         indexes = [rr.TimeColumn("step", sequence=steps)]
         if times is not None:
-            indexes.append(rr.TimeColumn("time", duration=np.asarray(times, dtype=np.float64)))
+            times = np.asarray(times, dtype=np.float64)
+            indexes.append(rr.TimeColumn("time", duration=times))
+            if self._time_step is None and times.size > 1:
+                gaps = np.diff(steps) > 0
+                if gaps.any():
+                    self._time_step = float(np.median(np.diff(times)[gaps] / np.diff(steps)[gaps]))
         return indexes
 
     def _set_time(self, step, time):
@@ -215,9 +524,29 @@ class RerunRecorder:
         if time is not None:
             self.stream.set_time("time", duration=float(time))
 
+    def _note(self, entity: str, view_class: str) -> bool:
+        """Note a logged entity (True the first time), declaring east-north-up on its spatial root."""
+        entity = entity.strip("/")
+        if entity in self.content:
+            return False
+        root = entity.split("/")[0]
+        if view_class == "3D" and root not in self.content:
+            self.stream.log(root, self._rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+            self.content[root] = "3D"
+        self.content[entity] = view_class
+        return True
+
+    def _style_points(self, entity: str) -> None:
+        rr = self._rr
+        if self._note(entity, "3D"):
+            colour, _ = spatial_style(entity)
+            role = entity.strip("/").split("/")[1:2]
+            size = {"measurements": 3.0, "clutter": 2.0, "truth": 2.5}.get(role[0] if role else "", 2.0)
+            self.stream.log(entity, rr.Points3D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(size)]), static=True)
+
     # -- Recorder
     def log_points(self, entity, steps, points, times=None):
-        points = np.asarray(points, dtype=np.float64)
+        points = _xyz(points)
         keep = np.all(np.isfinite(points), axis=-1)  # (K,) or (K, L) for several points per step
         if not keep.any():
             return
@@ -228,46 +557,118 @@ class RerunRecorder:
         self.stream.send_columns(
             entity,
             indexes=self._indexes(steps, times),
-            columns=self._rr.Points2D.columns(positions=points[keep]).partition(counts[present].astype(np.int64)),
+            columns=self._rr.Points3D.columns(positions=points[keep]).partition(counts[present].astype(np.int64)),
         )
+        self._style_points(entity)
+
+    def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
+        """Optional extension of the Recorder protocol: points (K, L, 2 or 3) with weights (K, L) ≥ 0 drawn as radii,
+        r = max_radius · √(w / max_step w) (area ∝ weight; particle clouds, mixture components).  Rows with NaN skipped."""
+        points, weights = _xyz(points), np.asarray(weights, dtype=np.float64)
+        keep = np.all(np.isfinite(points), axis=-1) & np.isfinite(weights)
+        if not keep.any():
+            return
+        top = np.max(np.where(keep, weights, 0.0), axis=-1, keepdims=True)
+        radii = max_radius * np.sqrt(np.clip(weights, 0.0, None) / np.where(top > 0, top, 1.0))
+        counts = keep.sum(axis=1)
+        present = counts > 0
+        times = None if times is None else np.asarray(times)[present]
+        self.stream.send_columns(
+            entity,
+            indexes=self._indexes(np.asarray(steps)[present], times),
+            columns=self._rr.Points3D.columns(positions=points[keep], radii=radii[keep]).partition(counts[present].astype(np.int64)),
+        )
+        self._note(entity, "3D")
+
+    def log_geo_path(self, entity, steps, lat_lon, times=None):
+        """Optional extension of the Recorder protocol: WGS-84 positions (K, 2) (latitude°, longitude°) as
+        ``GeoPoints`` per step and the whole path as a static ``GeoLineStrings`` ``<entity>/path``, shown by a map
+        view (rerun's ``MapView``, the ``Map`` view class of :func:`content_blueprint`).  Rows with NaN skipped."""
+        rr = self._rr
+        lat_lon = np.asarray(lat_lon, dtype=np.float64)
+        if lat_lon.ndim != 2 or lat_lon.shape[1] != 2:
+            raise ValueError(f"lat_lon: expected (K, 2) latitude/longitude in degrees, got shape {lat_lon.shape}")
+        keep = np.all(np.isfinite(lat_lon), axis=-1)
+        if not keep.any():
+            return
+        times = None if times is None else np.asarray(times)[keep]
+        colour, label = spatial_style(entity)
+        self.stream.send_columns(
+            entity, indexes=self._indexes(np.asarray(steps)[keep], times), columns=rr.GeoPoints.columns(positions=lat_lon[keep])
+        )
+        self.stream.log(entity, rr.GeoPoints.from_fields(colors=[colour], radii=rr.Radius.ui_points(4.0)), static=True)
+        self.stream.log(
+            f"{entity}/path", rr.GeoLineStrings(lat_lon=[lat_lon[keep]], colors=[colour], radii=rr.Radius.ui_points(1.5)), static=True
+        )
+        self._note(entity, "Map")
+        self._note(f"{entity}/path", "Map")
 
     def log_path(self, entity, steps, positions, times=None, *, points=True, line=True):
-        positions = np.asarray(positions, dtype=np.float64)
+        positions = _xyz(positions)
         if points:
             self.log_points(entity, steps, positions, times)
         if line:
-            finite = positions[np.all(np.isfinite(positions), axis=-1)]
-            self.stream.log(f"{entity}/path", self._rr.LineStrips2D([finite]), static=True)
+            finite = np.all(np.isfinite(positions), axis=-1)
+            colour, label = spatial_style(entity)
+            rr = self._rr
+            self.stream.log(
+                f"{entity}/path",
+                rr.LineStrips3D([positions[finite]], colors=[colour], radii=[rr.Radius.ui_points(1.0)], labels=[label]),
+                static=True,
+            )
+            self._note(f"{entity}/path", "3D")
+            stride = max(1, -(-int(finite.sum()) // SPACETIME_POINTS))
+            steps = np.asarray(steps)[finite][::stride]
+            self._tracks[entity.strip("/")] = (
+                steps,
+                positions[finite][::stride],
+                None if times is None else np.asarray(times, dtype=np.float64)[finite][::stride],
+            )
 
     def log_scalars(self, entity, steps, values, times=None, names=None):
         rr = self._rr
         values = np.asarray(values, dtype=np.float64)
         self.stream.send_columns(entity, indexes=self._indexes(steps, times), columns=rr.Scalars.columns(scalars=values))
-        if names is not None:
-            self.stream.log(entity, rr.SeriesLines(names=list(names)), static=True)
+        first = self._note(entity, "TimeSeries")
+        if first or names is not None:
+            labels, colours = series_style(entity, 1 if values.ndim == 1 else values.shape[1], names)
+            self.stream.log(entity, rr.SeriesLines(names=labels, colors=colours), static=True)
 
     def log_event(self, step, text, time=None, level="INFO"):
         self._set_time(step, time)
         self.stream.log("events/decisions", self._rr.TextLog(text, level=level))
+        self._note("events/decisions", "TextLog")
+        self._events.append((int(step), None if time is None else float(time), str(text)))
+
+    def log_modes(self, entity, steps, modes, names, times=None):
+        steps = np.asarray(steps, dtype=np.int64)
+        modes = np.asarray(modes)
+        if modes.shape != steps.shape:
+            raise ValueError(f"modes: expected one mode index per step, shape {steps.shape}, got {modes.shape}")
+        self._modes[entity.strip("/")] = (steps, modes.astype(np.int64), tuple(str(n) for n in names))
 
     def _log_strips(self, entity, steps, strips, counts, times):
-        """Line strips of P points each: ``strips`` (S, P, 2), ``counts`` (K,) strips per step (ΣK = S).
+        """Line strips of P points each: ``strips`` (S, P, 2 or 3), ``counts`` (K,) strips per step (ΣK = S).
 
         The Arrow array is built directly (one buffer) instead of strip by strip: for a bank's
         ellipses that is the difference between a few ms and a few hundred.
         """
         import pyarrow as pa
 
-        strip_type = self._rr.components.LineStrip2DBatch._ARROW_DATATYPE
-        strips = np.ascontiguousarray(strips, dtype=np.float32)
+        rr = self._rr
+        strip_type = rr.components.LineStrip3DBatch._ARROW_DATATYPE
+        strips = np.ascontiguousarray(_xyz(strips), dtype=np.float32)
         S, P = strips.shape[:2]
         points = pa.FixedSizeListArray.from_arrays(pa.array(strips.reshape(-1)), type=strip_type.value_type)
         array = pa.ListArray.from_arrays(pa.array(np.arange(S + 1, dtype=np.int32) * P), points, type=strip_type)
         self.stream.send_columns(
             entity,
             indexes=self._indexes(steps, times),
-            columns=self._rr.LineStrips2D.columns(strips=array).partition(np.asarray(counts, dtype=np.int64)),
+            columns=rr.LineStrips3D.columns(strips=array).partition(np.asarray(counts, dtype=np.int64)),
         )
+        if self._note(entity, "3D"):
+            colour, _ = spatial_style(entity)
+            self.stream.log(entity, rr.LineStrips3D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(0.75)]), static=True)
 
     def log_ellipses(self, entity, steps, centers, covs, times=None, sigmas=2.0):
         centers, covs = np.asarray(centers, dtype=np.float64), np.asarray(covs, dtype=np.float64)
@@ -285,16 +686,103 @@ class RerunRecorder:
         finite = np.all(np.isfinite(segments), axis=(-1, -2))  # (K, L)
         self._log_strips(entity, steps, segments[finite], finite.sum(axis=1), times)
 
+    # -- the space-time view and the blueprint, when the run ends
+    def _extent(self) -> tuple[np.ndarray, float]:
+        """Centre (x, y) and largest horizontal extent (≥ 1 m) of the whole paths."""
+        points = np.concatenate([xyz[:, :2] for _, xyz, _ in self._tracks.values()])
+        low, high = points.min(axis=0), points.max(axis=0)
+        return (low + high) / 2, float(max(np.max(high - low), 1.0))
+
+    def _log_spacetime(self) -> dict[str, tuple]:
+        """The space-time view: each whole path as (x, y, s (t − t₀)), mode changes and decisions marked.
+
+        Returns the camera placements of the two 3-D views (origin → (position, target)).
+        """
+        if not self._tracks:
+            return {}
+        rr = self._rr
+        use_times = all(t is not None for _, _, t in self._tracks.values())
+        clock = {e: (t if use_times else s.astype(np.float64)) for e, (s, _, t) in self._tracks.items()}
+        t0 = min(float(c.min()) for c in clock.values())
+        span = max(float(c.max()) for c in clock.values()) - t0
+        centre, extent = self._extent()
+        scale = extent / span if span > 0 else 1.0
+        lifted = {}
+        for entity, (steps, xyz, _) in self._tracks.items():
+            points = np.column_stack([xyz[:, 0], xyz[:, 1], (clock[entity] - t0) * scale])
+            lifted[entity] = (steps, points)
+            target = "spacetime/" + entity.split("/", 1)[-1]
+            colour, label = spatial_style(entity)
+            if entity in self._modes and points.shape[0] > 1:
+                mode_steps, modes, names = self._modes[entity]
+                at = modes[np.clip(np.searchsorted(mode_steps, steps, side="right") - 1, 0, len(modes) - 1)]
+                cuts = np.flatnonzero(np.diff(at)) + 1
+                bounds = np.concatenate([[0], cuts, [len(at)]])
+                strips = [points[a : min(b + 1, len(points))] for a, b in zip(bounds[:-1], bounds[1:])]
+                labels = [names[m] if 0 <= m < len(names) else "undecided" for m in at[bounds[:-1]]]
+                colours = [palette(n) if n != "undecided" else colour for n in labels]
+                self.stream.log(
+                    target, rr.LineStrips3D(strips, colors=colours, labels=labels, radii=[rr.Radius.ui_points(2.0)]), static=True
+                )
+                if cuts.size:
+                    self.stream.log(
+                        f"{target}/changes",
+                        rr.Points3D(
+                            points[cuts],
+                            colors=[palette(n) for n in labels[1:]],
+                            labels=[f"{label} → {n} (step {int(steps[c])})" for n, c in zip(labels[1:], cuts)],
+                            radii=[rr.Radius.ui_points(5.0)],
+                        ),
+                        static=True,
+                    )
+                    self._note(f"{target}/changes", "3D")
+            else:
+                self.stream.log(
+                    target, rr.LineStrips3D([points], colors=[colour], labels=[label], radii=[rr.Radius.ui_points(1.5)]), static=True
+                )
+            self._note(target, "3D")
+        if self._events:
+            moded = [e for e in lifted if e in self._modes and not e.endswith("truth")]
+            reference = (moded or [e for e in lifted if e.endswith("truth")] or list(lifted))[0]
+            steps, points = lifted[reference]
+            at = np.clip(np.searchsorted(steps, [s for s, _, _ in self._events]), 0, len(steps) - 1)
+            self.stream.log(
+                "spacetime/decisions",
+                rr.Points3D(
+                    points[at],
+                    colors=[palette("decision")],
+                    labels=[text if len(text) <= 40 else text[:39] + "…" for _, _, text in self._events],
+                    radii=[rr.Radius.ui_points(5.0)],
+                ),
+                static=True,
+            )
+            self._note("spacetime/decisions", "3D")
+        cx, cy = (float(c) for c in centre)
+        return {
+            "/world": ((cx, cy - 0.9 * extent, 1.3 * extent), (cx, cy, 0.0)),
+            "/spacetime": ((cx + 1.3 * extent, cy - 1.3 * extent, 1.2 * extent), (cx, cy, 0.5 * extent)),
+        }
+
+    def blueprint(self):
+        """The blueprint of what was logged so far (:func:`content_blueprint`)."""
+        return content_blueprint(self.content, time_step=self._time_step)
+
     def flush(self):
         """Block until everything logged so far is written to the file (no footer yet: that comes with :meth:`close`)."""
         if not self._closed:
             self.stream.flush()
 
     def close(self):
+        """Log the space-time view, embed the blueprint of what was logged, flush and close; idempotent."""
         if not self._closed:
             self._closed = True
-            self.stream.flush()
-            self.stream.disconnect()
+            eyes = None
+            try:
+                eyes = self._log_spacetime()
+            finally:
+                self.stream.send_blueprint(content_blueprint(self.content, time_step=self._time_step, eyes=eyes))
+                self.stream.flush()
+                self.stream.disconnect()
 
     def __enter__(self):
         return self
@@ -324,6 +812,29 @@ def log_estimate(recorder, name, steps, means, covs, position, times=None, *, li
     index = np.ix_(position, position)
     recorder.log_path(f"world/estimate/{name}", steps, means[:, position], times, line=line)
     recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, index[0], index[1]], times)
+
+
+def nis_bounds(dims: np.ndarray, probability: float = 0.95) -> np.ndarray:
+    """The two-sided χ² interval of the NIS per step: (K, 2) = F⁻¹_{χ²(m_k)}((1 ∓ p)/2), NaN where m_k = 0.
+
+    Under a consistent filter νᵀS⁻¹ν ~ χ²(m) with m the measured components (Bar-Shalom, Li and
+    Kirubarajan 2001, §5.4.2): a fraction ``probability`` of the steps falls inside.
+    """
+    from scipy.stats import chi2
+
+    m = np.asarray(dims, dtype=np.float64)
+    tails = np.array([(1 - probability) / 2, (1 + probability) / 2])
+    with np.errstate(invalid="ignore"):
+        bounds = chi2.ppf(tails[None, :], np.where(m > 0, m, np.nan)[:, None])
+    return bounds
+
+
+def decision_text(decision) -> str:
+    """The event line of a decision: ``<detector>: <message>`` naming the accepted hypothesis
+    (``<detector>: <mode> (<message>)`` when the message does not name it)."""
+    if decision.message and decision.mode in decision.message:
+        return f"{decision.detector}: {decision.message}"
+    return f"{decision.detector}: {decision.mode}" + (f" ({decision.message})" if decision.message else "")
 
 
 def open_recorder(path: str | Path | None, configuration: dict | None = None):

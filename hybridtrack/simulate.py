@@ -211,6 +211,8 @@ def simulate_trajectory(
     trajectory = Trajectory(schedule, tau, tuple(layout), np.array(states), np.array(segment_index), times)
     if recorder is not None:
         recorder.log_path("world/truth", trajectory.steps, trajectory.positions, trajectory.times)
+        labels = [s.mode if s.radius is None else f"{s.mode}_r{s.radius:g}" for s in schedule.segments]
+        recorder.log_modes("world/truth", trajectory.steps, trajectory.segment, labels, trajectory.times)
     return trajectory
 
 

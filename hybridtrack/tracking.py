@@ -81,15 +81,15 @@ times) and written to the ``.npz`` as ``altitude_mean`` (K, 2) (height above
 the origin's height in m, climb rate in m/s) and ``altitude_var`` (K, 2)
 (their variances); the horizontal modes are what the estimator decides.
 
-**Recording** (besides what the estimator logs under ``world/…``,
-``estimator/…`` and ``events/…``): ``world`` is east-north-up
-(``ViewCoordinates.RIGHT_HAND_Z_UP``), ``world/enu/measurements`` and
-``world/enu/estimate`` are the fixes and the estimate as 3-D points (z = the
-measured and filtered altitude, 0 without an altitude column) with their
-paths; for files read from latitude/longitude, ``map/measurements`` and
-``map/estimate`` are the same as ``GeoPoints`` per step and ``GeoLineStrings``
-paths (the estimate converted back with :func:`hybridtrack.tracks_io.unproject`),
-shown by the MapView of the recording's blueprint (:func:`track_blueprint`).
+**Recording** (besides what the estimator logs under ``world/…`` — the
+east-north-up world view, horizontal positions at z = 0 —, ``estimator/…``
+and ``events/…``), by :func:`record_track`: with altitude, the fixes and the
+estimate in 3-D (z = the measured and the filtered altitude) as
+``world/measurements/altitude`` and ``world/estimate/track/altitude``; for
+files read from latitude/longitude, ``map/measurements`` and
+``map/estimate/track`` as ``GeoPoints`` per step and ``GeoLineStrings`` paths
+(the estimate converted back with :func:`hybridtrack.tracks_io.unproject`),
+which the recording's layout shows in a map view.
 
 Every user error — a missing file, unknown key, bad value, unknown estimator
 kind or mode — is a :class:`ConfigError` (a ValueError) naming the key.
@@ -381,61 +381,29 @@ def filter_altitude(times, heights, *, sigma: float, acceleration_density: float
     return means, variances
 
 
-def track_blueprint():
-    """The layout of a ``hybridtrack track`` recording: the map (MapView of ``/map``), the east-north-up 3-D view
-    (``/world/enu``), the east-north plane (``/world``, as the default layout), mode probabilities / likelihood
-    ratios and events."""
-    import rerun.blueprint as rrb
+def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_measured=None, lat_lon_estimated=None) -> None:
+    """What ``hybridtrack track`` adds to the estimator's own logging (the east-north plane at z = 0):
 
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Vertical(
-                rrb.MapView(origin="/map", name="Map", background=rrb.MapProvider.OpenStreetMap),
-                rrb.Spatial3DView(origin="/world", contents=["+ /world/enu/**"], name="East-north-up (3-D)"),
-            ),
-            rrb.Vertical(
-                rrb.Spatial2DView(origin="/world", contents=["+ /world/**", "- /world/enu/**"], name="East-north plane"),
-                rrb.TimeSeriesView(origin="/", contents=["+ /detector/**", "+ /estimator/**"], name="Mode probabilities, ratios"),
-                rrb.TextLogView(origin="/events", name="Events"),
-            ),
-            column_shares=[3, 2],
-        ),
-        collapse_panels=True,
-    )
-
-
-def record_track(recorder, times, measured, estimated, lat_lon_measured=None, lat_lon_estimated=None) -> None:
-    """Log a track's 3-D east-north-up view and, when given, its map view on ``recorder`` (a RerunRecorder).
-
-    ``measured``, ``estimated``: (K, 3) east, north, up (m) of the fixes and the estimate;
-    ``lat_lon_*``: (K, 2) degrees, logged as ``GeoPoints`` per step and a ``GeoLineStrings`` path.
+    * with altitude, the fixes and the estimate in 3-D, ``measured``, ``estimated`` (K, 3) east, north and the
+      measured / filtered altitude (m), as ``world/measurements/altitude`` and ``world/estimate/<name>/altitude``
+      (points per step and the path) in the east-north-up world view;
+    * for latitude/longitude files, ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees as ``GeoPoints``
+      per step and a ``GeoLineStrings`` path under ``map/measurements`` and ``map/estimate/<name>``, which the
+      recording's layout shows in a map view (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`).
     """
-    import rerun as rr
-
-    from hybridtrack.recording import RerunRecorder, check_recordable_times
+    from hybridtrack.recording import RerunRecorder
 
     if not isinstance(recorder, RerunRecorder):  # a NullRecorder: nothing to draw
         return
-    check_recordable_times(times)
-    stream = recorder.stream
     steps = np.arange(len(times), dtype=np.int64)
-    indexes = [rr.TimeColumn("step", sequence=steps), rr.TimeColumn("time", duration=np.asarray(times, dtype=np.float64))]
-    stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    colours = {"measurements": (150, 150, 150), "estimate": (230, 90, 20)}
-    for name, xyz in (("measurements", measured), ("estimate", estimated)):
-        xyz = np.asarray(xyz, dtype=np.float64)
-        stream.send_columns(f"world/enu/{name}", indexes=indexes, columns=rr.Points3D.columns(positions=xyz))
-        stream.log(f"world/enu/{name}", rr.Points3D.from_fields(colors=[colours[name]], radii=[-2.0]), static=True)
-        stream.log(f"world/enu/{name}/path", rr.LineStrips3D([xyz], colors=[colours[name]]), static=True)
-    for name, lat_lon in (("measurements", lat_lon_measured), ("estimate", lat_lon_estimated)):
-        if lat_lon is None:
-            continue
-        lat_lon = np.asarray(lat_lon, dtype=np.float64)
-        stream.send_columns(f"map/{name}", indexes=indexes, columns=rr.GeoPoints.columns(positions=lat_lon))
-        stream.log(f"map/{name}", rr.GeoPoints.from_fields(colors=[colours[name]], radii=rr.Radius.ui_points(4.0)), static=True)
-        stream.log(
-            f"map/{name}/path", rr.GeoLineStrings(lat_lon=[lat_lon], colors=[colours[name]], radii=rr.Radius.ui_points(1.5)), static=True
-        )
+    if measured is not None:
+        recorder.log_path("world/measurements/altitude", steps, measured, times)
+    if estimated is not None:
+        recorder.log_path(f"world/estimate/{name}/altitude", steps, estimated, times)
+    if lat_lon_measured is not None:
+        recorder.log_geo_path("map/measurements", steps, lat_lon_measured, times)
+    if lat_lon_estimated is not None:
+        recorder.log_geo_path(f"map/estimate/{name}", steps, lat_lon_estimated, times)
 
 
 def _summary_mode(model) -> tuple[str, float | None]:
@@ -490,18 +458,15 @@ def track_one(
         if origin is not None:  # the geodetic height above the origin's (the ENU up also holds the Earth's curvature)
             heights = unproject(track.positions, origin=origin, projection=projection)[:, 2] - (list(origin) + [0.0])[2]
     altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
-    recorder = (
-        RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": _jsonable(config)}, blueprint=track_blueprint())
-        if out is not None
-        else None
-    )
+    recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": _jsonable(config)}) if out is not None else None
     try:
         run = estimator.run(z, prior, times=track.times, recorder=recorder)
         if recorder is not None:
             xy = np.asarray(track.positions[:, :2], dtype=float)
             est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
-            up_measured = np.zeros(len(xy)) if heights is None else heights
-            up_estimated = np.zeros(len(xy)) if altitude is None else altitude[0][:, 0]
+            in_3d = (None, None)
+            if heights is not None:
+                in_3d = (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
             geo = (None, None)
             if origin is not None:
                 measured_enu, estimated_enu = xy, est_xy
@@ -510,7 +475,7 @@ def track_one(
                     measured_enu = np.column_stack([xy, up])
                     estimated_enu = np.column_stack([est_xy, altitude[0][:, 0] + up - heights])
                 geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (measured_enu, estimated_enu))
-            record_track(recorder, run.times, np.column_stack([xy, up_measured]), np.column_stack([est_xy, up_estimated]), *geo)
+            record_track(recorder, estimator.name, run.times, *in_3d, *geo)
     finally:
         if recorder is not None:
             recorder.close()

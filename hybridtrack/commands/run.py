@@ -7,6 +7,15 @@ chunk; running the same command again after an interruption computes only the
 missing runs.  Prints the mean (and standard deviation) of every result over
 the runs, or with ``--json`` the same as JSON.
 
+Recordings (:mod:`hybridtrack.experiment.recordings`): ``--record K`` replays
+K runs spread evenly over the indices (``round(linspace(0, n−1, K))``: the
+first and the last included), ``--record-runs I,J,…`` the runs named, each with
+the generator it had in the campaign, into ``--record-dir`` (default
+``OUT/recordings/``) as ``run_<index>.rrd`` (5 digits); the experiment's
+``run_one`` must take a ``recorder`` keyword argument (``demo_rmse`` does).
+``--summary-recording`` writes ``OUT/summary.rrd``: every result as a series
+over the run index (timeline ``run``).
+
 Exit status: 0 done; 1 a run of the experiment failed (its traceback is
 printed; the runs before it are stored); 2 a user error, one line on stderr
 naming the option or file (unknown experiment, bad option value, a folder of
@@ -24,6 +33,17 @@ from hybridtrack.cli import Command, integer_option, number_option
 _positive = integer_option(1, "a positive integer")
 _non_negative = integer_option(0, "a non-negative integer")
 _seconds = number_option(lambda v: v > 0, "a positive number of seconds")
+
+
+def _run_list(text: str) -> list[int]:
+    """``"3,17,40"`` → [3, 17, 40] (non-negative integers)."""
+    try:
+        indices = [int(part) for part in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected run indices separated by commas (3,17,40), got {text!r}") from None
+    if any(index < 0 for index in indices):
+        raise argparse.ArgumentTypeError(f"run indices must be non-negative, got {text!r}")
+    return indices
 
 
 def _one_line_errors(parser: argparse.ArgumentParser) -> None:
@@ -60,6 +80,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         help="how long --executor dask waits for the scheduler (default 10)",
     )
+    record = parser.add_mutually_exclusive_group()
+    record.add_argument(
+        "--record", type=_positive, metavar="K", help="record K runs spread evenly over the run indices (first and last included)"
+    )
+    record.add_argument("--record-runs", type=_run_list, metavar="I,J,…", help="record the runs with these indices")
+    parser.add_argument("--record-dir", metavar="DIR", help="where the run recordings go (default OUT/recordings)")
+    parser.add_argument(
+        "--summary-recording", action="store_true", help="write OUT/summary.rrd: every result as a series over the run index"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
 
@@ -73,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
 
     from hybridtrack.experiment.campaign import Campaign, CampaignInterrupted, RunFailed, campaign_parameters
     from hybridtrack.experiment.definition import UnknownExperiment
+    from hybridtrack.experiment.recordings import accepts_recorder, check_run_indices, choose_runs, record_runs, write_summary_recording
     from hybridtrack.experiment.store import CampaignLocked
 
     if args.executor == "dask" and not args.scheduler:
@@ -94,7 +124,37 @@ def run(args: argparse.Namespace) -> int:
             set_aside=args.set_aside,
             connect_timeout=args.connect_timeout,
         )
+        chosen: list[int] = []
+        if args.record is not None:
+            chosen = choose_runs(args.n, args.record)
+        elif args.record_runs is not None:
+            chosen = check_run_indices(args.record_runs, args.n)
+        if chosen and not accepts_recorder(campaign.experiment):
+            raise TypeError(
+                f"--record: experiment {campaign.experiment.name!r} cannot record its runs "
+                "(its run_one takes no 'recorder' keyword argument)"
+            )
         result = campaign.run()
+        recorded = {}
+        if chosen:
+            folder = Path(args.record_dir) if args.record_dir else result.out / "recordings"
+            recorded = record_runs(campaign.experiment, chosen, folder, seed=campaign.seed, parameters=campaign.parameters)
+            for index, (path, replayed) in recorded.items():
+                position = int(np.flatnonzero(result.arrays["index"] == index)[0])
+                if any(
+                    not np.allclose(values, result.arrays[name][position], rtol=1e-9, atol=0, equal_nan=True)
+                    for name, values in replayed.items()
+                ):
+                    print(
+                        f"hybridtrack run: warning: the recording of run {index} ({path}) gives other results than the "
+                        "stored run: the experiment draws randomness outside the generator it is given",
+                        file=sys.stderr,
+                    )
+        summary_path = None
+        if args.summary_recording:
+            summary_path = result.out / "summary.rrd"
+            configuration = {"experiment": result.experiment, "n": result.n, "seed": campaign.seed, "parameters": campaign.parameters}
+            write_summary_recording(result.arrays, summary_path, configuration)
     except CampaignInterrupted as interrupt:
         print(f"hybridtrack run: {interrupt}", file=sys.stderr)
         return 130
@@ -116,6 +176,8 @@ def run(args: argparse.Namespace) -> int:
         "seed": campaign.seed,
         "parameters": campaign.parameters,
         "results": result.summary(),
+        "recordings": {str(index): str(path) for index, (path, _) in recorded.items()},
+        "summary_recording": None if summary_path is None else str(summary_path),
     }
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -127,6 +189,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {name:<20} mean per run over {stats['shape']}: [{mean}]")
         else:
             print(f"  {name:<20} mean {stats['mean']:.6g}  (sd {stats['std']:.3g})")
+    for index, (path, _) in recorded.items():
+        print(f"  run {index} recorded in {path} (open it: rerun {path})")
+    if summary_path is not None:
+        print(f"  summary recording (every result over the run index): {summary_path}")
     return 0
 
 

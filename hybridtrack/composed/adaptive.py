@@ -59,7 +59,7 @@ from hybridtrack.interfaces import ChangeTimeTest, Estimator, HypothesisTest, Mo
 from hybridtrack.network import SensorNetwork
 from hybridtrack.pipeline import mode_labels
 from hybridtrack.plugins import resolve, resolve_registry
-from hybridtrack.recording import log_estimate, log_measurements
+from hybridtrack.recording import decision_text, log_estimate, log_measurements
 from hybridtrack.registry import Registry
 from hybridtrack.timestamps import check_tau, step_intervals
 from hybridtrack.types import Decision, Gaussian, Schedule
@@ -121,7 +121,7 @@ def _record_run(recorder, adaptive, z: np.ndarray, run, hypotheses: Sequence[str
     recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
     recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
     for d in run.decisions:
-        recorder.log_event(d.step, f"{d.detector}: {d.mode} ({d.message})", d.time)
+        recorder.log_event(d.step, decision_text(d), d.time)
     return steps, times
 
 
@@ -139,11 +139,12 @@ def _mixture(means: np.ndarray, covs: np.ndarray, loglik: np.ndarray) -> tuple[n
 
 
 def _log_columns(recorder, entity: str, steps, values: np.ndarray, names: Sequence[str], times) -> None:
-    """One scalar series per column, finite rows only (a hypothesis not in play leaves a gap)."""
+    """One scalar series per column, NaN where not finite: a hypothesis not in play leaves a gap (rerun breaks
+    a line at NaN, so no line joins two periods in play); a column never finite is not logged."""
     for j, name in enumerate(names):
-        keep = np.isfinite(values[:, j])
-        if keep.any():
-            recorder.log_scalars(f"{entity}/{name}", steps[keep], values[keep, j], None if times is None else times[keep])
+        finite = np.isfinite(values[:, j])
+        if finite.any():
+            recorder.log_scalars(f"{entity}/{name}", steps, np.where(finite, values[:, j], np.nan), times)
 
 
 # --------------------------------------------------------------------------- known switching moments
@@ -415,6 +416,7 @@ class KnownSwitchAdaptive:
     def _record(self, recorder, z: np.ndarray, run: KnownSwitchRun, truth) -> None:
         steps, times = _record_run(recorder, self, z, run, run.hypotheses, truth)
         recorder.log_scalars(f"estimator/{self.name}/followed", steps, run.followed.astype(float), times)
+        recorder.log_modes(f"world/estimate/{self.name}", steps, run.followed, run.hypotheses, times)
         # filters running per step: the hypotheses still in play, one after the decision
         bank_size = np.maximum(1, np.isfinite(run.log_ratios).sum(axis=1))
         recorder.log_scalars(f"estimator/{self.name}/bank_size", steps, bank_size.astype(float), times)
@@ -705,3 +707,4 @@ class UnknownChangeAdaptive:
             recorder.log_scalars(f"{sig}/upper", steps, run.signal_bounds[:, 1], times)
         recorder.log_scalars(f"estimator/{self.name}/bank_size", steps, run.bank_sizes.astype(float), times)
         recorder.log_scalars(f"estimator/{self.name}/mode", steps, run.mode.astype(float), times)
+        recorder.log_modes(f"world/estimate/{self.name}", steps, run.mode, run.modes, times)

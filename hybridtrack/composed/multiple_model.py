@@ -77,7 +77,6 @@ from typing import Any
 
 import attrs
 import numpy as np
-import scipy.linalg
 
 from hybridtrack.interfaces import Estimator, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
@@ -168,16 +167,26 @@ def markov_matrix(transition_matrix, modes: int) -> np.ndarray:
     return P / sums[:, None]
 
 
-def sojourn_matrix(sojourn: np.ndarray, dt: float) -> np.ndarray:
-    """Π(Δt) = expm(Λ Δt), Λ_ii = −1/T_i, Λ_ij = 1/(T_i (r − 1)): mean sojourn T_i, equal rates to the others."""
+def sojourn_matrix(sojourn: np.ndarray, dt) -> np.ndarray:
+    """Π(Δt) = expm(Λ Δt), Λ_ii = −1/T_i, Λ_ij = 1/(T_i (r − 1)): mean sojourn T_i, equal rates to the others.
+
+    Λ = D A with D = diag(1/T_i) and the symmetric A = (J − r I)/(r − 1) (J all ones), so Λ is similar to the
+    symmetric S = D^½ A D^½ = U diag(λ) Uᵀ and expm(Λ Δt) = D^½ U diag(e^{λ Δt}) Uᵀ D^−½ (Moler & Van Loan
+    2003, SIAM Review 45(1), method 14, for a matrix similar to a symmetric one): one eigendecomposition for
+    every Δt.  ``dt`` one step (→ (r, r)) or an array of steps (D,) (→ (D, r, r)).  Entries are clipped
+    at 0 and the rows renormalized against rounding.
+    """
     r = sojourn.shape[0]
+    steps = np.asarray(dt, dtype=float)
     if r == 1:
-        return np.ones((1, 1))
-    rate = 1.0 / sojourn
-    generator = np.repeat((rate / (r - 1))[:, None], r, axis=1)
-    np.fill_diagonal(generator, -rate)
-    P = np.clip(scipy.linalg.expm(generator * dt), 0.0, None)
-    return P / P.sum(axis=1, keepdims=True)
+        return np.ones(steps.shape + (1, 1))
+    root = np.sqrt(1.0 / sojourn)
+    A = (np.ones((r, r)) - r * np.eye(r)) / (r - 1)
+    lam, U = np.linalg.eigh(root[:, None] * A * root[None, :])
+    left, right = root[:, None] * U, U.T / root[None, :]
+    P = left @ (np.exp(lam * steps[..., None])[..., :, None] * right)
+    P = np.clip(P, 0.0, None)
+    return P / P.sum(axis=-1, keepdims=True)
 
 
 # --------------------------------------------------------------------------- state and result
@@ -241,6 +250,10 @@ class MultipleModelRun:
     def most_probable(self) -> np.ndarray:
         """argmax_j μ_j per step (K+1,) (or (K+1, R)), an index into ``modes``."""
         return np.argmax(self.log_mode_probabilities, axis=-1)
+
+
+#: the per-step fields of a :class:`MultipleModelRun` after ``times``, as named on :class:`MultipleModelState`
+RUN_FIELDS = ("mean", "cov", "log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik")
 
 
 # --------------------------------------------------------------------------- the estimator
@@ -349,6 +362,18 @@ class MultipleModelEstimator:
                 self._log_matrices[key] = np.log(matrix)
         return self._log_matrices[key]
 
+    def log_transition_matrices(self, dt) -> np.ndarray:
+        """ln Π(Δt_r) for steps ``dt`` (R,) → (R, r, r); the Δt not seen before are computed in one expm call."""
+        if self._matrix is not None:
+            return np.broadcast_to(self.log_transition_matrix(None), (len(dt),) + self._matrix.shape)
+        keys = [float(d) for d in dt]
+        new = sorted({key for key in keys if key not in self._log_matrices})
+        if new:
+            with np.errstate(divide="ignore"):
+                for key, matrix in zip(new, np.log(sojourn_matrix(self._sojourn, np.array(new)))):
+                    self._log_matrices[key] = matrix
+        return np.stack([self._log_matrices[key] for key in keys])
+
     # ------------------------------------------------------------------ layouts
     def expand(self, means: np.ndarray, covs: np.ndarray, model: int) -> tuple[np.ndarray, np.ndarray]:
         """Model ``model``'s (…, n_j) means and covariances in the union layout, lacking components filled."""
@@ -367,10 +392,26 @@ class MultipleModelEstimator:
         return means[..., pos], covs[..., pos[:, None], pos[None, :]]
 
     # ------------------------------------------------------------------ the parts
-    def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt: float | None, z: np.ndarray):
+    def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
         """Model-conditioned filtering of F filters per run: start (R, F, n) in the union layout, filter f runs
-        model ``filter_models[f]``; predict over ``dt`` (None: update only) and update with z (R, Σm).
-        Returns the posteriors (R, F, n), (R, F, n, n) in the union layout and ℓ (R, F)."""
+        model ``filter_models[f]``; predict over ``dt`` (seconds, one for all runs or (R,) per run; None: update
+        only) and update with z (R, Σm).  Returns the posteriors (R, F, n), (R, F, n, n) in the union layout
+        and ℓ (R, F).  Runs missing different components (NaN) are filtered in groups of one pattern each
+        (a bank has one pattern)."""
+        missing = np.isnan(z)
+        if (missing == missing[0]).all():
+            return self._filter_runs(start_means, start_covs, filter_models, dt, z)
+        R, F, n = start_means.shape
+        means, covs, loglik = np.empty((R, F, n)), np.empty((R, F, n, n)), np.empty((R, F))
+        patterns, which = np.unique(missing, axis=0, return_inverse=True)
+        for g in range(len(patterns)):
+            runs = np.flatnonzero(which.reshape(-1) == g)
+            part_dt = dt if dt is None or np.ndim(dt) == 0 else np.asarray(dt)[runs]
+            means[runs], covs[runs], loglik[runs] = self._filter_runs(start_means[runs], start_covs[runs], filter_models, part_dt, z[runs])
+        return means, covs, loglik
+
+    def _filter_runs(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
+        """:meth:`_filter` for runs that all miss the same components."""
         R, F, n = start_means.shape
         means = np.empty((R, F, n))
         covs = np.empty((R, F, n, n))
@@ -390,7 +431,8 @@ class MultipleModelEstimator:
             state = self.estimator.initialize(x0_flat, 0.5 * (P0 + np.swapaxes(P0, -1, -2)).reshape(R * rows.size, pos.size, pos.size))
             if dt is not None:
                 models = [self.models[filter_models[f]] for f in rows] * R
-                bank = self._same_bank(key, TransitionBank.stack([m.transition(dt, x) for m, x in zip(models, x0_flat)]))
+                steps = [float(dt)] * len(models) if np.ndim(dt) == 0 else np.repeat(np.asarray(dt, dtype=float), rows.size).tolist()
+                bank = self._same_bank(key, TransitionBank.stack([m.transition(d, x) for m, d, x in zip(models, steps, x0_flat)]))
                 state = self.estimator.predict(state, bank)
             measurement = z[0] if R == 1 else np.repeat(z, rows.size, axis=0)
             state, innovation = self.estimator.update(state, measurement, sensors, layout)
@@ -440,12 +482,16 @@ class MultipleModelEstimator:
         total = log_sum_exp(joint, axis=-1)
         return self._combine(means, covs, joint - total[:, None], ell, total)
 
-    def step(self, state: MultipleModelState, z: np.ndarray, dt: float) -> MultipleModelState:
-        """One step k ≥ 1 over Δt = ``dt`` with measurements z (R, Σm) (NaN: not measured)."""
+    def step(self, state: MultipleModelState, z: np.ndarray, dt) -> MultipleModelState:
+        """One step k ≥ 1 over Δt = ``dt`` (seconds, one for all runs or (R,) per run) with measurements z (R, Σm)
+        (NaN: not measured)."""
         r = len(self.models)
-        log_pi = self.log_transition_matrix(dt)
+        if np.ndim(dt) == 0:
+            log_pi = self.log_transition_matrix(float(dt))[None]
+        else:
+            log_pi = self.log_transition_matrices(dt)  # ln Π(Δt_r) per run, (R, r, r)
         log_mu = state.log_mode_probabilities
-        joint_prior = log_pi[None] + log_mu[:, :, None]  # ln π_ij μ_i, (R, i, j)
+        joint_prior = log_pi + log_mu[:, :, None]  # ln π_ij μ_i, (R, i, j)
         log_cbar = log_sum_exp(joint_prior, axis=1)  # ln c̄_j (R, j)
         if self.method == "gpb2":
             R, n = state.mean.shape
@@ -523,8 +569,65 @@ class MultipleModelEstimator:
         series per model, the most probable mode and the measurements.
         """
         z, stacked = self._stack(measurements)
-        K, R = z.shape[0] - 1, z.shape[1]
+        K = z.shape[0] - 1
         t, dt = step_intervals(times, self.tau, K + 1)
+        states = self._states(z, prior, [float(d) for d in dt], mode_probabilities, prior_layout)
+
+        def series(field):
+            out = np.stack([getattr(s, field) for s in states])
+            return out if stacked else out[:, 0]
+
+        run = MultipleModelRun(self.layout, self.modes, self.method, t, *(series(field) for field in RUN_FIELDS))
+        if recorder is not None:
+            if stacked:
+                raise ValueError("recorder: a recording holds one run; record the runs one at a time")
+            self._record(recorder, z[:, 0], run, truth)
+        return run
+
+    def run_batch(
+        self,
+        measurements: Mapping[str, np.ndarray],
+        prior,
+        *,
+        times=None,
+        truth=None,
+        recorders: Mapping[int, Any] | None = None,
+        mode_probabilities=None,
+        prior_layout: Sequence[str] | None = None,
+    ) -> list[MultipleModelRun]:
+        """R runs vectorized over runs × models, one :class:`MultipleModelRun` per run, equal to :meth:`run` of each.
+
+        ``measurements``: sensor name → (R, K+1, m) (NaN: not measured; runs may
+        miss different components); ``times``: (K+1,) shared or (R, K+1) per run
+        (irregular), default ``tau``; ``prior``: one Gaussian or per-run means
+        (R, n) and covariances (R, n, n); ``truth``: per-run trajectories (a
+        sequence of R or run → trajectory) recorded beside the estimates;
+        ``recorders``: run index → recorder for the runs to record.
+        """
+        from hybridtrack.batch import batch_measurements, batch_times, per_run
+
+        arrays, R, steps = batch_measurements(measurements)
+        T, DT = batch_times(times, self.tau, R, steps)
+        truths = per_run(truth, R, "truth")
+        recorders = dict(recorders or {})
+        per_run(recorders, R, "recorders")
+        z, _ = self._stack({name: np.swapaxes(a, 0, 1) for name, a in arrays.items()})
+        same = bool((DT == DT[:1]).all())
+        dts = [float(DT[0, k]) if same else np.array(DT[:, k]) for k in range(steps - 1)]
+        states = self._states(z, prior, dts, mode_probabilities, prior_layout)
+        stacked = {field: np.stack([getattr(s, field) for s in states]) for field in RUN_FIELDS}
+        runs = []
+        for r in range(R):
+            t = np.array(T[r])
+            t.setflags(write=False)
+            runs.append(MultipleModelRun(self.layout, self.modes, self.method, t, *(stacked[f][:, r] for f in RUN_FIELDS)))
+        for r, recorder in recorders.items():
+            self._record(recorder, z[:, r], runs[r], truths[r])
+        return runs
+
+    def _states(self, z, prior, dts, mode_probabilities, prior_layout) -> list[MultipleModelState]:
+        """The state after each step of z (K+1, R, Σm): start, then one step per Δt of ``dts`` (a float or (R,))."""
+        R = z.shape[1]
         mean, cov = (prior.mean, prior.cov) if isinstance(prior, Gaussian) else prior
         mean, cov = np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
         if mean.ndim == 1:
@@ -536,31 +639,9 @@ class MultipleModelEstimator:
             for i in range(R):
                 check_covariance(cov[i], f"prior cov[{i}]", mean.shape[1])
         states = [self.start(mean, cov, z[0], mode_probabilities, prior_layout)]
-        for k in range(1, K + 1):
-            states.append(self.step(states[-1], z[k], float(dt[k - 1])))
-
-        def series(field):
-            out = np.stack([getattr(s, field) for s in states])
-            return out if stacked else out[:, 0]
-
-        run = MultipleModelRun(
-            self.layout,
-            self.modes,
-            self.method,
-            t,
-            series("mean"),
-            series("cov"),
-            series("log_mode_probabilities"),
-            series("model_means"),
-            series("model_covs"),
-            series("model_loglik"),
-            series("loglik"),
-        )
-        if recorder is not None:
-            if stacked:
-                raise ValueError("recorder: a recording holds one run; record the runs one at a time")
-            self._record(recorder, z[:, 0], run, truth)
-        return run
+        for k, dt in enumerate(dts, start=1):
+            states.append(self.step(states[-1], z[k], dt))
+        return states
 
     def _stack(self, measurements: Mapping[str, np.ndarray]) -> tuple[np.ndarray, bool]:
         """z (K+1, R, Σm) and whether the runs were stacked (measurements (K+1, R, m))."""
@@ -588,3 +669,4 @@ class MultipleModelEstimator:
         for j, mode in enumerate(self.modes):
             recorder.log_scalars(f"estimator/{self.name}/mode_probability/{mode}", steps, run.mode_probabilities[:, j], times)
         recorder.log_scalars(f"estimator/{self.name}/mode", steps, run.most_probable.astype(float), times)
+        recorder.log_modes(f"world/estimate/{self.name}", steps, run.most_probable, self.modes, times)

@@ -5,9 +5,10 @@
 * :mod:`~hybridtrack.experiment.executors` — ``inline``, ``process`` (default), ``dask``;
 * :mod:`~hybridtrack.experiment.store` — the result folder (manifest + one NPZ per finished chunk);
 * :mod:`~hybridtrack.experiment.campaign` — :class:`Campaign`, which ties them together;
+* :mod:`~hybridtrack.experiment.recordings` — chosen runs replayed with a recorder, the summary recording;
 * :mod:`~hybridtrack.experiment.builtin` — the built-in ``demo_rmse`` experiment.
 
-The command line is ``hybridtrack run EXPERIMENT [--n N] [--executor …] [--out DIR]``.
+The command line is ``hybridtrack run EXPERIMENT [--n N] [--executor …] [--out DIR] [--record K] [--summary-recording]``.
 """
 
 from hybridtrack.experiment.campaign import Campaign, CampaignInterrupted, CampaignResult, RunFailed, run_campaign

@@ -28,17 +28,23 @@ def scaled_schedule(schedule: Schedule, factor: float) -> Schedule:
     return Schedule([Segment(s.mode, max(1, round(s.steps * factor)), s.radius, s.acceleration) for s in schedule.segments])
 
 
-def simulate_seed001(rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0):
-    """(schedule, sensors, trajectory, measurements) of one seed-001 run drawn from ``rng``."""
+def simulate_seed001(rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0, recorder=None):
+    """(schedule, sensors, trajectory, measurements) of one seed-001 run drawn from ``rng``.
+
+    With a ``recorder`` the truth (``world/truth``) and the measurements (``world/measurements/sensor``) are logged.
+    """
     from hybridtrack.plugins import resolve
+    from hybridtrack.recording import log_measurements
     from hybridtrack.simulate import simulate_measurements, simulate_trajectory
 
     schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
     sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
     # two independent streams from the run's generator (simulate() itself takes an int seed only)
     trajectory_rng, measurement_rng = rng.spawn(2)
-    truth = simulate_trajectory(schedule, X0, tau, seed=trajectory_rng, noise_cov=float(q) * np.eye(2))
+    truth = simulate_trajectory(schedule, X0, tau, seed=trajectory_rng, noise_cov=float(q) * np.eye(2), recorder=recorder)
     measurements = simulate_measurements(truth, sensors, seed=measurement_rng)
+    if recorder is not None:
+        log_measurements(recorder, sensors, measurements, truth.steps, truth.times)
     return schedule, sensors, truth, measurements
 
 
@@ -48,7 +54,7 @@ def squared_errors(means: np.ndarray, truth, layout) -> np.ndarray:
     return np.sum(error**2, axis=0)
 
 
-def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman"):
+def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman", recorder=None):
     """The optimal KF of seed 001 (told the modes; prior N(x0, I)) on one run's measurements."""
     from hybridtrack.composed.known_modes import run_known_modes
     from hybridtrack.types import Gaussian
@@ -61,15 +67,16 @@ def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float,
         prior=Gaussian(np.array(X0), np.eye(4)),
         tau=tau,
         noise_cov=float(q) * np.eye(2),
+        recorder=recorder,
     )
 
 
 def known_modes_errors(
-    rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0, estimator: str = "kalman"
+    rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0, estimator: str = "kalman", recorder=None
 ) -> dict[str, Any]:
-    """Squared errors (steps 1 … K) of the known-modes KF on one simulated seed-001 trajectory."""
-    schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
-    run = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau, estimator=estimator)
+    """Squared errors (steps 1 … K) of the known-modes KF on one simulated seed-001 trajectory (logged to ``recorder``)."""
+    schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale, recorder=recorder)
+    run = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau, estimator=estimator, recorder=recorder)
     squared = squared_errors(run.means, truth, run.layout)
     steps = schedule.total_steps
     return {
@@ -85,8 +92,8 @@ def pooled_rmse(squared_error: np.ndarray, steps: np.ndarray) -> np.ndarray:
     return np.sqrt(np.sum(squared_error, axis=0) / np.sum(steps))
 
 
-def _demo_rmse(index: int, rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float) -> dict:
-    return known_modes_errors(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
+def _demo_rmse(index: int, rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float, recorder=None) -> dict:
+    return known_modes_errors(rng, R=R, q=q, tau=tau, steps_scale=steps_scale, recorder=recorder)
 
 
 DEMO_RMSE = Experiment(

@@ -133,7 +133,8 @@ class Campaign:
     ``inline``, ``process`` (default) or ``dask`` (needs ``scheduler``, an
     address or a ``distributed.Client``); ``workers`` sizes the process pool;
     ``chunk_size`` runs are stored per file (default: about four chunks per
-    worker, at most 25 runs); ``progress`` shows a tqdm bar when stderr is a
+    worker, at most 25 runs; for an experiment with ``run_batch``, where a
+    chunk is one batch, one chunk per worker of at most its ``batch_size``); ``progress`` shows a tqdm bar when stderr is a
     terminal; ``set_aside`` moves unreadable or foreign chunk files (and a
     damaged manifest) into ``OUT/set_aside/`` instead of stopping, and their
     runs are computed again; ``connect_timeout`` is how long the dask
@@ -171,6 +172,8 @@ class Campaign:
     def _chunk_size(self, missing: int, workers: int) -> int:
         if self.chunk_size is not None:
             return self.chunk_size
+        if self.experiment.run_batch is not None:  # a chunk is one batch: as large as the experiment's batch_size
+            return max(1, min(self.experiment.batch_size, math.ceil(missing / workers)))
         return max(1, min(25, math.ceil(missing / (4 * workers))))
 
     def run(self) -> CampaignResult:

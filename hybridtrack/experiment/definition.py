@@ -7,6 +7,16 @@ and shapes for every run) and default ``parameters``.  The runner gives run
 ``child`` is the ``index``-th child of ``SeedSequence(seed)``; ``run_one`` must
 draw all its randomness from that generator.
 
+An experiment may also declare ``run_batch(indices, rngs, **parameters)``: the
+runs ``indices`` of a chunk at once (e.g. stacked into one bank with
+``Pipeline.run_batch``), ``rngs[i]`` the generator of run ``indices[i]`` —
+the same per-run generator ``run_one`` would get, so each run must draw only
+from its own generator and the results cannot depend on the chunking.  It
+returns one mapping per run (a list, in the order of ``indices``), or one
+mapping name → array stacked over the runs (first axis ``len(indices)``);
+the results must equal ``run_one``'s (the runner falls back to ``run_one``
+for experiments without ``run_batch``, and to locate a failing run).
+
 Worker processes (``process`` and ``dask`` executors) do not receive the
 function itself but a *locator* string they resolve on their side, so an
 experiment defined in a script that is not an importable module still runs
@@ -58,6 +68,8 @@ class Experiment:
     JSON-serializable since the result folder's manifest records them.
     ``locator`` says how a worker process finds this object again (set by
     :func:`load_experiment`; ``None`` means pickle the function by reference).
+    ``run_batch`` (optional) runs a chunk of runs at once (module docstring);
+    ``batch_size`` is then the default chunk size of a campaign (runs per batch).
     """
 
     name: str
@@ -65,12 +77,18 @@ class Experiment:
     parameters: dict[str, Any] = attrs.field(factory=dict, converter=_parameters)
     description: str = ""
     locator: str | None = None
+    run_batch: Callable[..., Any] | None = None
+    batch_size: int = 100
 
     def __attrs_post_init__(self):
         if not self.name or not isinstance(self.name, str):
             raise ValueError(f"Experiment name: expected a non-empty string, got {self.name!r}")
         if not callable(self.run_one):
             raise TypeError(f"Experiment {self.name!r}: run_one must be callable, got {self.run_one!r}")
+        if self.run_batch is not None and not callable(self.run_batch):
+            raise TypeError(f"Experiment {self.name!r}: run_batch must be callable or None, got {self.run_batch!r}")
+        if isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int) or self.batch_size < 1:
+            raise ValueError(f"Experiment {self.name!r}: batch_size must be a positive integer, got {self.batch_size!r}")
 
     def with_parameters(self, **overrides: Any) -> dict[str, Any]:
         """The defaults updated by ``overrides``; an unknown parameter name is an error."""

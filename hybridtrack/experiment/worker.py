@@ -11,6 +11,15 @@ together with the failure, so the campaign can store them before reporting it.
 A Ctrl-C (KeyboardInterrupt) inside a run likewise returns the runs finished
 before it, flagged ``interrupted``.
 
+An experiment with ``run_batch`` gets the whole chunk as one batch: the runs'
+indices and their generators (each built by the rule above, so a run's numbers
+do not depend on which chunk it falls in).  When the batch raises, the chunk is
+run again one run at a time with ``run_one`` (fresh generators) to find the
+failing run and keep the runs before it; if every run then succeeds, the chunk
+is stored from ``run_one`` and the batch's error is still reported (a
+``run_batch`` that disagrees with ``run_one`` is a bug to see).  A Ctrl-C
+inside a batch loses that chunk only (``interrupted``, nothing stored from it).
+
 Process-pool workers start with :func:`worker_init`: they ignore SIGINT (the
 main process handles Ctrl-C and ends them) and a watchdog thread ends the
 worker within :data:`PARENT_POLL` seconds once its parent process is gone (a
@@ -112,9 +121,56 @@ def _experiment(source: str | Experiment) -> Experiment:
     return resolve_locator(source) if isinstance(source, str) else source
 
 
+def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> list[dict[str, np.ndarray]]:
+    """``run_batch``'s result (one mapping per run, or name → array stacked over the runs) as one row per run."""
+    count = len(indices)
+    if isinstance(result, Mapping):
+        for name, value in result.items():
+            if np.shape(value)[:1] != (count,):
+                raise ValueError(
+                    f"experiment {experiment.name!r}: run_batch result {name!r} has shape {np.shape(value)}, "
+                    f"expected ({count}, …) (one row per run of the chunk)"
+                )
+        result = [{name: value[i] for name, value in result.items()} for i in range(count)]
+    elif not isinstance(result, Sequence) or isinstance(result, (str, bytes)):
+        raise TypeError(
+            f"experiment {experiment.name!r}: run_batch returned {type(result).__name__}, "
+            "expected a list of mappings (one per run) or a mapping name → array stacked over the runs"
+        )
+    if len(result) != count:
+        raise ValueError(f"experiment {experiment.name!r}: run_batch returned {len(result)} results for {count} runs")
+    rows = []
+    for index, row in zip(indices, result):
+        if not isinstance(row, Mapping):
+            raise TypeError(f"experiment {experiment.name!r}, run {index}: run_batch gave {type(row).__name__}, expected a mapping")
+        rows.append({name: _as_row(experiment.name, index, name, value) for name, value in row.items()})
+    return rows
+
+
 def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
-    """Run ``indices`` of the experiment (a locator or the object itself) with ``parameters``."""
+    """Run ``indices`` of the experiment (a locator or the object itself) with ``parameters``: as one batch when
+    the experiment has ``run_batch``, else (or to locate a failure) one run at a time."""
     experiment = _experiment(source)
+    if experiment.run_batch is None or not indices:
+        return _run_each(experiment, parameters, seed, indices)
+    indices = [int(i) for i in indices]
+    rngs = [np.random.default_rng(run_seed(seed, index)) for index in indices]
+    try:
+        rows = _batch_rows(experiment, indices, experiment.run_batch(indices, rngs, **parameters))
+        stacked = _stack(experiment.name, indices, rows)
+    except Exception as error:
+        report = f"{type(error).__name__} in run_batch of runs {indices[0]}…{indices[-1]}: {error}\n{traceback.format_exc()}"
+        outcome = _run_each(experiment, parameters, seed, indices)
+        if outcome.failure is None and not outcome.interrupted:
+            return attrs.evolve(outcome, failure=(indices[0], report))
+        return outcome
+    except KeyboardInterrupt:
+        return ChunkOutcome((), {}, None, True)
+    return ChunkOutcome(tuple(indices), stacked)
+
+
+def _run_each(experiment: Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
+    """The chunk one run at a time with ``run_one``, stopping at the first failure or Ctrl-C."""
     done: list[int] = []
     rows: list[dict[str, np.ndarray]] = []
     failure = None

@@ -101,5 +101,51 @@ class SignalFunction(ScoreDetector):
                 self.reset()
         return DetectorStep({"signal": signal.copy(), "dof": dof}, {"upper": upper, "lower": lower}, decision)
 
+    @classmethod
+    def observe_runs(cls, detectors, step, loglik, nis, m) -> list[DetectorStep]:
+        """:meth:`observe` for R runs at once (one detector per run, ℓ and NIS (R, M)): vectorized for cumulative
+        detectors of one configuration — Σ NIS, D, S and the bounds (one quantile per distinct D) over the runs —
+        else the per-run loop.  Equal to ``observe`` run by run (the same arithmetic per element)."""
+        first = detectors[0]
+        config = (first.window, first.alpha, first.calibration, first.watch, first.reset_on_alarm)
+        if first.window is not None or any(
+            type(d) is not cls or (d.window, d.alpha, d.calibration, d.watch, d.reset_on_alarm) != config for d in detectors
+        ):
+            return super().observe_runs(detectors, step, loglik, nis, m)
+        nis = np.asarray(nis, dtype=float)
+        R, M = nis.shape
+        if first.watch >= M:
+            raise ValueError(f"watch: filter {first.watch} is not in a bank of {M} filters")
+        for d in detectors:
+            if d._sum is not None and d._sum.shape != (M,):
+                raise ValueError(f"nis: the watched bank changed from {d._sum.shape[0]} to {M} filters; call reset() first")
+        totals = np.stack([np.zeros(M) if d._sum is None else d._sum for d in detectors])
+        dofs = np.array([d._dof for d in detectors], dtype=float)
+        m = int(m)
+        if m > 0:
+            totals = totals + nis
+            dofs = dofs + m
+        signals = signal_bounds.standardize(totals, dofs[:, None])
+        if first.calibration == "normal":  # ±Φ⁻¹(1 − α/2) whatever D: one quantile for all runs
+            common = signal_bounds.bounds(first.alpha, 0.0, "normal")
+            limits = {dof: common for dof in np.unique(dofs)}
+        else:
+            limits = {dof: signal_bounds.bounds(first.alpha, float(dof), first.calibration) for dof in np.unique(dofs)}
+        outputs = []
+        for r, d in enumerate(detectors):
+            d._sum, d._dof = totals[r], float(dofs[r])
+            lower, upper = limits[dofs[r]]
+            dof, value = float(dofs[r]), float(signals[r, first.watch])
+            decision = None
+            if dof > 0 and not (lower <= value <= upper):
+                side = "above" if value > upper else "below"
+                decision = Decision(
+                    step, d.label, "change", value, f"signal function {value:.2f} {side} the bound ({lower:.2f}, {upper:.2f}), D = {dof:g}"
+                )
+                if d.reset_on_alarm:
+                    d.reset()
+            outputs.append(DetectorStep({"signal": signals[r].copy(), "dof": dof}, {"upper": upper, "lower": lower}, decision))
+        return outputs
+
 
 COMPONENTS = {SignalFunction.name: SignalFunction}

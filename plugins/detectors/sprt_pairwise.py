@@ -103,7 +103,7 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
                     self.label,
                     self.hypothesis_name(i),
                     float(ratio[i]),
-                    f"{self.hypothesis_name(i)} accepted, log-LR margin {ratio[i]:.2f} (A = {self.upper:.2f})",
+                    f"{self.hypothesis_name(i)} accepted with margin {ratio[i]:.2f} (A = {self.upper:.2f})",
                 )
         ratio = np.where(self.active, margins(self.L, self.active), self.frozen)
         return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision)

@@ -30,6 +30,21 @@ components share one array width C).
 * Read-out: mean = Σ_c w_c x_c, covariance = Σ_c w_c (P_c + (x_c − x̄)(x_c − x̄)ᵀ)
   (the moment-matched mixture); one component is exactly the EKF.
 
+* In clutter (``accepts_scans``: ``z`` a :class:`~hybridtrack.clutter.Scan` or a
+  sequence of them; linear sensors with a constant R): the exact Bayes update of
+  a Gaussian mixture on a scan is again a mixture — every component c branches
+  into a "missed" child (x_c⁻, P_c⁻, weight ∝ w_c (1 − P_D P_G)) and one child per
+  gated candidate r (the Kalman update with ν_cr, weight ∝ w_c (P_D/λ) N(ν_cr; 0, S_c)),
+  Salmond 1990 ("Mixture reduction algorithms for target tracking in clutter",
+  Proc. SPIE 1305) — which the reduction above brings back to at most
+  ``max_components``.  ℓ = ln Σ_c w_c⁻ [(1 − P_D P_G) + (P_D/λ) Σ_r N(ν_cr; 0, S_c)],
+  the mixture's PDA association likelihood ln Λ (for λ = 0 the λ-factor is
+  left out, and the miss term too when a candidate is gated, as in PDA).  The
+  gate γ (P(χ²_m ≤ γ) = P_G) is per component; the association record holds the
+  mixture's ẑ, S (moment-matched), β_r = Σ_c (weight of the children of r),
+  β_0 = Σ_c (weight of the missed children).  One component, P_D = 1, λ = 0, no
+  gate and one candidate: the Kalman update.
+
 :func:`range_parameterised` builds the range-parameterised initial mixture for
 bearings-only tracking (Peach 1995; Arulampalam & Ristic 2000).
 """
@@ -42,11 +57,14 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack.clutter import check_clutter_density, check_detection_probability
 from hybridtrack.estimation import BankEstimator, bank_field, guarded
-from hybridtrack.interfaces import Innovation, Sensor, TransitionBank, check_prior
+from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior
 from hybridtrack.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
+from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import as_float_array
 from hybridtrack_plugins.filters import _covariance as cov_form
+from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold, scan_sensor_model
 from hybridtrack_plugins.sensors.bearing import check_convention, direction
 
 _LAYOUT = ("x", "vx", "y", "vy")
@@ -123,12 +141,15 @@ class GaussianSumFilter(BankEstimator):
     ``prune_threshold`` (default 1e-5): weights below it are dropped;
     ``max_components`` (default 16): cap on the components per filter;
     ``form``/``engine``: the component update of :mod:`._covariance`
-    (``"joseph"``, numpy/numba as the ``kalman`` estimator).
+    (``"joseph"``, numpy/numba as the ``kalman`` estimator).  For scans
+    (clutter): ``detection_probability`` P_D in (0, 1], ``clutter_density`` λ ≥ 0,
+    ``gate_probability`` P_G in (0, 1) or None (no gate).
     """
 
     name = "gaussian_sum"
     exact_kalman = False
     accepts_nonlinear = True
+    accepts_scans = True
 
     def __init__(
         self,
@@ -137,8 +158,14 @@ class GaussianSumFilter(BankEstimator):
         max_components: int = 16,
         form: str = "joseph",
         engine: str = "auto",
+        detection_probability: float = 1.0,
+        clutter_density: float = 0.0,
+        gate_probability: float | None = 0.99,
     ):
         super().__init__()
+        self.detection_probability = check_detection_probability(detection_probability)
+        self.clutter_density = check_clutter_density(clutter_density)
+        self.gate_probability = check_gate_probability(gate_probability)
         if merge_threshold is not None:
             merge_threshold = float(merge_threshold)
             if not (math.isfinite(merge_threshold) and merge_threshold >= 0):
@@ -226,6 +253,9 @@ class GaussianSumFilter(BankEstimator):
     def update(self, state: MixtureState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         """Component-wise EKF updates, Bayes weights in log space, then pruning and merging (module docstring)."""
         M, C, n = state.x.shape
+        scans = _as_scans(z)
+        if scans is not None or (isinstance(z, (list, tuple)) and len(z) == 0):
+            return self._update_scans(state, scans or [], sensors, layout)
         z = np.asarray(z, dtype=float)
         z_rows = np.repeat(z, C, axis=0) if z.ndim == 2 else z  # one row per component
         found = self.linearize(state.x.reshape(M * C, n), z_rows, sensors, layout)
@@ -254,6 +284,101 @@ class GaussianSumFilter(BankEstimator):
         x, P, log_weights = self.reduce(x, P, log_weights)
         self.check_finite("update", updated_mean=x, updated_covariance=P)
         return self._state(x, P, log_weights, predicted, innovation), innovation
+
+    # ------------------------------------------------------------------ update in clutter
+    def _update_scans(self, state: MixtureState, scans: list, sensors, layout):
+        """Branch every component on each scan (missed + one child per gated candidate), then reduce (module docstring)."""
+        M, C, n = state.x.shape
+        if len(layout) != n:
+            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        if isinstance(sensors, Sensor):
+            sensors = (sensors,)
+        by_name = {s.name: s for s in sensors}
+        x, P, log_weights = state.x, state.P, state.log_weights
+        loglik = np.zeros(M)
+        used, blocks, records = [], [], []
+        for scan in scans:
+            sensor, model = scan_sensor_model(self, scan, by_name, layout)
+            x, P, log_weights, scan_loglik, record, combined, S = self._branch(x, P, log_weights, scan, sensor, model)
+            x, P, log_weights = self.reduce(x, P, log_weights)
+            records.append(record)
+            loglik = loglik + np.where(np.isfinite(scan_loglik), scan_loglik, 0.0)
+            if scan.size:
+                used.append(combined)
+                blocks.append(S)
+        if used:
+            nu = np.concatenate(used, axis=-1)
+            S = block_diagonal(blocks)
+            _, nis = CholeskyFactor(S, "innovation covariance S").scores(nu)
+        else:
+            nu, S, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M)
+        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
+        self.check_finite("update", updated_mean=x, updated_covariance=P)
+        predicted = (state.predicted_mean, state.predicted_covariance)
+        return self._state(x, P, log_weights, predicted, innovation), innovation
+
+    def _branch(self, x, P, log_weights, scan, sensor, model):
+        """Children of one scan: x (M, C(1+L), n), P, ln w (normalised), ln Λ (M,), the Association, combined ν, S."""
+        M, C, n = x.shape
+        L, m = scan.z.shape
+        P_D, lam = self.detection_probability, self.clutter_density
+        P_G = 1.0 if self.gate_probability is None else self.gate_probability
+        H, R = model.H, np.asarray(sensor.noise_cov, dtype=float)
+        flat_x, flat_P = x.reshape(M * C, n), P.reshape(M * C, n, n)
+        z_pred = flat_x @ H.T  # (MC, m)
+        # the Kalman update of every component (ν = 0 gives the gain and P⁺; the children add K ν_cr)
+        _, P_new, S_c, chol_c, K = cov_form.update(flat_x, flat_P, np.zeros((M * C, m)), H, R, model.selection, self.form)
+        cand = np.broadcast_to(scan.z[None], (M * C, L, m))
+        pred = np.broadcast_to(z_pred[:, None, :], (M * C, L, m))
+        nu = cand - pred if model.plain_residual else np.asarray(sensor.residual(cand, pred))  # (MC, L, m)
+        d2 = distances(nu, chol_c)  # (MC, L)
+        gamma = gate_threshold(self.gate_probability, m)
+        gated = d2 <= gamma
+        half = 0.5 * (m * math.log(2 * math.pi) + 2.0 * np.log(np.diagonal(chol_c, axis1=-2, axis2=-1)).sum(axis=-1))  # ln √|2πS_c|
+        with np.errstate(divide="ignore"):
+            log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
+        log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
+        child_detect = np.where(gated, log_detect - half[:, None] - 0.5 * d2, -np.inf).reshape(M, C, L)
+        any_gated = gated.reshape(M, C * L).any(axis=1) if L else np.zeros(M, dtype=bool)
+        miss = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
+        terms = np.concatenate([np.broadcast_to(miss[:, None, None], (M, C, 1)), child_detect], axis=2)  # (M, C, 1 + L)
+        joint = log_weights[:, :, None] + terms
+        loglik = logsumexp(joint.reshape(M, -1))
+        informative = np.isfinite(loglik)
+        joint = np.where(informative[:, None, None], joint - np.where(informative, loglik, 0.0)[:, None, None], 0.0)
+        if not informative.all():  # nothing possible under the model (P_D P_G = 1 and nothing gated): keep the prior
+            joint[~informative] = np.concatenate(
+                [log_weights[~informative][:, :, None], np.full((int((~informative).sum()), C, L), -np.inf)], axis=2
+            )
+        x_children = np.concatenate([flat_x[:, None, :], flat_x[:, None, :] + np.einsum("kij,klj->kli", K, nu)], axis=1)
+        P_children = np.concatenate([flat_P[:, None], np.broadcast_to(P_new[:, None], (M * C, L, n, n))], axis=1)
+        # association record over the mixture: ẑ = Σ w z_c, S moment-matched, β_r, β_0
+        w = np.exp(log_weights)
+        z_c, S_cm = z_pred.reshape(M, C, m), S_c.reshape(M, C, m, m)
+        z_hat = np.einsum("mc,mci->mi", w, z_c)
+        dz = z_c - z_hat[:, None]
+        S = symmetrize(np.einsum("mc,mcij->mij", w, S_cm) + np.einsum("mc,mci,mcj->mij", w, dz, dz))
+        posterior = np.exp(joint)  # (M, C, 1 + L)
+        beta0, beta = posterior[:, :, 0].sum(axis=1), posterior[:, :, 1:].sum(axis=1)
+        cand_r = np.broadcast_to(scan.z[None], (M, L, m))
+        pred_r = np.broadcast_to(z_hat[:, None, :], (M, L, m))
+        nu_r = cand_r - pred_r if model.plain_residual else np.asarray(sensor.residual(cand_r, pred_r))
+        chol_S = cholesky(S, "innovation covariance S")
+        d2_mix = distances(nu_r, chol_S)
+        combined = np.einsum("ml,mli->mi", beta, nu_r)
+        selected = np.where(beta.sum(axis=1) > 0, np.argmax(beta, axis=1), -1).astype(np.int64) if L else np.full(M, -1, dtype=np.int64)
+        record = Association(
+            sensor.name, scan.z, z_hat, S, gamma, d2_mix, gated.reshape(M, C, L).any(axis=1), beta, beta0, selected, loglik
+        )
+        return (
+            x_children.reshape(M, C * (1 + L), n),
+            P_children.reshape(M, C * (1 + L), n, n),
+            joint.reshape(M, C * (1 + L)),
+            loglik,
+            record,
+            combined,
+            S,
+        )
 
     # ------------------------------------------------------------------ reduction
     def reduce(self, x, P, log_weights):

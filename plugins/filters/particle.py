@@ -29,6 +29,37 @@ over filters and particles (Arulampalam et al. 2002, Algorithm 4, "SIR"):
   h = A N^{−1/(n+4)}, A = (4/(n+2))^{1/(n+4)} (Silverman 1986's rule for the
   Gaussian kernel).
 
+In clutter (``accepts_scans``: ``z`` a :class:`~hybridtrack.clutter.Scan` or a
+sequence of them, one per sensor) a scan Z = {z_1 … z_L} replaces z and the
+particle likelihood is the scan likelihood of the parametric clutter model
+(Poisson false measurements of density λ, detection probability P_D; seed 004
+"Распределение наблюдений"; Gordon, Salmond & Ewing 1995, "Bayesian state
+estimation for tracking and guidance using the bootstrap filter", J. Guidance
+18(6), eq. 12; Bar-Shalom, Li & Kirubarajan 2001 §11.7.4 for the ratio to the
+clutter-only density):
+
+    Λ(x) = (1 − P_D P_G) + (P_D / λ) Σ_r N(z_r; h(x), R)             (λ > 0)
+    Λ(x) = P_D Σ_r N(z_r; h(x), R)  (r gated),  1 − P_D P_G  (none)   (λ = 0)
+
+(no gate: P_G = 1 and every r; with ``gate_probability`` only the candidates
+with d²_r = ν_rᵀS⁻¹ν_r ≤ γ, P(χ²_m ≤ γ) = P_G, against the particle prediction
+(ẑ, S) below count, as in PDA — in dense clutter most candidates are then never
+evaluated at the particles)
+
+w⁽ⁱ⁾ ∝ w⁽ⁱ⁾⁻ Λ(x⁽ⁱ⁾), vectorized over filters, particles and candidates
+(ν (M, N, L, m)); the step's log-likelihood is ℓ = ln Σ_i w⁽ⁱ⁾⁻ Λ(x⁽ⁱ⁾), the SIR
+estimate of PDA's association likelihood ln Λ (no gate: P_G = 1), which is what
+the detectors compare across a bank in clutter.  The association weights are
+the posterior probabilities of "candidate r is the target" and "none is",
+β_r ∝ (P_D/λ) Σ_i w⁽ⁱ⁾⁻ N(z_r; h(x⁽ⁱ⁾), R), β_0 ∝ 1 − P_D P_G (Σ β = 1), recorded
+in a :class:`~hybridtrack.interfaces.Association` per scan with the particle
+prediction ẑ, S, d²_r and the gate.  The innovation reported
+is the combined ν = Σ_r β_r ν_r, ν_r = residual(z_r, ẑ), with S and its NIS;
+several scans of one step are applied one after the other.  With P_D = 1,
+λ = 0 and one candidate, Λ(x) = N(z; h(x), R) and the update is the ordinary
+one.  A scan impossible under the model (P_D P_G = 1 and nothing gated) is
+taken as no measurement (weights unchanged, ℓ = 0).
+
 The :class:`~hybridtrack.interfaces.Innovation` of an update holds, besides ℓ,
 the particle prediction of the measurement: ν̄ = Σ w⁽ⁱ⁾⁻ ν⁽ⁱ⁾ (z against the
 particle mean of h(x), the residuals wrapped per particle),
@@ -56,11 +87,14 @@ from functools import cached_property
 
 import attrs
 import numpy as np
-from scipy.special import logsumexp
 
+from hybridtrack.clutter import check_clutter_density, check_detection_probability
 from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
-from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior
 from hybridtrack.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
+from hybridtrack.measurements import block_diagonal
+from hybridtrack.validation import as_float_array, check_magnitude
+from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold
 
 #: stages of a step, part of each draw's seed so that the draws of one step never share a stream
 _INITIALIZE, _PREDICT, _RESAMPLE = 0, 1, 2
@@ -79,6 +113,29 @@ class ParticleInnovation(Innovation):
     gaussian_loglik: np.ndarray = None
     effective_sample_size: np.ndarray = None
     resampled: np.ndarray = None
+
+
+@attrs.frozen(eq=False)
+class ParticleClutterInnovation(ClutterInnovation):
+    """The :class:`ClutterInnovation` of a particle update on scans (module docstring).
+
+    ``loglik`` (M,) ℓ = Σ_scans ln Σ_i w⁽ⁱ⁾⁻ Λ(x⁽ⁱ⁾) (the association likelihood, as
+    ``association_loglik`` but 0 for an empty scan when P_D = 1); ``nu`` the combined
+    innovations, ``S`` block-diagonal over the scans; ``gaussian_loglik``,
+    ``effective_sample_size`` and ``resampled`` as in :class:`ParticleInnovation`.
+    """
+
+    gaussian_loglik: np.ndarray = None
+    effective_sample_size: np.ndarray = None
+    resampled: np.ndarray = None
+
+
+def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
+    """ln Σ exp(a) along ``axis``, shifted by the maximum; −∞ where every entry is −∞ (no warning, no NaN)."""
+    top = np.max(a, axis=axis, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.log(np.sum(np.exp(a - top), axis=axis)) + np.squeeze(top, axis=axis)
 
 
 def weighted_moments(particles: np.ndarray, log_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -189,17 +246,34 @@ class ParticleFilter(BankEstimator):
     (default False): Gaussian kernel jitter after resampling with Silverman's
     bandwidth; ``seed``: an int ≥ 0, a ``numpy.random.Generator`` (consumed at
     each ``initialize``), or None (fresh entropy, not reproducible).  The
-    moments of N < n + 1 particles are singular.
+    moments of N < n + 1 particles are singular.  For scans (clutter):
+    ``detection_probability`` P_D in (0, 1] and ``clutter_density`` λ ≥ 0
+    (false measurements per unit measurement volume per step) of the scan
+    likelihood Λ(x), ``gate_probability`` P_G in (0, 1) or None (default: no
+    gate, every candidate evaluated); an array ``z`` ignores them.
     """
 
     name = "particle"
     exact_kalman = False
     accepts_nonlinear = True
+    accepts_scans = True
     sampling = True
     example_parameters = {"particles": 400, "seed": 0}
 
-    def __init__(self, particles: int = 1000, threshold: float = 0.5, regularize: bool = False, seed=0):
+    def __init__(
+        self,
+        particles: int = 1000,
+        threshold: float = 0.5,
+        regularize: bool = False,
+        seed=0,
+        detection_probability: float = 1.0,
+        clutter_density: float = 0.0,
+        gate_probability: float | None = None,
+    ):
         super().__init__()
+        self.detection_probability = check_detection_probability(detection_probability)
+        self.clutter_density = check_clutter_density(clutter_density)
+        self.gate_probability = check_gate_probability(gate_probability)
         if isinstance(particles, bool) or not isinstance(particles, numbers.Integral):
             raise TypeError(f"particles: expected an int ≥ 1 (particles per filter), got {type(particles).__name__} {particles!r}")
         if particles < 1:
@@ -237,6 +311,40 @@ class ParticleFilter(BankEstimator):
         counters = np.zeros(M, dtype=np.int64)
         e = self._normals(keys, counters, _INITIALIZE, (self.particles, n))
         particles = x[:, None, :] + e @ np.swapaxes(cholesky(P, "cov"), -1, -2)
+        log_weights = np.full((M, self.particles), -math.log(self.particles))
+        mean_, cov_ = weighted_moments(particles, log_weights)
+        return ParticleState(particles, log_weights, keys, counters + 1, mean_, cov_, None)
+
+    def initialize_mixture(self, means, covs, weights) -> ParticleState:
+        """N particles per filter drawn from a Gaussian mixture Σ_c w_c N(means_c, covs_c) (e.g. the range-parameterised
+        prior of bearings-only tracking, :func:`hybridtrack_plugins.filters.gaussian_sum.range_parameterised`).
+
+        means (M, C, n), covs (M, C, n, n) positive definite, weights (M, C) ≥ 0 with a positive sum per filter
+        (renormalised).  The component of each particle is allocated systematically (Kitagawa 1996): component c
+        gets ⌊N w_c⌋ or ⌈N w_c⌉ particles, then each is drawn from its Gaussian; uniform weights 1/N.
+        """
+        means = as_float_array(means, "means", (None, None, None))
+        M, C, n = means.shape
+        covs = as_float_array(covs, "covs", (M, C, n, n))
+        weights = as_float_array(weights, "weights", (M, C))
+        if (weights < 0).any():
+            raise ValueError(f"weights: expected weights ≥ 0, got a minimum of {float(weights.min())!r}")
+        total = weights.sum(axis=1)
+        if not (total > 0).all():
+            raise ValueError(f"weights: every filter needs a positive total weight, got sums {total.tolist()}")
+        check_prior(means.reshape(M * C, n), covs.reshape(M * C, n, n))
+        roots = cholesky(covs, "covs")
+        keys = self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True)
+        counters = np.zeros(M, dtype=np.int64)
+        generators = list(self._generators(keys, counters, _INITIALIZE))
+        u = np.array([g.random() for g in generators])
+        c = np.cumsum(weights / total[:, None], axis=1)
+        c[:, -1] = 1.0
+        points = (np.arange(self.particles) + u[:, None]) / self.particles  # (M, N), systematic points in [0, 1)
+        component = np.minimum((points[:, :, None] >= c[:, None, :]).sum(axis=2), C - 1)  # first c with c_c > point
+        e = np.stack([g.standard_normal((self.particles, n)) for g in generators])
+        rows = np.arange(M)[:, None]
+        particles = means[rows, component] + np.einsum("mkij,mkj->mki", roots[rows, component], e)
         log_weights = np.full((M, self.particles), -math.log(self.particles))
         mean_, cov_ = weighted_moments(particles, log_weights)
         return ParticleState(particles, log_weights, keys, counters + 1, mean_, cov_, None)
@@ -295,6 +403,9 @@ class ParticleFilter(BankEstimator):
         if not isinstance(state, ParticleState):
             raise TypeError(f"state: expected a ParticleState (from initialize), got {type(state).__name__}")
         M, N, n = state.particles.shape
+        scans = _as_scans(z)
+        if scans is not None or (isinstance(z, (list, tuple)) and len(z) == 0):
+            return self._update_scans(state, scans or [], sensors, layout)
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             innovation = empty_innovation(M)
@@ -322,6 +433,115 @@ class ParticleFilter(BankEstimator):
         new = ParticleState(particles, log_weights, state.keys, counters, state.x_predicted, state.P_predicted, innovation)
         self.check_finite("update", updated_mean=new.mean)
         return new, innovation
+
+    # ------------------------------------------------------------------ update in clutter
+    def _update_scans(self, state: ParticleState, scans: list, sensors, layout):
+        """w ∝ w⁻ Λ(x) scan after scan, ℓ = Σ ln Λ̂, then N_eff and resampling as in :meth:`update`."""
+        M, N, n = state.particles.shape
+        if len(layout) != n:
+            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        if isinstance(sensors, Sensor):
+            sensors = (sensors,)
+        by_name = {s.name: s for s in sensors}
+        layout = tuple(layout)
+        log_weights = state.log_weights
+        loglik = np.zeros(M)
+        used, blocks, records = [], [], []
+        for scan in scans:
+            sensor, model, R = self._scan_model(scan, by_name, layout)
+            log_weights, scan_loglik, record, combined, S = self._scan_weights(log_weights, state.particles, scan, sensor, model, R, layout)
+            records.append(record)
+            loglik = loglik + np.where(np.isfinite(scan_loglik), scan_loglik, 0.0)  # −∞: impossible under the model, no measurement
+            if scan.size:
+                used.append(combined)
+                blocks.append(S)
+        if used:
+            nu = np.concatenate(used, axis=-1)
+            S = block_diagonal(blocks)
+            gaussian_loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu)
+        else:
+            nu, S, gaussian_loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+        ess = effective_sample_size(log_weights)
+        resampled = ess < self.threshold * N
+        particles = state.particles
+        if resampled.any():
+            particles, log_weights = self._resample(state, particles, log_weights, np.flatnonzero(resampled))
+        innovation = ParticleClutterInnovation(nu, S, loglik, nis, tuple(records), gaussian_loglik, ess, resampled)
+        new = ParticleState(particles, log_weights, state.keys, state.counters + 1, state.x_predicted, state.P_predicted, innovation)
+        self.check_finite("update", updated_mean=new.mean)
+        return new, innovation
+
+    def _scan_model(self, scan, by_name: dict, layout: tuple):
+        """(sensor, SensorModel, R) of a scan, checked: a sensor given, of the scan's dimension, R independent of z."""
+        sensor = by_name.get(scan.sensor)
+        if sensor is None:
+            raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
+        if type(sensor).measurement_noise is not Sensor.measurement_noise:
+            raise ValueError(
+                f"sensors: {self.name!r} in clutter needs a measurement-independent R; sensor {sensor.name!r} computes R from z"
+            )
+        model = self._assembler.sensor_model(sensor, layout)
+        if scan.measurement_dim != model.dim:
+            raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
+        check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
+        return sensor, model, np.asarray(sensor.noise_cov, dtype=float)
+
+    def _scan_weights(self, log_weights, particles, scan, sensor, model, R, layout):
+        """One scan: posterior log-weights (M, N), ln Λ̂ (M,), the Association and the combined ν (M, m), S (M, m, m)."""
+        M, N, n = particles.shape
+        L, m = scan.z.shape
+        P_D, lam = self.detection_probability, self.clutter_density
+        flat = particles.reshape(M * N, n)
+        h = model.measure(flat, layout).reshape(M, N, m)
+        # the particle prediction of z: ẑ = h(x̄) + Σ w δ, δ = residual(h(x), h(x̄)) (wrapped about the mean for angles)
+        x_bar = np.einsum("mk,mki->mi", np.exp(log_weights), particles)
+        h_bar = model.measure(x_bar, layout)
+        delta = h - h_bar[:, None, :] if model.plain_residual else sensor.residual(h, np.broadcast_to(h_bar[:, None, :], h.shape))
+        w = np.exp(log_weights)
+        delta_mean = np.einsum("mk,mki->mi", w, delta)
+        z_hat = h_bar + delta_mean
+        d = delta - delta_mean[:, None, :]
+        S = symmetrize(np.swapaxes(d * w[..., None], -1, -2) @ d + R)
+        chol_S = cholesky(S, "innovation covariance S")
+        P_G = 1.0 if self.gate_probability is None else self.gate_probability
+        with np.errstate(divide="ignore"):
+            log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
+        log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
+        gamma = gate_threshold(self.gate_probability, m)
+        cand_r = np.broadcast_to(scan.z[None], (M, L, m))
+        pred_r = np.broadcast_to(z_hat[:, None, :], (M, L, m))
+        nu_r = cand_r - pred_r if model.plain_residual else np.asarray(sensor.residual(cand_r, pred_r))
+        d2 = distances(nu_r, chol_S)  # (M, L)
+        gated = d2 <= gamma
+        cols = np.flatnonzero(gated.any(axis=0))  # candidates inside some filter's gate: the only ones evaluated
+        any_gated = gated.any(axis=1)
+        miss_term = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
+        beta = np.zeros((M, L))
+        if cols.size:
+            Lg = cols.size
+            cand = np.broadcast_to(scan.z[cols][None, None, :, :], (M, N, Lg, m))
+            pred = np.broadcast_to(h[:, :, None, :], (M, N, Lg, m))
+            nu_i = cand - pred if model.plain_residual else np.asarray(sensor.residual(cand, pred))
+            log_n, _ = CholeskyFactor(R, "measurement noise R").scores(nu_i)  # (M, N, Lg)
+            log_detected = np.where(gated[:, None, cols], log_detect + log_n, -np.inf)
+            terms = np.concatenate([np.broadcast_to(miss_term[:, None, None], (M, N, 1)), log_detected], axis=2)
+            particle_loglik = logsumexp(terms, axis=2)  # ln Λ(x⁽ⁱ⁾) (M, N)
+            joint = log_weights + particle_loglik
+            loglik = logsumexp(joint, axis=1)
+            ok = np.isfinite(loglik)
+            new_log_weights = np.where(ok[:, None], joint - np.where(ok, loglik, 0.0)[:, None], log_weights)
+            # association weights: β_0 ∝ 1 − P_D P_G, β_r ∝ (P_D/λ) Σ_i w_i N(z_r; h(x_i), R) over the gated r
+            per_candidate = logsumexp(log_weights[:, :, None] + log_detected, axis=1)  # (M, Lg)
+            beta[:, cols] = np.where(ok[:, None], np.exp(per_candidate - np.where(ok, loglik, 0.0)[:, None]), 0.0)
+            beta0 = np.where(ok, np.exp(miss_term - np.where(ok, loglik, 0.0)), 1.0)
+        else:
+            new_log_weights = log_weights
+            loglik = np.full(M, log_miss)
+            beta0 = np.ones(M)
+        combined = np.einsum("jl,jli->ji", beta, nu_r)
+        selected = np.where(any_gated & (beta.sum(axis=1) > 0), np.argmax(beta, axis=1) if L else -1, -1).astype(np.int64)
+        record = Association(sensor.name, scan.z, z_hat, S, gamma, d2, gated, beta, beta0, selected, loglik)
+        return new_log_weights, loglik, record, combined, S
 
     def _resample(self, state: ParticleState, particles, log_weights, rows: np.ndarray):
         """Systematic resampling of the filters ``rows`` (then weights 1/N), with the regularisation jitter if enabled."""

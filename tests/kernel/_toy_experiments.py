@@ -6,6 +6,8 @@ equal seeds.  ``flaky`` does the same and appends each call's index to
 kills its own process (``how="kill"``) or acts as a Ctrl-C (``how="interrupt"``), leaving ``marker`` so the next attempt
 succeeds.  ``slow`` sleeps ``delay`` seconds, appends "index pid" to ``log`` when
 a run finishes and then returns what ``draws`` returns (the kill tests).
+``impure`` takes a recorder but also reads a clock, so a recorded replay differs
+from the stored run (the ``--record`` warning).
 """
 
 import os
@@ -49,3 +51,11 @@ FLAKY = Experiment("flaky", flaky, {"log": "", "marker": "", "fail_at": -1, "how
 EXPERIMENT = FLAKY  # what `hybridtrack run tests/kernel/_toy_experiments.py` runs
 SLOW = Experiment("slow", slow, {"delay": 0.1, "log": "", "size": 3})
 NOT_NUMERIC = Experiment("not_numeric", not_numeric)
+
+
+def impure(index, rng, *, recorder=None):
+    """Draws from a clock besides its generator: a replay (``--record``) cannot give the stored result."""
+    return {"clock": float(time.perf_counter_ns()), "uniform": float(rng.uniform())}
+
+
+IMPURE = Experiment("impure", impure)

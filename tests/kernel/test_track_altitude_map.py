@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hybridtrack.inspection import RecordingFile
-from hybridtrack.tracking import filter_altitude, load_config, track_blueprint, track_file
+from hybridtrack.tracking import filter_altitude, load_config, record_track, track_file
 from hybridtrack.tracks_io import ecef_to_geodetic, geodetic_to_ecef, project, unproject
 
 ORIGIN = (50.8, -1.2, 30.0)
@@ -123,12 +123,12 @@ def test_track_writes_altitude_and_the_map_view(tmp_path):
     np.testing.assert_allclose(data["altitude"], geo[:, 2], atol=1e-3)  # the geodetic height (origin at h = 0)
     assert abs(data["altitude_mean"][-1, 1] - 8.0) < 1.0  # climb rate
     recording = RecordingFile(tmp_path / "out" / "plane.rrd")
-    for entity in ("/world", "/world/enu/estimate", "/world/enu/measurements", "/map/estimate", "/map/measurements/path"):
+    for entity in ("/world/estimate/track/altitude", "/world/measurements/altitude", "/map/estimate/track", "/map/measurements/path"):
         assert entity in recording.entity_paths, entity
     steps, values = recording._table("/map/measurements", "GeoPoints:positions")
     logged = np.array([v[0] for v in values])
     np.testing.assert_allclose(logged, geo[:, :2], atol=1e-8)  # the measurements converted back = the file's lat/lon
-    steps, values = recording._table("/world/enu/estimate", "Points3D:positions")
+    steps, values = recording._table("/world/estimate/track/altitude", "Points3D:positions")
     z = np.array([v[0][2] for v in values])
     np.testing.assert_allclose(z, data["altitude_mean"][:, 0], rtol=1e-6)
 
@@ -140,18 +140,23 @@ def test_altitude_config_is_checked():
         load_config({**CONFIG, "altitude": {"q": 1.0}})
 
 
-def test_track_blueprint_has_a_map_view():
-    import rerun.blueprint as rrb
+def test_the_layout_gets_a_map_view(tmp_path):
+    from hybridtrack.recording import RerunRecorder
 
-    blueprint = track_blueprint()
-    views = []
+    with RerunRecorder(tmp_path / "map.rrd", {"test": "map"}) as recorder:
+        t = np.arange(5.0)
+        lat_lon = np.column_stack([50.8 + 1e-4 * t, -1.2 + 1e-4 * t])
+        record_track(recorder, "imm", t, lat_lon_measured=lat_lon, lat_lon_estimated=lat_lon)
+        assert recorder.content["map/estimate/imm"] == "Map"
+        views = []
 
-    def walk(item):
-        views.append(type(item).__name__)
-        for child in getattr(item, "contents", []) or []:
-            if not isinstance(child, str):
-                walk(child)
+        def walk(item):
+            views.append(type(item).__name__)
+            for child in getattr(item, "contents", []) or []:
+                if not isinstance(child, str):
+                    walk(child)
 
-    walk(blueprint.root_container)
-    assert "MapView" in views and "Spatial3DView" in views, views
-    assert isinstance(blueprint, rrb.Blueprint)
+        walk(recorder.blueprint().root_container)
+    assert "MapView" in views, views
+    with pytest.raises(ValueError, match="lat_lon"):
+        RerunRecorder(tmp_path / "bad.rrd", {}).log_geo_path("map/x", np.arange(2), np.zeros((2, 3)))

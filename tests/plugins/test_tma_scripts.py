@@ -16,11 +16,32 @@ def test_montecarlo_script_writes_the_table(tmp_path):
     out = tmp_path / "mc.json"
     md = tmp_path / "mc.md"
     result = run(
-        "experiments/tma_montecarlo.py", "--n", "20", "--sigma", "0", "0.5", "--seed", "3", "--json", str(out), "--markdown", str(md)
+        "experiments/tma_montecarlo.py",
+        "--n",
+        "20",
+        "--sigma",
+        "0",
+        "0.5",
+        "--seed",
+        "3",
+        "--json",
+        str(out),
+        "--markdown",
+        str(md),
+        "--filter-n",
+        "4",
+        "--particles",
+        "300",
     )
     data = json.loads(out.read_text())
-    assert {row["method"] for row in data["rows"]} == {"LM", "N"}
+    assert {row["method"] for row in data["rows"]} == {"LM", "N", "LM (filter targets)", "particle", "gaussian_sum"}
+    filters = [row for row in data["rows"] if row["ref"] is None]
+    assert {row["sigma_deg"] for row in filters} == {0.5} and all(row["targets"] == 4 for row in filters)
+    assert all(len(row["ref_end"]) == 4 and all(0 <= r <= 1 for r in row["ref_end"]) for row in filters)
+    assert "| particle | 0.5 | ours, end (4 targets) |" in md.read_text()
     for row in data["rows"]:
+        if row["ref"] is None:
+            continue
         assert set(row) >= {"method", "sigma_deg", "ref", "ref_end", "sqrt_ka_deg", "nf", "iter"}
         assert len(row["ref"]) == 4 and all(0 <= r <= 1 for r in row["ref"])
         if row["sigma_deg"] == 0:

@@ -1,0 +1,143 @@
+"""Recording the inside of the nonlinear and clutter filters through the recorder seam (docs/recording.md; issue 17 item 6).
+
+Per filter ``<name>`` of a bank, from the states of a run (one state per step):
+
+* ``particle`` (:class:`~hybridtrack_plugins.filters.particle.ParticleState`):
+  ``world/estimate/<name>/particles`` — the particle cloud, Points3D per step (z = 0)
+  with radius ∝ √w (area ∝ weight; at most ``max_points`` particles, the
+  heaviest); ``estimator/<name>/effective_sample_size`` — N_eff = 1/Σ w²;
+* ``gaussian_sum`` (:class:`~hybridtrack_plugins.filters.gaussian_sum.MixtureState`):
+  ``world/estimate/<name>/components`` — the component means, Points3D with
+  radius ∝ √w; ``world/estimate/<name>/component/<c>`` — the 2σ position
+  ellipse of slot c (slots sorted by weight, heaviest first; nothing where the
+  slot is empty); ``estimator/<name>/component_weight`` — w_c per slot
+  (series ``w0`` …, 0 when empty);
+* ``mht`` (:class:`~hybridtrack_plugins.filters.mht.MHTState`):
+  ``estimator/<name>/hypothesis_probability`` — p_h per slot (series ``h0`` …,
+  best first; 0 for an empty slot); ``estimator/<name>/hypotheses`` — the number
+  of live hypotheses; ``world/estimate/<name>/hypothesis/<h>`` — the 2σ ellipse of
+  hypothesis slot h.
+
+Weighted points go through the recorder's optional ``log_weighted_points``
+(:class:`~hybridtrack.recording.RerunRecorder`); a recorder without it gets
+plain ``log_points``.  Other states are skipped.  Slots beyond the widest state
+of the run are padded (a bank's width changes as mixtures are reduced).
+
+No ``COMPONENTS``: a helper of the filter family, not a plugin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from hybridtrack_plugins.filters.gaussian_sum import MixtureState
+from hybridtrack_plugins.filters.mht import MHTState
+from hybridtrack_plugins.filters.particle import ParticleState
+
+
+def _position(layout: Sequence[str]) -> list[int]:
+    layout = tuple(layout)
+    if "x" not in layout or "y" not in layout:
+        raise ValueError(f"layout: recording positions needs 'x' and 'y' in the state layout, got {layout}")
+    return [layout.index("x"), layout.index("y")]
+
+
+def _weighted_points(recorder, entity, steps, points, weights, times, max_radius):
+    log = getattr(recorder, "log_weighted_points", None)
+    if log is not None:
+        log(entity, steps, points, weights, times, max_radius=max_radius)
+    else:
+        recorder.log_points(entity, steps, np.where((weights > 0)[..., None], points, np.nan), times)
+
+
+def _pad(arrays: list[np.ndarray], fill: float) -> np.ndarray:
+    """Stack per-step arrays whose axis 0 (slots) differ in length, padding with ``fill``."""
+    width = max(a.shape[0] for a in arrays)
+    out = np.full((len(arrays), width) + arrays[0].shape[1:], fill, dtype=np.float64)
+    for k, a in enumerate(arrays):
+        out[k, : a.shape[0]] = a
+    return out
+
+
+def log_filter_states(
+    recorder,
+    filter_names: Sequence[str],
+    steps,
+    states: Sequence,
+    layout: Sequence[str],
+    times=None,
+    *,
+    max_points: int = 500,
+    max_radius: float = 0.05,
+) -> None:
+    """Log particle clouds, mixture components or MHT hypotheses of ``states`` (one bank state per step; module docstring).
+
+    ``filter_names`` names the M filters of the bank; ``steps`` (K,) and ``times`` (K,) or None as everywhere.
+    """
+    steps = np.asarray(steps)
+    if len(states) != steps.shape[0]:
+        raise ValueError(f"states: expected one state per step ({steps.shape[0]}), got {len(states)}")
+    if not states:
+        return
+    first = states[0]
+    if any(type(s) is not type(first) for s in states):
+        raise ValueError("states: expected states of one estimator")
+    position = _position(layout)
+    names = list(filter_names)
+    if isinstance(first, ParticleState):
+        _log_particles(recorder, names, steps, states, position, times, max_points, max_radius)
+    elif isinstance(first, MixtureState):
+        _log_mixtures(recorder, names, steps, states, position, times, max_radius)
+    elif isinstance(first, MHTState):
+        _log_hypotheses(recorder, names, steps, states, position, times)
+
+
+def _check_bank(states, names):
+    if states[0].mean.shape[0] != len(names):
+        raise ValueError(f"filter_names: expected {states[0].mean.shape[0]} names (the bank size), got {len(names)}")
+
+
+def _log_particles(recorder, names, steps, states, position, times, max_points, max_radius):
+    _check_bank(states, names)
+    N = states[0].particles.shape[1]
+    keep = min(N, max_points)
+    for j, name in enumerate(names):
+        lw = np.stack([s.log_weights[j] for s in states])  # (K, N)
+        order = np.argsort(-lw, axis=1, kind="stable")[:, :keep]  # the heaviest (all when N ≤ max_points)
+        pts = np.stack([s.particles[j][:, position] for s in states])  # (K, N, 2)
+        pts = np.take_along_axis(pts, order[..., None], axis=1)
+        w = np.exp(np.take_along_axis(lw, order, axis=1))
+        _weighted_points(recorder, f"world/estimate/{name}/particles", steps, pts, w, times, max_radius)
+        ess = np.exp(-np.log(np.sum(np.exp(2.0 * lw), axis=1)))
+        recorder.log_scalars(f"estimator/{name}/effective_sample_size", steps, ess, times)
+
+
+def _log_mixtures(recorder, names, steps, states, position, times, max_radius):
+    _check_bank(states, names)
+    index = np.ix_(position, position)
+    for j, name in enumerate(names):
+        w = _pad([np.exp(s.log_weights[j]) for s in states], 0.0)  # (K, C)
+        centers = _pad([s.x[j][:, position] for s in states], np.nan)  # (K, C, 2)
+        covs = _pad([s.P[j][:, index[0], index[1]] for s in states], np.nan)  # (K, C, 2, 2)
+        centers = np.where((w > 0)[..., None], centers, np.nan)
+        _weighted_points(recorder, f"world/estimate/{name}/components", steps, centers, w, times, max_radius)
+        recorder.log_scalars(f"estimator/{name}/component_weight", steps, w, times, names=[f"w{c}" for c in range(w.shape[1])])
+        for c in range(w.shape[1]):
+            recorder.log_ellipses(f"world/estimate/{name}/component/{c}", steps, centers[:, c], covs[:, c], times)
+
+
+def _log_hypotheses(recorder, names, steps, states, position, times):
+    _check_bank(states, names)
+    index = np.ix_(position, position)
+    for j, name in enumerate(names):
+        p = np.stack([s.probabilities[j] for s in states])  # (K, H)
+        live = np.stack([np.isfinite(s.scores[j]) for s in states])
+        recorder.log_scalars(f"estimator/{name}/hypothesis_probability", steps, p, times, names=[f"h{h}" for h in range(p.shape[1])])
+        recorder.log_scalars(f"estimator/{name}/hypotheses", steps, live.sum(axis=1).astype(float), times)
+        for h in range(p.shape[1]):
+            centers = np.stack([s.x[j, h][position] for s in states])
+            covs = np.stack([s.P[j, h][index] for s in states])
+            centers = np.where(live[:, h, None], centers, np.nan)
+            recorder.log_ellipses(f"world/estimate/{name}/hypothesis/{h}", steps, centers, covs, times)
