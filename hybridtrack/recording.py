@@ -116,6 +116,9 @@ class NullRecorder:
     def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
         pass
 
+    def log_geo_path(self, entity, steps, lat_lon, times=None):
+        pass
+
     def log_scalars(self, entity, steps, values, times=None, names=None):
         pass
 
@@ -576,6 +579,29 @@ class RerunRecorder:
             columns=self._rr.Points3D.columns(positions=points[keep], radii=radii[keep]).partition(counts[present].astype(np.int64)),
         )
         self._note(entity, "3D")
+
+    def log_geo_path(self, entity, steps, lat_lon, times=None):
+        """Optional extension of the Recorder protocol: WGS-84 positions (K, 2) (latitude°, longitude°) as
+        ``GeoPoints`` per step and the whole path as a static ``GeoLineStrings`` ``<entity>/path``, shown by a map
+        view (rerun's ``MapView``, the ``Map`` view class of :func:`content_blueprint`).  Rows with NaN skipped."""
+        rr = self._rr
+        lat_lon = np.asarray(lat_lon, dtype=np.float64)
+        if lat_lon.ndim != 2 or lat_lon.shape[1] != 2:
+            raise ValueError(f"lat_lon: expected (K, 2) latitude/longitude in degrees, got shape {lat_lon.shape}")
+        keep = np.all(np.isfinite(lat_lon), axis=-1)
+        if not keep.any():
+            return
+        times = None if times is None else np.asarray(times)[keep]
+        colour, label = spatial_style(entity)
+        self.stream.send_columns(
+            entity, indexes=self._indexes(np.asarray(steps)[keep], times), columns=rr.GeoPoints.columns(positions=lat_lon[keep])
+        )
+        self.stream.log(entity, rr.GeoPoints.from_fields(colors=[colour], radii=rr.Radius.ui_points(4.0)), static=True)
+        self.stream.log(
+            f"{entity}/path", rr.GeoLineStrings(lat_lon=[lat_lon[keep]], colors=[colour], radii=rr.Radius.ui_points(1.5)), static=True
+        )
+        self._note(entity, "Map")
+        self._note(f"{entity}/path", "Map")
 
     def log_path(self, entity, steps, positions, times=None, *, points=True, line=True):
         positions = _xyz(positions)

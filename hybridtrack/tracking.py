@@ -48,6 +48,11 @@ Configuration (TOML; unknown keys and tables are refused)::
     [measurement]
     sigma = 25.0              # σ (m): position sensor ("position", {"noise_cov": σ² I})
 
+    [altitude]                # used only when the file has an altitude column (reader key alt)
+    sigma = 10.0              # σ_h (m): altitude measurement noise
+    acceleration_density = 0.1  # q (m²/s³): white-noise vertical acceleration density
+    velocity_sigma = 5.0      # m/s: prior σ of the climb rate
+
     [prior]
     velocity = "two_fixes"    # or "zero": v₀ = (p₁ − p₀)/(t₁ − t₀), or 0
     position_sigma = 250.0    # m (default 10 σ: the step-0 update with the first fix then gives ≈ σ)
@@ -70,8 +75,21 @@ Configuration (TOML; unknown keys and tables are refused)::
 
 The unknown-change estimator needs modes of one state layout (straight,
 turns, stop); the IMM also mixes ``constant_acceleration`` (6 states) with
-the rest.  Altitude columns are read but not filtered: only east/north are
-tracked (no separate vertical filter).
+the rest.  **Altitude**, where the file has it, is filtered on its own by
+:func:`filter_altitude` (a 1-D constant-velocity Kalman filter at the report
+times) and written to the ``.npz`` as ``altitude_mean`` (K, 2) (height above
+the origin's height in m, climb rate in m/s) and ``altitude_var`` (K, 2)
+(their variances); the horizontal modes are what the estimator decides.
+
+**Recording** (besides what the estimator logs under ``world/…`` — the
+east-north-up world view, horizontal positions at z = 0 —, ``estimator/…``
+and ``events/…``), by :func:`record_track`: with altitude, the fixes and the
+estimate in 3-D (z = the measured and the filtered altitude) as
+``world/measurements/altitude`` and ``world/estimate/track/altitude``; for
+files read from latitude/longitude, ``map/measurements`` and
+``map/estimate/track`` as ``GeoPoints`` per step and ``GeoLineStrings`` paths
+(the estimate converted back with :func:`hybridtrack.tracks_io.unproject`),
+which the recording's layout shows in a map view.
 
 Every user error — a missing file, unknown key, bad value, unknown estimator
 kind or mode — is a :class:`ConfigError` (a ValueError) naming the key.
@@ -90,7 +108,8 @@ from typing import Any
 
 import numpy as np
 
-from hybridtrack.tracks_io import SOLENT_AIS, Track, read_tracks
+from hybridtrack.tracks_io import SOLENT_AIS, Track, read_tracks, unproject
+from hybridtrack.validation import check_positive
 
 #: reader presets by name (the ``preset`` key of ``[reader]``)
 PRESETS = {"solent_ais": SOLENT_AIS}
@@ -98,6 +117,8 @@ KINDS = ("unknown_change", "imm")
 #: registry name → summary mode name
 SUMMARY_NAMES = {"constant_acceleration": "acceleration"}
 TURNS = ("left_turn", "right_turn")
+#: the vertical filter's defaults: σ_h (m), white-acceleration density q (m²/s³), prior σ of the climb rate (m/s)
+ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma": 5.0}
 
 _READER_KEYS = {
     "preset", "time", "x", "y", "lat", "lon", "alt", "id", "course", "speed", "speed_unit", "course_not_available",
@@ -106,6 +127,7 @@ _READER_KEYS = {
 _SECTIONS = {
     "reader": _READER_KEYS,
     "measurement": {"sigma"},
+    "altitude": {"sigma", "acceleration_density", "velocity_sigma"},
     "prior": {"velocity", "position_sigma", "velocity_sigma"},
     "estimator": {
         "kind", "filter", "process_noise", "modes", "radii", "alpha", "beta", "bank_size", "initial_mode", "sojourn", "method",
@@ -166,6 +188,10 @@ def load_config(config: str | os.PathLike | Mapping[str, Any]) -> dict:
     if sigma is None:
         raise ConfigError(f"{where}: [measurement] sigma (m) is required")
     out["measurement"]["sigma"] = _positive("measurement", "sigma", sigma, where)
+
+    alt = out["altitude"]
+    for key, default in ALTITUDE_DEFAULTS.items():
+        alt[key] = _positive("altitude", key, alt.get(key, default), where)
 
     prior = out["prior"]
     prior.setdefault("velocity", "two_fixes")
@@ -311,6 +337,75 @@ def _prior(track: Track, config: dict, layout: Sequence[str]):
     return mean, cov
 
 
+def filter_altitude(times, heights, *, sigma: float, acceleration_density: float, velocity_sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """1-D constant-velocity Kalman filter of the heights h_k (m) at irregular times t_k (s).
+
+    State (h, ḣ); prior (h_0, 0) with covariance diag(σ², σ_v²) — the first fix
+    taken as the first estimate, so step 0 has no further update.  Step k ≥ 1
+    over Δt = t_k − t_{k−1}: F = [[1, Δt], [0, 1]] and the continuous white-noise
+    acceleration model Q = q [[Δt³/3, Δt²/2], [Δt²/2, Δt]] (q the acceleration
+    density in m²/s³; Bar-Shalom, Li & Kirubarajan 2001, §6.2.2, eq. 6.2.2-12);
+    update with H = [1, 0], R = σ²: S = P₀₀ + σ², K = P[:, 0]/S (scalar
+    innovation, no matrix inverse), Joseph form P ← (I − K H) P (I − K H)ᵀ + K σ² Kᵀ.
+
+    Returns ``mean`` (K, 2) (height, climb rate) and ``var`` (K, 2) (their variances);
+    a ValueError names a bad input (lengths, non-increasing times, non-finite heights).
+    """
+    t = np.asarray(times, dtype=np.float64)
+    h = np.asarray(heights, dtype=np.float64)
+    if t.ndim != 1 or h.shape != t.shape or t.size == 0:
+        raise ValueError(f"times, heights: expected two 1-D arrays of one length ≥ 1, got shapes {t.shape} and {h.shape}")
+    if not np.all(np.isfinite(h)):
+        raise ValueError("heights: expected finite values (the reader drops bad altitude cells)")
+    if np.any(np.diff(t) <= 0) or not np.all(np.isfinite(t)):
+        raise ValueError("times: expected finite, strictly increasing report times")
+    r = check_positive(sigma, "sigma") ** 2
+    q = check_positive(acceleration_density, "acceleration_density")
+    x = np.array([h[0], 0.0])
+    P = np.diag([r, check_positive(velocity_sigma, "velocity_sigma") ** 2])
+    means, variances = np.empty((t.size, 2)), np.empty((t.size, 2))
+    means[0], variances[0] = x, np.diag(P)
+    identity = np.eye(2)
+    for k in range(1, t.size):
+        dt = t[k] - t[k - 1]
+        F = np.array([[1.0, dt], [0.0, 1.0]])
+        Q = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+        x = F @ x
+        P = F @ P @ F.T + Q
+        S = P[0, 0] + r
+        gain = P[:, 0] / S
+        x = x + gain * (h[k] - x[0])
+        A = identity - np.outer(gain, [1.0, 0.0])
+        P = A @ P @ A.T + r * np.outer(gain, gain)
+        means[k], variances[k] = x, np.diag(P)
+    return means, variances
+
+
+def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_measured=None, lat_lon_estimated=None) -> None:
+    """What ``hybridtrack track`` adds to the estimator's own logging (the east-north plane at z = 0):
+
+    * with altitude, the fixes and the estimate in 3-D, ``measured``, ``estimated`` (K, 3) east, north and the
+      measured / filtered altitude (m), as ``world/measurements/altitude`` and ``world/estimate/<name>/altitude``
+      (points per step and the path) in the east-north-up world view;
+    * for latitude/longitude files, ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees as ``GeoPoints``
+      per step and a ``GeoLineStrings`` path under ``map/measurements`` and ``map/estimate/<name>``, which the
+      recording's layout shows in a map view (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`).
+    """
+    from hybridtrack.recording import RerunRecorder
+
+    if not isinstance(recorder, RerunRecorder):  # a NullRecorder: nothing to draw
+        return
+    steps = np.arange(len(times), dtype=np.int64)
+    if measured is not None:
+        recorder.log_path("world/measurements/altitude", steps, measured, times)
+    if estimated is not None:
+        recorder.log_path(f"world/estimate/{name}/altitude", steps, estimated, times)
+    if lat_lon_measured is not None:
+        recorder.log_geo_path("map/measurements", steps, lat_lon_measured, times)
+    if lat_lon_estimated is not None:
+        recorder.log_geo_path(f"map/estimate/{name}", steps, lat_lon_estimated, times)
+
+
 def _summary_mode(model) -> tuple[str, float | None]:
     return SUMMARY_NAMES.get(model.name, model.name), (None if model.radius is None else float(model.radius))
 
@@ -328,24 +423,59 @@ def segments_of(times: np.ndarray, modes: Sequence[str], radii: Sequence[float |
     return out
 
 
-def _safe_name(identifier: str) -> str:
+def output_name(identifier: str) -> str:
+    """The file stem of an object's outputs (``<stem>.rrd``, ``<stem>.npz``): the id with characters other than
+    letters, digits, ``.``, ``_``, ``-`` replaced by ``_`` (a leading ``.`` gets a ``_`` before it)."""
     name = re.sub(r"[^A-Za-z0-9._-]", "_", identifier) or "track"
     return "_" + name if name.startswith(".") else name
 
 
-def track_one(track: Track, config: dict, out: Path | None = None, registry=None) -> dict:
+def track_one(
+    track: Track,
+    config: dict,
+    out: Path | None = None,
+    registry=None,
+    *,
+    origin: Sequence[float] | None = None,
+    projection: str = "enu",
+) -> dict:
     """Run the configured estimator on one track; write ``out/<id>.rrd`` and ``.npz`` (when ``out`` is given);
-    return the object's summary entry ``{"id", "segments", "decisions"}``."""
+    return the object's summary entry ``{"id", "segments", "decisions"}``.
+
+    ``origin`` (lat°, lon°, h m) and ``projection``: the tangent plane the track was projected to (the
+    :class:`~hybridtrack.tracks_io.TrackFile`'s); given, the recording gets the map view and the altitude is the
+    height above the origin's height (else the altitude column as read)."""
     from hybridtrack.recording import RerunRecorder
 
     estimator, sensor, models = _build(config, registry)
     layout = estimator.layout
     prior = _prior(track, config, layout)
     z = {sensor.name: np.asarray(track.positions[:, :2], dtype=float)}
-    name = _safe_name(track.id)
+    name = output_name(track.id)
+    heights = None
+    if track.positions.shape[1] == 3:
+        heights = np.asarray(track.positions[:, 2], dtype=float)
+        if origin is not None:  # the geodetic height above the origin's (the ENU up also holds the Earth's curvature)
+            heights = unproject(track.positions, origin=origin, projection=projection)[:, 2] - (list(origin) + [0.0])[2]
+    altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": _jsonable(config)}) if out is not None else None
     try:
         run = estimator.run(z, prior, times=track.times, recorder=recorder)
+        if recorder is not None:
+            xy = np.asarray(track.positions[:, :2], dtype=float)
+            est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
+            in_3d = (None, None)
+            if heights is not None:
+                in_3d = (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
+            geo = (None, None)
+            if origin is not None:
+                measured_enu, estimated_enu = xy, est_xy
+                if heights is not None:  # the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
+                    up = np.asarray(track.positions[:, 2], dtype=float)
+                    measured_enu = np.column_stack([xy, up])
+                    estimated_enu = np.column_stack([est_xy, altitude[0][:, 0] + up - heights])
+                geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (measured_enu, estimated_enu))
+            record_track(recorder, estimator.name, run.times, *in_3d, *geo)
     finally:
         if recorder is not None:
             recorder.close()
@@ -370,6 +500,7 @@ def track_one(track: Track, config: dict, out: Path | None = None, registry=None
             radii=np.array([np.nan if r is None else r for r in radii]),
             layout=np.array(layout),
             positions=np.asarray(track.positions[:, :2], dtype=float),
+            **({} if altitude is None else {"altitude_mean": altitude[0], "altitude_var": altitude[1], "altitude": heights}),
         )
     return {"id": track.id, "segments": segments_of(run.times, modes, radii), "decisions": decisions}
 
@@ -420,7 +551,7 @@ def track_file(
         if len(track) < cfg["min_reports"]:
             skipped.append({"id": key, "reason": f"{len(track)} reports < min_reports {cfg['min_reports']}"})
             continue
-        objects.append(track_one(track, cfg, out, registry))
+        objects.append(track_one(track, cfg, out, registry, origin=data.origin, projection=data.projection or "enu"))
     summary = {"objects": objects, "skipped": skipped}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return summary
