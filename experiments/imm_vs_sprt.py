@@ -493,6 +493,11 @@ def plot(rows: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+def _seconds(value) -> str:
+    """A delay for the summary lines: 3 significant digits, or "–" when there is none."""
+    return "–" if value is None else f"{value:.3g}"
+
+
 def where_banks_win(rows: list[dict]) -> list[str]:
     """Plain sentences from the rows: for each dataset, how the SPRT banks compare with IMM on RMSE and accuracy."""
     out = []
@@ -506,7 +511,7 @@ def where_banks_win(rows: list[dict]) -> list[str]:
                 r = by[m]
                 out.append(
                     f"{dataset}: {m} RMSE {r['rmse']:.3g} vs IMM {imm['rmse']:.3g} m; mode accuracy {r['mode_accuracy']:.3f} vs "
-                    f"{imm['mode_accuracy']:.3f}; median delay {r['median_delay_s']} vs {imm['median_delay_s']} s"
+                    f"{imm['mode_accuracy']:.3f}; median delay {_seconds(r['median_delay_s'])} vs {_seconds(imm['median_delay_s'])} s"
                 )
     return out
 

@@ -69,6 +69,11 @@ def batch_margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
     return L - rival
 
 
+def acceptance(step: int, detector: str, name: str, margin: float, upper: float) -> Decision:
+    """The decision accepting hypothesis ``name`` with its log-LR margin (rule 5 of seed 001 Algorithm 1)."""
+    return Decision(step, detector, name, margin, f"{name} accepted with margin {margin:.2f} (A = {upper:.2f})")
+
+
 class PairwiseSPRTBatch(HypothesisTestBatch):
     """R copies of :class:`PairwiseSPRT` as arrays (U runs per step vectorized): L, in-play and frozen values (R, H)."""
 
@@ -117,13 +122,7 @@ class PairwiseSPRTBatch(HypothesisTestBatch):
                 decided[u] = i
                 self.decided[runs[u]] = i
                 name = self.hypotheses[i] if self.hypotheses is not None and i < len(self.hypotheses) else f"H{i}"
-                decisions[u] = Decision(
-                    step,
-                    self.detector.label,
-                    name,
-                    float(ratio[u, i]),
-                    f"{name} accepted, log-LR margin {ratio[u, i]:.2f} (A = {self.upper:.2f})",
-                )
+                decisions[u] = acceptance(step, self.detector.label, name, float(ratio[u, i]), self.upper)
         self.L[runs], self.active[runs], self.frozen[runs] = L, active, frozen
         out = np.where(active, batch_margins(L, active), frozen)
         return BatchStep(out, active.astype(float), decided, tuple(decisions))
@@ -178,13 +177,7 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
                 self.decided = i
                 self.frozen = np.where(np.arange(M) == i, margins(self.L, np.ones(M, dtype=bool))[i], self.frozen)
                 self.active = np.zeros(M, dtype=bool)
-                decision = Decision(
-                    step,
-                    self.label,
-                    self.hypothesis_name(i),
-                    float(ratio[i]),
-                    f"{self.hypothesis_name(i)} accepted with margin {ratio[i]:.2f} (A = {self.upper:.2f})",
-                )
+                decision = acceptance(step, self.label, self.hypothesis_name(i), float(ratio[i]), self.upper)
         ratio = np.where(self.active, margins(self.L, self.active), self.frozen)
         return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision)
 
