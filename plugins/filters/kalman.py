@@ -16,6 +16,7 @@ The centralized multisensor filter is this filter given all sensors at once
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Sequence
 from functools import cached_property
 
@@ -24,6 +25,7 @@ import numpy as np
 
 from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.validation import FILTER_MAGNITUDE_LIMIT
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
 
@@ -125,6 +127,9 @@ class KalmanFilter(BankEstimator):
         self._split_cache: tuple | None = None
         self._transposed_cache: tuple | None = None
         self._plan_cache: dict = {}
+        self._flat_bank: tuple | None = None  # (bank, F, B, Q flattened to (M, n²), (M, n)) for the dense lane
+        self._lane: _UpdateLane | None = None  # the measurement model of the last update, for the update lane
+        self._compiled = None  # the kernel module, imported on the first compiled step
 
     def dense_engine(self, n: int, m: int = 0) -> str:
         """ "numba" or "numpy": what runs a dense step of state size n and measurement size m under ``engine``."""
@@ -149,8 +154,62 @@ class KalmanFilter(BankEstimator):
         self._split_cache = (bank, split)
         return split
 
-    @guarded
+    def _kernel(self):
+        if self._compiled is None:
+            self._compiled = cov_form.kernel_module()
+        return self._compiled
+
     def predict(self, state, transitions: TransitionBank):
+        """x⁻ = F x⁺ + B, P⁻ = F P⁺ Fᵀ + Q (eqs. 4–5): the compiled lane when the bank is the one checked at the
+        previous step, else (and whenever the lane reports a non-finite output) the reference step."""
+        checked = self._checked_transitions
+        if checked is not None and checked[0] is transitions and self.engine != "numpy":
+            kind = type(state)
+            if kind is AxisState:
+                split = self._split_cache
+                if split is not None and split[0] is transitions and split[1] is not None and state.axes == split[1].axes:
+                    result = self._predict_axes_compiled(state, split[1], checked[1])
+                    if result is not None:
+                        return result
+            elif kind is CovarianceState:
+                result = self._predict_dense_compiled(state, transitions, checked[1])
+                if result is not None:
+                    return result
+        return self._predict(state, transitions)
+
+    def _predict_axes_compiled(self, state: AxisState, split, shape):
+        xa, Pa = state.xa, state.Pa
+        if shape != (xa.shape[-1], state.n):
+            return None
+        xa_out, Pa_out = np.empty(xa.shape), np.empty(Pa.shape)
+        if self._kernel().axis_predict(xa, Pa, split.F, split.B, split.Q, xa_out, Pa_out):
+            return None
+        return AxisState(split.axes, state.n, xa_out, Pa_out, xa_out, Pa_out, None)
+
+    def _predict_dense_compiled(self, state: CovarianceState, bank: TransitionBank, shape):
+        if self.structure:  # the dense lane only where the reference takes the dense path for every state
+            split = self._split_cache
+            if split is None or split[0] is not bank or split[1] is not None:
+                return None
+        x = state.x
+        M, n = x.shape
+        if shape != (M, n):
+            return None
+        flat = self._flat_bank
+        if flat is None or flat[0] is not bank or flat[1] is not bank.F:
+            if self.dense_engine(n) != "numba":
+                return None
+            flat = (bank, bank.F, *(np.ascontiguousarray(A, dtype=float).reshape(M, -1) for A in (bank.F, bank.B, bank.Q)), (0,) * n)
+            self._flat_bank = flat
+        x_out, P_out = np.empty((M, n)), np.empty((M, n, n))
+        if self._kernel().predict_bank_checked(
+            x, state.P.reshape(M, n * n), flat[2], flat[3], flat[4], x_out, P_out.reshape(M, n * n), flat[5]
+        ):
+            return None
+        return CovarianceState(x_out, P_out, x_out, P_out, None)
+
+    @guarded
+    def _predict(self, state, transitions: TransitionBank):
         M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
         bank = self.check_transitions(
             transitions, M, n, state.mean if callable(transitions) and not isinstance(transitions, TransitionBank) else None
@@ -222,9 +281,74 @@ class KalmanFilter(BankEstimator):
         innovation = Innovation(nu, S, loglik, nis)
         return AxisState(state.axes, state.n, xa, Pa, state.xa_predicted, state.Pa_predicted, innovation), innovation
 
-    @guarded
     def update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        """The Kalman update (dense or axis-separable).  Overflow: :func:`guarded` checks ℓ and NIS, which are
+        """The Kalman update (eqs. 6–9, scores of SPEC §4): the compiled lane when z, the sensors and the layout
+        are those the last update learned (:class:`_UpdateLane`), else (and whenever the lane reports a NaN or
+        too large z, an S not positive definite or a non-finite output) the reference step, which handles
+        missing components and raises the usual errors."""
+        lane = self._lane
+        if (
+            lane is not None
+            and type(state) is lane.kind
+            and type(z) is np.ndarray
+            and z.shape == lane.z_shape
+            and z.dtype == np.float64
+            and (layout is lane.layout or tuple(layout) == lane.layout)
+            and len(sensors) == len(lane.sensors)
+            and all(map(operator.is_, sensors, lane.sensors))
+        ):
+            result = lane.run(self, state, z)
+            if result is not None:
+                return result
+        return self._update(state, z, sensors, layout)
+
+    def _learn_lane(self, state, z, sensors, layout, step, plan=None):
+        """Remember this update's measurement model for the compiled lane when the lane can run it: z a float
+        array, every sensor present with all components, linear with a selection H, a constant R (m, m)
+        (diagonal and axis-aligned on the separable path), plain residuals, a compiled engine."""
+        if (
+            self.engine == "numpy"
+            or not cov_form.NUMBA_AVAILABLE
+            or type(z) is not np.ndarray
+            or z.dtype != np.float64
+            or isinstance(sensors, Sensor)
+            or step.selection is None
+            or not step.plain_residual
+            or step.R.ndim != 2
+            or len(step.models) != len(sensors)
+            or any(mdl.rows is not None or type(mdl.sensor).measurement_noise is not Sensor.measurement_noise for mdl in step.models)
+        ):
+            return
+        m = step.dim
+        if isinstance(state, AxisState):
+            if plan is None:
+                return
+            c, measured, order = plan
+            axis_row = np.empty(m, dtype=np.intp)
+            axis_row[order] = np.arange(len(state.axes)) if measured is None else measured
+            payload = (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)))
+        else:
+            if self.dense_engine(state.x.shape[1], m) != "numba":
+                return
+            payload = (
+                np.array(step.selection, dtype=np.intp),
+                np.ascontiguousarray(step.R, dtype=float).reshape(-1),
+                (0,) * state.x.shape[1],
+                (0,) * m,
+            )
+        self._lane = _UpdateLane(
+            type(state),
+            tuple(sensors),
+            tuple(layout),
+            z.shape,
+            (state.bank_size, state.n if isinstance(state, AxisState) else state.x.shape[1]),
+            m,
+            payload,
+        )
+
+    @guarded
+    def _update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        """The reference update (dense or axis-separable).  Overflow: :func:`guarded` checks ℓ and NIS, which are
         non-finite whenever S or ν is (x⁺ = x⁻ + K ν is finite for a finite x⁻, ν and positive definite S)."""
         M = state.bank_size
         n = state.n if isinstance(state, AxisState) else state.x.shape[1]
@@ -235,7 +359,9 @@ class KalmanFilter(BankEstimator):
                 return attrs.evolve(state, innovation=innovation), innovation
             plan = self._axis_plan(step, state.axes) if step.H is not None else None
             if plan is not None:
-                return self._update_axes(state, step, plan)
+                result = self._update_axes(state, step, plan)
+                self._learn_lane(state, z, sensors, layout, step, plan)
+                return result
             state = CovarianceState(state.x, state.P, state.x_predicted, state.P_predicted, state.innovation)
             found = self.linearize(state.x, z, sensors, layout, step)  # the step assembled above, not again
         else:
@@ -247,7 +373,73 @@ class KalmanFilter(BankEstimator):
         engine = self.dense_engine(n, nu.shape[-1])
         x, P, S, loglik, nis = cov_form.update_scored(state.x, state.P, nu, H, step.R, step.selection, self.form, engine)
         innovation = Innovation(nu, S, loglik, nis)
+        self._learn_lane(state, z, sensors, layout, step)
         return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
+
+
+class _UpdateLane:
+    """The measurement model of an update, kept for the next ones: the sensors (by identity), the layout, z's
+    shape, the bank's (M, n) and state form, and what the compiled kernel needs — separable: the measured
+    component c, the axis of each z row, the variances r; dense: the selected state indices, R flattened."""
+
+    __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "payload")
+
+    def __init__(self, kind, sensors, layout, z_shape, shape, m, payload):
+        self.kind, self.sensors, self.layout, self.z_shape, self.shape, self.m, self.payload = (
+            kind,
+            sensors,
+            layout,
+            z_shape,
+            shape,
+            m,
+            payload,
+        )
+
+    def run(self, estimator: KalmanFilter, state, z: np.ndarray):
+        """The compiled update, or None when the kernel reports a step the reference must take (or the bank changed)."""
+        m = self.m
+        z2 = z.reshape(-1, m)
+        kernel = estimator._kernel()
+        form = kernel.FORMS[estimator.form]
+        if self.kind is AxisState:
+            xa, Pa = state.xa, state.Pa
+            M = xa.shape[-1]
+            if (M, state.n) != self.shape:
+                return None
+            c, axis_row, r = self.payload
+            xa_out, Pa_out = np.empty(xa.shape), np.empty(Pa.shape)
+            nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
+            if kernel.axis_update(xa, Pa, z2, axis_row, c, r, form, FILTER_MAGNITUDE_LIMIT, xa_out, Pa_out, nu, S, loglik, nis):
+                return None
+            innovation = Innovation(nu, S, loglik, nis)
+            return AxisState(state.axes, state.n, xa_out, Pa_out, state.xa_predicted, state.Pa_predicted, innovation), innovation
+        x = state.x
+        M, n = x.shape
+        if (M, n) != self.shape:
+            return None
+        sel, R, n_tuple, m_tuple = self.payload
+        x_out, P_out = np.empty((M, n)), np.empty((M, n, n))
+        nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
+        if kernel.update_bank_selected(
+            x,
+            state.P.reshape(M, n * n),
+            z2,
+            sel,
+            R,
+            form,
+            FILTER_MAGNITUDE_LIMIT,
+            x_out,
+            P_out.reshape(M, n * n),
+            nu,
+            S.reshape(M, m * m),
+            loglik,
+            nis,
+            n_tuple,
+            m_tuple,
+        ):
+            return None
+        innovation = Innovation(nu, S, loglik, nis)
+        return CovarianceState(x_out, P_out, state.x_predicted, state.P_predicted, innovation), innovation
 
 
 COMPONENTS = {"kalman": KalmanFilter}
