@@ -271,7 +271,7 @@ def predict_bank_checked(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no co
     N = len(n_tuple)
     M = x.shape[0]
     FP = np.empty(N * N)
-    check = 0.0
+    bad = 0
     for i in range(M):
         Fi, Pi, xi, Qi, Po, xo, Bi = F[i], P[i], x[i], Q[i], P_out[i], x_out[i], B[i]
         for j in range(N):
@@ -279,7 +279,8 @@ def predict_bank_checked(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no co
             for k in range(N):
                 acc += Fi[j * N + k] * xi[k]
             xo[j] = acc
-            check += acc * 0.0
+            if acc - acc != 0.0:  # inf or NaN
+                bad = 1
         for j in range(N):
             for k in range(N):
                 acc = 0.0
@@ -293,8 +294,9 @@ def predict_bank_checked(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no co
                     acc += FP[j * N + q] * Fi[k * N + q]
                 Po[j * N + k] = acc
                 Po[k * N + j] = acc
-                check += acc * 0.0
-    return 0 if check == 0.0 else 1  # inf·0 and NaN·0 are NaN
+                if acc - acc != 0.0:  # inf or NaN
+                    bad = 1
+    return bad
 
 
 @_njit
@@ -320,7 +322,7 @@ def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_o
     K = np.empty(N * Mm)
     T = np.empty(N * N)
     D = np.empty(N * Mm)
-    check = 0.0
+    bad = 0
     for i in range(M):
         Pi, xi, zi, nui = P[i], x[i], z[i if per_z else 0], nu_out[i]
         for a in range(Mm):
@@ -393,7 +395,8 @@ def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_o
         nis[i] = s_nis
         ll = -0.5 * (Mm * LOG_2PI + log_det + s_nis)
         loglik[i] = ll
-        check += ll * 0.0
+        if ll - ll != 0.0:  # inf or NaN
+            bad = 1
         So = S_out[i]
         for a in range(Mm * Mm):
             So[a] = S[a]
@@ -408,7 +411,8 @@ def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_o
                 K[a * Mm + b] = acc
                 acc2 += acc * nui[b]
             xo[a] = acc2
-            check += acc2 * 0.0
+            if acc2 - acc2 != 0.0:  # inf or NaN
+                bad = 1
         # T = P − K (H P) = P − K P[sel, :] (Joseph) or P − K (P Hᵀ)ᵀ = P − K P[:, sel]ᵀ
         if form == 0:
             for a in range(N):
@@ -442,92 +446,99 @@ def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_o
                     v = 0.5 * (u_ab + u_ba) if a != b else u_ab
                     Po[a * N + b] = v
                     Po[b * N + a] = v
-                    check += v * 0.0
+                    if v - v != 0.0:  # inf or NaN
+                        bad = 1
         elif form == 1:
             for a in range(N):
                 for b in range(a, N):
                     v = 0.5 * (T[a * N + b] + T[b * N + a]) if a != b else T[a * N + a]
                     Po[a * N + b] = v
                     Po[b * N + a] = v
-                    check += v * 0.0
+                    if v - v != 0.0:  # inf or NaN
+                        bad = 1
         else:
             for a in range(N * N):
                 Po[a] = T[a]
-                check += T[a] * 0.0
-    return 0 if check == 0.0 else 1
+                if T[a] - T[a] != 0.0:
+                    bad = 1
+    return bad
 
 
 @_njit
-def axis_predict(xa, Pa, F, B, Q, x_out, P_out):  # pragma: no cover - compiled
+def axis_predict(xa, Pa, F, B, Q, x_out, P_out, d_tuple):  # pragma: no cover - compiled
     """The axis-separable predict of :func:`._separable.predict` per axis a and filter i (x (d, A, M), P, F, Q
     (d, d, A, M), B (d, A, M)): x⁻ = F x + B, P⁻ = (F P) Fᵀ + Q, every entry formed (as the numpy path does);
-    returns 0, or 1 when an output is not finite."""
-    d, A, M = xa.shape
-    T = np.empty((d, d))
-    check = 0.0
+    ``d_tuple`` any tuple of length d (compile-time block size).  Returns 0, or 1 when an output is not finite."""
+    d = len(d_tuple)
+    A, M = xa.shape[1], xa.shape[2]
+    T = np.empty(d * d)
+    bad = 0
     for a in range(A):
         for i in range(M):
             for j in range(d):
-                acc = 0.0
+                acc = B[j, a, i]
                 for k in range(d):
                     acc += F[j, k, a, i] * xa[k, a, i]
-                acc += B[j, a, i]
                 x_out[j, a, i] = acc
-                check += acc * 0.0
+                if acc - acc != 0.0:  # inf or NaN
+                    bad = 1
             for j in range(d):
                 for k in range(d):
                     acc = 0.0
                     for q in range(d):
                         acc += F[j, q, a, i] * Pa[q, k, a, i]
-                    T[j, k] = acc
+                    T[j * d + k] = acc
             for j in range(d):
                 for k in range(d):
                     acc = 0.0
                     for q in range(d):
-                        acc += T[j, q] * F[k, q, a, i]
+                        acc += T[j * d + q] * F[k, q, a, i]
                     acc += Q[j, k, a, i]
                     P_out[j, k, a, i] = acc
-                    check += acc * 0.0
-    return 0 if check == 0.0 else 1
+                    if acc - acc != 0.0:
+                        bad = 1
+    return bad
 
 
 @_njit
-def axis_update(xa, Pa, z, axis_row, c, r, form, limit, x_out, P_out, nu, S, loglik, nis):  # pragma: no cover
+def axis_update(xa, Pa, z, axis_row, c, r, form, limit, x_out, P_out, nu, S, loglik, nis, d_tuple):  # pragma: no cover
     """The scalar updates of :func:`._separable.update`: measurement row b (column b of z (1 or M, m)) measures
     component c of axis ``axis_row[b]`` with variance r[b]; per filter and measured axis s = P_cc + r, k = P_:c / s,
     ν = z − x_c, x⁺ = x + k ν, Joseph P⁺ = P − k P_c:ᵀ − P_:c kᵀ + s k kᵀ or symmetric P⁺ = P − s k kᵀ;
-    ℓ = −½ Σ_rows (ln 2π + ln s + ν²/s), NIS = Σ ν²/s; ν (M, m) and S = diag(s) (M, m, m, zero elsewhere) written in
-    the rows' order; the axes no row measures are copied.  Returns 0, or 1 when z has an entry that is NaN or beyond
-    ``limit``, some s ≤ 0 or an output is not finite."""
-    d, A, M = xa.shape
+    ℓ = −½(m ln 2π + ln Π_rows s + Σ_rows ν²/s) (one logarithm per filter), NIS = Σ ν²/s; ν (M, m) and
+    S = diag(s) (M, m, m, zero elsewhere) in the rows' order; the axes no row measures are copied.  ``d_tuple``
+    any tuple of length d.  Returns 0, or 1 when z has an entry that is NaN or beyond ``limit``, some s ≤ 0 or an
+    output is not finite (also when Π s over- or underflows: the reference then takes the step)."""
+    d = len(d_tuple)
+    A, M = xa.shape[1], xa.shape[2]
     m = axis_row.shape[0]
     per_z = z.shape[0] > 1
     for b in range(z.shape[0]):
         for a in range(m):
             if not abs(z[b, a]) <= limit:
                 return 1
-    for i in range(M):
-        for j in range(d):
-            for a in range(A):
-                x_out[j, a, i] = xa[j, a, i]
-                for k in range(d):
-                    P_out[j, k, a, i] = Pa[j, k, a, i]
+    if m < A:
+        x_out[...] = xa
+        P_out[...] = Pa
     kv = np.empty(d)
-    check = 0.0
+    bad = 0
     for i in range(M):
-        ll = 0.0
+        prod = 1.0
         ni = 0.0
+        zi = z[i if per_z else 0]
         for b in range(m):
             a = axis_row[b]
             s = Pa[c, c, a, i] + r[b]
             if not s > 0.0:
                 return 1
             s_inv = 1.0 / s
-            v = z[i if per_z else 0, b] - xa[c, a, i]
+            v = zi[b] - xa[c, a, i]
             for j in range(d):
                 kv[j] = Pa[j, c, a, i] * s_inv
-                x_out[j, a, i] = xa[j, a, i] + kv[j] * v
-                check += x_out[j, a, i] * 0.0
+                xo = xa[j, a, i] + kv[j] * v
+                x_out[j, a, i] = xo
+                if xo - xo != 0.0:
+                    bad = 1
             for j in range(d):
                 for k in range(d):
                     kk = kv[j] * kv[k] * s
@@ -536,15 +547,17 @@ def axis_update(xa, Pa, z, axis_row, c, r, form, limit, x_out, P_out, nu, S, log
                     else:
                         val = Pa[j, k, a, i] - kk
                     P_out[j, k, a, i] = val
-                    check += val * 0.0
+                    if val - val != 0.0:
+                        bad = 1
             nu[i, b] = v
             for q in range(m):
                 S[i, b, q] = 0.0
             S[i, b, b] = s
-            e = v * v * s_inv
-            ni += e
-            ll += math.log(s) + e
+            ni += v * v * s_inv
+            prod *= s
+        ll = -0.5 * (LOG_2PI * m + math.log(prod) + ni)
         nis[i] = ni
-        loglik[i] = -0.5 * (LOG_2PI * m + ll)
-        check += ni * 0.0 + loglik[i] * 0.0
-    return 0 if check == 0.0 else 1
+        loglik[i] = ll
+        if ll - ll != 0.0 or not prod > 0.0:
+            bad = 1
+    return bad

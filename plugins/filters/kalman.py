@@ -29,6 +29,9 @@ from hybridtrack.validation import FILTER_MAGNITUDE_LIMIT
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
 
+#: banks whose compiled predict lane an estimator keeps (irregular sampling alternates between a few Δt)
+PREDICT_LANES = 8
+
 
 @attrs.frozen(eq=False)
 class CovarianceState:
@@ -127,7 +130,7 @@ class KalmanFilter(BankEstimator):
         self._split_cache: tuple | None = None
         self._transposed_cache: tuple | None = None
         self._plan_cache: dict = {}
-        self._flat_bank: tuple | None = None  # (bank, F, B, Q flattened to (M, n²), (M, n)) for the dense lane
+        self._predict_lanes: dict = {}  # id(bank) -> (bank, state form, shape, kernel, operands), the last few banks
         self._lane: _UpdateLane | None = None  # the measurement model of the last update, for the update lane
         self._compiled = None  # the kernel module, imported on the first compiled step
 
@@ -160,53 +163,48 @@ class KalmanFilter(BankEstimator):
         return self._compiled
 
     def predict(self, state, transitions: TransitionBank):
-        """x⁻ = F x⁺ + B, P⁻ = F P⁺ Fᵀ + Q (eqs. 4–5): the compiled lane when the bank is the one checked at the
-        previous step, else (and whenever the lane reports a non-finite output) the reference step."""
-        checked = self._checked_transitions
-        if checked is not None and checked[0] is transitions and self.engine != "numpy":
-            kind = type(state)
+        """x⁻ = F x⁺ + B, P⁻ = F P⁺ Fᵀ + Q (eqs. 4–5): the compiled lane when the bank and the state's form and
+        shape are those of the last reference prediction (:meth:`_learn_predict_lane`), else (and whenever the
+        lane reports a non-finite output) the reference step."""
+        lane = self._predict_lanes.get(id(transitions))
+        if lane is not None and lane[0] is transitions and type(state) is lane[1]:
+            kind, shape, run, args = lane[1], lane[2], lane[3], lane[4]
             if kind is AxisState:
-                split = self._split_cache
-                if split is not None and split[0] is transitions and split[1] is not None and state.axes == split[1].axes:
-                    result = self._predict_axes_compiled(state, split[1], checked[1])
-                    if result is not None:
-                        return result
-            elif kind is CovarianceState:
-                result = self._predict_dense_compiled(state, transitions, checked[1])
-                if result is not None:
-                    return result
+                xa, Pa = state.xa, state.Pa
+                if xa.shape == shape and (state.axes is args[0] or state.axes == args[0]):
+                    xa_out, Pa_out = np.empty(shape), np.empty(Pa.shape)
+                    if not run(xa, Pa, args[1], args[2], args[3], xa_out, Pa_out, args[4]):
+                        return AxisState(args[0], state.n, xa_out, Pa_out, xa_out, Pa_out, None)
+            else:
+                x = state.x
+                if x.shape == shape:
+                    M, n = shape
+                    x_out, P_out = np.empty(shape), np.empty((M, n, n))
+                    if not run(x, state.P.reshape(M, n * n), args[0], args[1], args[2], x_out, P_out.reshape(M, n * n), args[3]):
+                        return CovarianceState(x_out, P_out, x_out, P_out, None)
         return self._predict(state, transitions)
 
-    def _predict_axes_compiled(self, state: AxisState, split, shape):
-        xa, Pa = state.xa, state.Pa
-        if shape != (xa.shape[-1], state.n):
-            return None
-        xa_out, Pa_out = np.empty(xa.shape), np.empty(Pa.shape)
-        if self._kernel().axis_predict(xa, Pa, split.F, split.B, split.Q, xa_out, Pa_out):
-            return None
-        return AxisState(split.axes, state.n, xa_out, Pa_out, xa_out, Pa_out, None)
-
-    def _predict_dense_compiled(self, state: CovarianceState, bank: TransitionBank, shape):
-        if self.structure:  # the dense lane only where the reference takes the dense path for every state
-            split = self._split_cache
-            if split is None or split[0] is not bank or split[1] is not None:
-                return None
-        x = state.x
-        M, n = x.shape
-        if shape != (M, n):
-            return None
-        flat = self._flat_bank
-        if flat is None or flat[0] is not bank or flat[1] is not bank.F:
+    def _learn_predict_lane(self, bank: TransitionBank, result) -> None:
+        """After a reference prediction: remember the bank (checked), the form and shape of the result and the
+        kernel's operands (the split blocks, or F, B, Q flattened) for the compiled lane of the next ones."""
+        lanes = self._predict_lanes
+        lanes.pop(id(bank), None)
+        if self.engine == "numpy" or not cov_form.NUMBA_AVAILABLE:
+            return
+        if len(lanes) >= PREDICT_LANES:
+            lanes.pop(next(iter(lanes)))  # the oldest
+        kernel = self._kernel()
+        if type(result) is AxisState:
+            split = self._split_cache[1]
+            d = result.xa.shape[0]
+            lanes[id(bank)] = (bank, AxisState, result.xa.shape, kernel.axis_predict, (result.axes, split.F, split.B, split.Q, (0,) * d))
+        elif type(result) is CovarianceState and (not self.structure or self._split_cache[1] is None):
+            M, n = result.x.shape
             if self.dense_engine(n) != "numba":
-                return None
-            flat = (bank, bank.F, *(np.ascontiguousarray(A, dtype=float).reshape(M, -1) for A in (bank.F, bank.B, bank.Q)), (0,) * n)
-            self._flat_bank = flat
-        x_out, P_out = np.empty((M, n)), np.empty((M, n, n))
-        if self._kernel().predict_bank_checked(
-            x, state.P.reshape(M, n * n), flat[2], flat[3], flat[4], x_out, P_out.reshape(M, n * n), flat[5]
-        ):
-            return None
-        return CovarianceState(x_out, P_out, x_out, P_out, None)
+                return
+            flat = tuple(np.ascontiguousarray(A, dtype=float).reshape(M, -1) for A in (bank.F, bank.B, bank.Q))
+            lanes[id(bank)] = (bank, CovarianceState, (M, n), kernel.predict_bank_checked, (*flat, (0,) * n))
+        # else a dense state under structure=True with a separable bank: the reference decides each time
 
     @guarded
     def _predict(self, state, transitions: TransitionBank):
@@ -226,12 +224,16 @@ class KalmanFilter(BankEstimator):
                 if xa is not None:
                     xa, Pa = sep.predict(xa, Pa, split)
                     self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
-                    return AxisState(split.axes, n, xa, Pa, xa, Pa, None)
+                    result = AxisState(split.axes, n, xa, Pa, xa, Pa, None)
+                    self._learn_predict_lane(bank, result)
+                    return result
         engine = self.dense_engine(n)
         Ft = self._transposed(bank) if engine == "numpy" else None
         x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, Ft, engine=engine)
         self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        return CovarianceState(x, P, x, P, None)
+        result = CovarianceState(x, P, x, P, None)
+        self._learn_predict_lane(bank, result)
+        return result
 
     def _transposed(self, bank: TransitionBank) -> np.ndarray:
         """Fᵀ as a contiguous stack, kept with the bank object like the other per-bank caches."""
@@ -297,7 +299,7 @@ class KalmanFilter(BankEstimator):
             and len(sensors) == len(lane.sensors)
             and all(map(operator.is_, sensors, lane.sensors))
         ):
-            result = lane.run(self, state, z)
+            result = lane.update(state, z)
             if result is not None:
                 return result
         return self._update(state, z, sensors, layout)
@@ -320,31 +322,23 @@ class KalmanFilter(BankEstimator):
         ):
             return
         m = step.dim
+        kernel = self._kernel()
         if isinstance(state, AxisState):
             if plan is None:
                 return
             c, measured, order = plan
             axis_row = np.empty(m, dtype=np.intp)
             axis_row[order] = np.arange(len(state.axes)) if measured is None else measured
-            payload = (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)))
+            run, payload = kernel.axis_update, (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)), (0,) * state.xa.shape[0])
+            shape = (state.n, state.bank_size)
         else:
-            if self.dense_engine(state.x.shape[1], m) != "numba":
+            M, n = state.x.shape
+            if self.dense_engine(n, m) != "numba":
                 return
-            payload = (
-                np.array(step.selection, dtype=np.intp),
-                np.ascontiguousarray(step.R, dtype=float).reshape(-1),
-                (0,) * state.x.shape[1],
-                (0,) * m,
-            )
-        self._lane = _UpdateLane(
-            type(state),
-            tuple(sensors),
-            tuple(layout),
-            z.shape,
-            (state.bank_size, state.n if isinstance(state, AxisState) else state.x.shape[1]),
-            m,
-            payload,
-        )
+            run = kernel.update_bank_selected
+            payload = (np.array(step.selection, dtype=np.intp), np.ascontiguousarray(step.R, dtype=float).reshape(-1), (0,) * n, (0,) * m)
+            shape = (M, n)
+        self._lane = _UpdateLane(type(state), tuple(sensors), tuple(layout), z.shape, shape, m, run, kernel.FORMS[self.form], payload)
 
     @guarded
     def _update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
@@ -379,54 +373,46 @@ class KalmanFilter(BankEstimator):
 
 class _UpdateLane:
     """The measurement model of an update, kept for the next ones: the sensors (by identity), the layout, z's
-    shape, the bank's (M, n) and state form, and what the compiled kernel needs — separable: the measured
-    component c, the axis of each z row, the variances r; dense: the selected state indices, R flattened."""
+    shape, the bank's shape and state form, the kernel, the update form's code and the kernel's operands —
+    separable: the measured component c, the axis of each z row, the variances r; dense: the selected state
+    indices and R flattened."""
 
-    __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "payload")
+    __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "run", "form", "payload")
 
-    def __init__(self, kind, sensors, layout, z_shape, shape, m, payload):
-        self.kind, self.sensors, self.layout, self.z_shape, self.shape, self.m, self.payload = (
-            kind,
-            sensors,
-            layout,
-            z_shape,
-            shape,
-            m,
-            payload,
-        )
+    def __init__(self, kind, sensors, layout, z_shape, shape, m, run, form, payload):
+        self.kind, self.sensors, self.layout, self.z_shape, self.shape, self.m = kind, sensors, layout, z_shape, shape, m
+        self.run, self.form, self.payload = run, form, payload
 
-    def run(self, estimator: KalmanFilter, state, z: np.ndarray):
+    def update(self, state, z: np.ndarray):
         """The compiled update, or None when the kernel reports a step the reference must take (or the bank changed)."""
         m = self.m
         z2 = z.reshape(-1, m)
-        kernel = estimator._kernel()
-        form = kernel.FORMS[estimator.form]
         if self.kind is AxisState:
             xa, Pa = state.xa, state.Pa
             M = xa.shape[-1]
-            if (M, state.n) != self.shape:
+            if (state.n, M) != self.shape:
                 return None
-            c, axis_row, r = self.payload
+            c, axis_row, r, d_tuple = self.payload
             xa_out, Pa_out = np.empty(xa.shape), np.empty(Pa.shape)
             nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
-            if kernel.axis_update(xa, Pa, z2, axis_row, c, r, form, FILTER_MAGNITUDE_LIMIT, xa_out, Pa_out, nu, S, loglik, nis):
+            if self.run(xa, Pa, z2, axis_row, c, r, self.form, FILTER_MAGNITUDE_LIMIT, xa_out, Pa_out, nu, S, loglik, nis, d_tuple):
                 return None
             innovation = Innovation(nu, S, loglik, nis)
             return AxisState(state.axes, state.n, xa_out, Pa_out, state.xa_predicted, state.Pa_predicted, innovation), innovation
         x = state.x
-        M, n = x.shape
-        if (M, n) != self.shape:
+        if x.shape != self.shape:
             return None
+        M, n = self.shape
         sel, R, n_tuple, m_tuple = self.payload
         x_out, P_out = np.empty((M, n)), np.empty((M, n, n))
         nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
-        if kernel.update_bank_selected(
+        if self.run(
             x,
             state.P.reshape(M, n * n),
             z2,
             sel,
             R,
-            form,
+            self.form,
             FILTER_MAGNITUDE_LIMIT,
             x_out,
             P_out.reshape(M, n * n),
