@@ -304,8 +304,8 @@ def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_o
     """The update of each filter for a selection H (H = rows e_sel[b]ᵀ, the position sensors) with ν = z − x⁻[sel]
     computed here: P Hᵀ = P[:, sel], H P = P[sel, :], S = ½(C + Cᵀ), C = P[sel][:, sel] + R, T Hᵀ = T[:, sel];
     otherwise the arithmetic of :func:`update_bank` (S⁻¹ and the scores by the closed forms for m ≤ 2, the Cholesky
-    recurrence above; Joseph P⁺ = ½(U + Uᵀ), U = T + (K R − T Hᵀ) Kᵀ, T = P⁻ − K (H P⁻), only U's upper triangle
-    formed; symmetric P⁺ = ½(T + Tᵀ), T = P⁻ − K (P⁻ Hᵀ)ᵀ).  z (1 or M, m), R (m²,).  Returns 0, or 1 when z has
+    recurrence above; Joseph P⁺ = U, U = T + (K R − T Hᵀ) Kᵀ, T = P⁻ − K (H P⁻), U symmetric in exact arithmetic:
+    its upper triangle formed and mirrored (the reference's ½(U + Uᵀ) differs by rounding only); symmetric P⁺ = ½(T + Tᵀ), T = P⁻ − K (P⁻ Hᵀ)ᵀ).  z (1 or M, m), R (m²,).  Returns 0, or 1 when z has
     an entry that is NaN or beyond ``limit``, S is not positive definite or an output is not finite."""
     N, Mm = len(n_tuple), len(m_tuple)
     M = x.shape[0]
@@ -429,7 +429,7 @@ def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_o
                         acc += K[a * Mm + q] * Pi[b * N + sel[q]]
                     T[a * N + b] = Pi[a * N + b] - acc
         Po = P_out[i]
-        if form == 0:  # D = K R − T[:, sel], U = T + D Kᵀ, P⁺ = ½(U + Uᵀ)
+        if form == 0:  # D = K R − T[:, sel], U = T + D Kᵀ (symmetric: its upper triangle, mirrored)
             for a in range(N):
                 for b in range(Mm):
                     acc = 0.0
@@ -438,12 +438,9 @@ def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_o
                     D[a * Mm + b] = acc - T[a * N + sel[b]]
             for a in range(N):
                 for b in range(a, N):
-                    u_ab = T[a * N + b]
-                    u_ba = T[b * N + a]
+                    v = T[a * N + b]
                     for q in range(Mm):
-                        u_ab += D[a * Mm + q] * K[b * Mm + q]
-                        u_ba += D[b * Mm + q] * K[a * Mm + q]
-                    v = 0.5 * (u_ab + u_ba) if a != b else u_ab
+                        v += D[a * Mm + q] * K[b * Mm + q]
                     Po[a * N + b] = v
                     Po[b * N + a] = v
                     if v - v != 0.0:  # inf or NaN
