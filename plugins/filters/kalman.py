@@ -225,14 +225,16 @@ class KalmanFilter(BankEstimator):
                     xa, Pa = sep.predict(xa, Pa, split)
                     self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
                     result = AxisState(split.axes, n, xa, Pa, xa, Pa, None)
-                    self._learn_predict_lane(bank, result)
+                    if bank is transitions:  # not a bank linearized for this step (EKF)
+                        self._learn_predict_lane(bank, result)
                     return result
         engine = self.dense_engine(n)
         Ft = self._transposed(bank) if engine == "numpy" else None
         x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, Ft, engine=engine)
         self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
         result = CovarianceState(x, P, x, P, None)
-        self._learn_predict_lane(bank, result)
+        if bank is transitions:  # not a bank linearized for this step (EKF)
+            self._learn_predict_lane(bank, result)
         return result
 
     def _transposed(self, bank: TransitionBank) -> np.ndarray:
@@ -329,7 +331,10 @@ class KalmanFilter(BankEstimator):
             c, measured, order = plan
             axis_row = np.empty(m, dtype=np.intp)
             axis_row[order] = np.arange(len(state.axes)) if measured is None else measured
-            run, payload = kernel.axis_update, (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)), (0,) * state.xa.shape[0])
+            run, payload = (
+                kernel.axis_update,
+                (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)), (0,) * state.xa.shape[0], state.axes),
+            )
             shape = (state.n, state.bank_size)
         else:
             M, n = state.x.shape
@@ -374,8 +379,8 @@ class KalmanFilter(BankEstimator):
 class _UpdateLane:
     """The measurement model of an update, kept for the next ones: the sensors (by identity), the layout, z's
     shape, the bank's shape and state form, the kernel, the update form's code and the kernel's operands —
-    separable: the measured component c, the axis of each z row, the variances r; dense: the selected state
-    indices and R flattened."""
+    separable: the measured component c, the axis of each z row, the variances r (for the state's axes);
+    dense: the selected state indices and R flattened."""
 
     __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "run", "form", "payload")
 
@@ -390,9 +395,9 @@ class _UpdateLane:
         if self.kind is AxisState:
             xa, Pa = state.xa, state.Pa
             M = xa.shape[-1]
-            if (state.n, M) != self.shape:
+            c, axis_row, r, d_tuple, axes = self.payload
+            if (state.n, M) != self.shape or not (state.axes is axes or state.axes == axes):
                 return None
-            c, axis_row, r, d_tuple = self.payload
             xa_out, Pa_out = np.empty(xa.shape), np.empty(Pa.shape)
             nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
             if self.run(xa, Pa, z2, axis_row, c, r, self.form, FILTER_MAGNITUDE_LIMIT, xa_out, Pa_out, nu, S, loglik, nis, d_tuple):
