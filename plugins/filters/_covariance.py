@@ -48,10 +48,14 @@ def resolve_engine(engine: str, n: int, m: int = 0) -> str:
     return engine
 
 
-def _kernel():
+def kernel_module():
+    """The compiled kernels (:mod:`._kalman_kernel`), imported (and numba with them) on first use."""
     from hybridtrack_plugins.filters import _kalman_kernel
 
     return _kalman_kernel
+
+
+_kernel = kernel_module
 
 
 def _flat(A: np.ndarray, shape: tuple) -> np.ndarray:

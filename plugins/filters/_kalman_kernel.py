@@ -253,3 +253,308 @@ def update_bank(x, P, nu, H, R, form, x_out, P_out, S_out, loglik, nis, n_tuple,
                 for b in range(a + 1, N):
                     Po[a * N + b] = Po[b * N + a] = 0.5 * (T[a * N + b] + T[b * N + a])
     return -1
+
+
+# ---------------------------------------------------------------------------------------------- the fast lanes
+# Kernels of the estimator's compiled fast lanes (``KalmanFilter`` with a bank it has already checked and a
+# measurement model it has already assembled): each computes one whole step from the raw inputs, checks what
+# the numpy path checks (z finite and within the magnitude limit, S positive definite, every output finite) and
+# returns a status instead of raising: 0 when the step is good, non-zero when the caller must run the reference
+# path instead (which handles NaN components and raises the usual errors).
+
+
+@_njit
+def predict_bank_checked(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no cover - compiled
+    """:func:`predict_bank` (x⁻ = F x⁺ + B, P⁻ = (F P⁺) Fᵀ + Q) computing the upper triangle of P⁻ only and mirroring it
+    (P⁻ is symmetric: the lower triangle of (F P⁺) Fᵀ equals the upper to rounding, so no ½(C + Cᵀ) is needed);
+    returns 0, or 1 when an output is not finite."""
+    N = len(n_tuple)
+    M = x.shape[0]
+    FP = np.empty(N * N)
+    bad = 0
+    for i in range(M):
+        Fi, Pi, xi, Qi, Po, xo, Bi = F[i], P[i], x[i], Q[i], P_out[i], x_out[i], B[i]
+        for j in range(N):
+            acc = Bi[j]
+            for k in range(N):
+                acc += Fi[j * N + k] * xi[k]
+            xo[j] = acc
+            if acc - acc != 0.0:  # inf or NaN
+                bad = 1
+        for j in range(N):
+            for k in range(N):
+                acc = 0.0
+                for q in range(N):
+                    acc += Fi[j * N + q] * Pi[q * N + k]
+                FP[j * N + k] = acc
+        for j in range(N):
+            for k in range(j, N):
+                acc = Qi[j * N + k]
+                for q in range(N):
+                    acc += FP[j * N + q] * Fi[k * N + q]
+                Po[j * N + k] = acc
+                Po[k * N + j] = acc
+                if acc - acc != 0.0:  # inf or NaN
+                    bad = 1
+    return bad
+
+
+@_njit
+def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_out, loglik, nis, n_tuple, m_tuple):  # pragma: no cover
+    """The update of each filter for a selection H (H = rows e_sel[b]ᵀ, the position sensors) with ν = z − x⁻[sel]
+    computed here: P Hᵀ = P[:, sel], H P = P[sel, :], S = ½(C + Cᵀ), C = P[sel][:, sel] + R, T Hᵀ = T[:, sel];
+    otherwise the arithmetic of :func:`update_bank` (S⁻¹ and the scores by the closed forms for m ≤ 2, the Cholesky
+    recurrence above; Joseph P⁺ = U, U = T + (K R − T Hᵀ) Kᵀ, T = P⁻ − K (H P⁻), U symmetric in exact arithmetic:
+    its upper triangle formed and mirrored (the reference's ½(U + Uᵀ) differs by rounding only); symmetric P⁺ = ½(T + Tᵀ), T = P⁻ − K (P⁻ Hᵀ)ᵀ).  z (1 or M, m), R (m²,).  Returns 0, or 1 when z has
+    an entry that is NaN or beyond ``limit``, S is not positive definite or an output is not finite."""
+    N, Mm = len(n_tuple), len(m_tuple)
+    M = x.shape[0]
+    per_z = z.shape[0] > 1
+    for b in range(z.shape[0]):
+        for a in range(Mm):
+            if not abs(z[b, a]) <= limit:
+                return 1
+    S = np.empty(Mm * Mm)
+    Si = np.empty(Mm * Mm)
+    L = np.zeros(Mm * Mm)
+    Li = np.zeros(Mm * Mm)
+    w = np.empty(Mm)
+    K = np.empty(N * Mm)
+    T = np.empty(N * N)
+    D = np.empty(N * Mm)
+    bad = 0
+    for i in range(M):
+        Pi, xi, zi, nui = P[i], x[i], z[i if per_z else 0], nu_out[i]
+        for a in range(Mm):
+            nui[a] = zi[a] - xi[sel[a]]
+        for a in range(Mm):
+            S[a * Mm + a] = Pi[sel[a] * N + sel[a]] + R[a * Mm + a]
+            for b in range(a + 1, Mm):
+                S[a * Mm + b] = S[b * Mm + a] = 0.5 * (
+                    (Pi[sel[a] * N + sel[b]] + R[a * Mm + b]) + (Pi[sel[b] * N + sel[a]] + R[b * Mm + a])
+                )
+        if Mm <= 2:
+            sa = S[0]
+            if Mm == 1:
+                det = sa
+                if not sa > 0.0:
+                    return 1
+                Si[0] = 1.0 / sa
+            else:
+                sb, sc = S[2], S[3]
+                det = sa * sc - sb * sb
+                if not (sa > 0.0 and det > 0.0):
+                    return 1
+                rd = 1.0 / det
+                Si[0] = sc * rd
+                Si[3] = sa * rd
+                Si[1] = Si[2] = -(sb * rd)
+            t = nui[0] / sa
+            s_nis = nui[0] * t
+            if Mm == 2:
+                res = nui[1] - S[2] * t
+                s_nis += sa * (res * res) / det
+            log_det = math.log(det)
+        else:
+            for j in range(Mm):
+                d = S[j * Mm + j]
+                for k in range(j):
+                    d = d - L[j * Mm + k] * L[j * Mm + k]
+                if not d > 0.0:
+                    return 1
+                L[j * Mm + j] = math.sqrt(d)
+                for a in range(j + 1, Mm):
+                    s = S[a * Mm + j]
+                    for k in range(j):
+                        s = s - L[a * Mm + k] * L[j * Mm + k]
+                    L[a * Mm + j] = s / L[j * Mm + j]
+            for a in range(Mm):
+                Li[a * Mm + a] = 1.0 / L[a * Mm + a]
+                for j in range(a - 1, -1, -1):
+                    acc = L[a * Mm + j] * Li[j * Mm + j]
+                    for k in range(j + 1, a):
+                        acc = acc + L[a * Mm + k] * Li[k * Mm + j]
+                    Li[a * Mm + j] = -acc / L[a * Mm + a]
+            for a in range(Mm):
+                for j in range(a, Mm):
+                    acc = Li[j * Mm + a] * Li[j * Mm + j]
+                    for k in range(j + 1, Mm):
+                        acc = acc + Li[k * Mm + a] * Li[k * Mm + j]
+                    Si[a * Mm + j] = Si[j * Mm + a] = acc
+            log_det = math.log(L[0])
+            for a in range(1, Mm):
+                log_det += math.log(L[a * Mm + a])
+            log_det *= 2.0
+            s_nis = 0.0
+            for a in range(Mm):
+                acc = nui[a]
+                for j in range(a):
+                    acc = acc - L[a * Mm + j] * w[j]
+                w[a] = acc / L[a * Mm + a]
+                s_nis = s_nis + w[a] * w[a]
+        nis[i] = s_nis
+        ll = -0.5 * (Mm * LOG_2PI + log_det + s_nis)
+        loglik[i] = ll
+        if ll - ll != 0.0:  # inf or NaN
+            bad = 1
+        So = S_out[i]
+        for a in range(Mm * Mm):
+            So[a] = S[a]
+        # K = P Hᵀ S⁻¹ = P[:, sel] S⁻¹, x⁺ = x⁻ + K ν
+        xo = x_out[i]
+        for a in range(N):
+            acc2 = xi[a]
+            for b in range(Mm):
+                acc = 0.0
+                for q in range(Mm):
+                    acc += Pi[a * N + sel[q]] * Si[q * Mm + b]
+                K[a * Mm + b] = acc
+                acc2 += acc * nui[b]
+            xo[a] = acc2
+            if acc2 - acc2 != 0.0:  # inf or NaN
+                bad = 1
+        # T = P − K (H P) = P − K P[sel, :] (Joseph) or P − K (P Hᵀ)ᵀ = P − K P[:, sel]ᵀ
+        if form == 0:
+            for a in range(N):
+                for b in range(N):
+                    acc = 0.0
+                    for q in range(Mm):
+                        acc += K[a * Mm + q] * Pi[sel[q] * N + b]
+                    T[a * N + b] = Pi[a * N + b] - acc
+        else:
+            for a in range(N):
+                for b in range(N):
+                    acc = 0.0
+                    for q in range(Mm):
+                        acc += K[a * Mm + q] * Pi[b * N + sel[q]]
+                    T[a * N + b] = Pi[a * N + b] - acc
+        Po = P_out[i]
+        if form == 0:  # D = K R − T[:, sel], U = T + D Kᵀ (symmetric: its upper triangle, mirrored)
+            for a in range(N):
+                for b in range(Mm):
+                    acc = 0.0
+                    for q in range(Mm):
+                        acc += K[a * Mm + q] * R[q * Mm + b]
+                    D[a * Mm + b] = acc - T[a * N + sel[b]]
+            for a in range(N):
+                for b in range(a, N):
+                    v = T[a * N + b]
+                    for q in range(Mm):
+                        v += D[a * Mm + q] * K[b * Mm + q]
+                    Po[a * N + b] = v
+                    Po[b * N + a] = v
+                    if v - v != 0.0:  # inf or NaN
+                        bad = 1
+        elif form == 1:
+            for a in range(N):
+                for b in range(a, N):
+                    v = 0.5 * (T[a * N + b] + T[b * N + a]) if a != b else T[a * N + a]
+                    Po[a * N + b] = v
+                    Po[b * N + a] = v
+                    if v - v != 0.0:  # inf or NaN
+                        bad = 1
+        else:
+            for a in range(N * N):
+                Po[a] = T[a]
+                if T[a] - T[a] != 0.0:
+                    bad = 1
+    return bad
+
+
+@_njit
+def axis_predict(xa, Pa, F, B, Q, x_out, P_out, d_tuple):  # pragma: no cover - compiled
+    """The axis-separable predict of :func:`._separable.predict` per axis a and filter i (x (d, A, M), P, F, Q
+    (d, d, A, M), B (d, A, M)): x⁻ = F x + B, P⁻ = (F P) Fᵀ + Q, every entry formed (as the numpy path does);
+    ``d_tuple`` any tuple of length d (compile-time block size).  Returns 0, or 1 when an output is not finite."""
+    d = len(d_tuple)
+    A, M = xa.shape[1], xa.shape[2]
+    T = np.empty(d * d)
+    bad = 0
+    for a in range(A):
+        for i in range(M):
+            for j in range(d):
+                acc = B[j, a, i]
+                for k in range(d):
+                    acc += F[j, k, a, i] * xa[k, a, i]
+                x_out[j, a, i] = acc
+                if acc - acc != 0.0:  # inf or NaN
+                    bad = 1
+            for j in range(d):
+                for k in range(d):
+                    acc = 0.0
+                    for q in range(d):
+                        acc += F[j, q, a, i] * Pa[q, k, a, i]
+                    T[j * d + k] = acc
+            for j in range(d):
+                for k in range(d):
+                    acc = 0.0
+                    for q in range(d):
+                        acc += T[j * d + q] * F[k, q, a, i]
+                    acc += Q[j, k, a, i]
+                    P_out[j, k, a, i] = acc
+                    if acc - acc != 0.0:
+                        bad = 1
+    return bad
+
+
+@_njit
+def axis_update(xa, Pa, z, axis_row, c, r, form, limit, x_out, P_out, nu, S, loglik, nis, d_tuple):  # pragma: no cover
+    """The scalar updates of :func:`._separable.update`: measurement row b (column b of z (1 or M, m)) measures
+    component c of axis ``axis_row[b]`` with variance r[b]; per filter and measured axis s = P_cc + r, k = P_:c / s,
+    ν = z − x_c, x⁺ = x + k ν, Joseph P⁺ = P − k P_c:ᵀ − P_:c kᵀ + s k kᵀ or symmetric P⁺ = P − s k kᵀ;
+    ℓ = −½(m ln 2π + ln Π_rows s + Σ_rows ν²/s) (one logarithm per filter), NIS = Σ ν²/s; ν (M, m) and
+    S = diag(s) (M, m, m, zero elsewhere) in the rows' order; the axes no row measures are copied.  ``d_tuple``
+    any tuple of length d.  Returns 0, or 1 when z has an entry that is NaN or beyond ``limit``, some s ≤ 0 or an
+    output is not finite (also when Π s over- or underflows: the reference then takes the step)."""
+    d = len(d_tuple)
+    A, M = xa.shape[1], xa.shape[2]
+    m = axis_row.shape[0]
+    per_z = z.shape[0] > 1
+    for b in range(z.shape[0]):
+        for a in range(m):
+            if not abs(z[b, a]) <= limit:
+                return 1
+    if m < A:
+        x_out[...] = xa
+        P_out[...] = Pa
+    kv = np.empty(d)
+    bad = 0
+    for i in range(M):
+        prod = 1.0
+        ni = 0.0
+        zi = z[i if per_z else 0]
+        for b in range(m):
+            a = axis_row[b]
+            s = Pa[c, c, a, i] + r[b]
+            if not s > 0.0:
+                return 1
+            s_inv = 1.0 / s
+            v = zi[b] - xa[c, a, i]
+            for j in range(d):
+                kv[j] = Pa[j, c, a, i] * s_inv
+                xo = xa[j, a, i] + kv[j] * v
+                x_out[j, a, i] = xo
+                if xo - xo != 0.0:
+                    bad = 1
+            for j in range(d):
+                for k in range(d):
+                    kk = kv[j] * kv[k] * s
+                    if form == 0:
+                        val = Pa[j, k, a, i] - (kv[j] * Pa[c, k, a, i] + kv[k] * Pa[c, j, a, i]) + kk
+                    else:
+                        val = Pa[j, k, a, i] - kk
+                    P_out[j, k, a, i] = val
+                    if val - val != 0.0:
+                        bad = 1
+            nu[i, b] = v
+            for q in range(m):
+                S[i, b, q] = 0.0
+            S[i, b, b] = s
+            ni += v * v * s_inv
+            prod *= s
+        ll = -0.5 * (LOG_2PI * m + math.log(prod) + ni)
+        nis[i] = ni
+        loglik[i] = ll
+        if ll - ll != 0.0 or not prod > 0.0:
+            bad = 1
+    return bad

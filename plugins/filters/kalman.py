@@ -16,6 +16,7 @@ The centralized multisensor filter is this filter given all sensors at once
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Sequence
 from functools import cached_property
 
@@ -24,8 +25,12 @@ import numpy as np
 
 from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.validation import FILTER_MAGNITUDE_LIMIT
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
+
+#: banks whose compiled predict lane an estimator keeps (irregular sampling alternates between a few Δt)
+PREDICT_LANES = 8
 
 
 @attrs.frozen(eq=False)
@@ -125,6 +130,9 @@ class KalmanFilter(BankEstimator):
         self._split_cache: tuple | None = None
         self._transposed_cache: tuple | None = None
         self._plan_cache: dict = {}
+        self._predict_lanes: dict = {}  # id(bank) -> (bank, state form, shape, kernel, operands), the last few banks
+        self._lane: _UpdateLane | None = None  # the measurement model of the last update, for the update lane
+        self._compiled = None  # the kernel module, imported on the first compiled step
 
     def dense_engine(self, n: int, m: int = 0) -> str:
         """ "numba" or "numpy": what runs a dense step of state size n and measurement size m under ``engine``."""
@@ -149,8 +157,57 @@ class KalmanFilter(BankEstimator):
         self._split_cache = (bank, split)
         return split
 
-    @guarded
+    def _kernel(self):
+        if self._compiled is None:
+            self._compiled = cov_form.kernel_module()
+        return self._compiled
+
     def predict(self, state, transitions: TransitionBank):
+        """x⁻ = F x⁺ + B, P⁻ = F P⁺ Fᵀ + Q (eqs. 4–5): the compiled lane when the bank and the state's form and
+        shape are those of the last reference prediction (:meth:`_learn_predict_lane`), else (and whenever the
+        lane reports a non-finite output) the reference step."""
+        lane = self._predict_lanes.get(id(transitions))
+        if lane is not None and lane[0] is transitions and type(state) is lane[1]:
+            kind, shape, run, args = lane[1], lane[2], lane[3], lane[4]
+            if kind is AxisState:
+                xa, Pa = state.xa, state.Pa
+                if xa.shape == shape and (state.axes is args[0] or state.axes == args[0]):
+                    xa_out, Pa_out = np.empty(shape), np.empty(Pa.shape)
+                    if not run(xa, Pa, args[1], args[2], args[3], xa_out, Pa_out, args[4]):
+                        return AxisState(args[0], state.n, xa_out, Pa_out, xa_out, Pa_out, None)
+            else:
+                x = state.x
+                if x.shape == shape:
+                    M, n = shape
+                    x_out, P_out = np.empty(shape), np.empty((M, n, n))
+                    if not run(x, state.P.reshape(M, n * n), args[0], args[1], args[2], x_out, P_out.reshape(M, n * n), args[3]):
+                        return CovarianceState(x_out, P_out, x_out, P_out, None)
+        return self._predict(state, transitions)
+
+    def _learn_predict_lane(self, bank: TransitionBank, result) -> None:
+        """After a reference prediction: remember the bank (checked), the form and shape of the result and the
+        kernel's operands (the split blocks, or F, B, Q flattened) for the compiled lane of the next ones."""
+        lanes = self._predict_lanes
+        lanes.pop(id(bank), None)
+        if self.engine == "numpy" or not cov_form.NUMBA_AVAILABLE:
+            return
+        if len(lanes) >= PREDICT_LANES:
+            lanes.pop(next(iter(lanes)))  # the oldest
+        kernel = self._kernel()
+        if type(result) is AxisState:
+            split = self._split_cache[1]
+            d = result.xa.shape[0]
+            lanes[id(bank)] = (bank, AxisState, result.xa.shape, kernel.axis_predict, (result.axes, split.F, split.B, split.Q, (0,) * d))
+        elif type(result) is CovarianceState and (not self.structure or self._split_cache[1] is None):
+            M, n = result.x.shape
+            if self.dense_engine(n) != "numba":
+                return
+            flat = tuple(np.ascontiguousarray(A, dtype=float).reshape(M, -1) for A in (bank.F, bank.B, bank.Q))
+            lanes[id(bank)] = (bank, CovarianceState, (M, n), kernel.predict_bank_checked, (*flat, (0,) * n))
+        # else a dense state under structure=True with a separable bank: the reference decides each time
+
+    @guarded
+    def _predict(self, state, transitions: TransitionBank):
         M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
         bank = self.check_transitions(
             transitions, M, n, state.mean if callable(transitions) and not isinstance(transitions, TransitionBank) else None
@@ -167,12 +224,18 @@ class KalmanFilter(BankEstimator):
                 if xa is not None:
                     xa, Pa = sep.predict(xa, Pa, split)
                     self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
-                    return AxisState(split.axes, n, xa, Pa, xa, Pa, None)
+                    result = AxisState(split.axes, n, xa, Pa, xa, Pa, None)
+                    if bank is transitions:  # not a bank linearized for this step (EKF)
+                        self._learn_predict_lane(bank, result)
+                    return result
         engine = self.dense_engine(n)
         Ft = self._transposed(bank) if engine == "numpy" else None
         x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, Ft, engine=engine)
         self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        return CovarianceState(x, P, x, P, None)
+        result = CovarianceState(x, P, x, P, None)
+        if bank is transitions:  # not a bank linearized for this step (EKF)
+            self._learn_predict_lane(bank, result)
+        return result
 
     def _transposed(self, bank: TransitionBank) -> np.ndarray:
         """Fᵀ as a contiguous stack, kept with the bank object like the other per-bank caches."""
@@ -222,9 +285,69 @@ class KalmanFilter(BankEstimator):
         innovation = Innovation(nu, S, loglik, nis)
         return AxisState(state.axes, state.n, xa, Pa, state.xa_predicted, state.Pa_predicted, innovation), innovation
 
-    @guarded
     def update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        """The Kalman update (dense or axis-separable).  Overflow: :func:`guarded` checks ℓ and NIS, which are
+        """The Kalman update (eqs. 6–9, scores of SPEC §4): the compiled lane when z, the sensors and the layout
+        are those the last update learned (:class:`_UpdateLane`), else (and whenever the lane reports a NaN or
+        too large z, an S not positive definite or a non-finite output) the reference step, which handles
+        missing components and raises the usual errors."""
+        lane = self._lane
+        if (
+            lane is not None
+            and type(state) is lane.kind
+            and type(z) is np.ndarray
+            and z.shape == lane.z_shape
+            and z.dtype == np.float64
+            and (layout is lane.layout or tuple(layout) == lane.layout)
+            and len(sensors) == len(lane.sensors)
+            and all(map(operator.is_, sensors, lane.sensors))
+        ):
+            result = lane.update(state, z)
+            if result is not None:
+                return result
+        return self._update(state, z, sensors, layout)
+
+    def _learn_lane(self, state, z, sensors, layout, step, plan=None):
+        """Remember this update's measurement model for the compiled lane when the lane can run it: z a float
+        array, every sensor present with all components, linear with a selection H, a constant R (m, m)
+        (diagonal and axis-aligned on the separable path), plain residuals, a compiled engine."""
+        if (
+            self.engine == "numpy"
+            or not cov_form.NUMBA_AVAILABLE
+            or type(z) is not np.ndarray
+            or z.dtype != np.float64
+            or isinstance(sensors, Sensor)
+            or step.selection is None
+            or not step.plain_residual
+            or step.R.ndim != 2
+            or len(step.models) != len(sensors)
+            or any(mdl.rows is not None or type(mdl.sensor).measurement_noise is not Sensor.measurement_noise for mdl in step.models)
+        ):
+            return
+        m = step.dim
+        kernel = self._kernel()
+        if isinstance(state, AxisState):
+            if plan is None:
+                return
+            c, measured, order = plan
+            axis_row = np.empty(m, dtype=np.intp)
+            axis_row[order] = np.arange(len(state.axes)) if measured is None else measured
+            run, payload = (
+                kernel.axis_update,
+                (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)), (0,) * state.xa.shape[0], state.axes),
+            )
+            shape = (state.n, state.bank_size)
+        else:
+            M, n = state.x.shape
+            if self.dense_engine(n, m) != "numba":
+                return
+            run = kernel.update_bank_selected
+            payload = (np.array(step.selection, dtype=np.intp), np.ascontiguousarray(step.R, dtype=float).reshape(-1), (0,) * n, (0,) * m)
+            shape = (M, n)
+        self._lane = _UpdateLane(type(state), tuple(sensors), tuple(layout), z.shape, shape, m, run, kernel.FORMS[self.form], payload)
+
+    @guarded
+    def _update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        """The reference update (dense or axis-separable).  Overflow: :func:`guarded` checks ℓ and NIS, which are
         non-finite whenever S or ν is (x⁺ = x⁻ + K ν is finite for a finite x⁻, ν and positive definite S)."""
         M = state.bank_size
         n = state.n if isinstance(state, AxisState) else state.x.shape[1]
@@ -235,7 +358,9 @@ class KalmanFilter(BankEstimator):
                 return attrs.evolve(state, innovation=innovation), innovation
             plan = self._axis_plan(step, state.axes) if step.H is not None else None
             if plan is not None:
-                return self._update_axes(state, step, plan)
+                result = self._update_axes(state, step, plan)
+                self._learn_lane(state, z, sensors, layout, step, plan)
+                return result
             state = CovarianceState(state.x, state.P, state.x_predicted, state.P_predicted, state.innovation)
             found = self.linearize(state.x, z, sensors, layout, step)  # the step assembled above, not again
         else:
@@ -247,7 +372,65 @@ class KalmanFilter(BankEstimator):
         engine = self.dense_engine(n, nu.shape[-1])
         x, P, S, loglik, nis = cov_form.update_scored(state.x, state.P, nu, H, step.R, step.selection, self.form, engine)
         innovation = Innovation(nu, S, loglik, nis)
+        self._learn_lane(state, z, sensors, layout, step)
         return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
+
+
+class _UpdateLane:
+    """The measurement model of an update, kept for the next ones: the sensors (by identity), the layout, z's
+    shape, the bank's shape and state form, the kernel, the update form's code and the kernel's operands —
+    separable: the measured component c, the axis of each z row, the variances r (for the state's axes);
+    dense: the selected state indices and R flattened."""
+
+    __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "run", "form", "payload")
+
+    def __init__(self, kind, sensors, layout, z_shape, shape, m, run, form, payload):
+        self.kind, self.sensors, self.layout, self.z_shape, self.shape, self.m = kind, sensors, layout, z_shape, shape, m
+        self.run, self.form, self.payload = run, form, payload
+
+    def update(self, state, z: np.ndarray):
+        """The compiled update, or None when the kernel reports a step the reference must take (or the bank changed)."""
+        m = self.m
+        z2 = z.reshape(-1, m)
+        if self.kind is AxisState:
+            xa, Pa = state.xa, state.Pa
+            M = xa.shape[-1]
+            c, axis_row, r, d_tuple, axes = self.payload
+            if (state.n, M) != self.shape or not (state.axes is axes or state.axes == axes):
+                return None
+            xa_out, Pa_out = np.empty(xa.shape), np.empty(Pa.shape)
+            nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
+            if self.run(xa, Pa, z2, axis_row, c, r, self.form, FILTER_MAGNITUDE_LIMIT, xa_out, Pa_out, nu, S, loglik, nis, d_tuple):
+                return None
+            innovation = Innovation(nu, S, loglik, nis)
+            return AxisState(state.axes, state.n, xa_out, Pa_out, state.xa_predicted, state.Pa_predicted, innovation), innovation
+        x = state.x
+        if x.shape != self.shape:
+            return None
+        M, n = self.shape
+        sel, R, n_tuple, m_tuple = self.payload
+        x_out, P_out = np.empty((M, n)), np.empty((M, n, n))
+        nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
+        if self.run(
+            x,
+            state.P.reshape(M, n * n),
+            z2,
+            sel,
+            R,
+            self.form,
+            FILTER_MAGNITUDE_LIMIT,
+            x_out,
+            P_out.reshape(M, n * n),
+            nu,
+            S.reshape(M, m * m),
+            loglik,
+            nis,
+            n_tuple,
+            m_tuple,
+        ):
+            return None
+        innovation = Innovation(nu, S, loglik, nis)
+        return CovarianceState(x_out, P_out, state.x_predicted, state.P_predicted, innovation), innovation
 
 
 COMPONENTS = {"kalman": KalmanFilter}
