@@ -459,6 +459,18 @@ class Estimator(Labelled, ABC):
         """(ℓ, NIS) computed at each node, (N, M) each, after an update; None for a centralized estimator."""
         return None
 
+    #: True when :meth:`record_states` logs something: a pipeline with a recorder then keeps the states of the
+    #: steps not yet streamed (at most ``STATE_CHUNK`` of them) and hands them over
+    records_states: ClassVar[bool] = False
+
+    def record_states(self, recorder, names: Sequence[str], steps: np.ndarray, states: Sequence[Any], layout, times=None) -> None:
+        """Log what the states hold beyond mean and covariance (particle clouds, mixture components, hypotheses).
+
+        Optional (set ``records_states = True`` when overriding): ``states`` one bank state per step of
+        ``steps`` (K,), ``names`` the M filter names, ``times`` (K,) seconds or None.  The pipeline logs
+        every estimator's means, covariances and scores itself.
+        """
+
 
 def check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
     """Validate a bank prior: mean (M, n), cov (M, n, n) symmetric positive definite, within the filters' arithmetic.

@@ -50,6 +50,10 @@ from hybridtrack.registry import Registry
 from hybridtrack.timestamps import step_intervals
 from hybridtrack.types import Decision, Gaussian
 
+#: the most steps whose bank states a recording pipeline keeps before it streams them
+#: (for estimators that record their states: particle clouds, mixtures, hypotheses)
+STATE_CHUNK = 100
+
 
 def mode_label(model: MotionModel) -> str:
     """The registry name, with the radius for a turn mode (``left_turn_r3``)."""
@@ -251,6 +255,10 @@ class Pipeline:
         self.decisions: list[Decision] = []
         self._result: RunResult | None = None
         self._logged = 0  # steps already sent to the recorder
+        #: the states of the steps not yet streamed, for an estimator that records them (Estimator.records_states)
+        self._pending_states = (
+            [] if getattr(self.estimator, "records_states", False) and not isinstance(self.recorder, NullRecorder) else None
+        )
         self._static_logged = 0  # number of steps the static path lines were logged for
         self._last_flush = time.monotonic()
 
@@ -327,6 +335,8 @@ class Pipeline:
         z = self.z[k] if self.candidates is None else [seq.scan(k) for seq in self.candidates.values()]
         state, innovation = self.estimator.update(state, z, self.network.sensors, self.layout)
         self.state = state
+        if self._pending_states is not None:
+            self._pending_states.append(state)
         outputs = {}
         for detector in self.detectors:
             output = detector.step(k, innovation)
@@ -339,8 +349,11 @@ class Pipeline:
         self._store(k, mean, cov, innovation, outputs)
         self._count = k + 1
         self._result = None
-        if self._count - self._logged >= self.record_every or (
-            self.record_seconds is not None and time.monotonic() - self._last_flush >= self.record_seconds
+        due = self._count - self._logged
+        if (
+            due >= self.record_every
+            or (self._pending_states is not None and due >= STATE_CHUNK)
+            or (self.record_seconds is not None and time.monotonic() - self._last_flush >= self.record_seconds)
         ):
             self._stream()
         return StepResult(k, float(self.times[k]), mean, cov, innovation, outputs)
@@ -535,6 +548,9 @@ class Pipeline:
         for decision in self.decisions:
             if start <= decision.step < stop:
                 rec.log_event(decision.step, decision_text(decision), decision.time)
+        if self._pending_states:
+            self.estimator.record_states(rec, self.filter_names, steps, self._pending_states, self.layout, times)
+            self._pending_states.clear()
         self._logged = stop
         if flush:
             self._flush_recorder()

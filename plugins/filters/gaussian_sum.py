@@ -151,6 +151,14 @@ class GaussianSumFilter(BankEstimator):
     accepts_nonlinear = True
     accepts_scans = True
 
+    records_states = True
+
+    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
+        """The mixture components (means, 2σ ellipses, weights) per step (:func:`hybridtrack_plugins.filters.clutter_recording.log_filter_states`)."""
+        from hybridtrack_plugins.filters.clutter_recording import log_filter_states  # it imports this module
+
+        log_filter_states(recorder, names, steps, states, layout, times)
+
     def __init__(
         self,
         merge_threshold: float | None = 4.0,

@@ -153,6 +153,15 @@ class MHTFilter(BankEstimator):
     name = "mht"
     exact_kalman = False
     accepts_scans = True
+
+    records_states = True
+
+    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
+        """The hypotheses (probabilities, count, 2σ ellipses) per step (:func:`hybridtrack_plugins.filters.clutter_recording.log_filter_states`)."""
+        from hybridtrack_plugins.filters.clutter_recording import log_filter_states  # it imports this module
+
+        log_filter_states(recorder, names, steps, states, layout, times)
+
     example_parameters = {"detection_probability": 0.9, "clutter_density": 0.01, "gate_probability": 0.99, "window": 2, "max_hypotheses": 4}
 
     def __init__(

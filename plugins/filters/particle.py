@@ -257,6 +257,15 @@ class ParticleFilter(BankEstimator):
     exact_kalman = False
     accepts_nonlinear = True
     accepts_scans = True
+
+    records_states = True
+
+    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
+        """The particle clouds (radius ∝ √w) and N_eff per step (:func:`hybridtrack_plugins.filters.clutter_recording.log_filter_states`)."""
+        from hybridtrack_plugins.filters.clutter_recording import log_filter_states  # it imports this module
+
+        log_filter_states(recorder, names, steps, states, layout, times)
+
     sampling = True
     example_parameters = {"particles": 400, "seed": 0}
 

@@ -99,3 +99,37 @@ def test_a_recorder_without_weighted_points_gets_plain_points_and_bad_input_rais
         log_filter_states(rec, ["a"], [0, 1], states, layout)
     with pytest.raises(ValueError, match="layout"):
         log_filter_states(rec, ["a", "b"], [0, 1], states, ("p", "q", "r", "s"))
+
+
+def test_a_pipeline_records_the_particle_clouds_of_every_step(tmp_path):
+    """Estimator.record_states through Pipeline: the cloud logged at each step is that step's state (no state is
+    changed in place by a later step), across more than one STATE_CHUNK of streamed steps."""
+    from hybridtrack.pipeline import STATE_CHUNK, Pipeline
+
+    steps = STATE_CHUNK + 30
+    rng = np.random.default_rng(5)
+    z = {"pos": X0[[0, 2]] + np.outer(np.arange(steps) * 0.5, X0[[1, 3]]) + rng.normal(0, 0.3, (steps, 2))}
+    options = dict(
+        models=[("straight", {"noise_cov": np.eye(2) * 0.05})],
+        sensors=[REGISTRY.create("sensor", "position", name="pos", noise_cov=np.eye(2) * 0.09)],
+        measurements=z,
+        prior=(X0, P0),
+        tau=0.5,
+        filter_names=["pf"],
+    )
+    path = tmp_path / "pf.rrd"
+    with RerunRecorder(path) as rec:
+        pipeline = Pipeline(estimator=ParticleFilter(particles=40, seed=3), recorder=rec, record_seconds=None, **options)
+        pipeline.run()
+        pipeline.record()
+    reference = Pipeline(estimator=ParticleFilter(particles=40, seed=3), **options)
+    states = []
+    for _ in range(steps):
+        reference.step()
+        states.append(reference.state)
+    k, clouds = RecordingFile(path).point_sets("world/estimate/pf/particles")
+    np.testing.assert_array_equal(k, np.arange(steps))
+    for step in (0, STATE_CHUNK - 1, STATE_CHUNK, steps - 1):
+        heaviest = np.argsort(-states[step].log_weights[0], kind="stable")
+        np.testing.assert_allclose(clouds[step], states[step].particles[0][heaviest][:, [0, 2]], rtol=1e-6, atol=1e-5)
+    assert reference._pending_states is None  # no recorder, nothing kept
