@@ -200,6 +200,19 @@ def palette(name: str) -> tuple[int, int, int]:
     return tuple(round(255 * c) for c in rgb)
 
 
+def is_hypothesis(entity: str) -> bool:
+    """Whether a spatial entity is one hypothesis of a bank (``<root>/estimate/<name>/hypotheses/<h>[/…]``): drawn thin
+    and unlabelled, so the fan of a bank's hypotheses does not hide the followed estimate."""
+    parts = entity.strip("/").split("/")
+    return len(parts) > 4 and parts[1] == "estimate" and parts[3] == "hypotheses"
+
+
+def finite_runs(finite: np.ndarray) -> list[tuple[int, int]]:
+    """The [start, stop) index ranges of the runs of True in a boolean vector (a path's pieces between NaN gaps)."""
+    edges = np.diff(np.concatenate([[0], np.asarray(finite, dtype=np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
+
+
 def _shade(colour, i: int) -> tuple[int, int, int]:
     """Column i of a multi-column series: the colour mixed 30 % per column towards white."""
     f = min(0.3 * i, 0.8)
@@ -208,9 +221,12 @@ def _shade(colour, i: int) -> tuple[int, int, int]:
 
 def spatial_style(entity: str) -> tuple[tuple[int, int, int], str]:
     """Colour and label of a spatial entity from its path: ``…/truth``, ``…/measurements/<sensor>``,
-    ``…/clutter/<sensor>``, ``…/estimate/<name>[/…]`` (the palette colour of ``name``), ``…/observer``, ``…/bearings``."""
+    ``…/clutter/<sensor>``, ``…/estimate/<name>[/…]`` (the palette colour of ``name``), ``…/estimate/<name>/hypotheses/<h>``
+    (a bank's hypothesis: the colour of ``h``), ``…/observer``, ``…/bearings``."""
     parts = entity.strip("/").split("/")[1:] or [entity.strip("/")]
     role = parts[0]
+    if role == "estimate" and len(parts) > 3 and parts[2] == "hypotheses":
+        return palette(parts[3]), parts[3]
     if role == "estimate" and len(parts) > 1:
         return palette(parts[1]), parts[1]
     if role in ("truth", "measurements", "clutter", "observer", "bearings"):
@@ -499,6 +515,7 @@ class RerunRecorder:
         self.content: dict[str, str] = {}  # entity path → view class (VIEW_CLASSES)
         self._tracks: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
         self._modes: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, ...]]] = {}
+        self._breaks: dict[str, np.ndarray] = {}  # a hypothesis's path: where its pieces in play start (rows of its track)
         self._events: list[tuple[int, float | None, str]] = []
         self._time_step: float | None = None
         self._closed = False
@@ -542,6 +559,7 @@ class RerunRecorder:
             colour, _ = spatial_style(entity)
             role = entity.strip("/").split("/")[1:2]
             size = {"measurements": 3.0, "clutter": 2.0, "truth": 2.5}.get(role[0] if role else "", 2.0)
+            size = 1.25 if is_hypothesis(entity) else size
             self.stream.log(entity, rr.Points3D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(size)]), static=True)
 
     # -- Recorder
@@ -609,20 +627,30 @@ class RerunRecorder:
             self.log_points(entity, steps, positions, times)
         if line:
             finite = np.all(np.isfinite(positions), axis=-1)
+            pieces = finite_runs(finite)
+            if not pieces:
+                return
             colour, label = spatial_style(entity)
             rr = self._rr
-            self.stream.log(
-                f"{entity}/path",
-                rr.LineStrips3D([positions[finite]], colors=[colour], radii=[rr.Radius.ui_points(1.0)], labels=[label]),
-                static=True,
-            )
+            fan = is_hypothesis(entity)
+            if fan:  # a bank's hypothesis: in play over separate periods, one strip each (no line joins the gaps)
+                strips = [positions[a:b] for a, b in pieces]
+                style = {"colors": [colour], "radii": [rr.Radius.ui_points(0.6)]}
+            else:
+                strips, style = [positions[finite]], {"colors": [colour], "radii": [rr.Radius.ui_points(1.0)], "labels": [label]}
+            self.stream.log(f"{entity}/path", rr.LineStrips3D(strips, **style), static=True)
             self._note(f"{entity}/path", "3D")
             stride = max(1, -(-int(finite.sum()) // SPACETIME_POINTS))
-            steps = np.asarray(steps)[finite][::stride]
+            if fan:  # each piece thinned on its own, its last point kept; the space-time view breaks the line between pieces
+                kept = [np.unique(np.r_[np.arange(a, b, stride), b - 1]) for a, b in pieces]
+                rows = np.concatenate(kept)
+                self._breaks[entity.strip("/")] = np.cumsum([len(k) for k in kept])[:-1]
+            else:
+                rows = np.flatnonzero(finite)[::stride]
             self._tracks[entity.strip("/")] = (
-                steps,
-                positions[finite][::stride],
-                None if times is None else np.asarray(times, dtype=np.float64)[finite][::stride],
+                np.asarray(steps)[rows],
+                positions[rows],
+                None if times is None else np.asarray(times, dtype=np.float64)[rows],
             )
 
     def log_scalars(self, entity, steps, values, times=None, names=None):
@@ -736,6 +764,11 @@ class RerunRecorder:
                         static=True,
                     )
                     self._note(f"{target}/changes", "3D")
+            elif is_hypothesis(entity):  # pieces in play, unlabelled: the fan out of each switch
+                strips = [piece for piece in np.split(points, self._breaks.get(entity, [])) if len(piece) > 1]
+                if not strips:
+                    continue
+                self.stream.log(target, rr.LineStrips3D(strips, colors=[colour], radii=[rr.Radius.ui_points(0.75)]), static=True)
             else:
                 self.stream.log(
                     target, rr.LineStrips3D([points], colors=[colour], labels=[label], radii=[rr.Radius.ui_points(1.5)]), static=True
