@@ -86,3 +86,14 @@ def test_unknown_change_records_each_alternatives_most_likely_filter(tmp_path):
     rec = RecordingFile(tmp_path / "u.rrd")
     assert rec.unviewed_entities() == []
     assert "/spacetime/estimate/unknown_change/hypotheses/right_turn_r5" in rec.entity_paths
+
+
+def test_space_time_labels_only_the_decisions_briefly_and_the_map_zoom_fits_the_paths():
+    from hybridtrack.recording import map_zoom, short_decision
+
+    assert short_decision("sprt_pairwise: left_turn_r3 accepted with margin 4.76 (A = 4.60)") == "left_turn_r3 accepted"
+    assert short_decision("sprt_unknown_change: change to right_turn_r5 (most likely at step 20), ln λ = 2.20") == "change to right_turn_r5"
+    assert short_decision("sprt_unknown_change: no change: every ln λ ≤ B = -2.20; the test restarts") == "no change"
+    assert short_decision("n_bearings: x0=-40.5 m y0=8174.9 m") == "n_bearings"
+    # 0.2° of longitude at the equator in 700 px: 360 · 3500 / 256 = 2^12.27 → 12.27 − 0.5 margin (latitude not binding)
+    assert map_zoom(np.array([[0.0, 0.0], [0.001, 0.2]])) == pytest.approx(np.log2(360 * 3500 / 256) - 0.5)
