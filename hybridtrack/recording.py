@@ -815,15 +815,19 @@ class RerunRecorder:
             self._note(target, "3D")
         if self._events:
             moded = [e for e in lifted if e in self._modes and not e.endswith("truth")]
-            reference = (moded or [e for e in lifted if e.endswith("truth")] or list(lifted))[0]
+            whole = [e for e in lifted if not is_hypothesis(e)] or list(lifted)
+            reference = (moded or [e for e in whole if e.endswith("truth")] or whole)[0]
             steps, points = lifted[reference]
-            at = np.clip(np.searchsorted(steps, [s for s, _, _ in self._events]), 0, len(steps) - 1)
+            marks: dict[int, list[str]] = {}  # the decisions of one step share one mark and one label
+            for step, _, text in self._events:
+                marks.setdefault(step, []).append(short_decision(text))
+            at = np.clip(np.searchsorted(steps, list(marks)), 0, len(steps) - 1)
             self.stream.log(
                 "spacetime/decisions",
                 rr.Points3D(
                     points[at],
                     colors=[palette("decision")],
-                    labels=[short_decision(text) for _, _, text in self._events],
+                    labels=[", ".join(texts) for texts in marks.values()],
                     radii=[rr.Radius.ui_points(5.0)],
                 ),
                 static=True,
@@ -831,8 +835,8 @@ class RerunRecorder:
             self._note("spacetime/decisions", "3D")
         cx, cy = (float(c) for c in centre)
         return {
-            "/world": ((cx, cy - 0.6 * extent, 0.9 * extent), (cx, cy, 0.0)),
-            "/spacetime": ((cx + 0.9 * extent, cy - 0.9 * extent, 1.0 * extent), (cx, cy, 0.5 * extent)),
+            "/world": ((cx, cy - 0.75 * extent, 1.05 * extent), (cx, cy, 0.0)),
+            "/spacetime": ((cx + 1.05 * extent, cy - 1.05 * extent, 1.1 * extent), (cx, cy, 0.5 * extent)),
         }
 
     def blueprint(self):
