@@ -157,6 +157,10 @@ def recording_id(configuration: dict) -> str:
 #: a time-series panel shows its legend when it holds at most this many entities
 LEGEND_SERIES = 3
 
+#: the corner of a panel's legend where its quantity seldom has data (default ``RightTop``): ℓ ≤ 0 is dense just
+#: below 0 with spikes down; the mode index starts low; a growing bank ramps from the bottom left
+LEGEND_CORNERS = {"loglik": "RightBottom", "mode": "RightBottom", "bank_size": "LeftTop", "association_loglik": "RightBottom"}
+
 #: how many steps of points (truth, measurements, estimates, ellipses) the world view shows behind the time cursor
 TRAIL_STEPS = 25
 
@@ -200,6 +204,19 @@ def palette(name: str) -> tuple[int, int, int]:
     return tuple(round(255 * c) for c in rgb)
 
 
+def is_hypothesis(entity: str) -> bool:
+    """Whether a spatial entity is one hypothesis of a bank (``<root>/estimate/<name>/hypotheses/<h>[/…]``): drawn thin
+    and unlabelled, so the fan of a bank's hypotheses does not hide the followed estimate."""
+    parts = entity.strip("/").split("/")
+    return len(parts) > 4 and parts[1] == "estimate" and parts[3] == "hypotheses"
+
+
+def finite_runs(finite: np.ndarray) -> list[tuple[int, int]]:
+    """The [start, stop) index ranges of the runs of True in a boolean vector (a path's pieces between NaN gaps)."""
+    edges = np.diff(np.concatenate([[0], np.asarray(finite, dtype=np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
+
+
 def _shade(colour, i: int) -> tuple[int, int, int]:
     """Column i of a multi-column series: the colour mixed 30 % per column towards white."""
     f = min(0.3 * i, 0.8)
@@ -208,9 +225,12 @@ def _shade(colour, i: int) -> tuple[int, int, int]:
 
 def spatial_style(entity: str) -> tuple[tuple[int, int, int], str]:
     """Colour and label of a spatial entity from its path: ``…/truth``, ``…/measurements/<sensor>``,
-    ``…/clutter/<sensor>``, ``…/estimate/<name>[/…]`` (the palette colour of ``name``), ``…/observer``, ``…/bearings``."""
+    ``…/clutter/<sensor>``, ``…/estimate/<name>[/…]`` (the palette colour of ``name``), ``…/estimate/<name>/hypotheses/<h>``
+    (a bank's hypothesis: the colour of ``h``), ``…/observer``, ``…/bearings``."""
     parts = entity.strip("/").split("/")[1:] or [entity.strip("/")]
     role = parts[0]
+    if role == "estimate" and len(parts) > 3 and parts[2] == "hypotheses":
+        return palette(parts[3]), parts[3]
     if role == "estimate" and len(parts) > 1:
         return palette(parts[1]), parts[1]
     if role in ("truth", "measurements", "clutter", "observer", "bearings"):
@@ -280,8 +300,8 @@ _ESTIMATOR_PANELS = {
     "mode": ("mode", "Identified mode / followed hypothesis (index)"),
     "followed": ("mode", "Identified mode / followed hypothesis (index)"),
     "mode_probability": ("mode_probability", "Mode probabilities μ"),
-    "nis": ("nis", "NIS νᵀS⁻¹ν with the χ² 95 % bounds"),
-    "nis_bounds": ("nis", "NIS νᵀS⁻¹ν with the χ² 95 % bounds"),
+    "nis": ("nis", "NIS (normalized innovation squared) with the χ² 95 % bounds"),
+    "nis_bounds": ("nis", "NIS (normalized innovation squared) with the χ² 95 % bounds"),
     "innovation": ("innovation", "Innovations ν"),
     "loglik": ("loglik", "Log-likelihood ℓ"),
     "beta": ("beta", "Association weights β"),
@@ -317,7 +337,13 @@ def _panel(entity: str, content: Mapping[str, str]) -> tuple[tuple, str, str]:
     return (4, parent), parent, f"+ /{entity}"
 
 
-def content_blueprint(content: Mapping[str, str] | None = None, *, time_step: float | None = None, eyes: Mapping[str, tuple] | None = None):
+def content_blueprint(
+    content: Mapping[str, str] | None = None,
+    *,
+    time_step: float | None = None,
+    eyes: Mapping[str, tuple] | None = None,
+    map_zoom: float | None = None,
+):
     """The layout embedded in a file, built from what the run logged.
 
     ``content`` maps every logged entity path to the view class that shows it
@@ -336,7 +362,12 @@ def content_blueprint(content: Mapping[str, str] | None = None, *, time_step: fl
     * **Events** — the text log;
     * a view of the right class for any other root, so every entity is in some view.
 
-    ``eyes`` (origin → (position, look_target)) places the 3-D cameras.
+    ``eyes`` (origin → (position, look_target)) places the 3-D cameras; ``map_zoom`` the map view's
+    zoom level (:func:`map_zoom`: the whole geo paths in view).
+
+    Legends (:data:`LEGEND_CORNERS`): a panel of at most :data:`LEGEND_SERIES` series shows its legend
+    in the corner where its quantity seldom has data; a panel of more series hides it (each series
+    names itself on hover).
     """
     import rerun.blueprint as rrb
 
@@ -380,7 +411,7 @@ def content_blueprint(content: Mapping[str, str] | None = None, *, time_step: fl
         elif view_class == "2D":
             other.append(rrb.Spatial2DView(origin=f"/{root}", name=root))
         elif view_class == "Map":
-            other.append(rrb.MapView(origin=f"/{root}", name=root))
+            other.append(rrb.MapView(origin=f"/{root}", name="Map (latitude, longitude)" if root == "map" else root, zoom=map_zoom))
         else:
             other.append(rrb.View(class_identifier=view_class, origin=f"/{root}", name=root))
 
@@ -395,7 +426,8 @@ def content_blueprint(content: Mapping[str, str] | None = None, *, time_step: fl
                 rules.append(rule)
 
     def legend(key):  # a legend only where it does not hide the plot; the names show on hover everywhere
-        return rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=counts[key] <= LEGEND_SERIES)
+        corner = LEGEND_CORNERS.get(str(key[-1]), "RightTop")
+        return rrb.PlotLegend(corner=getattr(rrb.Corner2D, corner), visible=counts[key] <= LEGEND_SERIES)
 
     series = [
         rrb.TimeSeriesView(origin="/", contents=rules, name=title, plot_legend=legend(key))
@@ -415,6 +447,20 @@ def content_blueprint(content: Mapping[str, str] | None = None, *, time_step: fl
         columns = [rrb.TextLogView(origin="/events", name="Events")]
     root = rrb.Horizontal(*columns, column_shares=[1, 1]) if len(columns) == 2 else columns[0]
     return rrb.Blueprint(root, collapse_panels=True)
+
+
+def map_zoom(lat_lon: np.ndarray, width: float = 700.0, height: float = 220.0) -> float:
+    """The web-map zoom level that shows every (latitude°, longitude°) row in a ``width`` × ``height`` pixel view.
+
+    At zoom z a 256-pixel tile spans 360°/2ᶻ of longitude (web Mercator), and a degree of latitude is
+    1/cos φ times as long as a degree of longitude:  z = log₂(360 · min(w / Δλ, h cos φ / Δφ) / 256), less
+    half a level of margin, clipped to 1 … 18.
+    """
+    lat_lon = np.asarray(lat_lon, dtype=np.float64)
+    low, high = np.nanmin(lat_lon, axis=0), np.nanmax(lat_lon, axis=0)
+    span_lat, span_lon = max(high[0] - low[0], 1e-4), max(high[1] - low[1], 1e-4)
+    fit = min(width / span_lon, height * np.cos(np.radians((low[0] + high[0]) / 2)) / span_lat)
+    return float(np.clip(np.log2(360.0 * fit / 256.0) - 0.5, 1.0, 18.0))
 
 
 def default_blueprint():
@@ -499,6 +545,8 @@ class RerunRecorder:
         self.content: dict[str, str] = {}  # entity path → view class (VIEW_CLASSES)
         self._tracks: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
         self._modes: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, ...]]] = {}
+        self._geo: list[np.ndarray] = []  # the corners of every geo path (for the map view's zoom)
+        self._breaks: dict[str, np.ndarray] = {}  # a hypothesis's path: where its pieces in play start (rows of its track)
         self._events: list[tuple[int, float | None, str]] = []
         self._time_step: float | None = None
         self._closed = False
@@ -542,6 +590,7 @@ class RerunRecorder:
             colour, _ = spatial_style(entity)
             role = entity.strip("/").split("/")[1:2]
             size = {"measurements": 3.0, "clutter": 2.0, "truth": 2.5}.get(role[0] if role else "", 2.0)
+            size = 1.25 if is_hypothesis(entity) else size
             self.stream.log(entity, rr.Points3D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(size)]), static=True)
 
     # -- Recorder
@@ -591,6 +640,7 @@ class RerunRecorder:
         keep = np.all(np.isfinite(lat_lon), axis=-1)
         if not keep.any():
             return
+        self._geo.append(np.stack([lat_lon[keep].min(axis=0), lat_lon[keep].max(axis=0)]))
         times = None if times is None else np.asarray(times)[keep]
         colour, label = spatial_style(entity)
         self.stream.send_columns(
@@ -609,20 +659,31 @@ class RerunRecorder:
             self.log_points(entity, steps, positions, times)
         if line:
             finite = np.all(np.isfinite(positions), axis=-1)
+            pieces = finite_runs(finite)
+            if not pieces:
+                return
             colour, label = spatial_style(entity)
             rr = self._rr
-            self.stream.log(
-                f"{entity}/path",
-                rr.LineStrips3D([positions[finite]], colors=[colour], radii=[rr.Radius.ui_points(1.0)], labels=[label]),
-                static=True,
-            )
+            fan = is_hypothesis(entity)
+            if fan:  # a bank's hypothesis: in play over separate periods, one strip each (no line joins the gaps)
+                strips = [positions[a:b] for a, b in pieces]
+                style = {"colors": [colour], "radii": [rr.Radius.ui_points(0.6)]}
+            else:  # labelled (the label shows on hover; drawn only for the truth and the observer, which do not overlap)
+                strips, style = [positions[finite]], {"colors": [colour], "radii": [rr.Radius.ui_points(1.0)], "labels": [label]}
+                style["show_labels"] = entity.strip("/").split("/")[1:2] in (["truth"], ["observer"])
+            self.stream.log(f"{entity}/path", rr.LineStrips3D(strips, **style), static=True)
             self._note(f"{entity}/path", "3D")
             stride = max(1, -(-int(finite.sum()) // SPACETIME_POINTS))
-            steps = np.asarray(steps)[finite][::stride]
+            if fan:  # each piece thinned on its own, its last point kept; the space-time view breaks the line between pieces
+                kept = [np.unique(np.r_[np.arange(a, b, stride), b - 1]) for a, b in pieces]
+                rows = np.concatenate(kept)
+                self._breaks[entity.strip("/")] = np.cumsum([len(k) for k in kept])[:-1]
+            else:
+                rows = np.flatnonzero(finite)[::stride]
             self._tracks[entity.strip("/")] = (
-                steps,
-                positions[finite][::stride],
-                None if times is None else np.asarray(times, dtype=np.float64)[finite][::stride],
+                np.asarray(steps)[rows],
+                positions[rows],
+                None if times is None else np.asarray(times, dtype=np.float64)[rows],
             )
 
     def log_scalars(self, entity, steps, values, times=None, names=None):
@@ -689,7 +750,8 @@ class RerunRecorder:
     # -- the space-time view and the blueprint, when the run ends
     def _extent(self) -> tuple[np.ndarray, float]:
         """Centre (x, y) and largest horizontal extent (≥ 1 m) of the whole paths."""
-        points = np.concatenate([xyz[:, :2] for _, xyz, _ in self._tracks.values()])
+        own = [xyz[:, :2] for e, (_, xyz, _) in self._tracks.items() if not is_hypothesis(e)]
+        points = np.concatenate(own or [xyz[:, :2] for _, xyz, _ in self._tracks.values()])
         low, high = points.min(axis=0), points.max(axis=0)
         return (low + high) / 2, float(max(np.max(high - low), 1.0))
 
@@ -722,7 +784,9 @@ class RerunRecorder:
                 labels = [names[m] if 0 <= m < len(names) else "undecided" for m in at[bounds[:-1]]]
                 colours = [palette(n) if n != "undecided" else colour for n in labels]
                 self.stream.log(
-                    target, rr.LineStrips3D(strips, colors=colours, labels=labels, radii=[rr.Radius.ui_points(2.0)]), static=True
+                    target,
+                    rr.LineStrips3D(strips, colors=colours, labels=labels, radii=[rr.Radius.ui_points(2.0)], show_labels=False),
+                    static=True,
                 )
                 if cuts.size:
                     self.stream.log(
@@ -731,27 +795,39 @@ class RerunRecorder:
                             points[cuts],
                             colors=[palette(n) for n in labels[1:]],
                             labels=[f"{label} → {n} (step {int(steps[c])})" for n, c in zip(labels[1:], cuts)],
-                            radii=[rr.Radius.ui_points(5.0)],
+                            radii=[rr.Radius.ui_points(4.0)],
+                            show_labels=False,  # on hover: only the decisions are labelled in the view
                         ),
                         static=True,
                     )
                     self._note(f"{target}/changes", "3D")
+            elif is_hypothesis(entity):  # pieces in play, unlabelled: the fan out of each switch
+                strips = [piece for piece in np.split(points, self._breaks.get(entity, [])) if len(piece) > 1]
+                if not strips:
+                    continue
+                self.stream.log(target, rr.LineStrips3D(strips, colors=[colour], radii=[rr.Radius.ui_points(0.75)]), static=True)
             else:
                 self.stream.log(
-                    target, rr.LineStrips3D([points], colors=[colour], labels=[label], radii=[rr.Radius.ui_points(1.5)]), static=True
+                    target,
+                    rr.LineStrips3D([points], colors=[colour], labels=[label], radii=[rr.Radius.ui_points(1.5)], show_labels=False),
+                    static=True,
                 )
             self._note(target, "3D")
         if self._events:
             moded = [e for e in lifted if e in self._modes and not e.endswith("truth")]
-            reference = (moded or [e for e in lifted if e.endswith("truth")] or list(lifted))[0]
+            whole = [e for e in lifted if not is_hypothesis(e)] or list(lifted)
+            reference = (moded or [e for e in whole if e.endswith("truth")] or whole)[0]
             steps, points = lifted[reference]
-            at = np.clip(np.searchsorted(steps, [s for s, _, _ in self._events]), 0, len(steps) - 1)
+            marks: dict[int, list[str]] = {}  # the decisions of one step share one mark and one label
+            for step, _, text in self._events:
+                marks.setdefault(step, []).append(short_decision(text))
+            at = np.clip(np.searchsorted(steps, list(marks)), 0, len(steps) - 1)
             self.stream.log(
                 "spacetime/decisions",
                 rr.Points3D(
                     points[at],
                     colors=[palette("decision")],
-                    labels=[text if len(text) <= 40 else text[:39] + "…" for _, _, text in self._events],
+                    labels=[", ".join(texts) for texts in marks.values()],
                     radii=[rr.Radius.ui_points(5.0)],
                 ),
                 static=True,
@@ -759,8 +835,8 @@ class RerunRecorder:
             self._note("spacetime/decisions", "3D")
         cx, cy = (float(c) for c in centre)
         return {
-            "/world": ((cx, cy - 0.9 * extent, 1.3 * extent), (cx, cy, 0.0)),
-            "/spacetime": ((cx + 1.3 * extent, cy - 1.3 * extent, 1.2 * extent), (cx, cy, 0.5 * extent)),
+            "/world": ((cx, cy - 0.75 * extent, 1.05 * extent), (cx, cy, 0.0)),
+            "/spacetime": ((cx + 1.05 * extent, cy - 1.05 * extent, 1.1 * extent), (cx, cy, 0.5 * extent)),
         }
 
     def blueprint(self):
@@ -780,7 +856,8 @@ class RerunRecorder:
             try:
                 eyes = self._log_spacetime()
             finally:
-                self.stream.send_blueprint(content_blueprint(self.content, time_step=self._time_step, eyes=eyes))
+                zoom = map_zoom(np.concatenate(self._geo)) if self._geo else None
+                self.stream.send_blueprint(content_blueprint(self.content, time_step=self._time_step, eyes=eyes, map_zoom=zoom))
                 self.stream.flush()
                 self.stream.disconnect()
 
@@ -827,6 +904,14 @@ def nis_bounds(dims: np.ndarray, probability: float = 0.95) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         bounds = chi2.ppf(tails[None, :], np.where(m > 0, m, np.nan)[:, None])
     return bounds
+
+
+def short_decision(text: str) -> str:
+    """The label of a decision in the space-time view: the event without the detector and the statistics
+    (``sprt_pairwise: left_turn_r3 accepted with margin 4.76 (A = 4.60)`` → ``left_turn_r3 accepted``), ≤ 40 characters."""
+    head, _, body = text.partition(": ")
+    body = head if not body or body.startswith("x0=") else re.split(r" with | \(|, |: ", body)[0]  # a TMA solution: its method
+    return body if len(body) <= 40 else body[:39] + "…"
 
 
 def decision_text(decision) -> str:

@@ -36,7 +36,8 @@ The bank keeps the estimator's own state form between steps
 locally computed ℓ and NIS (seed 000 eq. 22) feed node copies of the detector
 and of the signal function, recorded beside the centralized values.
 
-Recording (through the recorder passed in): ``world/estimate/<name>``,
+Recording (through the recorder passed in): ``world/estimate/<name>``, the bank's
+hypotheses ``world/estimate/<name>/hypotheses/<h>`` while in play (each from its switch),
 ``detector/<detector>/log_ratio/<mode>`` with ``…/upper`` and ``…/lower``,
 ``detector/signal_function/signal`` with ±bounds, ``estimator/<name>/bank_size``
 and the decisions as events.
@@ -107,7 +108,7 @@ def _prior(prior) -> Gaussian:
 
 def _record_run(recorder, adaptive, z: np.ndarray, run, hypotheses: Sequence[str], truth) -> tuple[np.ndarray, np.ndarray]:
     """What every adaptive run records: the truth (if given), the measurements, the selected estimate with
-    its 2σ ellipses, ln λ per hypothesis with A (``upper``) and B (``lower``), and the decisions.
+    its 2σ ellipses, each hypothesis's estimate while in play (``…/hypotheses/<h>``, NaN gaps), ln λ per hypothesis with A (``upper``) and B (``lower``), and the decisions.
     Returns the steps and times for the caller's own series."""
     steps = np.arange(run.means.shape[0])
     times = run.times
@@ -117,6 +118,11 @@ def _record_run(recorder, adaptive, z: np.ndarray, run, hypotheses: Sequence[str
     log_measurements(recorder, network.sensors, network.split(z[: steps.size]), steps, times)
     position = [adaptive.layout.index("x"), adaptive.layout.index("y")]
     log_estimate(recorder, adaptive.name, steps, run.means, run.covs, position, times)
+    if run.hypothesis_positions is not None:  # the bank's hypotheses fanning out of each switch, each in its colour
+        for j, name in enumerate(hypotheses):
+            path = run.hypothesis_positions[:, j]
+            if np.isfinite(path).any():
+                recorder.log_path(f"world/estimate/{adaptive.name}/hypotheses/{name}", steps, path, times)
     base = f"detector/{adaptive.detector.label}"
     _log_columns(recorder, f"{base}/log_ratio", steps, run.log_ratios, hypotheses, times)
     recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
@@ -191,7 +197,10 @@ class SegmentOutcome:
 @attrs.frozen(eq=False)
 class KnownSwitchRun:
     """Algorithm 1's output: the selected estimate (K+1, n), covariances, the hypothesis followed per step,
-    the log-likelihood ratios per hypothesis (K+1, H; NaN when not in play) and the per-segment outcomes."""
+    the log-likelihood ratios per hypothesis (K+1, H; NaN when not in play) and the per-segment outcomes;
+    ``hypothesis_positions`` (K+1, H, 2), kept only when the run is recorded: each hypothesis's filtered position
+    from the switch (where every hypothesis starts at the followed estimate) until it is eliminated or decided,
+    NaN elsewhere."""
 
     layout: tuple[str, ...]
     hypotheses: tuple[str, ...]
@@ -204,6 +213,7 @@ class KnownSwitchRun:
     decisions: tuple[Decision, ...]
     upper: float
     lower: float
+    hypothesis_positions: np.ndarray | None = None
 
 
 class KnownSwitchAdaptive:
@@ -345,6 +355,8 @@ class KnownSwitchAdaptive:
             estimate.update_only(z[0], sensors)
         x, P = estimate.means[0, :n], estimate.covs[0, :n, :n]
         means[0], covs[0] = x, P
+        position = [self.layout.index("x"), self.layout.index("y")]
+        fan = np.full((K + 1, H, 2), np.nan) if recorder is not None else None  # only a recorded run keeps them
         q, k, row = 0, 0, 0
         since = np.zeros(2)  # after a decision: log-likelihood of the refined and the fixed filter
         outcomes, decisions = [], []
@@ -352,6 +364,8 @@ class KnownSwitchAdaptive:
         for number, T in enumerate(lengths):
             if number:  # new banks at the switch, from the estimate followed at the end of the last segment
                 self._start_banks(test, estimate, x, P, row)
+            if fan is not None:  # every hypothesis starts at the followed estimate of the switch
+                fan[k] = means[k, position]
             detector.hypotheses = self.hypotheses
             detector.reset()
             decision_step = None
@@ -372,6 +386,10 @@ class KnownSwitchAdaptive:
                         q, row, decision_step = int(detector.decided), int(detector.decided), step
                         ratios[step, q] = out.statistics["log_ratio"][q]
                         decisions.append(attrs.evolve(out.decision, time=float(t[step])))
+                    if fan is not None:  # the hypotheses in play (and the one just decided)
+                        shown = active.copy()
+                        shown[q] |= out.decision is not None
+                        fan[step] = np.where(shown[:, None], estimate.means[:, position], np.nan)
                 if self.follow == "mixture" and decision_step is None and active.any():
                     x, P = _mixture(estimate.means[active, :n], estimate.covs[active, :n, :n], accumulated[active])
                     row = None  # the next bank (if the segment ends undecided) starts from the mixture
@@ -408,6 +426,7 @@ class KnownSwitchAdaptive:
             tuple(decisions),
             float(detector.upper),
             float(detector.lower),
+            fan,
         )
         if recorder is not None:
             self._record(recorder, z, run, truth)
@@ -476,6 +495,9 @@ class KnownSwitchAdaptive:
         first = _offsets(sizes)
         x, P = bank.means[first], bank.covs[first]
         means[:, 0], covs[:, 0] = x, P
+        position = [self.layout.index("x"), self.layout.index("y")]
+        fans = {r: np.full((K + 1, H, 2), np.nan) for r in recorders}  # only the recorded runs keep them
+        recorded = np.array(sorted(fans), dtype=int)
         q, row = np.zeros(R, dtype=int), np.zeros(R, dtype=int)  # row −1: the estimate is a mixture
         outcomes, decisions = [[] for _ in runs], [[] for _ in runs]
         batch = self.detector.batch(R)
@@ -484,6 +506,8 @@ class KnownSwitchAdaptive:
             if number:  # new banks at the switch, from the estimate followed at the end of the last segment
                 self._start_batch(bank, x, P, row, _offsets(sizes))
                 sizes = np.full(R, H)
+            for r, fan in fans.items():  # every hypothesis starts at the followed estimate of the switch
+                fan[k] = means[r, k, position]
             batch.reset(self.hypotheses)
             decision_step = np.full(R, -1)
             accumulated = np.zeros((R, H))  # L_i: log-likelihood since the switch
@@ -513,6 +537,10 @@ class KnownSwitchAdaptive:
                     for u in np.flatnonzero(done):
                         r = open_[u]
                         decisions[r].append(attrs.evolve(out.decisions[u], time=float(t[r, step])))
+                    for u in np.flatnonzero(np.isin(open_, recorded)):  # the hypotheses in play (and the one just decided)
+                        shown = active[u].copy()
+                        shown[q[open_[u]]] |= bool(done[u])
+                        fans[open_[u]][step] = np.where(shown[:, None], bank.means[idx[u]][:, position], np.nan)
                     if self.follow == "mixture":
                         pick = ~done & active.any(axis=1)
                         mix = open_[pick]
@@ -550,6 +578,7 @@ class KnownSwitchAdaptive:
                 tuple(decisions[r]),
                 float(batch.upper),
                 float(batch.lower),
+                fans.get(r),
             )
             if r in recorders:
                 self._record(recorders[r], z[r], run, truths[r])
@@ -624,7 +653,9 @@ class UnknownChangeRun:
     """Algorithm 3 repeated: the selected estimate (K+1, n), the mode followed per step (index into
     ``modes``), ln λ per mode (K+1, M; NaN for the current mode and at step 0), the bank size (number of
     filters) per step, the signal function of filter 0 and its bounds, decisions, detected changes, and,
-    with a decentralized estimator, the same series computed at each node (K+1, N, …)."""
+    with a decentralized estimator, the same series computed at each node (K+1, N, …);
+    ``hypothesis_positions`` (K+1, M, 2), kept only when the run is recorded: the position of each alternative
+    mode's most likely filter (largest ψ over its change times) at every step, NaN for the current mode."""
 
     layout: tuple[str, ...]
     modes: tuple[str, ...]
@@ -643,6 +674,7 @@ class UnknownChangeRun:
     bank_limit: int | None
     node_log_ratios: np.ndarray | None = None
     node_signal: np.ndarray | None = None
+    hypothesis_positions: np.ndarray | None = None
 
     def first_change(self, after: int = 0) -> ChangeEvent | None:
         """The first detected change at a step > ``after``."""
@@ -782,6 +814,8 @@ class UnknownChangeAdaptive:
         bounds = np.full((K + 1, 2), np.nan)
         node_ratios, node_signal = None, None
         decisions, changes = [], []
+        position = [self.layout.index("x"), self.layout.index("y")]
+        fan = np.full((K + 1, M, 2), np.nan) if recorder is not None else None  # only a recorded run keeps them
 
         current = self.initial_mode
         alternatives = self._restart([detector], current)
@@ -818,6 +852,12 @@ class UnknownChangeAdaptive:
             out = detector.observe(k, innovation.loglik, innovation.nis, m)
             ratios[k, alternatives] = out.statistics["log_ratio"]
             bank_sizes[k] = len(bank)
+            if fan is not None and (out.decision is None or detector.decided):
+                # each alternative's most likely filter (entry e is row 1 + e of the bank); none once "no change" is accepted
+                for p, mode_index in enumerate(alternatives, start=1):
+                    rows = np.flatnonzero(detector.modes == p)
+                    if rows.size:
+                        fan[k, mode_index] = bank.means[1 + rows[np.argmax(detector.log_psi[rows])], position]
             scores = bank.node_scores()
             for i, d in enumerate(node_detectors):
                 d.observe(k, scores[0][i], scores[1][i], m)
@@ -878,6 +918,7 @@ class UnknownChangeAdaptive:
             limit,
             node_ratios,
             node_signal,
+            fan,
         )
         if recorder is not None:
             self._record(recorder, z, run, truth)
@@ -930,6 +971,8 @@ class UnknownChangeAdaptive:
         signal_values = np.full((R, K + 1), np.nan)
         bounds = np.full((R, K + 1, 2), np.nan)
         decisions, changes = [[] for _ in runs], [[] for _ in runs]
+        position = [self.layout.index("x"), self.layout.index("y")]
+        fans = {r: np.full((K + 1, M, 2), np.nan) for r in recorders}  # only the recorded runs keep them
         current = np.full(R, self.initial_mode)
         others = np.array([[i for i in range(M) if i != c] for c in range(M)])  # the alternatives of each current mode
         names = [(self.labels[c],) + tuple(self.labels[i] for i in others[c]) for c in range(M)]
@@ -970,6 +1013,13 @@ class UnknownChangeAdaptive:
             out = test.observe(k, loglik[offsets], loglik[entry_rows], nis[offsets], nis[entry_rows], m[offsets])
             ratios[runs[:, None], k, alternatives] = out.log_ratio
             bank_sizes[:, k] = sizes
+            for r, fan in fans.items():  # each alternative's most likely filter (test entry e is bank row entry_rows[e])
+                if out.decided[r] == 0:  # "no change" accepted: no alternative in play (the test has restarted)
+                    continue
+                for p, mode_index in enumerate(alternatives[r], start=1):
+                    rows = np.flatnonzero((test.run == r) & (test.modes == p))
+                    if rows.size:
+                        fan[k, mode_index] = bank.means[entry_rows[rows[np.argmax(test.log_psi[rows])]], position]
             for r, signal in enumerate(signals):
                 if signal is not None:
                     s = signal.observe(k, loglik[offsets[r] : offsets[r] + 1], nis[offsets[r] : offsets[r] + 1], int(m[offsets[r]]))
@@ -1032,6 +1082,7 @@ class UnknownChangeAdaptive:
                 float(test.upper),
                 float(test.lower),
                 limits[r],
+                hypothesis_positions=fans.get(r),
             )
             if r in recorders:
                 self._record(recorders[r], z[r], run, truths[r])

@@ -236,7 +236,7 @@ def test_every_logged_entity_is_in_a_view_clutter_and_imm(tmp_path):
     rec = _coverage(path)
     assert {"/world/clutter/pos", "/estimator/straight/beta", "/estimator/nis_bounds"} <= set(rec.entity_paths)
     names = {v["name"] for v in rec.blueprint_views()}
-    assert {"Association weights β", "NIS νᵀS⁻¹ν with the χ² 95 % bounds"} <= names
+    assert {"Association weights β", "NIS (normalized innovation squared) with the χ² 95 % bounds"} <= names
     text = [t for _, _, t in rec.events()]
     assert not any(" H0" in t or " H1" in t for t in text)  # decisions name the filters
 
