@@ -18,10 +18,13 @@ Cases (each timed both ways on the same runs, the results checked equal):
 * ``example1`` — experiments/example1.py: Example 1 of seed 000 (α = β = 0.1)
   on 200 seeds with the growing bank of Algorithm 3; per run: ``run`` per seed,
   batched: ``UnknownChangeAdaptive.run_batch`` of the 200 runs.
-* ``clutter`` — experiments/clutter.py has no batched path yet: only the per-run
-  time of its tracking table is measured (``--clutter-runs`` runs per clutter
-  density; its detection table fails on main today, ``FilterBank(4)``), with
-  ``batched_s`` and ``speedup`` null and the name saying so.
+* ``clutter`` — experiments/clutter.py's tracking table (8 cells of P_D × λ,
+  ``--clutter-runs`` runs each, 361 steps) with the methods it batches,
+  nearest neighbour and PDA: per run, one filter per run and method
+  (``tracking_table(batched=False)``); batched, the runs of a cell as one bank
+  with their own candidates per row (``RowScan``).  Both include drawing the
+  trajectories and the clutter (the same in both); the loss steps and squared
+  errors are checked equal.  The other five methods run per run in either path.
 
 Writes ``{"cases": [{"name", "batched_s", "per_run_s", "speedup"}]}``.  The
 timings depend on the machine's load (the 2-core machine is shared); each case
@@ -111,8 +114,16 @@ def example1(runs: int) -> dict:
 
 def clutter(runs: int) -> dict:
     module = load("clutter")
-    per_run_s, _ = timed(lambda: module.tracking_table(runs))
-    return case(f"clutter (tracking table, {runs} runs per density; per-run only: no batched path yet)", None, per_run_s)
+    methods = list(module.BATCHED)
+    module.tracking_table(1, methods), module.tracking_table(1, methods, batched=False)  # warm-up
+    batched_s, batched = timed(lambda: module.tracking_table(runs, methods))
+    per_run_s, single = timed(lambda: module.tracking_table(runs, methods, batched=False))
+    for a, b in zip(batched, single):
+        for name in methods:
+            assert a[name]["track_loss_rate"] == b[name]["track_loss_rate"] and a[name]["mean_loss_step"] == b[name]["mean_loss_step"]
+            if b[name]["rmse_kept"] is not None:
+                np.testing.assert_allclose(a[name]["rmse_kept"], b[name]["rmse_kept"], rtol=1e-12, err_msg=name)
+    return case(f"clutter (tracking table, NN + PDA, {runs} runs per cell x 8 cells)", batched_s, per_run_s)
 
 
 def main(argv=None) -> dict:
@@ -121,7 +132,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--runs", type=int, default=100, help="seed-001 trajectories per R (default 100)")
     parser.add_argument("--steps-scale", type=float, default=1.0, help="scale the seed-001 schedule (tests)")
     parser.add_argument("--example1-runs", type=int, default=200)
-    parser.add_argument("--clutter-runs", type=int, default=3, help="tracking runs per clutter density (0: skip)")
+    parser.add_argument("--clutter-runs", type=int, default=10, help="tracking runs per (P_D, clutter density) cell (0: skip)")
     args = parser.parse_args(argv)
     cases = [seed001_campaign(args.runs, steps_scale=args.steps_scale), example1(args.example1_runs)]
     if args.clutter_runs:

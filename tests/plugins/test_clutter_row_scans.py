@@ -86,8 +86,9 @@ def test_row_scan_inputs_are_checked():
 
 
 def test_other_clutter_estimators_refuse_row_scans():
-    from hybridtrack_plugins.filters._association import _as_scans  # noqa: PLC2701 - same package's helper
+    from hybridtrack.plugins import get_registry
 
-    row_scan = stack_scans([Scan("pos", [[1.0, 2.0]])])
+    estimator = get_registry().create("estimator", "gaussian_sum", detection_probability=0.9, clutter_density=0.05)
+    state = estimator.initialize(np.zeros((1, 4)), np.eye(4)[None])
     with pytest.raises(TypeError, match="nearest_neighbour and pda only"):
-        _as_scans(row_scan)
+        estimator.update(state, stack_scans([Scan("pos", [[1.0, 2.0]])]), [SENSOR], LAYOUT)
