@@ -288,7 +288,12 @@ def main(argv=None) -> dict:
     parser.add_argument("--bank-size", type=int, default=40, help="alternative filters kept (nearest-B pruning)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--steps-scale", type=float, default=1.0, help="scale the schedule (tests)")
-    parser.add_argument("--executor", default="process", choices=("inline", "process", "dask"))
+    parser.add_argument(
+        "--executor",
+        choices=("inline", "process", "dask"),
+        help="where the chunks run (default: inline for the batches — a worker pool's start-up costs more than it saves "
+        "on these batches — and process with --per-run)",
+    )
     parser.add_argument("--scheduler", help="Dask scheduler address")
     parser.add_argument("--workers", type=int)
     parser.add_argument("--out", default="runs/seed001_unknown_change", help="campaign folders (one per R)")
@@ -319,7 +324,7 @@ def main(argv=None) -> dict:
             args.n,
             folder,
             seed=args.seed,
-            executor=args.executor,
+            executor=args.executor or ("process" if args.per_run else "inline"),
             scheduler=args.scheduler,
             workers=args.workers,
             progress=not args.no_progress,
