@@ -7,16 +7,24 @@ Cases (each timed both ways on the same runs, the results checked equal):
 * ``seed001_campaign`` — experiments/seed001_adaptive.py with the default rule:
   100 trajectories × R ∈ {1, 0.1, 0.01} of the seed-001 schedule (360 steps),
   each with the optimal KF told the modes and the 21-filter known-switch
-  adaptive estimator.  Per run: ``run_one`` for every trajectory; batched:
-  ``run_batch`` of all 100 trajectories of an R (trajectories propagated
-  together, both estimators as stacked banks).
+  adaptive estimator.  Both ways go through the path the script takes: one
+  :class:`~hybridtrack.experiment.Campaign` per R into a fresh temporary
+  folder (chunk files written, as stored and resumable), on the ``inline``
+  executor (this process, one worker: a clean comparison without pool start-up
+  or the other engineers' share of the second core).  Batched: the script's
+  ``EXPERIMENT`` (``run_batch``: each chunk of ≤ 100 trajectories propagated
+  together, both estimators as stacked banks); per run: its ``PER_RUN`` (the
+  same experiment without ``run_batch``, ``run_one`` per trajectory).
 * ``example1`` — experiments/example1.py: Example 1 of seed 000 (α = β = 0.1)
   on 200 seeds with the growing bank of Algorithm 3; per run: ``run`` per seed,
   batched: ``UnknownChangeAdaptive.run_batch`` of the 200 runs.
-* ``clutter`` — experiments/clutter.py has no batched path yet: only the per-run
-  time of its tracking table is measured (``--clutter-runs`` runs per clutter
-  density; its detection table fails on main today, ``FilterBank(4)``), with
-  ``batched_s`` and ``speedup`` null and the name saying so.
+* ``clutter`` — experiments/clutter.py's tracking table (8 cells of P_D × λ,
+  ``--clutter-runs`` runs each, 361 steps) with the methods it batches,
+  nearest neighbour and PDA: per run, one filter per run and method
+  (``tracking_table(batched=False)``); batched, the runs of a cell as one bank
+  with their own candidates per row (``RowScan``).  Both include drawing the
+  trajectories and the clutter (the same in both); the loss steps and squared
+  errors are checked equal.  The other five methods run per run in either path.
 
 Writes ``{"cases": [{"name", "batched_s", "per_run_s", "speedup"}]}``.  The
 timings depend on the machine's load (the 2-core machine is shared); each case
@@ -56,28 +64,41 @@ def case(name: str, batched_s: float | None, per_run_s: float) -> dict:
 
 
 def seed001_campaign(runs: int, r_values=(1.0, 0.1, 0.01), seed: int = 1, steps_scale: float = 1.0) -> dict:
-    from hybridtrack.experiment.worker import run_seed
+    import tempfile
 
-    module = load("seed001_adaptive")
-    parameters = [module.EXPERIMENT.with_parameters(R=R, steps_scale=steps_scale, **module.DEFAULT_RULE) for R in r_values]
-    warm = module.EXPERIMENT.with_parameters(R=0.1, steps_scale=0.1, **module.DEFAULT_RULE)  # imports, numba compilation
-    module.batch_arrays(warm, 2, seed)
-    module.run_one(0, np.random.default_rng(run_seed(seed, 0)), **warm)
-    batched_s, batched = timed(lambda: [module.batch_arrays(p, runs, seed) for p in parameters])
+    from hybridtrack.experiment import Campaign, load_experiment
 
-    def per_run():
-        out = []
-        for p in parameters:
-            rows = [module.run_one(i, np.random.default_rng(run_seed(seed, i)), **p) for i in range(runs)]
-            out.append({name: np.stack([np.asarray(row[name]) for row in rows]) for name in rows[0]})
-        return out
+    script = str(ROOT / "experiments" / "seed001_adaptive.py")
+    batched_experiment, per_run_experiment = load_experiment(script), load_experiment(f"{script}:PER_RUN")
+    rule = load("seed001_adaptive").DEFAULT_RULE
 
-    per_run_s, single = timed(per_run)
+    def campaigns(experiment, folder: Path, n: int, scale: float) -> list[dict]:
+        return [
+            Campaign(
+                experiment,
+                n,
+                folder / f"R{R:g}",
+                seed=seed,
+                executor="inline",
+                progress=False,
+                parameters={"R": R, "steps_scale": scale, **rule},
+            )
+            .run()
+            .arrays
+            for R in r_values
+        ]
+
+    with tempfile.TemporaryDirectory(prefix="campaign_bench_") as tmp:
+        tmp = Path(tmp)
+        campaigns(batched_experiment, tmp / "warm_batched", 2, 0.1)  # imports, numba compilation
+        campaigns(per_run_experiment, tmp / "warm_per_run", 2, 0.1)
+        batched_s, batched = timed(lambda: campaigns(batched_experiment, tmp / "batched", runs, steps_scale))
+        per_run_s, single = timed(lambda: campaigns(per_run_experiment, tmp / "per_run", runs, steps_scale))
     for a, b in zip(batched, single):
         for name in a:
             np.testing.assert_allclose(a[name], b[name], rtol=1e-12, atol=1e-12, err_msg=name)
     scaled = "" if steps_scale == 1 else f", schedule scaled by {steps_scale:g}"
-    return case(f"seed001_campaign ({runs} runs x {len(r_values)} R, default rule{scaled})", batched_s, per_run_s)
+    return case(f"seed001_campaign ({runs} runs x {len(r_values)} R, default rule, runner inline{scaled})", batched_s, per_run_s)
 
 
 def example1(runs: int) -> dict:
@@ -93,8 +114,16 @@ def example1(runs: int) -> dict:
 
 def clutter(runs: int) -> dict:
     module = load("clutter")
-    per_run_s, _ = timed(lambda: module.tracking_table(runs))
-    return case(f"clutter (tracking table, {runs} runs per density; per-run only: no batched path yet)", None, per_run_s)
+    methods = list(module.BATCHED)
+    module.tracking_table(1, methods), module.tracking_table(1, methods, batched=False)  # warm-up
+    batched_s, batched = timed(lambda: module.tracking_table(runs, methods))
+    per_run_s, single = timed(lambda: module.tracking_table(runs, methods, batched=False))
+    for a, b in zip(batched, single):
+        for name in methods:
+            assert a[name]["track_loss_rate"] == b[name]["track_loss_rate"] and a[name]["mean_loss_step"] == b[name]["mean_loss_step"]
+            if b[name]["rmse_kept"] is not None:
+                np.testing.assert_allclose(a[name]["rmse_kept"], b[name]["rmse_kept"], rtol=1e-12, err_msg=name)
+    return case(f"clutter (tracking table, NN + PDA, {runs} runs per cell x 8 cells)", batched_s, per_run_s)
 
 
 def main(argv=None) -> dict:
@@ -103,7 +132,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--runs", type=int, default=100, help="seed-001 trajectories per R (default 100)")
     parser.add_argument("--steps-scale", type=float, default=1.0, help="scale the seed-001 schedule (tests)")
     parser.add_argument("--example1-runs", type=int, default=200)
-    parser.add_argument("--clutter-runs", type=int, default=3, help="tracking runs per clutter density (0: skip)")
+    parser.add_argument("--clutter-runs", type=int, default=10, help="tracking runs per (P_D, clutter density) cell (0: skip)")
     args = parser.parse_args(argv)
     cases = [seed001_campaign(args.runs, steps_scale=args.steps_scale), example1(args.example1_runs)]
     if args.clutter_runs:

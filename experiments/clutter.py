@@ -16,6 +16,10 @@ started at the truth with P0 = 0.1 I, runs as ``nearest_neighbour`` (P_G = 0.99)
 and as ``pda`` (P_D = 0.9, the true λ, P_G = 0.99) on the same scans.  A track
 is lost when the position error stays above 2 m (≈ 6.3 σ of the measurement
 noise) for 5 consecutive steps; RMSE is over the runs whose track was not lost.
+Nearest neighbour and PDA run the runs of a cell as one bank (one filter per
+run, each row gated against its own candidates: ``RowScan``, equal to the runs
+one by one); their time per step is the bank's divided by the runs.  The other
+methods run run by run.
 
 Part 2 — Example 1 of seed 000 in clutter.  20 steps straight then 30 steps right
 turn r = 5 m, x0 = [0, 0, 0, 2], Q = R = 0.01 I, τ = 0.1 s, prior N(x0, I);
@@ -43,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.clutter import ClutterModel, add_clutter, region_around
+from hybridtrack.clutter import ClutterModel, add_clutter, region_around, stack_scans
 from hybridtrack.composed.bank import FilterBank
 from hybridtrack.interfaces import TransitionBank
 from hybridtrack.plugins import get_registry
@@ -128,8 +132,8 @@ def make_estimator(registry, name: str, detection_probability: float, density: f
     return estimator
 
 
-def track_run(seed: int, density: float, detection_probability: float, methods, registry, models) -> dict:
-    """One seeded truth + clutter realisation, every method on the same scans: loss step, squared errors, time per step."""
+def simulate_run(seed: int, density: float, detection_probability: float):
+    """One seeded truth + clutter realisation: (scans of sensor ``pos``, true positions (K+1, 2), λV, the sensor)."""
     trajectory_seed, measurement_seed, clutter_seed = np.random.SeedSequence([seed, 1]).spawn(3)
     schedule = Schedule.from_rows(TABLE1)
     truth = simulate_trajectory(schedule, X0, TAU, seed=np.random.default_rng(trajectory_seed), noise_cov=np.eye(2) * 0.001)
@@ -137,10 +141,25 @@ def track_run(seed: int, density: float, detection_probability: float, methods, 
     clean = simulate_measurements(truth, [sensor], seed=np.random.default_rng(measurement_seed))
     clutter = ClutterModel(density, detection_probability, region_around(truth.positions, 3.0))
     scans = add_clutter(clean, clutter, seed=np.random.default_rng(clutter_seed))["pos"]
-    positions = truth.states_in(LAYOUT)[:, [0, 2]]
+    return scans, truth.states_in(LAYOUT)[:, [0, 2]], clutter.expected_false, sensor
+
+
+def _outcome(errors: np.ndarray, seconds_per_step: float) -> dict:
+    return {
+        "lost_at": _lost_at(errors),
+        "sum_sq_error": float(np.sum(errors**2)),
+        "steps": int(errors.size),
+        "seconds_per_step": seconds_per_step,
+    }
+
+
+def track_run(seed: int, density: float, detection_probability: float, methods, registry, models, simulated=None) -> dict:
+    """One seeded truth + clutter realisation, every method on the same scans: loss step, squared errors, time per step
+    (``simulated``: :func:`simulate_run`'s result for these arguments when already drawn)."""
+    scans, positions, expected_false, sensor = simulated or simulate_run(seed, density, detection_probability)
     bank = TransitionBank.stack([models["tracker"].transition(TAU, X0)])
     steps = [scans.scan(k) for k in range(scans.steps)]
-    out = {"expected_false_per_step": clutter.expected_false}
+    out = {"expected_false_per_step": expected_false}
     for name in methods:
         estimator = make_estimator(registry, name, detection_probability, density, seed)
         state = estimator.initialize(X0[None], np.eye(4)[None] * 0.1)
@@ -151,23 +170,56 @@ def track_run(seed: int, density: float, detection_probability: float, methods, 
                 state = estimator.predict(state, bank)
             state, _ = estimator.update(state, scan, [sensor], LAYOUT)
             errors[k] = np.hypot(*(estimator.mean(state)[0, [0, 2]] - positions[k]))
-        elapsed = time.perf_counter() - started
-        out[name] = {
-            "lost_at": _lost_at(errors),
-            "sum_sq_error": float(np.sum(errors**2)),
-            "steps": int(errors.size),
-            "seconds_per_step": elapsed / scans.steps,
-        }
+        out[name] = _outcome(errors, (time.perf_counter() - started) / scans.steps)
     return out
 
 
-def tracking_table(runs: int, methods) -> list[dict]:
+#: methods whose runs go as one bank of one filter per run, each row with its own candidates (``RowScan``)
+BATCHED = ("nearest_neighbour", "pda")
+
+
+def track_runs(seeds, density: float, detection_probability: float, methods, registry, models) -> list[dict]:
+    """:func:`track_run` of every seed: the methods of :data:`BATCHED` as one bank of len(seeds) filters (row r = run r,
+    updated with ``stack_scans`` of the runs' scans: the per-run results to rounding, the same loss steps), the
+    others run by run.  A batched method's ``seconds_per_step`` is the bank's time per step divided by the runs."""
+    seeds = list(seeds)
+    simulated = [simulate_run(seed, density, detection_probability) for seed in seeds]
+    alone = [name for name in methods if name not in BATCHED]
+    outs = [track_run(seed, density, detection_probability, alone, registry, models, sim) for seed, sim in zip(seeds, simulated)]
+    R = len(seeds)
+    steps = simulated[0][0].steps
+    positions = np.stack([s[1] for s in simulated])  # (R, K+1, 2)
+    sensor = simulated[0][3]
+    bank = TransitionBank.stack([models["tracker"].transition(TAU, X0)] * R)
+    row_scans = [stack_scans([s[0].scan(k) for s in simulated]) for k in range(steps)]
+    for name in [m for m in methods if m in BATCHED]:
+        estimator = make_estimator(registry, name, detection_probability, density, seeds[0])
+        state = estimator.initialize(np.repeat(X0[None], R, axis=0), np.repeat(np.eye(4)[None] * 0.1, R, axis=0))
+        errors = np.empty((R, steps))
+        started = time.perf_counter()
+        for k, scan in enumerate(row_scans):
+            if k:
+                state = estimator.predict(state, bank)
+            state, _ = estimator.update(state, scan, [sensor], LAYOUT)
+            errors[:, k] = np.hypot(*(estimator.mean(state)[:, [0, 2]] - positions[:, k]).T)
+        seconds = (time.perf_counter() - started) / (steps * R)
+        for out, e in zip(outs, errors):
+            out[name] = _outcome(e, seconds)
+    return outs
+
+
+def tracking_table(runs: int, methods, batched: bool = True) -> list[dict]:
+    """The tracking rows per (P_D, λ); with ``batched`` the :data:`BATCHED` methods run as one bank per cell
+    (:func:`track_runs`, equal results), else every method run by run."""
     registry = get_registry()
     models = {"tracker": registry.create("motion_model", "straight", noise_cov=np.eye(2) * TRACKER_Q)}
     rows = []
     for detection_probability in DETECTION_PROBABILITIES:
         for density in DENSITIES:
-            results = [track_run(seed, density, detection_probability, methods, registry, models) for seed in range(runs)]
+            if batched:
+                results = track_runs(range(runs), density, detection_probability, methods, registry, models)
+            else:
+                results = [track_run(seed, density, detection_probability, methods, registry, models) for seed in range(runs)]
             row = {
                 "density": density,
                 "detection_probability": detection_probability,
@@ -343,7 +395,8 @@ def markdown(result: dict) -> str:
         "",
         f"{result['tracking_runs']} seeded runs per (P_D, λ), 361 steps, every method on the same scans; track lost after "
         f"{LOSS_STEPS} consecutive steps with position error > {LOSS_DISTANCE} m. Each cell: track-loss rate · RMSE (m) over "
-        "the runs not lost · mean time per step (µs, predict + update, one filter; timings depend on the machine's load).",
+        "the runs not lost · mean time per step (µs, predict + update, one filter; NN and PDA: their bank of all the runs' filters, "
+        "per filter; timings depend on the machine's load).",
     ]
     for pd_ in DETECTION_PROBABILITIES:
         mine = [r for r in result["tracking"] if r["detection_probability"] == pd_]

@@ -40,11 +40,14 @@ Every bank, the first included, is built from the given initial state x0
 (seed 001 Table 3) against the seed's figures, per R, from the JSON report
 (:func:`plot`); ``--plot-only JSON`` only draws, from an existing report.
 
-Each R's trajectories run as one batch (``run_batch``: stacked banks, equal to
-the per-run results to rounding); with ``--per-run`` every trajectory runs
-alone through the campaign runner, stored under ``--out`` (one campaign per R)
-and reused when the command is repeated; ``hybridtrack run experiments/seed001_adaptive.py
---param R=0.1`` runs one R through the generic runner.
+Every R and rule is one campaign of the runner (:class:`~hybridtrack.experiment.Campaign`),
+stored under ``--out`` (resumable, reused when the command is repeated) and
+chunked over ``--executor``'s workers; :data:`EXPERIMENT` declares ``run_batch``,
+so each chunk runs as one batch (stacked banks, equal to the per-run results to
+1e-12).  ``--per-run`` runs the same campaigns through the same runner with
+:data:`PER_RUN` (the experiment without ``run_batch``: one trajectory at a
+time), stored under ``--out``/per_run; ``hybridtrack run experiments/seed001_adaptive.py
+--param R=0.1`` runs one R through the generic runner (batched).
 """
 
 from __future__ import annotations
@@ -53,6 +56,7 @@ import argparse
 import sys
 from pathlib import Path
 
+import attrs
 import numpy as np
 
 from hybridtrack.experiment import Campaign, Experiment, load_experiment
@@ -257,7 +261,11 @@ EXPERIMENT = Experiment(
         **DEFAULT_RULE,
     },
     description="seed 001 Tables 2-4: optimal KF vs adaptive estimator (Algorithm 1) on the Table 1 schedule",
+    run_batch=run_batch,
+    batch_size=100,
 )
+#: the same experiment without ``run_batch``: the runner runs one trajectory at a time (``--per-run``)
+PER_RUN = attrs.evolve(EXPERIMENT, run_batch=None)
 
 
 def aggregate(arrays: dict[str, np.ndarray], R: float) -> tuple[dict, dict]:
@@ -370,7 +378,12 @@ def main(argv=None) -> dict:
     parser.add_argument("--beta", type=float, default=0.01)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--steps-scale", type=float, default=1.0, help="scale the schedule (tests)")
-    parser.add_argument("--executor", default="process", choices=("inline", "process", "dask"))
+    parser.add_argument(
+        "--executor",
+        choices=("inline", "process", "dask"),
+        help="where the chunks run (default: inline for the batches — a worker pool's start-up costs more than it saves "
+        "on these batches — and process with --per-run)",
+    )
     parser.add_argument("--scheduler", help="Dask scheduler address")
     parser.add_argument("--workers", type=int)
     parser.add_argument("--out", default="runs/seed001_adaptive", help="campaign folders (one per R)")
@@ -380,7 +393,7 @@ def main(argv=None) -> dict:
     parser.add_argument(
         "--per-run",
         action="store_true",
-        help="run each trajectory alone through the campaign runner (stored under --out, resumable) instead of one batch per R",
+        help="the same campaigns without run_batch: one trajectory at a time (stored under --out/per_run) instead of one batch per chunk",
     )
     args = parser.parse_args(argv)
     if args.plot_only:
@@ -389,17 +402,19 @@ def main(argv=None) -> dict:
     if not args.json:
         parser.error("--json PATH is required (or --plot-only JSON)")
 
-    experiment = load_experiment(str(Path(__file__).resolve()))
+    script = str(Path(__file__).resolve())
+    experiment = load_experiment(f"{script}:PER_RUN" if args.per_run else script)
+    out = Path(args.out) / "per_run" if args.per_run else Path(args.out)
 
     def campaign_for(R: float, rule: dict, seed: int):
         tag = "_".join(f"{key}-{value}" for key, value in rule.items())
-        folder = Path(args.out) / f"alpha{args.alpha:g}_beta{args.beta:g}_scale{args.steps_scale:g}_{tag}_seed{seed}" / f"R{R:g}"
+        folder = out / f"alpha{args.alpha:g}_beta{args.beta:g}_scale{args.steps_scale:g}_{tag}_seed{seed}" / f"R{R:g}"
         return Campaign(
             experiment,
             args.n,
             folder,
             seed=seed,
-            executor=args.executor,
+            executor=args.executor or ("process" if args.per_run else "inline"),
             scheduler=args.scheduler,
             workers=args.workers,
             progress=not args.no_progress,
@@ -407,11 +422,8 @@ def main(argv=None) -> dict:
         )
 
     def arrays_for(R: float, rule: dict, seed: int) -> dict[str, np.ndarray]:
-        """Every run's results at R under ``rule``: one batch in-process, or the campaign runner (``--per-run``)."""
-        if args.per_run:
-            return campaign_for(R, rule, seed).run().arrays
-        parameters = {"R": R, "alpha": args.alpha, "beta": args.beta, "steps_scale": args.steps_scale, **rule}
-        return batch_arrays(experiment.with_parameters(**parameters), args.n, seed)
+        """Every run's results at R under ``rule``, from the runner (batched chunks, or one run at a time with ``--per-run``)."""
+        return campaign_for(R, rule, seed).run().arrays
 
     def brief(row: dict, extra: dict) -> dict:
         keep = ("mean_decision_steps", "mean_decision_steps_undecided_as_length", "undecided_fraction", "radius_correct")

@@ -40,9 +40,12 @@ identified, as in ``seed001_adaptive.py``).
 
     python experiments/seed001_unknown_change.py --json docs/results/seed001_unknown_change.json [--n 50] [--modes seed001]
 
-Each R's trajectories run as one batch (``run_batch``: stacked banks, equal to
-the per-run results to rounding); ``--per-run`` runs each alone through the
-campaign runner (stored under ``--out``, resumable).
+Each R is one campaign of the runner (:class:`~hybridtrack.experiment.Campaign`),
+stored under ``--out`` (resumable) and chunked over ``--executor``'s workers;
+:data:`EXPERIMENT` declares ``run_batch``, so each chunk runs as one batch
+(stacked banks, equal to the per-run results to 1e-12).  ``--per-run`` runs the
+same campaigns with :data:`PER_RUN` (no ``run_batch``: one trajectory at a
+time), stored under ``--out``/per_run.
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ import argparse
 import sys
 from pathlib import Path
 
+import attrs
 import numpy as np
 
 from hybridtrack.experiment import Campaign, Experiment, load_experiment
@@ -224,7 +228,11 @@ EXPERIMENT = Experiment(
         "steps_scale": 1.0,
     },
     description="seed 000 Algorithm 3 (unknown change time) on the seed 001 schedule, beside Algorithm 1 and the optimal KF",
+    run_batch=run_batch,
+    batch_size=50,
 )
+#: the same experiment without ``run_batch``: the runner runs one trajectory at a time (``--per-run``)
+PER_RUN = attrs.evolve(EXPERIMENT, run_batch=None)
 
 
 def aggregate(arrays: dict[str, np.ndarray], R: float) -> dict:
@@ -280,7 +288,12 @@ def main(argv=None) -> dict:
     parser.add_argument("--bank-size", type=int, default=40, help="alternative filters kept (nearest-B pruning)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--steps-scale", type=float, default=1.0, help="scale the schedule (tests)")
-    parser.add_argument("--executor", default="process", choices=("inline", "process", "dask"))
+    parser.add_argument(
+        "--executor",
+        choices=("inline", "process", "dask"),
+        help="where the chunks run (default: inline for the batches — a worker pool's start-up costs more than it saves "
+        "on these batches — and process with --per-run)",
+    )
     parser.add_argument("--scheduler", help="Dask scheduler address")
     parser.add_argument("--workers", type=int)
     parser.add_argument("--out", default="runs/seed001_unknown_change", help="campaign folders (one per R)")
@@ -288,11 +301,13 @@ def main(argv=None) -> dict:
     parser.add_argument(
         "--per-run",
         action="store_true",
-        help="run each trajectory alone through the campaign runner (stored under --out, resumable) instead of one batch per R",
+        help="the same campaigns without run_batch: one trajectory at a time (stored under --out/per_run) instead of one batch per chunk",
     )
     args = parser.parse_args(argv)
 
-    experiment = load_experiment(str(Path(__file__).resolve()))
+    script = str(Path(__file__).resolve())
+    experiment = load_experiment(f"{script}:PER_RUN" if args.per_run else script)
+    out = Path(args.out) / "per_run" if args.per_run else Path(args.out)
     rows = []
     for R in args.R:
         parameters = {
@@ -303,22 +318,19 @@ def main(argv=None) -> dict:
             "bank_size": args.bank_size,
             "steps_scale": args.steps_scale,
         }
-        if not args.per_run:
-            rows.append(aggregate(batch_arrays(experiment.with_parameters(**parameters), args.n, args.seed), R))
-        else:
-            folder = Path(args.out) / f"{args.modes}_alpha{args.alpha:g}_bank{args.bank_size}_scale{args.steps_scale:g}" / f"R{R:g}"
-            campaign = Campaign(
-                experiment,
-                args.n,
-                folder,
-                seed=args.seed,
-                executor=args.executor,
-                scheduler=args.scheduler,
-                workers=args.workers,
-                progress=not args.no_progress,
-                parameters=parameters,
-            )
-            rows.append(aggregate(campaign.run().arrays, R))
+        folder = out / f"{args.modes}_alpha{args.alpha:g}_bank{args.bank_size}_scale{args.steps_scale:g}" / f"R{R:g}"
+        campaign = Campaign(
+            experiment,
+            args.n,
+            folder,
+            seed=args.seed,
+            executor=args.executor or ("process" if args.per_run else "inline"),
+            scheduler=args.scheduler,
+            workers=args.workers,
+            progress=not args.no_progress,
+            parameters=parameters,
+        )
+        rows.append(aggregate(campaign.run().arrays, R))
         r = rows[-1]
         print(
             f"R = {R:g}: nRMSE optimal {r['optimal_nrmse']:.4f}, known-switch {r['known_switch_nrmse']:.4f}, "

@@ -17,6 +17,9 @@ Value types:
 * :class:`Scan` — the candidates of one sensor at one step, z of shape (L, m);
   what the clutter-aware estimators (``nearest_neighbour``, ``pda``) accept in
   place of the stacked z of :meth:`Estimator.update`.
+* :class:`RowScan` — one sensor's candidates per filter row at one step,
+  z of shape (M, L, m) NaN-padded (stacked runs: row j is run j's scan,
+  :func:`stack_scans`); ``nearest_neighbour`` and ``pda`` accept it.
 * :class:`ScanSequence` — one sensor's scans over steps 0 … K plus, for
   evaluation only, which candidate came from the target (−1: missed).
 * :class:`ClutterModel` — λ, P_D and the region.
@@ -79,6 +82,78 @@ class Scan:
         return self.sensor == other.sensor and np.array_equal(self.z, other.z)
 
     __hash__ = None
+
+
+def _row_candidates(value) -> np.ndarray:
+    array = np.array(value, dtype=np.float64, copy=True)
+    if array.ndim != 3:
+        raise ValueError(f"z: expected per-row candidates of shape (M, L, m), got shape {array.shape}")
+    absent = np.isnan(array).all(axis=-1)
+    partial = np.isnan(array).any(axis=-1) & ~absent
+    if partial.any():
+        raise ValueError(
+            f"z: candidate {tuple(int(i) for i in np.argwhere(partial)[0])} is partly NaN; "
+            "a padding candidate is NaN in every component, a real one in none"
+        )
+    as_float_array(np.where(np.isnan(array), 0.0, array), "z", (None, None, None))  # no inf
+    array.setflags(write=False)
+    return array
+
+
+@attrs.frozen(eq=False)
+class RowScan:
+    """The candidates of sensor ``sensor`` at one step, one set per filter row: z (M, L, m).
+
+    Row j's candidates are the rows of ``z[j]`` that are not NaN (``present``
+    (M, L)); the rest is padding (NaN in every component), so the rows may
+    hold different numbers of candidates.  This is how M independent runs,
+    each one filter with its own scan, go through one bank
+    (:func:`stack_scans`): ``nearest_neighbour`` and ``pda`` gate and weigh
+    each row against its own candidates only, and row j's state and
+    association equal the update of a one-filter bank with
+    ``Scan(sensor, z[j][present[j]])`` to rounding.
+    """
+
+    sensor: str
+    z: np.ndarray = attrs.field(converter=_row_candidates)
+
+    @property
+    def rows(self) -> int:
+        """M, the number of filter rows."""
+        return self.z.shape[0]
+
+    @property
+    def size(self) -> int:
+        """L, the candidate slots per row (padding included)."""
+        return self.z.shape[1]
+
+    @property
+    def measurement_dim(self) -> int:
+        return self.z.shape[2]
+
+    @property
+    def present(self) -> np.ndarray:
+        """(M, L): whether slot i of row j holds a candidate (not padding)."""
+        return ~np.isnan(self.z).all(axis=-1)
+
+    def row(self, j: int) -> Scan:
+        """Row j's candidates as a :class:`Scan`."""
+        return Scan(self.sensor, self.z[j][self.present[j]])
+
+
+def stack_scans(scans: Sequence[Scan]) -> RowScan:
+    """One :class:`RowScan` from M scans of one sensor (row j = ``scans[j]``), NaN-padded to the largest L."""
+    scans = list(scans)
+    if not scans or not all(isinstance(s, Scan) for s in scans):
+        raise TypeError(f"scans: expected a non-empty sequence of Scan, got {type(scans).__name__}")
+    names = {s.sensor for s in scans}
+    dims = {s.measurement_dim for s in scans}
+    if len(names) != 1 or len(dims) != 1:
+        raise ValueError(f"scans: expected scans of one sensor and dimension, got sensors {sorted(names)} and dimensions {sorted(dims)}")
+    z = np.full((len(scans), max(s.size for s in scans), dims.pop()), np.nan)
+    for j, scan in enumerate(scans):
+        z[j, : scan.size] = scan.z
+    return RowScan(names.pop(), z)
 
 
 @attrs.frozen(eq=False)

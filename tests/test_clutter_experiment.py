@@ -59,3 +59,23 @@ def test_one_detection_run_of_example_1_in_clutter():
     models = [registry.create("motion_model", name, noise_cov=clutter.EXAMPLE1_NOISE, **params) for name, params in specs]
     out = clutter.detection_run(0, 0.5, 0.9, models, ("straight", "right_turn_r5", "left_turn_r5"))
     assert out["mode"] in (None, "straight", "right_turn_r5", "left_turn_r5") and out["max_bank"] >= 3
+
+
+def test_batched_tracking_equals_the_runs_one_by_one():
+    """track_runs (NN and PDA as one bank of the runs, RowScan) gives each run's track_run results: the same loss
+    steps and squared errors to 1e-12, in a dense cell where tracks are lost; a method not batched runs per run."""
+    clutter = load()
+    registry = get_registry()
+    models = {"tracker": registry.create("motion_model", "straight", noise_cov=np.eye(2) * clutter.TRACKER_Q)}
+    methods = ["nearest_neighbour", "pda"]
+    batched = clutter.track_runs([0, 1, 2], 0.2, 0.7, methods, registry, models)
+    lost = 0
+    for seed, row in zip([0, 1, 2], batched):
+        single = clutter.track_run(seed, 0.2, 0.7, methods, registry, models)
+        assert row["expected_false_per_step"] == single["expected_false_per_step"]
+        for name in methods:
+            assert row[name]["lost_at"] == single[name]["lost_at"] and row[name]["steps"] == single[name]["steps"] == 361
+            assert row[name]["sum_sq_error"] == pytest.approx(single[name]["sum_sq_error"], rel=1e-12, abs=1e-12)
+            lost += row[name]["lost_at"] is not None
+    assert lost > 0  # the comparison covers lost tracks too
+    assert set(clutter.BATCHED) == set(methods)

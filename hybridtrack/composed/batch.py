@@ -217,27 +217,8 @@ class RunBank:
 
     def _build(self, rows: np.ndarray, dt: np.ndarray) -> TransitionBank:
         """The transitions of filters ``rows``: one :meth:`~hybridtrack.interfaces.MotionModel.transition_bank`
-        call per (model, Δt) group (vectorized over the runs that switched together)."""
-        keys = [(id(self.models[i]), float(dt[i])) for i in rows]
-        groups: dict = {}
-        for j, key in enumerate(keys):
-            groups.setdefault(key, []).append(j)
-        n = len(self.layout)
-        F, B, Q = np.zeros((rows.size, n, n)), np.zeros((rows.size, n)), np.zeros((rows.size, n, n))
-        roots, positions = [], []
-        for (_, d), members in groups.items():
-            members = np.asarray(members)
-            model = self.models[rows[members[0]]]
-            bank = model.transition_bank(d, self.switch_states[rows[members]])
-            F[members], B[members], Q[members] = bank.F, bank.B, bank.Q
-            roots.append(bank.noise_root)
-            positions.append(members)
-        root = None
-        if all(r is not None for r in roots) and len({r.shape[1:] for r in roots}) == 1:
-            root = np.zeros((rows.size,) + roots[0].shape[1:])
-            for members, r in zip(positions, roots):
-                root[members] = r
-        return TransitionBank(F, B, Q, root)
+        call per (model, Δt) group (vectorized over the runs that switched together), :func:`grouped_transitions`."""
+        return grouped_transitions([self.models[i] for i in rows], dt[rows], self.switch_states[rows])
 
     def step(self, dt: np.ndarray | None, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predict every filter over ``dt`` (F,) (None: update only), update it with its row of ``z`` (F, Σm).
@@ -287,3 +268,37 @@ class RunBank:
     def covs(self) -> np.ndarray:
         """P (F, n, n) of every filter (symmetrized)."""
         return self._read()[1]
+
+
+def grouped_transitions(models: Sequence[MotionModel], dts, switch_states: np.ndarray) -> TransitionBank:
+    """The transitions of S filters, filter i running ``models[i]`` over ``dts[i]`` (a float for all, or (S,))
+    from switch state ``switch_states[i]`` (S, n), all in one layout: one
+    :meth:`~hybridtrack.interfaces.MotionModel.transition_bank` call per (model, Δt) group, scattered back
+    into filter order.  Equal to ``TransitionBank.stack([models[i].transition(dts[i], switch_states[i]) …])``
+    entry by entry (``transition_bank`` must equal the stacked transitions; the motion tests check), so
+    F_i, B_i, Q_i are seed 000's eq. (3) transitions of each filter's mode.  The noise roots G·chol(Q) are
+    kept when every group has one of the same shape (else ``None``, as ``TransitionBank.stack`` gives for
+    noise inputs of different sizes)."""
+    switch_states = np.asarray(switch_states, dtype=float)
+    S = len(models)
+    if switch_states.ndim != 2 or switch_states.shape[0] != S:
+        raise ValueError(f"switch_states: expected ({S}, n) for {S} filters, got shape {switch_states.shape}")
+    steps = np.broadcast_to(np.asarray(dts, dtype=float), (S,))
+    groups: dict = {}
+    for i, (model, d) in enumerate(zip(models, steps)):
+        groups.setdefault((id(model), float(d)), (model, []))[1].append(i)
+    n = switch_states.shape[1]
+    F, B, Q = np.zeros((S, n, n)), np.zeros((S, n)), np.zeros((S, n, n))
+    roots, positions = [], []
+    for (_, d), (model, members) in groups.items():
+        members = np.asarray(members)
+        bank = model.transition_bank(d, switch_states[members])
+        F[members], B[members], Q[members] = bank.F, bank.B, bank.Q
+        roots.append(bank.noise_root)
+        positions.append(members)
+    root = None
+    if all(r is not None for r in roots) and len({r.shape[1:] for r in roots}) == 1:
+        root = np.zeros((S,) + roots[0].shape[1:])
+        for members, r in zip(positions, roots):
+            root[members] = r
+    return TransitionBank(F, B, Q, root)

@@ -78,6 +78,7 @@ from typing import Any
 import attrs
 import numpy as np
 
+from hybridtrack.composed.batch import grouped_transitions
 from hybridtrack.interfaces import Estimator, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
 from hybridtrack.pipeline import mode_label
@@ -431,8 +432,8 @@ class MultipleModelEstimator:
             state = self.estimator.initialize(x0_flat, 0.5 * (P0 + np.swapaxes(P0, -1, -2)).reshape(R * rows.size, pos.size, pos.size))
             if dt is not None:
                 models = [self.models[filter_models[f]] for f in rows] * R
-                steps = [float(dt)] * len(models) if np.ndim(dt) == 0 else np.repeat(np.asarray(dt, dtype=float), rows.size).tolist()
-                bank = self._same_bank(key, TransitionBank.stack([m.transition(d, x) for m, d, x in zip(models, steps, x0_flat)]))
+                steps = float(dt) if np.ndim(dt) == 0 else np.repeat(np.asarray(dt, dtype=float), rows.size)
+                bank = self._same_bank(key, grouped_transitions(models, steps, x0_flat))  # transition_bank per model
                 state = self.estimator.predict(state, bank)
             measurement = z[0] if R == 1 else np.repeat(z, rows.size, axis=0)
             state, innovation = self.estimator.update(state, measurement, sensors, layout)

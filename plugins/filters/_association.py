@@ -189,7 +189,16 @@ class ClutterEstimator(BankEstimator):
       sensor named ``scan.sensor`` (one of ``sensors``), L ≥ 0;
     * a sequence of Scans — processed one sensor after the other (sequential
       multisensor association); the :class:`ClutterInnovation` stacks their ν
-      with S block-diagonal.
+      with S block-diagonal;
+    * a :class:`~hybridtrack.clutter.RowScan` (or a sequence mixing them with
+      Scans) — candidates per filter row (M, L, m), NaN-padded: row j is gated
+      and weighed against its own candidates only (padding is never gated),
+      so stacked runs (one filter each) update as one bank, row j's state and
+      association equal to the one-filter update with its own Scan to
+      rounding.  A row whose slots are all padding updates as a row with
+      nothing gated (state unchanged for NN; β_0 = 1 for PDA); its
+      ClutterInnovation entry is then that of ν = 0, where a scan with no
+      candidate at all adds no innovation block.
 
     Linear sensors with a measurement-independent R only.  Subclasses give the
     weights: :meth:`associate` (d², gated, chol S) → (β_i, β_0, selected, ln Λ).
@@ -224,7 +233,7 @@ class ClutterEstimator(BankEstimator):
         M, n = state.x.shape
         if len(layout) != n:
             raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
-        scans = _as_scans(z)
+        scans = _as_scans(z, rows=True)
         if scans is None:
             return self._update_stacked(state, z, sensors, layout)
         if isinstance(sensors, Sensor):
@@ -235,11 +244,18 @@ class ClutterEstimator(BankEstimator):
         for scan in scans:
             sensor, model = scan_sensor_model(self, scan, by_name, layout)
             z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
-            candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
+            present = None
+            if scan.z.ndim == 3:  # a RowScan: each row its own candidates, NaN padding
+                if scan.z.shape[0] != M:
+                    raise ValueError(f"z: RowScan of sensor {scan.sensor!r} has {scan.z.shape[0]} rows for a bank of {M} filters")
+                present = scan.present
+                candidates = np.where(present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
+            else:
+                candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
             predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
             nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
             x, P, nu_used, S, association = self._associate_and_update(
-                x, P, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred
+                x, P, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, present
             )
             associations.append(association)
             if scan.size:
@@ -261,8 +277,9 @@ class ClutterEstimator(BankEstimator):
         )
         return self._finish(state, x, P, [nu_used], [S], [association])
 
-    def _associate_and_update(self, x, P, nu, H, R, selection, sensor_name, candidates, z_pred):
-        """Gate, weigh and update with one scan: ν (M, L, m) → x⁺, P⁺, ν used (M, m), S, Association."""
+    def _associate_and_update(self, x, P, nu, H, R, selection, sensor_name, candidates, z_pred, present=None):
+        """Gate, weigh and update with one scan: ν (M, L, m) → x⁺, P⁺, ν used (M, m), S, Association;
+        ``present`` (M, L) marks a RowScan's real candidates (padding gets d² = ∞, never gated)."""
         S = innovation_covariance(P, H, R, selection)
         L = check_innovation_covariance(S)
         gamma = gate_threshold(self.gate_probability, S.shape[-1])
@@ -270,6 +287,8 @@ class ClutterEstimator(BankEstimator):
         self.check_finite(
             "update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2
         )  # an inf d² would drop a candidate silently
+        if present is not None:
+            d2 = np.where(present, d2, np.inf)
         gated = d2 <= gamma
         beta, beta0, selected, loglik = self.associate(d2, gated, L)
         record = Association(sensor_name, np.asarray(candidates), z_pred, S, gamma, d2, gated, beta, beta0, selected, loglik)
@@ -314,15 +333,17 @@ def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Seq
     return sensor, model
 
 
-def _as_scans(z):
-    """z as a list of Scans, or None for a stacked measurement array."""
-    from hybridtrack.clutter import Scan
+def _as_scans(z, rows: bool = False):
+    """z as a list of Scans, or None for a stacked measurement array; with ``rows`` RowScans are accepted too
+    (nearest neighbour and PDA), else a RowScan is a TypeError naming the estimators that take it."""
+    from hybridtrack.clutter import RowScan, Scan
 
-    if isinstance(z, Scan):
-        return [z]
-    if isinstance(z, (list, tuple)) and z and all(isinstance(s, Scan) for s in z):
-        names = [s.sensor for s in z]
+    items = [z] if isinstance(z, (Scan, RowScan)) else z
+    if isinstance(items, (list, tuple)) and items and all(isinstance(s, (Scan, RowScan)) for s in items):
+        if not rows and any(isinstance(s, RowScan) for s in items):
+            raise TypeError("z: a RowScan (candidates per filter row) is taken by nearest_neighbour and pda only; pass each row's Scan")
+        names = [s.sensor for s in items]
         if len(set(names)) != len(names):
             raise ValueError(f"z: one scan per sensor, got {names}")
-        return list(z)
+        return list(items)
     return None
