@@ -55,7 +55,7 @@ class _Spy:
     def __init__(self, monkeypatch):
         module = cov_form.kernel_module()
         self.calls = {}
-        for name in ("axis_predict", "axis_update", "predict_bank_checked", "update_bank_selected"):
+        for name in ("axis_predict", "axis_update", "predict_bank_checked", "update_bank_blocked", "update_bank_selected"):
             function = getattr(module, name)
 
             def counted(*args, _f=function, _name=name):
@@ -79,7 +79,7 @@ def test_lanes_equal_the_numpy_reference(form, structure, monkeypatch):
     _assert_equal_runs(got, ref, form)
     separable = structure and form != "conventional"
     assert isinstance(last, AxisState if separable else CovarianceState)
-    lanes = ("axis_predict", "axis_update") if separable else ("predict_bank_checked", "update_bank_selected")
+    lanes = ("axis_predict", "axis_update") if separable else ("predict_bank_checked", "update_bank_blocked")
     assert all(spy.calls.get(name, 0) >= 20 for name in lanes), spy.calls
 
 
@@ -96,7 +96,7 @@ def test_lanes_equal_the_reference_with_per_filter_z_and_irregular_dt(structure,
     got, _ = _run(KalmanFilter(structure=structure), banks, Z, sensors)
     ref, _ = _run(KalmanFilter(structure=structure, engine="numpy"), banks, Z, sensors)
     _assert_equal_runs(got, ref, "joseph")
-    lanes = ("axis_predict", "axis_update") if structure else ("predict_bank_checked", "update_bank_selected")
+    lanes = ("axis_predict", "axis_update") if structure else ("predict_bank_checked", "update_bank_blocked")
     assert all(spy.calls.get(name, 0) >= 10 for name in lanes), spy.calls
 
 
