@@ -162,16 +162,17 @@ def _update_outputs(M, n, m):
     return [np.empty((M, n)), np.empty((M, n * n)), np.empty((M, m)), np.empty((M, m * m)), np.empty(M), np.empty(M)]
 
 
+@pytest.mark.slow  # ≈ 12 s on a fresh checkout (one numba compile per (n, m, form)), ≈ 0.5 s from numba's cache
 @pytest.mark.parametrize("M_blocked", [1, 16, 37])
 def test_blocked_kernels_equal_the_filter_by_filter_ones_bitwise(M_blocked):
-    """The blocked (vectorized) lane kernels against the filter-by-filter ones on random SPD systems, n = 4 with m = 1, 2
-    and every form, n = 6 with m = 2 (Joseph), shared and per-filter z, M a partial, a whole and several blocks: bitwise equal (same
+    """The blocked (vectorized) lane kernels against the filter-by-filter ones on random SPD systems, n = 4 with m = 2
+    and every form, m = 1 (Joseph), shared and per-filter z, M a partial, a whole and several blocks: bitwise equal (same
     operations in the same order per filter); predict_bank_checked with 1-wide blocks is the filter-by-filter
     loop.  A non-finite output or an indefinite S in the last (partial) block is reported."""
     kernel = cov_form.kernel_module()
     W = kernel.LANE_WIDTH
     rng = np.random.default_rng(7)
-    for n, m_sizes, forms in ((4, (1, 2), range(3)), (6, (2,), (0,))):  # a few (n, m, form): each compiles
+    for n, m_sizes, forms in ((4, (2,), range(3)), (4, (1,), (0,))):  # a few (n, m, form): each compiles
         A = rng.standard_normal((M_blocked, n, n))
         P = (A @ np.swapaxes(A, 1, 2) + np.eye(n)).reshape(M_blocked, n * n)
         x = rng.standard_normal((M_blocked, n))
