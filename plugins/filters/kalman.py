@@ -180,13 +180,14 @@ class KalmanFilter(BankEstimator):
                 if x.shape == shape:
                     M, n = shape
                     x_out, P_out = np.empty(shape), np.empty((M, n, n))
-                    if not run(x, state.P.reshape(M, n * n), args[0], args[1], args[2], x_out, P_out.reshape(M, n * n), args[3]):
+                    if not run(x, state.P.reshape(M, n * n), args[0], args[1], args[2], x_out, P_out.reshape(M, n * n), args[3], args[4]):
                         return CovarianceState(x_out, P_out, x_out, P_out, None)
         return self._predict(state, transitions)
 
     def _learn_predict_lane(self, bank: TransitionBank, result) -> None:
         """After a reference prediction: remember the bank (checked), the form and shape of the result and the
-        kernel's operands (the split blocks, or F, B, Q flattened) for the compiled lane of the next ones."""
+        kernel's operands (the split blocks, or F, B, Q in the filter-blocked layout of
+        :func:`._kalman_kernel.lane_blocks`) for the compiled lane of the next ones."""
         lanes = self._predict_lanes
         lanes.pop(id(bank), None)
         if self.engine == "numpy" or not cov_form.NUMBA_AVAILABLE:
@@ -202,8 +203,8 @@ class KalmanFilter(BankEstimator):
             M, n = result.x.shape
             if self.dense_engine(n) != "numba":
                 return
-            flat = tuple(np.ascontiguousarray(A, dtype=float).reshape(M, -1) for A in (bank.F, bank.B, bank.Q))
-            lanes[id(bank)] = (bank, CovarianceState, (M, n), kernel.predict_bank_checked, (*flat, (0,) * n))
+            blocks = tuple(kernel.lane_blocks(np.reshape(A, (M, -1))) for A in (bank.F, bank.B, bank.Q))
+            lanes[id(bank)] = (bank, CovarianceState, (M, n), kernel.predict_bank_checked, (*blocks, (0,) * n, (0,) * kernel.LANE_WIDTH))
         # else a dense state under structure=True with a separable bank: the reference decides each time
 
     @guarded
@@ -340,8 +341,18 @@ class KalmanFilter(BankEstimator):
             M, n = state.x.shape
             if self.dense_engine(n, m) != "numba":
                 return
-            run = kernel.update_bank_selected
-            payload = (np.array(step.selection, dtype=np.intp), np.ascontiguousarray(step.R, dtype=float).reshape(-1), (0,) * n, (0,) * m)
+            form = kernel.FORMS[self.form]
+            # m ≤ 2: the kernel blocked across filters (vectorized); m = 3: the filter-by-filter one (Cholesky)
+            blocked = m <= 2
+            run = kernel.update_bank_blocked if blocked else kernel.update_bank_selected
+            payload = (
+                np.array(step.selection, dtype=np.intp),
+                np.ascontiguousarray(step.R, dtype=float).reshape(-1),
+                (0,) * n,
+                (0,) * m,
+                (0,) * (form + 1) if blocked else None,
+                (0,) * kernel.LANE_WIDTH if blocked else None,
+            )
             shape = (M, n)
         self._lane = _UpdateLane(type(state), tuple(sensors), tuple(layout), z.shape, shape, m, run, kernel.FORMS[self.form], payload)
 
@@ -380,7 +391,8 @@ class _UpdateLane:
     """The measurement model of an update, kept for the next ones: the sensors (by identity), the layout, z's
     shape, the bank's shape and state form, the kernel, the update form's code and the kernel's operands —
     separable: the measured component c, the axis of each z row, the variances r (for the state's axes);
-    dense: the selected state indices and R flattened."""
+    dense: the selected state indices, R flattened, the size tuples and, for the blocked kernel (m ≤ 2), the form
+    and block-width tuples (None for the filter-by-filter kernel)."""
 
     __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "run", "form", "payload")
 
@@ -408,26 +420,16 @@ class _UpdateLane:
         if x.shape != self.shape:
             return None
         M, n = self.shape
-        sel, R, n_tuple, m_tuple = self.payload
+        sel, R, n_tuple, m_tuple, f_tuple, w_tuple = self.payload
         x_out, P_out = np.empty((M, n)), np.empty((M, n, n))
         nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
-        if self.run(
-            x,
-            state.P.reshape(M, n * n),
-            z2,
-            sel,
-            R,
-            self.form,
-            FILTER_MAGNITUDE_LIMIT,
-            x_out,
-            P_out.reshape(M, n * n),
-            nu,
-            S.reshape(M, m * m),
-            loglik,
-            nis,
-            n_tuple,
-            m_tuple,
-        ):
+        P_in = state.P.reshape(M, n * n)
+        outputs = (x_out, P_out.reshape(M, n * n), nu, S.reshape(M, m * m), loglik, nis)
+        if w_tuple is not None:  # update_bank_blocked: the form in f_tuple's length
+            bad = self.run(x, P_in, z2, sel, R, FILTER_MAGNITUDE_LIMIT, *outputs, n_tuple, m_tuple, f_tuple, w_tuple)
+        else:
+            bad = self.run(x, P_in, z2, sel, R, self.form, FILTER_MAGNITUDE_LIMIT, *outputs, n_tuple, m_tuple)
+        if bad:
             return None
         innovation = Innovation(nu, S, loglik, nis)
         return CovarianceState(x_out, P_out, state.x_predicted, state.P_predicted, innovation), innovation

@@ -55,7 +55,7 @@ class _Spy:
     def __init__(self, monkeypatch):
         module = cov_form.kernel_module()
         self.calls = {}
-        for name in ("axis_predict", "axis_update", "predict_bank_checked", "update_bank_selected"):
+        for name in ("axis_predict", "axis_update", "predict_bank_checked", "update_bank_blocked", "update_bank_selected"):
             function = getattr(module, name)
 
             def counted(*args, _f=function, _name=name):
@@ -79,7 +79,7 @@ def test_lanes_equal_the_numpy_reference(form, structure, monkeypatch):
     _assert_equal_runs(got, ref, form)
     separable = structure and form != "conventional"
     assert isinstance(last, AxisState if separable else CovarianceState)
-    lanes = ("axis_predict", "axis_update") if separable else ("predict_bank_checked", "update_bank_selected")
+    lanes = ("axis_predict", "axis_update") if separable else ("predict_bank_checked", "update_bank_blocked")
     assert all(spy.calls.get(name, 0) >= 20 for name in lanes), spy.calls
 
 
@@ -96,7 +96,7 @@ def test_lanes_equal_the_reference_with_per_filter_z_and_irregular_dt(structure,
     got, _ = _run(KalmanFilter(structure=structure), banks, Z, sensors)
     ref, _ = _run(KalmanFilter(structure=structure, engine="numpy"), banks, Z, sensors)
     _assert_equal_runs(got, ref, "joseph")
-    lanes = ("axis_predict", "axis_update") if structure else ("predict_bank_checked", "update_bank_selected")
+    lanes = ("axis_predict", "axis_update") if structure else ("predict_bank_checked", "update_bank_blocked")
     assert all(spy.calls.get(name, 0) >= 10 for name in lanes), spy.calls
 
 
@@ -155,3 +155,55 @@ def test_engine_numpy_takes_no_lane(monkeypatch):
     _run(KalmanFilter(engine="numpy"), [_bank()] * 5, _measurements(rng, 5, 2), [position_sensor()])
     _run(KalmanFilter(structure=False, engine="numpy"), [_bank()] * 5, _measurements(rng, 5, 2), [position_sensor()])
     assert spy.calls == {}
+
+
+def _update_outputs(M, n, m):
+    """x⁺, P⁺, ν, S, ℓ, NIS buffers of an update kernel (flattened like the lanes pass them)."""
+    return [np.empty((M, n)), np.empty((M, n * n)), np.empty((M, m)), np.empty((M, m * m)), np.empty(M), np.empty(M)]
+
+
+@pytest.mark.slow  # ≈ 12 s on a fresh checkout (one numba compile per (n, m, form)), ≈ 0.5 s from numba's cache
+@pytest.mark.parametrize("M_blocked", [1, 16, 37])
+def test_blocked_kernels_equal_the_filter_by_filter_ones_bitwise(M_blocked):
+    """The blocked (vectorized) lane kernels against the filter-by-filter ones on random SPD systems, n = 4 with m = 2
+    and every form, m = 1 (Joseph), shared and per-filter z, M a partial, a whole and several blocks: bitwise equal (same
+    operations in the same order per filter); predict_bank_checked with 1-wide blocks is the filter-by-filter
+    loop.  A non-finite output or an indefinite S in the last (partial) block is reported."""
+    kernel = cov_form.kernel_module()
+    W = kernel.LANE_WIDTH
+    rng = np.random.default_rng(7)
+    for n, m_sizes, forms in ((4, (2,), range(3)), (4, (1,), (0,))):  # a few (n, m, form): each compiles
+        A = rng.standard_normal((M_blocked, n, n))
+        P = (A @ np.swapaxes(A, 1, 2) + np.eye(n)).reshape(M_blocked, n * n)
+        x = rng.standard_normal((M_blocked, n))
+        F, B = rng.standard_normal((M_blocked, n * n)), rng.standard_normal((M_blocked, n))
+        Q = (A @ np.swapaxes(A, 1, 2)).reshape(M_blocked, n * n)
+        got = [np.empty((M_blocked, n)), np.empty((M_blocked, n * n))]
+        ref = [np.empty((M_blocked, n)), np.empty((M_blocked, n * n))]
+        blocks = [kernel.lane_blocks(a) for a in (F, B, Q)]
+        assert kernel.predict_bank_checked(x, P, *blocks, *got, (0,) * n, (0,) * W) == 0
+        assert kernel.predict_bank_checked(x, P, *(kernel.lane_blocks(a, 1) for a in (F, B, Q)), *ref, (0,) * n, (0,)) == 0
+        assert all(np.array_equal(a, b) for a, b in zip(got, ref))
+        P_bad = P.copy()
+        P_bad[-1, 0] = np.inf
+        assert kernel.predict_bank_checked(x, P_bad, *blocks, *got, (0,) * n, (0,) * W) == 1
+        for m in m_sizes:
+            sel = np.sort(rng.choice(n, m, replace=False)).astype(np.intp)
+            C = rng.standard_normal((m, m))
+            R = (C @ C.T + np.eye(m)).reshape(-1)
+            for z in (rng.standard_normal((1, m)), rng.standard_normal((M_blocked, m))):
+                for form in forms:
+                    got, ref = _update_outputs(M_blocked, n, m), _update_outputs(M_blocked, n, m)
+                    sizes = ((0,) * n, (0,) * m)
+                    assert kernel.update_bank_blocked(x, P, z, sel, R, 1e12, *got, *sizes, (0,) * (form + 1), (0,) * W) == 0
+                    assert kernel.update_bank_selected(x, P, z, sel, R, form, 1e12, *ref, *sizes) == 0
+                    assert all(np.array_equal(a, b) for a, b in zip(got, ref)), (n, m, form)
+            P_bad = P.copy()
+            P_bad[-1, sel[0] * n + sel[0]] = -10.0 - R[0]  # S of the last filter not positive definite
+            assert kernel.update_bank_blocked(x, P_bad, z, sel, R, 1e12, *_update_outputs(M_blocked, n, m), *sizes, (0,), (0,) * W) == 1
+            assert (
+                kernel.update_bank_blocked(
+                    x, P, np.full_like(z, 2e12), sel, R, 1e12, *_update_outputs(M_blocked, n, m), *sizes, (0,), (0,) * W
+                )
+                == 1
+            )
