@@ -53,6 +53,7 @@ from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, 
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import cholesky, gaussian_scores
 from hybridtrack.measurements import block_diagonal
+from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
@@ -130,12 +131,6 @@ def hypothesis_probabilities(scores: np.ndarray) -> np.ndarray:
     return weights / weights.sum(axis=1, keepdims=True)
 
 
-def _positive_int(value, name: str, what: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name}: expected an integer ≥ 1 ({what}), got {value!r}")
-    return int(value)
-
-
 def _rows(A: np.ndarray, M: int, H: int) -> np.ndarray:
     """A per-filter stack (M, …) repeated for the H hypotheses of each filter → (M H, …); shared arrays as they are."""
     return np.repeat(A, H, axis=0) if A.ndim == 3 else A
@@ -182,8 +177,8 @@ class MHTFilter(BankEstimator):
             raise ValueError(f"clutter_density: expected a finite λ > 0 (the score has ln(P_D/λ)), got {clutter_density!r}")
         self.clutter_density = lam
         self.gate_probability = check_gate_probability(gate_probability)
-        self.window = _positive_int(window, "window", "the N of N-scan pruning")
-        self.max_hypotheses = _positive_int(max_hypotheses, "max_hypotheses", "the cap on hypotheses per filter")
+        self.window = check_positive_int(window, "window", what="the N of N-scan pruning")
+        self.max_hypotheses = check_positive_int(max_hypotheses, "max_hypotheses", what="the cap on hypotheses per filter")
         self.form = form
         P_G = 1.0 if self.gate_probability is None else self.gate_probability
         miss = 1.0 - self.detection_probability * P_G

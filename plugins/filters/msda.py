@@ -54,6 +54,7 @@ from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, 
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import cholesky, gaussian_scores, symmetrize
 from hybridtrack.measurements import block_diagonal
+from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
@@ -66,7 +67,6 @@ from hybridtrack_plugins.filters._association import (
     nearest,
     scan_sensor_model,
 )
-from hybridtrack_plugins.filters.pmht import positive_int
 
 #: the extension mode of the transform: length-preserving and orthogonal
 MODE = "periodization"
@@ -132,7 +132,7 @@ class MSDAFilter(BankEstimator):
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
         self.gate_probability = check_gate_probability(gate_probability)
-        self.window = positive_int(window, "window", "the number of scans fused")
+        self.window = check_positive_int(window, "window", what="the number of scans fused")
         if not isinstance(wavelet, str) or wavelet not in pywt.wavelist(kind="discrete"):
             raise ValueError(f"wavelet: expected a discrete wavelet name of PyWavelets (e.g. 'haar', 'db2'), got {wavelet!r}")
         self.wavelet = wavelet

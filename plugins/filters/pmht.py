@@ -83,6 +83,7 @@ from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, 
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.measurements import block_diagonal
+from hybridtrack.validation import check_positive, check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
@@ -97,24 +98,6 @@ from hybridtrack_plugins.filters._association import (
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
 MIN_WEIGHT = 1e-9
-
-
-def positive_int(value, name: str, what: str) -> int:
-    """An integer ≥ 1, else a ValueError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name}: expected an integer ≥ 1 ({what}), got {value!r}")
-    return int(value)
-
-
-def positive_float(value, name: str, what: str) -> float:
-    """A finite float > 0, else a ValueError naming ``name``."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a finite number > 0 ({what}), got {value!r}") from None
-    if not (math.isfinite(number) and number > 0.0):
-        raise ValueError(f"{name}: expected a finite number > 0 ({what}), got {value!r}")
-    return number
 
 
 @attrs.frozen(eq=False)
@@ -243,9 +226,9 @@ class PMHTFilter(BankEstimator):
         self.detection_probability = check_detection_probability(detection_probability)
         self.clutter_density = check_clutter_density(clutter_density)
         self.gate_probability = check_gate_probability(gate_probability)
-        self.window = positive_int(window, "window", "the number of scans of the EM batch")
-        self.max_iterations = positive_int(max_iterations, "max_iterations", "EM iterations per scan")
-        self.tolerance = positive_float(tolerance, "tolerance", "the rise of the log posterior below which EM stops")
+        self.window = check_positive_int(window, "window", what="the number of scans of the EM batch")
+        self.max_iterations = check_positive_int(max_iterations, "max_iterations", what="EM iterations per scan")
+        self.tolerance = check_positive(tolerance, "tolerance", what="the rise of the log posterior below which EM stops")
         self.form = form
         self.log_pd = math.log(self.detection_probability)
         self.log_lambda = math.log(self.clutter_density) if self.clutter_density > 0 else -math.inf
