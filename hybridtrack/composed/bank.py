@@ -26,6 +26,14 @@ import numpy as np
 from hybridtrack.interfaces import Estimator, Innovation, MotionModel, Sensor, TransitionBank
 
 
+def read_moments(estimator: Estimator, state) -> tuple[np.ndarray, np.ndarray]:
+    """(x (M, n), P (M, n, n)) of every filter of ``state`` as float arrays, P symmetrized ½(P + Pᵀ)
+    (the estimator's covariance may carry rounding asymmetry); the moments :class:`FilterBank` and
+    :class:`~hybridtrack.composed.batch.RunBank` read."""
+    covs = np.asarray(estimator.covariance(state), dtype=float)
+    return np.asarray(estimator.mean(state), dtype=float), 0.5 * (covs + np.swapaxes(covs, -1, -2))
+
+
 class FilterBank:
     """M filters of one estimator: its state, each filter's model and switch state, and labels (any payload)."""
 
@@ -146,8 +154,7 @@ class FilterBank:
     # ------------------------------------------------------------------ reading
     def _read(self) -> tuple[np.ndarray, np.ndarray]:
         if self._moments is None:
-            covs = np.asarray(self.estimator.covariance(self.state), dtype=float)
-            self._moments = (np.asarray(self.estimator.mean(self.state), dtype=float), 0.5 * (covs + np.swapaxes(covs, -1, -2)))
+            self._moments = read_moments(self.estimator, self.state)
         return self._moments
 
     @property

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from hybridtrack.composed.bank import read_moments
 from hybridtrack.interfaces import Estimator, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
 from hybridtrack.timestamps import step_intervals
@@ -255,8 +256,7 @@ class RunBank:
     # ------------------------------------------------------------------ reading
     def _read(self) -> tuple[np.ndarray, np.ndarray]:
         if self._moments is None:
-            covs = np.asarray(self.estimator.covariance(self.state), dtype=float)
-            self._moments = (np.asarray(self.estimator.mean(self.state), dtype=float), 0.5 * (covs + np.swapaxes(covs, -1, -2)))
+            self._moments = read_moments(self.estimator, self.state)
         return self._moments
 
     @property
