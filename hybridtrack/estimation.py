@@ -177,6 +177,12 @@ def check_innovation_scores(innovation: Innovation, estimator: str) -> None:
             raise ValueError(_overflow_message(name, what, np.asarray(array, dtype=float), bad, estimator))
 
 
+def check_layout(layout: Sequence[str], n: int) -> None:
+    """A ValueError naming ``layout`` unless it has one component name per state component (n)."""
+    if len(layout) != n:
+        raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+
+
 class BankEstimator(Estimator):
     """Common plumbing; subclasses implement the maths of one form.
 
@@ -249,8 +255,7 @@ class BankEstimator(Estimator):
         Checks the layout against n and z's shape; NaN components are left
         out (:mod:`hybridtrack.measurements`); None means nothing was measured.
         """
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         return self._assembler.assemble(z, sensors, layout, bank_size)
 
     def linearize(self, x: np.ndarray, z, sensors: Sequence, layout: Sequence[str], step=None):

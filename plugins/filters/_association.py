@@ -52,7 +52,7 @@ import attrs
 import numpy as np
 from scipy.stats import chi2
 
-from hybridtrack.estimation import BankEstimator, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.measurements import block_diagonal
@@ -231,14 +231,11 @@ class ClutterEstimator(BankEstimator):
     @guarded
     def update(self, state: CovarianceState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         scans = _as_scans(z, rows=True)
         if scans is None:
             return self._update_stacked(state, z, sensors, layout)
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        by_name = sensors_by_name(sensors)
         x, P = state.x, state.P
         used, blocks, associations = [], [], []
         for scan in scans:
@@ -301,19 +298,32 @@ class ClutterEstimator(BankEstimator):
         return x_new, symmetrize(P_new), combined, S, record
 
     def _finish(self, state, x, P, used, blocks, associations):
-        M = x.shape[0]
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
-        else:
-            nu, S, loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
-        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(associations))
+        innovation = ClutterInnovation(*stacked_innovation(x.shape[0], used, blocks), tuple(associations))
         return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
 
     @abstractmethod
     def associate(self, d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
         """(β_i (M, L), β_0 (M,), selected (M,), ln Λ or ℓ (M,)) from d² (M, L), the gate mask and chol S."""
+
+
+def sensors_by_name(sensors: Sensor | Sequence[Sensor]) -> dict:
+    """name → sensor of the sensors given (one :class:`~hybridtrack.interfaces.Sensor` or a sequence), for
+    looking up the sensor of each clutter scan."""
+    if isinstance(sensors, Sensor):
+        sensors = (sensors,)
+    return {s.name: s for s in sensors}
+
+
+def stacked_innovation(M: int, used: Sequence[np.ndarray], blocks: Sequence[np.ndarray]):
+    """(ν, S, ℓ, NIS) of a step's clutter scans for M filters: ν the scans' combined residuals (M, m_j)
+    concatenated, S = blkdiag(S_j) and ℓ = −½(m ln 2π + ln det S + νᵀS⁻¹ν), NIS = νᵀS⁻¹ν (SPEC §4); with no
+    scan used, empty ν and S and ℓ = NIS = 0 (a prediction-only step)."""
+    if not used:
+        return np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+    nu = np.concatenate(used, axis=-1)
+    S = block_diagonal(blocks)
+    loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
+    return nu, S, loglik, nis
 
 
 def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Sequence[str]):

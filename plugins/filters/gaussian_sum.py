@@ -58,13 +58,20 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, guarded
+from hybridtrack.estimation import BankEstimator, bank_field, check_layout, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior
 from hybridtrack.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
 from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import as_float_array
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold, scan_sensor_model
+from hybridtrack_plugins.filters._association import (
+    _as_scans,
+    check_gate_probability,
+    distances,
+    gate_threshold,
+    scan_sensor_model,
+    sensors_by_name,
+)
 from hybridtrack_plugins.sensors.bearing import check_convention, direction
 
 _LAYOUT = ("x", "vx", "y", "vy")
@@ -297,11 +304,8 @@ class GaussianSumFilter(BankEstimator):
     def _update_scans(self, state: MixtureState, scans: list, sensors, layout):
         """Branch every component on each scan (missed + one child per gated candidate), then reduce (module docstring)."""
         M, C, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        check_layout(layout, n)
+        by_name = sensors_by_name(sensors)
         x, P, log_weights = state.x, state.P, state.log_weights
         loglik = np.zeros(M)
         used, blocks, records = [], [], []

@@ -49,10 +49,8 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import cholesky, gaussian_scores
-from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
@@ -64,6 +62,8 @@ from hybridtrack_plugins.filters._association import (
     innovation_covariance,
     log_half_det_2pi_s,
     scan_sensor_model,
+    sensors_by_name,
+    stacked_innovation,
 )
 
 #: history entry of a scan not yet seen (the root hypothesis); −1 is "missed", i ≥ 0 candidate i
@@ -212,8 +212,7 @@ class MHTFilter(BankEstimator):
     @guarded
     def update(self, state: MHTState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, H, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         scans = _as_scans(z)
         current = state
         if scans is None:
@@ -232,9 +231,7 @@ class MHTFilter(BankEstimator):
             R = _rows(np.asarray(step.R), M, H)
             current, record, nu_best, S_best = self._branch(current, nu, Hm, R, step.selection, name, step.z, z_pred)
             return self._finish(current, [nu_best], [S_best], [record])
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        by_name = sensors_by_name(sensors)
         used, blocks, records = [], [], []
         for scan in scans:
             sensor, model = scan_sensor_model(self, scan, by_name, layout)
@@ -345,13 +342,7 @@ class MHTFilter(BankEstimator):
         return chosen, kept
 
     def _finish(self, state: MHTState, used, blocks, records):
-        M = state.x.shape[0]
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
-        else:
-            nu, S, loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+        nu, S, loglik, nis = stacked_innovation(state.x.shape[0], used, blocks)
         innovation = MHTInnovation(nu, S, loglik, nis, tuple(records), state.scores, state.probabilities)
         return attrs.evolve(state, innovation=innovation), innovation
 

@@ -50,10 +50,9 @@ import attrs
 import numpy as np
 import pywt
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import cholesky, gaussian_scores, symmetrize
-from hybridtrack.measurements import block_diagonal
+from hybridtrack.linalg import symmetrize
 from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
@@ -66,6 +65,8 @@ from hybridtrack_plugins.filters._association import (
     log_half_det_2pi_s,
     nearest,
     scan_sensor_model,
+    sensors_by_name,
+    stacked_innovation,
 )
 
 #: the extension mode of the transform: length-preserving and orthogonal
@@ -169,8 +170,7 @@ class MSDAFilter(BankEstimator):
     @guarded
     def update(self, state: MSDAState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         scans = _as_scans(z)
         if scans is None:
             found = self.linearize(state.x, z, sensors, layout)
@@ -182,9 +182,7 @@ class MSDAFilter(BankEstimator):
             z_pred = np.broadcast_to(step.z, nu.shape) - nu
             new, nu_used, S, record = self._scan(state, nu[:, None, :], H, step.R, step.selection, name, step.z, z_pred)
             return self._finish(new, [nu_used], [S], [record])
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        by_name = sensors_by_name(sensors)
         current = state
         used, blocks, records = [], [], []
         for scan in scans:
@@ -260,14 +258,7 @@ class MSDAFilter(BankEstimator):
         return smooth[:, self.window - 1]
 
     def _finish(self, state: MSDAState, used, blocks, records):
-        M = state.x.shape[0]
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
-        else:
-            nu, S, loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
-        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
+        innovation = ClutterInnovation(*stacked_innovation(state.x.shape[0], used, blocks), tuple(records))
         return attrs.evolve(state, innovation=innovation), innovation
 
 

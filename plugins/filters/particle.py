@@ -89,12 +89,12 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior
 from hybridtrack.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import as_float_array, check_magnitude
-from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold
+from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold, sensors_by_name
 
 #: stages of a step, part of each draw's seed so that the draws of one step never share a stream
 _INITIALIZE, _PREDICT, _RESAMPLE = 0, 1, 2
@@ -447,11 +447,8 @@ class ParticleFilter(BankEstimator):
     def _update_scans(self, state: ParticleState, scans: list, sensors, layout):
         """w ∝ w⁻ Λ(x) scan after scan, ℓ = Σ ln Λ̂, then N_eff and resampling as in :meth:`update`."""
         M, N, n = state.particles.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        check_layout(layout, n)
+        by_name = sensors_by_name(sensors)
         layout = tuple(layout)
         log_weights = state.log_weights
         loglik = np.zeros(M)

@@ -79,10 +79,9 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
-from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import check_positive, check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
@@ -94,6 +93,8 @@ from hybridtrack_plugins.filters._association import (
     innovation_covariance,
     log_half_det_2pi_s,
     scan_sensor_model,
+    sensors_by_name,
+    stacked_innovation,
 )
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
@@ -294,8 +295,7 @@ class PMHTFilter(BankEstimator):
     @guarded
     def update(self, state: PMHTState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         scans = _as_scans(z)
         pieces = []  # (candidates (M, L, m), H (m, n), R (m, m) or (M, m, m), sensor name, record candidates)
         if scans is None:
@@ -311,9 +311,7 @@ class PMHTFilter(BankEstimator):
             cands = np.broadcast_to(step.z, (M, step.dim))[:, None, :]
             pieces.append((cands, step.H, np.asarray(step.R), "+".join(m.sensor.name for m in step.models), step.z))
         else:
-            if isinstance(sensors, Sensor):
-                sensors = (sensors,)
-            by_name = {s.name: s for s in sensors}
+            by_name = sensors_by_name(sensors)
             for scan in scans:
                 sensor, model = scan_sensor_model(self, scan, by_name, layout)
                 if not model.plain_residual:
@@ -330,13 +328,7 @@ class PMHTFilter(BankEstimator):
             used.append(nu)
             blocks.append(S)
             records.append(record)
-        if not used:
-            innovation = ClutterInnovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M), tuple(records))
-            return attrs.evolve(state, innovation=innovation), innovation
-        nu = np.concatenate(used, axis=-1)
-        S = block_diagonal(blocks)
-        loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
-        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
+        innovation = ClutterInnovation(*stacked_innovation(M, used, blocks), tuple(records))  # current is state if none used
         return attrs.evolve(current, innovation=innovation), innovation
 
     # ------------------------------------------------------------------ one scan
