@@ -59,7 +59,7 @@ import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
 from hybridtrack.estimation import BankEstimator, bank_field, check_layout, guarded
-from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior
+from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior, check_prior_mixture
 from hybridtrack.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
 from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import as_float_array
@@ -207,16 +207,8 @@ class GaussianSumFilter(BankEstimator):
     def initialize_mixture(self, means, covs, weights) -> MixtureState:
         """A prior mixture per filter: means (M, C, n), covs (M, C, n, n) positive definite, weights (M, C) ≥ 0
         (each row with a positive sum; renormalised; zero weights are empty slots)."""
-        means = as_float_array(means, "means", (None, None, None))
+        means, covs, weights, total = check_prior_mixture(means, covs, weights)
         M, C, n = means.shape
-        covs = as_float_array(covs, "covs", (M, C, n, n))
-        weights = as_float_array(weights, "weights", (M, C))
-        if (weights < 0).any():
-            raise ValueError(f"weights: expected weights ≥ 0, got a minimum of {float(weights.min())!r}")
-        total = weights.sum(axis=1)
-        if not (total > 0).all():
-            raise ValueError(f"weights: every filter needs a positive total weight, got sums {total.tolist()}")
-        check_prior(means.reshape(M * C, n), covs.reshape(M * C, n, n))
         with np.errstate(divide="ignore"):
             log_weights = np.log(weights / total[:, None])
         x, P, log_weights = _compact(means, covs, log_weights)
