@@ -70,7 +70,7 @@ from hybridtrack.experiment.builtin import (
     simulate_seed001_batch,
     squared_errors,
 )
-from hybridtrack.reporting import Column, markdown_table, write_report
+from hybridtrack.reporting import Column, markdown_table, save_figure, write_report
 
 R_VALUES = (1.0, 0.1, 0.01)
 #: the estimator users get by default (``KnownSwitchAdaptive``'s defaults)
@@ -341,11 +341,7 @@ def plot(report: str | Path, png: str | Path = PLOT) -> Path:
     axes[0][0].legend(fontsize=8, loc="upper left")
     figure.suptitle("Seed 001, adaptive estimator (Algorithm 1): RMSE per component, ours vs the seed's Table 3", fontsize=10)
     figure.tight_layout()
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(png, dpi=100)
-    plt.close(figure)
-    return png
+    return save_figure(figure, png)
 
 
 def main(argv=None) -> dict:
