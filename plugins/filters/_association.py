@@ -54,7 +54,7 @@ from scipy.stats import chi2
 
 from hybridtrack.estimation import BankEstimator, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
+from hybridtrack.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import check_magnitude
 from hybridtrack_plugins.filters import _covariance as cov_form
@@ -314,15 +314,22 @@ def sensors_by_name(sensors: Sensor | Sequence[Sensor]) -> dict:
     return {s.name: s for s in sensors}
 
 
-def stacked_innovation(M: int, used: Sequence[np.ndarray], blocks: Sequence[np.ndarray]):
+def stacked_innovation(M: int, used: Sequence[np.ndarray], blocks: Sequence[np.ndarray], *, factored: bool = False):
     """(ν, S, ℓ, NIS) of a step's clutter scans for M filters: ν the scans' combined residuals (M, m_j)
     concatenated, S = blkdiag(S_j) and ℓ = −½(m ln 2π + ln det S + νᵀS⁻¹ν), NIS = νᵀS⁻¹ν (SPEC §4); with no
-    scan used, empty ν and S and ℓ = NIS = 0 (a prediction-only step)."""
+    scan used, empty ν and S and ℓ = NIS = 0 (a prediction-only step).
+
+    ``factored``: the scores through :class:`~hybridtrack.linalg.CholeskyFactor` (closed forms for m ≤ 2, as the
+    Gaussian-sum and particle filters compute them) instead of :func:`~hybridtrack.linalg.gaussian_scores`.
+    """
     if not used:
         return np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
     nu = np.concatenate(used, axis=-1)
     S = block_diagonal(blocks)
-    loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
+    if factored:
+        loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu)
+    else:
+        loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
     return nu, S, loglik, nis
 
 

@@ -61,7 +61,6 @@ from hybridtrack.clutter import check_clutter_density, check_detection_probabili
 from hybridtrack.estimation import BankEstimator, bank_field, check_layout, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior, check_prior_mixture
 from hybridtrack.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
-from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import as_float_array
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
@@ -71,6 +70,7 @@ from hybridtrack_plugins.filters._association import (
     gate_threshold,
     scan_sensor_model,
     sensors_by_name,
+    stacked_innovation,
 )
 from hybridtrack_plugins.sensors.bearing import check_convention, direction
 
@@ -310,12 +310,7 @@ class GaussianSumFilter(BankEstimator):
             if scan.size:
                 used.append(combined)
                 blocks.append(S)
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            _, nis = CholeskyFactor(S, "innovation covariance S").scores(nu)
-        else:
-            nu, S, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M)
+        nu, S, _, nis = stacked_innovation(M, used, blocks, factored=True)
         innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
         self.check_finite("update", updated_mean=x, updated_covariance=P)
         predicted = (state.predicted_mean, state.predicted_covariance)

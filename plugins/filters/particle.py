@@ -92,9 +92,15 @@ from hybridtrack.clutter import check_clutter_density, check_detection_probabili
 from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior_mixture
 from hybridtrack.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
-from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import check_magnitude
-from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold, sensors_by_name
+from hybridtrack_plugins.filters._association import (
+    _as_scans,
+    check_gate_probability,
+    distances,
+    gate_threshold,
+    sensors_by_name,
+    stacked_innovation,
+)
 
 #: stages of a step, part of each draw's seed so that the draws of one step never share a stream
 _INITIALIZE, _PREDICT, _RESAMPLE = 0, 1, 2
@@ -453,12 +459,7 @@ class ParticleFilter(BankEstimator):
             if scan.size:
                 used.append(combined)
                 blocks.append(S)
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            gaussian_loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu)
-        else:
-            nu, S, gaussian_loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+        nu, S, gaussian_loglik, nis = stacked_innovation(M, used, blocks, factored=True)
         ess = effective_sample_size(log_weights)
         resampled = ess < self.threshold * N
         particles = state.particles
