@@ -57,6 +57,30 @@ class NodeMoments:
         return self._moments[1][0]
 
 
+class CovarianceMoments:
+    """Mixin for states that hold the moments themselves: ``mean``/``covariance`` read the fields ``x`` (M, n) and
+    ``P`` (M, n, n), ``predicted_mean``/``predicted_covariance`` the last prediction's ``x_predicted`` and
+    ``P_predicted``."""
+
+    __slots__ = ()
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.x
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self.P
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.P_predicted
+
+
 def bank_field(axis: int = 0, **kwargs):
     """An attrs field of a bank state stacked over the M filters on ``axis`` (0 for (M, …), 1 for (N, M, …)).
 

@@ -50,7 +50,7 @@ import attrs
 import numpy as np
 import pywt
 
-from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import symmetrize
 from hybridtrack.validation import check_positive_int
@@ -74,7 +74,7 @@ MODE = "periodization"
 
 
 @attrs.frozen(eq=False)
-class MSDAState:
+class MSDAState(CovarianceMoments):
     """A covariance-form bank plus, per filter, the window's N slots (newest last): the chosen residuals
     ``residuals`` (M, N, m̄), the H they were taken with ``H`` (M, N, m̄, n) (zero-padded to the widest m̄) and
     ``dims`` (M, N) their dimension (0: nothing gated, or no scan yet)."""
@@ -87,22 +87,6 @@ class MSDAState:
     H: np.ndarray = bank_field(0)
     dims: np.ndarray = bank_field(0)
     innovation: ClutterInnovation | None = None
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
 
 
 def _widen(state: MSDAState, m: int) -> MSDAState:

@@ -79,7 +79,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.validation import check_positive, check_positive_int
@@ -102,7 +102,7 @@ MIN_WEIGHT = 1e-9
 
 
 @attrs.frozen(eq=False)
-class PMHTState:
+class PMHTState(CovarianceMoments):
     """A bank of M PMHT filters with windows of W = ``window`` scan slots (newest last).
 
     ``x``, ``P`` the current estimate (filtered at the newest scan, or predicted);
@@ -143,22 +143,6 @@ class PMHTState:
     iterations: np.ndarray = bank_field(0)
     log_posterior: np.ndarray = bank_field(0)
     innovation: ClutterInnovation | None = None
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
 
     @property
     def association_weights(self) -> np.ndarray:
