@@ -240,7 +240,7 @@ class ClutterEstimator(BankEstimator):
         used, blocks, associations = [], [], []
         for scan in scans:
             sensor, model = scan_sensor_model(self, scan, by_name, layout)
-            z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
+            z_pred = predict_measurement(x, model)
             present = None
             if scan.z.ndim == 3:  # a RowScan: each row its own candidates, NaN padding
                 if scan.z.shape[0] != M:
@@ -248,9 +248,8 @@ class ClutterEstimator(BankEstimator):
                 present = scan.present
                 candidates = np.where(present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
             else:
-                candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
-            predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
-            nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+                candidates = scan.z
+            nu = candidate_residuals(z_pred, candidates, sensor, model)
             x, P, nu_used, S, association = self._associate_and_update(
                 x, P, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, present
             )
@@ -312,6 +311,20 @@ def sensors_by_name(sensors: Sensor | Sequence[Sensor]) -> dict:
     if isinstance(sensors, Sensor):
         sensors = (sensors,)
     return {s.name: s for s in sensors}
+
+
+def predict_measurement(x: np.ndarray, model) -> np.ndarray:
+    """ẑ = H x (rows, m) of a linear scan model (the selected components when H is a selection)."""
+    return x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
+
+
+def candidate_residuals(z_pred: np.ndarray, candidates: np.ndarray, sensor: Sensor, model) -> np.ndarray:
+    """ν_ji = z_i ⊖ ẑ_j (rows, L, m) of every candidate against every row's prediction ẑ (rows, m); ``candidates``
+    (L, m) shared by the rows or (rows, L, m); ⊖ the sensor's residual (angles wrapped) unless plain subtraction."""
+    if candidates.ndim == 2:
+        candidates = np.broadcast_to(candidates[None, :, :], z_pred.shape[:1] + candidates.shape)
+    predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
+    return candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
 
 
 def stacked_innovation(M: int, used: Sequence[np.ndarray], blocks: Sequence[np.ndarray], *, factored: bool = False):

@@ -55,12 +55,14 @@ from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
+    candidate_residuals,
     check_gate_probability,
     check_innovation_covariance,
     distances,
     gate_threshold,
     innovation_covariance,
     log_half_det_2pi_s,
+    predict_measurement,
     scan_sensor_model,
     sensors_by_name,
     stacked_innovation,
@@ -236,10 +238,8 @@ class MHTFilter(BankEstimator):
         for scan in scans:
             sensor, model = scan_sensor_model(self, scan, by_name, layout)
             x = current.x.reshape(M * H, n)
-            z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
-            candidates = np.broadcast_to(scan.z[None, :, :], (M * H,) + scan.z.shape)
-            predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
-            nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+            z_pred = predict_measurement(x, model)
+            nu = candidate_residuals(z_pred, scan.z, sensor, model)
             current, record, nu_best, S_best = self._branch(
                 current, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred
             )

@@ -57,6 +57,7 @@ from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
+    candidate_residuals,
     check_gate_probability,
     check_innovation_covariance,
     distances,
@@ -64,6 +65,7 @@ from hybridtrack_plugins.filters._association import (
     innovation_covariance,
     log_half_det_2pi_s,
     nearest,
+    predict_measurement,
     scan_sensor_model,
     sensors_by_name,
     stacked_innovation,
@@ -172,10 +174,8 @@ class MSDAFilter(BankEstimator):
         for scan in scans:
             sensor, model = scan_sensor_model(self, scan, by_name, layout)
             x = current.x
-            z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
-            candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
-            predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
-            nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+            z_pred = predict_measurement(x, model)
+            nu = candidate_residuals(z_pred, scan.z, sensor, model)
             current, nu_used, S, record = self._scan(current, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred)
             records.append(record)
             if scan.size:
