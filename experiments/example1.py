@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hybridtrack.reporting import save_figure
+
 ROOT = Path(__file__).resolve().parents[1]
 spec = importlib.util.spec_from_file_location("example1", ROOT / "examples" / "example1_unknown_change.py")
 example1 = importlib.util.module_from_spec(spec)
@@ -123,11 +125,7 @@ def plot(report: str | Path, png: str | Path = PLOT) -> Path:
     runs = next(iter(data["by_error_probabilities"].values()))["runs"]
     figure.suptitle(f"Seed 000 Example 1: delay of the right-turn decision ({runs} runs per α = β, change at step 20)", fontsize=10)
     figure.tight_layout()
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(png, dpi=100)
-    plt.close(figure)
-    return png
+    return save_figure(figure, png)
 
 
 def main(argv=None) -> dict:

@@ -58,7 +58,16 @@ import attrs
 import numpy as np
 
 from hybridtrack.experiment import Campaign, Experiment, load_experiment
-from hybridtrack.experiment.builtin import X0, known_modes_estimate, pooled_rmse, simulate_seed001, squared_errors
+from hybridtrack.experiment.builtin import (
+    X0,
+    known_modes_estimate,
+    known_modes_estimate_batch,
+    pooled_rmse,
+    seed001_prior,
+    simulate_seed001,
+    simulate_seed001_batch,
+    squared_errors,
+)
 from hybridtrack.reporting import Column, write_report
 
 R_VALUES = (1.0, 0.1, 0.01)
@@ -145,30 +154,11 @@ def run_one(
     steps_scale: float,
 ) -> dict:
     """One trajectory: squared errors of the three estimators, per-segment delays, changes, identifications."""
-    from hybridtrack.types import Gaussian
-
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale)
     known, unknown = _estimators(sensors, q=q, tau=tau, alpha=alpha, beta=beta, known_alpha=known_alpha, modes=modes, bank_size=bank_size)
-    prior = Gaussian(np.array(X0), np.eye(4))
+    prior = seed001_prior()
     optimal = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau)
     return _outcome(schedule, truth, optimal, known.run(measurements, prior, schedule), unknown.run(measurements, prior))
-
-
-def draw_batch(rngs, *, R: float, q: float, tau: float, steps_scale: float):
-    """:func:`~hybridtrack.experiment.builtin.simulate_seed001` for many runs: the same draws from each run's
-    generator (its two spawned streams), the trajectories propagated together (``simulate_trajectories``).
-    Returns (schedule, sensors, truths, measurements name → (runs, K+1, m))."""
-    from hybridtrack.experiment.builtin import scaled_schedule
-    from hybridtrack.plugins import resolve
-    from hybridtrack.simulate import simulate_measurements, simulate_trajectories
-    from hybridtrack.types import SEED001_TABLE1
-
-    schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
-    sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
-    streams = [rng.spawn(2) for rng in rngs]
-    truths = simulate_trajectories(schedule, X0, tau, seeds=[s[0] for s in streams], noise_cov=float(q) * np.eye(2))
-    drawn = [simulate_measurements(truth, sensors, seed=s[1]) for truth, s in zip(truths, streams)]
-    return schedule, sensors, truths, {name: np.stack([d[name] for d in drawn]) for name in drawn[0]}
 
 
 def run_batch(
@@ -188,29 +178,20 @@ def run_batch(
     """:func:`run_one` of the runs ``indices`` (generators ``rngs``) as one batch: trajectories drawn run by run,
     the three estimators as stacked banks (``run_known_modes_batch``, ``run_batch``); equal to the per-run results
     to rounding."""
-    from hybridtrack.composed.known_modes import run_known_modes_batch
-    from hybridtrack.types import Gaussian
-
-    schedule, sensors, truths, z = draw_batch(rngs, R=R, q=q, tau=tau, steps_scale=steps_scale)
+    schedule, sensors, truths, z = simulate_seed001_batch(rngs, R=R, q=q, tau=tau, steps_scale=steps_scale)
     known, unknown = _estimators(sensors, q=q, tau=tau, alpha=alpha, beta=beta, known_alpha=known_alpha, modes=modes, bank_size=bank_size)
-    prior = Gaussian(np.array(X0), np.eye(4))
-    optimal = run_known_modes_batch(
-        schedule, estimator="kalman", sensors=sensors, measurements=z, prior=prior, tau=tau, noise_cov=float(q) * np.eye(2)
-    )
+    prior = seed001_prior()
+    optimal = known_modes_estimate_batch(schedule, sensors, z, q=q, tau=tau)
     known_runs, runs = known.run_batch(z, prior, schedule), unknown.run_batch(z, prior)
     return [_outcome(schedule, truth, o, k, u) for truth, o, k, u in zip(truths, optimal, known_runs, runs)]
 
 
 def batch_arrays(parameters: dict, n: int, seed: int, chunk: int = 50) -> dict[str, np.ndarray]:
     """Every run's results stacked (name → (n, …)), as a campaign returns them, computed by :func:`run_batch` in
-    chunks of ``chunk`` runs; run i uses child i of SeedSequence(seed), as in the campaign."""
-    from hybridtrack.experiment.worker import run_seed
+    chunks of ``chunk`` runs (:func:`hybridtrack.experiment.worker.batch_arrays`)."""
+    from hybridtrack.experiment import worker
 
-    rows = []
-    for first in range(0, n, chunk):
-        indices = list(range(first, min(n, first + chunk)))
-        rows += run_batch(indices, [np.random.default_rng(run_seed(seed, i)) for i in indices], **parameters)
-    return {name: np.stack([np.asarray(row[name]) for row in rows]) for name in rows[0]}
+    return worker.batch_arrays(run_batch, parameters, n, seed, chunk)
 
 
 EXPERIMENT = Experiment(

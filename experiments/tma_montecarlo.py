@@ -46,6 +46,7 @@ import numpy as np
 from hybridtrack.interfaces import TransitionBank
 from hybridtrack.linalg import wrap_angle
 from hybridtrack.plugins import get_registry
+from hybridtrack.reporting import save_figure
 from hybridtrack_plugins.filters.gaussian_sum import GaussianSumFilter, range_parameterised
 from hybridtrack_plugins.filters.particle import ParticleFilter
 from hybridtrack_plugins.sensors.bearing import BearingSensor
@@ -340,11 +341,7 @@ def plot(report: str | Path, png: str | Path = PLOT) -> Path:
     figure.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
     figure.suptitle(f"Seed 002 §5.1 Monte Carlo ({data['protocol'].get('targets', '?')} targets): success fractions vs σ", fontsize=10)
     figure.tight_layout(rect=(0, 0.07, 1, 1))
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(png, dpi=100)
-    plt.close(figure)
-    return png
+    return save_figure(figure, png)
 
 
 def main(argv=None) -> int:

@@ -57,6 +57,30 @@ class NodeMoments:
         return self._moments[1][0]
 
 
+class CovarianceMoments:
+    """Mixin for states that hold the moments themselves: ``mean``/``covariance`` read the fields ``x`` (M, n) and
+    ``P`` (M, n, n), ``predicted_mean``/``predicted_covariance`` the last prediction's ``x_predicted`` and
+    ``P_predicted``."""
+
+    __slots__ = ()
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.x
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self.P
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.P_predicted
+
+
 def bank_field(axis: int = 0, **kwargs):
     """An attrs field of a bank state stacked over the M filters on ``axis`` (0 for (M, …), 1 for (N, M, …)).
 
@@ -177,6 +201,12 @@ def check_innovation_scores(innovation: Innovation, estimator: str) -> None:
             raise ValueError(_overflow_message(name, what, np.asarray(array, dtype=float), bad, estimator))
 
 
+def check_layout(layout: Sequence[str], n: int) -> None:
+    """A ValueError naming ``layout`` unless it has one component name per state component (n)."""
+    if len(layout) != n:
+        raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+
+
 class BankEstimator(Estimator):
     """Common plumbing; subclasses implement the maths of one form.
 
@@ -249,8 +279,7 @@ class BankEstimator(Estimator):
         Checks the layout against n and z's shape; NaN components are left
         out (:mod:`hybridtrack.measurements`); None means nothing was measured.
         """
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         return self._assembler.assemble(z, sensors, layout, bank_size)
 
     def linearize(self, x: np.ndarray, z, sensors: Sequence, layout: Sequence[str], step=None):

@@ -497,6 +497,25 @@ def check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
     return mean, cov
 
 
+def check_prior_mixture(means, covs, weights) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Validate a bank's prior mixtures Σ_c w_c N(means_c, covs_c): means (M, C, n), covs (M, C, n, n) each as
+    :func:`check_prior` requires, weights (M, C) ≥ 0 with a positive sum per filter.
+
+    Returns (means, covs, weights, totals (M,)) as float arrays; errors are ValueErrors naming the argument.
+    """
+    means = as_float_array(means, "means", (None, None, None))
+    M, C, n = means.shape
+    covs = as_float_array(covs, "covs", (M, C, n, n))
+    weights = as_float_array(weights, "weights", (M, C))
+    if (weights < 0).any():
+        raise ValueError(f"weights: expected weights ≥ 0, got a minimum of {float(weights.min())!r}")
+    total = weights.sum(axis=1)
+    if not (total > 0).all():
+        raise ValueError(f"weights: every filter needs a positive total weight, got sums {total.tolist()}")
+    check_prior(means.reshape(M * C, n), covs.reshape(M * C, n, n))
+    return means, covs, weights, total
+
+
 # --------------------------------------------------------------------------- detectors
 
 

@@ -101,3 +101,14 @@ def write_report(
     _atomic_text(json_path, text)
     _atomic_text(markdown_path, table)
     return json_path, markdown_path
+
+
+def save_figure(figure, path: str | os.PathLike, dpi: int = 100) -> Path:
+    """Write a matplotlib ``figure`` to ``path`` (PNG; parent folders created) at ``dpi``, close it, return the path."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=dpi)
+    plt.close(figure)
+    return path

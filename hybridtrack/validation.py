@@ -119,22 +119,27 @@ def readonly_array_field(shape: Sequence[int | None] | None = None, *, covarianc
     )
 
 
-def check_positive_int(value, name: str, minimum: int = 1) -> int:
-    """``value`` as an int ≥ ``minimum`` (bools and floats refused), else a ValueError naming ``name``."""
+def check_positive_int(value, name: str, minimum: int = 1, what: str | None = None) -> int:
+    """``value`` as an int ≥ ``minimum`` (bools and floats refused), else a ValueError naming ``name``
+    (and saying ``what`` the value is, when given)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name}: expected an integer ≥ {minimum}, got {value!r}")
+        meaning = "" if what is None else f" ({what})"
+        raise ValueError(f"{name}: expected an integer ≥ {minimum}{meaning}, got {value!r}")
     return int(value)
 
 
-def check_positive(value, name: str) -> float:
-    """``value`` as a positive finite float, else a ValueError naming ``name``."""
+def check_positive(value, name: str, what: str | None = None) -> float:
+    """``value`` as a positive finite float, else a ValueError naming ``name`` (and saying ``what`` the value
+    is, when given)."""
+    if what is not None:
+        message = f"{name}: expected a finite number > 0 ({what}), got {value!r}"
     try:
-        value = float(value)
+        number = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a positive number, got {value!r}") from None
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
-    return value
+        raise ValueError(message if what is not None else f"{name}: expected a positive number, got {value!r}") from None
+    if not (np.isfinite(number) and number > 0):
+        raise ValueError(message if what is not None else f"{name}: expected a positive finite number, got {value!r}")
+    return number
 
 
 #: the largest magnitude a filter input (measurement, prior mean, prior covariance entry) may have:

@@ -26,7 +26,28 @@ import numpy as np
 from hybridtrack.interfaces import Estimator, Innovation, MotionModel, Sensor, TransitionBank
 
 
-class FilterBank:
+class BankMoments:
+    """The moments of a bank's filters read from its ``estimator`` and ``state`` (``_moments`` caches them until
+    the state changes): shared by :class:`FilterBank` and :class:`~hybridtrack.composed.batch.RunBank`."""
+
+    def _read(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._moments is None:
+            covs = np.asarray(self.estimator.covariance(self.state), dtype=float)
+            self._moments = (np.asarray(self.estimator.mean(self.state), dtype=float), 0.5 * (covs + np.swapaxes(covs, -1, -2)))
+        return self._moments
+
+    @property
+    def means(self) -> np.ndarray:
+        """x (rows, n) of every filter."""
+        return self._read()[0]
+
+    @property
+    def covs(self) -> np.ndarray:
+        """P (rows, n, n) of every filter, symmetrized ½(P + Pᵀ)."""
+        return self._read()[1]
+
+
+class FilterBank(BankMoments):
     """M filters of one estimator: its state, each filter's model and switch state, and labels (any payload)."""
 
     def __init__(self, estimator: Estimator, layout: Sequence[str]):
@@ -144,22 +165,6 @@ class FilterBank:
         return innovation
 
     # ------------------------------------------------------------------ reading
-    def _read(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._moments is None:
-            covs = np.asarray(self.estimator.covariance(self.state), dtype=float)
-            self._moments = (np.asarray(self.estimator.mean(self.state), dtype=float), 0.5 * (covs + np.swapaxes(covs, -1, -2)))
-        return self._moments
-
-    @property
-    def means(self) -> np.ndarray:
-        """x (M, n) of every filter."""
-        return self._read()[0]
-
-    @property
-    def covs(self) -> np.ndarray:
-        """P (M, n, n) of every filter (symmetrized)."""
-        return self._read()[1]
-
     def node_scores(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(ℓ, NIS) each node computed locally, shape (N, M), for a decentralized estimator; else None."""
         scores = self.estimator.node_scores(self.state)

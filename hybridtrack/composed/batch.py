@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from hybridtrack.composed.bank import BankMoments
 from hybridtrack.interfaces import Estimator, MotionModel, Sensor, TransitionBank
 from hybridtrack.network import SensorNetwork
 from hybridtrack.timestamps import step_intervals
@@ -109,7 +110,7 @@ def batchable(estimator: Estimator) -> bool:
     return not getattr(estimator, "sampling", False) and type(estimator).node_scores is Estimator.node_scores
 
 
-class RunBank:
+class RunBank(BankMoments):
     """Filters of R runs in one estimator state, ordered run by run: each filter's run, model and switch state.
 
     ``run`` (F,) is each filter's run index; :meth:`take` changes membership
@@ -251,23 +252,6 @@ class RunBank:
         self.state = self.estimator.take(self.estimator.concatenate(parts), inverse)
         self._moments = None
         return loglik, nis, m
-
-    # ------------------------------------------------------------------ reading
-    def _read(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._moments is None:
-            covs = np.asarray(self.estimator.covariance(self.state), dtype=float)
-            self._moments = (np.asarray(self.estimator.mean(self.state), dtype=float), 0.5 * (covs + np.swapaxes(covs, -1, -2)))
-        return self._moments
-
-    @property
-    def means(self) -> np.ndarray:
-        """x (F, n) of every filter."""
-        return self._read()[0]
-
-    @property
-    def covs(self) -> np.ndarray:
-        """P (F, n, n) of every filter (symmetrized)."""
-        return self._read()[1]
 
 
 def grouped_transitions(models: Sequence[MotionModel], dts, switch_states: np.ndarray) -> TransitionBank:

@@ -28,17 +28,31 @@ def scaled_schedule(schedule: Schedule, factor: float) -> Schedule:
     return Schedule([Segment(s.mode, max(1, round(s.steps * factor)), s.radius, s.acceleration) for s in schedule.segments])
 
 
+def seed001_setup(R: float, steps_scale: float = 1.0):
+    """(schedule, sensors) of seed 001: Table 1 scaled by ``steps_scale``, one position sensor with R = r·I₂."""
+    from hybridtrack.plugins import resolve
+
+    schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
+    sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
+    return schedule, sensors
+
+
+def seed001_prior():
+    """The prior N(x0, I₄) every seed-001 estimator starts from."""
+    from hybridtrack.types import Gaussian
+
+    return Gaussian(np.array(X0), np.eye(4))
+
+
 def simulate_seed001(rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0, recorder=None):
     """(schedule, sensors, trajectory, measurements) of one seed-001 run drawn from ``rng``.
 
     With a ``recorder`` the truth (``world/truth``) and the measurements (``world/measurements/sensor``) are logged.
     """
-    from hybridtrack.plugins import resolve
     from hybridtrack.recording import log_measurements
     from hybridtrack.simulate import simulate_measurements, simulate_trajectory
 
-    schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
-    sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
+    schedule, sensors = seed001_setup(R, steps_scale)
     # two independent streams from the run's generator (simulate() itself takes an int seed only)
     trajectory_rng, measurement_rng = rng.spawn(2)
     truth = simulate_trajectory(schedule, X0, tau, seed=trajectory_rng, noise_cov=float(q) * np.eye(2), recorder=recorder)
@@ -46,6 +60,21 @@ def simulate_seed001(rng: np.random.Generator, *, R: float, q: float, tau: float
     if recorder is not None:
         log_measurements(recorder, sensors, measurements, truth.steps, truth.times)
     return schedule, sensors, truth, measurements
+
+
+def simulate_seed001_batch(rngs, *, R: float, q: float, tau: float, steps_scale: float = 1.0):
+    """:func:`simulate_seed001` for many runs: the same draws from each run's generator (its two spawned
+    streams), the trajectories propagated together (``simulate_trajectories``).
+
+    Returns (schedule, sensors, truths, measurements name → (runs, K+1, m)).
+    """
+    from hybridtrack.simulate import simulate_measurements, simulate_trajectories
+
+    schedule, sensors = seed001_setup(R, steps_scale)
+    streams = [rng.spawn(2) for rng in rngs]
+    truths = simulate_trajectories(schedule, X0, tau, seeds=[s[0] for s in streams], noise_cov=float(q) * np.eye(2))
+    drawn = [simulate_measurements(truth, sensors, seed=s[1]) for truth, s in zip(truths, streams)]
+    return schedule, sensors, truths, {name: np.stack([d[name] for d in drawn]) for name in drawn[0]}
 
 
 def squared_errors(means: np.ndarray, truth, layout) -> np.ndarray:
@@ -57,17 +86,32 @@ def squared_errors(means: np.ndarray, truth, layout) -> np.ndarray:
 def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman", recorder=None):
     """The optimal KF of seed 001 (told the modes; prior N(x0, I)) on one run's measurements."""
     from hybridtrack.composed.known_modes import run_known_modes
-    from hybridtrack.types import Gaussian
 
     return run_known_modes(
         schedule,
         estimator=estimator,
         sensors=sensors,
         measurements=measurements,
-        prior=Gaussian(np.array(X0), np.eye(4)),
+        prior=seed001_prior(),
         tau=tau,
         noise_cov=float(q) * np.eye(2),
         recorder=recorder,
+    )
+
+
+def known_modes_estimate_batch(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman"):
+    """:func:`known_modes_estimate` of many runs at once (``measurements`` name → (runs, K+1, m)) as one stacked
+    bank (``run_known_modes_batch``): one run result per run, equal to the per-run ones to rounding."""
+    from hybridtrack.composed.known_modes import run_known_modes_batch
+
+    return run_known_modes_batch(
+        schedule,
+        estimator=estimator,
+        sensors=sensors,
+        measurements=measurements,
+        prior=seed001_prior(),
+        tau=tau,
+        noise_cov=float(q) * np.eye(2),
     )
 
 

@@ -52,6 +52,17 @@ def run_seed(seed: int, index: int) -> np.random.SeedSequence:
     return np.random.SeedSequence(seed, spawn_key=(int(index),))
 
 
+def batch_arrays(run_batch, parameters: Mapping[str, Any], n: int, seed: int, chunk: int = 100) -> dict[str, np.ndarray]:
+    """Every run's results stacked (name → (n, …)), as a campaign returns them, computed by an experiment's
+    ``run_batch(indices, rngs, **parameters)`` (one mapping per run) in chunks of ``chunk`` runs; run i uses
+    child i of SeedSequence(``seed``) (:func:`run_seed`), as in the campaign."""
+    rows = []
+    for first in range(0, n, chunk):
+        indices = list(range(first, min(n, first + chunk)))
+        rows += run_batch(indices, [np.random.default_rng(run_seed(seed, i)) for i in indices], **parameters)
+    return {name: np.stack([np.asarray(row[name]) for row in rows]) for name in rows[0]}
+
+
 def _watch_parent(parent: int) -> None:
     while os.getppid() == parent:
         time.sleep(PARENT_POLL)

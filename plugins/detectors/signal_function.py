@@ -90,6 +90,11 @@ class SignalFunction(ScoreDetector):
         total, dof = self._accumulate(nis, int(m))
         signal = signal_bounds.standardize(total, dof)
         lower, upper = signal_bounds.bounds(self.alpha, dof, self.calibration)
+        return self._output(step, signal, dof, lower, upper)
+
+    def _output(self, step, signal: np.ndarray, dof: float, lower: float, upper: float) -> DetectorStep:
+        """The step's output from S (M,) and its bounds: a change when D > 0 and the watched S leaves
+        [lower, upper] (then a reset if ``reset_on_alarm``)."""
         value = float(signal[self.watch])
         decision = None
         if dof > 0 and not (lower <= value <= upper):
@@ -135,16 +140,7 @@ class SignalFunction(ScoreDetector):
         for r, d in enumerate(detectors):
             d._sum, d._dof = totals[r], float(dofs[r])
             lower, upper = limits[dofs[r]]
-            dof, value = float(dofs[r]), float(signals[r, first.watch])
-            decision = None
-            if dof > 0 and not (lower <= value <= upper):
-                side = "above" if value > upper else "below"
-                decision = Decision(
-                    step, d.label, "change", value, f"signal function {value:.2f} {side} the bound ({lower:.2f}, {upper:.2f}), D = {dof:g}"
-                )
-                if d.reset_on_alarm:
-                    d.reset()
-            outputs.append(DetectorStep({"signal": signals[r].copy(), "dof": dof}, {"upper": upper, "lower": lower}, decision))
+            outputs.append(d._output(step, signals[r], float(dofs[r]), lower, upper))
         return outputs
 
 

@@ -52,9 +52,9 @@ import attrs
 import numpy as np
 from scipy.stats import chi2
 
-from hybridtrack.estimation import BankEstimator, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import LOG_2PI, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
+from hybridtrack.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import check_magnitude
 from hybridtrack_plugins.filters import _covariance as cov_form
@@ -231,19 +231,16 @@ class ClutterEstimator(BankEstimator):
     @guarded
     def update(self, state: CovarianceState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         scans = _as_scans(z, rows=True)
         if scans is None:
             return self._update_stacked(state, z, sensors, layout)
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        by_name = sensors_by_name(sensors)
         x, P = state.x, state.P
         used, blocks, associations = [], [], []
         for scan in scans:
             sensor, model = scan_sensor_model(self, scan, by_name, layout)
-            z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
+            z_pred = predict_measurement(x, model)
             present = None
             if scan.z.ndim == 3:  # a RowScan: each row its own candidates, NaN padding
                 if scan.z.shape[0] != M:
@@ -251,9 +248,8 @@ class ClutterEstimator(BankEstimator):
                 present = scan.present
                 candidates = np.where(present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
             else:
-                candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
-            predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
-            nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+                candidates = scan.z
+            nu = candidate_residuals(z_pred, candidates, sensor, model)
             x, P, nu_used, S, association = self._associate_and_update(
                 x, P, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, present
             )
@@ -301,19 +297,53 @@ class ClutterEstimator(BankEstimator):
         return x_new, symmetrize(P_new), combined, S, record
 
     def _finish(self, state, x, P, used, blocks, associations):
-        M = x.shape[0]
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
-        else:
-            nu, S, loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
-        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(associations))
+        innovation = ClutterInnovation(*stacked_innovation(x.shape[0], used, blocks), tuple(associations))
         return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
 
     @abstractmethod
     def associate(self, d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
         """(β_i (M, L), β_0 (M,), selected (M,), ln Λ or ℓ (M,)) from d² (M, L), the gate mask and chol S."""
+
+
+def sensors_by_name(sensors: Sensor | Sequence[Sensor]) -> dict:
+    """name → sensor of the sensors given (one :class:`~hybridtrack.interfaces.Sensor` or a sequence), for
+    looking up the sensor of each clutter scan."""
+    if isinstance(sensors, Sensor):
+        sensors = (sensors,)
+    return {s.name: s for s in sensors}
+
+
+def predict_measurement(x: np.ndarray, model) -> np.ndarray:
+    """ẑ = H x (rows, m) of a linear scan model (the selected components when H is a selection)."""
+    return x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
+
+
+def candidate_residuals(z_pred: np.ndarray, candidates: np.ndarray, sensor: Sensor, model) -> np.ndarray:
+    """ν_ji = z_i ⊖ ẑ_j (rows, L, m) of every candidate against every row's prediction ẑ (rows, m); ``candidates``
+    (L, m) shared by the rows or (rows, L, m); ⊖ the sensor's residual (angles wrapped) unless plain subtraction."""
+    if candidates.ndim == 2:
+        candidates = np.broadcast_to(candidates[None, :, :], z_pred.shape[:1] + candidates.shape)
+    predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
+    return candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+
+
+def stacked_innovation(M: int, used: Sequence[np.ndarray], blocks: Sequence[np.ndarray], *, factored: bool = False):
+    """(ν, S, ℓ, NIS) of a step's clutter scans for M filters: ν the scans' combined residuals (M, m_j)
+    concatenated, S = blkdiag(S_j) and ℓ = −½(m ln 2π + ln det S + νᵀS⁻¹ν), NIS = νᵀS⁻¹ν (SPEC §4); with no
+    scan used, empty ν and S and ℓ = NIS = 0 (a prediction-only step).
+
+    ``factored``: the scores through :class:`~hybridtrack.linalg.CholeskyFactor` (closed forms for m ≤ 2, as the
+    Gaussian-sum and particle filters compute them) instead of :func:`~hybridtrack.linalg.gaussian_scores`.
+    """
+    if not used:
+        return np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+    nu = np.concatenate(used, axis=-1)
+    S = block_diagonal(blocks)
+    if factored:
+        loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu)
+    else:
+        loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
+    return nu, S, loglik, nis
 
 
 def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Sequence[str]):

@@ -58,13 +58,20 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, guarded
-from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior
+from hybridtrack.estimation import BankEstimator, bank_field, check_layout, guarded
+from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior, check_prior_mixture
 from hybridtrack.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
-from hybridtrack.measurements import block_diagonal
 from hybridtrack.validation import as_float_array
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold, scan_sensor_model
+from hybridtrack_plugins.filters._association import (
+    _as_scans,
+    check_gate_probability,
+    distances,
+    gate_threshold,
+    scan_sensor_model,
+    sensors_by_name,
+    stacked_innovation,
+)
 from hybridtrack_plugins.sensors.bearing import check_convention, direction
 
 _LAYOUT = ("x", "vx", "y", "vy")
@@ -200,16 +207,8 @@ class GaussianSumFilter(BankEstimator):
     def initialize_mixture(self, means, covs, weights) -> MixtureState:
         """A prior mixture per filter: means (M, C, n), covs (M, C, n, n) positive definite, weights (M, C) ≥ 0
         (each row with a positive sum; renormalised; zero weights are empty slots)."""
-        means = as_float_array(means, "means", (None, None, None))
+        means, covs, weights, total = check_prior_mixture(means, covs, weights)
         M, C, n = means.shape
-        covs = as_float_array(covs, "covs", (M, C, n, n))
-        weights = as_float_array(weights, "weights", (M, C))
-        if (weights < 0).any():
-            raise ValueError(f"weights: expected weights ≥ 0, got a minimum of {float(weights.min())!r}")
-        total = weights.sum(axis=1)
-        if not (total > 0).all():
-            raise ValueError(f"weights: every filter needs a positive total weight, got sums {total.tolist()}")
-        check_prior(means.reshape(M * C, n), covs.reshape(M * C, n, n))
         with np.errstate(divide="ignore"):
             log_weights = np.log(weights / total[:, None])
         x, P, log_weights = _compact(means, covs, log_weights)
@@ -297,11 +296,8 @@ class GaussianSumFilter(BankEstimator):
     def _update_scans(self, state: MixtureState, scans: list, sensors, layout):
         """Branch every component on each scan (missed + one child per gated candidate), then reduce (module docstring)."""
         M, C, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        check_layout(layout, n)
+        by_name = sensors_by_name(sensors)
         x, P, log_weights = state.x, state.P, state.log_weights
         loglik = np.zeros(M)
         used, blocks, records = [], [], []
@@ -314,12 +310,7 @@ class GaussianSumFilter(BankEstimator):
             if scan.size:
                 used.append(combined)
                 blocks.append(S)
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            _, nis = CholeskyFactor(S, "innovation covariance S").scores(nu)
-        else:
-            nu, S, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M)
+        nu, S, _, nis = stacked_innovation(M, used, blocks, factored=True)
         innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
         self.check_finite("update", updated_mean=x, updated_covariance=P)
         predicted = (state.predicted_mean, state.predicted_covariance)

@@ -49,20 +49,23 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import cholesky, gaussian_scores
-from hybridtrack.measurements import block_diagonal
+from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
+    candidate_residuals,
     check_gate_probability,
     check_innovation_covariance,
     distances,
     gate_threshold,
     innovation_covariance,
     log_half_det_2pi_s,
+    predict_measurement,
     scan_sensor_model,
+    sensors_by_name,
+    stacked_innovation,
 )
 
 #: history entry of a scan not yet seen (the root hypothesis); −1 is "missed", i ≥ 0 candidate i
@@ -130,12 +133,6 @@ def hypothesis_probabilities(scores: np.ndarray) -> np.ndarray:
     return weights / weights.sum(axis=1, keepdims=True)
 
 
-def _positive_int(value, name: str, what: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name}: expected an integer ≥ 1 ({what}), got {value!r}")
-    return int(value)
-
-
 def _rows(A: np.ndarray, M: int, H: int) -> np.ndarray:
     """A per-filter stack (M, …) repeated for the H hypotheses of each filter → (M H, …); shared arrays as they are."""
     return np.repeat(A, H, axis=0) if A.ndim == 3 else A
@@ -182,8 +179,8 @@ class MHTFilter(BankEstimator):
             raise ValueError(f"clutter_density: expected a finite λ > 0 (the score has ln(P_D/λ)), got {clutter_density!r}")
         self.clutter_density = lam
         self.gate_probability = check_gate_probability(gate_probability)
-        self.window = _positive_int(window, "window", "the N of N-scan pruning")
-        self.max_hypotheses = _positive_int(max_hypotheses, "max_hypotheses", "the cap on hypotheses per filter")
+        self.window = check_positive_int(window, "window", what="the N of N-scan pruning")
+        self.max_hypotheses = check_positive_int(max_hypotheses, "max_hypotheses", what="the cap on hypotheses per filter")
         self.form = form
         P_G = 1.0 if self.gate_probability is None else self.gate_probability
         miss = 1.0 - self.detection_probability * P_G
@@ -217,8 +214,7 @@ class MHTFilter(BankEstimator):
     @guarded
     def update(self, state: MHTState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, H, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         scans = _as_scans(z)
         current = state
         if scans is None:
@@ -237,17 +233,13 @@ class MHTFilter(BankEstimator):
             R = _rows(np.asarray(step.R), M, H)
             current, record, nu_best, S_best = self._branch(current, nu, Hm, R, step.selection, name, step.z, z_pred)
             return self._finish(current, [nu_best], [S_best], [record])
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        by_name = sensors_by_name(sensors)
         used, blocks, records = [], [], []
         for scan in scans:
             sensor, model = scan_sensor_model(self, scan, by_name, layout)
             x = current.x.reshape(M * H, n)
-            z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
-            candidates = np.broadcast_to(scan.z[None, :, :], (M * H,) + scan.z.shape)
-            predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
-            nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+            z_pred = predict_measurement(x, model)
+            nu = candidate_residuals(z_pred, scan.z, sensor, model)
             current, record, nu_best, S_best = self._branch(
                 current, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred
             )
@@ -350,13 +342,7 @@ class MHTFilter(BankEstimator):
         return chosen, kept
 
     def _finish(self, state: MHTState, used, blocks, records):
-        M = state.x.shape[0]
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
-        else:
-            nu, S, loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+        nu, S, loglik, nis = stacked_innovation(state.x.shape[0], used, blocks)
         innovation = MHTInnovation(nu, S, loglik, nis, tuple(records), state.scores, state.probabilities)
         return attrs.evolve(state, innovation=innovation), innovation
 

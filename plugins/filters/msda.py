@@ -50,13 +50,14 @@ import attrs
 import numpy as np
 import pywt
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import cholesky, gaussian_scores, symmetrize
-from hybridtrack.measurements import block_diagonal
+from hybridtrack.linalg import symmetrize
+from hybridtrack.validation import check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
+    candidate_residuals,
     check_gate_probability,
     check_innovation_covariance,
     distances,
@@ -64,16 +65,18 @@ from hybridtrack_plugins.filters._association import (
     innovation_covariance,
     log_half_det_2pi_s,
     nearest,
+    predict_measurement,
     scan_sensor_model,
+    sensors_by_name,
+    stacked_innovation,
 )
-from hybridtrack_plugins.filters.pmht import positive_int
 
 #: the extension mode of the transform: length-preserving and orthogonal
 MODE = "periodization"
 
 
 @attrs.frozen(eq=False)
-class MSDAState:
+class MSDAState(CovarianceMoments):
     """A covariance-form bank plus, per filter, the window's N slots (newest last): the chosen residuals
     ``residuals`` (M, N, m̄), the H they were taken with ``H`` (M, N, m̄, n) (zero-padded to the widest m̄) and
     ``dims`` (M, N) their dimension (0: nothing gated, or no scan yet)."""
@@ -86,22 +89,6 @@ class MSDAState:
     H: np.ndarray = bank_field(0)
     dims: np.ndarray = bank_field(0)
     innovation: ClutterInnovation | None = None
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
 
 
 def _widen(state: MSDAState, m: int) -> MSDAState:
@@ -132,7 +119,7 @@ class MSDAFilter(BankEstimator):
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
         self.gate_probability = check_gate_probability(gate_probability)
-        self.window = positive_int(window, "window", "the number of scans fused")
+        self.window = check_positive_int(window, "window", what="the number of scans fused")
         if not isinstance(wavelet, str) or wavelet not in pywt.wavelist(kind="discrete"):
             raise ValueError(f"wavelet: expected a discrete wavelet name of PyWavelets (e.g. 'haar', 'db2'), got {wavelet!r}")
         self.wavelet = wavelet
@@ -169,8 +156,7 @@ class MSDAFilter(BankEstimator):
     @guarded
     def update(self, state: MSDAState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         scans = _as_scans(z)
         if scans is None:
             found = self.linearize(state.x, z, sensors, layout)
@@ -182,18 +168,14 @@ class MSDAFilter(BankEstimator):
             z_pred = np.broadcast_to(step.z, nu.shape) - nu
             new, nu_used, S, record = self._scan(state, nu[:, None, :], H, step.R, step.selection, name, step.z, z_pred)
             return self._finish(new, [nu_used], [S], [record])
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        by_name = sensors_by_name(sensors)
         current = state
         used, blocks, records = [], [], []
         for scan in scans:
             sensor, model = scan_sensor_model(self, scan, by_name, layout)
             x = current.x
-            z_pred = x[:, list(model.selection)] if model.selection is not None else x @ model.H.T
-            candidates = np.broadcast_to(scan.z[None, :, :], (M,) + scan.z.shape)
-            predicted = np.broadcast_to(z_pred[:, None, :], candidates.shape)
-            nu = candidates - predicted if model.plain_residual else sensor.residual(candidates, predicted)
+            z_pred = predict_measurement(x, model)
+            nu = candidate_residuals(z_pred, scan.z, sensor, model)
             current, nu_used, S, record = self._scan(current, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred)
             records.append(record)
             if scan.size:
@@ -260,14 +242,7 @@ class MSDAFilter(BankEstimator):
         return smooth[:, self.window - 1]
 
     def _finish(self, state: MSDAState, used, blocks, records):
-        M = state.x.shape[0]
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
-        else:
-            nu, S, loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
-        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
+        innovation = ClutterInnovation(*stacked_innovation(state.x.shape[0], used, blocks), tuple(records))
         return attrs.evolve(state, innovation=innovation), innovation
 
 

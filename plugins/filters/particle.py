@@ -89,12 +89,18 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
-from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior
+from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior_mixture
 from hybridtrack.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
-from hybridtrack.measurements import block_diagonal
-from hybridtrack.validation import as_float_array, check_magnitude
-from hybridtrack_plugins.filters._association import _as_scans, check_gate_probability, distances, gate_threshold
+from hybridtrack.validation import check_magnitude
+from hybridtrack_plugins.filters._association import (
+    _as_scans,
+    check_gate_probability,
+    distances,
+    gate_threshold,
+    sensors_by_name,
+    stacked_innovation,
+)
 
 #: stages of a step, part of each draw's seed so that the draws of one step never share a stream
 _INITIALIZE, _PREDICT, _RESAMPLE = 0, 1, 2
@@ -332,16 +338,8 @@ class ParticleFilter(BankEstimator):
         (renormalised).  The component of each particle is allocated systematically (Kitagawa 1996): component c
         gets ⌊N w_c⌋ or ⌈N w_c⌉ particles, then each is drawn from its Gaussian; uniform weights 1/N.
         """
-        means = as_float_array(means, "means", (None, None, None))
+        means, covs, weights, total = check_prior_mixture(means, covs, weights)
         M, C, n = means.shape
-        covs = as_float_array(covs, "covs", (M, C, n, n))
-        weights = as_float_array(weights, "weights", (M, C))
-        if (weights < 0).any():
-            raise ValueError(f"weights: expected weights ≥ 0, got a minimum of {float(weights.min())!r}")
-        total = weights.sum(axis=1)
-        if not (total > 0).all():
-            raise ValueError(f"weights: every filter needs a positive total weight, got sums {total.tolist()}")
-        check_prior(means.reshape(M * C, n), covs.reshape(M * C, n, n))
         roots = cholesky(covs, "covs")
         keys = self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True)
         counters = np.zeros(M, dtype=np.int64)
@@ -447,11 +445,8 @@ class ParticleFilter(BankEstimator):
     def _update_scans(self, state: ParticleState, scans: list, sensors, layout):
         """w ∝ w⁻ Λ(x) scan after scan, ℓ = Σ ln Λ̂, then N_eff and resampling as in :meth:`update`."""
         M, N, n = state.particles.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        by_name = {s.name: s for s in sensors}
+        check_layout(layout, n)
+        by_name = sensors_by_name(sensors)
         layout = tuple(layout)
         log_weights = state.log_weights
         loglik = np.zeros(M)
@@ -464,12 +459,7 @@ class ParticleFilter(BankEstimator):
             if scan.size:
                 used.append(combined)
                 blocks.append(S)
-        if used:
-            nu = np.concatenate(used, axis=-1)
-            S = block_diagonal(blocks)
-            gaussian_loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu)
-        else:
-            nu, S, gaussian_loglik, nis = np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
+        nu, S, gaussian_loglik, nis = stacked_innovation(M, used, blocks, factored=True)
         ess = effective_sample_size(log_weights)
         resampled = ess < self.threshold * N
         particles = state.particles

@@ -79,10 +79,10 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
-from hybridtrack.measurements import block_diagonal
+from hybridtrack.validation import check_positive, check_positive_int
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,
@@ -93,32 +93,16 @@ from hybridtrack_plugins.filters._association import (
     innovation_covariance,
     log_half_det_2pi_s,
     scan_sensor_model,
+    sensors_by_name,
+    stacked_innovation,
 )
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
 MIN_WEIGHT = 1e-9
 
 
-def positive_int(value, name: str, what: str) -> int:
-    """An integer ≥ 1, else a ValueError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name}: expected an integer ≥ 1 ({what}), got {value!r}")
-    return int(value)
-
-
-def positive_float(value, name: str, what: str) -> float:
-    """A finite float > 0, else a ValueError naming ``name``."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a finite number > 0 ({what}), got {value!r}") from None
-    if not (math.isfinite(number) and number > 0.0):
-        raise ValueError(f"{name}: expected a finite number > 0 ({what}), got {value!r}")
-    return number
-
-
 @attrs.frozen(eq=False)
-class PMHTState:
+class PMHTState(CovarianceMoments):
     """A bank of M PMHT filters with windows of W = ``window`` scan slots (newest last).
 
     ``x``, ``P`` the current estimate (filtered at the newest scan, or predicted);
@@ -159,22 +143,6 @@ class PMHTState:
     iterations: np.ndarray = bank_field(0)
     log_posterior: np.ndarray = bank_field(0)
     innovation: ClutterInnovation | None = None
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
 
     @property
     def association_weights(self) -> np.ndarray:
@@ -243,9 +211,9 @@ class PMHTFilter(BankEstimator):
         self.detection_probability = check_detection_probability(detection_probability)
         self.clutter_density = check_clutter_density(clutter_density)
         self.gate_probability = check_gate_probability(gate_probability)
-        self.window = positive_int(window, "window", "the number of scans of the EM batch")
-        self.max_iterations = positive_int(max_iterations, "max_iterations", "EM iterations per scan")
-        self.tolerance = positive_float(tolerance, "tolerance", "the rise of the log posterior below which EM stops")
+        self.window = check_positive_int(window, "window", what="the number of scans of the EM batch")
+        self.max_iterations = check_positive_int(max_iterations, "max_iterations", what="EM iterations per scan")
+        self.tolerance = check_positive(tolerance, "tolerance", what="the rise of the log posterior below which EM stops")
         self.form = form
         self.log_pd = math.log(self.detection_probability)
         self.log_lambda = math.log(self.clutter_density) if self.clutter_density > 0 else -math.inf
@@ -311,8 +279,7 @@ class PMHTFilter(BankEstimator):
     @guarded
     def update(self, state: PMHTState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         M, n = state.x.shape
-        if len(layout) != n:
-            raise ValueError(f"layout: expected {n} component names (the state dimension), got {len(layout)}")
+        check_layout(layout, n)
         scans = _as_scans(z)
         pieces = []  # (candidates (M, L, m), H (m, n), R (m, m) or (M, m, m), sensor name, record candidates)
         if scans is None:
@@ -328,9 +295,7 @@ class PMHTFilter(BankEstimator):
             cands = np.broadcast_to(step.z, (M, step.dim))[:, None, :]
             pieces.append((cands, step.H, np.asarray(step.R), "+".join(m.sensor.name for m in step.models), step.z))
         else:
-            if isinstance(sensors, Sensor):
-                sensors = (sensors,)
-            by_name = {s.name: s for s in sensors}
+            by_name = sensors_by_name(sensors)
             for scan in scans:
                 sensor, model = scan_sensor_model(self, scan, by_name, layout)
                 if not model.plain_residual:
@@ -347,13 +312,7 @@ class PMHTFilter(BankEstimator):
             used.append(nu)
             blocks.append(S)
             records.append(record)
-        if not used:
-            innovation = ClutterInnovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M), tuple(records))
-            return attrs.evolve(state, innovation=innovation), innovation
-        nu = np.concatenate(used, axis=-1)
-        S = block_diagonal(blocks)
-        loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
-        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
+        innovation = ClutterInnovation(*stacked_innovation(M, used, blocks), tuple(records))  # current is state if none used
         return attrs.evolve(current, innovation=innovation), innovation
 
     # ------------------------------------------------------------------ one scan

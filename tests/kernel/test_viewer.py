@@ -210,29 +210,14 @@ def test_every_logged_entity_is_in_a_view_bearings_only(tmp_path):
     assert all(view_selects(residuals["contents"], "/", e) for e in rec.entity_paths if e.startswith("/solver/"))
 
 
-def test_every_logged_entity_is_in_a_view_clutter_and_imm(tmp_path):
-    from hybridtrack.clutter import ClutterModel, region_around, simulate_scans
+def test_every_logged_entity_is_in_a_view_clutter_and_imm(tmp_path, clutter_scenario, clutter_pipeline):
     from hybridtrack.composed.multiple_model import MultipleModelEstimator
-    from hybridtrack.pipeline import Pipeline
-    from hybridtrack.simulate import simulate_trajectory
 
-    schedule = Schedule([Segment("straight", 15), Segment("right_turn", 15, 5.0)])
-    truth = simulate_trajectory(schedule, [0.0, 0.0, 0.0, 2.0], 0.1, seed=2, noise_cov=np.diag([0.01, 0.01]))
-    sensor = PositionSensor("pos", ("x", "y"), np.diag([0.01, 0.01]))
-    scans = simulate_scans(truth, [sensor], ClutterModel(0.5, 0.9, region_around(truth.positions, 2.0)), seed=2)
+    truth, sensor, scans = clutter_scenario()
     path = tmp_path / "clutter.rrd"
     with RerunRecorder(path, {"seed": 2}) as recorder:
-        Pipeline(
-            models=["straight", ("right_turn", {"radius": 5.0})],
-            estimator=("pda", {"detection_probability": 0.9, "clutter_density": 0.5}),
-            detectors=["sprt_pairwise"],
-            sensors=[sensor],
-            candidates=scans,
-            prior=(np.array([0.0, 0.0, 0.0, 2.0]), np.eye(4) * 0.01),
-            tau=0.1,
-            recorder=recorder,
-            truth=truth,
-        ).run()
+        pda = ("pda", {"detection_probability": 0.9, "clutter_density": 0.5})
+        clutter_pipeline(pda, sensor, scans, detectors=["sprt_pairwise"], recorder=recorder, truth=truth).run()
     rec = _coverage(path)
     assert {"/world/clutter/pos", "/estimator/straight/beta", "/estimator/nis_bounds"} <= set(rec.entity_paths)
     names = {v["name"] for v in rec.blueprint_views()}

@@ -86,20 +86,12 @@ def _scenario(density=0.5, seed=2):
     return truth, sensor, simulate_scans(truth, [sensor], model, seed=seed)
 
 
-def test_pipeline_runs_a_pda_bank_on_candidates_and_records_clutter_gates_and_weights(tmp_path, rerun_cli):
+def test_pipeline_runs_a_pda_bank_on_candidates_and_records_clutter_gates_and_weights(tmp_path, rerun_cli, clutter_pipeline):
     truth, sensor, scans = _scenario()
     path = tmp_path / "clutter.rrd"
     with RerunRecorder(path, {"seed": 2}) as recorder:
-        pipeline = Pipeline(
-            models=["straight", ("right_turn", {"radius": 5.0})],
-            estimator=("pda", {"detection_probability": 0.9, "clutter_density": 0.5}),
-            sensors=[sensor],
-            candidates=scans,
-            prior=(np.array([0.0, 0.0, 0.0, 2.0]), np.eye(4) * 0.01),
-            tau=0.1,
-            recorder=recorder,
-            truth=truth,
-        )
+        pda = ("pda", {"detection_probability": 0.9, "clutter_density": 0.5})
+        pipeline = clutter_pipeline(pda, sensor, scans, recorder=recorder, truth=truth)
         result = pipeline.run()
     assert result.means.shape == (51, 2, 4)
     assert np.abs(result.means[:20, 0, [0, 2]] - truth.positions[:20]).max() < 0.5  # straight filter on the straight leg

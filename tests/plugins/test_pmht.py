@@ -222,28 +222,14 @@ def test_a_sensor_with_measurement_dependent_noise_is_refused_for_scans():
 
 
 @pytest.mark.parametrize(("name", "parameters"), [("pmht", {"clutter_density": 0.5, "window": 3}), ("msda", {"window": 2})])
-def test_pipeline_runs_the_bank_on_candidates_and_records_the_weights(tmp_path, name, parameters):
+def test_pipeline_runs_the_bank_on_candidates_and_records_the_weights(tmp_path, name, parameters, clutter_scenario, clutter_pipeline):
     from hybridtrack.inspection import RecordingFile
-    from hybridtrack.pipeline import Pipeline
     from hybridtrack.recording import RerunRecorder
-    from hybridtrack.types import Segment
 
-    schedule = Schedule([Segment("straight", 15), Segment("right_turn", 15, 5.0)])
-    truth = simulate_trajectory(schedule, [0.0, 0.0, 0.0, 2.0], 0.1, seed=2, noise_cov=np.diag([0.01, 0.01]))
-    sensor = PositionSensor("pos", ("x", "y"), np.diag([0.01, 0.01]))
-    scans = simulate_scans(truth, [sensor], ClutterModel(0.5, 0.9, region_around(truth.positions, 2.0)), seed=2)
+    truth, sensor, scans = clutter_scenario()
     path = tmp_path / f"{name}.rrd"
     with RerunRecorder(path, {"seed": 2}) as recorder:
-        pipeline = Pipeline(
-            models=["straight", ("right_turn", {"radius": 5.0})],
-            estimator=(name, parameters),
-            sensors=[sensor],
-            candidates=scans,
-            prior=(np.array([0.0, 0.0, 0.0, 2.0]), np.eye(4) * 0.01),
-            tau=0.1,
-            recorder=recorder,
-            truth=truth,
-        )
+        pipeline = clutter_pipeline((name, parameters), sensor, scans, recorder=recorder, truth=truth)
         result = pipeline.run()
     assert result.means.shape == (31, 2, 4)
     assert np.abs(result.means[:15, 0, [0, 2]] - truth.positions[:15]).max() < 0.5  # straight filter on the straight leg
