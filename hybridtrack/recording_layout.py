@@ -1,0 +1,231 @@
+"""The layout (blueprint) embedded in a recording, built from the entities the run logged (docs/recording.md).
+
+:func:`content_blueprint` makes the views — the 3-D world (east, north, up), the
+space-time view, one time-series panel per quantity, the events, a map for
+geographic entities — and :func:`default_blueprint` the layout of a file whose
+run never closed it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+#: a time-series panel shows its legend when it holds at most this many entities
+LEGEND_SERIES = 3
+
+#: the corner of a panel's legend where its quantity seldom has data (default ``RightTop``): ℓ ≤ 0 is dense just
+#: below 0 with spikes down; the mode index starts low; a growing bank ramps from the bottom left
+LEGEND_CORNERS = {"loglik": "RightBottom", "mode": "RightBottom", "bank_size": "LeftTop", "association_loglik": "RightBottom"}
+
+#: how many steps of points (truth, measurements, estimates, ellipses) the world view shows behind the time cursor
+TRAIL_STEPS = 25
+
+
+#: the view class that shows each archetype (a component ``Archetype:field`` needs a view of this class)
+VIEW_CLASSES = {
+    "Scalars": "TimeSeries",
+    "SeriesLines": "TimeSeries",
+    "SeriesPoints": "TimeSeries",
+    "Points3D": "3D",
+    "LineStrips3D": "3D",
+    "ViewCoordinates": "3D",
+    "Ellipsoids3D": "3D",
+    "Boxes3D": "3D",
+    "Arrows3D": "3D",
+    "Transform3D": "3D",
+    "Points2D": "2D",
+    "LineStrips2D": "2D",
+    "TextLog": "TextLog",
+    "GeoPoints": "Map",
+    "GeoLineStrings": "Map",
+}
+
+#: time-series panels of ``estimator/<filter>/<quantity>``: quantity → (panel, title), in display order
+_ESTIMATOR_PANELS = {
+    "bank_size": ("bank_size", "Bank size (filters running)"),
+    "mode": ("mode", "Identified mode / followed hypothesis (index)"),
+    "followed": ("mode", "Identified mode / followed hypothesis (index)"),
+    "mode_probability": ("mode_probability", "Mode probabilities μ"),
+    "nis": ("nis", "NIS (normalized innovation squared) with the χ² 95 % bounds"),
+    "nis_bounds": ("nis", "NIS (normalized innovation squared) with the χ² 95 % bounds"),
+    "innovation": ("innovation", "Innovations ν"),
+    "loglik": ("loglik", "Log-likelihood ℓ"),
+    "beta": ("beta", "Association weights β"),
+    "gated": ("gated", "Candidates in the gate"),
+    "association_loglik": ("association_loglik", "Association ln Λ"),
+}
+_PANEL_ORDER = ["bank_size", "mode", "mode_probability", "nis", "innovation", "loglik", "beta", "gated", "association_loglik"]
+
+
+def _panel(entity: str, content: Mapping[str, str]) -> tuple[tuple, str, str]:
+    """(sort key, title, contents rule) of the time-series panel that shows a scalar entity: one panel per quantity."""
+    parts = entity.split("/")
+    if parts[0] == "detector" and len(parts) >= 2:
+        rule = f"+ /detector/{parts[1]}/**"
+        if "signal" in parts[1]:
+            return (0, parts[1]), f"Signal function with its bounds ({parts[1]})", rule
+        if any(p.startswith(f"detector/{parts[1]}/log_ratio") for p in content):
+            return (0, parts[1]), f"ln λ per hypothesis with A and B ({parts[1]})", rule
+        return (0, parts[1]), f"Detector {parts[1]}: statistics and thresholds", rule
+    if parts[0] == "estimator" and len(parts) == 2 and parts[1] in _ESTIMATOR_PANELS:  # estimator/nis_bounds
+        key, title = _ESTIMATOR_PANELS[parts[1]]
+        return (1, _PANEL_ORDER.index(key), key), title, f"+ /{entity}/**"
+    if parts[0] == "estimator" and len(parts) >= 3:
+        key, title = _ESTIMATOR_PANELS.get(parts[2], (parts[2], parts[2].replace("_", " ")))
+        order = _PANEL_ORDER.index(key) if key in _PANEL_ORDER else len(_PANEL_ORDER)
+        return (1, order, key), title, f"+ /estimator/{parts[1]}/{parts[2]}/**"
+    if parts[0] == "solver" and len(parts) >= 3:
+        title = "Bearing residuals (degrees)" if parts[-1] == "residual" else parts[-1].replace("_", " ")
+        return (2, parts[-1]), title, f"+ /{entity}/**"
+    if parts[:2] == ["world", "measurements"]:
+        return (3, "measurements"), "Scalar measurements", f"+ /{entity}"
+    parent = "/".join(parts[:-1]) or parts[0]
+    return (4, parent), parent, f"+ /{entity}"
+
+
+def content_blueprint(
+    content: Mapping[str, str] | None = None,
+    *,
+    time_step: float | None = None,
+    eyes: Mapping[str, tuple] | None = None,
+    map_zoom: float | None = None,
+):
+    """The layout embedded in a file, built from what the run logged.
+
+    ``content`` maps every logged entity path to the view class that shows it
+    (:data:`VIEW_CLASSES`: ``3D``, ``TimeSeries``, ``TextLog``, …).  Views:
+
+    * **World (east, north, up)** — a 3-D view of ``/world`` (right-handed, z up:
+      a left turn is anticlockwise seen from above), points of the last
+      :data:`TRAIL_STEPS` steps (``time_step`` s each on the ``time`` timeline) and the
+      whole paths;
+    * **Space-time** — a 3-D view of ``/spacetime`` (x, y, scaled time);
+    * one **time-series panel per quantity**: each detector (ln λ with A and B, or the
+      signal function with its bounds), then bank size, mode / followed hypothesis,
+      mode probabilities, NIS with its χ² bounds, innovations, log-likelihood,
+      association weights, gated candidates, bearing residuals, scalar measurements
+      — each listing the logged entities explicitly, so each fits its own range;
+    * **Events** — the text log;
+    * a view of the right class for any other root, so every entity is in some view.
+
+    ``eyes`` (origin → (position, look_target)) places the 3-D cameras; ``map_zoom`` the map view's
+    zoom level (:func:`map_zoom`: the whole geo paths in view).
+
+    Legends (:data:`LEGEND_CORNERS`): a panel of at most :data:`LEGEND_SERIES` series shows its legend
+    in the corner where its quantity seldom has data; a panel of more series hides it (each series
+    names itself on hover).
+    """
+    import rerun.blueprint as rrb
+
+    content = {p.strip("/"): c for p, c in (content or {"world": "3D", "events/decisions": "TextLog"}).items()}
+    eyes = eyes or {}
+    trail = [
+        rrb.VisibleTimeRange(
+            "step", start=rrb.TimeRangeBoundary.cursor_relative(seq=-TRAIL_STEPS), end=rrb.TimeRangeBoundary.cursor_relative(seq=0)
+        )
+    ]
+    if time_step is not None and np.isfinite(time_step) and time_step > 0:
+        seconds = TRAIL_STEPS * float(time_step)
+        trail.append(
+            rrb.VisibleTimeRange(
+                "time",
+                start=rrb.TimeRangeBoundary.cursor_relative(seconds=-seconds),
+                end=rrb.TimeRangeBoundary.cursor_relative(seconds=0.0),
+            )
+        )
+
+    def eye(origin):
+        if origin not in eyes:
+            return None
+        position, target = eyes[origin]
+        return rrb.EyeControls3D(position=position, look_target=target, eye_up=(0.0, 0.0, 1.0))
+
+    spatial, other = [], []
+    roots: dict[tuple[str, str], None] = {}
+    for path, view_class in content.items():
+        if view_class not in ("TimeSeries", "TextLog"):
+            roots.setdefault((path.split("/")[0], view_class), None)
+    for root, view_class in roots:
+        if view_class == "3D" and root == "world":
+            spatial.insert(
+                0, rrb.Spatial3DView(origin="/world", name="World (east, north, up)", time_ranges=trail, eye_controls=eye("/world"))
+            )
+        elif view_class == "3D" and root == "spacetime":
+            spatial.append(rrb.Spatial3DView(origin="/spacetime", name="Space-time (x, y, scaled time)", eye_controls=eye("/spacetime")))
+        elif view_class == "3D":
+            spatial.append(rrb.Spatial3DView(origin=f"/{root}", name=root))
+        elif view_class == "2D":
+            other.append(rrb.Spatial2DView(origin=f"/{root}", name=root))
+        elif view_class == "Map":
+            other.append(rrb.MapView(origin=f"/{root}", name="Map (latitude, longitude)" if root == "map" else root, zoom=map_zoom))
+        else:
+            other.append(rrb.View(class_identifier=view_class, origin=f"/{root}", name=root))
+
+    panels: dict[tuple, tuple[str, list[str]]] = {}
+    counts: dict[tuple, int] = {}
+    for path, view_class in content.items():
+        if view_class == "TimeSeries":
+            key, title, rule = _panel(path, content)
+            rules = panels.setdefault(key, (title, []))[1]
+            counts[key] = counts.get(key, 0) + 1
+            if rule not in rules:
+                rules.append(rule)
+
+    def legend(key):  # a legend only where it does not hide the plot; the names show on hover everywhere
+        corner = LEGEND_CORNERS.get(str(key[-1]), "RightTop")
+        return rrb.PlotLegend(corner=getattr(rrb.Corner2D, corner), visible=counts[key] <= LEGEND_SERIES)
+
+    series = [
+        rrb.TimeSeriesView(origin="/", contents=rules, name=title, plot_legend=legend(key))
+        for key, (title, rules) in sorted(panels.items(), key=lambda item: tuple(str(k) for k in item[0]))
+    ]
+    texts = sorted({path.split("/")[0] for path, c in content.items() if c == "TextLog"})
+    logs = [rrb.TextLogView(origin=f"/{root}", name="Events" if root == "events" else root) for root in texts]
+
+    left = spatial + other + logs
+    shares = [3.0] * len(spatial) + [2.0] * len(other) + [1.0] * len(logs)
+    columns = []
+    if left:
+        columns.append(rrb.Vertical(*left, row_shares=shares) if len(left) > 1 else left[0])
+    if series:
+        columns.append(rrb.Grid(*series, grid_columns=2 if len(series) > 4 else 1, name="Time series"))
+    if not columns:
+        columns = [rrb.TextLogView(origin="/events", name="Events")]
+    root = rrb.Horizontal(*columns, column_shares=[1, 1]) if len(columns) == 2 else columns[0]
+    return rrb.Blueprint(root, collapse_panels=True)
+
+
+def map_zoom(lat_lon: np.ndarray, width: float = 700.0, height: float = 220.0) -> float:
+    """The web-map zoom level that shows every (latitude°, longitude°) row in a ``width`` × ``height`` pixel view.
+
+    At zoom z a 256-pixel tile spans 360°/2ᶻ of longitude (web Mercator), and a degree of latitude is
+    1/cos φ times as long as a degree of longitude:  z = log₂(360 · min(w / Δλ, h cos φ / Δφ) / 256), less
+    half a level of margin, clipped to 1 … 18.
+    """
+    lat_lon = np.asarray(lat_lon, dtype=np.float64)
+    low, high = np.nanmin(lat_lon, axis=0), np.nanmax(lat_lon, axis=0)
+    span_lat, span_lon = max(high[0] - low[0], 1e-4), max(high[1] - low[1], 1e-4)
+    fit = min(width / span_lon, height * np.cos(np.radians((low[0] + high[0]) / 2)) / span_lat)
+    return float(np.clip(np.log2(360.0 * fit / 256.0) - 0.5, 1.0, 18.0))
+
+
+def default_blueprint():
+    """The layout written at the start of every file, for a file whose run never closed it (killed): the world
+    view, the events and one time-series view per root; :meth:`RerunRecorder.close` replaces it by
+    :func:`content_blueprint`."""
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                rrb.Spatial3DView(origin="/world", name="World (east, north, up)"),
+                rrb.TextLogView(origin="/events", name="Events"),
+                row_shares=[3, 1],
+            ),
+            rrb.Vertical(*[rrb.TimeSeriesView(origin=f"/{root}", name=root) for root in ("detector", "estimator", "solver")]),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
