@@ -57,10 +57,24 @@ class NodeMoments:
         return self._moments[1][0]
 
 
-class CovarianceMoments:
+class PredictedMoments:
+    """Mixin: ``predicted_mean``/``predicted_covariance`` read the fields ``x_predicted`` (M, n) and
+    ``P_predicted`` (M, n, n) of the last prediction."""
+
+    __slots__ = ()
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.P_predicted
+
+
+class CovarianceMoments(PredictedMoments):
     """Mixin for states that hold the moments themselves: ``mean``/``covariance`` read the fields ``x`` (M, n) and
-    ``P`` (M, n, n), ``predicted_mean``/``predicted_covariance`` the last prediction's ``x_predicted`` and
-    ``P_predicted``."""
+    ``P`` (M, n, n) (and the prediction's, :class:`PredictedMoments`)."""
 
     __slots__ = ()
 
@@ -72,13 +86,21 @@ class CovarianceMoments:
     def covariance(self) -> np.ndarray:
         return self.P
 
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
+
+class DerivedMoments(PredictedMoments):
+    """Mixin for states whose moments are computed from another form (information, particles): the state
+    defines ``_moments`` = (x (M, n), P (M, n, n)), typically a ``cached_property``; ``mean``/``covariance`` read it
+    (and the prediction's, :class:`PredictedMoments`)."""
+
+    __slots__ = ()
 
     @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
+    def mean(self) -> np.ndarray:
+        return self._moments[0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self._moments[1]
 
 
 def bank_field(axis: int = 0, **kwargs):

@@ -19,7 +19,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, DerivedMoments, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.linalg import cholesky, gaussian_scores, symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
@@ -27,7 +27,7 @@ from hybridtrack_plugins.filters import _information as info
 
 
 @attrs.frozen(eq=False, slots=False)
-class InformationState:
+class InformationState(DerivedMoments):
     """I (M, n, n) and s (M, n), with x⁻, P⁻ of the last prediction."""
 
     Y: np.ndarray = bank_field(0)
@@ -41,22 +41,6 @@ class InformationState:
     @cached_property
     def _moments(self):
         return self.moments if self.moments is not None else info.to_covariance(self.Y, self.s)
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self._moments[0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self._moments[1]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
 
     @property
     def information(self) -> np.ndarray:

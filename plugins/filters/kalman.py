@@ -23,7 +23,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
 from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.validation import FILTER_MAGNITUDE_LIMIT
 from hybridtrack_plugins.filters import _covariance as cov_form
@@ -34,7 +34,7 @@ PREDICT_LANES = 8
 
 
 @attrs.frozen(eq=False)
-class CovarianceState:
+class CovarianceState(CovarianceMoments):
     """A bank in covariance form: x (M, n), P (M, n, n), plus the last prediction and innovation."""
 
     x: np.ndarray = bank_field(0)
@@ -42,22 +42,6 @@ class CovarianceState:
     x_predicted: np.ndarray = bank_field(0)
     P_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
 
     @property
     def bank_size(self) -> int:

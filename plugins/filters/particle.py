@@ -89,7 +89,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior_mixture
 from hybridtrack.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.validation import check_magnitude
@@ -181,7 +181,7 @@ def silverman_bandwidth(N: int, n: int) -> float:
 
 
 @attrs.frozen(eq=False, slots=False)
-class ParticleState:
+class ParticleState(DerivedMoments):
     """A bank of M particle filters: particles (M, N, n), normalised log-weights (M, N), random-stream keys (M, 2)
     and step counters (M,), plus the moments of the last prediction and the last innovation."""
 
@@ -196,22 +196,6 @@ class ParticleState:
     @cached_property
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
         return weighted_moments(self.particles, self.log_weights)
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self._moments[0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self._moments[1]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
 
     @property
     def weights(self) -> np.ndarray:
