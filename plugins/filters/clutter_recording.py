@@ -32,10 +32,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack_plugins.filters.gaussian_sum import MixtureState
-from hybridtrack_plugins.filters.mht import MHTState
-from hybridtrack_plugins.filters.particle import ParticleState
-
 
 def _position(layout: Sequence[str]) -> list[int]:
     layout = tuple(layout)
@@ -76,6 +72,10 @@ def log_filter_states(
 
     ``filter_names`` names the M filters of the bank; ``steps`` (K,) and ``times`` (K,) or None as everywhere.
     """
+    from hybridtrack_plugins.filters.gaussian_sum import MixtureState  # these modules' estimators use RecordsFilterStates
+    from hybridtrack_plugins.filters.mht import MHTState
+    from hybridtrack_plugins.filters.particle import ParticleState
+
     steps = np.asarray(steps)
     if len(states) != steps.shape[0]:
         raise ValueError(f"states: expected one state per step ({steps.shape[0]}), got {len(states)}")
@@ -92,6 +92,16 @@ def log_filter_states(
         _log_mixtures(recorder, names, steps, states, position, times, max_radius)
     elif isinstance(first, MHTState):
         _log_hypotheses(recorder, names, steps, states, position, times)
+
+
+class RecordsFilterStates:
+    """Mixin for the estimators whose states :func:`log_filter_states` records (``particle``, ``gaussian_sum``,
+    ``mht``): ``Estimator.record_states`` through it, so a recording ``Pipeline`` logs their insides."""
+
+    records_states = True
+
+    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
+        log_filter_states(recorder, names, steps, states, layout, times)
 
 
 def _check_bank(states, names):

@@ -72,6 +72,7 @@ from hybridtrack_plugins.filters._association import (
     sensors_by_name,
     stacked_innovation,
 )
+from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 from hybridtrack_plugins.sensors.bearing import check_convention, direction
 
 _LAYOUT = ("x", "vx", "y", "vy")
@@ -140,7 +141,7 @@ def _compact(x, P, log_weights):
     return x, P, log_weights
 
 
-class GaussianSumFilter(BankEstimator):
+class GaussianSumFilter(RecordsFilterStates, BankEstimator):
     """Gaussian-sum (weighted bank of EKF components) filter bank.
 
     ``merge_threshold`` (default 4.0): components within this squared
@@ -157,14 +158,6 @@ class GaussianSumFilter(BankEstimator):
     exact_kalman = False
     accepts_nonlinear = True
     accepts_scans = True
-
-    records_states = True
-
-    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
-        """The mixture components (means, 2σ ellipses, weights) per step (:func:`hybridtrack_plugins.filters.clutter_recording.log_filter_states`)."""
-        from hybridtrack_plugins.filters.clutter_recording import log_filter_states  # it imports this module
-
-        log_filter_states(recorder, names, steps, states, layout, times)
 
     def __init__(
         self,

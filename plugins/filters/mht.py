@@ -67,6 +67,7 @@ from hybridtrack_plugins.filters._association import (
     sensors_by_name,
     stacked_innovation,
 )
+from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 
 #: history entry of a scan not yet seen (the root hypothesis); −1 is "missed", i ≥ 0 candidate i
 _NO_SCAN = -2
@@ -138,7 +139,7 @@ def _rows(A: np.ndarray, M: int, H: int) -> np.ndarray:
     return np.repeat(A, H, axis=0) if A.ndim == 3 else A
 
 
-class MHTFilter(BankEstimator):
+class MHTFilter(RecordsFilterStates, BankEstimator):
     """Track-oriented MHT over a bank (module docstring).
 
     ``detection_probability`` P_D in (0, 1], ``clutter_density`` λ > 0,
@@ -150,14 +151,6 @@ class MHTFilter(BankEstimator):
     name = "mht"
     exact_kalman = False
     accepts_scans = True
-
-    records_states = True
-
-    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
-        """The hypotheses (probabilities, count, 2σ ellipses) per step (:func:`hybridtrack_plugins.filters.clutter_recording.log_filter_states`)."""
-        from hybridtrack_plugins.filters.clutter_recording import log_filter_states  # it imports this module
-
-        log_filter_states(recorder, names, steps, states, layout, times)
 
     example_parameters = {"detection_probability": 0.9, "clutter_density": 0.01, "gate_probability": 0.99, "window": 2, "max_hypotheses": 4}
 

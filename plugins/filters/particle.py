@@ -101,6 +101,7 @@ from hybridtrack_plugins.filters._association import (
     sensors_by_name,
     stacked_innovation,
 )
+from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 
 #: stages of a step, part of each draw's seed so that the draws of one step never share a stream
 _INITIALIZE, _PREDICT, _RESAMPLE = 0, 1, 2
@@ -228,7 +229,7 @@ def _check_seed(seed) -> np.random.Generator:
     return np.random.default_rng(int(seed))
 
 
-class ParticleFilter(BankEstimator):
+class ParticleFilter(RecordsFilterStates, BankEstimator):
     """Bootstrap particle filter bank (SIR, systematic resampling when N_eff < threshold · N); see the module docstring.
 
     ``particles`` N ≥ 1 per filter; ``threshold`` in (0, 1] (default ½: resample
@@ -247,15 +248,6 @@ class ParticleFilter(BankEstimator):
     exact_kalman = False
     accepts_nonlinear = True
     accepts_scans = True
-
-    records_states = True
-
-    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
-        """The particle clouds (radius ∝ √w) and N_eff per step (:func:`hybridtrack_plugins.filters.clutter_recording.log_filter_states`)."""
-        from hybridtrack_plugins.filters.clutter_recording import log_filter_states  # it imports this module
-
-        log_filter_states(recorder, names, steps, states, layout, times)
-
     sampling = True
     example_parameters = {"particles": 400, "seed": 0}
 
