@@ -63,7 +63,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import hybridtrack as ht  # noqa: E402
-from hybridtrack.interfaces import LinearTransition, TransitionBank  # noqa: E402
+from hybridtrack.core.interfaces import LinearTransition, TransitionBank  # noqa: E402
 
 TAU, Q_W, R_VAR, STEPS = 0.1, 1e-3, 1e-2, 360
 G = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])

@@ -8,7 +8,7 @@ Cases (each timed both ways on the same runs, the results checked equal):
   100 trajectories × R ∈ {1, 0.1, 0.01} of the seed-001 schedule (360 steps),
   each with the optimal KF told the modes and the 21-filter known-switch
   adaptive estimator.  Both ways go through the path the script takes: one
-  :class:`~hybridtrack.experiment.Campaign` per R into a fresh temporary
+  :class:`~hybridtrack.apps.experiment.Campaign` per R into a fresh temporary
   folder (chunk files written, as stored and resumable), on the ``inline``
   executor (this process, one worker: a clean comparison without pool start-up
   or the other engineers' share of the second core).  Batched: the script's
@@ -66,7 +66,7 @@ def case(name: str, batched_s: float | None, per_run_s: float) -> dict:
 def seed001_campaign(runs: int, r_values=(1.0, 0.1, 0.01), seed: int = 1, steps_scale: float = 1.0) -> dict:
     import tempfile
 
-    from hybridtrack.experiment import Campaign, load_experiment
+    from hybridtrack.apps.experiment import Campaign, load_experiment
 
     script = str(ROOT / "experiments" / "seed001_adaptive.py")
     batched_experiment, per_run_experiment = load_experiment(script), load_experiment(f"{script}:PER_RUN")

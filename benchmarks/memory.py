@@ -12,7 +12,7 @@ imports and the simulated measurements).
   + left and right turns of radii 1…10) without recording; reference: the bytes of
   the arrays the run returns (times, means, covariances, NIS, ℓ, ν); target ≤ 1.5×.
 * ``run_recorded`` — the same run streamed to a Rerun file; same reference and target.
-* ``inspect`` — :class:`~hybridtrack.inspection.RecordingFile` and its summary (what
+* ``inspect`` — :class:`~hybridtrack.recording.inspection.RecordingFile` and its summary (what
   ``hybridtrack inspect`` does) on that file; reference: the file size; target ≤ 2×.
 
     python benchmarks/memory.py --json memory.json [--steps 100000]
@@ -51,9 +51,9 @@ def _bank_run(steps: int, path: str | None) -> dict:
     import numpy as np
 
     from hybridtrack import Gaussian, Schedule
-    from hybridtrack.pipeline import Pipeline
+    from hybridtrack.engine.pipeline import Pipeline
+    from hybridtrack.engine.simulate import simulate
     from hybridtrack.recording import RerunRecorder
-    from hybridtrack.simulate import simulate
     from hybridtrack_plugins.sensors.position import PositionSensor
 
     x0 = np.array([0.0, 0.0, 0.0, 2.0])
@@ -75,7 +75,7 @@ def _bank_run(steps: int, path: str | None) -> dict:
 
 
 def _inspect(path: str) -> dict:
-    from hybridtrack.inspection import RecordingFile
+    from hybridtrack.recording.inspection import RecordingFile
 
     start = _start()
     clock = time.perf_counter()

@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from hybridtrack import SEED001_TABLE1, Gaussian
-from hybridtrack.composed.adaptive import KnownSwitchAdaptive
+from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
+from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
-from hybridtrack.simulate import simulate
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = np.array([0.0, 0.0, 0.0, 2.0])

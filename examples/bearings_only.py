@@ -16,7 +16,7 @@ import argparse
 
 import numpy as np
 
-from hybridtrack.plugins import get_registry
+from hybridtrack.core.plugins import get_registry
 from hybridtrack.recording import RerunRecorder
 from hybridtrack_plugins.solvers.observer import Seed002Scenario, simulate_bearings
 from hybridtrack_plugins.solvers.tma_model import BearingsProblem, kinematics

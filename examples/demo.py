@@ -27,11 +27,11 @@ import argparse
 import numpy as np
 
 from hybridtrack import SEED001_TABLE1, Gaussian, Schedule, Segment
-from hybridtrack.composed.adaptive import KnownSwitchAdaptive
-from hybridtrack.composed.known_modes import run_known_modes
-from hybridtrack.pipeline import Pipeline
+from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
+from hybridtrack.algorithms.known_modes import run_known_modes
+from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
-from hybridtrack.simulate import simulate
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 TAU = 0.1

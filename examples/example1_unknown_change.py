@@ -18,9 +18,9 @@ import argparse
 import numpy as np
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.composed.adaptive import UnknownChangeAdaptive
+from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
+from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
-from hybridtrack.simulate import simulate
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 TAU = 0.1

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.experiment import Campaign, Experiment, load_experiment
-from hybridtrack.experiment.builtin import X0, known_modes_estimate, simulate_seed001
+from hybridtrack.apps.experiment import Campaign, Experiment, load_experiment
+from hybridtrack.apps.experiment.builtin import X0, known_modes_estimate, simulate_seed001
 
 
 def position_rmse(means: np.ndarray, truth) -> float:
@@ -33,8 +33,8 @@ def position_rmse(means: np.ndarray, truth) -> float:
 
 def run_one(index: int, rng: np.random.Generator, *, R: float, q: float, straight_q: float, steps_scale: float, recorder=None) -> dict:
     """One run's position RMSEs; with a ``recorder`` (``hybridtrack run … --record K``) truth, measurements and both estimates are logged."""
-    from hybridtrack.pipeline import Pipeline
-    from hybridtrack.types import Gaussian
+    from hybridtrack.core.types import Gaussian
+    from hybridtrack.engine.pipeline import Pipeline
 
     tau = 0.1
     schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale, recorder=recorder)

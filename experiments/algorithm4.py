@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.composed import algorithm4 as wald
-from hybridtrack.interfaces import TransitionBank
-from hybridtrack.thresholds import sprt_thresholds
+from hybridtrack.algorithms import algorithm4 as wald
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.sdk.thresholds import sprt_thresholds
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.motion.linear_modes import LeftTurn, RightTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor

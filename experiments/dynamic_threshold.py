@@ -68,8 +68,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.experiment import Campaign, Experiment, load_experiment
-from hybridtrack.reporting import Column, write_report
+from hybridtrack.apps.experiment import Campaign, Experiment, load_experiment
+from hybridtrack.apps.reporting import Column, write_report
 
 #: seed 003 (autoreferat, conclusions): the largest mean-delay gains, seconds, by σ_noise (m); V = 3 m/s, D = 700 m
 SEED_GAINS = {3.0: 1.09, 15.0: 2.308}

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.reporting import save_figure
+from hybridtrack.apps.reporting import save_figure
 
 ROOT = Path(__file__).resolve().parents[1]
 spec = importlib.util.spec_from_file_location("example1", ROOT / "examples" / "example1_unknown_change.py")

@@ -5,12 +5,12 @@
 
 Methods (one mode set per dataset, shared by every multiple-mode method):
 
-* ``known_switch`` — :class:`~hybridtrack.composed.adaptive.KnownSwitchAdaptive`
+* ``known_switch`` — :class:`~hybridtrack.algorithms.adaptive.KnownSwitchAdaptive`
   (seed 001 Algorithm 1): told the switch times, re-creates the bank and runs
   the pairwise SPRT (α = β = 0.01) in each segment;
-* ``unknown_change`` — :class:`~hybridtrack.composed.adaptive.UnknownChangeAdaptive`
+* ``unknown_change`` — :class:`~hybridtrack.algorithms.adaptive.UnknownChangeAdaptive`
   (seed 000 Algorithm 3 repeated): change time unknown, change-time SPRT;
-* ``imm``, ``gpb2`` — :class:`~hybridtrack.composed.multiple_model.MultipleModelEstimator`
+* ``imm``, ``gpb2`` — :class:`~hybridtrack.algorithms.multiple_model.MultipleModelEstimator`
   with Π(Δt) = expm(Λ Δt) from a mean sojourn time (stated per dataset);
 * ``cv`` — one constant-velocity Kalman filter whose process noise is tuned:
   q_cv = q · f, f ∈ {1, 10, 100, 1000, 10⁴} chosen for the least position RMSE
@@ -33,7 +33,7 @@ Datasets:
   thins them to irregular intervals (next report at least U(5, 30) s after the
   last) and adds N(0, 25² m²) to each position; the modes, process noise and
   SPRT settings are those of examples/ships.toml; the reference modes are the
-  course-based labels (hybridtrack.mode_labels, defaults) and the known switch
+  course-based labels (hybridtrack.apps.mode_labels, defaults) and the known switch
   times are the label changes; IMM sojourn 120 s.
 
 Scores, pooled over the runs of a dataset (position errors only, steps 1 … K):
@@ -67,7 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.reporting import Column, write_report
+from hybridtrack.apps.reporting import Column, write_report
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLENT = ROOT / "data" / "solent_ais" / "SolentAIS_20160112_130211.csv"
@@ -124,13 +124,13 @@ def type_probabilities(log_mu: np.ndarray, labels) -> np.ndarray:
 
 
 def _sensor(sigma2: float):
-    from hybridtrack.plugins import resolve
+    from hybridtrack.core.plugins import resolve
 
     return resolve("sensor", ("position", {"noise_cov": sigma2 * np.eye(2)}))
 
 
 def run_known_switch(case: Case):
-    from hybridtrack.composed.adaptive import KnownSwitchAdaptive
+    from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
 
     s = case.settings
     est = KnownSwitchAdaptive(sensors=[_sensor(s["R"])], modes=case.modes, alpha=s["alpha"], beta=s["beta"])
@@ -154,7 +154,7 @@ def run_known_switch(case: Case):
 
 
 def run_unknown_change(case: Case):
-    from hybridtrack.composed.adaptive import UnknownChangeAdaptive
+    from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
 
     s = case.settings
     est = UnknownChangeAdaptive(
@@ -173,7 +173,7 @@ def run_unknown_change(case: Case):
 
 def _multiple_model(cases: list[Case], method: str, models, **kwargs):
     """IMM / GPB2 / single-model runs, stacked over the cases when they share their times."""
-    from hybridtrack.composed.multiple_model import MultipleModelEstimator
+    from hybridtrack.algorithms.multiple_model import MultipleModelEstimator
 
     s = cases[0].settings
     est = MultipleModelEstimator(models, sensors=[_sensor(s["R"])], method=method, **kwargs)
@@ -321,8 +321,8 @@ def row_of(dataset: str, method: str, scores: list[dict]) -> dict:
 
 
 def seed001_cases(R: float, runs: int, seed: int, steps_scale: float = 1.0) -> list[Case]:
-    from hybridtrack.composed.adaptive import turn_bank
-    from hybridtrack.experiment.builtin import X0, simulate_seed001
+    from hybridtrack.algorithms.adaptive import turn_bank
+    from hybridtrack.apps.experiment.builtin import X0, simulate_seed001
 
     q, tau = 0.001, 0.1
     settings = {"R": R, "q": q, "alpha": 0.01, "beta": 0.01, "unknown_alpha": 0.01, "unknown_beta": 0.01, "bank_size": 40, "sojourn": 6.0}
@@ -339,7 +339,7 @@ def seed001_cases(R: float, runs: int, seed: int, steps_scale: float = 1.0) -> l
 
 def example1_cases(runs: int, first_seed: int) -> list[Case]:
     from hybridtrack import Schedule
-    from hybridtrack.simulate import simulate
+    from hybridtrack.engine.simulate import simulate
 
     x0 = np.array([0.0, 0.0, 0.0, 2.0])
     noise = 0.01 * np.eye(2)
@@ -371,8 +371,8 @@ def example1_cases(runs: int, first_seed: int) -> list[Case]:
 def solent_vessels(count: int, min_duration: float = 900.0) -> list[tuple]:
     """The ``count`` longest stretches of non-stop labelled reports holding a turn: (id, times, positions, labels,
     label segment start per report)."""
-    from hybridtrack.mode_labels import label_track
-    from hybridtrack.tracks_io import SOLENT_AIS, read_tracks
+    from hybridtrack.apps.mode_labels import label_track
+    from hybridtrack.io.track_files import SOLENT_AIS, read_tracks
 
     data = read_tracks(SOLENT, **SOLENT_AIS, max_speed=30.0, jump_tolerance=50.0, warn=False)
     found = []
@@ -532,7 +532,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--ships", default=str(SHIPS), help="the ships configuration for the Solent modes (examples/ships.toml)")
     args = parser.parse_args(argv)
-    from hybridtrack.tracking import load_config
+    from hybridtrack.apps.tracking import load_config
 
     rows, settings = [], {}
 

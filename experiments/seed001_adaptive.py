@@ -4,7 +4,7 @@ Protocol (SPEC §7): Table 1 schedule (L3 R5 S L3 S L4, 360 steps), τ = 0.1 s,
 x0 = [0, 0, 0, 2], Q = diag(0.001, 0.001), R ∈ {1, 0.1, 0.01}·I₂, 100
 trajectories per R; prior N(x0, I) for both estimators.  The optimal KF is told
 each segment's mode (a turn's ω and centre from its own estimate at the
-switch).  The adaptive estimator (:class:`hybridtrack.composed.adaptive.KnownSwitchAdaptive`)
+switch).  The adaptive estimator (:class:`hybridtrack.algorithms.adaptive.KnownSwitchAdaptive`)
 re-creates the 2n+1 = 21-filter bank (straight, left and right turns with radii
 1, 2, …, 10) at every switch and decides with the pairwise SPRT (rule 5,
 α = β = 0.01 unless given).  Every R uses the same 100 trajectory seeds (run i
@@ -40,7 +40,7 @@ Every bank, the first included, is built from the given initial state x0
 (seed 001 Table 3) against the seed's figures, per R, from the JSON report
 (:func:`plot`); ``--plot-only JSON`` only draws, from an existing report.
 
-Every R and rule is one campaign of the runner (:class:`~hybridtrack.experiment.Campaign`),
+Every R and rule is one campaign of the runner (:class:`~hybridtrack.apps.experiment.Campaign`),
 stored under ``--out`` (resumable, reused when the command is repeated) and
 chunked over ``--executor``'s workers; :data:`EXPERIMENT` declares ``run_batch``,
 so each chunk runs as one batch (stacked banks, equal to the per-run results to
@@ -59,8 +59,8 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from hybridtrack.experiment import Campaign, Experiment, load_experiment
-from hybridtrack.experiment.builtin import (
+from hybridtrack.apps.experiment import Campaign, Experiment, load_experiment
+from hybridtrack.apps.experiment.builtin import (
     X0,
     known_modes_estimate,
     known_modes_estimate_batch,
@@ -70,7 +70,7 @@ from hybridtrack.experiment.builtin import (
     simulate_seed001_batch,
     squared_errors,
 )
-from hybridtrack.reporting import Column, markdown_table, save_figure, write_report
+from hybridtrack.apps.reporting import Column, markdown_table, save_figure, write_report
 
 R_VALUES = (1.0, 0.1, 0.01)
 #: the estimator users get by default (``KnownSwitchAdaptive``'s defaults)
@@ -127,7 +127,7 @@ def _motion_type(mode: str) -> str:
 
 
 def _adaptive(sensors, *, tau, r_min, r_max, n_radii, q, alpha, beta, follow, switch_estimate, switch_inflation):
-    from hybridtrack.composed.adaptive import KnownSwitchAdaptive
+    from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
 
     return KnownSwitchAdaptive(
         sensors=sensors,
@@ -220,8 +220,8 @@ def run_batch(
 
 def batch_arrays(parameters: dict, n: int, seed: int, chunk: int = 100) -> dict[str, np.ndarray]:
     """Every run's results stacked (name → (n, …)), as a campaign returns them, computed by :func:`run_batch` in
-    chunks of ``chunk`` runs (:func:`hybridtrack.experiment.worker.batch_arrays`)."""
-    from hybridtrack.experiment import worker
+    chunks of ``chunk`` runs (:func:`hybridtrack.apps.experiment.worker.batch_arrays`)."""
+    from hybridtrack.apps.experiment import worker
 
     return worker.batch_arrays(run_batch, parameters, n, seed, chunk)
 
@@ -293,7 +293,7 @@ COLUMNS = [
 def seed_table() -> str:
     """The seed's Tables 2–4 in the same columns, for comparison."""
     rows = [{"R": R, **figures} for R, figures in SEED.items()]
-    from hybridtrack.reporting import markdown_table
+    from hybridtrack.apps.reporting import markdown_table
 
     return markdown_table(rows, COLUMNS)
 

@@ -9,11 +9,11 @@ uses child i of SeedSequence(seed), the same trajectories for every R).
 Three estimators on every trajectory:
 
 * the optimal KF told each segment's mode (seed 001 Table 2);
-* the known-switch adaptive estimator (:class:`hybridtrack.composed.adaptive.KnownSwitchAdaptive`,
+* the known-switch adaptive estimator (:class:`hybridtrack.algorithms.adaptive.KnownSwitchAdaptive`,
   seed 001 Algorithm 1, the 21-filter bank, α = β = 0.01, the seed's
   ``follow="previous"`` rule);
 * the unknown-change-time adaptive estimator
-  (:class:`hybridtrack.composed.adaptive.UnknownChangeAdaptive`, seed 000 Algorithm 3
+  (:class:`hybridtrack.algorithms.adaptive.UnknownChangeAdaptive`, seed 000 Algorithm 3
   repeated): filter 0 runs the current mode (straight at the start — nothing
   is known), every step starts one filter per alternative mode from filter 0's
   estimate (a turn's ω and centre fixed from it), ln λ_p averages the
@@ -40,7 +40,7 @@ identified, as in ``seed001_adaptive.py``).
 
     python experiments/seed001_unknown_change.py --json docs/results/seed001_unknown_change.json [--n 50] [--modes seed001]
 
-Each R is one campaign of the runner (:class:`~hybridtrack.experiment.Campaign`),
+Each R is one campaign of the runner (:class:`~hybridtrack.apps.experiment.Campaign`),
 stored under ``--out`` (resumable) and chunked over ``--executor``'s workers;
 :data:`EXPERIMENT` declares ``run_batch``, so each chunk runs as one batch
 (stacked banks, equal to the per-run results to 1e-12).  ``--per-run`` runs the
@@ -57,8 +57,8 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from hybridtrack.experiment import Campaign, Experiment, load_experiment
-from hybridtrack.experiment.builtin import (
+from hybridtrack.apps.experiment import Campaign, Experiment, load_experiment
+from hybridtrack.apps.experiment.builtin import (
     X0,
     known_modes_estimate,
     known_modes_estimate_batch,
@@ -68,7 +68,7 @@ from hybridtrack.experiment.builtin import (
     simulate_seed001_batch,
     squared_errors,
 )
-from hybridtrack.reporting import Column, write_report
+from hybridtrack.apps.reporting import Column, write_report
 
 R_VALUES = (1.0, 0.1, 0.01)
 SEGMENTS = 6
@@ -85,7 +85,7 @@ def motion_type(mode: str) -> str:
 
 def _estimators(sensors, *, q, tau, alpha, beta, known_alpha, modes, bank_size):
     """(Algorithm 1, Algorithm 3 repeated) as configured by the protocol."""
-    from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
+    from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
 
     if modes not in MODE_SETS:
         raise ValueError(f"modes: expected one of {sorted(MODE_SETS)}, got {modes!r}")
@@ -188,8 +188,8 @@ def run_batch(
 
 def batch_arrays(parameters: dict, n: int, seed: int, chunk: int = 50) -> dict[str, np.ndarray]:
     """Every run's results stacked (name → (n, …)), as a campaign returns them, computed by :func:`run_batch` in
-    chunks of ``chunk`` runs (:func:`hybridtrack.experiment.worker.batch_arrays`)."""
-    from hybridtrack.experiment import worker
+    chunks of ``chunk`` runs (:func:`hybridtrack.apps.experiment.worker.batch_arrays`)."""
+    from hybridtrack.apps.experiment import worker
 
     return worker.batch_arrays(run_batch, parameters, n, seed, chunk)
 

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import beta as beta_dist
 
-from hybridtrack.interfaces import TransitionBank
-from hybridtrack.thresholds import THREE_SIGMA_ALPHA
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.sdk.thresholds import THREE_SIGMA_ALPHA
 from hybridtrack_plugins.detectors import signal_bounds
 from hybridtrack_plugins.detectors.signal_function import SignalFunction
 from hybridtrack_plugins.filters.kalman import KalmanFilter

@@ -43,10 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.interfaces import TransitionBank
-from hybridtrack.linalg import wrap_angle
-from hybridtrack.plugins import get_registry
-from hybridtrack.reporting import save_figure
+from hybridtrack.apps.reporting import save_figure
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.core.plugins import get_registry
+from hybridtrack.sdk.linalg import wrap_angle
 from hybridtrack_plugins.filters.gaussian_sum import GaussianSumFilter, range_parameterised
 from hybridtrack_plugins.filters.particle import ParticleFilter
 from hybridtrack_plugins.sensors.bearing import BearingSensor

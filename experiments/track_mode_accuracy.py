@@ -1,12 +1,12 @@
-"""Mode accuracy of ``hybridtrack track`` against the course-based labels (hybridtrack.mode_labels).
+"""Mode accuracy of ``hybridtrack track`` against the course-based labels (hybridtrack.apps.mode_labels).
 
     python experiments/track_mode_accuracy.py FILE --config examples/ships.toml [--out DIR] [--json PATH] [--moving-only]
 
-Runs :func:`hybridtrack.tracking.track_file` on FILE (or reads the results
+Runs :func:`hybridtrack.apps.tracking.track_file` on FILE (or reads the results
 already in ``--out`` with ``--reuse``) and compares, report by report, the
 mode the tracker followed (``modes`` in ``<id>.npz``: straight / left_turn /
 right_turn, the radius ignored) with the label of
-:func:`hybridtrack.mode_labels.label_track` (default parameters) on the same
+:func:`hybridtrack.apps.mode_labels.label_track` (default parameters) on the same
 track.  Reports labelled ``stop`` are left out (the ship configurations have
 no stop mode), as are objects without course/speed.  Printed and returned:
 
@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack.mode_labels import label_track
-from hybridtrack.tracking import load_config, output_name, track_file
-from hybridtrack.tracks_io import read_tracks
+from hybridtrack.apps.mode_labels import label_track
+from hybridtrack.apps.tracking import load_config, output_name, track_file
+from hybridtrack.io.track_files import read_tracks
 
 CLASSES = ("straight", "left_turn", "right_turn")
 

@@ -1,16 +1,23 @@
 """hybridtrack: estimation of hybrid (mode-switching) motion.
 
-The kernel defines the interfaces (:mod:`hybridtrack.interfaces`), the value
-types (:mod:`hybridtrack.types`) and the plugin system
-(:mod:`hybridtrack.plugins`); algorithms are plugins found through the
-``hybridtrack`` entry-point group.
+Layers, imports pointing downwards only (``docs/architecture.md``):
+:mod:`hybridtrack.core` (the contract) ← :mod:`hybridtrack.sdk` (plugin
+authors' toolkit) ← :mod:`hybridtrack.engine` (the bank, the pipeline, the
+simulator) ← :mod:`hybridtrack.algorithms` ← :mod:`hybridtrack.recording` /
+:mod:`hybridtrack.io` ← :mod:`hybridtrack.apps` ← :mod:`hybridtrack.cli`.
+Components are plugins found through the ``hybridtrack`` entry-point group.
+
+The user surface is importable from here; the contract names are imported at
+once, the rest (pipeline, simulator, recorder, readers, algorithms) on first
+use, so a plugin importing :mod:`hybridtrack.core` loads nothing above it.
 """
 
+import importlib
 from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _version
 
-from hybridtrack.hookspecs import hookimpl
-from hybridtrack.interfaces import (
+from hybridtrack.core.hookspecs import hookimpl
+from hybridtrack.core.interfaces import (
     Detector,
     DetectorStep,
     Estimator,
@@ -22,15 +29,46 @@ from hybridtrack.interfaces import (
     Solver,
     TransitionBank,
 )
-from hybridtrack.plugins import get_registry, load_plugins
-from hybridtrack.types import SEED001_TABLE1, Decision, Gaussian, Measurement, Schedule, Segment
+from hybridtrack.core.plugins import get_registry, load_plugins
+from hybridtrack.core.types import SEED001_TABLE1, Decision, Gaussian, Measurement, Schedule, Segment
+
+#: name → module of the names imported on first use (PEP 562)
+LAZY = {
+    "Pipeline": "hybridtrack.engine.pipeline",
+    "simulate": "hybridtrack.engine.simulate",
+    "simulate_trajectory": "hybridtrack.engine.simulate",
+    "simulate_measurements": "hybridtrack.engine.simulate",
+    "KnownSwitchAdaptive": "hybridtrack.algorithms.adaptive",
+    "UnknownChangeAdaptive": "hybridtrack.algorithms.adaptive",
+    "MultipleModelEstimator": "hybridtrack.algorithms.multiple_model",
+    "run_known_modes": "hybridtrack.algorithms.known_modes",
+    "RerunRecorder": "hybridtrack.recording",
+    "NullRecorder": "hybridtrack.recording",
+    "read_measurement_file": "hybridtrack.io.measurement_files",
+    "read_tracks": "hybridtrack.io.track_files",
+    "label_track": "hybridtrack.apps.mode_labels",
+}
+
+
+def __getattr__(name: str):
+    if name in LAZY:
+        value = getattr(importlib.import_module(LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'hybridtrack' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(LAZY))
+
 
 try:
     __version__ = _version("hybridtrack")
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0"
 
-__all__ = [
+__all__ = [  # noqa: F822  (the LAZY names resolve through __getattr__)
+    *LAZY,
     "Decision",
     "Detector",
     "DetectorStep",

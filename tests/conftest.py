@@ -29,9 +29,9 @@ def clutter_scenario():
     with clutter of ``density`` and P_D = 0.9 around the track."""
     import numpy as np
 
-    from hybridtrack.clutter import ClutterModel, region_around, simulate_scans
-    from hybridtrack.simulate import simulate_trajectory
-    from hybridtrack.types import Schedule, Segment
+    from hybridtrack.core.types import Schedule, Segment
+    from hybridtrack.engine.clutter import ClutterModel, region_around, simulate_scans
+    from hybridtrack.engine.simulate import simulate_trajectory
     from hybridtrack_plugins.sensors.position import PositionSensor
 
     def make(straight=15, turn=15, density=0.5, seed=2):
@@ -51,7 +51,7 @@ def clutter_pipeline():
     detectors, …) are added or override these."""
     import numpy as np
 
-    from hybridtrack.pipeline import Pipeline
+    from hybridtrack.engine.pipeline import Pipeline
 
     def build(estimator, sensor, scans, **options):
         settings = {

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.plugins import get_registry
+from hybridtrack.core.plugins import get_registry
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 

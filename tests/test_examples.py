@@ -24,7 +24,7 @@ def test_demo_runs_small_and_writes_a_verified_recording(tmp_path, rerun_cli):
     assert np.isfinite(summary["rmse_adaptive"]) and len(summary["segments"]) == 6
     result = rerun_cli("rrd", "verify", out)
     assert result.returncode == 0, result.stderr
-    from hybridtrack.inspection import RecordingFile
+    from hybridtrack.recording.inspection import RecordingFile
 
     entities = set(RecordingFile(out).entity_paths)
     assert {
@@ -80,7 +80,7 @@ def test_every_example_is_run_by_a_test():
 
 
 def test_bearings_only_runs_small_and_records_bearing_lines_and_solutions(tmp_path, rerun_cli):
-    from hybridtrack.inspection import RecordingFile
+    from hybridtrack.recording.inspection import RecordingFile
 
     out = tmp_path / "tma.rrd"
     summary = load("bearings_only").main(["--out", str(out), "--interval", "20", "--sigma", "0.2"])

@@ -106,7 +106,7 @@ def test_type_probabilities_sum_the_modes_of_a_type():
 def test_solent_thinning_and_noise():
     """Irregular 5–30 s (at least) intervals from the 2–10 s AIS reports; measurement errors of σ = 25 m."""
     module = load("imm_vs_sprt")
-    from hybridtrack.tracking import load_config
+    from hybridtrack.apps.tracking import load_config
 
     vessels = module.solent_vessels(1)
     assert vessels and len(vessels[0][1]) > 50

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.reporting import Column, markdown_table, plain, write_report
+from hybridtrack.apps.reporting import Column, markdown_table, plain, write_report
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 

@@ -2,7 +2,7 @@
 
 ``check_motion_model``, ``check_sensor``, ``check_estimator``,
 ``check_detector``, ``check_solver`` (and ``check_component(kind, component)``)
-exercise the interface contracts of :mod:`hybridtrack.interfaces` with small
+exercise the interface contracts of :mod:`hybridtrack.core.interfaces` with small
 generated inputs and raise ``AssertionError`` naming the component and the
 broken rule.  ``build_example(factory)`` builds a component from its
 ``example_parameters``.  Installed with hybridtrack, the pytest plugin

@@ -17,8 +17,8 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.linalg
 
-from hybridtrack.interfaces import Innovation, LinearTransition, Sensor, TransitionBank
-from hybridtrack.validation import check_covariance
+from hybridtrack.core.interfaces import Innovation, LinearTransition, Sensor, TransitionBank
+from hybridtrack.core.validation import check_covariance
 
 CV_LAYOUT = ("x", "vx", "y", "vy")
 
@@ -60,7 +60,7 @@ class LinearPositionSensor(Sensor):
     """z = H x + v with H picking the named ``components`` of the state (a ``position``-like sensor).
 
     Used by the estimator checks so they need no sensor plugin; it is itself a
-    valid :class:`~hybridtrack.interfaces.Sensor` (and passes ``check_sensor``).
+    valid :class:`~hybridtrack.core.interfaces.Sensor` (and passes ``check_sensor``).
     """
 
     registry_name = "contract_position"

@@ -2,9 +2,9 @@
 
 Each ``check_<kind>(component, ...)`` raises ``AssertionError`` with a message
 naming the component and the broken rule, and returns nothing useful on
-success (``check_solver`` returns the :class:`~hybridtrack.interfaces.Solution`
+success (``check_solver`` returns the :class:`~hybridtrack.core.interfaces.Solution`
 or ``None`` when it had no problem to solve).  The rules are the contracts in
-the docstrings of :mod:`hybridtrack.interfaces`; the optional attributes they
+the docstrings of :mod:`hybridtrack.core.interfaces`; the optional attributes they
 read (``example_parameters``, ``example_layout``, ``example_innovations``,
 ``exact_kalman``, ``example_problem``) are described there too.
 
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridtrack.interfaces import (
+from hybridtrack.core.interfaces import (
     KINDS,
     Detector,
     DetectorStep,
@@ -77,7 +77,7 @@ def build_example(factory: Callable[..., Any]) -> Any:
     except Exception as error:
         raise AssertionError(
             f"{_qualname(factory)}: cannot be built with example parameters {params!r} ({error!r});"
-            " give the factory an `example_parameters` dict (see hybridtrack.interfaces)"
+            " give the factory an `example_parameters` dict (see hybridtrack.core.interfaces)"
         ) from error
 
 
@@ -153,7 +153,7 @@ def _numerical_jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndar
 
 
 def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -> None:
-    """Check a :class:`~hybridtrack.interfaces.MotionModel` against its contract.
+    """Check a :class:`~hybridtrack.core.interfaces.MotionModel` against its contract.
 
     Name and layout; ``transition`` returns a :class:`LinearTransition` whose
     dimensions match the layout and ``noise_cov``, with Q and G Q Gᵀ symmetric
@@ -163,7 +163,7 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
     and accepts the 4-state layout; fifty noise-free steps stay finite.
     """
     label = _label(model, "motion_model")
-    _require(isinstance(model, MotionModel), label, "is not a hybridtrack.interfaces.MotionModel")
+    _require(isinstance(model, MotionModel), label, "is not a hybridtrack.core.interfaces.MotionModel")
     _registry_name(model, label)
     layout = getattr(model, "layout", None)
     _require(isinstance(layout, tuple) and len(layout) > 0, label, f"`layout` must be a non-empty tuple, got {layout!r}")
@@ -219,7 +219,7 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
 
 
 def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: int = 0) -> None:
-    """Check a :class:`~hybridtrack.interfaces.Sensor` against its contract.
+    """Check a :class:`~hybridtrack.core.interfaces.Sensor` against its contract.
 
     ``registry_name``/``name``; R symmetric positive definite of size ``measurement_dim``;
     ``measure``/``jacobian`` shapes over leading axes (and row-by-row equal);
@@ -229,7 +229,7 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     covariance R (2000 draws, 25 % tolerance).
     """
     label = _label(sensor, "sensor")
-    _require(isinstance(sensor, Sensor), label, "is not a hybridtrack.interfaces.Sensor")
+    _require(isinstance(sensor, Sensor), label, "is not a hybridtrack.core.interfaces.Sensor")
     _registry_name(sensor, label, "registry_name")
     _registry_name(sensor, label, "name")
     R = _array(getattr(sensor, "noise_cov", None), label, "noise_cov")
@@ -325,7 +325,7 @@ def _check_innovation(innovation, label: str, M: int, m: int, gaussian_loglik: b
 
 
 def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, seed: int = 0) -> None:
-    """Check an :class:`~hybridtrack.interfaces.Estimator` on a bank of M = 3 CV filters.
+    """Check an :class:`~hybridtrack.core.interfaces.Estimator` on a bank of M = 3 CV filters.
 
     The prior reads back unchanged; shapes of every :class:`Innovation` field
     (ν (M, m), S (M, m, m), ℓ and NIS (M,)) and their consistency; a sensor's
@@ -343,7 +343,7 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
     so that the measurements are consistent with the prior it samples.
     """
     label = _label(estimator, "estimator")
-    _require(isinstance(estimator, Estimator), label, "is not a hybridtrack.interfaces.Estimator")
+    _require(isinstance(estimator, Estimator), label, "is not a hybridtrack.core.interfaces.Estimator")
     _registry_name(estimator, label)
     if exact_kalman is None:
         exact_kalman = bool(getattr(estimator, "exact_kalman", True))
@@ -470,7 +470,7 @@ def _same_step(a: DetectorStep, b: DetectorStep) -> bool:
 
 
 def check_detector(detector: Detector, innovations: Sequence[Innovation] | None = None, *, seed: int = 0) -> None:
-    """Check a :class:`~hybridtrack.interfaces.Detector` over a sequence of innovations.
+    """Check a :class:`~hybridtrack.core.interfaces.Detector` over a sequence of innovations.
 
     ``innovations`` defaults to the detector's ``example_innovations(rng)`` or
     20 steps of a bank of M = 3, m = 2.  Every step returns a
@@ -479,7 +479,7 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
     outputs and decisions.
     """
     label = _label(detector, "detector")
-    _require(isinstance(detector, Detector), label, "is not a hybridtrack.interfaces.Detector")
+    _require(isinstance(detector, Detector), label, "is not a hybridtrack.core.interfaces.Detector")
     _registry_name(detector, label)
     if innovations is None:
         provider = getattr(detector, "example_innovations", None)
@@ -518,7 +518,7 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
 
 
 def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
-    """Check a :class:`~hybridtrack.interfaces.Solver` on ``problem`` (default: its ``example_problem()``).
+    """Check a :class:`~hybridtrack.core.interfaces.Solver` on ``problem`` (default: its ``example_problem()``).
 
     The answer is a :class:`Solution` with finite parameters θ (p,), a
     symmetric PSD covariance (p, p), a finite non-negative cost, non-negative
@@ -526,7 +526,7 @@ def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
     problem only the name is checked and ``None`` is returned.
     """
     label = _label(solver, "solver")
-    _require(isinstance(solver, Solver), label, "is not a hybridtrack.interfaces.Solver")
+    _require(isinstance(solver, Solver), label, "is not a hybridtrack.core.interfaces.Solver")
     _registry_name(solver, label)
     if problem is None:
         provider = getattr(solver, "example_problem", None)
@@ -563,7 +563,7 @@ assert set(_CHECKS) == set(KINDS)
 
 
 def check_component(kind: str, component: Any, **options) -> Any:
-    """Run the check for ``kind`` (one of :data:`hybridtrack.interfaces.KINDS`) on ``component``."""
+    """Run the check for ``kind`` (one of :data:`hybridtrack.core.interfaces.KINDS`) on ``component``."""
     try:
         check = _CHECKS[kind]
     except KeyError:

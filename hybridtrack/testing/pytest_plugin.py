@@ -5,7 +5,7 @@ Fixtures, available in any project that has hybridtrack installed:
 * ``hybridtrack_contracts`` — the module :mod:`hybridtrack.testing.contracts`
   (``check_motion_model``, ``check_sensor``, …, ``check_component``,
   ``build_example``);
-* ``hybridtrack_registry`` — the default :class:`~hybridtrack.registry.Registry`
+* ``hybridtrack_registry`` — the default :class:`~hybridtrack.core.registry.Registry`
   (entry-point plugins, honouring ``HYBRIDTRACK_DISABLE_PLUGINS``).
 
     def test_weave(hybridtrack_contracts):
@@ -34,6 +34,6 @@ def hybridtrack_contracts():
 @pytest.fixture
 def hybridtrack_registry():
     """The default registry of components loaded from the installed plugins."""
-    from hybridtrack.plugins import get_registry
+    from hybridtrack.core.plugins import get_registry
 
     return get_registry()

@@ -25,10 +25,10 @@ from abc import abstractmethod
 
 import numpy as np
 
-from hybridtrack.interfaces import DetectorStep, ScoreDetector
-from hybridtrack.thresholds import check_probability
-from hybridtrack.types import Decision
-from hybridtrack.validation import check_positive_int
+from hybridtrack.core.interfaces import DetectorStep, ScoreDetector
+from hybridtrack.core.types import Decision
+from hybridtrack.core.validation import check_positive_int
+from hybridtrack.sdk.thresholds import check_probability
 from hybridtrack_plugins.detectors.null_calibration import EmpiricalNormalizer, h0_quantile
 
 REFERENCE_SIZE = 20000

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridtrack.validation import check_positive
+from hybridtrack.core.validation import check_positive
 from hybridtrack_plugins.detectors._scalar import ScalarDetector
 from hybridtrack_plugins.detectors.null_calibration import h0_sample
 

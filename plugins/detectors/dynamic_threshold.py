@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from hybridtrack.interfaces import Detector, DetectorStep, Innovation
-from hybridtrack.thresholds import check_probability
-from hybridtrack.types import Decision
-from hybridtrack.validation import check_positive, check_positive_int
+from hybridtrack.core.interfaces import Detector, DetectorStep, Innovation
+from hybridtrack.core.types import Decision
+from hybridtrack.core.validation import check_positive, check_positive_int
+from hybridtrack.sdk.thresholds import check_probability
 
 
 class SpeedDropCue:
@@ -79,7 +79,7 @@ class DynamicThreshold(Detector):
     name = "dynamic_threshold"
 
     def __init__(self, detector: Any = "glr", cue: Any = "speed_drop", likelihood_ratio: float = 4.0):
-        from hybridtrack.pipeline import resolve
+        from hybridtrack.engine.pipeline import resolve
 
         self.detector: Detector = resolve("detector", detector)
         if not hasattr(self.detector, "alpha"):

@@ -16,7 +16,7 @@ from collections import deque
 
 import numpy as np
 
-from hybridtrack.validation import check_positive_int
+from hybridtrack.core.validation import check_positive_int
 from hybridtrack_plugins.detectors._scalar import ScalarDetector
 from hybridtrack_plugins.detectors.null_calibration import h0_sample
 

@@ -17,7 +17,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import ndtri
 
-from hybridtrack.thresholds import check_probability
+from hybridtrack.sdk.thresholds import check_probability
 
 
 class EmpiricalNormalizer:

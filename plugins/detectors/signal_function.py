@@ -23,10 +23,10 @@ from collections import deque
 
 import numpy as np
 
-from hybridtrack.interfaces import DetectorStep, ScoreDetector
-from hybridtrack.thresholds import THREE_SIGMA_ALPHA, check_probability
-from hybridtrack.types import Decision
-from hybridtrack.validation import check_positive_int
+from hybridtrack.core.interfaces import DetectorStep, ScoreDetector
+from hybridtrack.core.types import Decision
+from hybridtrack.core.validation import check_positive_int
+from hybridtrack.sdk.thresholds import THREE_SIGMA_ALPHA, check_probability
 from hybridtrack_plugins.detectors import signal_bounds
 
 

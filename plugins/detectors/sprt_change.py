@@ -27,7 +27,7 @@ F_1^0 and rows 1 … E are the entries in the order of :meth:`add`;
   B, i.e. the smallest (seed 003, Zakharov's rule).
 
 Fed a fixed bank of M filters without any :meth:`add` (e.g. by the
-:class:`~hybridtrack.pipeline.Pipeline`), rows 1 … M−1 become the entries of
+:class:`~hybridtrack.engine.pipeline.Pipeline`), rows 1 … M−1 become the entries of
 modes 1 … M−1 started at the first step.
 """
 
@@ -39,10 +39,10 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import logsumexp
 
-from hybridtrack.interfaces import ChangeTimeStep, ChangeTimeTest, ChangeTimeTestBatch, DetectorStep
-from hybridtrack.thresholds import WaldThresholds
-from hybridtrack.types import Decision
-from hybridtrack.validation import check_positive_int
+from hybridtrack.core.interfaces import ChangeTimeStep, ChangeTimeTest, ChangeTimeTestBatch, DetectorStep
+from hybridtrack.core.types import Decision
+from hybridtrack.core.validation import check_positive_int
+from hybridtrack.sdk.thresholds import WaldThresholds
 
 PRUNING_RULES = ChangeTimeTest.PRUNING_RULES
 AVERAGING = ("uniform", "none")

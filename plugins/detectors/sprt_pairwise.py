@@ -32,9 +32,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.interfaces import BatchStep, DetectorStep, HypothesisTest, HypothesisTestBatch
-from hybridtrack.thresholds import WaldThresholds
-from hybridtrack.types import Decision
+from hybridtrack.core.interfaces import BatchStep, DetectorStep, HypothesisTest, HypothesisTestBatch
+from hybridtrack.core.types import Decision
+from hybridtrack.sdk.thresholds import WaldThresholds
 
 
 def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:

@@ -52,11 +52,11 @@ import attrs
 import numpy as np
 from scipy.stats import chi2
 
-from hybridtrack.estimation import BankEstimator, check_layout, empty_innovation, guarded
-from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
-from hybridtrack.measurements import block_diagonal
-from hybridtrack.validation import check_magnitude
+from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.core.validation import check_magnitude
+from hybridtrack.sdk.estimation import BankEstimator, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
+from hybridtrack.sdk.measurements import block_diagonal
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
@@ -185,12 +185,12 @@ class ClutterEstimator(BankEstimator):
     * the stacked z of :meth:`Estimator.update` (shape (Σ m_i,) or (M, Σ m_i),
       NaN: a missing component, or a sensor without measurement) — the present
       components' stacked vector is then the one candidate of the step;
-    * a :class:`~hybridtrack.clutter.Scan` — the candidates (L, m) of the
+    * a :class:`~hybridtrack.sdk.scans.Scan` — the candidates (L, m) of the
       sensor named ``scan.sensor`` (one of ``sensors``), L ≥ 0;
     * a sequence of Scans — processed one sensor after the other (sequential
       multisensor association); the :class:`ClutterInnovation` stacks their ν
       with S block-diagonal;
-    * a :class:`~hybridtrack.clutter.RowScan` (or a sequence mixing them with
+    * a :class:`~hybridtrack.sdk.scans.RowScan` (or a sequence mixing them with
       Scans) — candidates per filter row (M, L, m), NaN-padded: row j is gated
       and weighed against its own candidates only (padding is never gated),
       so stacked runs (one filter each) update as one bank, row j's state and
@@ -306,7 +306,7 @@ class ClutterEstimator(BankEstimator):
 
 
 def sensors_by_name(sensors: Sensor | Sequence[Sensor]) -> dict:
-    """name → sensor of the sensors given (one :class:`~hybridtrack.interfaces.Sensor` or a sequence), for
+    """name → sensor of the sensors given (one :class:`~hybridtrack.core.interfaces.Sensor` or a sequence), for
     looking up the sensor of each clutter scan."""
     if isinstance(sensors, Sensor):
         sensors = (sensors,)
@@ -332,8 +332,8 @@ def stacked_innovation(M: int, used: Sequence[np.ndarray], blocks: Sequence[np.n
     concatenated, S = blkdiag(S_j) and ℓ = −½(m ln 2π + ln det S + νᵀS⁻¹ν), NIS = νᵀS⁻¹ν (SPEC §4); with no
     scan used, empty ν and S and ℓ = NIS = 0 (a prediction-only step).
 
-    ``factored``: the scores through :class:`~hybridtrack.linalg.CholeskyFactor` (closed forms for m ≤ 2, as the
-    Gaussian-sum and particle filters compute them) instead of :func:`~hybridtrack.linalg.gaussian_scores`.
+    ``factored``: the scores through :class:`~hybridtrack.sdk.linalg.CholeskyFactor` (closed forms for m ≤ 2, as the
+    Gaussian-sum and particle filters compute them) instead of :func:`~hybridtrack.sdk.linalg.gaussian_scores`.
     """
     if not used:
         return np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M)
@@ -366,7 +366,7 @@ def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Seq
 def _as_scans(z, rows: bool = False):
     """z as a list of Scans, or None for a stacked measurement array; with ``rows`` RowScans are accepted too
     (nearest neighbour and PDA), else a RowScan is a TypeError naming the estimators that take it."""
-    from hybridtrack.clutter import RowScan, Scan
+    from hybridtrack.sdk.scans import RowScan, Scan
 
     items = [z] if isinstance(z, (Scan, RowScan)) else z
     if isinstance(items, (list, tuple)) and items and all(isinstance(s, (Scan, RowScan)) for s in items):

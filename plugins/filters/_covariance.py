@@ -14,8 +14,8 @@ import importlib.util
 
 import numpy as np
 
-from hybridtrack.linalg import CholeskyFactor, symmetrize
-from hybridtrack.measurements import selection_index
+from hybridtrack.sdk.linalg import CholeskyFactor, symmetrize
+from hybridtrack.sdk.measurements import selection_index
 
 UPDATE_FORMS = ("joseph", "symmetric", "conventional")
 ENGINES = ("auto", "numba", "numpy")
@@ -121,7 +121,7 @@ def update(x, P, nu, H, R, selection=None, form: str = "joseph"):
     * ``conventional``: P⁺ = (I − K H) P⁻ as printed, no symmetrisation (kept
       to show how it breaks on ill-conditioned problems, docs/estimators.md).
 
-    S⁻¹ comes from :class:`~hybridtrack.linalg.CholeskyFactor`
+    S⁻¹ comes from :class:`~hybridtrack.sdk.linalg.CholeskyFactor`
     (closed forms for m ≤ 2: positive definiteness from a > 0 and det S > 0,
     S⁻¹ by the adjugate; the Cholesky recurrence for larger m), so K is one
     stacked matmul.  H is (m, n) or (M, m, n), R (m, m) or (M, m, m); a shared

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridtrack.linalg import cholesky, cholesky_solve, forward_substitute, log_det_from_cholesky, symmetrize
+from hybridtrack.sdk.linalg import cholesky, cholesky_solve, forward_substitute, log_det_from_cholesky, symmetrize
 
 
 def spd_inverse(A: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:

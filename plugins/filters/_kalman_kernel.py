@@ -1,7 +1,7 @@
 """Compiled steps of the dense covariance Kalman filter (SPEC §3, seed 000 Algorithm 1), by numba.
 
 The same arithmetic as :mod:`._covariance` (predict; update with the three
-forms) and :class:`hybridtrack.linalg.CholeskyFactor` (S⁻¹ and the scores),
+forms) and :class:`hybridtrack.sdk.linalg.CholeskyFactor` (S⁻¹ and the scores),
 run filter by filter in compiled loops over the bank: each call is one pass
 over the M filters, every intermediate (F P, P Hᵀ, S, S⁻¹, K, T, D) an n × n,
 n × m or m × m scratch array reused from filter to filter, nothing stacked.

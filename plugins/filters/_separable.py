@@ -27,7 +27,7 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
-from hybridtrack.linalg import LOG_2PI
+from hybridtrack.sdk.linalg import LOG_2PI
 
 
 def partition(pattern: np.ndarray) -> tuple[tuple[int, ...], ...] | None:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridtrack.linalg import LOG_2PI, cholesky, forward_substitute, log_det_from_cholesky, psd_square_root, triangular_r
+from hybridtrack.sdk.linalg import LOG_2PI, cholesky, forward_substitute, log_det_from_cholesky, psd_square_root, triangular_r
 
 
 def noise_root(bank) -> np.ndarray:

@@ -30,8 +30,8 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, NodeMoments, bank_field, empty_innovation, guarded
-from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.sdk.estimation import BankEstimator, NodeMoments, bank_field, empty_innovation, guarded
 from hybridtrack_plugins.filters import _information as info
 from hybridtrack_plugins.filters.information import information_predict, stacked_innovation
 

@@ -30,7 +30,7 @@ components share one array width C).
 * Read-out: mean = Σ_c w_c x_c, covariance = Σ_c w_c (P_c + (x_c − x̄)(x_c − x̄)ᵀ)
   (the moment-matched mixture); one component is exactly the EKF.
 
-* In clutter (``accepts_scans``: ``z`` a :class:`~hybridtrack.clutter.Scan` or a
+* In clutter (``accepts_scans``: ``z`` a :class:`~hybridtrack.sdk.scans.Scan` or a
   sequence of them; linear sensors with a constant R): the exact Bayes update of
   a Gaussian mixture on a scan is again a mixture — every component c branches
   into a "missed" child (x_c⁻, P_c⁻, weight ∝ w_c (1 − P_D P_G)) and one child per
@@ -57,11 +57,11 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, bank_field, check_layout, guarded
-from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior, check_prior_mixture
-from hybridtrack.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
-from hybridtrack.validation import as_float_array
+from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior, check_prior_mixture
+from hybridtrack.core.validation import as_float_array
+from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
+from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
+from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,

@@ -19,9 +19,9 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, DerivedMoments, bank_field, empty_innovation, guarded
-from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
-from hybridtrack.linalg import cholesky, gaussian_scores, symmetrize
+from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.linalg import cholesky, gaussian_scores, symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _information as info
 

@@ -23,9 +23,9 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
-from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
-from hybridtrack.validation import FILTER_MAGNITUDE_LIMIT
+from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.core.validation import FILTER_MAGNITUDE_LIMIT
+from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
 

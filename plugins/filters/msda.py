@@ -50,10 +50,10 @@ import attrs
 import numpy as np
 import pywt
 
-from hybridtrack.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
-from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import symmetrize
-from hybridtrack.validation import check_positive_int
+from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.core.validation import check_positive_int
+from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,

@@ -7,14 +7,14 @@ over filters and particles (Arulampalam et al. 2002, Algorithm 4, "SIR"):
 
 * predict (the bootstrap proposal, the transition density):
   x⁽ⁱ⁾ ← F x⁽ⁱ⁾ + B + W e⁽ⁱ⁾, e⁽ⁱ⁾ ~ N(0, I), W Wᵀ = G Q Gᵀ (W is the
-  bank's ``noise_root`` G chol(Q_w), else :func:`hybridtrack.linalg.psd_square_root`
+  bank's ``noise_root`` G chol(Q_w), else :func:`hybridtrack.sdk.linalg.psd_square_root`
   of G Q Gᵀ).  A linearizing callable (nonlinear motion, ``accepts_nonlinear``)
   is evaluated at every particle, x (M·N, n) → a bank of M·N transitions, so
   F x⁽ⁱ⁾ + B = f(x⁽ⁱ⁾) is the exact nonlinear step of each particle;
 * update: w⁽ⁱ⁾ ∝ w⁽ⁱ⁾⁻ p(z | x⁽ⁱ⁾) with
   ln p(z | x) = −½(m ln 2π + ln det R + νᵀR⁻¹ν), ν = residual(z, h(x)) (angles
   wrapped by the sensor; R from ``measurement_noise``; NaN components left out
-  as in every estimator, :mod:`hybridtrack.measurements`);
+  as in every estimator, :mod:`hybridtrack.sdk.measurements`);
 * the step's log-likelihood, the SIR estimate of ln p(z_k | z_1:k−1):
   ℓ = ln Σ_i w⁽ⁱ⁾⁻ p(z | x⁽ⁱ⁾) (the log of the mean unnormalised weight when
   the prior weights are uniform), computed in log space (log-sum-exp);
@@ -29,7 +29,7 @@ over filters and particles (Arulampalam et al. 2002, Algorithm 4, "SIR"):
   h = A N^{−1/(n+4)}, A = (4/(n+2))^{1/(n+4)} (Silverman 1986's rule for the
   Gaussian kernel).
 
-In clutter (``accepts_scans``: ``z`` a :class:`~hybridtrack.clutter.Scan` or a
+In clutter (``accepts_scans``: ``z`` a :class:`~hybridtrack.sdk.scans.Scan` or a
 sequence of them, one per sensor) a scan Z = {z_1 … z_L} replaces z and the
 particle likelihood is the scan likelihood of the parametric clutter model
 (Poisson false measurements of density λ, detection probability P_D; seed 004
@@ -52,7 +52,7 @@ estimate of PDA's association likelihood ln Λ (no gate: P_G = 1), which is what
 the detectors compare across a bank in clutter.  The association weights are
 the posterior probabilities of "candidate r is the target" and "none is",
 β_r ∝ (P_D/λ) Σ_i w⁽ⁱ⁾⁻ N(z_r; h(x⁽ⁱ⁾), R), β_0 ∝ 1 − P_D P_G (Σ β = 1), recorded
-in a :class:`~hybridtrack.interfaces.Association` per scan with the particle
+in a :class:`~hybridtrack.core.interfaces.Association` per scan with the particle
 prediction ẑ, S, d²_r and the gate.  The innovation reported
 is the combined ν = Σ_r β_r ν_r, ν_r = residual(z_r, ẑ), with S and its NIS;
 several scans of one step are applied one after the other.  With P_D = 1,
@@ -60,7 +60,7 @@ several scans of one step are applied one after the other.  With P_D = 1,
 one.  A scan impossible under the model (P_D P_G = 1 and nothing gated) is
 taken as no measurement (weights unchanged, ℓ = 0).
 
-The :class:`~hybridtrack.interfaces.Innovation` of an update holds, besides ℓ,
+The :class:`~hybridtrack.core.interfaces.Innovation` of an update holds, besides ℓ,
 the particle prediction of the measurement: ν̄ = Σ w⁽ⁱ⁾⁻ ν⁽ⁱ⁾ (z against the
 particle mean of h(x), the residuals wrapped per particle),
 S = Σ w⁽ⁱ⁾⁻ (ν⁽ⁱ⁾ − ν̄)(ν⁽ⁱ⁾ − ν̄)ᵀ + R (the sample covariance of h(x) plus R)
@@ -88,11 +88,11 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
-from hybridtrack.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior_mixture
-from hybridtrack.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
-from hybridtrack.validation import check_magnitude
+from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior_mixture
+from hybridtrack.core.validation import check_magnitude
+from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
+from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import (
     _as_scans,
     check_gate_probability,

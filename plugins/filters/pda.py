@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridtrack.clutter import check_clutter_density, check_detection_probability
+from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import ClutterEstimator, pda_weights
 
 

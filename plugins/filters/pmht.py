@@ -78,11 +78,11 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.clutter import check_clutter_density, check_detection_probability
-from hybridtrack.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
-from hybridtrack.interfaces import Association, ClutterInnovation, Sensor
-from hybridtrack.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
-from hybridtrack.validation import check_positive, check_positive_int
+from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.core.validation import check_positive, check_positive_int
+from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
+from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     _as_scans,

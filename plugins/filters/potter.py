@@ -14,9 +14,9 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
-from hybridtrack.interfaces import Innovation, Sensor
-from hybridtrack.linalg import cholesky, symmetrize
+from hybridtrack.core.interfaces import Innovation, Sensor
+from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.linalg import cholesky, symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
 

@@ -15,9 +15,9 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation, guarded
-from hybridtrack.interfaces import Innovation, Sensor
-from hybridtrack.linalg import symmetrize
+from hybridtrack.core.interfaces import Innovation, Sensor
+from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
 

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, NodeMoments, empty_innovation, guarded
-from hybridtrack.interfaces import Innovation, Sensor
+from hybridtrack.core.interfaces import Innovation, Sensor
+from hybridtrack.sdk.estimation import BankEstimator, NodeMoments, empty_innovation, guarded
 from hybridtrack_plugins.filters import _sqrt
 from hybridtrack_plugins.filters.srif import SRIFState, srif_innovation
 

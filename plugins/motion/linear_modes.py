@@ -32,8 +32,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack.interfaces import LinearTransition, MotionModel, TransitionBank, convert_layout
-from hybridtrack.validation import as_float_array, check_covariance
+from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank, convert_layout
+from hybridtrack.core.validation import as_float_array, check_covariance
 
 LAYOUT_4 = ("x", "vx", "y", "vy")
 LAYOUT_6 = ("x", "vx", "ax", "y", "vy", "ay")

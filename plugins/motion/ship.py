@@ -22,8 +22,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack.interfaces import LinearTransition, MotionModel, TransitionBank
-from hybridtrack.validation import as_float_array
+from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank
+from hybridtrack.core.validation import as_float_array
 
 SERIES_BELOW = 1e-2
 

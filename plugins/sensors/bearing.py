@@ -23,9 +23,9 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack.interfaces import Sensor
-from hybridtrack.linalg import wrap_angle
-from hybridtrack.validation import as_float_array, check_covariance
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.validation import as_float_array, check_covariance
+from hybridtrack.sdk.linalg import wrap_angle
 
 CONVENTIONS = ("north", "math")
 

@@ -4,7 +4,7 @@ H selects state components by name, so the same sensor serves the 4-state
 layout ("x", "vx", "y", "vy") — H = [[1,0,0,0],[0,0,1,0]] for (x, y),
 [1,0,0,0] for x only — and the 6-state constant-acceleration layout, where it
 picks positions 0 and 3.  Several sensors with their own ``name`` (node id),
-components and R form an N-node network (:class:`hybridtrack.network.SensorNetwork`).
+components and R form an N-node network (:class:`hybridtrack.sdk.network.SensorNetwork`).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack.interfaces import Sensor
-from hybridtrack.validation import check_covariance
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.validation import check_covariance
 
 DEFAULT_NOISE = ((0.01, 0.0), (0.0, 0.01))
 

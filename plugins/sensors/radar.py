@@ -22,9 +22,9 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack.interfaces import Sensor
-from hybridtrack.linalg import wrap_angle
-from hybridtrack.validation import as_float_array
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.validation import as_float_array
+from hybridtrack.sdk.linalg import wrap_angle
 
 
 def _positions(x, layout: Sequence[str]):

@@ -47,7 +47,7 @@ with the numpy path to ~10⁻¹⁴ relative.
 NaN/inf semantics are kept (a non-finite trial F is rejected as in the numpy
 path; a trial point so far out that C ρ² overflows falls to the general pass).
 The λ logic and the 4×4 Cholesky are compiled without fastmath, in the
-operation order of :mod:`hybridtrack.linalg`.  ``error_model="numpy"``: no
+operation order of :mod:`hybridtrack.sdk.linalg`.  ``error_model="numpy"``: no
 Python zero-division checks (they would stop the vectorization).
 ``cache=True``: the first call in a fresh checkout compiles (≈ 5 s) and caches
 the machine code next to this file (``__pycache__``).
@@ -328,7 +328,7 @@ def damped_step(H, g, lam, L, delta):
     """Solve (H + λ diag(H)) Δ = g by Cholesky (A_jj = H_jj (1 + λ)); False when A is not positive definite.
 
     L_jj = √(A_jj − Σ_{t<j} L_jt²), L_ij = (A_ij − Σ_{t<j} L_it L_jt)/L_jj, then
-    L y = g and Lᵀ Δ = y, in the operation order of :mod:`hybridtrack.linalg`.
+    L y = g and Lᵀ Δ = y, in the operation order of :mod:`hybridtrack.sdk.linalg`.
     """
     k = 4
     for j in range(k):

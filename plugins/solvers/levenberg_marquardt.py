@@ -39,8 +39,8 @@ import attrs
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
-from hybridtrack.interfaces import Solver
-from hybridtrack.linalg import cholesky_solve, masked_cholesky, wrap_angle
+from hybridtrack.core.interfaces import Solver
+from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
 from hybridtrack_plugins.solvers.tma_model import (
     CONSTANT_FIT_MESSAGE,

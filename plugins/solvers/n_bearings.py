@@ -29,8 +29,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from hybridtrack.interfaces import Solver
-from hybridtrack.linalg import cholesky_solve, masked_cholesky, wrap_angle
+from hybridtrack.core.interfaces import Solver
+from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import direction
 from hybridtrack_plugins.solvers.tma_model import (
     CONSTANT_FIT_MESSAGE,

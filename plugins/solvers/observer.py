@@ -22,8 +22,8 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.linalg import wrap_angle
-from hybridtrack.validation import as_float_array
+from hybridtrack.core.validation import as_float_array
+from hybridtrack.sdk.linalg import wrap_angle
 from hybridtrack_plugins.sensors.bearing import BearingSensor, check_convention, direction
 from hybridtrack_plugins.solvers.tma_model import BearingsProblem, from_polar
 

@@ -15,7 +15,7 @@ import attrs
 import numpy as np
 from scipy.optimize import least_squares
 
-from hybridtrack.interfaces import Solver
+from hybridtrack.core.interfaces import Solver
 from hybridtrack_plugins.solvers.tma_model import (
     BearingsProblem,
     ScaledProblem,

@@ -34,10 +34,10 @@ import attrs
 import numpy as np
 from scipy import stats
 
-from hybridtrack.interfaces import Solution
-from hybridtrack.linalg import wrap_angle
-from hybridtrack.timestamps import check_times
-from hybridtrack.validation import as_float_array
+from hybridtrack.core.interfaces import Solution
+from hybridtrack.core.validation import as_float_array
+from hybridtrack.sdk.linalg import wrap_angle
+from hybridtrack.sdk.timestamps import check_times
 from hybridtrack_plugins.sensors.bearing import (
     angle_difference,
     bearing,

@@ -22,8 +22,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from hybridtrack.linalg import wrap_angle
 from hybridtrack.recording import log_estimate
+from hybridtrack.sdk.linalg import wrap_angle
 from hybridtrack_plugins.sensors.bearing import bearing, direction
 from hybridtrack_plugins.solvers.tma_model import BearingsProblem, TMASolution, propagate
 

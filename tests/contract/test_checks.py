@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hybridtrack.interfaces import (
+from hybridtrack.core.interfaces import (
     Detector,
     DetectorStep,
     Estimator,
@@ -256,7 +256,7 @@ def test_solver_without_a_problem_is_only_named():
 
 def test_check_component_dispatches_by_kind_and_rejects_unknown_kinds():
     check_component("motion_model", ToyStraight())
-    with pytest.raises(AssertionError, match="is not a hybridtrack.interfaces.Sensor"):
+    with pytest.raises(AssertionError, match="is not a hybridtrack.core.interfaces.Sensor"):
         check_component("sensor", ToyStraight())
     with pytest.raises(ValueError, match="unknown component kind 'filter'"):
         check_component("filter", ToyKalman())

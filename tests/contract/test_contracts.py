@@ -3,12 +3,12 @@
 The parameter list is read from the default registry at collection time, so a
 plugin added to ``plugins/`` (or installed from another distribution) is
 covered without editing this file.  Conventions for components that need
-arguments or a problem: ``hybridtrack.interfaces`` module docstring.
+arguments or a problem: ``hybridtrack.core.interfaces`` module docstring.
 """
 
 import pytest
 
-from hybridtrack.plugins import get_registry
+from hybridtrack.core.plugins import get_registry
 from hybridtrack.testing import build_example, check_component
 
 ENTRIES = get_registry().entries()

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.experiment import Experiment
-from hybridtrack.pipeline import Pipeline
-from hybridtrack.simulate import simulate_measurements, simulate_trajectory
+from hybridtrack.apps.experiment import Experiment
+from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.simulate import simulate_measurements, simulate_trajectory
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 STEPS = 20

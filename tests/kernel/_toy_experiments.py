@@ -15,7 +15,7 @@ import signal
 import time
 from pathlib import Path
 
-from hybridtrack.experiment import Experiment
+from hybridtrack.apps.experiment import Experiment
 
 
 def draws(index, rng, *, size=3):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-import hybridtrack.plugins
+import hybridtrack.core.plugins
 
 
 class DistributionFactory:
@@ -33,7 +33,7 @@ class DistributionFactory:
         modules: dict[str, str] | None = None,
         *,
         version: str = "1.0",
-        group: str = hybridtrack.plugins.ENTRY_POINT_GROUP,
+        group: str = hybridtrack.core.plugins.ENTRY_POINT_GROUP,
         source_root: Path | None = None,
     ) -> Path:
         """Install distribution ``name`` with ``entry_points`` (entry name → module) in ``group``.
@@ -72,15 +72,15 @@ def install_distribution(tmp_path, monkeypatch):
     """A :class:`DistributionFactory` on a fresh folder; the default plugins are re-read after the test."""
     before = list(sys.path)
     factory = DistributionFactory(tmp_path / "site", monkeypatch)
-    hybridtrack.plugins.reset()
+    hybridtrack.core.plugins.reset()
     yield factory
     factory.cleanup([p for p in sys.path if p not in before and p != str(factory.root)])
-    hybridtrack.plugins.reset()
+    hybridtrack.core.plugins.reset()
 
 
 @pytest.fixture
 def fresh_default_plugins():
     """Forget the cached default plugins before and after the test (for tests that change the environment)."""
-    hybridtrack.plugins.reset()
+    hybridtrack.core.plugins.reset()
     yield
-    hybridtrack.plugins.reset()
+    hybridtrack.core.plugins.reset()

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule, TransitionBank
-from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
-from hybridtrack.composed.bank import FilterBank
-from hybridtrack.simulate import simulate
+from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
+from hybridtrack.engine.bank import FilterBank
+from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.motion.linear_modes import RightTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
 
@@ -166,7 +166,7 @@ def test_known_switch_identifies_each_segment():
     assert [s.mode for s in run.segments] == ["left_turn_r3", "right_turn_r5", "straight"]
     assert all(s.decision_step is not None and 0 < s.delay <= 50 for s in run.segments)
     assert run.means.shape == (151, 4) and len(run.decisions) == 3
-    from hybridtrack.composed.known_modes import run_known_modes
+    from hybridtrack.algorithms.known_modes import run_known_modes
 
     error = np.sqrt(np.mean(np.sum((run.means[:, [0, 2]] - truth.positions) ** 2, axis=1)))
     known = run_known_modes(

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
-from hybridtrack.interfaces import HypothesisTestBatch
-from hybridtrack.simulate import simulate
+from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.core.interfaces import HypothesisTestBatch
+from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.detectors.sprt_pairwise import PairwiseSPRT, batch_margins, margins
 from hybridtrack_plugins.sensors.position import PositionSensor
 
@@ -179,7 +179,7 @@ def test_batch_input_errors():
 
 @pytest.mark.parametrize("estimator", ["kalman", "bierman"])
 def test_known_modes_batch_equals_the_runs(estimator):
-    from hybridtrack.composed.known_modes import run_known_modes, run_known_modes_batch
+    from hybridtrack.algorithms.known_modes import run_known_modes, run_known_modes_batch
 
     schedule = Schedule.from_rows([("straight", 10), ("left_turn", 12, 3.0), ("straight", 8)])
     sensor, z, times = batch_data(schedule)
@@ -193,8 +193,8 @@ def test_known_modes_batch_equals_the_runs(estimator):
 
 @pytest.mark.parametrize("mode", ["straight", "stop", ("left_turn", {"radius": 3.0}), ("right_turn", {"radius": 7.0})])
 def test_vectorized_transition_bank_equals_the_stacked_transitions(mode):
-    from hybridtrack.interfaces import MotionModel, TransitionBank
-    from hybridtrack.plugins import resolve
+    from hybridtrack.core.interfaces import MotionModel, TransitionBank
+    from hybridtrack.core.plugins import resolve
 
     model = resolve("motion_model", mode)
     states = np.random.default_rng(5).normal(size=(6, 4))
@@ -208,7 +208,7 @@ def test_vectorized_transition_bank_equals_the_stacked_transitions(mode):
 
 
 def test_simulate_trajectories_draw_what_each_run_draws():
-    from hybridtrack.simulate import simulate_trajectories, simulate_trajectory
+    from hybridtrack.engine.simulate import simulate_trajectories, simulate_trajectory
 
     schedule = Schedule.from_rows([("straight", 6), ("left_turn", 7, 3.0), ("right_turn", 5, 4.0)])
     seeds = [np.random.SeedSequence(7, spawn_key=(i,)) for i in range(3)]
@@ -227,7 +227,7 @@ def test_seed001_experiment_batch_equals_the_runner(tmp_path):
     import importlib.util
     from pathlib import Path
 
-    from hybridtrack.experiment.worker import run_seed
+    from hybridtrack.apps.experiment.worker import run_seed
 
     path = Path(__file__).resolve().parents[2] / "experiments" / "seed001_adaptive.py"
     spec = importlib.util.spec_from_file_location("_seed001_batch_test", path)
@@ -245,7 +245,7 @@ def test_seed001_experiment_batch_equals_the_runner(tmp_path):
 @pytest.mark.parametrize("bank_size, pruning", [(None, None), (3, "nearest_lower"), (4, "oldest")])
 def test_unknown_change_batch_with_a_looped_test_equals_the_vectorized_one(bank_size, pruning):
     """A change-time test without a vectorized batch (the ChangeTimeTestBatch fallback) gives the same runs."""
-    from hybridtrack.interfaces import ChangeTimeTestBatch
+    from hybridtrack.core.interfaces import ChangeTimeTestBatch
     from hybridtrack_plugins.detectors.sprt_change import ChangeTimeSPRT
 
     class Looped(ChangeTimeSPRT):
@@ -265,7 +265,7 @@ def test_unknown_change_batch_with_a_looped_test_equals_the_vectorized_one(bank_
 def test_unknown_change_batch_with_a_nonlinear_mode_relinearizes_like_the_runs():
     """A run whose bank holds a nonlinear mode relinearizes all its filters at their means (as FilterBank does):
     switch-state-augmented modes, the turns refining their switch state (EKF)."""
-    from hybridtrack.composed.switch_state import SwitchAugmented
+    from hybridtrack.algorithms.switch_state import SwitchAugmented
     from hybridtrack_plugins.motion.linear_modes import LeftTurn, RightTurn, Straight
 
     schedule = Schedule.from_rows([("straight", 8), ("right_turn", 10, 5.0)])

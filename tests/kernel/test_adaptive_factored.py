@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule, get_registry
-from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
-from hybridtrack.simulate import simulate
+from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = np.array([0.0, 0.0, 0.0, 2.0])

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from hybridtrack import Decision, Detector, DetectorStep, Gaussian, Schedule
-from hybridtrack.batch import innovation_rows
-from hybridtrack.interfaces import Innovation
-from hybridtrack.pipeline import Pipeline
-from hybridtrack.plugins import get_registry
+from hybridtrack.core.interfaces import Innovation
+from hybridtrack.core.plugins import get_registry
+from hybridtrack.engine.batch import innovation_rows
+from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
-from hybridtrack.simulate import simulate
 from hybridtrack.testing import build_example
 from hybridtrack_plugins.sensors.position import PositionSensor
 

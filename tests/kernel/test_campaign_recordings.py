@@ -6,10 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.cli import main
-from hybridtrack.experiment import ResultStore
-from hybridtrack.experiment.definition import load_experiment
-from hybridtrack.experiment.recordings import (
+from hybridtrack.apps.experiment import ResultStore
+from hybridtrack.apps.experiment.definition import load_experiment
+from hybridtrack.apps.experiment.recordings import (
     accepts_recorder,
     check_run_indices,
     choose_runs,
@@ -18,7 +17,8 @@ from hybridtrack.experiment.recordings import (
     run_recording_path,
     write_summary_recording,
 )
-from hybridtrack.inspection import RecordingFile
+from hybridtrack.cli import main
+from hybridtrack.recording.inspection import RecordingFile
 
 TOY = Path(__file__).with_name("_toy_experiments.py")
 SMALL = ["--executor", "inline", "--param", "steps_scale=0.05", "--no-progress"]
@@ -79,7 +79,7 @@ def test_cli_records_the_chosen_runs_and_a_summary(tmp_path, capsys, rerun_cli):
 
 
 def test_record_runs_replays_the_stored_results_exactly(tmp_path):
-    from hybridtrack.experiment import run_campaign
+    from hybridtrack.apps.experiment import run_campaign
 
     parameters = {"R": 0.1, "q": 0.001, "tau": 0.1, "steps_scale": 0.05}
     result = run_campaign("demo_rmse", 3, tmp_path / "c", seed=9, executor="inline", progress=False, parameters=parameters)

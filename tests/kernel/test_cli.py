@@ -9,8 +9,8 @@ import pytest
 
 import hybridtrack
 from hybridtrack import cli
-from hybridtrack.commands.plugins import JSON_KEYS
-from hybridtrack.interfaces import KINDS
+from hybridtrack.cli.plugins import JSON_KEYS
+from hybridtrack.core.interfaces import KINDS
 
 SCRIPT = Path(sys.executable).with_name("hybridtrack")
 
@@ -42,7 +42,7 @@ def test_plugins_json_lists_every_registered_component(capsys):
     listing = json.loads(out)
     assert all(tuple(item) == JSON_KEYS for item in listing)
     assert all(item["kind"] in KINDS for item in listing)
-    registry = hybridtrack.plugins.load_plugins().registry
+    registry = hybridtrack.core.plugins.load_plugins().registry
     assert {(i["kind"], i["name"]) for i in listing} == {(e.kind, e.name) for e in registry.entries()}
     straight = next(i for i in listing if i["name"] == "straight")
     assert straight == {
@@ -83,7 +83,7 @@ def test_disabled_plugins_are_not_listed(capsys, monkeypatch):
 
 def test_commands_come_from_their_modules_and_names_are_unique(monkeypatch):
     assert "plugins" in cli.commands()
-    monkeypatch.setattr(cli, "COMMAND_MODULES", cli.COMMAND_MODULES + ("hybridtrack.commands.plugins",))
+    monkeypatch.setattr(cli, "COMMAND_MODULES", cli.COMMAND_MODULES + ("hybridtrack.cli.plugins",))
     with pytest.raises(RuntimeError, match="command 'plugins' defined twice"):
         cli.commands()
 

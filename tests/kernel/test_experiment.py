@@ -12,8 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.cli import main
-from hybridtrack.experiment import (
+from hybridtrack.apps.experiment import (
     Campaign,
     CampaignInterrupted,
     CampaignMismatch,
@@ -26,8 +25,9 @@ from hybridtrack.experiment import (
     run_campaign,
     run_seed,
 )
-from hybridtrack.experiment.builtin import pooled_rmse
-from hybridtrack.experiment.campaign import _progress, chunks
+from hybridtrack.apps.experiment.builtin import pooled_rmse
+from hybridtrack.apps.experiment.campaign import _progress, chunks
+from hybridtrack.cli import main
 
 TOY = Path(__file__).with_name("_toy_experiments.py")
 DRAWS = f"{TOY}:DRAWS"
@@ -283,7 +283,7 @@ def test_cli_finds_experiments_by_name_in_the_experiments_folder(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     (tmp_path / "experiments").mkdir()
     (tmp_path / "experiments" / "coin.py").write_text(
-        "from hybridtrack.experiment import Experiment\n"
+        "from hybridtrack.apps.experiment import Experiment\n"
         "EXPERIMENT = Experiment('coin', lambda index, rng: {'heads': float(rng.uniform() < 0.5)})\n"
     )
     assert main(["run", "coin", "--n", "4", "--executor", "inline", "--json"]) == 0

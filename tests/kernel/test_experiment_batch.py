@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.experiment import CampaignInterrupted, Experiment, ResultStore, RunFailed, run_campaign
-from hybridtrack.experiment.worker import run_chunk
+from hybridtrack.apps.experiment import CampaignInterrupted, Experiment, ResultStore, RunFailed, run_campaign
+from hybridtrack.apps.experiment.worker import run_chunk
 
 SCRIPT = Path(__file__).with_name("_batch_experiments.py")
 BATCHED = f"{SCRIPT}:BATCHED"

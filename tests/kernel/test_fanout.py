@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
-from hybridtrack.inspection import RecordingFile
+from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder, finite_runs, is_hypothesis, palette, spatial_style
-from hybridtrack.simulate import simulate
+from hybridtrack.recording.inspection import RecordingFile
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = np.array([0.0, 0.0, 0.0, 2.0])

@@ -11,14 +11,14 @@ import pytest
 from filterpy.kalman import KalmanFilter as FilterpyKalman
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.composed.adaptive import UnknownChangeAdaptive
-from hybridtrack.inspection import RecordingFile
-from hybridtrack.measurements_io import read_measurement_file, write_csv, write_npz
-from hybridtrack.network import SensorNetwork
-from hybridtrack.pipeline import Pipeline
-from hybridtrack.plugins import resolve
+from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
+from hybridtrack.core.plugins import resolve
+from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.simulate import simulate
+from hybridtrack.io.measurement_files import read_measurement_file, write_csv, write_npz
 from hybridtrack.recording import RerunRecorder
-from hybridtrack.simulate import simulate
+from hybridtrack.recording.inspection import RecordingFile
+from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = np.array([0.0, 0.0, 0.0, 2.0])

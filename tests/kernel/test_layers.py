@@ -107,10 +107,11 @@ def test_no_private_name_is_imported_across_packages():
     ("source", "module", "flagged"),
     [
         ("from hybridtrack._x import y", "hybridtrack_plugins.filters.kalman", True),
-        ("def f():\n    from hybridtrack_plugins.filters._covariance import update", "hybridtrack.pipeline", True),
+        ("def f():\n    from hybridtrack_plugins.filters._covariance import update", "hybridtrack.engine.pipeline", True),
         ("from hybridtrack_plugins.filters._covariance import update", "hybridtrack_plugins.filters.kalman", False),
-        ("from hybridtrack.pipeline import _helper", "hybridtrack.composed.adaptive", False),
-        ("from hybridtrack.pipeline import _helper", None, True),
+        ("from hybridtrack.engine.pipeline import _helper", "hybridtrack.engine.bank", False),
+        ("from hybridtrack.engine.pipeline import _helper", "hybridtrack.algorithms.adaptive", True),
+        ("from hybridtrack.engine.pipeline import _helper", None, True),
         ("import numpy._core", None, False),
     ],
 )

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hybridtrack.measurements_io import read_measurement_file, read_measurements, write_csv, write_npz
+from hybridtrack.io.measurement_files import read_measurement_file, read_measurements, write_csv, write_npz
 
 
 def sample():

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.mode_labels import DEFAULTS, label_modes, label_track, turn_rate
-from hybridtrack.tracks_io import SOLENT_AIS, Track, read_tracks
+from hybridtrack.apps.mode_labels import DEFAULTS, label_modes, label_track, turn_rate
+from hybridtrack.io.track_files import SOLENT_AIS, Track, read_tracks
 
 SOLENT = Path(__file__).resolve().parents[2] / "data" / "solent_ais" / "SolentAIS_20160112_130211.csv"
 

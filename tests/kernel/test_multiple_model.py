@@ -1,4 +1,4 @@
-"""IMM, GPB1 and GPB2 (hybridtrack.composed.multiple_model) against FilterPy, a loop reference and their exact limits."""
+"""IMM, GPB1 and GPB2 (hybridtrack.algorithms.multiple_model) against FilterPy, a loop reference and their exact limits."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.composed.multiple_model import MultipleModelEstimator, sojourn_matrix, union_layout
-from hybridtrack.simulate import simulate
+from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, sojourn_matrix, union_layout
+from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.motion.linear_modes import LAYOUT_4, LAYOUT_6, ConstantAcceleration, LeftTurn, RightTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
 

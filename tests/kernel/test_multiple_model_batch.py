@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian
-from hybridtrack.composed.multiple_model import RUN_FIELDS, MultipleModelEstimator, sojourn_matrix
+from hybridtrack.algorithms.multiple_model import RUN_FIELDS, MultipleModelEstimator, sojourn_matrix
 from hybridtrack.recording import RerunRecorder
 from hybridtrack_plugins.motion.linear_modes import ConstantAcceleration, LeftTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
@@ -95,8 +95,8 @@ def test_sojourn_matrices_equal_scipy_expm_one_at_a_time_and_stacked():
 def test_grouped_transitions_equal_the_stacked_per_filter_transitions():
     """The IMM/GPB banks' transitions (one transition_bank call per model and Δt) equal TransitionBank.stack of each
     filter's transition(Δt_i, x_i) to 1e-12, in filter order, with the noise roots."""
-    from hybridtrack.composed.batch import grouped_transitions
-    from hybridtrack.interfaces import TransitionBank
+    from hybridtrack.core.interfaces import TransitionBank
+    from hybridtrack.engine.run_bank import grouped_transitions
     from hybridtrack_plugins.motion.linear_modes import RightTurn
 
     rng = np.random.default_rng(4)

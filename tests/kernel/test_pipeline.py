@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from hybridtrack import Decision, Detector, DetectorStep, Gaussian, Schedule
-from hybridtrack.pipeline import Pipeline
+from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
-from hybridtrack.simulate import simulate
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.motion.linear_modes import LeftTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
@@ -162,7 +162,7 @@ def test_run_is_recorded_and_error_midway_keeps_what_was_done(tmp_path):
 
 
 def test_known_modes_runner_follows_the_schedule():
-    from hybridtrack.composed.known_modes import run_known_modes
+    from hybridtrack.algorithms.known_modes import run_known_modes
 
     schedule = Schedule.from_rows([("straight", 40), ("left_turn", 60, 3.0), ("right_turn", 40, 5.0)])
     sensors = [PositionSensor(name="a")]

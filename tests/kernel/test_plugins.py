@@ -5,9 +5,9 @@ import warnings
 import pluggy
 import pytest
 
-import hybridtrack.plugins as plugins
+import hybridtrack.core.plugins as plugins
 from hybridtrack import hookimpl
-from hybridtrack.plugins import PluginError, PluginInfo, PluginWarning, load_plugins
+from hybridtrack.core.plugins import PluginError, PluginInfo, PluginWarning, load_plugins
 from hybridtrack.testing import LinearPositionSensor
 
 

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.inspection import RecordingFile, format_summary
-from hybridtrack.interfaces import Detector, DetectorStep
-from hybridtrack.pipeline import Pipeline
+from hybridtrack.core.interfaces import Detector, DetectorStep
+from hybridtrack.core.types import Decision
+from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import NullRecorder, RerunRecorder, ellipse_outlines, open_recorder, recording_id
-from hybridtrack.simulate import simulate
-from hybridtrack.types import Decision
+from hybridtrack.recording.inspection import RecordingFile, format_summary
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = np.array([0.0, 0.0, 0.0, 2.0])

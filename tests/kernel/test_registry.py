@@ -2,8 +2,8 @@
 
 import pytest
 
-from hybridtrack.interfaces import KINDS
-from hybridtrack.registry import DuplicateComponentError, Entry, Registry, UnknownComponentError
+from hybridtrack.core.interfaces import KINDS
+from hybridtrack.core.registry import DuplicateComponentError, Entry, Registry, UnknownComponentError
 
 
 class Documented:

@@ -10,10 +10,10 @@ centre and every later bank inherits the bias.
 import numpy as np
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.composed.adaptive import KnownSwitchAdaptive
-from hybridtrack.composed.bank import FilterBank
-from hybridtrack.composed.known_modes import run_known_modes
-from hybridtrack.simulate import simulate
+from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
+from hybridtrack.algorithms.known_modes import run_known_modes
+from hybridtrack.engine.bank import FilterBank
+from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.motion.linear_modes import LeftTurn
 from hybridtrack_plugins.sensors.position import PositionSensor

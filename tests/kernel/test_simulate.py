@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from hybridtrack import SEED001_TABLE1, Schedule
-from hybridtrack.linalg import psd_square_root
-from hybridtrack.network import SensorNetwork
-from hybridtrack.simulate import simulate, simulate_measurements, simulate_trajectory
+from hybridtrack.engine.simulate import simulate, simulate_measurements, simulate_trajectory
+from hybridtrack.sdk.linalg import psd_square_root
+from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 X0 = [0, 0, 0, 2]

@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 
 from hybridtrack import cli
-from hybridtrack.composed.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
-from hybridtrack.pipeline import Pipeline
-from hybridtrack.plugins import load_plugins
-from hybridtrack.simulate import simulate, simulate_trajectory
+from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.core.plugins import load_plugins
+from hybridtrack.core.types import Gaussian, Schedule
+from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.simulate import simulate, simulate_trajectory
 from hybridtrack.testing import build_example, check_detector, check_estimator, check_motion_model
-from hybridtrack.types import Gaussian, Schedule
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "thirdparty_plugin"

@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.inspection import RecordingFile
-from hybridtrack.tracking import filter_altitude, load_config, record_track, track_file
-from hybridtrack.tracks_io import ecef_to_geodetic, geodetic_to_ecef, project, unproject
+from hybridtrack.apps.tracking import filter_altitude, load_config, record_track, track_file
+from hybridtrack.io.track_files import ecef_to_geodetic, geodetic_to_ecef, project, unproject
+from hybridtrack.recording.inspection import RecordingFile
 
 ORIGIN = (50.8, -1.2, 30.0)
 

@@ -1,4 +1,4 @@
-"""``hybridtrack track``: a configured estimator over every object of a position file (hybridtrack.tracking)."""
+"""``hybridtrack track``: a configured estimator over every object of a position file (hybridtrack.apps.tracking)."""
 
 import json
 from pathlib import Path
@@ -6,9 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hybridtrack.apps.tracking import load_config, segments_of, track_file
 from hybridtrack.cli import main
-from hybridtrack.inspection import RecordingFile
-from hybridtrack.tracking import load_config, segments_of, track_file
+from hybridtrack.recording.inspection import RecordingFile
 
 ROOT = Path(__file__).resolve().parents[2]
 SOLENT = ROOT / "data" / "solent_ais" / "SolentAIS_20160112_130211.csv"
@@ -181,7 +181,7 @@ def test_example_configs_load():
 
 @pytest.mark.slow
 def test_first_three_solent_vessels_with_the_ships_config(tmp_path):
-    from hybridtrack.tracks_io import SOLENT_AIS, read_tracks
+    from hybridtrack.io.track_files import SOLENT_AIS, read_tracks
 
     ids = list(read_tracks(SOLENT, **SOLENT_AIS, warn=False).tracks)[:3]
     summary = track_file(SOLENT, ROOT / "examples" / "ships.toml", tmp_path, ids=ids)

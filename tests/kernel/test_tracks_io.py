@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.tracks_io import (
+from hybridtrack.io.track_files import (
     SOLENT_AIS,
     geodesic_inverse,
     geodetic_to_ecef,

@@ -4,8 +4,8 @@ import attrs
 import numpy as np
 import pytest
 
-from hybridtrack.interfaces import LinearTransition
-from hybridtrack.types import SEED001_TABLE1, Decision, Gaussian, Measurement, Schedule, Segment
+from hybridtrack.core.interfaces import LinearTransition
+from hybridtrack.core.types import SEED001_TABLE1, Decision, Gaussian, Measurement, Schedule, Segment
 
 NOT_SYMMETRIC = [[1.0, 0.5], [0.0, 1.0]]
 NOT_PSD = [[1.0, 2.0], [2.0, 1.0]]
@@ -97,7 +97,7 @@ def test_linear_transition_maths():
 
 
 def test_the_seed001_table_names_registered_motion_models():
-    from hybridtrack.plugins import get_registry
+    from hybridtrack.core.plugins import get_registry
 
     known = get_registry().names("motion_model")
     assert {segment.mode for segment in SEED001_TABLE1.segments} <= set(known)

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.inspection import RecordingFile, view_selects
+from hybridtrack.core.types import Schedule, Segment
+from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import TRAIL_STEPS, RerunRecorder, content_blueprint, nis_bounds, palette, series_style, spatial_style
-from hybridtrack.simulate import simulate
-from hybridtrack.types import Schedule, Segment
+from hybridtrack.recording.inspection import RecordingFile, view_selects
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -211,7 +211,7 @@ def test_every_logged_entity_is_in_a_view_bearings_only(tmp_path):
 
 
 def test_every_logged_entity_is_in_a_view_clutter_and_imm(tmp_path, clutter_scenario, clutter_pipeline):
-    from hybridtrack.composed.multiple_model import MultipleModelEstimator
+    from hybridtrack.algorithms.multiple_model import MultipleModelEstimator
 
     truth, sensor, scans = clutter_scenario()
     path = tmp_path / "clutter.rrd"
@@ -238,8 +238,8 @@ def test_every_logged_entity_is_in_a_view_clutter_and_imm(tmp_path, clutter_scen
 
 @pytest.mark.slow
 def test_every_logged_entity_is_in_a_view_ships_config(tmp_path):
-    from hybridtrack.tracking import track_file
-    from hybridtrack.tracks_io import SOLENT_AIS, read_tracks
+    from hybridtrack.apps.tracking import track_file
+    from hybridtrack.io.track_files import SOLENT_AIS, read_tracks
 
     solent = ROOT / "data" / "solent_ais" / "SolentAIS_20160112_130211.csv"
     ids = list(read_tracks(solent, **SOLENT_AIS, warn=False).tracks)[:1]

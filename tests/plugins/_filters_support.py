@@ -10,7 +10,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from hybridtrack.interfaces import LinearTransition, Sensor, TransitionBank
+from hybridtrack.core.interfaces import LinearTransition, Sensor, TransitionBank
 
 LAYOUT = ("x", "vx", "y", "vy")
 G4 = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hybridtrack.plugins import load_plugins
+from hybridtrack.core.plugins import load_plugins
 from hybridtrack.testing import check_sensor
 from hybridtrack_plugins.sensors.bearing import BearingSensor, angle_difference, wrap_angle
 

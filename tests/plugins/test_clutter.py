@@ -1,16 +1,17 @@
-"""Clutter simulator and candidate-measurement types (hybridtrack/clutter.py), the pipeline's
+"""Clutter simulator and candidate-measurement types (hybridtrack/sdk/scans.py), the pipeline's
 ``candidates`` option and the recording of clutter, gates and association weights (SPEC §6)."""
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from hybridtrack.clutter import ClutterModel, Scan, ScanSequence, add_clutter, region_around, simulate_scans
-from hybridtrack.inspection import RecordingFile
-from hybridtrack.pipeline import Pipeline
+from hybridtrack.core.types import Schedule, Segment
+from hybridtrack.engine.clutter import ClutterModel, add_clutter, region_around, simulate_scans
+from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.simulate import simulate_trajectory
 from hybridtrack.recording import RerunRecorder
-from hybridtrack.simulate import simulate_trajectory
-from hybridtrack.types import Schedule, Segment
+from hybridtrack.recording.inspection import RecordingFile
+from hybridtrack.sdk.scans import Scan, ScanSequence
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 REGION = [[-10.0, 0.0], [10.0, 5.0]]  # V = 100

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.clutter import Scan
-from hybridtrack.inspection import RecordingFile
-from hybridtrack.interfaces import TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack.recording import NullRecorder, RerunRecorder
+from hybridtrack.recording.inspection import RecordingFile
+from hybridtrack.sdk.scans import Scan
 from hybridtrack_plugins.filters.clutter_recording import log_filter_states
 from hybridtrack_plugins.filters.gaussian_sum import GaussianSumFilter
 from hybridtrack_plugins.filters.mht import MHTFilter
@@ -104,7 +104,7 @@ def test_a_recorder_without_weighted_points_gets_plain_points_and_bad_input_rais
 def test_a_pipeline_records_the_particle_clouds_of_every_step(tmp_path):
     """Estimator.record_states through Pipeline: the cloud logged at each step is that step's state (no state is
     changed in place by a later step), across more than one STATE_CHUNK of streamed steps."""
-    from hybridtrack.pipeline import STATE_CHUNK, Pipeline
+    from hybridtrack.engine.pipeline import STATE_CHUNK, Pipeline
 
     steps = STATE_CHUNK + 30
     rng = np.random.default_rng(5)

@@ -4,8 +4,8 @@ one-filter update with that run's Scan to 1e-12 (state, association weights and 
 import numpy as np
 import pytest
 
-from hybridtrack.clutter import RowScan, Scan, stack_scans
-from hybridtrack.interfaces import TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.sdk.scans import RowScan, Scan, stack_scans
 from hybridtrack_plugins.filters.nearest_neighbour import NearestNeighbourFilter
 from hybridtrack_plugins.filters.pda import PDAFilter
 from hybridtrack_plugins.motion.linear_modes import Straight
@@ -86,7 +86,7 @@ def test_row_scan_inputs_are_checked():
 
 
 def test_other_clutter_estimators_refuse_row_scans():
-    from hybridtrack.plugins import get_registry
+    from hybridtrack.core.plugins import get_registry
 
     estimator = get_registry().create("estimator", "gaussian_sum", detection_probability=0.9, clutter_density=0.05)
     state = estimator.initialize(np.zeros((1, 4)), np.eye(4)[None])

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.stats import binom, chi2
 
-from hybridtrack.interfaces import TransitionBank
-from hybridtrack.thresholds import THREE_SIGMA_ALPHA
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.sdk.thresholds import THREE_SIGMA_ALPHA
 from hybridtrack_plugins.detectors import signal_bounds
 from hybridtrack_plugins.detectors.signal_function import SignalFunction
 from hybridtrack_plugins.filters.decentralized import DecentralizedFilter
@@ -116,9 +116,9 @@ def test_cumulative_statistic_at_step_50_matches_the_chi2_100_tail(nis_sample):
 
 def test_signal_function_alarms_after_a_mode_change():
     """Data from a left turn r = 3 seen by the straight filter: the signal function leaves ±3."""
-    from hybridtrack.pipeline import Pipeline
-    from hybridtrack.simulate import simulate
-    from hybridtrack.types import Gaussian, Schedule
+    from hybridtrack.core.types import Gaussian, Schedule
+    from hybridtrack.engine.pipeline import Pipeline
+    from hybridtrack.engine.simulate import simulate
 
     schedule = Schedule.from_rows([("straight", 20), ("left_turn", 40, 3.0)])
     sensors = [PositionSensor()]

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hybridtrack.interfaces import Innovation
+from hybridtrack.core.interfaces import Innovation
 from hybridtrack_plugins.detectors.sprt_change import ChangeTimeSPRT
 from hybridtrack_plugins.detectors.sprt_pairwise import PairwiseSPRT
 

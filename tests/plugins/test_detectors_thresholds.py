@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hybridtrack.thresholds import THREE_SIGMA_ALPHA, sprt_thresholds, two_sided_normal_bound
+from hybridtrack.sdk.thresholds import THREE_SIGMA_ALPHA, sprt_thresholds, two_sided_normal_bound
 from hybridtrack_plugins.detectors.cusum import CUSUM
 from hybridtrack_plugins.detectors.dynamic_threshold import DynamicThreshold, SpeedDropCue
 from hybridtrack_plugins.detectors.glr import GLR

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hybridtrack.composed import algorithm4 as wald
+from hybridtrack.algorithms import algorithm4 as wald
 from hybridtrack_plugins.motion.linear_modes import RightTurn, Straight
 
 H = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]])

@@ -13,7 +13,7 @@ import pytest
 from scipy.stats import chi2
 
 import hybridtrack as ht
-from hybridtrack.interfaces import TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack_plugins.motion.ship import ShipTurn
 from hybridtrack_plugins.sensors.radar import PolarRadarSensor, RadarSensor
 

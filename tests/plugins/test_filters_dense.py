@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from _filters_support import random_spd
 
-from hybridtrack.linalg import CholeskyFactor, cholesky
+from hybridtrack.sdk.linalg import CholeskyFactor, cholesky
 from hybridtrack_plugins.filters import _covariance as cov_form
 
 LOG_2PI = np.log(2.0 * np.pi)

@@ -5,7 +5,7 @@ import pytest
 from _filters_support import G4, LAYOUT, bank_of, position_sensor, radii_bank, random_spd, simulate
 
 import hybridtrack as ht
-from hybridtrack.interfaces import LinearTransition, TransitionBank
+from hybridtrack.core.interfaces import LinearTransition, TransitionBank
 
 REL = 1e-9
 FORMS = ["information", "decentralized", "potter", "bierman", "srif", "srif_decentralized"]

@@ -6,7 +6,7 @@ from _filters_support import LAYOUT, MatrixSensor, bank_of, position_sensor, rad
 from filterpy.kalman import KalmanFilter as FilterpyKF
 
 import hybridtrack as ht
-from hybridtrack.interfaces import TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.interfaces import TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack.testing.contracts import check_estimator
 from hybridtrack_plugins.filters.gaussian_sum import GaussianSumFilter, logsumexp, merge, mixture_moments, range_parameterised
 from hybridtrack_plugins.motion.linear_modes import Straight

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.clutter import Scan
-from hybridtrack.interfaces import ClutterInnovation, TransitionBank
+from hybridtrack.core.interfaces import ClutterInnovation, TransitionBank
+from hybridtrack.sdk.scans import Scan
 from hybridtrack_plugins.filters.gaussian_sum import GaussianSumFilter
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.filters.pda import PDAFilter

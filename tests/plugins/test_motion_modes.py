@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hybridtrack import Schedule
-from hybridtrack.simulate import simulate_trajectory
+from hybridtrack.engine.simulate import simulate_trajectory
 from hybridtrack_plugins.motion.linear_modes import ConstantAcceleration, LeftTurn, RightTurn, Stop, Straight
 
 TAU = 0.1

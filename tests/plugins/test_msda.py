@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 from _filters_support import LAYOUT, position_sensor, straight
 
-from hybridtrack.clutter import ClutterModel, Scan, region_around, simulate_scans
-from hybridtrack.interfaces import TransitionBank
-from hybridtrack.plugins import get_registry
-from hybridtrack.simulate import simulate_trajectory
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.core.plugins import get_registry
+from hybridtrack.core.types import Schedule
+from hybridtrack.engine.clutter import ClutterModel, region_around, simulate_scans
+from hybridtrack.engine.simulate import simulate_trajectory
+from hybridtrack.sdk.scans import Scan
 from hybridtrack.testing import build_example, check_component, check_estimator
-from hybridtrack.types import Schedule
 from hybridtrack_plugins.filters.msda import MSDAFilter
 from hybridtrack_plugins.filters.nearest_neighbour import NearestNeighbourFilter
 from hybridtrack_plugins.sensors.position import PositionSensor

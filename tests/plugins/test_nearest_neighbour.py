@@ -6,8 +6,8 @@ import pytest
 from _filters_support import LAYOUT, position_sensor, straight
 from scipy.stats import chi2
 
-from hybridtrack.clutter import Scan
-from hybridtrack.interfaces import TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.sdk.scans import Scan
 from hybridtrack.testing import check_estimator
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.filters.nearest_neighbour import NearestNeighbourFilter
@@ -89,7 +89,7 @@ def test_gate_probability_outside_the_open_unit_interval_raises(probability):
 
 
 def test_a_nonlinear_or_measurement_dependent_sensor_is_refused():
-    from hybridtrack.plugins import get_registry
+    from hybridtrack.core.plugins import get_registry
 
     radar = get_registry().create("sensor", "radar", **_example(get_registry().get("sensor", "radar")))
     nn = NearestNeighbourFilter()
@@ -110,10 +110,10 @@ def test_pda_keeps_tracks_that_nearest_neighbour_loses_in_clutter():
     A track is lost when its position error exceeds 2 m over the last 10 steps.
     (experiments/clutter.py measures the same over densities; docs/clutter.md.)
     """
-    from hybridtrack.clutter import ClutterModel, region_around, simulate_scans
-    from hybridtrack.plugins import get_registry
-    from hybridtrack.simulate import simulate_trajectory
-    from hybridtrack.types import Schedule
+    from hybridtrack.core.plugins import get_registry
+    from hybridtrack.core.types import Schedule
+    from hybridtrack.engine.clutter import ClutterModel, region_around, simulate_scans
+    from hybridtrack.engine.simulate import simulate_trajectory
     from hybridtrack_plugins.filters.pda import PDAFilter
     from hybridtrack_plugins.sensors.position import PositionSensor
 

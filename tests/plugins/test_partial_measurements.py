@@ -11,7 +11,7 @@ import pytest
 from _filters_support import LAYOUT, MatrixSensor, bank_of, position_sensor, radii_bank, random_spd, simulate, straight
 
 import hybridtrack
-from hybridtrack.measurements import MeasurementAssembler
+from hybridtrack.sdk.measurements import MeasurementAssembler
 from hybridtrack_plugins.filters.kalman import AxisState
 from hybridtrack_plugins.sensors.bearing import BearingSensor
 from hybridtrack_plugins.sensors.position import PositionSensor

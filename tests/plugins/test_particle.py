@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.interfaces import TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.filters.particle import (
     ParticleFilter,
@@ -295,8 +295,8 @@ def test_in_a_pipeline_with_a_detector_the_scores_follow_the_kalman_filter():
     ℓ differ by more than 0.5 (36 of 41 steps).
     """
     from hybridtrack import Gaussian, Schedule
-    from hybridtrack.pipeline import Pipeline
-    from hybridtrack.simulate import simulate
+    from hybridtrack.engine.pipeline import Pipeline
+    from hybridtrack.engine.simulate import simulate
     from hybridtrack_plugins.sensors.position import PositionSensor
 
     schedule = Schedule.from_rows([("straight", 20), ("left_turn", 20, 3.0)])

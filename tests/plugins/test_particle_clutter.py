@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.clutter import ClutterModel, Scan, region_around
-from hybridtrack.interfaces import ClutterInnovation, TransitionBank
+from hybridtrack.core.interfaces import ClutterInnovation, TransitionBank
+from hybridtrack.engine.clutter import ClutterModel, region_around
+from hybridtrack.sdk.scans import Scan
 from hybridtrack_plugins.filters.particle import ParticleClutterInnovation, ParticleFilter
 from hybridtrack_plugins.filters.pda import PDAFilter
 from hybridtrack_plugins.sensors.bearing import BearingSensor
@@ -133,7 +134,7 @@ def test_in_clutter_it_tracks_like_pda_on_a_linear_case():
 
 
 def _with_clutter(clean, clutter, rng):
-    """Scans: the detected measurement (probability P_D) plus Poisson(λV) uniform false ones (hybridtrack.clutter's model)."""
+    """Scans: the detected measurement (probability P_D) plus Poisson(λV) uniform false ones (hybridtrack.sdk.scans's model)."""
     low, high = clutter.region
     volume = float(np.prod(high - low))
     out = []

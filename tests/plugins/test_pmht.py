@@ -6,12 +6,13 @@ import pytest
 from _filters_support import LAYOUT, position_sensor, straight
 from filterpy.kalman import KalmanFilter as FilterpyKF
 
-from hybridtrack.clutter import ClutterModel, Scan, region_around, simulate_scans
-from hybridtrack.interfaces import TransitionBank
-from hybridtrack.plugins import get_registry
-from hybridtrack.simulate import simulate_trajectory
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.core.plugins import get_registry
+from hybridtrack.core.types import Schedule
+from hybridtrack.engine.clutter import ClutterModel, region_around, simulate_scans
+from hybridtrack.engine.simulate import simulate_trajectory
+from hybridtrack.sdk.scans import Scan
 from hybridtrack.testing import build_example, check_component, check_estimator
-from hybridtrack.types import Schedule
 from hybridtrack_plugins.filters.pmht import PMHTFilter
 from hybridtrack_plugins.sensors.position import PositionSensor
 
@@ -223,8 +224,8 @@ def test_a_sensor_with_measurement_dependent_noise_is_refused_for_scans():
 
 @pytest.mark.parametrize(("name", "parameters"), [("pmht", {"clutter_density": 0.5, "window": 3}), ("msda", {"window": 2})])
 def test_pipeline_runs_the_bank_on_candidates_and_records_the_weights(tmp_path, name, parameters, clutter_scenario, clutter_pipeline):
-    from hybridtrack.inspection import RecordingFile
     from hybridtrack.recording import RerunRecorder
+    from hybridtrack.recording.inspection import RecordingFile
 
     truth, sensor, scans = clutter_scenario()
     path = tmp_path / f"{name}.rrd"

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.linalg import wrap_angle as wrap_to_pi
+from hybridtrack.sdk.linalg import wrap_angle as wrap_to_pi
 from hybridtrack_plugins.sensors.radar import PolarRadarSensor, RadarSensor
 
 LAYOUT = ("x", "y", "vx", "vy", "omega")

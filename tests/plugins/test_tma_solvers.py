@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from hybridtrack.plugins import load_plugins
+from hybridtrack.core.plugins import load_plugins
 from hybridtrack_plugins.sensors.bearing import bearing_gradient
 from hybridtrack_plugins.solvers.levenberg_marquardt import BatchLevenbergMarquardt, LevenbergMarquardt, LMSettings
 from hybridtrack_plugins.solvers.n_bearings import NBearings

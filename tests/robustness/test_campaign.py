@@ -11,8 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.cli import main
-from hybridtrack.experiment import (
+from hybridtrack.apps.experiment import (
     Campaign,
     CampaignLocked,
     CampaignMismatch,
@@ -20,8 +19,9 @@ from hybridtrack.experiment import (
     ResultStore,
     run_campaign,
 )
-from hybridtrack.experiment.executors import check_scheduler_address
-from hybridtrack.experiment.store import IDENTITY_ARRAY
+from hybridtrack.apps.experiment.executors import check_scheduler_address
+from hybridtrack.apps.experiment.store import IDENTITY_ARRAY
+from hybridtrack.cli import main
 
 TOY = Path(__file__).parents[1] / "kernel" / "_toy_experiments.py"
 DRAWS = f"{TOY}:DRAWS"

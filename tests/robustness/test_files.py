@@ -1,7 +1,7 @@
 """Bad measurement files (CSV and NPZ): each is refused with a clear error naming the file and what is wrong.
 
 Accepted on purpose: a UTF-8 byte-order mark (stripped) and a ``;``-separated
-CSV (the header line has no comma).  See :mod:`hybridtrack.measurements_io`.
+CSV (the header line has no comma).  See :mod:`hybridtrack.io.measurement_files`.
 """
 
 import io
@@ -11,8 +11,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from hybridtrack import measurements_io
-from hybridtrack.measurements_io import read_measurement_file, read_measurements, write_csv, write_npz
+from hybridtrack.io import measurement_files as measurements_io
+from hybridtrack.io.measurement_files import read_measurement_file, read_measurements, write_csv, write_npz
 
 # ---------------------------------------------------------------- CSV accepted
 

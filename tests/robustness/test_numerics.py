@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.clutter import Scan
-from hybridtrack.interfaces import LinearTransition, TransitionBank
+from hybridtrack.core.interfaces import LinearTransition, TransitionBank
+from hybridtrack.sdk.scans import Scan
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 ESTIMATORS = [

@@ -26,12 +26,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import hybridtrack.plugins as plugins
+import hybridtrack.core.plugins as plugins
 from hybridtrack.cli import main
-from hybridtrack.plugins import PluginError, PluginWarning, load_plugins, resolve
+from hybridtrack.core.plugins import PluginError, PluginWarning, load_plugins, resolve
+from hybridtrack.core.types import Schedule
+from hybridtrack.engine.simulate import build_models
 from hybridtrack.recording import MAX_RECORDABLE_SECONDS, RerunRecorder, check_recordable_times
-from hybridtrack.simulate import build_models
-from hybridtrack.types import Schedule
 
 SCRIPT = Path(sys.executable).with_name("hybridtrack")
 

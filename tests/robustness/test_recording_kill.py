@@ -21,17 +21,17 @@ import numpy as np
 import pytest
 
 from hybridtrack.cli import main
-from hybridtrack.inspection import RecordingFile, scan_frames
 from hybridtrack.recording import RerunRecorder
+from hybridtrack.recording.inspection import RecordingFile, scan_frames
 
 CHILD = textwrap.dedent(
     """
     import sys
     import numpy as np
     from hybridtrack import Gaussian, Schedule
-    from hybridtrack.pipeline import Pipeline
+    from hybridtrack.engine.pipeline import Pipeline
     from hybridtrack.recording import RerunRecorder
-    from hybridtrack.simulate import simulate
+    from hybridtrack.engine.simulate import simulate
     from hybridtrack_plugins.sensors.position import PositionSensor
 
     X0 = np.array([0.0, 0.0, 0.0, 2.0])
@@ -55,8 +55,8 @@ SAFE = 19_999  # steps 0..SAFE were flushed before the child printed step ≥ 25
 def reference_nis(steps: int) -> np.ndarray:
     """The NIS of the same run, in process, without recording."""
     from hybridtrack import Gaussian, Schedule
-    from hybridtrack.pipeline import Pipeline
-    from hybridtrack.simulate import simulate
+    from hybridtrack.engine.pipeline import Pipeline
+    from hybridtrack.engine.simulate import simulate
     from hybridtrack_plugins.sensors.position import PositionSensor
 
     X0 = np.array([0.0, 0.0, 0.0, 2.0])

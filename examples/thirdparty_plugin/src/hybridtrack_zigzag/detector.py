@@ -1,6 +1,6 @@
 """``cumulative_llr``: a change-time SPRT with a GLR-style maximum over change times.
 
-Written only against ``hybridtrack.interfaces`` and ``hybridtrack.thresholds``.
+Written only against ``hybridtrack.core.interfaces`` and ``hybridtrack.sdk.thresholds``.
 
 H_0: the current mode (row 0 of the bank) goes on; H_p (p = 1 … M−1): the mode
 changed to p at some unknown step.  Each entry e (an alternative p and a
@@ -21,15 +21,15 @@ otherwise continue.  After a decision the output is frozen until ``reset()``.
 
 Two ways to drive it:
 
-* a growing bank (:class:`~hybridtrack.composed.adaptive.UnknownChangeAdaptive`):
+* a growing bank (:class:`~hybridtrack.algorithms.adaptive.UnknownChangeAdaptive`):
   the driver calls :meth:`add` before each step; rows 1 … E of the scores are
   the entries in the order added; ``statistics["log_ratio"]`` is ln λ_p for
   p = 1 … M−1; :meth:`prune` bounds the entries (``"oldest"``: drop the
   entries started longest ago; ``"nearest_lower"``: drop the smallest ln ψ,
   those nearest B);
 * a fixed bank of M filters without :meth:`add` (a
-  :class:`~hybridtrack.pipeline.Pipeline`, or
-  :class:`~hybridtrack.composed.adaptive.KnownSwitchAdaptive`): rows 1 … M−1
+  :class:`~hybridtrack.engine.pipeline.Pipeline`, or
+  :class:`~hybridtrack.algorithms.adaptive.KnownSwitchAdaptive`): rows 1 … M−1
   are entries of alternatives 1 … M−1 started at the first step, and the test
   is one between the M hypotheses of the bank: ``statistics["log_ratio"]`` has
   one value per filter, (−max_p ln λ_p, ln λ_1, …, ln λ_{M−1}) — row 0 is
@@ -43,9 +43,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.interfaces import ChangeTimeTest, DetectorStep
-from hybridtrack.thresholds import WaldThresholds
-from hybridtrack.types import Decision
+from hybridtrack.core.interfaces import ChangeTimeTest, DetectorStep
+from hybridtrack.core.types import Decision
+from hybridtrack.sdk.thresholds import WaldThresholds
 
 
 class CumulativeLLR(WaldThresholds, ChangeTimeTest):

@@ -1,7 +1,7 @@
 """``info_kalman``: a small, readable Kalman filter bank for linear sensors.
 
-Written only against hybridtrack's public API (``hybridtrack.interfaces``,
-``hybridtrack.estimation``, ``hybridtrack.linalg``), as a third-party estimator
+Written only against hybridtrack's public API (``hybridtrack.core.interfaces``,
+``hybridtrack.sdk.estimation``, ``hybridtrack.sdk.linalg``), as a third-party estimator
 would be.  It is the covariance form of the Kalman filter (SPEC §3), every
 solve going through the Cholesky factor of the innovation covariance S — the
 "information" the detectors read (ν, S, ℓ, NIS):
@@ -13,9 +13,9 @@ solve going through the Cholesky factor of the innovation covariance S — the
     scores:   NIS = νᵀ S⁻¹ ν,         ℓ = −½(m ln 2π + ln det S + NIS)
 
 over stacked arrays (M filters at once).  The state is an attrs class whose
-per-filter arrays are :func:`hybridtrack.estimation.bank_field` s, so the bank
+per-filter arrays are :func:`hybridtrack.sdk.estimation.bank_field` s, so the bank
 operations ``take`` / ``concatenate`` come from
-:class:`hybridtrack.estimation.BankEstimator`; so do the input checks and the
+:class:`hybridtrack.sdk.estimation.BankEstimator`; so do the input checks and the
 measurement assembly (NaN components dropped, R per sensor).
 """
 
@@ -26,9 +26,9 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.estimation import BankEstimator, bank_field, empty_innovation
-from hybridtrack.interfaces import Innovation, Sensor, TransitionBank
-from hybridtrack.linalg import cholesky, cholesky_solve, gaussian_scores, symmetrize
+from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation
+from hybridtrack.sdk.linalg import cholesky, cholesky_solve, gaussian_scores, symmetrize
 
 
 @attrs.frozen(eq=False)

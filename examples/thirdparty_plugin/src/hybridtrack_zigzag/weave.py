@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybridtrack import LinearTransition, MotionModel
-from hybridtrack.validation import check_covariance
+from hybridtrack.core.validation import check_covariance
 
 _SMALL = 1e-3  # below |Δ| the Taylor series of s, c and their derivatives are exact to rounding
 

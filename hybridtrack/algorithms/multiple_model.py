@@ -1,0 +1,673 @@
+"""Multiple-model estimators with Markov switching: IMM, GPB1 and GPB2 from one set of parts.
+
+The target's mode is a Markov chain over r motion models with transition
+matrix Π, π_ij = P(mode j at k | mode i at k−1) (rows sum to 1), or, given a
+mean sojourn time T_i per mode, Π(Δt) = expm(Λ Δt) with the generator
+Λ_ii = −1/T_i, Λ_ij = 1/(T_i (r − 1)) (leave mode i at rate 1/T_i, to any
+other mode alike).  Each step is built from three parts (Bar-Shalom, Li &
+Kirubarajan 2001, *Estimation with Applications to Tracking and Navigation*,
+§11.6; Blom & Bar-Shalom 1988, IEEE TAC 33(8)):
+
+1. **Mixing** (what each model-conditioned filter starts from).
+   Predicted mode probabilities c̄_j = Σ_i π_ij μ_i; mixing probabilities
+   μ_{i|j} = π_ij μ_i / c̄_j; mixed estimate
+   x̂_0j = Σ_i μ_{i|j} x̂_i,  P_0j = Σ_i μ_{i|j} (P_i + (x̂_i − x̂_0j)(x̂_i − x̂_0j)ᵀ).
+2. **Model-conditioned filtering** with any registered estimator: the filter
+   of model j is initialized at (x̂_0j, P_0j), predicted with model j's
+   transition and updated with z_k; its innovation gives the likelihood
+   Λ_j = N(ν_j; 0, S_j), ln Λ_j = ℓ_j (:class:`~hybridtrack.core.interfaces.Innovation`).
+3. **Merging**: μ_j = Λ_j c̄_j / Σ_l Λ_l c̄_l, and the output
+   x̂ = Σ_j μ_j x̂_j,  P = Σ_j μ_j (P_j + (x̂_j − x̂)(x̂_j − x̂)ᵀ).
+
+The methods differ in what the filters start from:
+
+* ``"imm"`` — one filter per model, started from its own mixed estimate
+  (x̂_0j, P_0j) (Blom & Bar-Shalom 1988; BLK §11.6.6);
+* ``"gpb1"`` — one filter per model, every one started from the single
+  merged estimate (x̂, P) of the previous step (μ_{i|j} replaced by μ_i;
+  BLK §11.6.4);
+* ``"gpb2"`` — r² filters, filter (i, j) started from model i's estimate
+  (x̂_i, P_i) and run with model j; μ_ij ∝ Λ_ij π_ij μ_i, μ_j = Σ_i μ_ij, and
+  model j's estimate merges its r filters with weights μ_ij / μ_j (BLK §11.6.5).
+
+Mode probabilities are kept as logarithms (ln c̄_j and ln μ_j by
+log-sum-exp, ln π_ij = −∞ for a forbidden switch), so a model whose
+probability falls below the float64 range (e^−745) keeps a finite log
+probability over arbitrarily long runs and can recover.
+
+**Turn models** take ω and the turn centre from the estimate each filter
+starts from: the transition of model j at step k is
+``transition(Δt_k, x̂_0j)`` with x̂_0j its mixed mean (IMM), the merged mean
+(GPB1) or x̂_i (GPB2, filter (i, j)), rebuilt every step — a turn of radius r
+tangent to the current velocity estimate.  Models whose transition ignores
+the switch state (straight, constant acceleration) are unaffected; a
+nonlinear model is linearized there (F x̂_0j + B = f(x̂_0j), the EKF prediction).
+
+**Models of different state sizes** (the 6-state ``constant_acceleration``
+("x", "vx", "ax", "y", "vy", "ay") with the 4-state ("x", "vx", "y", "vy"))
+are mixed in the *union layout*: the largest model layout when it contains
+every other, otherwise the ordered union of the layouts.  A model's estimate
+is expanded to it by component name (:func:`~hybridtrack.core.interfaces.convert_layout`)
+with mean ``missing_mean`` (default 0) and variance ``missing_variance``
+(default 1, in that component's units², e.g. (m/s²)² for an acceleration) for
+each component the model lacks, uncorrelated with the rest — what a model
+without an acceleration says about it: "zero, give or take σ"; mixing and
+merging are done there, and a mixed estimate is projected back onto model j's
+components (the marginal of a Gaussian: the sub-vector and sub-matrix).
+The outputs (means, covariances, each model's estimate) are in the union layout.
+
+The filters of one layout form one bank of the inner estimator, so a step is
+one ``initialize``/``predict``/``update`` per distinct layout over every
+model (and every run when the inputs are stacked: prior (R, n),
+measurements (K+1, R, m)).  The inner estimator is re-initialized from the
+mixed (x̂_0j, P_0j) at every step: a mixture of Gaussians has no factor form
+to carry over, so a square-root estimator starts each step from a fresh
+factor of P_0j.
+
+Step convention (as :class:`~hybridtrack.engine.pipeline.Pipeline`): step 0
+updates each model's copy of the prior with z_0 and weighs the models by
+μ_j ∝ Λ_j μ_0,j (μ_0 the given initial mode probabilities, no switch before
+the first measurement); step k ≥ 1 mixes, predicts over Δt_k and updates.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import attrs
+import numpy as np
+
+from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor, TransitionBank
+from hybridtrack.core.plugins import resolve, resolve_registry
+from hybridtrack.core.registry import Registry
+from hybridtrack.core.types import Gaussian
+from hybridtrack.core.validation import as_float_array, check_covariance, check_positive
+from hybridtrack.engine.pipeline import mode_label
+from hybridtrack.engine.run_bank import grouped_transitions
+from hybridtrack.recording import log_estimate, log_measurements
+from hybridtrack.sdk.network import SensorNetwork
+from hybridtrack.sdk.timestamps import check_tau, step_intervals
+
+METHODS = ("imm", "gpb1", "gpb2")
+
+
+# --------------------------------------------------------------------------- log-space helpers
+
+
+def log_sum_exp(values: np.ndarray, axis: int) -> np.ndarray:
+    """ln Σ exp(values) along ``axis``, −∞ for an all −∞ slice, without overflow or underflow."""
+    top = np.max(values, axis=axis, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.squeeze(top, axis) + np.log(np.sum(np.exp(values - top), axis=axis))
+
+
+def normalized_weights(log_weights: np.ndarray, axis: int) -> np.ndarray:
+    """exp(log_weights) normalized along ``axis``; an all −∞ slice (weight zero) gets equal weights.
+
+    The equal weights only fill a slice whose result carries probability zero
+    (e.g. the mixed estimate of a mode no mode can switch into), so any finite
+    choice is exact.
+    """
+    top = np.max(log_weights, axis=axis, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    w = np.exp(log_weights - top)
+    total = np.sum(w, axis=axis, keepdims=True)
+    return np.where(total > 0, w / np.where(total > 0, total, 1.0), 1.0 / log_weights.shape[axis])
+
+
+def moment_match(weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x̄ = Σ_i w_i x_i, P̄ = Σ_i w_i (P_i + (x_i − x̄)(x_i − x̄)ᵀ) over axis −2 of ``weights`` (..., I, J).
+
+    means (..., I, n), covs (..., I, n, n) → (..., J, n), (..., J, n, n): one
+    merged Gaussian per column j (BLK 2001 eq. 11.6.6-9 and 11.6.6-10).
+    """
+    mean = np.einsum("...ij,...in->...jn", weights, means)
+    d = means[..., :, None, :] - mean[..., None, :, :]
+    cov = np.einsum("...ij,...inm->...jnm", weights, covs) + np.einsum("...ij,...ijn,...ijm->...jnm", weights, d, d)
+    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+
+
+def merge_pairs(weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """GPB2's merge per column j: x̄_j = Σ_i w_ij x_ij, P̄_j = Σ_i w_ij (P_ij + (x_ij − x̄_j)(x_ij − x̄_j)ᵀ).
+
+    weights (..., I, J), means (..., I, J, n), covs (..., I, J, n, n) → (..., J, n), (..., J, n, n)
+    (BLK 2001 §11.6.5).
+    """
+    mean = np.einsum("...ij,...ijn->...jn", weights, means)
+    d = means - mean[..., None, :, :]
+    cov = np.einsum("...ij,...ijnm->...jnm", weights, covs) + np.einsum("...ij,...ijn,...ijm->...jnm", weights, d, d)
+    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+
+
+def union_layout(layouts: Sequence[Sequence[str]]) -> tuple[str, ...]:
+    """The largest layout if it contains every other one, else the ordered union (first appearance)."""
+    layouts = [tuple(layout) for layout in layouts]
+    largest = max(layouts, key=len)
+    if all(set(layout) <= set(largest) for layout in layouts):
+        return largest
+    union: list[str] = []
+    for layout in layouts:
+        union += [name for name in layout if name not in union]
+    return tuple(union)
+
+
+def markov_matrix(transition_matrix, modes: int) -> np.ndarray:
+    """Π (r, r) checked: finite, non-negative, every row summing to 1 (to 1e-9; rows are renormalized)."""
+    P = as_float_array(transition_matrix, "transition_matrix", (modes, modes))
+    if np.any(P < 0):
+        raise ValueError(f"transition_matrix: expected non-negative probabilities, got a minimum of {float(P.min())}")
+    sums = P.sum(axis=1)
+    bad = np.flatnonzero(np.abs(sums - 1.0) > 1e-9)
+    if bad.size:
+        raise ValueError(
+            f"transition_matrix: row {int(bad[0])} sums to {float(sums[bad[0]])!r}; expected rows π_i· summing to 1 "
+            "(π_ij = P(mode j at k | mode i at k−1))"
+        )
+    return P / sums[:, None]
+
+
+def sojourn_matrix(sojourn: np.ndarray, dt) -> np.ndarray:
+    """Π(Δt) = expm(Λ Δt), Λ_ii = −1/T_i, Λ_ij = 1/(T_i (r − 1)): mean sojourn T_i, equal rates to the others.
+
+    Λ = D A with D = diag(1/T_i) and the symmetric A = (J − r I)/(r − 1) (J all ones), so Λ is similar to the
+    symmetric S = D^½ A D^½ = U diag(λ) Uᵀ and expm(Λ Δt) = D^½ U diag(e^{λ Δt}) Uᵀ D^−½ (Moler & Van Loan
+    2003, SIAM Review 45(1), method 14, for a matrix similar to a symmetric one): one eigendecomposition for
+    every Δt.  ``dt`` one step (→ (r, r)) or an array of steps (D,) (→ (D, r, r)).  Entries are clipped
+    at 0 and the rows renormalized against rounding.
+    """
+    r = sojourn.shape[0]
+    steps = np.asarray(dt, dtype=float)
+    if r == 1:
+        return np.ones(steps.shape + (1, 1))
+    root = np.sqrt(1.0 / sojourn)
+    A = (np.ones((r, r)) - r * np.eye(r)) / (r - 1)
+    lam, U = np.linalg.eigh(root[:, None] * A * root[None, :])
+    left, right = root[:, None] * U, U.T / root[None, :]
+    P = left @ (np.exp(lam * steps[..., None])[..., :, None] * right)
+    P = np.clip(P, 0.0, None)
+    return P / P.sum(axis=-1, keepdims=True)
+
+
+# --------------------------------------------------------------------------- state and result
+
+
+@attrs.frozen(eq=False)
+class MultipleModelState:
+    """The estimator between steps, over R runs and r models, everything in the union layout (n).
+
+    ``model_means`` (R, r, n), ``model_covs`` (R, r, n, n): each model's
+    estimate x̂_j, P_j (components the model lacks at ``missing_mean`` and
+    ``missing_variance``); ``log_mode_probabilities`` (R, r) ln μ_j;
+    ``mean`` (R, n), ``cov`` (R, n, n) the combined output;
+    ``model_loglik`` (R, r) ln Λ_j of the last update (GPB2: ln Σ_i μ_{i|j} Λ_ij);
+    ``loglik`` (R,) ln p(z_k | Z_{k−1}) = ln Σ_j Λ_j c̄_j (0 without a measurement).
+    """
+
+    model_means: np.ndarray
+    model_covs: np.ndarray
+    log_mode_probabilities: np.ndarray
+    mean: np.ndarray
+    cov: np.ndarray
+    model_loglik: np.ndarray
+    loglik: np.ndarray
+
+    @property
+    def mode_probabilities(self) -> np.ndarray:
+        """μ_j (R, r)."""
+        return np.exp(self.log_mode_probabilities)
+
+
+@attrs.frozen(eq=False)
+class MultipleModelRun:
+    """A multiple-model run over steps 0 … K.
+
+    Single run: ``means`` (K+1, n), ``covs`` (K+1, n, n), ``log_mode_probabilities``
+    (K+1, r), ``model_means`` (K+1, r, n), ``model_covs`` (K+1, r, n, n),
+    ``model_loglik`` (K+1, r), ``loglik`` (K+1,).  Stacked runs put the run
+    axis R after the step axis ((K+1, R, n), (K+1, R, r), …).  ``layout`` is
+    the union layout, ``modes`` the model labels.
+    """
+
+    layout: tuple[str, ...]
+    modes: tuple[str, ...]
+    method: str
+    times: np.ndarray
+    means: np.ndarray
+    covs: np.ndarray
+    log_mode_probabilities: np.ndarray
+    model_means: np.ndarray
+    model_covs: np.ndarray
+    model_loglik: np.ndarray
+    loglik: np.ndarray
+
+    @property
+    def mode_probabilities(self) -> np.ndarray:
+        """μ_j per step (K+1, r) (or (K+1, R, r))."""
+        return np.exp(self.log_mode_probabilities)
+
+    @property
+    def most_probable(self) -> np.ndarray:
+        """argmax_j μ_j per step (K+1,) (or (K+1, R)), an index into ``modes``."""
+        return np.argmax(self.log_mode_probabilities, axis=-1)
+
+
+#: the per-step fields of a :class:`MultipleModelRun` after ``times``, as named on :class:`MultipleModelState`
+RUN_FIELDS = ("mean", "cov", "log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik")
+
+
+# --------------------------------------------------------------------------- the estimator
+
+
+class MultipleModelEstimator:
+    """IMM, GPB1 or GPB2 over ``models`` with Markov switching, any registered estimator inside (module docstring).
+
+    ``models``: motion models (objects, registry names or (name, parameters));
+    ``transition_matrix`` Π (r, r), π_ij = P(j at k | i at k−1), used as is at
+    every step whatever Δt; or ``sojourn`` (seconds, one number or one per
+    mode): Π(Δt) = expm(Λ Δt) for each step's Δt (exactly one of the two).
+    ``estimator``: the model-conditioned filter (an object or spec, default
+    ``"kalman"``).  ``method``: ``"imm"``, ``"gpb1"`` or ``"gpb2"``.
+    ``missing_mean`` / ``missing_variance``: the mean and variance a model
+    assigns to a union-layout component it lacks (a number for all, or a
+    mapping component → value; defaults 0 and 1).
+    """
+
+    def __init__(
+        self,
+        models: Sequence[Any],
+        transition_matrix=None,
+        *,
+        sensors: SensorNetwork | Sequence[Sensor],
+        sojourn=None,
+        estimator: Any = "kalman",
+        method: str = "imm",
+        tau: float | None = None,
+        missing_mean: float | Mapping[str, float] = 0.0,
+        missing_variance: float | Mapping[str, float] = 1.0,
+        name: str | None = None,
+        registry: Registry | None = None,
+    ):
+        if method not in METHODS:
+            raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+        self.method = method
+        registry = resolve_registry(registry)
+        if isinstance(models, (str, MotionModel)) or not isinstance(models, Sequence):
+            raise TypeError(f"models: expected a sequence of motion models (objects, names or (name, parameters)), got {models!r}")
+        self.models: list[MotionModel] = [resolve("motion_model", m, registry) for m in models]
+        r = len(self.models)
+        if r == 0:
+            raise ValueError("models: expected at least one motion model, got an empty sequence")
+        labels = [mode_label(m) for m in self.models]
+        self.modes = tuple(x if labels.count(x) == 1 else f"{x}_{i}" for i, x in enumerate(labels))
+        if (transition_matrix is None) == (sojourn is None):
+            raise ValueError("transition_matrix, sojourn: give exactly one (Π of shape (r, r), or the mean sojourn time in seconds)")
+        self._matrix = None if transition_matrix is None else markov_matrix(transition_matrix, r)
+        self._sojourn = None
+        if sojourn is not None:
+            values = np.broadcast_to(np.asarray(sojourn, dtype=float), (r,)) if np.ndim(sojourn) == 0 else np.asarray(sojourn, float)
+            if values.shape != (r,):
+                raise ValueError(f"sojourn: expected one mean sojourn time or {r} (one per model), got shape {values.shape}")
+            self._sojourn = np.array([check_positive(v, "sojourn") for v in values])
+        self._log_matrices: dict[float, np.ndarray] = {}
+        self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
+        self.tau = None if tau is None else check_tau(tau)
+        self.estimator: Estimator = resolve("estimator", estimator, registry)
+        self.name = name or method
+        self.layout = union_layout([m.layout for m in self.models])
+        n = len(self.layout)
+        self._positions = [np.array([self.layout.index(c) for c in m.layout]) for m in self.models]
+        fill_mean = self._per_component(missing_mean, "missing_mean", positive=False)
+        fill_var = self._per_component(missing_variance, "missing_variance", positive=True)
+        self._missing_mean, self._missing_var = fill_mean, fill_var
+        # each model's expansion to the union layout: fill mean and variance on the components it lacks
+        self._fill_mean = np.zeros((r, n))
+        self._fill_var = np.zeros((r, n))
+        for j, pos in enumerate(self._positions):
+            lacking = np.setdiff1d(np.arange(n), pos)
+            self._fill_mean[j, lacking] = fill_mean[lacking]
+            self._fill_var[j, lacking] = fill_var[lacking]
+        groups: dict[tuple[str, ...], list[int]] = {}
+        for j, m in enumerate(self.models):
+            groups.setdefault(tuple(m.layout), []).append(j)
+        self._groups = [(layout, np.array(members)) for layout, members in groups.items()]
+        self._rows: dict[tuple, np.ndarray] = {}
+        self._banks: dict[tuple, TransitionBank] = {}
+
+    def _per_component(self, value, name: str, positive: bool) -> np.ndarray:
+        n = len(self.layout)
+        if isinstance(value, Mapping):
+            unknown = sorted(set(value) - set(self.layout))
+            if unknown:
+                raise ValueError(f"{name}: components {unknown} are not in the union layout {self.layout}")
+            default = 1.0 if positive else 0.0
+            out = np.array([float(value.get(c, default)) for c in self.layout])
+        else:
+            out = np.full(n, float(value))
+        if not np.all(np.isfinite(out)) or (positive and np.any(out <= 0)):
+            raise ValueError(f"{name}: expected {'positive ' if positive else ''}finite values, got {value!r}")
+        return out
+
+    # ------------------------------------------------------------------ Markov chain
+    def log_transition_matrix(self, dt: float | None) -> np.ndarray:
+        """ln Π for a step of ``dt`` seconds (−∞ for a forbidden switch)."""
+        if self._matrix is not None:
+            key = -1.0
+            matrix = self._matrix
+        else:
+            key = float(dt)
+            matrix = None if key in self._log_matrices else sojourn_matrix(self._sojourn, key)
+        if key not in self._log_matrices:
+            with np.errstate(divide="ignore"):
+                self._log_matrices[key] = np.log(matrix)
+        return self._log_matrices[key]
+
+    def log_transition_matrices(self, dt) -> np.ndarray:
+        """ln Π(Δt_r) for steps ``dt`` (R,) → (R, r, r); the Δt not seen before are computed in one expm call."""
+        if self._matrix is not None:
+            return np.broadcast_to(self.log_transition_matrix(None), (len(dt),) + self._matrix.shape)
+        keys = [float(d) for d in dt]
+        new = sorted({key for key in keys if key not in self._log_matrices})
+        if new:
+            with np.errstate(divide="ignore"):
+                for key, matrix in zip(new, np.log(sojourn_matrix(self._sojourn, np.array(new)))):
+                    self._log_matrices[key] = matrix
+        return np.stack([self._log_matrices[key] for key in keys])
+
+    # ------------------------------------------------------------------ layouts
+    def expand(self, means: np.ndarray, covs: np.ndarray, model: int) -> tuple[np.ndarray, np.ndarray]:
+        """Model ``model``'s (…, n_j) means and covariances in the union layout, lacking components filled."""
+        pos = self._positions[model]
+        x = np.broadcast_to(self._fill_mean[model], means.shape[:-1] + (len(self.layout),)).copy()
+        x[..., pos] = means
+        P = np.zeros(covs.shape[:-2] + (len(self.layout),) * 2)
+        diag = np.arange(len(self.layout))
+        P[..., diag, diag] = self._fill_var[model]
+        P[..., pos[:, None], pos[None, :]] = covs
+        return x, P
+
+    def project(self, means: np.ndarray, covs: np.ndarray, model: int) -> tuple[np.ndarray, np.ndarray]:
+        """Union-layout means and covariances restricted to model ``model``'s components (the Gaussian marginal)."""
+        pos = self._positions[model]
+        return means[..., pos], covs[..., pos[:, None], pos[None, :]]
+
+    # ------------------------------------------------------------------ the parts
+    def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
+        """Model-conditioned filtering of F filters per run: start (R, F, n) in the union layout, filter f runs
+        model ``filter_models[f]``; predict over ``dt`` (seconds, one for all runs or (R,) per run; None: update
+        only) and update with z (R, Σm).  Returns the posteriors (R, F, n), (R, F, n, n) in the union layout
+        and ℓ (R, F).  Runs missing different components (NaN) are filtered in groups of one pattern each
+        (a bank has one pattern)."""
+        missing = np.isnan(z)
+        if (missing == missing[0]).all():
+            return self._filter_runs(start_means, start_covs, filter_models, dt, z)
+        R, F, n = start_means.shape
+        means, covs, loglik = np.empty((R, F, n)), np.empty((R, F, n, n)), np.empty((R, F))
+        patterns, which = np.unique(missing, axis=0, return_inverse=True)
+        for g in range(len(patterns)):
+            runs = np.flatnonzero(which.reshape(-1) == g)
+            part_dt = dt if dt is None or np.ndim(dt) == 0 else np.asarray(dt)[runs]
+            means[runs], covs[runs], loglik[runs] = self._filter_runs(start_means[runs], start_covs[runs], filter_models, part_dt, z[runs])
+        return means, covs, loglik
+
+    def _filter_runs(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
+        """:meth:`_filter` for runs that all miss the same components."""
+        R, F, n = start_means.shape
+        means = np.empty((R, F, n))
+        covs = np.empty((R, F, n, n))
+        loglik = np.empty((R, F))
+        sensors = self.network.sensors
+        for g, (layout, members) in enumerate(self._groups):
+            key = (g, filter_models.tobytes())
+            if key not in self._rows:
+                self._rows[key] = np.flatnonzero(np.isin(filter_models, members))
+            rows = self._rows[key]
+            if rows.size == 0:
+                continue
+            pos = self._positions[members[0]]
+            x0 = start_means[:, rows][..., pos]
+            P0 = start_covs[:, rows][..., pos[:, None], pos[None, :]]
+            x0_flat = x0.reshape(R * rows.size, pos.size)
+            state = self.estimator.initialize(x0_flat, 0.5 * (P0 + np.swapaxes(P0, -1, -2)).reshape(R * rows.size, pos.size, pos.size))
+            if dt is not None:
+                models = [self.models[filter_models[f]] for f in rows] * R
+                steps = float(dt) if np.ndim(dt) == 0 else np.repeat(np.asarray(dt, dtype=float), rows.size)
+                bank = self._same_bank(key, grouped_transitions(models, steps, x0_flat))  # transition_bank per model
+                state = self.estimator.predict(state, bank)
+            measurement = z[0] if R == 1 else np.repeat(z, rows.size, axis=0)
+            state, innovation = self.estimator.update(state, measurement, sensors, layout)
+            x = np.asarray(self.estimator.mean(state), dtype=float).reshape(R, rows.size, pos.size)
+            P = np.asarray(self.estimator.covariance(state), dtype=float).reshape(R, rows.size, pos.size, pos.size)
+            P = 0.5 * (P + np.swapaxes(P, -1, -2))
+            model = members[0]  # one layout: the same expansion for every member
+            means[:, rows], covs[:, rows] = self.expand(x, P, model)
+            loglik[:, rows] = np.asarray(innovation.loglik, dtype=float).reshape(R, rows.size)
+        return means, covs, loglik
+
+    def _same_bank(self, key, bank: TransitionBank) -> TransitionBank:
+        """The previous step's bank object when the transitions did not change (models that ignore the switch
+        state), so the estimator's per-bank caches (checks, structure) are reused; else ``bank``."""
+        old = self._banks.get(key)
+        if old is not None and all(np.array_equal(getattr(old, f), getattr(bank, f)) for f in ("F", "B", "Q")):
+            return old
+        self._banks[key] = bank
+        return bank
+
+    def _combine(self, model_means, model_covs, log_mu, model_loglik, loglik) -> MultipleModelState:
+        mu = normalized_weights(log_mu, axis=-1)
+        mean, cov = moment_match(mu[..., None], model_means, model_covs)
+        return MultipleModelState(model_means, model_covs, log_mu, mean[:, 0], cov[:, 0], model_loglik, loglik)
+
+    # ------------------------------------------------------------------ steps
+    def start(self, prior_mean, prior_cov, z0, mode_probabilities=None, prior_layout: Sequence[str] | None = None) -> MultipleModelState:
+        """Step 0: every model's copy of the prior (R, n) updated with z0 (R, Σm); μ_j ∝ Λ_j μ_0,j."""
+        r = len(self.models)
+        mean = np.asarray(prior_mean, dtype=float)
+        cov = np.asarray(prior_cov, dtype=float)
+        R = mean.shape[0]
+        layout = self._prior_layout(mean.shape[-1], prior_layout)
+        x, P = self._prior_in_union(mean, cov, layout)
+        if mode_probabilities is None:
+            log_mu0 = np.full(r, -np.log(r))
+        else:
+            mu0 = as_float_array(mode_probabilities, "mode_probabilities", (r,))
+            if np.any(mu0 < 0) or abs(mu0.sum() - 1.0) > 1e-9:
+                raise ValueError(f"mode_probabilities: expected {r} non-negative probabilities summing to 1, got {mu0.tolist()}")
+            with np.errstate(divide="ignore"):
+                log_mu0 = np.log(mu0 / mu0.sum())
+        starts_x = np.broadcast_to(x[:, None], (R, r, x.shape[-1]))
+        starts_P = np.broadcast_to(P[:, None], (R, r) + P.shape[-2:])
+        means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), None, z0)
+        joint = ell + log_mu0
+        total = log_sum_exp(joint, axis=-1)
+        return self._combine(means, covs, joint - total[:, None], ell, total)
+
+    def step(self, state: MultipleModelState, z: np.ndarray, dt) -> MultipleModelState:
+        """One step k ≥ 1 over Δt = ``dt`` (seconds, one for all runs or (R,) per run) with measurements z (R, Σm)
+        (NaN: not measured)."""
+        r = len(self.models)
+        if np.ndim(dt) == 0:
+            log_pi = self.log_transition_matrix(float(dt))[None]
+        else:
+            log_pi = self.log_transition_matrices(dt)  # ln Π(Δt_r) per run, (R, r, r)
+        log_mu = state.log_mode_probabilities
+        joint_prior = log_pi + log_mu[:, :, None]  # ln π_ij μ_i, (R, i, j)
+        log_cbar = log_sum_exp(joint_prior, axis=1)  # ln c̄_j (R, j)
+        if self.method == "gpb2":
+            R, n = state.mean.shape
+            starts_x = np.repeat(state.model_means, r, axis=1)  # filter (i, j) at row i·r + j starts from model i
+            starts_P = np.repeat(state.model_covs, r, axis=1)
+            x, P, ell = self._filter(starts_x, starts_P, np.tile(np.arange(r), r), dt, z)
+            ell = ell.reshape(R, r, r)
+            joint = joint_prior + ell  # ln π_ij μ_i Λ_ij
+            log_mu_j = log_sum_exp(joint, axis=1)
+            w = normalized_weights(joint, axis=1)  # μ_{ij} / μ_j over i
+            means, covs = merge_pairs(w, x.reshape(R, r, r, n), P.reshape(R, r, r, n, n))
+            model_ell = log_mu_j - log_cbar
+            model_ell = np.where(np.isfinite(log_cbar), model_ell, 0.0)
+            total = log_sum_exp(log_mu_j, axis=-1)
+            return self._combine(means, covs, log_mu_j - total[:, None], model_ell, total)
+        if self.method == "imm":
+            w = normalized_weights(joint_prior, axis=1)  # μ_{i|j}
+            starts_x, starts_P = moment_match(w, state.model_means, state.model_covs)
+        else:  # gpb1: every filter starts from the merged estimate
+            R = log_mu.shape[0]
+            starts_x = np.broadcast_to(state.mean[:, None], (R, r) + state.mean.shape[-1:])
+            starts_P = np.broadcast_to(state.cov[:, None], (R, r) + state.cov.shape[-2:])
+        means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), dt, z)
+        joint = ell + log_cbar
+        total = log_sum_exp(joint, axis=-1)
+        return self._combine(means, covs, joint - total[:, None], ell, total)
+
+    def _prior_layout(self, n: int, prior_layout) -> tuple[str, ...]:
+        if prior_layout is not None:
+            layout = tuple(prior_layout)
+            missing = sorted(set(layout) - set(self.layout))
+            if missing:
+                raise ValueError(f"prior_layout: components {missing} are in no model's layout {self.layout}")
+            if len(layout) != n:
+                raise ValueError(f"prior_layout: {len(layout)} components for a prior mean of {n}")
+            return layout
+        if n == len(self.layout):
+            return self.layout
+        for m in self.models:
+            if m.state_dim == n:
+                return tuple(m.layout)
+        raise ValueError(f"prior: mean of {n} components matches neither the union layout {self.layout} nor a model's layout")
+
+    def _prior_in_union(self, mean, cov, layout) -> tuple[np.ndarray, np.ndarray]:
+        n = len(self.layout)
+        pos = np.array([self.layout.index(c) for c in layout])
+        lacking = np.setdiff1d(np.arange(n), pos)
+        x = np.broadcast_to(self._missing_mean, mean.shape[:-1] + (n,)).copy()
+        x[..., pos] = mean
+        P = np.zeros(cov.shape[:-2] + (n, n))
+        P[..., lacking, lacking] = self._missing_var[lacking]  # components the prior lacks: missing_mean, missing_variance
+        P[..., pos[:, None], pos[None, :]] = cov
+        return x, P
+
+    # ------------------------------------------------------------------ the run
+    def run(
+        self,
+        measurements: Mapping[str, np.ndarray],
+        prior,
+        *,
+        times=None,
+        mode_probabilities=None,
+        prior_layout: Sequence[str] | None = None,
+        recorder=None,
+        truth=None,
+    ) -> MultipleModelRun:
+        """The estimator over measurements of steps 0 … K at ``times`` (seconds; default 0, τ, 2τ, …).
+
+        ``measurements``: sensor name → (K+1, m) for one run, or (K+1, R, m)
+        for R runs at once (then ``prior`` has a mean (R, n) and covariances
+        (R, n, n), or one shared prior).  ``prior``: a Gaussian or (mean, cov)
+        in the union layout or a model's layout (``prior_layout`` names it when
+        ambiguous).  ``mode_probabilities``: μ_0 (r,), default uniform.
+        ``recorder`` (single run): the estimate, one ``mode_probability``
+        series per model, the most probable mode and the measurements.
+        """
+        z, stacked = self._stack(measurements)
+        K = z.shape[0] - 1
+        t, dt = step_intervals(times, self.tau, K + 1)
+        states = self._states(z, prior, [float(d) for d in dt], mode_probabilities, prior_layout)
+
+        def series(field):
+            out = np.stack([getattr(s, field) for s in states])
+            return out if stacked else out[:, 0]
+
+        run = MultipleModelRun(self.layout, self.modes, self.method, t, *(series(field) for field in RUN_FIELDS))
+        if recorder is not None:
+            if stacked:
+                raise ValueError("recorder: a recording holds one run; record the runs one at a time")
+            self._record(recorder, z[:, 0], run, truth)
+        return run
+
+    def run_batch(
+        self,
+        measurements: Mapping[str, np.ndarray],
+        prior,
+        *,
+        times=None,
+        truth=None,
+        recorders: Mapping[int, Any] | None = None,
+        mode_probabilities=None,
+        prior_layout: Sequence[str] | None = None,
+    ) -> list[MultipleModelRun]:
+        """R runs vectorized over runs × models, one :class:`MultipleModelRun` per run, equal to :meth:`run` of each.
+
+        ``measurements``: sensor name → (R, K+1, m) (NaN: not measured; runs may
+        miss different components); ``times``: (K+1,) shared or (R, K+1) per run
+        (irregular), default ``tau``; ``prior``: one Gaussian or per-run means
+        (R, n) and covariances (R, n, n); ``truth``: per-run trajectories (a
+        sequence of R or run → trajectory) recorded beside the estimates;
+        ``recorders``: run index → recorder for the runs to record.
+        """
+        from hybridtrack.engine.batch import batch_measurements, batch_times, per_run
+
+        arrays, R, steps = batch_measurements(measurements)
+        T, DT = batch_times(times, self.tau, R, steps)
+        truths = per_run(truth, R, "truth")
+        recorders = dict(recorders or {})
+        per_run(recorders, R, "recorders")
+        z, _ = self._stack({name: np.swapaxes(a, 0, 1) for name, a in arrays.items()})
+        same = bool((DT == DT[:1]).all())
+        dts = [float(DT[0, k]) if same else np.array(DT[:, k]) for k in range(steps - 1)]
+        states = self._states(z, prior, dts, mode_probabilities, prior_layout)
+        stacked = {field: np.stack([getattr(s, field) for s in states]) for field in RUN_FIELDS}
+        runs = []
+        for r in range(R):
+            t = np.array(T[r])
+            t.setflags(write=False)
+            runs.append(MultipleModelRun(self.layout, self.modes, self.method, t, *(stacked[f][:, r] for f in RUN_FIELDS)))
+        for r, recorder in recorders.items():
+            self._record(recorder, z[:, r], runs[r], truths[r])
+        return runs
+
+    def _states(self, z, prior, dts, mode_probabilities, prior_layout) -> list[MultipleModelState]:
+        """The state after each step of z (K+1, R, Σm): start, then one step per Δt of ``dts`` (a float or (R,))."""
+        R = z.shape[1]
+        mean, cov = (prior.mean, prior.cov) if isinstance(prior, Gaussian) else prior
+        mean, cov = np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
+        if mean.ndim == 1:
+            g = Gaussian(mean, cov)
+            mean, cov = np.broadcast_to(g.mean, (R,) + g.mean.shape), np.broadcast_to(g.cov, (R,) + g.cov.shape)
+        else:
+            mean = as_float_array(mean, "prior mean", (R, None))
+            cov = as_float_array(cov, "prior cov", (R, mean.shape[1], mean.shape[1]))
+            for i in range(R):
+                check_covariance(cov[i], f"prior cov[{i}]", mean.shape[1])
+        states = [self.start(mean, cov, z[0], mode_probabilities, prior_layout)]
+        for k, dt in enumerate(dts, start=1):
+            states.append(self.step(states[-1], z[k], dt))
+        return states
+
+    def _stack(self, measurements: Mapping[str, np.ndarray]) -> tuple[np.ndarray, bool]:
+        """z (K+1, R, Σm) and whether the runs were stacked (measurements (K+1, R, m))."""
+        arrays = {name: np.asarray(value, dtype=float) for name, value in measurements.items()}
+        dims = {a.ndim for a in arrays.values()}
+        if dims == {3}:
+            shapes = {a.shape[:2] for a in arrays.values()}
+            if len(shapes) != 1:
+                raise ValueError(f"measurements: stacked runs need one (K+1, R) for every sensor, got {sorted(shapes)}")
+            steps, R = shapes.pop()
+            flat = self.network.stack({name: a.reshape(steps * R, a.shape[-1]) for name, a in arrays.items()})
+            return flat.reshape(steps, R, -1), True
+        if dims - {2}:
+            raise ValueError(f"measurements: expected arrays (K+1, m) for one run or (K+1, R, m) for R runs, got ndim {sorted(dims)}")
+        return self.network.stack(arrays)[:, None, :], False
+
+    def _record(self, recorder, z: np.ndarray, run: MultipleModelRun, truth) -> None:
+        steps = np.arange(run.means.shape[0])
+        times = run.times
+        if truth is not None:
+            recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
+        log_measurements(recorder, self.network.sensors, self.network.split(z), steps, times)
+        position = [self.layout.index("x"), self.layout.index("y")]
+        log_estimate(recorder, self.name, steps, run.means, run.covs, position, times)
+        for j, mode in enumerate(self.modes):
+            recorder.log_scalars(f"estimator/{self.name}/mode_probability/{mode}", steps, run.mode_probabilities[:, j], times)
+        recorder.log_scalars(f"estimator/{self.name}/mode", steps, run.most_probable.astype(float), times)
+        recorder.log_modes(f"world/estimate/{self.name}", steps, run.most_probable, self.modes, times)

@@ -1,0 +1,178 @@
+"""What a Monte Carlo experiment is, and how a name or a path becomes one.
+
+An :class:`Experiment` is a name, a function ``run_one(index, rng, **parameters)``
+returning one run's results (a mapping name → float or array, the same names
+and shapes for every run) and default ``parameters``.  The runner gives run
+``index`` the random generator ``numpy.random.default_rng(child)`` where
+``child`` is the ``index``-th child of ``SeedSequence(seed)``; ``run_one`` must
+draw all its randomness from that generator.
+
+An experiment may also declare ``run_batch(indices, rngs, **parameters)``: the
+runs ``indices`` of a chunk at once (e.g. stacked into one bank with
+``Pipeline.run_batch``), ``rngs[i]`` the generator of run ``indices[i]`` —
+the same per-run generator ``run_one`` would get, so each run must draw only
+from its own generator and the results cannot depend on the chunking.  It
+returns one mapping per run (a list, in the order of ``indices``), or one
+mapping name → array stacked over the runs (first axis ``len(indices)``);
+the results must equal ``run_one``'s (the runner falls back to ``run_one``
+for experiments without ``run_batch``, and to locate a failing run).
+
+Worker processes (``process`` and ``dask`` executors) do not receive the
+function itself but a *locator* string they resolve on their side, so an
+experiment defined in a script that is not an importable module still runs
+there:
+
+* ``"package.module:ATTRIBUTE"`` — an importable module's attribute;
+* ``"/path/to/script.py"`` (or ``"/path/to/script.py:ATTRIBUTE"``) — a file
+  loaded by path, attribute ``EXPERIMENT`` by default.
+
+:func:`load_experiment` turns a registered name, a ``.py`` path or a locator
+into an :class:`Experiment` whose ``locator`` is set.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import attrs
+
+#: registered name → locator; :func:`register_experiment` adds to it
+EXPERIMENTS: dict[str, str] = {
+    "demo_rmse": "hybridtrack.apps.experiment.builtin:DEMO_RMSE",
+}
+
+#: where ``hybridtrack run NAME`` also looks for ``NAME.py`` (relative to the working directory)
+SCRIPT_FOLDER = Path("experiments")
+
+_resolved: dict[str, Experiment] = {}
+
+
+class UnknownExperiment(LookupError):
+    """A name that is neither registered nor a script; the message lists what is known."""
+
+
+def _parameters(value: Mapping[str, Any] | None) -> dict[str, Any]:
+    return dict(value or {})
+
+
+@attrs.frozen(eq=False)
+class Experiment:
+    """A named Monte Carlo experiment: ``run_one(index, rng, **parameters) -> dict``.
+
+    ``parameters`` are the defaults (overridable per campaign); they must be
+    JSON-serializable since the result folder's manifest records them.
+    ``locator`` says how a worker process finds this object again (set by
+    :func:`load_experiment`; ``None`` means pickle the function by reference).
+    ``run_batch`` (optional) runs a chunk of runs at once (module docstring);
+    ``batch_size`` is then the default chunk size of a campaign (runs per batch).
+    """
+
+    name: str
+    run_one: Callable[..., Mapping[str, Any]]
+    parameters: dict[str, Any] = attrs.field(factory=dict, converter=_parameters)
+    description: str = ""
+    locator: str | None = None
+    run_batch: Callable[..., Any] | None = None
+    batch_size: int = 100
+
+    def __attrs_post_init__(self):
+        if not self.name or not isinstance(self.name, str):
+            raise ValueError(f"Experiment name: expected a non-empty string, got {self.name!r}")
+        if not callable(self.run_one):
+            raise TypeError(f"Experiment {self.name!r}: run_one must be callable, got {self.run_one!r}")
+        if self.run_batch is not None and not callable(self.run_batch):
+            raise TypeError(f"Experiment {self.name!r}: run_batch must be callable or None, got {self.run_batch!r}")
+        if isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int) or self.batch_size < 1:
+            raise ValueError(f"Experiment {self.name!r}: batch_size must be a positive integer, got {self.batch_size!r}")
+
+    def with_parameters(self, **overrides: Any) -> dict[str, Any]:
+        """The defaults updated by ``overrides``; an unknown parameter name is an error."""
+        unknown = sorted(set(overrides) - set(self.parameters))
+        if unknown:
+            raise ValueError(f"experiment {self.name!r}: unknown parameter(s) {unknown}; its parameters are {sorted(self.parameters)}")
+        return {**self.parameters, **overrides}
+
+
+def register_experiment(name: str, locator: str) -> None:
+    """Make ``hybridtrack run NAME`` find the experiment at ``locator``; a name taken is an error."""
+    if name in EXPERIMENTS and EXPERIMENTS[name] != locator:
+        raise ValueError(f"experiment name {name!r} is already registered ({EXPERIMENTS[name]})")
+    EXPERIMENTS[name] = locator
+
+
+def _load_script(path: Path) -> Any:
+    path = path.resolve()
+    digest = hashlib.sha1(str(path).encode()).hexdigest()[:10]
+    module_name = f"_hybridtrack_experiment_{path.stem}_{digest}"
+    spec = importlib.util.spec_from_file_location(module_name, path)
+    if spec is None or spec.loader is None:
+        raise UnknownExperiment(f"cannot load {path} as a Python script")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _split_locator(locator: str) -> tuple[str, str]:
+    """(module or script path, attribute) of a locator."""
+    if locator.endswith(".py"):
+        return locator, "EXPERIMENT"
+    target, separator, attribute = locator.rpartition(":")
+    if not separator or not target or not attribute:
+        raise UnknownExperiment(f"locator {locator!r}: expected 'module:ATTRIBUTE', 'script.py' or 'script.py:ATTRIBUTE'")
+    return target, attribute
+
+
+def resolve_locator(locator: str) -> Experiment:
+    """The :class:`Experiment` a locator points at (cached per process)."""
+    if locator in _resolved:
+        return _resolved[locator]
+    target, attribute = _split_locator(locator)
+    if target.endswith(".py"):
+        path = Path(target)
+        if not path.is_file():
+            raise UnknownExperiment(f"experiment script {path} does not exist")
+        holder = _load_script(path)
+    else:
+        holder = importlib.import_module(target)
+    experiment = getattr(holder, attribute, None)
+    if not isinstance(experiment, Experiment):
+        raise UnknownExperiment(f"{target} has no Experiment named {attribute} (found {type(experiment).__name__})")
+    experiment = attrs.evolve(experiment, locator=locator)
+    _resolved[locator] = experiment
+    return experiment
+
+
+def known_experiments() -> list[str]:
+    """Registered names and the scripts in ``experiments/`` of the working directory that define ``EXPERIMENT``."""
+    names = set(EXPERIMENTS)
+    if SCRIPT_FOLDER.is_dir():
+        for script in SCRIPT_FOLDER.glob("*.py"):
+            if not script.name.startswith("_") and "EXPERIMENT" in script.read_text(encoding="utf-8", errors="replace"):
+                names.add(script.stem)
+    return sorted(names)
+
+
+def load_experiment(spec: str | Experiment) -> Experiment:
+    """An :class:`Experiment` from a registered name, a script path, ``experiments/NAME.py`` or a locator."""
+    if isinstance(spec, Experiment):
+        return spec
+    if spec in EXPERIMENTS:
+        return resolve_locator(EXPERIMENTS[spec])
+    path = Path(spec)
+    if spec.endswith(".py"):
+        if not path.is_file():
+            raise UnknownExperiment(f"experiment script {spec} does not exist")
+        return resolve_locator(str(path.resolve()))
+    script = SCRIPT_FOLDER / f"{spec}.py"
+    if script.is_file():
+        return resolve_locator(str(script.resolve()))
+    if ":" in spec:
+        return resolve_locator(spec)
+    raise UnknownExperiment(
+        f"unknown experiment {spec!r}; known experiments: {', '.join(known_experiments())} (or give a path to a script defining EXPERIMENT)"
+    )

@@ -1,0 +1,187 @@
+"""Recordings of a campaign: chosen runs replayed with a recorder, and a summary of every run.
+
+A campaign stores numbers only.  To look at it afterwards:
+
+* :func:`record_runs` replays chosen runs in this process with a
+  :class:`~hybridtrack.recording.RerunRecorder` each, writing
+  ``FOLDER/run_<index>.rrd`` (index zero-padded to 5 digits).  Run ``i``
+  gets the same generator as in the campaign (child ``i`` of
+  ``SeedSequence(seed)``, :func:`~hybridtrack.apps.experiment.worker.run_seed`), so
+  the recording shows exactly the run whose numbers are stored; the replay's
+  results are returned so a caller can check they equal the stored ones.  The
+  experiment's ``run_one`` must take a ``recorder`` keyword argument (the
+  built-in ``demo_rmse`` does).
+* :func:`choose_runs` picks K run indices spread evenly over ``0 … n−1``
+  (the first and the last included): ``round(linspace(0, n−1, K))``.
+* :func:`write_summary_recording` writes one recording of the whole campaign:
+  every result as a series over the run index (timeline ``run``): a scalar
+  result is one series ``campaign/<name>``, a result of shape (c,) is c series
+  under ``campaign/<name>`` named ``<name>[0]`` …; results of higher rank are
+  left out (their names are returned).  Its blueprint has one time-series
+  panel per result.  :func:`read_summary_recording` reads the series back.
+
+``hybridtrack run EXPERIMENT --record K`` (or ``--record-runs I,J,…``) and
+``--summary-recording`` use these; the files go to ``OUT/recordings/`` and
+``OUT/summary.rrd`` unless ``--record-dir`` says otherwise.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hybridtrack.apps.experiment.definition import Experiment, load_experiment
+from hybridtrack.apps.experiment.worker import run_seed
+
+#: the timeline of a summary recording: the run index
+RUN_TIMELINE = "run"
+
+
+def accepts_recorder(experiment: Experiment) -> bool:
+    """Whether ``experiment.run_one`` takes a ``recorder`` keyword argument (so its runs can be recorded)."""
+    try:
+        parameters = inspect.signature(experiment.run_one).parameters
+    except (TypeError, ValueError):  # pragma: no cover - builtins without a signature
+        return False
+    recorder = parameters.get("recorder")
+    return recorder is not None and recorder.kind in (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+
+
+def choose_runs(n: int, k: int) -> list[int]:
+    """``k`` run indices spread evenly over ``0 … n−1``: ``round(linspace(0, n−1, k))`` (all ``n`` when k ≥ n)."""
+    for name, value, low in (("n", n, 1), ("record", k, 1)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ValueError(f"{name}: expected an integer ≥ {low}, got {value!r}")
+    if k >= n:
+        return list(range(n))
+    return sorted({int(i) for i in np.round(np.linspace(0, n - 1, k)).astype(int)})
+
+
+def check_run_indices(indices: Iterable[int], n: int) -> list[int]:
+    """``indices`` sorted without repeats; a ValueError naming ``record_runs`` for one outside ``0 … n−1``."""
+    chosen = []
+    for index in indices:
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < n:
+            raise ValueError(f"record_runs: run index {index!r} is not in 0 … {n - 1} (the campaign has {n} runs)")
+        chosen.append(int(index))
+    return sorted(set(chosen))
+
+
+def run_recording_path(folder: str | Path, index: int) -> Path:
+    """Where :func:`record_runs` writes run ``index``: ``FOLDER/run_00017.rrd``."""
+    return Path(folder) / f"run_{int(index):05d}.rrd"
+
+
+def record_runs(
+    experiment: Experiment | str,
+    indices: Iterable[int],
+    folder: str | Path,
+    *,
+    seed: int,
+    parameters: Mapping[str, Any],
+) -> dict[int, tuple[Path, dict[str, np.ndarray]]]:
+    """Replay runs ``indices`` of a campaign (``seed``, ``parameters``) with a recorder each.
+
+    Returns index → (recording path, the run's results as arrays).  Each file's
+    configuration (and so its recording id) is the experiment's name, the
+    campaign seed, the run index and the parameters.
+    """
+    from hybridtrack.recording import RerunRecorder
+
+    experiment = load_experiment(experiment)
+    if not accepts_recorder(experiment):
+        raise TypeError(f"experiment {experiment.name!r} cannot record its runs: its run_one takes no 'recorder' keyword argument")
+    folder = Path(folder)
+    written = {}
+    for index in indices:
+        path = run_recording_path(folder, index)
+        configuration = {"experiment": experiment.name, "campaign_seed": int(seed), "run": int(index), "parameters": dict(parameters)}
+        rng = np.random.default_rng(run_seed(seed, int(index)))
+        with RerunRecorder(path, configuration) as recorder:
+            results = experiment.run_one(int(index), rng, recorder=recorder, **parameters)
+            recorder.log_event(0, f"{experiment.name}: run {index} of the campaign seeded {seed}")
+        written[int(index)] = (path, {name: np.asarray(value) for name, value in results.items()})
+    return written
+
+
+def _summary_blueprint(entities: list[str]):
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Grid(*[rrb.TimeSeriesView(origin=f"/{entity}", name=entity.removeprefix("campaign/")) for entity in entities]),
+        rrb.TimePanel(timeline=RUN_TIMELINE, state="collapsed"),
+        collapse_panels=True,
+    )
+
+
+def write_summary_recording(arrays: Mapping[str, np.ndarray], path: str | Path, configuration: Mapping[str, Any]) -> list[str]:
+    """Every result of ``arrays`` (name → (n, …) by run, plus ``index``) as series over the run index, into ``path``.
+
+    Returns the names left out (rank > 1 per run).  ``configuration`` is
+    stored as the recording property ``configuration`` and gives the
+    recording id.
+    """
+    import rerun as rr
+
+    from hybridtrack.recording import APPLICATION_ID, recording_id
+
+    if "index" not in arrays:
+        raise ValueError("arrays: expected the campaign's arrays with their 'index' (CampaignResult.arrays)")
+    index = np.asarray(arrays["index"], dtype=np.int64)
+    series, skipped = {}, []
+    for name, values in arrays.items():
+        if name == "index":
+            continue
+        values = np.asarray(values, dtype=np.float64)
+        if values.ndim == 1:
+            series[f"campaign/{name}"] = (values, None)
+        elif values.ndim == 2:
+            series[f"campaign/{name}"] = (values, [f"{name}[{i}]" for i in range(values.shape[1])])
+        else:
+            skipped.append(name)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    configuration = dict(configuration)
+    stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id({"summary": configuration}))
+    stream.save(str(path), default_blueprint=_summary_blueprint(sorted(series)))
+    try:
+        stream.send_property("configuration", rr.AnyValues(json=json.dumps(configuration, sort_keys=True, default=str)))
+        for entity, (values, names) in sorted(series.items()):
+            stream.send_columns(entity, indexes=[rr.TimeColumn(RUN_TIMELINE, sequence=index)], columns=rr.Scalars.columns(scalars=values))
+            if names is not None:
+                stream.log(entity, rr.SeriesLines(names=names), static=True)
+    finally:
+        stream.flush()
+        stream.disconnect()
+    return skipped
+
+
+def read_summary_recording(path: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The series of a summary recording: result name → (run indices (n,), values (n,) or (n, c)), sorted by run."""
+    import rerun as rr
+
+    runs: dict[str, list[int]] = {}
+    values: dict[str, list] = {}
+    for chunk in rr.chunk.RrdReader(str(path)).stream():
+        entity = chunk.entity_path
+        if not entity.startswith("/campaign/"):
+            continue
+        batch = chunk.to_record_batch()
+        if RUN_TIMELINE not in batch.schema.names or "Scalars:scalars" not in batch.schema.names:
+            continue
+        name = entity.removeprefix("/campaign/")
+        for run, value in zip(batch.column(RUN_TIMELINE).to_pylist(), batch.column("Scalars:scalars").to_pylist()):
+            if run is not None and value is not None:
+                runs.setdefault(name, []).append(int(run))
+                values.setdefault(name, []).append(value)
+    table = {}
+    for name in runs:
+        order = np.argsort(runs[name], kind="stable")
+        array = np.array(values[name], dtype=np.float64)[order]
+        table[name] = (np.asarray(runs[name], dtype=np.int64)[order], array[:, 0] if array.shape[1] == 1 else array)
+    return table

@@ -1,0 +1,211 @@
+"""What runs on a worker: a chunk of runs of one experiment, each with its own seed.
+
+Run ``i`` of a campaign seeded ``seed`` uses ``numpy.random.default_rng(
+SeedSequence(seed, spawn_key=(i,)))`` — exactly the ``i``-th child of
+``SeedSequence(seed).spawn(n)`` for any n > i, computed without spawning the
+others.  So a run's numbers depend only on (experiment, parameters, seed, i):
+not on the executor, the chunking, the number of runs or the resume order.
+
+A chunk stops at the first failing run and returns the runs finished before it
+together with the failure, so the campaign can store them before reporting it.
+A Ctrl-C (KeyboardInterrupt) inside a run likewise returns the runs finished
+before it, flagged ``interrupted``.
+
+An experiment with ``run_batch`` gets the whole chunk as one batch: the runs'
+indices and their generators (each built by the rule above, so a run's numbers
+do not depend on which chunk it falls in).  When the batch raises, the chunk is
+run again one run at a time with ``run_one`` (fresh generators) to find the
+failing run and keep the runs before it; if every run then succeeds, the chunk
+is stored from ``run_one`` and the batch's error is still reported (a
+``run_batch`` that disagrees with ``run_one`` is a bug to see).  A Ctrl-C
+inside a batch loses that chunk only (``interrupted``, nothing stored from it).
+
+Process-pool workers start with :func:`worker_init`: they ignore SIGINT (the
+main process handles Ctrl-C and ends them) and a watchdog thread ends the
+worker within :data:`PARENT_POLL` seconds once its parent process is gone (a
+SIGKILLed campaign leaves no worker behind).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+import traceback
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import attrs
+import numpy as np
+
+from hybridtrack.apps.experiment.definition import Experiment, resolve_locator
+
+#: seconds between two checks of a worker that its parent process is still alive
+PARENT_POLL = 0.2
+#: exit status of a worker ended because its parent process died
+ORPHAN_EXIT = 70
+
+
+def run_seed(seed: int, index: int) -> np.random.SeedSequence:
+    """The seed sequence of run ``index``: child ``index`` of ``SeedSequence(seed)``."""
+    return np.random.SeedSequence(seed, spawn_key=(int(index),))
+
+
+def batch_arrays(run_batch, parameters: Mapping[str, Any], n: int, seed: int, chunk: int = 100) -> dict[str, np.ndarray]:
+    """Every run's results stacked (name → (n, …)), as a campaign returns them, computed by an experiment's
+    ``run_batch(indices, rngs, **parameters)`` (one mapping per run) in chunks of ``chunk`` runs; run i uses
+    child i of SeedSequence(``seed``) (:func:`run_seed`), as in the campaign."""
+    rows = []
+    for first in range(0, n, chunk):
+        indices = list(range(first, min(n, first + chunk)))
+        rows += run_batch(indices, [np.random.default_rng(run_seed(seed, i)) for i in indices], **parameters)
+    return {name: np.stack([np.asarray(row[name]) for row in rows]) for name in rows[0]}
+
+
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL)
+    os._exit(ORPHAN_EXIT)  # the parent is gone: nobody will read our results
+
+
+def worker_init(parent: int) -> None:
+    """Set up a pool worker of the process ``parent``: ignore SIGINT, exit as soon as ``parent`` is gone.
+
+    Called in the worker (``ProcessPoolExecutor(initializer=worker_init,
+    initargs=(os.getpid(),))``).  An orphaned process is re-parented (to
+    init or a subreaper), so ``os.getppid()`` differing from ``parent``
+    means the parent died.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if os.getppid() != parent:
+        os._exit(ORPHAN_EXIT)
+    threading.Thread(target=_watch_parent, args=(parent,), name="hybridtrack-parent-watch", daemon=True).start()
+
+
+@attrs.frozen(eq=False)
+class ChunkOutcome:
+    """Runs ``indices`` finished with ``results`` (name → (len(indices), …)); ``failure`` = (index, report) or None;
+    ``interrupted`` when a KeyboardInterrupt stopped the chunk."""
+
+    indices: tuple[int, ...]
+    results: dict[str, np.ndarray]
+    failure: tuple[int, str] | None = None
+    interrupted: bool = False
+
+
+def _as_row(experiment: str, index: int, name: Any, value: Any) -> np.ndarray:
+    if not isinstance(name, str) or not name or name in ("index", "__campaign__"):
+        raise TypeError(
+            f"experiment {experiment!r}, run {index}: result names must be non-empty strings "
+            f"other than 'index' and '__campaign__', got {name!r}"
+        )
+    array = np.asarray(value)
+    if array.dtype.kind not in "biuf":
+        raise TypeError(
+            f"experiment {experiment!r}, run {index}: result {name!r} is {type(value).__name__} "
+            f"(dtype {array.dtype}), expected a number or a numeric array"
+        )
+    return array
+
+
+def _stack(experiment: str, indices: Sequence[int], rows: list[Mapping[str, Any]]) -> dict[str, np.ndarray]:
+    if not rows:
+        return {}
+    names = sorted(rows[0])
+    for index, row in zip(indices, rows):
+        if sorted(row) != names:
+            raise ValueError(
+                f"experiment {experiment!r}, run {index}: results {sorted(row)} differ from {names} returned by run {indices[0]}"
+            )
+    stacked = {}
+    for name in names:
+        values = [row[name] for row in rows]
+        shapes = {np.shape(v) for v in values}
+        if len(shapes) != 1:
+            raise ValueError(f"experiment {experiment!r}: result {name!r} changes shape between runs {list(indices)}: {sorted(shapes)}")
+        stacked[name] = np.stack(values)
+    return stacked
+
+
+def _experiment(source: str | Experiment) -> Experiment:
+    return resolve_locator(source) if isinstance(source, str) else source
+
+
+def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> list[dict[str, np.ndarray]]:
+    """``run_batch``'s result (one mapping per run, or name → array stacked over the runs) as one row per run."""
+    count = len(indices)
+    if isinstance(result, Mapping):
+        for name, value in result.items():
+            if np.shape(value)[:1] != (count,):
+                raise ValueError(
+                    f"experiment {experiment.name!r}: run_batch result {name!r} has shape {np.shape(value)}, "
+                    f"expected ({count}, …) (one row per run of the chunk)"
+                )
+        result = [{name: value[i] for name, value in result.items()} for i in range(count)]
+    elif not isinstance(result, Sequence) or isinstance(result, (str, bytes)):
+        raise TypeError(
+            f"experiment {experiment.name!r}: run_batch returned {type(result).__name__}, "
+            "expected a list of mappings (one per run) or a mapping name → array stacked over the runs"
+        )
+    if len(result) != count:
+        raise ValueError(f"experiment {experiment.name!r}: run_batch returned {len(result)} results for {count} runs")
+    rows = []
+    for index, row in zip(indices, result):
+        if not isinstance(row, Mapping):
+            raise TypeError(f"experiment {experiment.name!r}, run {index}: run_batch gave {type(row).__name__}, expected a mapping")
+        rows.append({name: _as_row(experiment.name, index, name, value) for name, value in row.items()})
+    return rows
+
+
+def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
+    """Run ``indices`` of the experiment (a locator or the object itself) with ``parameters``: as one batch when
+    the experiment has ``run_batch``, else (or to locate a failure) one run at a time."""
+    experiment = _experiment(source)
+    if experiment.run_batch is None or not indices:
+        return _run_each(experiment, parameters, seed, indices)
+    indices = [int(i) for i in indices]
+    rngs = [np.random.default_rng(run_seed(seed, index)) for index in indices]
+    try:
+        rows = _batch_rows(experiment, indices, experiment.run_batch(indices, rngs, **parameters))
+        stacked = _stack(experiment.name, indices, rows)
+    except Exception as error:
+        report = f"{type(error).__name__} in run_batch of runs {indices[0]}…{indices[-1]}: {error}\n{traceback.format_exc()}"
+        outcome = _run_each(experiment, parameters, seed, indices)
+        if outcome.failure is None and not outcome.interrupted:
+            return attrs.evolve(outcome, failure=(indices[0], report))
+        return outcome
+    except KeyboardInterrupt:
+        return ChunkOutcome((), {}, None, True)
+    return ChunkOutcome(tuple(indices), stacked)
+
+
+def _run_each(experiment: Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
+    """The chunk one run at a time with ``run_one``, stopping at the first failure or Ctrl-C."""
+    done: list[int] = []
+    rows: list[dict[str, np.ndarray]] = []
+    failure = None
+    interrupted = False
+    for index in indices:
+        rng = np.random.default_rng(run_seed(seed, index))
+        try:
+            result = experiment.run_one(int(index), rng, **parameters)
+            if not isinstance(result, Mapping):
+                raise TypeError(
+                    f"experiment {experiment.name!r}, run {index}: run_one returned "
+                    f"{type(result).__name__}, expected a mapping name → number or array"
+                )
+            row = {name: _as_row(experiment.name, index, name, value) for name, value in result.items()}
+        except Exception as error:  # reported with the finished runs, re-raised by the campaign
+            failure = (int(index), f"{type(error).__name__}: {error}\n{traceback.format_exc()}")
+            break
+        except KeyboardInterrupt:  # the runs finished so far are still stored
+            interrupted = True
+            break
+        done.append(int(index))
+        rows.append(row)
+    try:
+        stacked = _stack(experiment.name, done, rows)
+    except ValueError as error:
+        return ChunkOutcome((), {}, (done[0], f"ValueError: {error}"), interrupted)
+    return ChunkOutcome(tuple(done), stacked, failure, interrupted)

@@ -1,0 +1,557 @@
+"""Tracking real position files: a configured estimator run on every object of a file (``hybridtrack track``).
+
+:func:`track_file` reads a time-stamped position file with
+:func:`~hybridtrack.io.track_files.read_tracks`, runs one configured estimator per
+object at the report times (irregular Δt_k = t_k − t_{k−1}) and writes, per
+object, ``OUT/<id>.rrd`` (a Rerun recording: measurements, the estimate with
+its 2σ ellipses, the likelihood ratios or mode probabilities, the decisions as
+events), ``OUT/<id>.npz`` (``times`` (K,), ``means`` (K, n), ``covariances``
+(K, n, n), ``modes`` (K,) the summary mode name per step, ``radii`` (K,) the
+turn radius per step (NaN off turns), ``layout``, ``positions`` (K, 2) the
+measured fixes) and ``OUT/summary.json``::
+
+    {"objects": [{"id": str,
+                  "segments": [{"start": float, "end": float, "mode": str, "radius": float | null}],
+                  "decisions": [{"time": float, "mode": str}]}],
+     "skipped": [{"id": str, "reason": str}]}
+
+Mode names are the motion models' registry names (``straight``,
+``left_turn``, ``right_turn``, ``stop``, and ``acceleration`` for
+``constant_acceleration``); ``radius`` is the turn radius in metres of the
+model followed (None off turns).  **Segments** come from the per-step mode —
+the mode *followed* by the unknown-change estimator (its filter 0), or the
+*most probable* model argmax_j μ_j of the IMM — with consecutive steps of the
+same (mode, radius) merged; a segment runs from the time of its first step to
+the time of the next segment's first step (the last one to the last report).
+**Decisions** are the detector's decisions (time of the step, the mode it
+chose; a "no change" decision names the current mode) for ``unknown_change``,
+and the steps where the most probable model changes for ``imm`` (which has no
+detector).
+
+Configuration (TOML; unknown keys and tables are refused)::
+
+    [reader]                  # hybridtrack.io.track_files.read_tracks settings
+    preset = "solent_ais"     # optional: start from tracks_io.SOLENT_AIS
+    time = "Time"             # column names: time, x, y | lat, lon, id, course, speed, alt
+    lat = "Latitude_degrees"
+    lon = "Longitude_degrees"
+    id = "MMSI"
+    origin = "first"          # "first", "mean" or [lat°, lon°] / [lat°, lon°, h]
+    projection = "enu"        # or "equirectangular"
+    max_speed = 30.0          # m/s, speed limit of the jump check
+    jump_tolerance = 50.0     # m
+    speed_unit = "knots"      # "m/s", "knots", "km/h"
+    course_not_available = 360.0
+    speed_not_available = 102.3
+    min_reports = 10          # objects with fewer reports are skipped (default 3, at least 2)
+
+    [measurement]
+    sigma = 25.0              # σ (m): position sensor ("position", {"noise_cov": σ² I})
+
+    [altitude]                # used only when the file has an altitude column (reader key alt)
+    sigma = 10.0              # σ_h (m): altitude measurement noise
+    acceleration_density = 0.1  # q (m²/s³): white-noise vertical acceleration density
+    velocity_sigma = 5.0      # m/s: prior σ of the climb rate
+
+    [prior]
+    velocity = "two_fixes"    # or "zero": v₀ = (p₁ − p₀)/(t₁ − t₀), or 0
+    position_sigma = 250.0    # m (default 10 σ: the step-0 update with the first fix then gives ≈ σ)
+    velocity_sigma = 10.0     # m/s
+
+    [estimator]
+    kind = "unknown_change"   # or "imm"
+    filter = "kalman"         # the registered estimator inside (default kalman)
+    process_noise = 0.3       # σ_w (m/s per step): every model's noise_cov = σ_w² I on the velocities
+    modes = ["straight", "left_turn", "right_turn"]   # registry names, or tables {name = "left_turn", radius = 500.0}
+    radii = [100.0, 500.0, 2000.0]   # turn radii (m): every bare turn name becomes one mode per radius
+    # unknown_change only:
+    alpha = 0.01
+    beta = 0.01
+    bank_size = 30            # alternative filters kept (an integer, or "algorithm4"); default 30
+    initial_mode = "straight" # the mode at the start (a name from modes; default the first)
+    # imm only:
+    sojourn = 60.0            # mean sojourn time (s), one number or one per mode
+    method = "imm"            # "imm", "gpb1" or "gpb2"
+
+The unknown-change estimator needs modes of one state layout (straight,
+turns, stop); the IMM also mixes ``constant_acceleration`` (6 states) with
+the rest.  **Altitude**, where the file has it, is filtered on its own by
+:func:`filter_altitude` (a 1-D constant-velocity Kalman filter at the report
+times) and written to the ``.npz`` as ``altitude_mean`` (K, 2) (height above
+the origin's height in m, climb rate in m/s) and ``altitude_var`` (K, 2)
+(their variances); the horizontal modes are what the estimator decides.
+
+**Recording** (besides what the estimator logs under ``world/…`` — the
+east-north-up world view, horizontal positions at z = 0 —, ``estimator/…``
+and ``events/…``), by :func:`record_track`: with altitude, the fixes and the
+estimate in 3-D (z = the measured and the filtered altitude) as
+``world/measurements/altitude`` and ``world/estimate/track/altitude``; for
+files read from latitude/longitude, ``map/measurements`` and
+``map/estimate/track`` as ``GeoPoints`` per step and ``GeoLineStrings`` paths
+(the estimate converted back with :func:`hybridtrack.io.track_files.unproject`),
+which the recording's layout shows in a map view.
+
+Every user error — a missing file, unknown key, bad value, unknown estimator
+kind or mode — is a :class:`ConfigError` (a ValueError) naming the key.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import tomllib
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hybridtrack.core.validation import check_positive
+from hybridtrack.io.track_files import SOLENT_AIS, Track, read_tracks, unproject
+
+#: reader presets by name (the ``preset`` key of ``[reader]``)
+PRESETS = {"solent_ais": SOLENT_AIS}
+KINDS = ("unknown_change", "imm")
+#: registry name → summary mode name
+SUMMARY_NAMES = {"constant_acceleration": "acceleration"}
+TURNS = ("left_turn", "right_turn")
+#: the vertical filter's defaults: σ_h (m), white-acceleration density q (m²/s³), prior σ of the climb rate (m/s)
+ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma": 5.0}
+
+_READER_KEYS = {
+    "preset", "time", "x", "y", "lat", "lon", "alt", "id", "course", "speed", "speed_unit", "course_not_available",
+    "speed_not_available", "origin", "projection", "max_speed", "jump_tolerance", "min_reports",
+}  # fmt: skip
+_SECTIONS = {
+    "reader": _READER_KEYS,
+    "measurement": {"sigma"},
+    "altitude": {"sigma", "acceleration_density", "velocity_sigma"},
+    "prior": {"velocity", "position_sigma", "velocity_sigma"},
+    "estimator": {
+        "kind", "filter", "process_noise", "modes", "radii", "alpha", "beta", "bank_size", "initial_mode", "sojourn", "method",
+    },
+}  # fmt: skip
+_KIND_ONLY = {"unknown_change": {"alpha", "beta", "bank_size", "initial_mode"}, "imm": {"sojourn", "method"}}
+
+
+class ConfigError(ValueError):
+    """A configuration the tracker cannot use: the message names the file, the key and what is expected."""
+
+
+def _positive(section: str, key: str, value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{where}: [{section}] {key} = {value!r}; expected a positive number")
+    return float(value)
+
+
+def load_config(config: str | os.PathLike | Mapping[str, Any]) -> dict:
+    """The checked configuration (a dict of the four sections, defaults filled) from a TOML file or a mapping."""
+    if isinstance(config, Mapping):
+        where, raw = "config", dict(config)
+    else:
+        where = str(config)
+        path = Path(config)
+        if not path.is_file():
+            raise ConfigError(f"{where}: no such configuration file")
+        try:
+            raw = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+            raise ConfigError(f"{where}: not a valid TOML file ({error})") from None
+    unknown = sorted(set(raw) - set(_SECTIONS))
+    if unknown:
+        raise ConfigError(f"{where}: unknown section(s) {unknown}; expected some of {sorted(_SECTIONS)}")
+    out = {}
+    for section, keys in _SECTIONS.items():
+        table = raw.get(section, {})
+        if not isinstance(table, Mapping):
+            raise ConfigError(f"{where}: [{section}] must be a table, got {table!r}")
+        bad = sorted(set(table) - keys)
+        if bad:
+            raise ConfigError(f"{where}: unknown key(s) {bad} in [{section}]; expected some of {sorted(keys)}")
+        out[section] = dict(table)
+    reader = out["reader"]
+    preset = reader.pop("preset", None)
+    if preset is not None:
+        if preset not in PRESETS:
+            raise ConfigError(f"{where}: [reader] preset = {preset!r}; expected one of {sorted(PRESETS)}")
+        reader = {**PRESETS[preset], **reader}
+    min_reports = reader.pop("min_reports", 3)
+    if isinstance(min_reports, bool) or not isinstance(min_reports, int) or min_reports < 2:
+        raise ConfigError(f"{where}: [reader] min_reports = {min_reports!r}; expected an integer ≥ 2")
+    if isinstance(reader.get("origin"), list):
+        reader["origin"] = tuple(reader["origin"])
+    out["reader"], out["min_reports"] = reader, min_reports
+
+    sigma = out["measurement"].get("sigma")
+    if sigma is None:
+        raise ConfigError(f"{where}: [measurement] sigma (m) is required")
+    out["measurement"]["sigma"] = _positive("measurement", "sigma", sigma, where)
+
+    alt = out["altitude"]
+    for key, default in ALTITUDE_DEFAULTS.items():
+        alt[key] = _positive("altitude", key, alt.get(key, default), where)
+
+    prior = out["prior"]
+    prior.setdefault("velocity", "two_fixes")
+    if prior["velocity"] not in ("two_fixes", "zero"):
+        raise ConfigError(f"{where}: [prior] velocity = {prior['velocity']!r}; expected 'two_fixes' or 'zero'")
+    prior["position_sigma"] = _positive("prior", "position_sigma", prior.get("position_sigma", 10.0 * out["measurement"]["sigma"]), where)
+    prior["velocity_sigma"] = _positive("prior", "velocity_sigma", prior.get("velocity_sigma", 10.0), where)
+
+    est = out["estimator"]
+    kind = est.get("kind")
+    if kind not in KINDS:
+        raise ConfigError(f"{where}: [estimator] kind = {kind!r}; expected one of {KINDS}")
+    other = next(k for k in KINDS if k != kind)
+    misplaced = sorted(set(est) & _KIND_ONLY[other])
+    if misplaced:
+        raise ConfigError(f"{where}: [estimator] key(s) {misplaced} belong to kind {other!r}, not {kind!r}")
+    est["process_noise"] = _positive("estimator", "process_noise", est.get("process_noise", 0.1), where)
+    est["modes"] = _modes(est.get("modes", ["straight", "left_turn", "right_turn"]), est.get("radii"), where)
+    est.pop("radii", None)
+    est.setdefault("filter", "kalman")
+    if not isinstance(est["filter"], str):
+        raise ConfigError(f"{where}: [estimator] filter = {est['filter']!r}; expected a registered estimator name")
+    if kind == "unknown_change":
+        for key in ("alpha", "beta"):
+            value = _positive("estimator", key, est.get(key, 0.01), where)
+            if value >= 0.5:
+                raise ConfigError(f"{where}: [estimator] {key} = {value!r}; expected an error probability in (0, 0.5)")
+            est[key] = value
+        bank = est.get("bank_size", 30)
+        if bank != "algorithm4" and (isinstance(bank, bool) or not isinstance(bank, int) or bank < 1):
+            raise ConfigError(f"{where}: [estimator] bank_size = {bank!r}; expected a positive integer or 'algorithm4'")
+        est["bank_size"] = bank
+        names = [_label(name, params) for name, params in est["modes"]]
+        first = est.get("initial_mode", names[0])
+        if first not in names:
+            raise ConfigError(f"{where}: [estimator] initial_mode = {first!r}; expected one of {names}")
+        est["initial_mode"] = names.index(first)
+    else:
+        sojourn = est.get("sojourn", 60.0)
+        values = sojourn if isinstance(sojourn, list) else [sojourn]
+        for v in values:
+            _positive("estimator", "sojourn", v, where)
+        if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
+            raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
+        est["sojourn"] = sojourn
+        est.setdefault("method", "imm")
+    return out
+
+
+def _label(name: str, params: Mapping) -> str:
+    return name if "radius" not in params else f"{name}_r{params['radius']:g}"
+
+
+def _modes(modes, radii, where) -> list[tuple[str, dict]]:
+    """(registry name, parameters) per mode: bare turn names expanded over ``radii``."""
+    if not isinstance(modes, list) or not modes:
+        raise ConfigError(f"{where}: [estimator] modes = {modes!r}; expected a non-empty list of mode names or tables")
+    if radii is not None:
+        if not isinstance(radii, list) or not radii:
+            raise ConfigError(f"{where}: [estimator] radii = {radii!r}; expected a non-empty list of turn radii (m)")
+        radii = [_positive("estimator", "radii", r, where) for r in radii]
+    out = []
+    for entry in modes:
+        if isinstance(entry, str):
+            name, params = entry, {}
+        elif isinstance(entry, Mapping) and isinstance(entry.get("name"), str) and set(entry) <= {"name", "radius"}:
+            name, params = entry["name"], {k: v for k, v in entry.items() if k != "name"}
+            if "radius" in params:
+                params["radius"] = _positive("estimator", "modes.radius", params["radius"], where)
+        else:
+            raise ConfigError(f"{where}: [estimator] modes entry {entry!r}; expected a name or {{name = …, radius = …}}")
+        name = "constant_acceleration" if name == "acceleration" else name
+        if name in TURNS and "radius" not in params:
+            if radii is None:
+                raise ConfigError(f"{where}: [estimator] mode {name!r} needs a radius: give radii = [...] or {{name, radius}}")
+            out += [(name, {"radius": r}) for r in radii]
+        else:
+            out.append((name, params))
+    return out
+
+
+# --------------------------------------------------------------------------- building and running
+
+
+def _build(config: dict, registry=None):
+    """The estimator object and its sensor from a checked configuration (registry resolution, no plugin imports)."""
+    from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
+    from hybridtrack.algorithms.multiple_model import MultipleModelEstimator
+    from hybridtrack.core.plugins import resolve
+
+    sigma = config["measurement"]["sigma"]
+    sensor = resolve("sensor", ("position", {"noise_cov": sigma**2 * np.eye(2)}), registry)
+    est = config["estimator"]
+    q = est["process_noise"] ** 2 * np.eye(2)
+    specs = []
+    for name, params in est["modes"]:
+        try:
+            specs.append(resolve("motion_model", (name, {**params, "noise_cov": q}), registry))
+        except KeyError as error:
+            raise ConfigError(f"[estimator] modes: unknown motion model {name!r} ({error.args[0] if error.args else error})") from None
+    try:
+        if est["kind"] == "unknown_change":
+            estimator = UnknownChangeAdaptive(
+                modes=specs,
+                sensors=[sensor],
+                estimator=est["filter"],
+                alpha=est["alpha"],
+                beta=est["beta"],
+                bank_size=est["bank_size"],
+                initial_mode=est["initial_mode"],
+                name="track",
+                registry=registry,
+            )
+        else:
+            estimator = MultipleModelEstimator(
+                specs,
+                sensors=[sensor],
+                sojourn=est["sojourn"],
+                estimator=est["filter"],
+                method=est["method"],
+                name="track",
+                registry=registry,
+            )
+    except KeyError as error:
+        raise ConfigError(f"[estimator]: {error.args[0] if error.args else error}") from None
+    return estimator, sensor, specs
+
+
+def _prior(track: Track, config: dict, layout: Sequence[str]):
+    """(mean, cov) in ``layout``: position = first fix, velocity from the first two fixes (or zero), diagonal covariance."""
+    p = config["prior"]
+    z = track.positions[:, :2]
+    v = (z[1] - z[0]) / (track.times[1] - track.times[0]) if p["velocity"] == "two_fixes" else np.zeros(2)
+    values = {"x": z[0, 0], "y": z[0, 1], "vx": v[0], "vy": v[1]}
+    variances = {
+        "x": p["position_sigma"] ** 2,
+        "y": p["position_sigma"] ** 2,
+        "vx": p["velocity_sigma"] ** 2,
+        "vy": p["velocity_sigma"] ** 2,
+    }
+    mean = np.array([values.get(c, 0.0) for c in layout])
+    cov = np.diag([variances.get(c, 1.0) for c in layout])
+    return mean, cov
+
+
+def filter_altitude(times, heights, *, sigma: float, acceleration_density: float, velocity_sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """1-D constant-velocity Kalman filter of the heights h_k (m) at irregular times t_k (s).
+
+    State (h, ḣ); prior (h_0, 0) with covariance diag(σ², σ_v²) — the first fix
+    taken as the first estimate, so step 0 has no further update.  Step k ≥ 1
+    over Δt = t_k − t_{k−1}: F = [[1, Δt], [0, 1]] and the continuous white-noise
+    acceleration model Q = q [[Δt³/3, Δt²/2], [Δt²/2, Δt]] (q the acceleration
+    density in m²/s³; Bar-Shalom, Li & Kirubarajan 2001, §6.2.2, eq. 6.2.2-12);
+    update with H = [1, 0], R = σ²: S = P₀₀ + σ², K = P[:, 0]/S (scalar
+    innovation, no matrix inverse), Joseph form P ← (I − K H) P (I − K H)ᵀ + K σ² Kᵀ.
+
+    Returns ``mean`` (K, 2) (height, climb rate) and ``var`` (K, 2) (their variances);
+    a ValueError names a bad input (lengths, non-increasing times, non-finite heights).
+    """
+    t = np.asarray(times, dtype=np.float64)
+    h = np.asarray(heights, dtype=np.float64)
+    if t.ndim != 1 or h.shape != t.shape or t.size == 0:
+        raise ValueError(f"times, heights: expected two 1-D arrays of one length ≥ 1, got shapes {t.shape} and {h.shape}")
+    if not np.all(np.isfinite(h)):
+        raise ValueError("heights: expected finite values (the reader drops bad altitude cells)")
+    if np.any(np.diff(t) <= 0) or not np.all(np.isfinite(t)):
+        raise ValueError("times: expected finite, strictly increasing report times")
+    r = check_positive(sigma, "sigma") ** 2
+    q = check_positive(acceleration_density, "acceleration_density")
+    x = np.array([h[0], 0.0])
+    P = np.diag([r, check_positive(velocity_sigma, "velocity_sigma") ** 2])
+    means, variances = np.empty((t.size, 2)), np.empty((t.size, 2))
+    means[0], variances[0] = x, np.diag(P)
+    identity = np.eye(2)
+    for k in range(1, t.size):
+        dt = t[k] - t[k - 1]
+        F = np.array([[1.0, dt], [0.0, 1.0]])
+        Q = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+        x = F @ x
+        P = F @ P @ F.T + Q
+        S = P[0, 0] + r
+        gain = P[:, 0] / S
+        x = x + gain * (h[k] - x[0])
+        A = identity - np.outer(gain, [1.0, 0.0])
+        P = A @ P @ A.T + r * np.outer(gain, gain)
+        means[k], variances[k] = x, np.diag(P)
+    return means, variances
+
+
+def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_measured=None, lat_lon_estimated=None) -> None:
+    """What ``hybridtrack track`` adds to the estimator's own logging (the east-north plane at z = 0):
+
+    * with altitude, the fixes and the estimate in 3-D, ``measured``, ``estimated`` (K, 3) east, north and the
+      measured / filtered altitude (m), as ``world/measurements/altitude`` and ``world/estimate/<name>/altitude``
+      (points per step and the path) in the east-north-up world view;
+    * for latitude/longitude files, ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees as ``GeoPoints``
+      per step and a ``GeoLineStrings`` path under ``map/measurements`` and ``map/estimate/<name>``, which the
+      recording's layout shows in a map view (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`).
+    """
+    from hybridtrack.recording import RerunRecorder
+
+    if not isinstance(recorder, RerunRecorder):  # a NullRecorder: nothing to draw
+        return
+    steps = np.arange(len(times), dtype=np.int64)
+    if measured is not None:
+        recorder.log_path("world/measurements/altitude", steps, measured, times)
+    if estimated is not None:
+        recorder.log_path(f"world/estimate/{name}/altitude", steps, estimated, times)
+    if lat_lon_measured is not None:
+        recorder.log_geo_path("map/measurements", steps, lat_lon_measured, times)
+    if lat_lon_estimated is not None:
+        recorder.log_geo_path(f"map/estimate/{name}", steps, lat_lon_estimated, times)
+
+
+def _summary_mode(model) -> tuple[str, float | None]:
+    return SUMMARY_NAMES.get(model.name, model.name), (None if model.radius is None else float(model.radius))
+
+
+def segments_of(times: np.ndarray, modes: Sequence[str], radii: Sequence[float | None]) -> list[dict]:
+    """Runs of equal (mode, radius) over the steps: start = time of the first step, end = time of the next run's
+    first step (the last run ends at the last time)."""
+    out: list[dict] = []
+    for k, (m, r) in enumerate(zip(modes, radii)):
+        if out and out[-1]["mode"] == m and out[-1]["radius"] == r:
+            continue
+        if out:
+            out[-1]["end"] = float(times[k])
+        out.append({"start": float(times[k]), "end": float(times[-1]), "mode": m, "radius": r})
+    return out
+
+
+def output_name(identifier: str) -> str:
+    """The file stem of an object's outputs (``<stem>.rrd``, ``<stem>.npz``): the id with characters other than
+    letters, digits, ``.``, ``_``, ``-`` replaced by ``_`` (a leading ``.`` gets a ``_`` before it)."""
+    name = re.sub(r"[^A-Za-z0-9._-]", "_", identifier) or "track"
+    return "_" + name if name.startswith(".") else name
+
+
+def track_one(
+    track: Track,
+    config: dict,
+    out: Path | None = None,
+    registry=None,
+    *,
+    origin: Sequence[float] | None = None,
+    projection: str = "enu",
+) -> dict:
+    """Run the configured estimator on one track; write ``out/<id>.rrd`` and ``.npz`` (when ``out`` is given);
+    return the object's summary entry ``{"id", "segments", "decisions"}``.
+
+    ``origin`` (lat°, lon°, h m) and ``projection``: the tangent plane the track was projected to (the
+    :class:`~hybridtrack.io.track_files.TrackFile`'s); given, the recording gets the map view and the altitude is the
+    height above the origin's height (else the altitude column as read)."""
+    from hybridtrack.recording import RerunRecorder
+
+    estimator, sensor, models = _build(config, registry)
+    layout = estimator.layout
+    prior = _prior(track, config, layout)
+    z = {sensor.name: np.asarray(track.positions[:, :2], dtype=float)}
+    name = output_name(track.id)
+    heights = None
+    if track.positions.shape[1] == 3:
+        heights = np.asarray(track.positions[:, 2], dtype=float)
+        if origin is not None:  # the geodetic height above the origin's (the ENU up also holds the Earth's curvature)
+            heights = unproject(track.positions, origin=origin, projection=projection)[:, 2] - (list(origin) + [0.0])[2]
+    altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
+    recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": _jsonable(config)}) if out is not None else None
+    try:
+        run = estimator.run(z, prior, times=track.times, recorder=recorder)
+        if recorder is not None:
+            xy = np.asarray(track.positions[:, :2], dtype=float)
+            est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
+            in_3d = (None, None)
+            if heights is not None:
+                in_3d = (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
+            geo = (None, None)
+            if origin is not None:
+                measured_enu, estimated_enu = xy, est_xy
+                if heights is not None:  # the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
+                    up = np.asarray(track.positions[:, 2], dtype=float)
+                    measured_enu = np.column_stack([xy, up])
+                    estimated_enu = np.column_stack([est_xy, altitude[0][:, 0] + up - heights])
+                geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (measured_enu, estimated_enu))
+            record_track(recorder, estimator.name, run.times, *in_3d, *geo)
+    finally:
+        if recorder is not None:
+            recorder.close()
+    kinds = config["estimator"]["kind"]
+    index = run.mode if kinds == "unknown_change" else run.most_probable
+    per_step = [_summary_mode(models[int(i)]) for i in index]
+    modes = [m for m, _ in per_step]
+    radii = [r for _, r in per_step]
+    if kinds == "unknown_change":
+        by_label = dict(zip(estimator.labels, models))
+        decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]
+    else:
+        switches = np.flatnonzero(np.diff(index)) + 1
+        decisions = [{"time": float(run.times[k]), "mode": modes[k]} for k in switches]
+    if out is not None:
+        np.savez(
+            out / f"{name}.npz",
+            times=np.asarray(run.times, dtype=float),
+            means=run.means,
+            covariances=run.covs,
+            modes=np.array(modes),
+            radii=np.array([np.nan if r is None else r for r in radii]),
+            layout=np.array(layout),
+            positions=np.asarray(track.positions[:, :2], dtype=float),
+            **({} if altitude is None else {"altitude_mean": altitude[0], "altitude_var": altitude[1], "altitude": heights}),
+        )
+    return {"id": track.id, "segments": segments_of(run.times, modes, radii), "decisions": decisions}
+
+
+def _jsonable(value):
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+def track_file(
+    path: str | os.PathLike,
+    config: str | os.PathLike | Mapping[str, Any],
+    out: str | os.PathLike,
+    ids: Iterable[str] | None = None,
+    *,
+    progress: bool = False,
+    registry=None,
+) -> dict:
+    """Track every object of ``path`` (or those in ``ids``) with ``config`` (a TOML path or a mapping; module
+    docstring) and write ``out/<id>.rrd``, ``out/<id>.npz`` and ``out/summary.json``; returns the summary.
+
+    Objects with fewer than ``min_reports`` reports are skipped and listed under ``"skipped"``; an id not in the
+    file is a ConfigError.  ``progress`` shows a tqdm bar over the objects (on stderr)."""
+    from tqdm.auto import tqdm
+
+    cfg = load_config(config)
+    if not Path(path).is_file():
+        raise FileNotFoundError(2, "no such position file", str(path))
+    try:
+        data = read_tracks(path, **cfg["reader"], warn=False)
+    except TypeError as error:
+        raise ConfigError(f"[reader]: {error}") from None
+    chosen = list(data.tracks)
+    if ids is not None:
+        ids = list(ids)
+        missing = [i for i in ids if i not in data.tracks]
+        if missing:
+            raise ConfigError(f"--id {missing[0]!r}: no such object in {path} ({len(data.tracks)} objects)")
+        chosen = list(dict.fromkeys(ids))
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    objects, skipped = [], []
+    for key in tqdm(chosen, desc="objects", unit="object", disable=not progress, dynamic_ncols=True):
+        track = data.tracks[key]
+        if len(track) < cfg["min_reports"]:
+            skipped.append({"id": key, "reason": f"{len(track)} reports < min_reports {cfg['min_reports']}"})
+            continue
+        objects.append(track_one(track, cfg, out, registry, origin=data.origin, projection=data.projection or "enu"))
+    summary = {"objects": objects, "skipped": skipped}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    return summary

@@ -1,0 +1,204 @@
+"""The ``hybridtrack`` command line: ``hybridtrack <command> [options]``.
+
+Each sub-command is a :class:`Command` (name, one-line help, a function adding
+its arguments to a sub-parser, a function running it) living in its own module
+under :mod:`hybridtrack.cli`.  Adding one is: write the module with a
+``COMMAND = Command(...)`` and list the module in :data:`COMMAND_MODULES`.
+Modules are imported only when the parser is built, and a command's heavy
+imports belong inside its ``run`` function, so ``hybridtrack --version`` stays
+fast.
+
+``main(argv)`` returns the exit status instead of exiting, so tests call it in
+process; the console script ``hybridtrack`` is ``sys.exit(main())``.
+
+Errors: a user error (bad option value, missing or unreadable file, bad
+schedule) is one line ``hybridtrack <command>: error: <message>`` on stderr
+naming the option or file, with exit status 2 and no traceback.  Commands
+raise :class:`UsageError` for these; argparse's own errors are printed the
+same way; an OSError about a file (not found, permission, a directory) that
+reaches :func:`main` is too.  Any other exception is a bug and keeps its
+traceback.  A closed output pipe (``hybridtrack plugins | head``) ends the
+command quietly with status 141 (128 + SIGPIPE, as a shell reports for
+``yes | head``).  Output that the console's encoding cannot represent is
+replaced by ``?`` instead of raising UnicodeEncodeError.
+"""
+
+from __future__ import annotations
+
+import argparse
+import codecs
+import importlib
+import math
+import os
+import sys
+from collections.abc import Callable, Sequence
+
+import attrs
+
+#: modules defining a ``COMMAND``, in the order ``--help`` lists them
+COMMAND_MODULES: tuple[str, ...] = (
+    "hybridtrack.cli.plugins",
+    "hybridtrack.cli.simulate",
+    "hybridtrack.cli.inspect",
+    "hybridtrack.cli.run",
+    "hybridtrack.cli.track",
+)
+
+
+#: exit status of a user error (argparse's too) and of a closed output pipe
+USAGE_ERROR_STATUS = 2
+BROKEN_PIPE_STATUS = 141
+
+#: OSErrors about a file the user named: one line and status 2 (other OSErrors: one line and status 1)
+_USER_FILE_ERRORS = (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError, FileExistsError)
+
+
+class UsageError(Exception):
+    """A user error a command reports: printed as ``hybridtrack <command>: error: <message>``, exit status 2.
+
+    The message names the option or file, the value and what is expected.
+    """
+
+
+def integer_option(minimum: int, expected: str) -> Callable[[str], int]:
+    """An argparse ``type``: an integer ≥ ``minimum``, else an error saying ``expected``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    return parse
+
+
+def number_option(check: Callable[[float], bool], expected: str) -> Callable[[str], float]:
+    """An argparse ``type``: a finite float passing ``check``, else an error saying ``expected``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if not (math.isfinite(value) and check(value)):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    return parse
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors are one line (``prog: error: message``) with status 2."""
+
+    def error(self, message: str):
+        self.exit(USAGE_ERROR_STATUS, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+
+
+def _one_line(message: object) -> str:
+    return " ".join(str(message).split())
+
+
+def _tolerate_console_encoding() -> None:
+    """Replace characters stdout/stderr cannot encode (e.g. ψ on an ASCII or latin-1 console) instead of raising."""
+    for stream in (sys.stdout, sys.stderr):
+        encoding = getattr(stream, "encoding", None) or "utf-8"
+        try:
+            utf = codecs.lookup(encoding).name.startswith("utf")
+        except LookupError:
+            utf = False
+        reconfigure = getattr(stream, "reconfigure", None)
+        if not utf and reconfigure is not None and getattr(stream, "errors", "strict") == "strict":
+            try:
+                reconfigure(errors="replace")
+            except (ValueError, OSError):  # a stream that cannot be reconfigured any more
+                pass
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: point stdout at devnull so the interpreter's final flush does not fail again
+    (the recipe of the Python docs, "Note on SIGPIPE")."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # no real file descriptor (e.g. captured in a test)
+        pass
+
+
+@attrs.frozen
+class Command:
+    """A sub-command: ``configure(parser)`` adds its arguments, ``run(args)`` returns the exit status."""
+
+    name: str
+    help: str
+    configure: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
+
+
+def commands() -> dict[str, Command]:
+    """Name → :class:`Command` for every module in :data:`COMMAND_MODULES`."""
+    found: dict[str, Command] = {}
+    for module_name in COMMAND_MODULES:
+        command = importlib.import_module(module_name).COMMAND
+        if command.name in found:
+            raise RuntimeError(f"command {command.name!r} defined twice ({module_name})")
+        found[command.name] = command
+    return found
+
+
+def build_parser(available: dict[str, Command] | None = None) -> argparse.ArgumentParser:
+    from hybridtrack import __version__
+
+    parser = _Parser(
+        prog="hybridtrack",
+        description="Estimation of hybrid (mode-switching) motion: plugins, simulations, detectors.",
+    )
+    parser.add_argument("--version", action="version", version=f"hybridtrack {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="<command>")
+    for command in (commands() if available is None else available).values():
+        sub_parser = sub.add_parser(command.name, help=command.help, description=command.help)
+        command.configure(sub_parser)
+        sub_parser.set_defaults(run=command.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line on ``argv`` (default ``sys.argv[1:]``) and return the exit status.
+
+    User errors (:class:`UsageError`, argparse errors, OSErrors about a named
+    file) give one line on stderr and status 2; a closed output pipe gives
+    status 141 and no output.
+    """
+    _tolerate_console_encoding()
+    parser = build_parser()
+    try:
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exit_:  # --help, --version and usage errors
+            sys.stdout.flush()
+            return int(exit_.code or 0)
+        if args.command is None:
+            parser.print_help(sys.stderr)
+            return USAGE_ERROR_STATUS
+        prog = f"{parser.prog} {args.command}"
+        try:
+            status = int(args.run(args) or 0)
+        except UsageError as error:
+            print(f"{prog}: error: {_one_line(error)}", file=sys.stderr)
+            return USAGE_ERROR_STATUS
+        except OSError as error:
+            if isinstance(error, BrokenPipeError) or error.filename is None:
+                raise
+            print(f"{prog}: error: {error.filename}: {_one_line(error.strerror or error)}", file=sys.stderr)
+            return USAGE_ERROR_STATUS if isinstance(error, _USER_FILE_ERRORS) else 1
+        sys.stdout.flush()  # a closed pipe shows up here, not at the interpreter's exit
+        return status
+    except BrokenPipeError:
+        _silence_stdout()
+        return BROKEN_PIPE_STATUS
+
+
+if __name__ == "__main__":
+    sys.exit(main())

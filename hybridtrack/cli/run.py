@@ -1,0 +1,205 @@
+"""``hybridtrack run EXPERIMENT``: a seeded, resumable Monte Carlo campaign.
+
+EXPERIMENT is a registered name (``demo_rmse``), a script ``path/to/foo.py``
+defining ``EXPERIMENT``, or NAME for ``experiments/NAME.py`` in the working
+directory.  Results go to ``--out`` (default ``runs/EXPERIMENT``) chunk by
+chunk; running the same command again after an interruption computes only the
+missing runs.  Prints the mean (and standard deviation) of every result over
+the runs, or with ``--json`` the same as JSON.
+
+Recordings (:mod:`hybridtrack.apps.experiment.recordings`): ``--record K`` replays
+K runs spread evenly over the indices (``round(linspace(0, n−1, K))``: the
+first and the last included), ``--record-runs I,J,…`` the runs named, each with
+the generator it had in the campaign, into ``--record-dir`` (default
+``OUT/recordings/``) as ``run_<index>.rrd`` (5 digits); the experiment's
+``run_one`` must take a ``recorder`` keyword argument (``demo_rmse`` does).
+``--summary-recording`` writes ``OUT/summary.rrd``: every result as a series
+over the run index (timeline ``run``).
+
+Exit status: 0 done; 1 a run of the experiment failed (its traceback is
+printed; the runs before it are stored); 2 a user error, one line on stderr
+naming the option or file (unknown experiment, bad option value, a folder of
+another campaign or in use by one, a damaged file in the folder — rerun with
+``--set-aside`` to move it to ``OUT/set_aside/`` —, a malformed or unreachable
+scheduler address); 130 interrupted by Ctrl-C (the finished runs are stored).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from hybridtrack.cli import Command, integer_option, number_option
+
+_positive = integer_option(1, "a positive integer")
+_non_negative = integer_option(0, "a non-negative integer")
+_seconds = number_option(lambda v: v > 0, "a positive number of seconds")
+
+
+def _run_list(text: str) -> list[int]:
+    """``"3,17,40"`` → [3, 17, 40] (non-negative integers)."""
+    try:
+        indices = [int(part) for part in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected run indices separated by commas (3,17,40), got {text!r}") from None
+    if any(index < 0 for index in indices):
+        raise argparse.ArgumentTypeError(f"run indices must be non-negative, got {text!r}")
+    return indices
+
+
+def _one_line_errors(parser: argparse.ArgumentParser) -> None:
+    """Report a bad option of this command as one line ``hybridtrack run: error: …`` (no usage block), exit status 2."""
+
+    def error(message: str):
+        parser.exit(2, f"{parser.prog}: error: {' '.join(message.split())}\n")
+
+    parser.error = error
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    from hybridtrack.apps.experiment.executors import EXECUTORS
+
+    _one_line_errors(parser)
+    parser.add_argument("experiment", metavar="EXPERIMENT", help="registered name, experiments/NAME.py, or a script path")
+    parser.add_argument("--n", type=_positive, default=100, help="number of runs (default 100)")
+    parser.add_argument("--executor", choices=EXECUTORS, default="process", help="where runs execute (default process)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address for --executor dask (tcp://HOST:PORT)")
+    parser.add_argument("--workers", type=_positive, help="processes for --executor process (default: CPU count)")
+    parser.add_argument("--chunk", type=_positive, help="runs per stored chunk (default: about 4 chunks per worker, ≤ 25)")
+    parser.add_argument("--out", metavar="DIR", help="result folder (default runs/EXPERIMENT)")
+    parser.add_argument("--seed", type=_non_negative, default=0, help="campaign seed; run i uses child i of SeedSequence(seed)")
+    parser.add_argument("--param", action="append", metavar="KEY=VALUE", help="override an experiment parameter (repeatable)")
+    parser.add_argument(
+        "--set-aside",
+        action="store_true",
+        help="move damaged or foreign files of --out into DIR/set_aside/ and recompute their runs instead of stopping",
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=_seconds,
+        default=10.0,
+        metavar="SECONDS",
+        help="how long --executor dask waits for the scheduler (default 10)",
+    )
+    record = parser.add_mutually_exclusive_group()
+    record.add_argument(
+        "--record", type=_positive, metavar="K", help="record K runs spread evenly over the run indices (first and last included)"
+    )
+    record.add_argument("--record-runs", type=_run_list, metavar="I,J,…", help="record the runs with these indices")
+    parser.add_argument("--record-dir", metavar="DIR", help="where the run recordings go (default OUT/recordings)")
+    parser.add_argument(
+        "--summary-recording", action="store_true", help="write OUT/summary.rrd: every result as a series over the run index"
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+    import sys
+    from pathlib import Path
+
+    import numpy as np
+
+    from hybridtrack.apps.experiment.campaign import Campaign, CampaignInterrupted, RunFailed, campaign_parameters
+    from hybridtrack.apps.experiment.definition import UnknownExperiment
+    from hybridtrack.apps.experiment.recordings import (
+        accepts_recorder,
+        check_run_indices,
+        choose_runs,
+        record_runs,
+        write_summary_recording,
+    )
+    from hybridtrack.apps.experiment.store import CampaignLocked
+
+    if args.executor == "dask" and not args.scheduler:
+        print("hybridtrack run: --executor dask needs --scheduler ADDRESS", file=sys.stderr)
+        return 2
+    try:
+        parameters = campaign_parameters(args.param)
+        campaign = Campaign(
+            args.experiment,
+            args.n,
+            args.out or Path("runs") / Path(args.experiment).stem,
+            seed=args.seed,
+            parameters=parameters,
+            executor=args.executor,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            chunk_size=args.chunk,
+            progress=not args.no_progress,
+            set_aside=args.set_aside,
+            connect_timeout=args.connect_timeout,
+        )
+        chosen: list[int] = []
+        if args.record is not None:
+            chosen = choose_runs(args.n, args.record)
+        elif args.record_runs is not None:
+            chosen = check_run_indices(args.record_runs, args.n)
+        if chosen and not accepts_recorder(campaign.experiment):
+            raise TypeError(
+                f"--record: experiment {campaign.experiment.name!r} cannot record its runs "
+                "(its run_one takes no 'recorder' keyword argument)"
+            )
+        result = campaign.run()
+        recorded = {}
+        if chosen:
+            folder = Path(args.record_dir) if args.record_dir else result.out / "recordings"
+            recorded = record_runs(campaign.experiment, chosen, folder, seed=campaign.seed, parameters=campaign.parameters)
+            for index, (path, replayed) in recorded.items():
+                position = int(np.flatnonzero(result.arrays["index"] == index)[0])
+                if any(
+                    not np.allclose(values, result.arrays[name][position], rtol=1e-9, atol=0, equal_nan=True)
+                    for name, values in replayed.items()
+                ):
+                    print(
+                        f"hybridtrack run: warning: the recording of run {index} ({path}) gives other results than the "
+                        "stored run: the experiment draws randomness outside the generator it is given",
+                        file=sys.stderr,
+                    )
+        summary_path = None
+        if args.summary_recording:
+            summary_path = result.out / "summary.rrd"
+            configuration = {"experiment": result.experiment, "n": result.n, "seed": campaign.seed, "parameters": campaign.parameters}
+            write_summary_recording(result.arrays, summary_path, configuration)
+    except CampaignInterrupted as interrupt:
+        print(f"hybridtrack run: {interrupt}", file=sys.stderr)
+        return 130
+    except RunFailed as error:
+        print(f"hybridtrack run: {error}", file=sys.stderr)
+        return 1
+    except (UnknownExperiment, CampaignLocked, ValueError, TypeError, OSError) as error:
+        # CampaignMismatch and CorruptResults are ValueErrors; OSError: --out unusable, scheduler unreachable
+        print("hybridtrack run: " + " ".join(str(error).split("\n")), file=sys.stderr)
+        return 2
+    for original, moved, reason in result.set_aside:
+        print(f"hybridtrack run: set aside {original} as {moved} ({reason})", file=sys.stderr)
+    summary = {
+        "experiment": result.experiment,
+        "n": result.n,
+        "out": str(result.out),
+        "computed": result.computed,
+        "reused": result.reused,
+        "seed": campaign.seed,
+        "parameters": campaign.parameters,
+        "results": result.summary(),
+        "recordings": {str(index): str(path) for index, (path, _) in recorded.items()},
+        "summary_recording": None if summary_path is None else str(summary_path),
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    print(f"{result.experiment}: {result.n} runs in {result.out} ({result.computed} computed, {result.reused} already stored)")
+    for name, stats in summary["results"].items():
+        if "shape" in stats:
+            mean = ", ".join(f"{v:.6g}" for v in np.ravel(stats["mean"]))
+            print(f"  {name:<20} mean per run over {stats['shape']}: [{mean}]")
+        else:
+            print(f"  {name:<20} mean {stats['mean']:.6g}  (sd {stats['std']:.3g})")
+    for index, (path, _) in recorded.items():
+        print(f"  run {index} recorded in {path} (open it: rerun {path})")
+    if summary_path is not None:
+        print(f"  summary recording (every result over the run index): {summary_path}")
+    return 0
+
+
+COMMAND = Command("run", "run a seeded, resumable Monte Carlo campaign of an experiment", configure, run)

@@ -1,0 +1,258 @@
+"""Plugin loading on pluggy.
+
+Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions,
+found through the ``hybridtrack`` entry-point group.  The built-ins in
+``hybridtrack_plugins`` are declared there by this project's own
+``pyproject.toml``, exactly like a third-party package would.
+
+Loading isolates faults: a plugin that fails to import (any exception,
+``SystemExit`` and other ``BaseException`` subclasses included), implements a
+misspelt hook (pluggy's ``check_pending``), raises in its hook, registers a
+component name that is taken or registers a class that does not implement its
+kind's interface gives a :class:`PluginWarning` naming the plugin and its
+distribution, and the other plugins still load.  ``KeyboardInterrupt`` is the
+one exception let through: a plugin raising it at import cannot be told apart
+from the user pressing Ctrl-C, and a Ctrl-C must interrupt.  This project's
+own plugins load first, so a component name taken by a built-in stays the
+built-in's.  ``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks plugins by
+entry-point name (or distribution name); a name that matches no installed
+plugin gives a warning listing the known names.  A factory (not a class)
+returning the wrong type is caught at first use (:func:`resolve`,
+:func:`check_component`) by a TypeError naming the plugin and distribution.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import warnings
+from collections.abc import Iterable, Mapping
+from importlib.metadata import entry_points
+
+import attrs
+import pluggy
+
+from hybridtrack.core import hookspecs
+from hybridtrack.core.interfaces import INTERFACES, Labelled, require
+from hybridtrack.core.registry import Registry
+
+ENTRY_POINT_GROUP = "hybridtrack"
+DISABLE_ENV = "HYBRIDTRACK_DISABLE_PLUGINS"
+
+
+class PluginWarning(UserWarning):
+    """A plugin could not be loaded or one of its components was rejected."""
+
+
+class PluginError(RuntimeError):
+    """Raised instead of :class:`PluginWarning` when loading strictly."""
+
+
+@attrs.frozen
+class PluginInfo:
+    """A loaded plugin: its name, and the distribution that ships it (None for objects registered in code)."""
+
+    name: str
+    distribution: str | None = None
+    version: str | None = None
+
+
+@attrs.frozen
+class LoadedPlugins:
+    """The outcome of :func:`load_plugins`: the registry, the plugins and what went wrong."""
+
+    registry: Registry
+    plugins: tuple[PluginInfo, ...]
+    problems: tuple[str, ...]
+    manager: pluggy.PluginManager = attrs.field(repr=False)
+
+
+def disabled_from_env() -> set[str]:
+    return {name.strip() for name in os.environ.get(DISABLE_ENV, "").split(",") if name.strip()}
+
+
+def load_plugins(
+    extra: Iterable[object] = (),
+    *,
+    entrypoints: bool = True,
+    disabled: Iterable[str] | None = None,
+    strict: bool = False,
+) -> LoadedPlugins:
+    """Load the entry-point plugins (unless ``entrypoints=False``) and the ``extra`` plugin objects.
+
+    ``disabled`` defaults to the names in ``HYBRIDTRACK_DISABLE_PLUGINS``.
+    Problems are warned about (``strict=True``: raised as :class:`PluginError`);
+    problems with ``extra`` objects always raise, since the caller wrote them.
+    """
+    blocked = disabled_from_env() if disabled is None else set(disabled)
+    manager = pluggy.PluginManager(hookspecs.PROJECT)
+    manager.add_hookspecs(hookspecs)
+    infos: dict[str, PluginInfo] = {}
+    problems: list[str] = []
+
+    def report(message: str, raise_it: bool) -> None:
+        problems.append(message)
+        if strict or raise_it:
+            raise PluginError(message)
+        warnings.warn(message, PluginWarning, stacklevel=3)
+
+    def _unknown_blocked(points) -> None:
+        known = {point.name for point in points} | {point.dist.name for point in points if getattr(point, "dist", None)}
+        known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
+        unknown = sorted(blocked - known)
+        if unknown:
+            report(
+                f"{DISABLE_ENV if disabled is None else 'disabled'}: no installed plugin or distribution is named"
+                f" {', '.join(map(repr, unknown))}; known: {', '.join(sorted(known)) or 'none'}",
+                False,
+            )
+
+    def register(obj: object, info: PluginInfo, from_code: bool) -> None:
+        where = f"plugin {info.name!r} (distribution {info.distribution or 'none'})"
+        try:
+            manager.register(obj, name=info.name)
+            manager.check_pending()
+        except Exception as error:  # noqa: BLE001 - any fault of a plugin is reported, not fatal
+            if manager.is_registered(obj):
+                manager.unregister(obj)
+            report(f"{where} was not loaded: {error}", from_code)
+            return
+        infos[info.name] = info
+
+    extra = list(extra)
+    points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order)
+    if blocked:
+        _unknown_blocked(points)
+    if entrypoints:
+        for point in points:
+            dist = getattr(point, "dist", None)
+            info = PluginInfo(point.name, dist.name if dist else None, dist.version if dist else None)
+            if point.name in blocked or info.distribution in blocked:
+                manager.set_blocked(point.name)
+                continue
+            if point.name in infos:
+                report(f"plugin {point.name!r} (distribution {info.distribution}) duplicates an entry-point name; skipped", False)
+                continue
+            try:
+                obj = point.load()
+            except KeyboardInterrupt:  # indistinguishable from the user's Ctrl-C: let it interrupt
+                raise
+            except BaseException as error:  # noqa: BLE001 - SystemExit, GeneratorExit... of a plugin's import must not end the program
+                report(f"plugin {point.name!r} (distribution {info.distribution or 'unknown'}) failed to import: {error!r}", False)
+                continue
+            register(obj, info, from_code=False)
+
+    for obj in extra:
+        name = getattr(obj, "__name__", None) or type(obj).__name__
+        if name in blocked:
+            continue
+        register(obj, PluginInfo(name), from_code=True)
+
+    registry = Registry()
+    for kind, hook_name in hookspecs.HOOKS.items():
+        for impl in getattr(manager.hook, hook_name).get_hookimpls():
+            info = infos[impl.plugin_name]
+            from_code = info.distribution is None
+            registrar = registry.bind(
+                kind,
+                info.name,
+                info.distribution,
+                info.version,
+                on_error=lambda error, fc=from_code: report(str(error), fc),
+                interface=INTERFACES[kind],
+            )
+            try:
+                impl.function(**{arg: registrar for arg in impl.argnames})
+            except (PluginError, KeyboardInterrupt):
+                raise
+            except BaseException as error:  # noqa: BLE001
+                report(f"plugin {info.name!r} (distribution {info.distribution or 'none'}) failed in {hook_name}: {error!r}", from_code)
+    return LoadedPlugins(registry, tuple(infos.values()), tuple(problems), manager)
+
+
+def _load_order(point) -> tuple[bool, str]:
+    """This project's own plugins first, then the others by name: a third-party
+    component reusing a built-in name is the one rejected, whatever its name sorts as."""
+    dist = getattr(point, "dist", None)
+    return (dist is None or dist.name != hookspecs.PROJECT, point.name)
+
+
+@functools.cache
+def _default() -> LoadedPlugins:
+    return load_plugins()
+
+
+def default_plugins() -> LoadedPlugins:
+    """The plugins from entry points, loaded once per process (see :func:`reset`)."""
+    return _default()
+
+
+def get_registry() -> Registry:
+    """The default registry (entry-point plugins, honouring ``HYBRIDTRACK_DISABLE_PLUGINS``)."""
+    return _default().registry
+
+
+def reset() -> None:
+    """Forget the cached default plugins (after installing a plugin or changing the environment)."""
+    _default.cache_clear()
+
+
+def resolve_registry(registry: Registry | None) -> Registry:
+    """``registry``, or the default one when None."""
+    return get_registry() if registry is None else registry
+
+
+def check_component(kind: str, name: str, component, registry: Registry | None = None):
+    """``component``, built by the factory registered as ``name`` of ``kind``, if it implements the kind's interface.
+
+    Otherwise a TypeError naming the component, the plugin and the
+    distribution that registered the factory, and what the object lacks.
+    """
+    try:
+        return require(component, INTERFACES[kind], f"{kind} {name!r}")
+    except TypeError as error:
+        entry = resolve_registry(registry).entry(kind, name)
+        raise TypeError(
+            f"{error} (the factory of {kind} {name!r} registered by plugin {entry.plugin!r}"
+            f" (distribution {entry.distribution or 'none'}) returned a {type(component).__name__})"
+        ) from None
+
+
+def resolve(kind: str, spec, registry: Registry | None = None):
+    """A component of ``kind`` from an object, a registered name, ``(name, parameters)`` or ``(name, parameters, label)``.
+
+    The object (given or built) must implement the interface of ``kind``
+    (:data:`hybridtrack.core.interfaces.INTERFACES`); a wrong type is a TypeError
+    naming the interface, and a factory returning the wrong type names the
+    registered component, its plugin and distribution (:func:`check_component`).  A label (third item, or a ``"label"`` key in the
+    parameters) names the instance in a run (estimators and detectors).
+    """
+    if kind not in INTERFACES:
+        raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(INTERFACES)}")
+    base = INTERFACES[kind]
+    label = None
+    if not isinstance(spec, (str, tuple)):
+        return require(spec, base, kind)
+    if isinstance(spec, str):
+        name, parameters = spec, {}
+    elif (
+        isinstance(spec, tuple)
+        and len(spec) in (2, 3)
+        and isinstance(spec[0], str)
+        and isinstance(spec[1], Mapping)
+        and (len(spec) == 2 or isinstance(spec[2], str))
+    ):
+        name, parameters = spec[0], dict(spec[1])
+        label = spec[2] if len(spec) == 3 else None
+    else:
+        raise TypeError(
+            f"{kind}: expected a {base.__name__}, a registered name, (name, parameters) or (name, parameters, label), got {spec!r}"
+        )
+    label = parameters.pop("label", None) if label is None else label
+    registry = resolve_registry(registry)
+    component = check_component(kind, name, registry.create(kind, name, **parameters), registry)
+    if label is not None:
+        if not isinstance(component, Labelled):
+            raise ValueError(f"{kind} {name!r}: a label names estimators and detectors; {kind}s have none")
+        component.label = label
+    return component

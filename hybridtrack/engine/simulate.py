@@ -1,0 +1,304 @@
+"""Hybrid trajectories from a schedule, and multisensor measurements of them (SPEC §1–2).
+
+A schedule row (mode, steps, radius) runs the motion model registered as
+``mode`` for ``steps`` steps of length τ:
+
+    x_k = F_p x_{k-1} + B_p + G_p w_{k-1},  w ~ N(0, Q_p)   (seed 000, eq. 1)
+
+or, with ``times`` (seconds t_0 < t_1 < … < t_K, any spacing, one per state)
+in place of ``tau``, step k of length Δt_k = t_k − t_{k−1} with F_p, B_p, G_p,
+Q_p built for that Δt_k (a schedule row still counts steps).
+
+At each switch the new model ``enter``s the state (layout conversion,
+augmentation on entering constant acceleration) and fixes its transition from
+the state at the switching moment s (a turn's ω = |v_s|/r and centre).  With
+``process_noise=False`` the trajectory is noise-free.
+
+Randomness comes from ``numpy.random.Generator`` only; the same seed gives
+identical arrays.  :func:`simulate` spawns independent streams for the
+trajectory and the measurements from one seed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import attrs
+import numpy as np
+
+from hybridtrack.core.interfaces import MotionModel, Sensor, convert_layout
+from hybridtrack.core.registry import Registry
+from hybridtrack.core.types import Schedule
+from hybridtrack.core.validation import as_float_array, check_covariance
+from hybridtrack.sdk.linalg import psd_square_root
+from hybridtrack.sdk.network import SensorNetwork
+from hybridtrack.sdk.timestamps import check_tau, check_times
+
+
+def _rng(seed) -> np.random.Generator:
+    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+
+
+@attrs.frozen(eq=False)
+class Trajectory:
+    """A simulated hybrid trajectory: states at steps 0..K.
+
+    ``states`` (K+1, n) are in ``layout``, the union of the layouts of the
+    schedule's modes (components a mode lacks are zero while it runs);
+    ``segment`` (K+1,) is the index of the schedule row that produced each state
+    (row 0 for the initial state); ``times`` = step · τ, or the times the
+    trajectory was simulated at (then ``tau`` is None).
+    """
+
+    schedule: Schedule
+    tau: float | None
+    layout: tuple[str, ...]
+    states: np.ndarray
+    segment: np.ndarray
+    sample_times: np.ndarray | None = None
+
+    @property
+    def steps(self) -> np.ndarray:
+        return np.arange(self.states.shape[0])
+
+    @property
+    def times(self) -> np.ndarray:
+        if self.sample_times is not None:
+            return self.sample_times
+        return self.steps * self.tau
+
+    @property
+    def modes(self) -> list[str]:
+        """Mode name governing each step (the initial state counts as the first mode)."""
+        return [self.schedule.segments[i].mode for i in self.segment]
+
+    def states_in(self, layout: Sequence[str]) -> np.ndarray:
+        """States converted to another layout (by component name; missing components are zero)."""
+        return convert_layout(self.states, self.layout, layout)
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.states_in(("x", "y"))
+
+    def save_npz(self, path: str | Path, **extra: np.ndarray) -> None:
+        """Write states, layout, steps, times, segment and the schedule rows (plus ``extra`` arrays);
+        ``tau`` is NaN for a trajectory simulated at given times."""
+        segments = self.schedule.segments
+        np.savez(
+            path,
+            states=self.states,
+            layout=np.array(self.layout),
+            steps=self.steps,
+            times=self.times,
+            segment=self.segment,
+            schedule_mode=np.array([s.mode for s in segments]),
+            schedule_steps=np.array([s.steps for s in segments]),
+            schedule_radius=np.array([np.nan if s.radius is None else s.radius for s in segments]),
+            tau=np.nan if self.tau is None else self.tau,
+            **extra,
+        )
+
+
+def takes_keyword(factory, name: str) -> bool:
+    """Whether ``factory`` accepts the keyword argument ``name`` (True when its signature is unknown)."""
+    import inspect
+
+    try:
+        parameters = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):
+        return True
+    return any((p.name == name and p.kind is not p.POSITIONAL_ONLY) or p.kind is p.VAR_KEYWORD for p in parameters)
+
+
+def build_models(
+    schedule: Schedule, registry: Registry | None = None, noise_cov=None, *, noise_cov_where_taken: bool = False
+) -> list[MotionModel]:
+    """One motion model per schedule row, created from the registry by mode name.
+
+    ``noise_cov`` (2×2 Q), when given, is passed to every model; with
+    ``noise_cov_where_taken`` only to the models whose factory takes a
+    ``noise_cov`` keyword (the others, e.g. ``ship_turn`` with its own
+    ``sigma_velocity`` and ``sigma_rate``, keep their own process noise).
+    A factory returning something that is not a MotionModel is a TypeError
+    naming the plugin that registered it.
+    """
+    from hybridtrack.core.plugins import check_component, get_registry
+
+    if registry is None:
+        registry = get_registry()
+    models = []
+    for i, segment in enumerate(schedule.segments):
+        parameters = segment.parameters()
+        if noise_cov is not None and (not noise_cov_where_taken or takes_keyword(registry.get("motion_model", segment.mode), "noise_cov")):
+            parameters["noise_cov"] = noise_cov
+        try:
+            model = registry.create("motion_model", segment.mode, **parameters)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"schedule row {i} ({segment.mode}): {error}") from error
+        models.append(check_component("motion_model", segment.mode, model, registry))
+    return models
+
+
+def _sampling(tau, times, steps: int) -> tuple[float | None, np.ndarray | None]:
+    """(τ, None) for regular sampling or (None, times (steps + 1,)) for given times; exactly one is given."""
+    if times is None:
+        if tau is None:
+            raise ValueError("tau: give the sampling period tau or the times (seconds) of the states")
+        return check_tau(tau), None
+    if tau is not None:
+        raise ValueError("tau: give either the sampling period tau or the times, not both")
+    return None, check_times(times, "times", steps + 1)
+
+
+def simulate_trajectory(
+    schedule: Schedule,
+    x0,
+    tau: float | None = None,
+    *,
+    times=None,
+    process_noise: bool = True,
+    seed=None,
+    noise_cov=None,
+    registry: Registry | None = None,
+    models: Sequence[MotionModel] | None = None,
+    recorder=None,
+) -> Trajectory:
+    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``,
+    or at ``times`` (seconds, strictly increasing, any spacing, one per state: ``schedule.total_steps + 1``).
+
+    With ``times`` each step's transition (and its noise) is built for its own
+    Δt; ``tau`` and ``times`` exclude each other.  ``models`` overrides the
+    registry lookup (one model per schedule row); with a ``recorder`` the true
+    path is logged under ``world/truth``.
+    """
+    tau, times = _sampling(tau, times, schedule.total_steps)
+    if noise_cov is not None:
+        noise_cov = check_covariance(noise_cov, "noise_cov")
+    models = list(models) if models is not None else build_models(schedule, registry, noise_cov)
+    if len(models) != len(schedule.segments):
+        raise ValueError(f"models: expected {len(schedule.segments)} models (one per schedule row), got {len(models)}")
+    layout: list[str] = []
+    for model in models:
+        layout += [name for name in model.layout if name not in layout]
+    x = as_float_array(x0, "x0", (models[0].state_dim,))
+    rng = _rng(seed)
+    intervals = None if times is None else np.diff(times)
+
+    states = [convert_layout(x, models[0].layout, layout)]
+    segment_index = [0]
+    current_layout = models[0].layout
+    for i, (segment, model) in enumerate(zip(schedule.segments, models)):
+        x = model.enter(x, current_layout, {"acceleration": segment.acceleration})
+        current_layout = model.layout
+        switch_state = x.copy()
+        if intervals is None:
+            transition = model.transition(tau, switch_state)
+            L = psd_square_root(transition.Q)
+        for _ in range(segment.steps):
+            dt = tau
+            if intervals is not None:
+                dt = float(intervals[len(states) - 1])
+                transition = model.transition(dt, switch_state)
+                L = psd_square_root(transition.Q)
+            x = transition.apply(x) if model.linear else model.propagate(x, dt, switch_state)
+            if process_noise:
+                x = x + transition.G @ (L @ rng.standard_normal(L.shape[1]))
+            if not np.all(np.isfinite(x)):
+                raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
+            states.append(convert_layout(x, current_layout, layout))
+            segment_index.append(i)
+    trajectory = Trajectory(schedule, tau, tuple(layout), np.array(states), np.array(segment_index), times)
+    if recorder is not None:
+        recorder.log_path("world/truth", trajectory.steps, trajectory.positions, trajectory.times)
+        labels = [s.mode if s.radius is None else f"{s.mode}_r{s.radius:g}" for s in schedule.segments]
+        recorder.log_modes("world/truth", trajectory.steps, trajectory.segment, labels, trajectory.times)
+    return trajectory
+
+
+def simulate_measurements(trajectory: Trajectory, sensors: Sequence[Sensor] | SensorNetwork, *, seed=None) -> dict[str, np.ndarray]:
+    """Noisy measurements of every state (steps 0..K) by each sensor: name → (K+1, m)."""
+    network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
+    rng = _rng(seed)
+    return {sensor.name: sensor.simulate(trajectory.states, trajectory.layout, rng) for sensor in network.sensors}
+
+
+def simulate(
+    schedule: Schedule, x0, tau: float | None = None, sensors=None, *, times=None, seed=None, recorder=None, **options
+) -> tuple[Trajectory, dict[str, np.ndarray]]:
+    """Trajectory and measurements from one seed — an int, a ``SeedSequence`` or a ``Generator`` —
+    with independent streams for the two (``spawn``).
+
+    Sampling is ``tau`` (regular) or ``times`` (seconds, one per state, any
+    spacing; see :func:`simulate_trajectory`).  With a ``recorder`` the truth
+    is logged; the measurements are logged by what consumes them (the
+    pipeline), or by :func:`hybridtrack.recording.log_measurements`.
+    """
+    if sensors is None:
+        raise ValueError("sensors: required (a list of sensors or a SensorNetwork)")
+    if isinstance(seed, np.random.Generator):
+        trajectory_rng, measurement_rng = seed.spawn(2)
+    else:
+        trajectory_rng, measurement_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+    trajectory = simulate_trajectory(schedule, x0, tau, times=times, seed=trajectory_rng, recorder=recorder, **options)
+    return trajectory, simulate_measurements(trajectory, sensors, seed=measurement_rng)
+
+
+def simulate_trajectories(
+    schedule: Schedule,
+    x0,
+    tau: float,
+    *,
+    seeds: Sequence,
+    noise_cov=None,
+    registry: Registry | None = None,
+    models: Sequence[MotionModel] | None = None,
+) -> list[Trajectory]:
+    """:func:`simulate_trajectory` for R runs at once (regular sampling ``tau``, linear modes), one seed per run.
+
+    Run r draws exactly what ``simulate_trajectory(schedule, x0, tau,
+    seed=seeds[r], …)`` draws — each segment's process noise w comes from the
+    run's own stream in the same order, as one (steps, q) block — and the
+    states are propagated for all runs together, x_k = F_r x_{k−1} + B_r +
+    G L w_k (each run's transition fixed at its own switch state, SPEC §1),
+    so the trajectories equal the per-run ones to rounding.  A nonlinear mode
+    or irregular times: use :func:`simulate_trajectory` run by run.
+    """
+    tau = check_tau(tau)
+    if noise_cov is not None:
+        noise_cov = check_covariance(noise_cov, "noise_cov")
+    models = list(models) if models is not None else build_models(schedule, registry, noise_cov)
+    if len(models) != len(schedule.segments):
+        raise ValueError(f"models: expected {len(schedule.segments)} models (one per schedule row), got {len(models)}")
+    if not all(m.linear for m in models):
+        raise ValueError("models: simulate_trajectories propagates linear modes only; use simulate_trajectory per run")
+    rngs = [_rng(seed) for seed in seeds]
+    if not rngs:
+        raise ValueError("seeds: expected one seed per run, got none")
+    layout: list[str] = []
+    for model in models:
+        layout += [name for name in model.layout if name not in layout]
+    R = len(rngs)
+    x = np.repeat(as_float_array(x0, "x0", (models[0].state_dim,))[None], R, axis=0)
+    states = np.zeros((R, schedule.total_steps + 1, len(layout)))
+    states[:, 0] = convert_layout(x, models[0].layout, layout)
+    segment_index = np.zeros(schedule.total_steps + 1, dtype=int)
+    current_layout, k = models[0].layout, 0
+    for i, (segment, model) in enumerate(zip(schedule.segments, models)):
+        x = np.stack([model.enter(row, current_layout, {"acceleration": segment.acceleration}) for row in x])
+        current_layout = model.layout
+        transitions = [model.transition(tau, row.copy()) for row in x]
+        F = np.stack([t.F for t in transitions])
+        B = np.stack([t.B for t in transitions])
+        GL = np.stack([t.G @ psd_square_root(t.Q) for t in transitions])
+        noise = np.stack([rng.standard_normal((segment.steps, GL.shape[2])) for rng in rngs])  # (R, steps, q)
+        block = np.zeros((R, segment.steps, model.state_dim))
+        for j in range(segment.steps):
+            x = np.einsum("rij,rj->ri", F, x) + B + np.einsum("rij,rj->ri", GL, noise[:, j])
+            block[:, j] = x
+        if not np.all(np.isfinite(block)):
+            raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
+        states[:, k + 1 : k + segment.steps + 1] = convert_layout(block, current_layout, layout)
+        segment_index[k + 1 : k + segment.steps + 1] = i
+        k += segment.steps
+    return [Trajectory(schedule, tau, tuple(layout), states[r], segment_index.copy(), None) for r in range(R)]

@@ -1,0 +1,441 @@
+"""Reading and writing measurements: sensor name → array (steps, m), NaN rows = no measurement,
+optionally with the time of each step.
+
+CSV layout (comma separated, one header row)::
+
+    step,radar.x,radar.y,buoy.x
+    0,0.12,-0.03,0.05
+    1,0.09,0.21,
+    3,0.31,0.40,0.28
+
+* ``step`` (first column): the integer step of the row; steps may be missing
+  (those rows become NaN) or unordered, but not repeated.
+* every other column is ``<sensor>.<component>``: the sensor name is what
+  stands before the last dot; a sensor's columns keep their order (the order
+  of its z vector).
+* an empty cell (or ``nan``) means no value; a sensor whose cells are not all
+  present at a step has no measurement at that step (its whole row is NaN).
+
+Time-stamped CSV: the first column is ``time`` (seconds) instead of ``step``::
+
+    time,radar.x,radar.y
+    0.0,0.12,-0.03
+    0.35,0.09,0.21
+    2.1,,
+
+  row k (in file order) is step k at time t_k; times must be finite and
+  strictly increasing down the file (a row with empty cells is a step without
+  a measurement).
+
+NPZ layout: one array per sensor, named by the sensor, shape (steps, m), plus
+optionally a 1-D array ``time`` (steps,) of the step times in seconds (a 2-D
+array named ``time`` is still read as a sensor).
+
+:func:`read_measurement_file` returns both, ``(measurements, times or None)``;
+:func:`read_measurements` returns the measurements only.  Bad times (NaN,
+infinite, repeated, decreasing) raise a ValueError naming the file, the row or
+index and the value.  Pass the times on as ``Pipeline(..., times=times)``.
+
+What the readers accept and refuse (every error names the file, and the line
+and column or the array where it applies):
+
+* a missing file is a FileNotFoundError, a directory an IsADirectoryError, a
+  path that is not a str/PathLike a TypeError, a suffix other than ``.csv`` or
+  ``.npz`` a ValueError; everything below is a ValueError.
+* CSV text must be UTF-8; a leading byte-order mark is stripped.  UTF-16, other
+  encodings, NUL bytes and zip archives are refused ("not a UTF-8 text CSV").
+* the separator is ``,``; a file whose header line has no comma but a ``;`` is
+  read with ``;`` (a decimal comma such as ``0,5`` is then refused, with a hint).
+* blank lines are skipped; an empty file, a header without data rows, a first
+  column other than ``step``/``time``, no sensor column, a column name that is
+  not ``<sensor>.<component>`` or appears twice, and rows whose cell count
+  differs from the header are refused.
+* a cell is a decimal number (``1``, ``-0.5``, ``1e-3``), empty or ``nan`` (no
+  value); ``inf``, ``-inf``, ``infinity`` and numbers beyond the float range
+  (``1e400``) are refused, as the array checks refuse them.
+* ``step`` cells are integers 0 … :data:`MAX_STEP` (10⁷), none repeated (the
+  error names the step and both lines); the dense arrays (max step + 1 rows)
+  must fit :data:`MAX_BYTES` (1 GiB of float64), checked before allocating.
+* NPZ files are read with ``allow_pickle=False``; each member's .npy header is
+  checked before any data is loaded: an empty file or archive, a truncated or
+  corrupt zip, a lone ``.npy``, non-``.npy`` or repeated members, arrays of
+  Python objects (refused, never unpickled), non-numeric dtypes (only integers
+  and floats are read), sensor arrays that are not 2-D or have no rows or
+  columns, different step counts, more than :data:`MAX_BYTES` of data, and
+  ``inf`` values are refused.
+
+The writers refuse what the readers could not read back: no sensor, an empty or
+non-str sensor name, zero steps or components, ``inf``, component labels that
+are missing, repeated, empty or hold a ``.``, and a ``step`` CSV longer than
+:data:`MAX_STEP` + 1 steps.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import re
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from hybridtrack.core.validation import as_float_array
+from hybridtrack.io.csv_text import csv_records, decode_csv_text
+from hybridtrack.sdk.timestamps import check_times
+
+
+class MeasurementFile(NamedTuple):
+    """What a measurement file holds: sensor name → (steps, m), and the step times (steps,) in seconds or None."""
+
+    measurements: dict[str, np.ndarray]
+    times: np.ndarray | None
+
+
+def _check(measurements: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Sensor name (a non-empty str) → float (steps, m) array, NaN allowed, inf refused; ≥ 1 step and component, equal steps."""
+    if not isinstance(measurements, Mapping):
+        raise TypeError(f"measurements: expected a mapping sensor name → (steps, m) array, got {type(measurements).__name__}")
+    for name in measurements:
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"measurements: sensor name {name!r} must be a non-empty str")
+    arrays = {name: as_float_array(z, f"measurements[{name!r}]", (None, None), allow_nan=True) for name, z in measurements.items()}
+    if not arrays:
+        raise ValueError("measurements: no sensor")
+    lengths = {a.shape[0] for a in arrays.values()}
+    if len(lengths) != 1:
+        raise ValueError(f"measurements: sensors have different numbers of steps {sorted(lengths)}")
+    for name, a in arrays.items():
+        if a.shape[0] == 0 or a.shape[1] == 0:
+            raise ValueError(f"measurements[{name!r}]: shape {a.shape}; expected at least one step and one component")
+    return arrays
+
+
+def _check_times(times, steps: int, name: str) -> np.ndarray | None:
+    return None if times is None else check_times(times, name, steps)
+
+
+def _csv_times(path, body) -> list[float]:
+    """The ``time`` column, finite and strictly increasing; errors name the file line, the index and the value."""
+    times: list[float] = []
+    for index, (line, row) in enumerate(body):
+        cell = row[0].strip()
+        try:
+            if not _NUMBER.fullmatch(cell) and cell.lower().lstrip("+-") not in _NON_FINITE:
+                raise ValueError
+            t = float(cell)
+        except ValueError:
+            raise ValueError(f"{path}:{line}: time at index {index} is {cell!r}, not a number of seconds") from None
+        if not np.isfinite(t):
+            raise ValueError(f"{path}:{line}: time at index {index} is {cell!r} (expected finite seconds)")
+        if times and t <= times[-1]:
+            what = "a duplicate of" if t == times[-1] else "earlier than"
+            raise ValueError(
+                f"{path}:{line}: time at index {index} ({t!r}) is {what} the time at index {index - 1} ({times[-1]!r});"
+                " times must be strictly increasing"
+            )
+        times.append(t)
+    return times
+
+
+#: the largest step number a ``step`` CSV may hold (its rows are stored densely, steps 0 … max)
+MAX_STEP = 10_000_000
+#: the most memory (bytes of float64) a file's dense measurement arrays may take; checked before allocating
+MAX_BYTES = 2**30
+
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+_INTEGER = re.compile(r"[+-]?\d+", re.ASCII)
+_NON_FINITE = {"inf", "infinity", "nan"}
+_CSV_HINT = "expected a UTF-8 text CSV: a header 'step,<sensor>.<component>,…' (or 'time,…') and one row per step"
+
+
+def _path(path) -> Path:
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path: expected a file name (str or os.PathLike), got {type(path).__name__} ({path!r})")
+    return Path(path)
+
+
+def _existing(path: Path, kind: str) -> None:
+    """A missing file or a directory is a FileNotFoundError/IsADirectoryError naming it."""
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: is a directory, expected a {kind} measurement file")
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file (expected a {kind} measurement file)")
+
+
+def _header(path: Path, line: int, header: list[str]) -> tuple[str, dict[str, list[int]]]:
+    """The first column (``step``/``time``) and sensor → column indices; names the bad column."""
+    first = header[0]
+    if first not in ("step", "time"):
+        raise ValueError(f"{path}:{line}: the first header column is {first!r}; expected 'step' (or 'time', in seconds)")
+    if len(header) == 1:
+        raise ValueError(f"{path}:{line}: no sensor columns after {first!r}; expected columns <sensor>.<component>")
+    seen: dict[str, int] = {}
+    sensors: dict[str, list[int]] = {}
+    for column, name in enumerate(header[1:], start=1):
+        if name in seen:
+            raise ValueError(f"{path}:{line}: column {name!r} appears twice (columns {seen[name] + 1} and {column + 1})")
+        seen[name] = column
+        sensor, dot, component = name.rpartition(".")
+        if not dot or not sensor or not component:
+            raise ValueError(f"{path}:{line}: column {column + 1} {name!r} is not of the form <sensor>.<component>")
+        sensors.setdefault(sensor, []).append(column)
+    return first, sensors
+
+
+def _cell(path: Path, line: int, column: str, cell: str) -> float:
+    """A finite float, NaN for an empty/``nan`` cell; the error names the file, line, column and value."""
+    try:  # fast path: a plain ASCII decimal number (float() alone would also take '1_0', 'inf', non-ASCII digits)
+        value = float(cell)
+        if math.isfinite(value) and cell.isascii() and "_" not in cell:
+            return value
+    except ValueError:
+        pass
+    if not cell or cell.lower().lstrip("+-") == "nan":
+        return np.nan
+    if not _NUMBER.fullmatch(cell):
+        if cell.lower().lstrip("+-") in ("inf", "infinity"):
+            raise ValueError(f"{path}:{line}: column {column!r} holds {cell!r}; expected a finite number (an empty cell for no value)")
+        hint = " (a decimal comma? use a decimal point)" if re.fullmatch(r"[+-]?\d+,\d+", cell) else ""
+        raise ValueError(f"{path}:{line}: column {column!r} holds {cell!r}, not a number{hint}")
+    value = float(cell)
+    if not np.isfinite(value):
+        raise ValueError(f"{path}:{line}: column {column!r} holds {cell!r}, beyond the float range (expected a finite number)")
+    return value
+
+
+def _steps(path: Path, body) -> list[int]:
+    """The ``step`` column: integers 0 … :data:`MAX_STEP`, none repeated (the error names both lines)."""
+    steps: list[int] = []
+    lines: dict[int, int] = {}
+    for line, row in body:
+        cell = row[0].strip()
+        if not _INTEGER.fullmatch(cell):
+            raise ValueError(f"{path}:{line}: step {cell!r} is not an integer")
+        if cell.startswith("-") and cell.strip("-0"):
+            raise ValueError(f"{path}:{line}: step {cell} is negative; expected 0 … {MAX_STEP}")
+        if len(cell.lstrip("+0")) > len(str(MAX_STEP)) or int(cell) > MAX_STEP:
+            raise ValueError(f"{path}:{line}: step {cell} exceeds the limit {MAX_STEP} (measurements_io.MAX_STEP)")
+        step = int(cell)
+        if step in lines:
+            raise ValueError(f"{path}:{line}: step {step} is repeated (first at line {lines[step]})")
+        lines[step] = line
+        steps.append(step)
+    return steps
+
+
+def _read_csv(path: str | Path) -> MeasurementFile:
+    path = _path(path)
+    _existing(path, ".csv")
+    text = decode_csv_text(path, path.read_bytes(), _CSV_HINT)
+    rows = csv_records(path, text)
+    if not rows:
+        raise ValueError(f"{path}: empty file; {_CSV_HINT}")
+    header_line, header = rows[0]
+    header = [h.strip() for h in header]
+    first, sensors = _header(path, header_line, header)
+    body = rows[1:]
+    if not body:
+        raise ValueError(f"{path}: header only, no data rows; {_CSV_HINT}")
+    for line, row in body:
+        if len(row) != len(header):
+            raise ValueError(f"{path}:{line}: expected {len(header)} cells (as in the header), got {len(row)}")
+    times = None
+    if first == "time":
+        times = np.array(_csv_times(path, body), dtype=np.float64)
+        steps = list(range(len(body)))
+    else:
+        steps = _steps(path, body)
+    count = max(steps) + 1
+    size = count * (len(header) - 1) * 8
+    if size > MAX_BYTES:
+        raise ValueError(
+            f"{path}: steps 0 … {count - 1} × {len(header) - 1} columns need {size / 2**20:.0f} MiB, above the limit"
+            f" {MAX_BYTES / 2**20:.0f} MiB (measurements_io.MAX_BYTES)"
+        )
+    values = {name: np.full((count, len(cols)), np.nan) for name, cols in sensors.items()}
+    for step, (line, row) in zip(steps, body):
+        for name, cols in sensors.items():
+            cells = [_cell(path, line, header[c], row[c].strip()) for c in cols]
+            if np.all(np.isfinite(cells)):
+                values[name][step] = cells
+    if times is not None:
+        times.setflags(write=False)
+    return MeasurementFile(_check(values), times)
+
+
+def read_csv(path: str | Path) -> dict[str, np.ndarray]:
+    """Read the CSV layout above (``step`` or ``time`` first column); the times are dropped — see :func:`read_measurement_file`."""
+    return _read_csv(path).measurements
+
+
+def write_csv(
+    path: str | Path,
+    measurements: Mapping[str, np.ndarray],
+    components: Mapping[str, list[str]] | None = None,
+    *,
+    times=None,
+) -> None:
+    """Write the CSV layout; ``components`` names each sensor's columns (default 0, 1, …).
+
+    With ``times`` (seconds, one per step, strictly increasing) the first column
+    is ``time`` instead of ``step``; values are written exactly (``repr``).
+    """
+    arrays = _check(measurements)
+    steps = next(iter(arrays.values())).shape[0]
+    times = _check_times(times, steps, "times")
+    if times is None and steps - 1 > MAX_STEP:
+        raise ValueError(f"measurements: {steps} steps, above the step CSV limit {MAX_STEP} + 1 (measurements_io.MAX_STEP); write an NPZ")
+    components = components or {}
+    header = ["step" if times is None else "time"]
+    for name, z in arrays.items():
+        labels = [str(label) for label in components.get(name) or range(z.shape[1])]
+        if len(labels) != z.shape[1] or len(set(labels)) != len(labels) or not all(labels) or any("." in x for x in labels):
+            raise ValueError(
+                f"components[{name!r}]: {labels!r}; expected {z.shape[1]} distinct non-empty labels without '.'"
+                " (one per column of the array)"
+            )
+        header += [f"{name}.{label}" for label in labels]
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(header)
+        for k in range(steps):
+            row = [str(k) if times is None else repr(float(times[k]))]
+            for z in arrays.values():
+                row += ["" if not np.isfinite(v) else repr(float(v)) for v in z[k]]
+            writer.writerow(row)
+
+
+_NPZ_HINT = "expected an NPZ archive (numpy.savez) of one (steps, m) numeric array per sensor"
+_NUMERIC_KINDS = "iuf"  # signed/unsigned integers and floats; bool, complex, text, objects are refused
+
+
+def _npz_headers(path: Path) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    """Array name → (shape, dtype) read from each member's .npy header, before any array is loaded."""
+    try:
+        archive = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError, EOFError) as error:
+        raise ValueError(f"{path}: corrupt or truncated NPZ archive ({error}); {_NPZ_HINT}") from None
+    headers: dict[str, tuple[tuple[int, ...], np.dtype]] = {}
+    with archive:
+        for member in archive.namelist():
+            name = member.removesuffix(".npy")
+            if not member.endswith(".npy"):
+                raise ValueError(f"{path}: archive member {member!r} is not a .npy array; {_NPZ_HINT}")
+            if name in headers:
+                raise ValueError(f"{path}: array {name!r} appears twice in the archive")
+            try:
+                with archive.open(member) as stream:
+                    version = np.lib.format.read_magic(stream)
+                    read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                    shape, _, dtype = read(stream)
+            except Exception as error:  # zipfile, zlib and numpy raise several types for a damaged member
+                raise ValueError(f"{path}: array {name!r} cannot be read, the archive is corrupt or truncated ({error})") from None
+            headers[name] = (shape, dtype)
+    return headers
+
+
+def _npz_arrays(path: Path, names: list[str]) -> dict[str, np.ndarray]:
+    """Load each member (``allow_pickle=False``) and read it to its end, so zipfile checks its CRC-32."""
+    arrays = {}
+    with zipfile.ZipFile(path) as archive:
+        for name in names:
+            try:
+                with archive.open(name + ".npy") as stream:
+                    arrays[name] = np.lib.format.read_array(stream, allow_pickle=False)
+                    trailing = stream.read()  # reaching the end makes zipfile compare the CRC-32
+            except Exception as error:  # a damaged body (CRC, zlib, short read) after a readable header
+                raise ValueError(f"{path}: array {name!r} cannot be read, the archive is corrupt or truncated ({error})") from None
+            if trailing:
+                raise ValueError(f"{path}: array {name!r} has {len(trailing)} bytes after its data; the archive is corrupt")
+    return arrays
+
+
+def _npz_check(path: Path, name: str, shape: tuple[int, ...], dtype: np.dtype, time: bool) -> None:
+    """Refuse an array by its header: Python objects, non-numeric dtypes, wrong number of axes."""
+    if dtype.hasobject:
+        raise ValueError(f"{path}: array {name!r} holds Python objects (a pickle), which are refused; {_NPZ_HINT}")
+    if dtype.kind not in _NUMERIC_KINDS:
+        raise ValueError(f"{path}: array {name!r} has dtype {dtype} ({dtype.kind!r} kind); expected float or integer numbers")
+    if time:
+        return
+    if len(shape) != 2:
+        extra = " (a time array must be named 'time')" if len(shape) == 1 else ""
+        raise ValueError(f"{path}: array {name!r} has shape {shape}; expected 2-D (steps, m){extra}")
+    if shape[0] == 0 or shape[1] == 0:
+        raise ValueError(f"{path}: array {name!r} has shape {shape}; expected at least one step and one component")
+
+
+def _read_npz(path: str | Path) -> MeasurementFile:
+    path = _path(path)
+    _existing(path, ".npz")
+    with open(path, "rb") as handle:
+        magic = handle.read(6)
+    if not magic:
+        raise ValueError(f"{path}: empty file; {_NPZ_HINT}")
+    if magic.startswith(b"\x93NUMPY"):
+        raise ValueError(f"{path}: a single .npy array, not an NPZ archive; {_NPZ_HINT}")
+    if not magic.startswith((b"PK\x03\x04", b"PK\x05\x06")):
+        raise ValueError(f"{path}: not an NPZ (zip) archive (it starts with {magic!r}); {_NPZ_HINT}")
+    headers = _npz_headers(path)
+    if not headers:
+        raise ValueError(f"{path}: the archive holds no arrays; {_NPZ_HINT}")
+    is_time = "time" in headers and len(headers["time"][0]) == 1
+    for name, (shape, dtype) in headers.items():
+        _npz_check(path, name, shape, dtype, is_time and name == "time")
+    sensors = {name: shape for name, (shape, _) in headers.items() if not (is_time and name == "time")}
+    if not sensors:
+        raise ValueError(f"{path}: the archive holds only the 'time' array, no sensor; {_NPZ_HINT}")
+    steps = {shape[0] for shape in sensors.values()}
+    if len(steps) != 1:
+        counts = ", ".join(f"{name} {shape[0]}" for name, shape in sensors.items())
+        raise ValueError(f"{path}: the arrays have different numbers of steps ({counts}); expected one row per step in each")
+    size = sum(8 * int(np.prod(shape)) for shape, _ in headers.values())
+    if size > MAX_BYTES:
+        raise ValueError(
+            f"{path}: the arrays need {size / 2**20:.0f} MiB as float64, above the limit {MAX_BYTES / 2**20:.0f} MiB"
+            " (measurements_io.MAX_BYTES)"
+        )
+    arrays = _npz_arrays(path, list(headers))
+    times = arrays.pop("time") if is_time else None
+    measurements = {name: as_float_array(z, f"{path}: array {name!r}", (None, None), allow_nan=True) for name, z in arrays.items()}
+    return MeasurementFile(measurements, _check_times(times, next(iter(steps)), f"{path}: 'time' array"))
+
+
+def read_npz(path: str | Path) -> dict[str, np.ndarray]:
+    """Read the NPZ layout (one (steps, m) array per sensor); a 1-D ``time`` array is checked and dropped — see
+    :func:`read_measurement_file`."""
+    return _read_npz(path).measurements
+
+
+def write_npz(path: str | Path, measurements: Mapping[str, np.ndarray], *, times=None) -> None:
+    """Write the NPZ layout; ``times`` (seconds, one per step, strictly increasing) is stored as the array ``time``."""
+    arrays = _check(measurements)
+    if times is None:
+        np.savez(path, **arrays)
+        return
+    if "time" in arrays:
+        raise ValueError("measurements: a sensor named 'time' cannot be written with times (the NPZ array 'time' holds them)")
+    steps = next(iter(arrays.values())).shape[0]
+    np.savez(path, time=_check_times(times, steps, "times"), **arrays)
+
+
+def read_measurement_file(path: str | Path) -> MeasurementFile:
+    """Read a ``.csv`` or ``.npz`` measurement file: ``(measurements, times)``, times None for a ``step`` file."""
+    path = _path(path)
+    if path.is_dir():
+        _existing(path, ".csv or .npz")
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return _read_csv(path)
+    if suffix == ".npz":
+        return _read_npz(path)
+    raise ValueError(f"{path}: unknown measurement file type {suffix!r} (expected .csv or .npz)")
+
+
+def read_measurements(path: str | Path) -> dict[str, np.ndarray]:
+    """Read a ``.csv`` or ``.npz`` measurement file's measurements (times, if any, are checked and dropped)."""
+    return read_measurement_file(path).measurements

@@ -1,0 +1,773 @@
+"""Reading real time-stamped position files (AIS, GPS logs): one :class:`Track` per object, in metres.
+
+CSV layout (comma separated — or ``;`` when the header has no comma — one header
+row, any column order, extra columns ignored; ``.csv.gz`` is read through gzip)::
+
+    Time,MMSI,Latitude_degrees,Longitude_degrees,COG_degrees,SOG_knots
+    2016-01-12 13:02:11.218,235070762,50.7730133333333,-1.092935,157.8,5.9
+
+Columns (names configurable, see :func:`read_tracks`):
+
+* **time** — seconds (a decimal number) or ISO-8601 timestamps
+  (``2016-01-12 13:02:11.218``, ``2016-01-12T13:02:11Z``, ``…+01:00``); the
+  first non-empty cell decides which, and every row must then use that form.
+  Timestamps without a zone are read as UTC; the track times are seconds after
+  :attr:`TrackFile.epoch`, the earliest valid timestamp of the file.  Numeric
+  times are kept as they are (``epoch`` None).
+* **position** — either ``x, y`` in metres, or latitude/longitude in degrees
+  (WGS-84) projected to a local east-north tangent plane at
+  :attr:`TrackFile.origin` (see *Projection*).
+* optional **altitude** (metres; height above the WGS-84 ellipsoid with
+  latitude/longitude): positions are then (K, 3), east-north-up.
+* optional **id** — one track per distinct id (in order of first appearance);
+  without it the whole file is one track with id ``""``.
+* optional **course** over ground (degrees, a compass bearing: clockwise from
+  north) and **speed** over ground (``speed_unit``: ``"m/s"``, ``"knots"`` or
+  ``"km/h"``; stored in m/s).
+
+Projection (``projection=``):
+
+* ``"enu"`` (default) — exact local east-north-up coordinates: geodetic →
+  WGS-84 ECEF, X = (N + h) cos φ cos λ, Y = (N + h) cos φ sin λ,
+  Z = (N (1 − e²) + h) sin φ with N = a / √(1 − e² sin² φ), then the rotation
+  to the tangent plane at the origin (φ₀, λ₀):
+  e = −sin λ₀ ΔX + cos λ₀ ΔY,
+  n = −sin φ₀ cos λ₀ ΔX − sin φ₀ sin λ₀ ΔY + cos φ₀ ΔZ,
+  u = cos φ₀ cos λ₀ ΔX + cos φ₀ sin λ₀ ΔY + sin φ₀ ΔZ
+  (Hofmann-Wellenhof, Lichtenegger & Wasle, *GNSS*, Springer 2008, §10.2.2;
+  constants a = 6 378 137 m, f = 1/298.257223563, NIMA TR8350.2).  Without an
+  altitude column h = 0 and positions are (e, n); u is dropped, i.e. points are
+  projected orthogonally onto the tangent plane.
+* ``"equirectangular"`` — e = Δλ (N₀ + h₀) cos φ₀, n = Δφ M₀ with the prime-vertical
+  and meridian radii N₀, M₀ = a (1 − e²) / (1 − e² sin² φ₀)^{3/2} at the origin
+  (u = h − h₀): cheap, but its error grows with the distance from the origin.
+
+Their error against the exact geodesic (Vincenty's inverse formula on the
+WGS-84 ellipsoid, :func:`geodesic_inverse`) is measured by
+:func:`projection_error` and tabulated in ``docs/real_data.md``: at 100 km from
+an origin at 50.8° N, ``enu`` places points within 4.12 m of the azimuthal
+equidistant reference (ranges 4.12 m short, the chord-versus-arc shrinkage
+≈ d³/(6R²)) with a local scale error ≤ 1.2 × 10⁻⁴ (velocities 0.012 % slow
+radially); ``equirectangular`` is off by up to 1.09 km (2.5 km at 70° N).
+
+What is refused and what is reported.  Structural faults are a ValueError (or
+FileNotFoundError / IsADirectoryError / TypeError) naming the file: an empty
+file, a header without data rows, a configured column missing from the header
+(the error lists the columns present), a used column named twice.  Faults of
+single rows are *reported, not used*: each becomes a :class:`Problem` (file line,
+column, kind, action, message) in the track's ``problems`` (and in
+:attr:`TrackFile.problems`, with the rows that belong to no track), and one
+warning summarises them (``warn=False`` to silence it).  What happens to the row:
+
+* dropped — a time that does not parse (``bad_time``); a position/altitude cell
+  that is empty, non-numeric or infinite (``not_a_number``); latitude outside
+  [−90, 90] or longitude outside [−180, 180] (``out_of_range``); a row with a
+  different number of cells than the header (``bad_row``); an empty id cell
+  (``missing_id``); a second row with the time of an earlier row of the same
+  object (``duplicate_time``: the first row in file order is kept, the message
+  says whether the values were identical); a burst of at most
+  :data:`MAX_OUTLIER_BURST` fixes not reachable from the last good fix (fix j
+  is reachable from fix i when |p_j − p_i| ≤ ``max_speed`` (t_j − t_i) +
+  ``jump_tolerance``) after which the track returns to a reachable fix
+  (``speed_jump``), or the first fix of a track when the next two fixes agree
+  with each other but not with it.  The tolerance absorbs position noise and
+  time-stamp jitter: AIS time stamps are receive times, and two reports 0.3 s
+  apart can carry positions taken ~1 s apart (the Solent file has such pairs
+  with apparent speeds of 33–39 m/s for ships doing 4–13 m/s).
+* flagged and kept — a jump faster than ``max_speed`` after which the track
+  continues consistently from the new place (``speed_jump``, action
+  ``"flagged"``: a relocation or a gap in coverage, which a tracker should see).
+* set to NaN — a course/speed cell that is empty, non-numeric, out of range
+  (course outside [0, 360], negative speed) or equal to the file's
+  "not available" code (``course_not_available``/``speed_not_available``; AIS
+  uses 360° and 102.3 kn); the not-available cells of a track are reported as
+  one ``not_available`` problem naming the count and first lines.
+* sorted — rows of one object out of time order are sorted (stable), reported
+  once per track (``unsorted``).
+"""
+
+from __future__ import annotations
+
+import gzip
+import math
+import os
+import re
+import warnings
+from collections import Counter
+from collections.abc import Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+
+import attrs
+import numpy as np
+
+from hybridtrack.core.validation import check_positive
+from hybridtrack.io.csv_text import csv_records, decode_csv_text
+
+#: WGS-84 semi-major axis a (m) and flattening f (NIMA TR8350.2, 3rd ed., table 3.1)
+WGS84_A = 6_378_137.0
+WGS84_F = 1.0 / 298.257223563
+WGS84_B = WGS84_A * (1.0 - WGS84_F)
+WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+
+#: a jump is dropped as an outlier burst when one of the next this-many fixes is again reachable from the last good fix
+MAX_OUTLIER_BURST = 3
+
+PROJECTIONS = ("enu", "equirectangular")
+SPEED_UNITS = {"m/s": 1.0, "knots": 1852.0 / 3600.0, "km/h": 1000.0 / 3600.0}
+
+#: column names and codes of the Stone Soup Solent AIS CSV (``data/solent_ais/``): ``read_tracks(path, **SOLENT_AIS)``
+SOLENT_AIS = {
+    "time": "Time",
+    "id": "MMSI",
+    "lat": "Latitude_degrees",
+    "lon": "Longitude_degrees",
+    "course": "COG_degrees",
+    "speed": "SOG_knots",
+    "speed_unit": "knots",
+    "course_not_available": 360.0,
+    "speed_not_available": 102.3,
+}
+
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+_HINT = "expected a UTF-8 CSV with a header row and one row per position report"
+
+
+@attrs.frozen
+class Problem:
+    """One fault of the input: ``line`` of the file (the header is line 1; 0 for the whole track), the ``column``
+    concerned (or None), ``kind`` (``bad_time``, ``not_a_number``, ``out_of_range``, ``bad_row``, ``missing_id``,
+    ``duplicate_time``, ``speed_jump``, ``not_available``, ``unsorted``), what was done (``action``: ``dropped``,
+    ``flagged``, ``set_nan``, ``sorted``) and a ``message`` naming the file and line."""
+
+    line: int
+    column: str | None
+    kind: str
+    action: str
+    message: str
+    id: str | None = None
+
+
+def _column(shape):
+    return attrs.field(converter=lambda a: _readonly(a, shape), eq=attrs.cmp_using(eq=_equal_nan), hash=False)
+
+
+def _readonly(value, shape):
+    if value is None:
+        return None
+    array = np.array(value, dtype=np.float64, copy=True)
+    if array.ndim != len(shape):
+        raise ValueError(f"expected {len(shape)} axes, got shape {array.shape}")
+    array.setflags(write=False)
+    return array
+
+
+def _equal_nan(a, b):
+    if a is None or b is None:
+        return a is b
+    return np.array_equal(a, b, equal_nan=True)
+
+
+@attrs.frozen
+class Track:
+    """The reports of one object, sorted by time: ``times`` (K,) seconds, ``positions`` (K, 2) east/x, north/y in
+    metres — or (K, 3) with up/z — ``course`` (K,) over ground in degrees clockwise from north and ``speed`` (K,)
+    over ground in m/s (None when the file has no such column; NaN where not available), ``lines`` (K,) the file line
+    of each report, and the ``problems`` found in this object's rows (what was dropped, flagged or set to NaN)."""
+
+    id: str
+    times: np.ndarray = _column((None,))
+    positions: np.ndarray = _column((None, None))
+    lines: np.ndarray = attrs.field(converter=lambda a: _readonly_int(a), eq=attrs.cmp_using(eq=np.array_equal), hash=False)
+    course: np.ndarray | None = _column((None,))
+    speed: np.ndarray | None = _column((None,))
+    problems: tuple[Problem, ...] = attrs.field(default=(), converter=tuple)
+
+    def __attrs_post_init__(self):
+        k = self.times.shape[0]
+        if self.positions.shape[0] != k or self.positions.shape[1] not in (2, 3):
+            raise ValueError(f"positions: expected shape ({k}, 2) or ({k}, 3), got {self.positions.shape}")
+        for name in ("lines", "course", "speed"):
+            value = getattr(self, name)
+            if value is not None and value.shape != (k,):
+                raise ValueError(f"{name}: expected shape ({k},), got {value.shape}")
+
+    def __len__(self) -> int:
+        return self.times.shape[0]
+
+
+def _readonly_int(value):
+    array = np.array(value, dtype=np.int64, copy=True).reshape(-1)
+    array.setflags(write=False)
+    return array
+
+
+@attrs.frozen
+class TrackFile:
+    """What :func:`read_tracks` returns: ``tracks`` id → :class:`Track` (in order of first appearance), the
+    ``origin`` (lat°, lon°, h m) of the tangent plane (None for x/y files), the ``projection``, the ``epoch`` (UTC
+    datetime of time 0 for ISO timestamps, None for numeric seconds) and every :class:`Problem` of the file, by
+    line (those of the tracks and those of rows that belong to no track)."""
+
+    path: str
+    tracks: dict[str, Track]
+    origin: tuple[float, float, float] | None
+    projection: str | None
+    epoch: datetime | None
+    problems: tuple[Problem, ...]
+
+    @property
+    def reports(self) -> int:
+        """The number of reports kept, over all tracks."""
+        return sum(len(t) for t in self.tracks.values())
+
+
+# --- geodesy -------------------------------------------------------------------------------------------------
+
+
+def geodetic_to_ecef(lat, lon, h=0.0) -> np.ndarray:
+    """WGS-84 geodetic (degrees, degrees, metres) → ECEF (…, 3) in metres: X = (N + h) cos φ cos λ,
+    Y = (N + h) cos φ sin λ, Z = (N (1 − e²) + h) sin φ, N = a / √(1 − e² sin² φ) (NIMA TR8350.2, eq. 4-14)."""
+    phi, lam = np.radians(lat), np.radians(lon)
+    h = np.asarray(h, dtype=np.float64)
+    n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * np.sin(phi) ** 2)
+    return np.stack(
+        [(n + h) * np.cos(phi) * np.cos(lam), (n + h) * np.cos(phi) * np.sin(lam), (n * (1.0 - WGS84_E2) + h) * np.sin(phi)], axis=-1
+    )
+
+
+def project(lat, lon, h=None, *, origin: Sequence[float], projection: str = "enu") -> np.ndarray:
+    """Project WGS-84 latitude/longitude (degrees) and optional height (m) to the local tangent plane at
+    ``origin`` = (lat₀, lon₀[, h₀]): (K, 2) east/north, or (K, 3) east/north/up when ``h`` is given.
+
+    ``"enu"``: ECEF difference rotated to east-north-up (module docstring; Hofmann-Wellenhof et al. 2008, §10.2.2).
+    ``"equirectangular"``: e = Δλ (N₀ + h₀) cos φ₀, n = Δφ M₀, u = h − h₀.
+    """
+    if projection not in PROJECTIONS:
+        raise ValueError(f"projection: {projection!r}; expected one of {PROJECTIONS}")
+    lat0, lon0, h0 = _origin(origin)
+    lat = np.asarray(lat, dtype=np.float64)
+    lon = np.asarray(lon, dtype=np.float64)
+    hh = np.zeros_like(lat) if h is None else np.asarray(h, dtype=np.float64)
+    phi0, lam0 = math.radians(lat0), math.radians(lon0)
+    if projection == "enu":
+        d = geodetic_to_ecef(lat, lon, hh) - geodetic_to_ecef(lat0, lon0, h0)
+        sp, cp, sl, cl = math.sin(phi0), math.cos(phi0), math.sin(lam0), math.cos(lam0)
+        e = -sl * d[..., 0] + cl * d[..., 1]
+        n = -sp * cl * d[..., 0] - sp * sl * d[..., 1] + cp * d[..., 2]
+        u = cp * cl * d[..., 0] + cp * sl * d[..., 1] + sp * d[..., 2]
+    else:
+        w = 1.0 - WGS84_E2 * math.sin(phi0) ** 2
+        prime, meridian = WGS84_A / math.sqrt(w), WGS84_A * (1.0 - WGS84_E2) / w**1.5
+        dlon = (lon - lon0 + 180.0) % 360.0 - 180.0
+        e = np.radians(dlon) * (prime + h0) * math.cos(phi0)
+        n = np.radians(lat - lat0) * (meridian + h0)
+        u = hh - h0
+    return np.stack([e, n] if h is None else [e, n, u], axis=-1)
+
+
+def ecef_to_geodetic(xyz) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ECEF (…, 3) in metres → WGS-84 (lat°, lon°, h m), the inverse of :func:`geodetic_to_ecef`.
+
+    λ = atan2(Y, X); with p = √(X² + Y²), φ from the fixed-point iteration
+    φ ← atan2(Z, p (1 − e² N/(N + h))), h = p/cos φ − N, N = a/√(1 − e² sin² φ),
+    started at φ = atan2(Z, p (1 − e²)) (Hofmann-Wellenhof, Lichtenegger & Wasle, *GNSS*, 2008, §10.2.1).
+    Six iterations reach 10⁻¹¹ rad for heights below 100 km (checked against pymap3d).
+    """
+    xyz = np.asarray(xyz, dtype=np.float64)
+    if xyz.shape[-1:] != (3,):
+        raise ValueError(f"xyz: expected ECEF coordinates of shape (..., 3), got {xyz.shape}")
+    x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
+    lam = np.arctan2(y, x)
+    p = np.hypot(x, y)
+    phi = np.arctan2(z, p * (1.0 - WGS84_E2))
+    h = np.zeros_like(p)
+    for _ in range(6):
+        n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * np.sin(phi) ** 2)
+        h = p / np.cos(phi) - n
+        phi = np.arctan2(z, p * (1.0 - WGS84_E2 * n / (n + h)))
+    return np.degrees(phi), np.degrees(lam), h
+
+
+def unproject(positions, *, origin: Sequence[float], projection: str = "enu") -> np.ndarray:
+    """Tangent-plane positions back to WGS-84: (K, 2) east/north → (K, 2) (lat°, lon°), or (K, 3)
+    east/north/up → (K, 3) (lat°, lon°, h m); the inverse of :func:`project`.
+
+    ``"enu"`` with up given: ECEF = ECEF(origin) + Rᵀ (e, n, u) (R the rotation of :func:`project`), then
+    :func:`ecef_to_geodetic`.  Without up (:func:`project` dropped it), the point is taken on the height of the
+    origin: u is found by the Newton step u ← u − (h(e, n, u) − h₀), h changing at the rate ≈ 1 per metre of u,
+    repeated three times (|h − h₀| < 1 µm within 100 km), so ``unproject(project(lat, lon))`` returns lat, lon
+    for points at the origin's height.  ``"equirectangular"``: φ = φ₀ + n/M₀, λ = λ₀ + e/((N₀ + h₀) cos φ₀),
+    h = h₀ + u (exact inverse of its forward formula).
+    """
+    if projection not in PROJECTIONS:
+        raise ValueError(f"projection: {projection!r}; expected one of {PROJECTIONS}")
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.ndim != 2 or positions.shape[1] not in (2, 3):
+        raise ValueError(f"positions: expected (K, 2) east/north or (K, 3) east/north/up metres, got shape {positions.shape}")
+    lat0, lon0, h0 = _origin(origin)
+    e, n = positions[:, 0], positions[:, 1]
+    phi0, lam0 = math.radians(lat0), math.radians(lon0)
+    if projection == "equirectangular":
+        w = 1.0 - WGS84_E2 * math.sin(phi0) ** 2
+        prime, meridian = WGS84_A / math.sqrt(w), WGS84_A * (1.0 - WGS84_E2) / w**1.5
+        lat = lat0 + np.degrees(n / (meridian + h0))
+        lon = (lon0 + np.degrees(e / ((prime + h0) * math.cos(phi0))) + 180.0) % 360.0 - 180.0
+        h = h0 + (positions[:, 2] if positions.shape[1] == 3 else 0.0)
+        return np.stack([lat, lon, h] if positions.shape[1] == 3 else [lat, lon], axis=-1)
+    sp, cp, sl, cl = math.sin(phi0), math.cos(phi0), math.sin(lam0), math.cos(lam0)
+    rotation = np.array([[-sl, cl, 0.0], [-sp * cl, -sp * sl, cp], [cp * cl, cp * sl, sp]])  # ECEF → ENU
+    base = geodetic_to_ecef(lat0, lon0, h0)
+
+    def geodetic(up):
+        return ecef_to_geodetic(base + np.stack([e, n, up], axis=-1) @ rotation)
+
+    if positions.shape[1] == 3:
+        lat, lon, h = geodetic(positions[:, 2])
+        return np.stack([lat, lon, h], axis=-1)
+    up = np.zeros_like(e)
+    for _ in range(3):
+        up = up - (geodetic(up)[2] - h0)
+    lat, lon, _ = geodetic(up)
+    return np.stack([lat, lon], axis=-1)
+
+
+def _origin(origin) -> tuple[float, float, float]:
+    try:
+        values = [float(v) for v in origin]
+    except (TypeError, ValueError):
+        raise ValueError(f"origin: expected (lat°, lon°) or (lat°, lon°, h m), got {origin!r}") from None
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"origin: expected 2 or 3 finite numbers (lat°, lon°[, h m]), got {origin!r}")
+    if not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
+        raise ValueError(f"origin: latitude {values[0]} / longitude {values[1]} outside [−90, 90] / [−180, 180]")
+    return values[0], values[1], values[2] if len(values) == 3 else 0.0
+
+
+def geodesic_inverse(lat1, lon1, lat2, lon2, *, tol: float = 1e-12, max_iter: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """(distance m, initial azimuth ° clockwise from north) of the WGS-84 geodesic between two points (degrees).
+
+    Vincenty's inverse formula (T. Vincenty, "Direct and inverse solutions of geodesics on the ellipsoid with
+    application of nested equations", Survey Review 23(176):88–93, 1975), iterated on λ to ``tol`` rad —
+    accurate to a fraction of a millimetre.  Vectorized; nearly antipodal points (where the iteration does not
+    converge) raise a ValueError.
+    """
+    a, b, f = WGS84_A, WGS84_B, WGS84_F
+    lat1, lon1, lat2, lon2 = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (lat1, lon1, lat2, lon2)))
+    big_l = np.radians(lon2 - lon1)
+    u1 = np.arctan((1.0 - f) * np.tan(np.radians(lat1)))
+    u2 = np.arctan((1.0 - f) * np.tan(np.radians(lat2)))
+    su1, cu1, su2, cu2 = np.sin(u1), np.cos(u1), np.sin(u2), np.cos(u2)
+    lam = big_l.copy()
+    for _ in range(max_iter):
+        sl, cl = np.sin(lam), np.cos(lam)
+        sin_s = np.hypot(cu2 * sl, cu1 * su2 - su1 * cu2 * cl)
+        cos_s = su1 * su2 + cu1 * cu2 * cl
+        sigma = np.arctan2(sin_s, cos_s)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sin_a = np.where(sin_s > 0, cu1 * cu2 * sl / sin_s, 0.0)
+            cos2a = 1.0 - sin_a**2
+            cos2sm = np.where(cos2a > 0, cos_s - 2.0 * su1 * su2 / cos2a, 0.0)
+        c = f / 16.0 * cos2a * (4.0 + f * (4.0 - 3.0 * cos2a))
+        new = big_l + (1.0 - c) * f * sin_a * (sigma + c * sin_s * (cos2sm + c * cos_s * (-1.0 + 2.0 * cos2sm**2)))
+        done = np.abs(new - lam) <= tol
+        lam = new
+        if done.all():
+            break
+    else:
+        raise ValueError("geodesic_inverse: Vincenty's iteration did not converge (nearly antipodal points)")
+    sl, cl = np.sin(lam), np.cos(lam)
+    u_sq = cos2a * (a * a - b * b) / (b * b)
+    big_a = 1.0 + u_sq / 16384.0 * (4096.0 + u_sq * (-768.0 + u_sq * (320.0 - 175.0 * u_sq)))
+    big_b = u_sq / 1024.0 * (256.0 + u_sq * (-128.0 + u_sq * (74.0 - 47.0 * u_sq)))
+    d_sigma = (
+        big_b
+        * sin_s
+        * (
+            cos2sm
+            + big_b / 4.0 * (cos_s * (-1.0 + 2.0 * cos2sm**2) - big_b / 6.0 * cos2sm * (-3.0 + 4.0 * sin_s**2) * (-3.0 + 4.0 * cos2sm**2))
+        )
+    )
+    distance = b * big_a * (sigma - d_sigma)
+    azimuth = np.degrees(np.arctan2(cu2 * sl, cu1 * su2 - su1 * cu2 * cl)) % 360.0
+    return distance, azimuth
+
+
+def projection_error(origin: Sequence[float], distance: float = 100e3, *, projection: str = "enu", directions: int = 16) -> dict:
+    """Measure a projection against the WGS-84 geodesic at ``distance`` metres from ``origin`` in ``directions``
+    compass directions.
+
+    Points are placed roughly (spherical formulas) at that range; for each, the reference position is the
+    azimuthal-equidistant one, s (sin α, cos α) with s, α from :func:`geodesic_inverse` (exact distance and bearing
+    from the origin).  Local scale: a second point 100 m further east and one 100 m further north (approximately)
+    are projected and their planar distance compared with the geodesic one.  Returns the maxima over directions:
+    ``position`` (m, |projected − reference|), ``distance`` (m, planar range − geodesic range, the signed value of
+    largest magnitude), ``bearing`` (degrees), ``scale`` (relative, |planar/geodesic − 1| for 100 m steps) and the
+    ``range`` actually tested (m).
+    """
+    lat0, lon0, _ = _origin(origin)
+    bearings = np.radians(np.arange(directions) * 360.0 / directions)
+    delta = check_positive(distance, "distance") / 6_371_000.0
+    phi0, lam0 = math.radians(lat0), math.radians(lon0)
+    phi = np.arcsin(math.sin(phi0) * np.cos(delta) + math.cos(phi0) * np.sin(delta) * np.cos(bearings))
+    lam = lam0 + np.arctan2(np.sin(bearings) * np.sin(delta) * math.cos(phi0), np.cos(delta) - math.sin(phi0) * np.sin(phi))
+    lat, lon = np.degrees(phi), np.degrees(lam)
+    s, alpha = geodesic_inverse(lat0, lon0, lat, lon)
+    reference = np.stack([s * np.sin(np.radians(alpha)), s * np.cos(np.radians(alpha))], axis=-1)
+    p = project(lat, lon, origin=(lat0, lon0), projection=projection)
+    planar_range = np.hypot(p[:, 0], p[:, 1])
+    bearing = np.degrees(np.arctan2(p[:, 0], p[:, 1])) % 360.0
+    scale = []
+    for dlat, dlon in ((0.0, 100.0 / (111_320.0 * np.cos(phi))), (100.0 / 111_000.0, 0.0)):
+        lat2, lon2 = lat + dlat, lon + dlon
+        q = project(lat2, lon2, origin=(lat0, lon0), projection=projection)
+        geodesic, _ = geodesic_inverse(lat, lon, lat2, lon2)
+        scale.append(np.abs(np.hypot(*(q - p).T) / geodesic - 1.0))
+    range_error = planar_range - s
+    worst = int(np.argmax(np.abs(range_error)))
+    return {
+        "projection": projection,
+        "range": float(np.mean(s)),
+        "position": float(np.max(np.hypot(*(p - reference).T))),
+        "distance": float(range_error[worst]),
+        "bearing": float(np.max(np.abs((bearing - alpha + 180.0) % 360.0 - 180.0))),
+        "scale": float(np.max(scale)),
+    }
+
+
+# --- reading ---------------------------------------------------------------------------------------------------
+
+
+def _text(path: Path) -> str:
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: is a directory, expected a CSV file of position reports")
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file (expected a CSV file of position reports)")
+    data = path.read_bytes()
+    if path.suffix.lower() == ".gz":
+        try:
+            data = gzip.decompress(data)
+        except (OSError, EOFError) as error:
+            raise ValueError(f"{path}: not a readable gzip file ({error})") from None
+    return decode_csv_text(path, data, _HINT)
+
+
+def _number(cell: str) -> float | None:
+    """A finite float, or None for an empty, non-numeric or non-finite cell."""
+    if not _NUMBER.fullmatch(cell):
+        return None
+    value = float(cell)
+    return value if math.isfinite(value) else None
+
+
+def _timestamp(cell: str) -> datetime | None:
+    try:
+        stamp = datetime.fromisoformat(cell)
+    except ValueError:
+        return None
+    return stamp.replace(tzinfo=UTC) if stamp.tzinfo is None else stamp.astimezone(UTC)
+
+
+class _Row:
+    __slots__ = ("line", "id", "time", "values", "course", "speed")
+
+    def __init__(self, line, id, time, values, course, speed):
+        self.line, self.id, self.time, self.values, self.course, self.speed = line, id, time, values, course, speed
+
+
+def read_tracks(
+    path: str | os.PathLike,
+    *,
+    time: str = "time",
+    x: str = "x",
+    y: str = "y",
+    lat: str | None = None,
+    lon: str | None = None,
+    alt: str | None = None,
+    id: str | None = None,
+    course: str | None = None,
+    speed: str | None = None,
+    speed_unit: str = "m/s",
+    course_not_available: float | None = None,
+    speed_not_available: float | None = None,
+    origin: str | Sequence[float] = "first",
+    projection: str = "enu",
+    max_speed: float | None = None,
+    jump_tolerance: float = 0.0,
+    warn: bool = True,
+) -> TrackFile:
+    """Read a CSV (or ``.csv.gz``) of time-stamped positions into one :class:`Track` per object.
+
+    ``time``, ``x``, ``y`` / ``lat``, ``lon``, ``alt``, ``id``, ``course``, ``speed`` name the columns (giving
+    ``lat`` and ``lon`` selects geographic positions, projected with ``projection`` to the tangent plane at
+    ``origin``: ``"first"`` — the first valid fix of the file, ``"mean"`` — the mean latitude/longitude/height of
+    the fixes kept after the speed check, or an explicit (lat°, lon°[, h m])).  ``max_speed`` (m/s, None = no check)
+    is the speed limit of the jump check and ``jump_tolerance`` (m) the allowance for position noise and time-stamp
+    jitter: fix j is reachable from fix i when |p_j − p_i| ≤ max_speed (t_j − t_i) + jump_tolerance.  ``course_not_available``/``speed_not_available`` the codes meaning "no
+    value" (``speed_not_available`` in ``speed_unit``).  The speed check of geographic files runs in the plane of
+    the file's first valid fix (or of the explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the
+    arithmetic mean of the degrees, so it is wrong for tracks that cross the ±180° meridian (give the origin there).  :data:`SOLENT_AIS` holds the settings of the Solent AIS file.
+    What is refused, dropped, flagged or set to NaN: the module docstring.
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path: expected a file name (str or os.PathLike), got {type(path).__name__} ({path!r})")
+    path = Path(path)
+    if (lat is None) != (lon is None):
+        raise ValueError(f"lat/lon: give both latitude and longitude column names, got lat={lat!r}, lon={lon!r}")
+    if speed_unit not in SPEED_UNITS:
+        raise ValueError(f"speed_unit: {speed_unit!r}; expected one of {sorted(SPEED_UNITS)}")
+    if projection not in PROJECTIONS:
+        raise ValueError(f"projection: {projection!r}; expected one of {PROJECTIONS}")
+    if max_speed is not None:
+        max_speed = check_positive(max_speed, "max_speed (m/s)")
+    if not (isinstance(jump_tolerance, (int, float)) and math.isfinite(jump_tolerance) and jump_tolerance >= 0):
+        raise ValueError(f"jump_tolerance: expected a finite number of metres ≥ 0, got {jump_tolerance!r}")
+    geographic = lat is not None
+    if isinstance(origin, str):
+        if origin not in ("first", "mean"):
+            raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
+    else:
+        origin = _origin(origin)
+
+    records = csv_records(path, _text(path), strip=True)
+    if not records:
+        raise ValueError(f"{path}: empty file; {_HINT}")
+    header_line, header = records[0]
+    body = records[1:]
+    position_columns = [lat, lon] if geographic else [x, y]
+    if alt is not None:
+        position_columns.append(alt)
+    columns = {}
+    for name in [time, *position_columns, id, course, speed]:
+        if name is None:
+            continue
+        if name not in header:
+            raise ValueError(f"{path}:{header_line}: no column {name!r} in the header; the columns are {header}")
+        if header.count(name) > 1:
+            raise ValueError(f"{path}:{header_line}: column {name!r} appears {header.count(name)} times in the header")
+        columns[name] = header.index(name)
+    if not body:
+        raise ValueError(f"{path}: header only, no data rows; {_HINT}")
+
+    problems: list[Problem] = []
+
+    def report(line, column, kind, action, message, track=None):
+        problems.append(Problem(line, column, kind, action, f"{path}:{line}: {message}", track))
+
+    # numeric seconds or ISO-8601: decided by the first non-empty time cell
+    first_time = next((row[columns[time]] for _, row in body if len(row) > columns[time] and row[columns[time]]), "")
+    iso = _number(first_time) is None and _timestamp(first_time) is not None
+    rows: list[_Row] = []
+    scale = SPEED_UNITS[speed_unit]
+    for line, row in body:
+        if len(row) != len(header):
+            report(line, None, "bad_row", "dropped", f"{len(row)} cells, the header has {len(header)}; row dropped")
+            continue
+        key = row[columns[id]] if id is not None else ""
+        if id is not None and not key:
+            report(line, id, "missing_id", "dropped", f"column {id!r} is empty; row dropped")
+            continue
+        cell = row[columns[time]]
+        stamp = _timestamp(cell) if iso else _number(cell)
+        if stamp is None:
+            form = "an ISO-8601 timestamp (as in the first row)" if iso else "a finite number of seconds"
+            report(line, time, "bad_time", "dropped", f"column {time!r} holds {cell!r}, not {form}; row dropped", key)
+            continue
+        values = []
+        for name in position_columns:
+            value = _number(row[columns[name]])
+            if value is None:
+                report(
+                    line,
+                    name,
+                    "not_a_number",
+                    "dropped",
+                    f"column {name!r} holds {row[columns[name]]!r}, not a finite number; row dropped",
+                    key,
+                )
+                break
+            values.append(value)
+        else:
+            if geographic and not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
+                bad, value = (lat, values[0]) if not -90.0 <= values[0] <= 90.0 else (lon, values[1])
+                limits = "[-90, 90]" if bad == lat else "[-180, 180]"
+                report(line, bad, "out_of_range", "dropped", f"column {bad!r} holds {value}, outside {limits} degrees; row dropped", key)
+                continue
+            extra = []
+            for name, low, high, code, factor in (
+                (course, 0.0, 360.0, course_not_available, 1.0),
+                (speed, 0.0, math.inf, speed_not_available, scale),
+            ):
+                if name is None:
+                    extra.append(None)
+                    continue
+                cell = row[columns[name]]
+                value = _number(cell)
+                if value is not None and code is not None and value == code:
+                    extra.append("n/a")
+                elif value is None or not low <= value <= high:
+                    why = "not a finite number" if value is None else f"outside [{low}, {high}]"
+                    report(
+                        line,
+                        name,
+                        "not_a_number" if value is None else "out_of_range",
+                        "set_nan",
+                        f"column {name!r} holds {cell!r}, {why}; set to NaN",
+                        key,
+                    )
+                    extra.append(math.nan)
+                else:
+                    extra.append(value * factor)
+            rows.append(_Row(line, key, stamp, values, *extra))
+
+    epoch = min((r.time for r in rows), default=None) if iso else None
+    for r in rows:
+        if iso:
+            r.time = (r.time - epoch).total_seconds()
+
+    groups: dict[str, list[_Row]] = {}
+    for r in rows:
+        groups.setdefault(r.id, []).append(r)
+
+    def positions_of(group, at):
+        values = np.array([r.values for r in group], dtype=np.float64).reshape(len(group), len(position_columns))
+        if not geographic:
+            return values
+        return project(values[:, 0], values[:, 1], values[:, 2] if alt else None, origin=at, projection=projection)
+
+    check_origin = None
+    if geographic:
+        first = rows[0] if rows else None
+        check_origin = (
+            origin if not isinstance(origin, str) else (None if first is None else (*first.values[:2], first.values[2] if alt else 0.0))
+        )
+    kept_groups: dict[str, list[_Row]] = {}
+    for key, group in groups.items():
+        order = sorted(range(len(group)), key=lambda i: group[i].time)
+        if order != list(range(len(group))):
+            late = next(group[i] for i, j in zip(order, range(len(group))) if i != j)
+            report(late.line, time, "unsorted", "sorted", f"id {key!r}: rows out of time order (the first misplaced one here); sorted", key)
+        group = [group[i] for i in order]
+        unique = [group[0]]
+        for r in group[1:]:
+            if r.time == unique[-1].time:
+                same = r.values == unique[-1].values and r.course == unique[-1].course and r.speed == unique[-1].speed
+                what = "identical to" if same else "with different values from"
+                report(
+                    r.line,
+                    time,
+                    "duplicate_time",
+                    "dropped",
+                    f"id {key!r}: time {r.time!r} repeats line {unique[-1].line} ({what} it); row dropped",
+                    key,
+                )
+                continue
+            unique.append(r)
+        if max_speed is not None and len(unique) > 1:
+            unique = _speed_check(unique, positions_of(unique, check_origin), max_speed, jump_tolerance, key, report, time)
+        kept_groups[key] = unique
+
+    kept = [r for g in kept_groups.values() for r in g]
+    if geographic:
+        if isinstance(origin, str):
+            if not kept:
+                origin = None
+            elif origin == "first":
+                first = min(kept, key=lambda r: r.line)
+                origin = (first.values[0], first.values[1], first.values[2] if alt else 0.0)
+            else:
+                v = np.array([r.values for r in kept])
+                origin = (float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if alt else 0.0)
+        origin = None if origin is None else tuple(float(v) for v in origin)
+
+    tracks = {}
+    for key, group in kept_groups.items():
+        mine = tuple(p for p in problems if p.id == key)
+        missing = {}
+        for name, attr in ((course, "course"), (speed, "speed")):
+            if name is None:
+                continue
+            lines = [r.line for r in group if getattr(r, attr) == "n/a"]
+            if lines:
+                code = course_not_available if attr == "course" else speed_not_available
+                shown = ", ".join(map(str, lines[:5])) + (", …" if len(lines) > 5 else "")
+                missing[attr] = Problem(
+                    lines[0], name, "not_available", "set_nan",
+                    f"{path}:{lines[0]}: id {key!r}: column {name!r} holds {code} (not available) in {len(lines)} rows (lines {shown}); set to NaN",
+                    key,
+                )  # fmt: skip
+        mine = tuple(sorted(mine + tuple(missing.values()), key=lambda p: (p.line, header.index(p.column) if p.column in header else -1)))
+        problems += list(missing.values())
+        pos = positions_of(group, origin) if group else np.zeros((0, len(position_columns)))
+
+        tracks[key] = Track(
+            id=key,
+            times=np.array([r.time for r in group], dtype=np.float64),
+            positions=pos,
+            lines=[r.line for r in group],
+            course=_values(group, "course", course),
+            speed=_values(group, "speed", speed),
+            problems=mine,
+        )
+    order = {name: i for i, name in enumerate(header)}
+    problems.sort(key=lambda p: (p.line, order.get(p.column, -1)))
+    if warn and problems:
+        counts = Counter(f"{p.kind} ({p.action})" for p in problems)
+        summary = ", ".join(f"{n} {kind}" for kind, n in counts.most_common())
+        warnings.warn(f"{path}: {len(problems)} problems: {summary}; see TrackFile.problems", stacklevel=2)
+    return TrackFile(str(path), tracks, origin if geographic else None, projection if geographic else None, epoch, tuple(problems))
+
+
+def _values(group, attr, name):
+    """The course or speed column of a group of rows (None without the column; NaN where not available)."""
+    if name is None:
+        return None
+    return np.array([math.nan if getattr(r, attr) == "n/a" else getattr(r, attr) for r in group], dtype=np.float64)
+
+
+def _speed_check(group, positions, max_speed, tolerance, key, report, column):
+    """Drop outlier bursts and first-fix outliers faster than ``max_speed``; flag (and keep) lasting jumps.
+
+    Fix j is reachable from fix i when |p_j − p_i| ≤ max_speed (t_j − t_i) + tolerance."""
+    times = np.array([r.time for r in group])
+
+    def gap(i, j):
+        return float(np.linalg.norm(positions[j] - positions[i]))
+
+    def ok(i, j):
+        return gap(i, j) <= max_speed * (times[j] - times[i]) + tolerance
+
+    kept = [0]
+    i = 1
+    while i < len(group):
+        k = kept[-1]
+        if ok(k, i):
+            kept.append(i)
+            i += 1
+            continue
+        v = gap(k, i) / (times[i] - times[k])
+        allowance = f" (+ {tolerance:g} m)" if tolerance else ""
+        back = next((m for m in range(i + 1, min(i + 1 + MAX_OUTLIER_BURST, len(group))) if ok(k, m)), None)
+        where = f"id {key!r}: reaching this fix from line {group[k].line} ({gap(k, i):.1f} m in {times[i] - times[k]:.3g} s) takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}"
+        if back is not None:
+            for m in range(i, back):
+                report(
+                    group[m].line,
+                    column,
+                    "speed_jump",
+                    "dropped",
+                    f"{where if m == i else f'id {key!r}: part of the same burst'}; row dropped",
+                    key,
+                )
+            i = back
+            continue
+        if len(kept) == 1 and i + 1 < len(group) and ok(i, i + 1):
+            report(group[k].line, column, "speed_jump", "dropped",
+                   f"id {key!r}: the next fixes (lines {group[i].line}, {group[i + 1].line}) agree with each other but leaving this first fix takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}; row dropped", key)  # fmt: skip
+            kept = [i]
+            i += 1
+            continue
+        report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
+        kept.append(i)
+        i += 1
+    return [group[i] for i in kept]

@@ -1,0 +1,67 @@
+"""Recording: Rerun recorders, logging of results, the viewer layout and style, offline inspection.
+
+Reads results; never called from inside a step.  Modules: :mod:`.recorder`
+(the recorders and the log helpers), :mod:`.layout` (the blueprint built from
+the content), :mod:`.style` (palette, legend names), :mod:`.clutter` (scans and
+associations), :mod:`.inspection` (reading a recording back).
+"""
+
+from hybridtrack.recording.recorder import (
+    APPLICATION_ID,
+    LEGEND_CORNERS,
+    LEGEND_SERIES,
+    MAX_RECORDABLE_SECONDS,
+    SPACETIME_POINTS,
+    TRAIL_STEPS,
+    VIEW_CLASSES,
+    NullRecorder,
+    Recorder,
+    RerunRecorder,
+    check_recordable_times,
+    content_blueprint,
+    decision_text,
+    default_blueprint,
+    ellipse_outlines,
+    finite_runs,
+    is_hypothesis,
+    log_estimate,
+    log_measurements,
+    map_zoom,
+    nis_bounds,
+    open_recorder,
+    palette,
+    recording_id,
+    series_style,
+    short_decision,
+    spatial_style,
+)
+
+__all__ = [
+    "APPLICATION_ID",
+    "LEGEND_CORNERS",
+    "LEGEND_SERIES",
+    "MAX_RECORDABLE_SECONDS",
+    "NullRecorder",
+    "Recorder",
+    "RerunRecorder",
+    "SPACETIME_POINTS",
+    "TRAIL_STEPS",
+    "VIEW_CLASSES",
+    "check_recordable_times",
+    "content_blueprint",
+    "decision_text",
+    "default_blueprint",
+    "ellipse_outlines",
+    "finite_runs",
+    "is_hypothesis",
+    "log_estimate",
+    "log_measurements",
+    "map_zoom",
+    "nis_bounds",
+    "open_recorder",
+    "palette",
+    "recording_id",
+    "series_style",
+    "short_decision",
+    "spatial_style",
+]

@@ -1,0 +1,3 @@
+"""What plugin authors build on: the bank-estimator base (:mod:`.estimation`), measurement assembly
+(:mod:`.measurements`), the sensor network (:mod:`.network`), batched linear algebra (:mod:`.linalg`),
+Wald thresholds (:mod:`.thresholds`), time stamps (:mod:`.timestamps`) and clutter scans (:mod:`.scans`)."""
