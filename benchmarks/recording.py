@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from hybridtrack import SEED001_TABLE1, Gaussian
-from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
+from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
 from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
 from hybridtrack_plugins.sensors.position import PositionSensor

@@ -27,8 +27,8 @@ import argparse
 import numpy as np
 
 from hybridtrack import SEED001_TABLE1, Gaussian, Schedule, Segment
-from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
 from hybridtrack.algorithms.known_modes import run_known_modes
+from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
 from hybridtrack.engine.pipeline import Pipeline
 from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder

@@ -18,7 +18,7 @@ import argparse
 import numpy as np
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
+from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
 from hybridtrack_plugins.sensors.position import PositionSensor

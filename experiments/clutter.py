@@ -308,14 +308,14 @@ def detection_run(seed: int, density: float, detection_probability: float, model
             signal_alarms.append(k)
 
     alternatives = restart()
-    bank = FilterBank(estimator, LAYOUT)
+    bank = FilterBank(estimator, LAYOUT, [sensor])
     bank.start(X0, np.eye(4), [models[current]], X0)
-    observe_signal(0, bank.update_only(scans.scan(0), [sensor]))
+    observe_signal(0, bank.step(None, scans.scan(0)).innovation)
     max_bank = 1
     for k in range(1, scans.steps):
-        bank.branch(0, [models[i] for i in alternatives], bank.means[0].copy(), labels=[(i, k) for i in alternatives])
+        bank.add([0] * len(alternatives), [models[i] for i in alternatives], bank.means[0].copy())
         detector.add(np.arange(1, len(models)), k)
-        innovation = bank.step(TAU, scans.scan(k), [sensor])
+        innovation = bank.step(TAU, scans.scan(k)).innovation
         max_bank = max(max_bank, len(bank))
         out = detector.observe(k, innovation.association_loglik, innovation.nis, innovation.measurement_dim)
         observe_signal(k, innovation)
@@ -324,10 +324,10 @@ def detection_run(seed: int, density: float, detection_probability: float, model
                 entry = int(detector.chosen_entry)
                 current = alternatives[detector.decided - 1]
                 changes.append((k, labels[current], int(detector.starts[entry])))
-                bank.keep([1 + entry])
+                bank.take([1 + entry])
                 signal.reset()
             else:
-                bank.keep([0])
+                bank.take([0])
             alternatives = restart()
     after = [c for c in changes if c[0] > CHANGE_STEP]
     first = after[0] if after else None

@@ -5,10 +5,10 @@
 
 Methods (one mode set per dataset, shared by every multiple-mode method):
 
-* ``known_switch`` — :class:`~hybridtrack.algorithms.adaptive.KnownSwitchAdaptive`
+* ``known_switch`` — :class:`~hybridtrack.algorithms.known_switch.KnownSwitchAdaptive`
   (seed 001 Algorithm 1): told the switch times, re-creates the bank and runs
   the pairwise SPRT (α = β = 0.01) in each segment;
-* ``unknown_change`` — :class:`~hybridtrack.algorithms.adaptive.UnknownChangeAdaptive`
+* ``unknown_change`` — :class:`~hybridtrack.algorithms.unknown_change.UnknownChangeAdaptive`
   (seed 000 Algorithm 3 repeated): change time unknown, change-time SPRT;
 * ``imm``, ``gpb2`` — :class:`~hybridtrack.algorithms.multiple_model.MultipleModelEstimator`
   with Π(Δt) = expm(Λ Δt) from a mean sojourn time (stated per dataset);
@@ -130,7 +130,7 @@ def _sensor(sigma2: float):
 
 
 def run_known_switch(case: Case):
-    from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
+    from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
 
     s = case.settings
     est = KnownSwitchAdaptive(sensors=[_sensor(s["R"])], modes=case.modes, alpha=s["alpha"], beta=s["beta"])
@@ -154,7 +154,7 @@ def run_known_switch(case: Case):
 
 
 def run_unknown_change(case: Case):
-    from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
+    from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 
     s = case.settings
     est = UnknownChangeAdaptive(
@@ -321,7 +321,7 @@ def row_of(dataset: str, method: str, scores: list[dict]) -> dict:
 
 
 def seed001_cases(R: float, runs: int, seed: int, steps_scale: float = 1.0) -> list[Case]:
-    from hybridtrack.algorithms.adaptive import turn_bank
+    from hybridtrack.algorithms.known_switch import turn_bank
     from hybridtrack.apps.experiment.builtin import X0, simulate_seed001
 
     q, tau = 0.001, 0.1

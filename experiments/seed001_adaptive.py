@@ -4,7 +4,7 @@ Protocol (SPEC §7): Table 1 schedule (L3 R5 S L3 S L4, 360 steps), τ = 0.1 s,
 x0 = [0, 0, 0, 2], Q = diag(0.001, 0.001), R ∈ {1, 0.1, 0.01}·I₂, 100
 trajectories per R; prior N(x0, I) for both estimators.  The optimal KF is told
 each segment's mode (a turn's ω and centre from its own estimate at the
-switch).  The adaptive estimator (:class:`hybridtrack.algorithms.adaptive.KnownSwitchAdaptive`)
+switch).  The adaptive estimator (:class:`hybridtrack.algorithms.known_switch.KnownSwitchAdaptive`)
 re-creates the 2n+1 = 21-filter bank (straight, left and right turns with radii
 1, 2, …, 10) at every switch and decides with the pairwise SPRT (rule 5,
 α = β = 0.01 unless given).  Every R uses the same 100 trajectory seeds (run i
@@ -127,7 +127,7 @@ def _motion_type(mode: str) -> str:
 
 
 def _adaptive(sensors, *, tau, r_min, r_max, n_radii, q, alpha, beta, follow, switch_estimate, switch_inflation):
-    from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
+    from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
 
     return KnownSwitchAdaptive(
         sensors=sensors,

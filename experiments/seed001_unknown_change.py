@@ -9,11 +9,11 @@ uses child i of SeedSequence(seed), the same trajectories for every R).
 Three estimators on every trajectory:
 
 * the optimal KF told each segment's mode (seed 001 Table 2);
-* the known-switch adaptive estimator (:class:`hybridtrack.algorithms.adaptive.KnownSwitchAdaptive`,
+* the known-switch adaptive estimator (:class:`hybridtrack.algorithms.known_switch.KnownSwitchAdaptive`,
   seed 001 Algorithm 1, the 21-filter bank, α = β = 0.01, the seed's
   ``follow="previous"`` rule);
 * the unknown-change-time adaptive estimator
-  (:class:`hybridtrack.algorithms.adaptive.UnknownChangeAdaptive`, seed 000 Algorithm 3
+  (:class:`hybridtrack.algorithms.unknown_change.UnknownChangeAdaptive`, seed 000 Algorithm 3
   repeated): filter 0 runs the current mode (straight at the start — nothing
   is known), every step starts one filter per alternative mode from filter 0's
   estimate (a turn's ω and centre fixed from it), ln λ_p averages the
@@ -85,7 +85,8 @@ def motion_type(mode: str) -> str:
 
 def _estimators(sensors, *, q, tau, alpha, beta, known_alpha, modes, bank_size):
     """(Algorithm 1, Algorithm 3 repeated) as configured by the protocol."""
-    from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
+    from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive, turn_bank
+    from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 
     if modes not in MODE_SETS:
         raise ValueError(f"modes: expected one of {sorted(MODE_SETS)}, got {modes!r}")

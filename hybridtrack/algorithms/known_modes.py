@@ -1,4 +1,11 @@
-"""The filter told the true schedule: the "optimal KF" of seed 001 (Table 2), composed from a Pipeline per segment."""
+"""The filter told the true schedule: the "optimal KF" of seed 001 (Table 2), on R runs of one bank.
+
+One filter per run runs segment by segment with the true mode; at each
+switch the new model's transition is built from the filter's own estimate at
+the switching moment (a turn's ω and centre from x̂_s, as SPEC §7 found to
+reproduce seed 001's figures) and the filter restarts from (x̂_s, P_s).
+:func:`run_known_modes` is :func:`run_known_modes_batch` of one run.
+"""
 
 from __future__ import annotations
 
@@ -9,24 +16,21 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.interfaces import Sensor
-from hybridtrack.core.plugins import resolve_registry
+from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Gaussian
-from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.bank import FilterBank
+from hybridtrack.engine.batch_inputs import batch_measurements, batch_prior, batch_times, run_groups
+from hybridtrack.engine.results import RunResult
 from hybridtrack.engine.simulate import build_models
-from hybridtrack.recording import log_estimate
 from hybridtrack.sdk.network import SensorNetwork
-from hybridtrack.sdk.timestamps import step_times
 
 
-@attrs.frozen(eq=False)
-class ScheduleRun:
-    """Estimates of a filter told the true modes: times (K+1,), means (K+1, n), covs (K+1, n, n), nis (K+1,)."""
+@attrs.frozen(eq=False, kw_only=True)
+class ScheduleRun(RunResult):
+    """Estimates of a filter told the true modes: ``modes`` the schedule's modes, ``mode`` (K+1,) the true mode
+    per step, and the NIS of each update (K+1,; NaN where nothing was measured)."""
 
-    layout: tuple[str, ...]
-    times: np.ndarray
-    means: np.ndarray
-    covs: np.ndarray
     nis: np.ndarray
 
 
@@ -44,49 +48,15 @@ def run_known_modes(
     name: str = "known_modes",
     registry: Registry | None = None,
 ) -> ScheduleRun:
-    """The filter that knows the schedule (the "optimal KF" of seed 001, Table 2).
-
-    One filter runs segment by segment with the true mode; at each switch the
-    new model's transition is built from the filter's own estimate at the
-    switching moment (a turn's ω and centre from x̂_s, as SPEC §7 found to
-    reproduce seed 001's figures).  All modes must share one state layout.
-    ``times`` (seconds, one per measurement step) or ``tau`` give the sampling.
-    """
-    models = build_models(schedule, resolve_registry(registry), noise_cov)
+    """The filter that knows the schedule (the "optimal KF" of seed 001, Table 2): :func:`run_known_modes_batch`
+    of one run.  All modes must share one state layout; ``times`` (seconds, one per measurement step) or
+    ``tau`` give the sampling."""
     network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
     z = network.stack(measurements)
-    if z.shape[0] != schedule.total_steps + 1:
-        raise ValueError(f"measurements: expected {schedule.total_steps + 1} steps for the schedule, got {z.shape[0]}")
-    t = step_times(times, tau, z.shape[0])
-    prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
-    means, covs, nis = [], [], []
-    start = 0
-    for model, segment in zip(models, schedule.segments):
-        rows = z[start : start + segment.steps + 1].copy()
-        if start > 0:
-            rows[0] = np.nan  # the switch step was already updated by the previous segment
-        pipeline = Pipeline(
-            models=[model],
-            estimator=estimator,
-            sensors=network,
-            measurements=network.split(rows),
-            prior=prior,
-            times=t[start : start + segment.steps + 1],
-            registry=registry,
-        )
-        result = pipeline.run()
-        skip = 0 if start == 0 else 1
-        means.append(result.means[skip:, 0])
-        covs.append(result.covs[skip:, 0])
-        nis.append(result.nis[skip:, 0])
-        prior = Gaussian(result.means[-1, 0], (result.covs[-1, 0] + result.covs[-1, 0].T) / 2)
-        start += segment.steps
-    run = ScheduleRun(models[0].layout, t, np.concatenate(means), np.concatenate(covs), np.concatenate(nis))
+    kwargs = dict(estimator=estimator, sensors=network, prior=prior, tau=tau, times=times, noise_cov=noise_cov, registry=registry)
+    run = run_known_modes_batch(schedule, measurements=network.split(z[None]), **kwargs)[0]
     if recorder is not None:
-        steps = np.arange(run.means.shape[0])
-        position = [run.layout.index("x"), run.layout.index("y")]
-        log_estimate(recorder, name, steps, run.means, run.covs, position, t)
-        recorder.log_scalars(f"estimator/{name}/nis", steps, run.nis, t)
+        recorder.log_result(run, name=name)
     return run
 
 
@@ -102,17 +72,14 @@ def run_known_modes_batch(
     noise_cov=None,
     registry: Registry | None = None,
 ) -> list[ScheduleRun]:
-    """:func:`run_known_modes` on R runs at once (measurements (R, K+1, m) per sensor), one stacked bank of R filters.
+    """:func:`run_known_modes` on R runs at once (measurements (R, K+1, m) per sensor), one bank of R filters.
 
     ``times`` (K+1,) shared or (R, K+1) per run; ``prior`` one Gaussian or
-    per-run (means (R, n), covs (n, n) or (R, n, n)).  As the per-run path: at
-    each switch every run's filter restarts from its own estimate (x̂_s, P_s)
-    with the new mode's transition fixed at x̂_s.  Equal to the per-run runs to
-    rounding (1e-12).
+    per-run (means (R, n), covs (n, n) or (R, n, n)).  At each switch every
+    run's filter restarts from its own estimate (x̂_s, P_s) with the new mode's
+    transition fixed at x̂_s.  Each run equals the run alone to rounding (1e-12);
+    runs of a decentralized or sampling estimator each form their own batch of one.
     """
-    from hybridtrack.core.plugins import resolve
-    from hybridtrack.engine.run_bank import RunBank, batch_measurements, batch_prior, batch_times
-
     registry = resolve_registry(registry)
     models = build_models(schedule, registry, noise_cov)
     network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
@@ -122,23 +89,40 @@ def run_known_modes_batch(
         raise ValueError(f"measurements: expected {schedule.total_steps + 1} steps for the schedule, got {steps}")
     t, dt = batch_times(times, tau, R, steps)
     layout = models[0].layout
-    n = len(layout)
-    x, P = batch_prior(prior, R, n)
+    x0, P0 = batch_prior(prior, R, len(layout))
     filters = resolve("estimator", estimator, registry)
-    bank = RunBank(filters, layout, network.sensors)
+    from hybridtrack.engine.pipeline import mode_label  # here: engine.pipeline still imports hybridtrack.recording
+
+    labels = [mode_label(m) for m in models]
+    modes = tuple(dict.fromkeys(labels))
+    mode = np.concatenate([[modes.index(labels[0])]] + [np.full(s.steps, modes.index(x)) for x, s in zip(labels, schedule.segments)])
+    runs = []
+    for g in run_groups(filters, R):
+        means, covs, nis = _filter(FilterBank(filters, layout, network.sensors), models, schedule, z[g], dt[g], x0[g], P0[g])
+        runs += [
+            ScheduleRun(layout=layout, modes=modes, times=t[r], means=means[u], covs=covs[u], mode=mode, nis=nis[u])
+            for u, r in enumerate(g)
+        ]
+    return runs
+
+
+def _filter(bank: FilterBank, models, schedule, z, dt, x, P) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The told filter of R runs on ``bank``: x̂ (R, K+1, n), P (R, K+1, n, n), NIS (R, K+1)."""
+    R, steps = z.shape[:2]
+    n = x.shape[1]
     means, covs, nis = np.zeros((R, steps, n)), np.zeros((R, steps, n, n)), np.zeros((R, steps))
     runs = np.arange(R)
     start = 0
     for model, segment in zip(models, schedule.segments):
-        bank.set(filters.initialize(x, P), [model] * R, x, runs)
+        bank.start(x, P, [model] * R, x, runs)
         if start == 0:  # the first segment updates the prior with z_0 (later switch steps were already updated)
-            _, score, m = bank.step(None, z[:, 0])
-            nis[:, 0] = np.where(m > 0, score, np.nan)  # NaN: nothing measured (the Pipeline's convention)
+            scores = bank.step(None, z[:, 0])
+            nis[:, 0] = np.where(scores.m > 0, scores.nis, np.nan)  # NaN: nothing measured (the Pipeline's convention)
             means[:, 0], covs[:, 0] = bank.means, bank.covs
         for k in range(start + 1, start + segment.steps + 1):
-            _, score, m = bank.step(dt[:, k - 1], z[:, k])
-            nis[:, k] = np.where(m > 0, score, np.nan)
+            scores = bank.step(dt[:, k - 1], z[:, k])
+            nis[:, k] = np.where(scores.m > 0, scores.nis, np.nan)
             means[:, k], covs[:, k] = bank.means, bank.covs
         start += segment.steps
         x, P = means[:, start].copy(), covs[:, start].copy()
-    return [ScheduleRun(layout, t[r], means[r], covs[r], nis[r]) for r in runs]
+    return means, covs, nis

@@ -83,8 +83,8 @@ from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Gaussian
 from hybridtrack.core.validation import as_float_array, check_covariance, check_positive
+from hybridtrack.engine.bank import grouped_transitions
 from hybridtrack.engine.pipeline import mode_label
-from hybridtrack.engine.run_bank import grouped_transitions
 from hybridtrack.recording import log_estimate, log_measurements
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import check_tau, step_intervals

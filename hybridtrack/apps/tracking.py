@@ -278,8 +278,8 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 
 def _build(config: dict, registry=None):
     """The estimator object and its sensor from a checked configuration (registry resolution, no plugin imports)."""
-    from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
     from hybridtrack.algorithms.multiple_model import MultipleModelEstimator
+    from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
     from hybridtrack.core.plugins import resolve
 
     sigma = config["measurement"]["sigma"]

@@ -1,7 +1,8 @@
 """Recording: Rerun recorders, logging of results, the viewer layout and style, offline inspection.
 
 Reads results; never called from inside a step.  Modules: :mod:`.recorder`
-(the recorders and the log helpers), :mod:`.layout` (the blueprint built from
+(the recorders and the log helpers), :mod:`.results` (``log_result``, by result type),
+:mod:`.adaptive` (the adaptive algorithms' results), :mod:`.layout` (the blueprint built from
 the content), :mod:`.style` (palette, legend names), :mod:`.clutter` (scans and
 associations), :mod:`.inspection` (reading a recording back).
 """
@@ -65,3 +66,5 @@ __all__ = [
     "short_decision",
     "spatial_style",
 ]
+
+from hybridtrack.recording import adaptive  # noqa: E402, F401  (registers the adaptive results' writers with log_result)

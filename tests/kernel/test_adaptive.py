@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule, TransitionBank
-from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive, turn_bank
+from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive, turn_bank
+from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.motion.linear_modes import RightTurn, Straight
@@ -74,20 +75,21 @@ def test_filter_bank_grows_and_shrinks_and_steps_like_the_pipeline_filter():
 
     layout = ("x", "vx", "y", "vy")
     sensors = [PositionSensor()]
-    bank = FilterBank(KalmanFilter(), layout)
+    bank = FilterBank(KalmanFilter(), layout, sensors)
     models = [Straight(), LeftTurn(radius=3.0), RightTurn(radius=5.0)]
-    bank.start(X0, np.eye(4), models, X0, labels=[0, 1, 2])
-    bank.step(0.1, np.array([0.1, 0.3]), sensors)
+    bank.start(X0, np.eye(4), models, X0)
+    bank.step(0.1, np.array([[0.1, 0.3]]))
     before = bank.means.copy(), bank.covs.copy()
-    bank.keep([2, 0])
-    assert bank.labels == [2, 0]
+    bank.take([2, 0])
+    assert bank.models == [models[2], models[0]]
     np.testing.assert_array_equal(bank.means, before[0][[2, 0]])
     np.testing.assert_array_equal(bank.covs, before[1][[2, 0]])
-    bank.branch(1, [LeftTurn(radius=3.0)], bank.means[1], labels=["copy"])  # a copy of the straight filter
-    assert len(bank) == 3 and bank.labels == [2, 0, "copy"]
+    copy = LeftTurn(radius=3.0)
+    added = bank.add([1], [copy], bank.means[1])  # a copy of the straight filter
+    assert len(bank) == 3 and added.tolist() == [2] and bank.models[2] is copy
     np.testing.assert_array_equal(bank.means[2], bank.means[1])
-    innovation = bank.step(0.1, np.array([0.2, 0.5]), sensors)
-    assert innovation.nis.shape == (3,) and bank.node_scores() is None
+    scores = bank.step(0.1, np.array([[0.2, 0.5]]))
+    assert scores.nis.shape == (3,) and scores.m.tolist() == [2, 2, 2] and bank.node_scores() is None
     # the same filters stepped directly
     kf = KalmanFilter()
     state = kf.initialize(np.stack([X0] * 3), np.stack([np.eye(4)] * 3))
@@ -101,7 +103,32 @@ def test_filter_bank_grows_and_shrinks_and_steps_like_the_pipeline_filter():
     )
     state, reference = kf.update(kf.predict(state, stacked), np.array([0.2, 0.5]), sensors, layout)
     np.testing.assert_allclose(bank.means, kf.mean(state), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(innovation.loglik, reference.loglik, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(scores.loglik, reference.loglik, rtol=0, atol=1e-12)
+
+
+def test_filter_bank_of_two_runs_keeps_each_run_s_filters_together_and_updates_by_missing_pattern():
+    from hybridtrack_plugins.filters.kalman import KalmanFilter
+    from hybridtrack_plugins.motion.linear_modes import LeftTurn
+
+    layout = ("x", "vx", "y", "vy")
+    sensors = [PositionSensor()]
+    models = [Straight(), LeftTurn(radius=3.0)]
+    bank = FilterBank(KalmanFilter(), layout, sensors)
+    starts = np.stack([X0, X0, X0 + 0.1, X0 + 0.1])
+    bank.start(starts, np.eye(4), models * 2, starts, run=[0, 0, 1, 1])
+    added = bank.add([0, 2], [RightTurn(radius=5.0)] * 2, bank.means[[0, 2]])
+    assert bank.run.tolist() == [0, 0, 0, 1, 1, 1] and added.tolist() == [2, 5]
+    assert bank.offsets.tolist() == [0, 3] and bank.sizes.tolist() == [3, 3]
+    z = np.array([[0.1, np.nan], [0.2, 0.4]])  # run 0 misses y: two updates, one per missing pattern
+    scores = bank.step(np.array([0.1, 0.2]), z)
+    assert scores.m.tolist() == [1, 1, 1, 2, 2, 2] and scores.innovation is None
+    for r, rows in enumerate(([0, 1, 2], [3, 4, 5])):  # each run alone gives the same filters
+        alone = FilterBank(KalmanFilter(), layout, sensors)
+        alone.start(X0 + 0.1 * r, np.eye(4), models, X0 + 0.1 * r)
+        alone.add([0], [RightTurn(radius=5.0)], alone.means[0])
+        single = alone.step(0.1 * (r + 1), z[r : r + 1])
+        np.testing.assert_allclose(bank.means[rows], alone.means, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(scores.loglik[rows], single.loglik, rtol=0, atol=1e-12)
 
 
 def test_example1_detects_the_right_turn():
@@ -196,8 +223,8 @@ def test_known_switch_can_follow_the_most_likely_hypothesis_before_the_decision(
         first = run.segments[0].decision_step or 40
         for step in range(1, first):
             ratios = run.log_ratios[step]
-            assert run.followed[step] == int(np.nanargmax(ratios)) and ratios[run.followed[step]] >= 0
-        assert (seed_rule.followed[1:first] == 0).all()  # the seed's rule: straight until the first decision
+            assert run.mode[step] == int(np.nanargmax(ratios)) and ratios[run.mode[step]] >= 0
+        assert (seed_rule.mode[1:first] == 0).all()  # the seed's rule: straight until the first decision
     assert errors["most_likely"] < errors["previous"]
     with pytest.raises(ValueError, match="follow"):
         KnownSwitchAdaptive(sensors=sensors, tau=0.1, follow="best")

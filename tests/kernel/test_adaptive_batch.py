@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
+from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 from hybridtrack.core.interfaces import HypothesisTestBatch
 from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.detectors.sprt_pairwise import PairwiseSPRT, batch_margins, margins
@@ -75,7 +76,7 @@ def test_known_switch_batch_equals_the_runs(estimator, follow, inflation):
     lengths = [s.steps for s in schedule.segments]
     batched = adaptive.run_batch({sensor.name: z}, prior, schedule, times=times)
     single = single_runs(adaptive, sensor, z, times, prior, lengths)
-    assert_runs_equal(batched, single, ("times", "means", "covs", "followed", "log_ratios"))
+    assert_runs_equal(batched, single, ("times", "means", "covs", "mode", "log_ratios"))
     for b, s in zip(batched, single):
         assert b.segments == s.segments
     assert any(o.decision_step is not None for b in batched for o in b.segments)
@@ -93,7 +94,7 @@ def test_known_switch_batch_with_a_looped_test_and_regular_sampling():
     kwargs = dict(sensors=[sensor], tau=0.1, n=3, r_min=2.0, r_max=4.0, noise_cov=NOISE)
     vectorized = KnownSwitchAdaptive(**kwargs).run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule)
     looped = KnownSwitchAdaptive(**kwargs, detector=Looped(0.01, 0.01)).run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule)
-    assert_runs_equal(vectorized, looped, ("means", "covs", "followed", "log_ratios"))
+    assert_runs_equal(vectorized, looped, ("means", "covs", "mode", "log_ratios"))
 
 
 def test_batch_margins_equal_margins_row_by_row_with_ties():
@@ -127,6 +128,11 @@ class ListRecorder:
 
     def __init__(self):
         self.calls = []
+
+    def log_result(self, result, **context):
+        from hybridtrack.recording.results import log_result
+
+        log_result(result, self, **context)
 
     def __getattr__(self, name):
         if not name.startswith("log_"):

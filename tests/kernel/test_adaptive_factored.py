@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule, get_registry
-from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
+from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.sensors.position import PositionSensor
 
@@ -60,7 +61,7 @@ def test_known_switch_propagates_factors_and_equals_the_kalman_filter(name):
     assert calls == [5]  # one bank created from the prior; every later segment's bank copies the followed filter's factors
     _close(run.means, reference.means)
     _close(run.covs, reference.covs)
-    np.testing.assert_array_equal(run.followed, reference.followed)
+    np.testing.assert_array_equal(run.mode, reference.mode)
     assert [d.step for d in run.decisions] == [d.step for d in reference.decisions]
 
 

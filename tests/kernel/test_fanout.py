@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
+from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder, finite_runs, is_hypothesis, palette, spatial_style
 from hybridtrack.recording.inspection import RecordingFile
@@ -30,7 +31,7 @@ def known(tmp_path_factory):
 def test_hypotheses_start_at_the_switch_and_stop_when_eliminated_or_decided(known):
     adaptive, run, _, sensor, z = known
     fan = run.hypothesis_positions
-    H = len(run.hypotheses)
+    H = len(run.modes)
     xy = [run.layout.index("x"), run.layout.index("y")]
     assert fan.shape == (SCHEDULE.total_steps + 1, H, 2)
     for segment in run.segments:
@@ -53,7 +54,7 @@ def test_the_fan_is_recorded_in_both_views_in_the_hypothesis_colours_without_joi
     _, run, path, _, _ = known
     rec = RecordingFile(path)
     assert rec.unviewed_entities() == []
-    name = run.hypotheses[1]
+    name = run.modes[1]
     entity = f"/world/estimate/known_switch/hypotheses/{name}"
     assert entity in rec.entity_paths and f"/spacetime/estimate/known_switch/hypotheses/{name}" in rec.entity_paths
     steps, points = rec.points(entity)

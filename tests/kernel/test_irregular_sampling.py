@@ -11,7 +11,7 @@ import pytest
 from filterpy.kalman import KalmanFilter as FilterpyKalman
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
+from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 from hybridtrack.core.plugins import resolve
 from hybridtrack.engine.pipeline import Pipeline
 from hybridtrack.engine.simulate import simulate

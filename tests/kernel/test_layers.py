@@ -110,7 +110,7 @@ def test_no_private_name_is_imported_across_packages():
         ("def f():\n    from hybridtrack_plugins.filters._covariance import update", "hybridtrack.engine.pipeline", True),
         ("from hybridtrack_plugins.filters._covariance import update", "hybridtrack_plugins.filters.kalman", False),
         ("from hybridtrack.engine.pipeline import _helper", "hybridtrack.engine.bank", False),
-        ("from hybridtrack.engine.pipeline import _helper", "hybridtrack.algorithms.adaptive", True),
+        ("from hybridtrack.engine.pipeline import _helper", "hybridtrack.algorithms.known_switch", True),
         ("from hybridtrack.engine.pipeline import _helper", None, True),
         ("import numpy._core", None, False),
     ],

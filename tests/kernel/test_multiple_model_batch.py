@@ -96,7 +96,7 @@ def test_grouped_transitions_equal_the_stacked_per_filter_transitions():
     """The IMM/GPB banks' transitions (one transition_bank call per model and Δt) equal TransitionBank.stack of each
     filter's transition(Δt_i, x_i) to 1e-12, in filter order, with the noise roots."""
     from hybridtrack.core.interfaces import TransitionBank
-    from hybridtrack.engine.run_bank import grouped_transitions
+    from hybridtrack.engine.bank import grouped_transitions
     from hybridtrack_plugins.motion.linear_modes import RightTurn
 
     rng = np.random.default_rng(4)

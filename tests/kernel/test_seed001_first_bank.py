@@ -10,8 +10,8 @@ centre and every later bank inherits the bias.
 import numpy as np
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive
 from hybridtrack.algorithms.known_modes import run_known_modes
+from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.filters.kalman import KalmanFilter
@@ -32,12 +32,12 @@ def _case(seed: int):
 
 def _filter_with_transition_from(switch_state, sensors, z) -> np.ndarray:
     """A left-turn r = 3 filter from N(x0, I), its transition fixed at ``switch_state``: position errors per step."""
-    bank = FilterBank(KalmanFilter(), LAYOUT)
+    bank = FilterBank(KalmanFilter(), LAYOUT, sensors)
     bank.start(X0, np.eye(4), [LeftTurn(radius=3.0, noise_cov=Q)], switch_state)
-    bank.update_only(next(iter(z.values()))[0], sensors)
+    bank.step(None, next(iter(z.values()))[:1])
     means = [bank.means[0]]
     for k in range(1, SCHEDULE.total_steps + 1):
-        bank.step(0.1, next(iter(z.values()))[k], sensors)
+        bank.step(0.1, next(iter(z.values()))[k : k + 1])
         means.append(bank.means[0])
     return np.array(means)
 
@@ -46,9 +46,9 @@ def test_a_step_zero_update_moves_the_first_turn_centre():
     shift = []
     for seed in range(40):
         sensors, _, z = _case(seed)
-        start = FilterBank(KalmanFilter(), LAYOUT)
+        start = FilterBank(KalmanFilter(), LAYOUT, sensors)
         start.start(X0, np.eye(4), [LeftTurn(radius=3.0, noise_cov=Q)], X0)
-        start.update_only(next(iter(z.values()))[0], sensors)
+        start.step(None, next(iter(z.values()))[:1])
         shift.append(np.abs(LeftTurn(radius=3.0).turn_centre(start.means[0]) - LeftTurn(radius=3.0).turn_centre(X0)))
     assert 0.3 < np.mean(shift) < 0.8  # the reported ≈ 0.5 m per axis
 
@@ -63,8 +63,8 @@ def test_the_adaptive_estimators_first_bank_equals_the_filter_told_the_mode():
         )
         np.testing.assert_allclose(run.means, optimal.means, rtol=0, atol=1e-12)
         # the defect's construction (transition fixed at x0 updated with z_0) is a different filter
-        start = FilterBank(KalmanFilter(), LAYOUT)
+        start = FilterBank(KalmanFilter(), LAYOUT, sensors)
         start.start(X0, np.eye(4), [LeftTurn(radius=3.0, noise_cov=Q)], X0)
-        start.update_only(next(iter(z.values()))[0], sensors)
+        start.step(None, next(iter(z.values()))[:1])
         defect = _filter_with_transition_from(start.means[0], sensors, z)
         assert np.abs(defect - optimal.means).max() > 0.05

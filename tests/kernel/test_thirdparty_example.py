@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from hybridtrack import cli
-from hybridtrack.algorithms.adaptive import KnownSwitchAdaptive, UnknownChangeAdaptive
+from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
+from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 from hybridtrack.core.plugins import load_plugins
 from hybridtrack.core.types import Gaussian, Schedule
 from hybridtrack.engine.pipeline import Pipeline
@@ -158,7 +159,7 @@ def test_known_switch_adaptive_runs_with_the_new_components(zigzag):
     ours = KnownSwitchAdaptive(estimator="info_kalman", **options).run(z, prior, segments)
     builtin = KnownSwitchAdaptive(estimator="kalman", **options).run(z, prior, segments)
     np.testing.assert_allclose(ours.means, builtin.means, rtol=0, atol=1e-9)
-    assert np.array_equal(ours.followed, builtin.followed) and ours.segments == builtin.segments
+    assert np.array_equal(ours.mode, builtin.mode) and ours.segments == builtin.segments
 
     adaptive = KnownSwitchAdaptive(estimator="info_kalman", detector=("cumulative_llr", {"alpha": 0.01, "beta": 0.01}), **options)
     run = adaptive.run(z, prior, segments)

@@ -102,7 +102,7 @@ def test_node_statistics_equal_the_centralized_ones_far_from_the_origin(offset):
 
 def test_node_sprt_decisions_equal_the_centralized_ones_at_5000_km():
     from hybridtrack import Gaussian, Schedule
-    from hybridtrack.algorithms.adaptive import UnknownChangeAdaptive
+    from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
     from hybridtrack.engine.simulate import simulate as simulate_schedule
     from hybridtrack_plugins.sensors.position import PositionSensor
 

@@ -21,7 +21,7 @@ otherwise continue.  After a decision the output is frozen until ``reset()``.
 
 Two ways to drive it:
 
-* a growing bank (:class:`~hybridtrack.algorithms.adaptive.UnknownChangeAdaptive`):
+* a growing bank (:class:`~hybridtrack.algorithms.unknown_change.UnknownChangeAdaptive`):
   the driver calls :meth:`add` before each step; rows 1 … E of the scores are
   the entries in the order added; ``statistics["log_ratio"]`` is ln λ_p for
   p = 1 … M−1; :meth:`prune` bounds the entries (``"oldest"``: drop the
@@ -29,7 +29,7 @@ Two ways to drive it:
   those nearest B);
 * a fixed bank of M filters without :meth:`add` (a
   :class:`~hybridtrack.engine.pipeline.Pipeline`, or
-  :class:`~hybridtrack.algorithms.adaptive.KnownSwitchAdaptive`): rows 1 … M−1
+  :class:`~hybridtrack.algorithms.known_switch.KnownSwitchAdaptive`): rows 1 … M−1
   are entries of alternatives 1 … M−1 started at the first step, and the test
   is one between the M hypotheses of the bank: ``statistics["log_ratio"]`` has
   one value per filter, (−max_p ln λ_p, ln λ_1, …, ln λ_{M−1}) — row 0 is

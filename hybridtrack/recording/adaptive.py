@@ -1,0 +1,91 @@
+"""The recording of the adaptive algorithms' results (``recorder.log_result(run, …)``; entity paths in docs/recording.md).
+
+* :class:`~hybridtrack.algorithms.known_switch.KnownSwitchRun` and
+  :class:`~hybridtrack.algorithms.unknown_change.UnknownChangeRun`: the truth (if
+  given), the measurements, the followed estimate ``world/estimate/<name>`` with
+  its 2σ ellipses, the bank's hypotheses ``world/estimate/<name>/hypotheses/<h>``
+  while in play (each from its switch), ``detector/<detector>/log_ratio/<mode>``
+  with ``…/upper`` (A) and ``…/lower`` (B), the decisions as events, and the
+  followed mode and bank size under ``estimator/<name>/…``; Algorithm 3 adds the
+  signal function ``detector/<signal>/signal`` with its bounds.
+* :class:`~hybridtrack.algorithms.known_modes.ScheduleRun`: the estimate and its NIS.
+
+Context keywords: ``measurements`` (sensor name → (K+1, m)), ``sensors``,
+``truth`` (a Trajectory or None), ``name`` (the estimator's entity name),
+``detector`` (the test's label), ``signal`` (the signal function's label or None).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from hybridtrack.algorithms.known_modes import ScheduleRun
+from hybridtrack.algorithms.known_switch import KnownSwitchRun
+from hybridtrack.algorithms.unknown_change import UnknownChangeRun
+from hybridtrack.recording.recorder import decision_text, log_estimate, log_measurements
+from hybridtrack.recording.results import log_result
+
+
+def _log_columns(recorder, entity: str, steps, values: np.ndarray, names: Sequence[str], times) -> None:
+    """One scalar series per column, NaN where not finite: a hypothesis not in play leaves a gap (rerun breaks
+    a line at NaN, so no line joins two periods in play); a column never finite is not logged."""
+    for j, name in enumerate(names):
+        finite = np.isfinite(values[:, j])
+        if finite.any():
+            recorder.log_scalars(f"{entity}/{name}", steps, np.where(finite, values[:, j], np.nan), times)
+
+
+def _log_run(run, recorder, *, measurements, sensors, truth, name: str, detector: str) -> np.ndarray:
+    """What every adaptive run records (module docstring); returns the steps."""
+    steps = np.arange(run.means.shape[0])
+    times = run.times
+    if truth is not None:
+        recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
+    log_measurements(recorder, sensors, {key: value[: steps.size] for key, value in measurements.items()}, steps, times)
+    position = [run.layout.index("x"), run.layout.index("y")]
+    log_estimate(recorder, name, steps, run.means, run.covs, position, times)
+    if run.hypothesis_positions is not None:  # the bank's hypotheses fanning out of each switch, each in its colour
+        for j, hypothesis in enumerate(run.modes):
+            path = run.hypothesis_positions[:, j]
+            if np.isfinite(path).any():
+                recorder.log_path(f"world/estimate/{name}/hypotheses/{hypothesis}", steps, path, times)
+    base = f"detector/{detector}"
+    _log_columns(recorder, f"{base}/log_ratio", steps, run.log_ratios, run.modes, times)
+    recorder.log_scalars(f"{base}/upper", steps, np.full(steps.size, run.upper), times)
+    recorder.log_scalars(f"{base}/lower", steps, np.full(steps.size, run.lower), times)
+    for d in run.decisions:
+        recorder.log_event(d.step, decision_text(d), d.time)
+    return steps
+
+
+@log_result.register
+def _known_switch(run: KnownSwitchRun, recorder, *, name: str = "known_switch", truth=None, **context) -> None:
+    steps = _log_run(run, recorder, name=name, truth=truth, **context)
+    recorder.log_scalars(f"estimator/{name}/followed", steps, run.mode.astype(float), run.times)
+    recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, run.times)
+    # filters running per step: the hypotheses still in play, one after the decision
+    bank_size = np.maximum(1, np.isfinite(run.log_ratios).sum(axis=1))
+    recorder.log_scalars(f"estimator/{name}/bank_size", steps, bank_size.astype(float), run.times)
+
+
+@log_result.register
+def _unknown_change(run: UnknownChangeRun, recorder, *, name: str = "unknown_change", truth=None, signal=None, **context) -> None:
+    steps = _log_run(run, recorder, name=name, truth=truth, **context)
+    times = run.times
+    if signal is not None:
+        recorder.log_scalars(f"detector/{signal}/signal", steps, run.signal, times)
+        recorder.log_scalars(f"detector/{signal}/lower", steps, run.signal_bounds[:, 0], times)
+        recorder.log_scalars(f"detector/{signal}/upper", steps, run.signal_bounds[:, 1], times)
+    recorder.log_scalars(f"estimator/{name}/bank_size", steps, run.bank_sizes.astype(float), times)
+    recorder.log_scalars(f"estimator/{name}/mode", steps, run.mode.astype(float), times)
+    recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, times)
+
+
+@log_result.register
+def _known_modes(run: ScheduleRun, recorder, *, name: str = "known_modes", **context) -> None:
+    steps = np.arange(run.means.shape[0])
+    position = [run.layout.index("x"), run.layout.index("y")]
+    log_estimate(recorder, name, steps, run.means, run.covs, position, run.times)
+    recorder.log_scalars(f"estimator/{name}/nis", steps, run.nis, run.times)
