@@ -25,7 +25,7 @@ import numpy as np
 
 from hybridtrack.algorithms.mode_sets import resolve_modes, turn_bank
 from hybridtrack.algorithms.switch_state import SwitchAugmented, augmented_layout, augmented_prior
-from hybridtrack.core.interfaces import Estimator, HypothesisTest, Sensor, require
+from hybridtrack.core.interfaces import Estimator, HypothesisTest, HypothesisTestBatch, Sensor, require
 from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Schedule
@@ -268,6 +268,8 @@ class KnownSwitchAdaptive:
         q, row = np.zeros(R, dtype=int), np.zeros(R, dtype=int)  # row −1: the estimate is not a filter of the bank
         outcomes, decisions = [[] for _ in range(R)], [[] for _ in range(R)]
         batch = self.detector.batch(R)
+        if not isinstance(batch, HypothesisTestBatch):  # e.g. a change-time test on the fixed bank: its copies looped
+            batch = HypothesisTestBatch(self.detector, R)
         k = 0
         for number, T in enumerate(lengths):
             if number:  # new banks at the switch, from the estimate followed at the end of the last segment

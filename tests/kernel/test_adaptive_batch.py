@@ -82,6 +82,77 @@ def test_known_switch_batch_equals_the_runs(estimator, follow, inflation):
     assert any(o.decision_step is not None for b in batched for o in b.segments)
 
 
+@pytest.mark.parametrize("estimator", ["kalman", "information", "bierman", "srif", "ekf", "potter"])
+@pytest.mark.parametrize("follow, inflation", [("mixture", 4.0), ("previous", 1.0), ("most_likely", 1.0)])
+def test_known_switch_batch_with_the_joint_switch_estimate_equals_the_runs(estimator, follow, inflation):
+    """The estimating bank of switch-augmented models (relinearized after a decision) in one bank of R runs.
+
+    Its Jacobians are forward differences (h = 1e-7), which turn a last-bit difference of the estimate into
+    ~1e-9: Potter's update of a run updated alone (its own missing pattern) rounds differently from the same
+    run's update inside a larger group, so Potter is checked on fully measured runs."""
+    schedule = Schedule.from_rows([("straight", 12), ("left_turn", 14, 3.0), ("straight", 10)])
+    sensor, z, times = batch_data(schedule, nan=estimator != "potter")
+    adaptive = KnownSwitchAdaptive(
+        sensors=[sensor], tau=0.1, n=3, r_min=2.0, r_max=4.0, noise_cov=NOISE, alpha=0.05, beta=0.05,
+        estimator=estimator, follow=follow, switch_inflation=inflation, switch_estimate="joint",
+    )  # fmt: skip
+    prior = (X0 + np.arange(RUNS)[:, None] * 0.01, np.eye(4))
+    batched = adaptive.run_batch({sensor.name: z}, prior, schedule, times=times)
+    single = single_runs(adaptive, sensor, z, times, prior, schedule)
+    assert_runs_equal(batched, single, ("times", "means", "covs", "mode", "log_ratios"))
+    for b, s in zip(batched, single):
+        assert b.segments == s.segments
+    assert any(o.decision_step is not None for b in batched for o in b.segments)
+
+
+def _per_run_estimator(name):
+    """A decentralized filter, or a seeded particle filter (a new one per call: its streams restart)."""
+    if name == "particle":
+        from hybridtrack_plugins.filters.particle import ParticleFilter
+
+        return ParticleFilter(particles=60, seed=5)
+    return name
+
+
+@pytest.mark.parametrize(
+    "estimator, switch_estimate", [("decentralized", "filtered"), ("decentralized", "joint"), ("particle", "filtered")]
+)
+def test_known_switch_batch_of_per_run_estimators_equals_the_runs(estimator, switch_estimate):
+    """Runs that cannot share one bank (node copies, particle streams) each run as a batch of one."""
+    schedule = Schedule.from_rows([("straight", 10), ("left_turn", 12, 3.0)])
+    sensor, z, times = batch_data(schedule, runs=3)
+    kwargs = dict(sensors=[sensor], tau=0.1, n=2, r_min=2.0, r_max=4.0, noise_cov=NOISE, switch_estimate=switch_estimate)
+    batched = KnownSwitchAdaptive(estimator=_per_run_estimator(estimator), **kwargs).run_batch(
+        {sensor.name: z}, Gaussian(X0, np.eye(4)), schedule, times=times
+    )
+    adaptive = KnownSwitchAdaptive(estimator=_per_run_estimator(estimator), **kwargs)
+    single = single_runs(adaptive, sensor, z, times, Gaussian(X0, np.eye(4)), schedule)
+    assert_runs_equal(batched, single, ("times", "means", "covs", "mode", "log_ratios"))
+
+
+@pytest.mark.parametrize("estimator", ["decentralized", "particle"])
+@pytest.mark.parametrize("bank_size, pruning", [(None, None), (3, "nearest_lower"), (4, "oldest")])
+def test_unknown_change_batch_of_per_run_estimators_equals_the_runs(estimator, bank_size, pruning):
+    """Decentralized node series (a run without any measurement at a step feeds the nodes ℓ = 0, m = 0) and
+    particle streams, each run a batch of one."""
+    schedule = Schedule.from_rows([("straight", 15), ("right_turn", 20, 5.0)])
+    sensor, z, times = batch_data(schedule, runs=3)
+    kwargs = dict(modes=MODES, sensors=[sensor], tau=0.1, alpha=0.1, beta=0.1, bank_size=bank_size, pruning=pruning)
+    batched = UnknownChangeAdaptive(estimator=_per_run_estimator(estimator), **kwargs).run_batch(
+        {sensor.name: z}, Gaussian(X0, np.eye(4)), times=times
+    )
+    single = single_runs(
+        UnknownChangeAdaptive(estimator=_per_run_estimator(estimator), **kwargs), sensor, z, times, Gaussian(X0, np.eye(4))
+    )
+    fields = ("times", "means", "covs", "mode", "log_ratios", "bank_sizes", "signal", "signal_bounds")
+    assert_runs_equal(batched, single, fields + (("node_log_ratios", "node_signal") if estimator == "decentralized" else ()))
+    for b, s in zip(batched, single):
+        assert b.changes == s.changes
+    if estimator == "decentralized":
+        assert batched[0].node_log_ratios.shape == (schedule.total_steps + 1, 1, len(MODES))
+        assert np.isfinite(batched[2].node_log_ratios[12]).any()  # the step run 2 measured nothing
+
+
 def test_known_switch_batch_with_a_looped_test_and_regular_sampling():
     """A test without a vectorized batch (the HypothesisTestBatch fallback) gives the same runs."""
 
@@ -105,7 +176,7 @@ def test_batch_margins_equal_margins_row_by_row_with_ties():
     np.testing.assert_array_equal(batch_margins(L, active), expected)
 
 
-@pytest.mark.parametrize("estimator", ["kalman", "information", "potter", "srif"])
+@pytest.mark.parametrize("estimator", ["kalman", "information", "potter", "srif", "ekf"])
 @pytest.mark.parametrize("bank_size, pruning", [(None, None), (3, "nearest_lower"), (4, "oldest"), ("algorithm4", None)])
 def test_unknown_change_batch_equals_the_runs(estimator, bank_size, pruning):
     schedule = Schedule.from_rows([("straight", 15), ("right_turn", 20, 5.0)])
@@ -167,6 +238,12 @@ def test_batch_records_the_requested_runs_like_the_single_run():
     known.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule, recorders={2: batched})
     known.run({sensor.name: z[2]}, Gaussian(X0, np.eye(4)), schedule, recorder=single)
     same_calls(batched, single)
+    joint = KnownSwitchAdaptive(sensors=[sensor], tau=0.1, n=3, r_min=2.0, r_max=5.0, noise_cov=NOISE, switch_estimate="joint")
+    batched, single = ListRecorder(), ListRecorder()
+    joint.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule, recorders={0: batched})
+    joint.run({sensor.name: z[0]}, Gaussian(X0, np.eye(4)), schedule, recorder=single)
+    assert any(c[1][0].startswith("world/estimate/known_switch/hypotheses/") for c in batched.calls if c[0] == "log_path")
+    same_calls(batched, single)
 
 
 def test_batch_input_errors():
@@ -183,16 +260,18 @@ def test_batch_input_errors():
         adaptive.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), schedule, recorders={5: None})
 
 
-@pytest.mark.parametrize("estimator", ["kalman", "bierman"])
+@pytest.mark.parametrize("estimator", ["kalman", "bierman", "srif", "decentralized", "particle"])
 def test_known_modes_batch_equals_the_runs(estimator):
     from hybridtrack.algorithms.known_modes import run_known_modes, run_known_modes_batch
 
     schedule = Schedule.from_rows([("straight", 10), ("left_turn", 12, 3.0), ("straight", 8)])
     sensor, z, times = batch_data(schedule)
-    kwargs = dict(estimator=estimator, sensors=[sensor], prior=Gaussian(X0, np.eye(4)), tau=0.1, noise_cov=NOISE)
-    batched = run_known_modes_batch(schedule, measurements={sensor.name: z}, times=times, **kwargs)
+    kwargs = dict(sensors=[sensor], prior=Gaussian(X0, np.eye(4)), tau=0.1, noise_cov=NOISE)
+    batched = run_known_modes_batch(schedule, estimator=_per_run_estimator(estimator), measurements={sensor.name: z}, times=times, **kwargs)
+    single_estimator = _per_run_estimator(estimator)
     for r, b in enumerate(batched):
-        s = run_known_modes(schedule, measurements={sensor.name: z[r]}, times=times[r], **kwargs)
+        s = run_known_modes(schedule, estimator=single_estimator, measurements={sensor.name: z[r]}, times=times[r], **kwargs)
+        assert b.modes == s.modes == ("straight", "left_turn_r3") and b.mode.tolist() == [0] * 11 + [1] * 12 + [0] * 8
         for name in ("times", "means", "covs", "nis"):
             np.testing.assert_allclose(getattr(b, name), getattr(s, name), **TOL, err_msg=name)
 
