@@ -257,8 +257,8 @@ def _fill(root: np.ndarray | None, rows: np.ndarray, new: np.ndarray | None) -> 
 def grouped_transitions(models: Sequence[MotionModel], dts, switch_states: np.ndarray) -> TransitionBank:
     """The transitions of S filters, filter i running ``models[i]`` over ``dts[i]`` (a float for all, or (S,))
     from switch state ``switch_states[i]`` (S, n), all in one layout: one
-    :meth:`~hybridtrack.core.interfaces.MotionModel.transition_bank` call per (model, Δt) group, scattered back
-    into filter order.  Equal to ``TransitionBank.stack([models[i].transition(dts[i], switch_states[i]) …])``
+    :meth:`~hybridtrack.core.interfaces.MotionModel.transition_bank` call per (model, Δt) group of several
+    filters (one ``TransitionBank.stack`` of the filters alone in theirs), scattered back into filter order.  Equal to ``TransitionBank.stack([models[i].transition(dts[i], switch_states[i]) …])``
     entry by entry (``transition_bank`` must equal the stacked transitions; the motion tests check), so
     F_i, B_i, Q_i are seed 000's eq. (3) transitions of each filter's mode.  The noise roots G·chol(Q) are
     kept when every group has one of the same shape (else ``None``, as ``TransitionBank.stack`` gives for
@@ -274,9 +274,16 @@ def grouped_transitions(models: Sequence[MotionModel], dts, switch_states: np.nd
     n = switch_states.shape[1]
     F, B, Q = np.zeros((S, n, n)), np.zeros((S, n)), np.zeros((S, n, n))
     roots, positions = [], []
+    singles = [members[0] for _, members in groups.values() if len(members) == 1]  # one stack for all of them
+    banks = []
+    if singles:
+        banks.append(
+            (np.asarray(singles), TransitionBank.stack([models[i].transition(float(steps[i]), switch_states[i]) for i in singles]))
+        )
     for (_, d), (model, members) in groups.items():
-        members = np.asarray(members)
-        bank = model.transition_bank(d, switch_states[members])
+        if len(members) > 1:
+            banks.append((np.asarray(members), model.transition_bank(d, switch_states[members])))
+    for members, bank in banks:
         F[members], B[members], Q[members] = bank.F, bank.B, bank.Q
         roots.append(bank.noise_root)
         positions.append(members)
