@@ -2,7 +2,7 @@
 
 One run simulates Table 1 of seed 001 (L3 R5 S L3 S L4, 360 steps) from
 x0 = [0, 0, 0, 2] with Q = q·I₂ and a position sensor with R = r·I₂, runs the
-known-modes filter (:func:`hybridtrack.engine.pipeline.run_known_modes`, prior
+known-modes filter (:func:`hybridtrack.algorithms.known_modes.run_known_modes`, prior
 N(x0, I)) and returns, per state component (x, vx, y, vy), the sum over the steps
 k = 1 … K of the squared error, K, the run's nRMSE and mean NIS.
 Pooling ``squared_error`` over runs gives seed 001's RMSE_i = √(mean over runs
