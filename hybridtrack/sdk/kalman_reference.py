@@ -28,12 +28,12 @@ def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, B: np.ndarray, Q: np.nd
 def update(x: np.ndarray, P: np.ndarray, z: np.ndarray, H: np.ndarray, R: np.ndarray):
     """Joseph-form update with its scores; returns (x⁺, P⁺, ν, S, ℓ, NIS).
 
-        ν = z − H x⁻                      innovation
-        S = H P⁻ Hᵀ + R                   innovation covariance
-        K = P⁻ Hᵀ S⁻¹                     gain (S = L Lᵀ, solved with L)
-        x⁺ = x⁻ + K ν
-        P⁺ = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ   (Joseph: symmetric and PSD by construction)
-        NIS = νᵀ S⁻¹ ν,  ℓ = −½ (m ln 2π + ln det S + NIS)   (SPEC §4)
+    ν = z − H x⁻                      innovation
+    S = H P⁻ Hᵀ + R                   innovation covariance
+    K = P⁻ Hᵀ S⁻¹                     gain (S = L Lᵀ, solved with L)
+    x⁺ = x⁻ + K ν
+    P⁺ = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ   (Joseph: symmetric and PSD by construction)
+    NIS = νᵀ S⁻¹ ν,  ℓ = −½ (m ln 2π + ln det S + NIS)   (SPEC §4)
     """
     n, m = x.shape[-1], z.shape[-1]
     nu = z - (H @ x[..., None])[..., 0]  # ν = z − H x⁻

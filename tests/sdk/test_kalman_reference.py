@@ -52,7 +52,9 @@ def test_reference_step_equals_filterpy():
         np.testing.assert_allclose(nis, peer.mahalanobis**2, rtol=1e-10)
 
 
-@pytest.mark.parametrize("engine", ["numpy", pytest.param("numba", marks=pytest.mark.skipif(not cov_form.NUMBA_AVAILABLE, reason="no numba"))])
+@pytest.mark.parametrize(
+    "engine", ["numpy", pytest.param("numba", marks=pytest.mark.skipif(not cov_form.NUMBA_AVAILABLE, reason="no numba"))]
+)
 @pytest.mark.parametrize(("n", "m"), [(2, 1), (4, 2), (6, 3)])
 def test_covariance_form_engines_equal_the_reference(engine, n, m):
     rng = np.random.default_rng(10 * n + m)
