@@ -257,18 +257,9 @@ class MultipleModelEstimator:
         self.estimator: Estimator = resolve("estimator", estimator, registry)
         self.name = name or method
         self.layout = union_layout([m.layout for m in self.models])
-        n = len(self.layout)
         self._positions = [np.array([self.layout.index(c) for c in m.layout]) for m in self.models]
-        fill_mean = self._per_component(missing_mean, "missing_mean", positive=False)
-        fill_var = self._per_component(missing_variance, "missing_variance", positive=True)
-        self._missing_mean, self._missing_var = fill_mean, fill_var
-        # each model's expansion to the union layout: fill mean and variance on the components it lacks
-        self._fill_mean = np.zeros((r, n))
-        self._fill_var = np.zeros((r, n))
-        for j, pos in enumerate(self._positions):
-            lacking = np.setdiff1d(np.arange(n), pos)
-            self._fill_mean[j, lacking] = fill_mean[lacking]
-            self._fill_var[j, lacking] = fill_var[lacking]
+        self._missing_mean = self._per_component(missing_mean, "missing_mean", positive=False)
+        self._missing_var = self._per_component(missing_variance, "missing_variance", positive=True)
         groups: dict[tuple[str, ...], list[int]] = {}
         for j, m in enumerate(self.models):
             groups.setdefault(tuple(m.layout), []).append(j)
@@ -306,15 +297,16 @@ class MultipleModelEstimator:
         return np.stack([self._log_matrices[key] for key in keys]).reshape(steps.shape + (r, r))
 
     # ------------------------------------------------------------------ layouts
-    def expand(self, means: np.ndarray, covs: np.ndarray, model: int) -> tuple[np.ndarray, np.ndarray]:
-        """Model ``model``'s (…, n_j) means and covariances in the union layout, lacking components filled."""
-        pos = self._positions[model]
-        x = np.broadcast_to(self._fill_mean[model], means.shape[:-1] + (len(self.layout),)).copy()
-        x[..., pos] = means
-        P = np.zeros(covs.shape[:-2] + (len(self.layout),) * 2)
-        diag = np.arange(len(self.layout))
-        P[..., diag, diag] = self._fill_var[model]
-        P[..., pos[:, None], pos[None, :]] = covs
+    def expand(self, means: np.ndarray, covs: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(…, n_j) means and covariances of the union-layout components at ``positions`` in the union layout; each
+        component they lack at ``missing_mean`` with variance ``missing_variance``, uncorrelated with the rest."""
+        n = len(self.layout)
+        lacking = np.setdiff1d(np.arange(n), positions)
+        x = np.broadcast_to(self._missing_mean, means.shape[:-1] + (n,)).copy()
+        x[..., positions] = means
+        P = np.zeros(covs.shape[:-2] + (n, n))
+        P[..., lacking, lacking] = self._missing_var[lacking]
+        P[..., positions[:, None], positions[None, :]] = covs
         return x, P
 
     # ------------------------------------------------------------------ the parts
@@ -365,8 +357,7 @@ class MultipleModelEstimator:
             x = np.asarray(self.estimator.mean(state), dtype=float).reshape(R, rows.size, pos.size)
             P = np.asarray(self.estimator.covariance(state), dtype=float).reshape(R, rows.size, pos.size, pos.size)
             P = 0.5 * (P + np.swapaxes(P, -1, -2))
-            model = members[0]  # one layout: the same expansion for every member
-            means[:, rows], covs[:, rows] = self.expand(x, P, model)
+            means[:, rows], covs[:, rows] = self.expand(x, P, pos)  # one layout: the same expansion for every member
             loglik[:, rows] = np.asarray(innovation.loglik, dtype=float).reshape(R, rows.size)
         return means, covs, loglik
 
@@ -391,7 +382,7 @@ class MultipleModelEstimator:
         cov = np.asarray(prior_cov, dtype=float)
         R = mean.shape[0]
         layout = self._prior_layout(mean.shape[-1], prior_layout)
-        x, P = self._prior_in_union(mean, cov, layout)
+        x, P = self.expand(mean, cov, np.array([self.layout.index(c) for c in layout]))
         if mode_probabilities is None:
             log_mu0 = np.full(r, -np.log(r))
         else:
@@ -458,17 +449,6 @@ class MultipleModelEstimator:
             if m.state_dim == n:
                 return tuple(m.layout)
         raise ValueError(f"prior: mean of {n} components matches neither the union layout {self.layout} nor a model's layout")
-
-    def _prior_in_union(self, mean, cov, layout) -> tuple[np.ndarray, np.ndarray]:
-        n = len(self.layout)
-        pos = np.array([self.layout.index(c) for c in layout])
-        lacking = np.setdiff1d(np.arange(n), pos)
-        x = np.broadcast_to(self._missing_mean, mean.shape[:-1] + (n,)).copy()
-        x[..., pos] = mean
-        P = np.zeros(cov.shape[:-2] + (n, n))
-        P[..., lacking, lacking] = self._missing_var[lacking]  # components the prior lacks: missing_mean, missing_variance
-        P[..., pos[:, None], pos[None, :]] = cov
-        return x, P
 
     # ------------------------------------------------------------------ the run
     def run(
