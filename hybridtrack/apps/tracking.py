@@ -479,16 +479,14 @@ def track_one(
     finally:
         if recorder is not None:
             recorder.close()
-    kinds = config["estimator"]["kind"]
-    index = run.mode if kinds == "unknown_change" else run.most_probable
-    per_step = [_summary_mode(models[int(i)]) for i in index]
+    per_step = [_summary_mode(models[int(i)]) for i in run.mode]
     modes = [m for m, _ in per_step]
     radii = [r for _, r in per_step]
-    if kinds == "unknown_change":
+    if config["estimator"]["kind"] == "unknown_change":
         by_label = dict(zip(estimator.labels, models))
         decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]
     else:
-        switches = np.flatnonzero(np.diff(index)) + 1
+        switches = np.flatnonzero(np.diff(run.mode)) + 1
         decisions = [{"time": float(run.times[k]), "mode": modes[k]} for k in switches]
     if out is not None:
         np.savez(

@@ -92,6 +92,7 @@ from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovati
 from hybridtrack.core.validation import check_magnitude
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
+from hybridtrack.sdk.mixtures import logsumexp
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import (
     _as_scans,
@@ -135,14 +136,6 @@ class ParticleClutterInnovation(ClutterInnovation):
     gaussian_loglik: np.ndarray = None
     effective_sample_size: np.ndarray = None
     resampled: np.ndarray = None
-
-
-def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
-    """ln Σ exp(a) along ``axis``, shifted by the maximum; −∞ where every entry is −∞ (no warning, no NaN)."""
-    top = np.max(a, axis=axis, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
-    with np.errstate(divide="ignore"):
-        return np.log(np.sum(np.exp(a - top), axis=axis)) + np.squeeze(top, axis=axis)
 
 
 def weighted_moments(particles: np.ndarray, log_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
