@@ -53,9 +53,6 @@ import numpy as np
 
 from hybridtrack.core.validation import FILTER_MAGNITUDE_LIMIT, as_float_array, check_covariance, check_magnitude, readonly_array_field
 
-KINDS = ("motion_model", "sensor", "estimator", "detector", "solver")
-
-
 # --------------------------------------------------------------------------- motion
 
 
@@ -829,13 +826,3 @@ class Solver(ABC):
 
     @abstractmethod
     def solve(self, problem: Any) -> Solution: ...
-
-
-#: The interface of each component kind (the registry's kinds, in order).
-INTERFACES: dict[str, type] = {
-    "motion_model": MotionModel,
-    "sensor": Sensor,
-    "estimator": Estimator,
-    "detector": Detector,
-    "solver": Solver,
-}

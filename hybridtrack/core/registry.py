@@ -11,7 +11,7 @@ from typing import Any
 
 import attrs
 
-from hybridtrack.core.interfaces import KINDS
+from hybridtrack.core.kinds import KINDS
 
 
 class UnknownComponentError(KeyError):
@@ -88,12 +88,10 @@ class Registry:
     def entries(self) -> list[Entry]:
         return [entry for kind in KINDS for entry in self._entries[kind].values()]
 
-    def bind(
-        self, kind: str, plugin: str, distribution: str | None, version: str | None, on_error, interface: type | None = None
-    ) -> Registrar:
-        """A :class:`Registrar` adding entries of ``kind`` for ``plugin``; with ``interface``, a class
-        factory that is not a subclass of it is rejected at registration."""
-        return Registrar(self, kind, plugin, distribution, version, on_error, interface)
+    def bind(self, kind: str, plugin: str, distribution: str | None, version: str | None, on_error) -> Registrar:
+        """A :class:`Registrar` adding entries of ``kind`` for ``plugin``; a class factory that does not
+        implement the kind's interface is rejected at registration."""
+        return Registrar(self, kind, plugin, distribution, version, on_error)
 
 
 @attrs.define
@@ -101,8 +99,8 @@ class Registrar:
     """What a ``register_<kind>s`` hook receives: ``registry.add(name, factory)``.
 
     A rejected entry (duplicate or empty name, factory not callable, a class
-    that does not implement ``interface``) goes to ``on_error``; the others
-    still register.
+    that does not implement the kind's interface) goes to ``on_error``; the
+    others still register.
     """
 
     _registry: Registry
@@ -111,14 +109,14 @@ class Registrar:
     distribution: str | None
     version: str | None
     _on_error: Callable[[Exception], None]
-    interface: type | None = None
 
     def add(self, name: str, factory: Callable[..., Any]) -> None:
-        if isinstance(factory, type) and self.interface is not None and not issubclass(factory, self.interface):
+        interface = KINDS[self.kind].interface
+        if isinstance(factory, type) and not issubclass(factory, interface):
             self._on_error(
                 TypeError(
                     f"{self.kind} {name!r} registered by plugin {self.plugin!r} (distribution {self.distribution or 'none'}):"
-                    f" class {factory.__qualname__} does not implement hybridtrack.core.interfaces.{self.interface.__name__}; not registered"
+                    f" class {factory.__qualname__} does not implement {interface.__module__}.{interface.__name__}; not registered"
                 )
             )
             return

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Detector, DetectorStep, Innovation
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive, check_positive_int
@@ -137,4 +138,6 @@ class DynamicThreshold(Detector):
         return self._wrap(step, self.detector.observe_value(step, value, m))
 
 
-COMPONENTS = {DynamicThreshold.name: DynamicThreshold}
+@hookimpl
+def register_detectors(registry):
+    registry.add(DynamicThreshold.name, DynamicThreshold)

@@ -23,6 +23,7 @@ from collections import deque
 
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import DetectorStep, ScoreDetector
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive_int
@@ -144,4 +145,6 @@ class SignalFunction(ScoreDetector):
         return outputs
 
 
-COMPONENTS = {SignalFunction.name: SignalFunction}
+@hookimpl
+def register_detectors(registry):
+    registry.add(SignalFunction.name, SignalFunction)

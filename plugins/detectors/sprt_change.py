@@ -39,6 +39,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import logsumexp
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import ChangeTimeStep, ChangeTimeTest, ChangeTimeTestBatch, DetectorStep
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive_int
@@ -313,4 +314,6 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         return ChangeTimeSPRTBatch(self, runs)
 
 
-COMPONENTS = {ChangeTimeSPRT.name: ChangeTimeSPRT}
+@hookimpl
+def register_detectors(registry):
+    registry.add(ChangeTimeSPRT.name, ChangeTimeSPRT)

@@ -32,6 +32,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import BatchStep, DetectorStep, HypothesisTest, HypothesisTestBatch
 from hybridtrack.core.types import Decision
 from hybridtrack.sdk.thresholds import WaldThresholds
@@ -186,4 +187,6 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
         return PairwiseSPRTBatch(self, runs)
 
 
-COMPONENTS = {PairwiseSPRT.name: PairwiseSPRT}
+@hookimpl
+def register_detectors(registry):
+    registry.add(PairwiseSPRT.name, PairwiseSPRT)

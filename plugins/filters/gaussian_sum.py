@@ -57,6 +57,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior, check_prior_mixture
 from hybridtrack.core.validation import as_float_array
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
@@ -486,4 +487,7 @@ def range_parameterised(
 
 GaussianSumFilter.range_parameterised = staticmethod(range_parameterised)
 
-COMPONENTS = {"gaussian_sum": GaussianSumFilter}
+
+@hookimpl
+def register_estimators(registry):
+    registry.add(GaussianSumFilter.name, GaussianSumFilter)

@@ -48,6 +48,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
@@ -333,4 +334,6 @@ class MHTFilter(RecordsFilterStates, BankEstimator):
         return attrs.evolve(state, innovation=innovation), innovation
 
 
-COMPONENTS = {"mht": MHTFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(MHTFilter.name, MHTFilter)

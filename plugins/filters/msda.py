@@ -50,6 +50,7 @@ import attrs
 import numpy as np
 import pywt
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
@@ -246,4 +247,6 @@ class MSDAFilter(BankEstimator):
         return attrs.evolve(state, innovation=innovation), innovation
 
 
-COMPONENTS = {"msda": MSDAFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(MSDAFilter.name, MSDAFilter)

@@ -88,6 +88,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior_mixture
 from hybridtrack.core.validation import check_magnitude
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
@@ -530,4 +531,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         return particles, log_weights
 
 
-COMPONENTS = {ParticleFilter.name: ParticleFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(ParticleFilter.name, ParticleFilter)

@@ -78,6 +78,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
@@ -517,4 +518,6 @@ class PMHTFilter(BankEstimator):
         return xs, Ps, xf, Pf, xp[:, -1], Pp[:, -1], nis_sum, Wsum, zsyn
 
 
-COMPONENTS = {"pmht": PMHTFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(PMHTFilter.name, PMHTFilter)

@@ -13,7 +13,7 @@ Entity paths (timeline ``step`` = bearing index k, ``time`` = t_k seconds):
 * ``solver/<method>/residual`` — wrapped bearing residuals X_k − f_k(θ̂) in degrees;
 * ``events/decisions`` — one line per solution (θ̂, √Ka, χ² test, iterations).
 
-No ``COMPONENTS``: a helper of the solver family, not a plugin.
+No hook: a helper of the solver family, not a plugin.
 """
 
 from __future__ import annotations
