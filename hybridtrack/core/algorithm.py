@@ -18,7 +18,9 @@ rely on; :func:`hybridtrack.testing.check_algorithm` checks it):
   (mean, cov) in ``layout``, ``times`` the K+1 times in seconds (default 0, τ,
   2τ, …).  It returns a result with ``times`` (K+1,), ``means`` (K+1, n),
   ``covs`` (K+1, n, n) and ``decisions`` (the detectors' decisions in step
-  order; none for an algorithm without detector).  An algorithm that needs
+  order; none for an algorithm without detector) — the fields of
+  ``hybridtrack.engine.results.RunResult``, whose ``modes`` and ``mode`` (the
+  index of the mode followed per step) ``hybridtrack track`` also reads.  An algorithm that needs
   more per run (Algorithm 1's known switching steps) takes it as a further
   argument of ``run``.
 
