@@ -18,11 +18,12 @@ one exception let through: a plugin raising it at import cannot be told apart
 from the user pressing Ctrl-C, and a Ctrl-C must interrupt.  This project's
 own plugins load first, so a component name taken by a built-in stays the
 built-in's.  ``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks plugins by
-entry-point name, by family (``filters`` blocks ``filters.kalman``, …: the part
-of an entry-point name before its first dot) or by distribution name; a name that matches no installed
-plugin gives a warning listing the known names.  A factory (not a class)
-returning the wrong type is caught at first use (:func:`resolve`,
-:func:`check_component`) by a TypeError naming the plugin and distribution.
+entry-point name, by family (``filters`` blocks ``filters.kalman``, …: the
+part of an entry-point name before its first dot) or by distribution name; a
+name that matches no installed plugin gives a warning listing the known
+names.  A factory (not a class) returning the wrong type is caught at first
+use (:func:`resolve`, :func:`check_component`) by a TypeError naming the
+plugin and distribution.
 """
 
 from __future__ import annotations
@@ -135,6 +136,7 @@ def load_plugins(
             return
         infos[info.name] = info
 
+    builtins = list(builtins)
     own = [PluginInfo(getattr(obj, "__name__", None) or type(obj).__name__) for obj in builtins]
     for obj, info in zip(builtins, own):
         register(obj, info, from_code=True)
