@@ -55,8 +55,10 @@ import numpy as np
 
 from hybridtrack.algorithms.algorithm4 import algorithm4_bank_size, wald_pair
 from hybridtrack.algorithms.switch_state import SwitchAugmented, augmented_layout, augmented_prior
-from hybridtrack.core.interfaces import ChangeTimeTest, Estimator, HypothesisTest, MotionModel, ScoreDetector, Sensor, require
+from hybridtrack.core.components import require
+from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor
 from hybridtrack.core.plugins import resolve, resolve_registry
+from hybridtrack.core.protocols import ChangeTimeTest, HypothesisTest, ScoreDetector
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Decision, Gaussian, Schedule
 from hybridtrack.core.validation import check_positive, check_positive_int

@@ -39,7 +39,7 @@ import pluggy
 
 from hybridtrack.core import hookspecs
 from hybridtrack.core.commands import Command, Commands
-from hybridtrack.core.interfaces import Labelled, require
+from hybridtrack.core.components import Labelled, require
 from hybridtrack.core.kinds import KINDS
 from hybridtrack.core.registry import Registry
 

@@ -3,11 +3,14 @@
 Reads results; never called from inside a step.  Modules: :mod:`.recorder`
 (the recorders and the log helpers), :mod:`.layout` (the blueprint built from
 the content), :mod:`.style` (palette, legend names), :mod:`.clutter` (scans and
-associations), :mod:`.inspection` (reading a recording back), :mod:`.multiple_model`
-(the IMM/GPB result writer).
+associations), :mod:`.pipeline` (a pipeline's run), :mod:`.multiple_model` (the
+IMM/GPB result writer), :mod:`.inspection` (reading a recording back).
 """
 
-from hybridtrack.recording import multiple_model  # noqa: F401  (registers the MultipleModelRun writer)
+from hybridtrack.recording import (
+    multiple_model,  # noqa: F401  (registers the MultipleModelRun writer)
+    pipeline,  # noqa: F401  (registers the writer of a pipeline run with log_result)
+)
 from hybridtrack.recording.recorder import (
     APPLICATION_ID,
     LEGEND_CORNERS,

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.core.interfaces import ClutterInnovation
+from hybridtrack.core.protocols import ClutterInnovation
 from hybridtrack.sdk.scans import ScanSequence
 
 
@@ -28,7 +28,7 @@ def log_associations(
 ) -> None:
     """Gates, association weights and association likelihoods of clutter-aware updates.
 
-    ``innovations`` holds one :class:`~hybridtrack.core.interfaces.ClutterInnovation`
+    ``innovations`` holds one :class:`~hybridtrack.core.protocols.ClutterInnovation`
     (or plain Innovation, skipped) per step.  Per filter j and sensor s:
 
     * ``world/estimate/<filter>/gate`` — the gate {z : (z − ẑ)ᵀS⁻¹(z − ẑ) ≤ γ}

@@ -25,6 +25,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Detector, DetectorStep, Innovation
+from hybridtrack.core.plugins import resolve
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.sdk.thresholds import check_probability
@@ -80,8 +81,6 @@ class DynamicThreshold(Detector):
     name = "dynamic_threshold"
 
     def __init__(self, detector: Any = "glr", cue: Any = "speed_drop", likelihood_ratio: float = 4.0):
-        from hybridtrack.engine.pipeline import resolve
-
         self.detector: Detector = resolve("detector", detector)
         if not hasattr(self.detector, "alpha"):
             raise ValueError(f"detector: {self.detector.name!r} has no settable 'alpha'; its threshold must be a function of α")

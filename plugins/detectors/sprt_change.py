@@ -40,7 +40,8 @@ import numpy as np
 from scipy.special import logsumexp
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import ChangeTimeStep, ChangeTimeTest, ChangeTimeTestBatch, DetectorStep
+from hybridtrack.core.interfaces import DetectorStep
+from hybridtrack.core.protocols import ChangeTimeStep, ChangeTimeTest, ChangeTimeTestBatch
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.thresholds import WaldThresholds

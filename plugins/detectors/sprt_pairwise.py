@@ -33,7 +33,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import BatchStep, DetectorStep, HypothesisTest, HypothesisTestBatch
+from hybridtrack.core.interfaces import DetectorStep
+from hybridtrack.core.protocols import BatchStep, HypothesisTest, HypothesisTestBatch
 from hybridtrack.core.types import Decision
 from hybridtrack.sdk.thresholds import WaldThresholds
 

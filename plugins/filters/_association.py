@@ -52,7 +52,8 @@ import attrs
 import numpy as np
 from scipy.stats import chi2
 
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_magnitude
 from hybridtrack.sdk.estimation import BankEstimator, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize

@@ -58,8 +58,9 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior, check_prior_mixture
-from hybridtrack.core.validation import as_float_array
+from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.core.protocols import Association, ClutterInnovation
+from hybridtrack.core.validation import as_float_array, check_prior, check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute
 from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalized_weights

@@ -49,7 +49,8 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.mixtures import normalized_weights

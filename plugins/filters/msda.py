@@ -51,7 +51,8 @@ import numpy as np
 import pywt
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import symmetrize

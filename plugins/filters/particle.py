@@ -52,7 +52,7 @@ estimate of PDA's association likelihood ln Λ (no gate: P_G = 1), which is what
 the detectors compare across a bank in clutter.  The association weights are
 the posterior probabilities of "candidate r is the target" and "none is",
 β_r ∝ (P_D/λ) Σ_i w⁽ⁱ⁾⁻ N(z_r; h(x⁽ⁱ⁾), R), β_0 ∝ 1 − P_D P_G (Σ β = 1), recorded
-in a :class:`~hybridtrack.core.interfaces.Association` per scan with the particle
+in a :class:`~hybridtrack.core.protocols.Association` per scan with the particle
 prediction ẑ, S, d²_r and the gate.  The innovation reported
 is the combined ν = Σ_r β_r ν_r, ν_r = residual(z_r, ẑ), with S and its NIS;
 several scans of one step are applied one after the other.  With P_D = 1,
@@ -89,8 +89,9 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior_mixture
-from hybridtrack.core.validation import check_magnitude
+from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.core.protocols import Association, ClutterInnovation
+from hybridtrack.core.validation import check_magnitude, check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.sdk.mixtures import logsumexp

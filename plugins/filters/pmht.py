@@ -79,7 +79,8 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize

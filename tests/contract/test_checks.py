@@ -4,16 +4,9 @@ import numpy as np
 import pytest
 
 from hybridtrack.core.algorithm import Algorithm
-from hybridtrack.core.interfaces import (
-    Detector,
-    DetectorStep,
-    Estimator,
-    MotionModel,
-    Solution,
-    Solver,
-    check_prior,
-)
+from hybridtrack.core.interfaces import Detector, DetectorStep, Estimator, MotionModel, Solution, Solver
 from hybridtrack.core.types import Decision
+from hybridtrack.core.validation import check_prior
 from hybridtrack.testing import (
     LinearPositionSensor,
     build_example,

@@ -43,7 +43,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.core.interfaces import ChangeTimeTest, DetectorStep
+from hybridtrack.core.interfaces import DetectorStep
+from hybridtrack.core.protocols import ChangeTimeTest
 from hybridtrack.core.types import Decision
 from hybridtrack.sdk.thresholds import WaldThresholds
 
