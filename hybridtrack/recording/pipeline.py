@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from hybridtrack.engine.pipeline import PipelineResult
-from hybridtrack.recording.clutter import log_associations
+from hybridtrack.recording.clutter import log_associations, log_scans
 from hybridtrack.recording.recorder import decision_text, log_estimate, log_measurements, nis_bounds
 from hybridtrack.recording.results import log_result
 
@@ -56,12 +56,7 @@ def log_pipeline(
             positions = truth.positions[rows]
             recorder.log_path("world/truth", steps[: len(positions)], positions, times[: len(positions)], line=False)
         if record_measurements and candidates is not None:
-            for seq in candidates.values():  # as hybridtrack.recording.clutter.log_scans, for rows start..K
-                if seq.measurement_dim == 2:
-                    recorder.log_points(f"world/measurements/{seq.sensor}", steps, seq.target_measurements()[rows], times)
-                    false = seq.false_measurements()[rows]
-                    if false.shape[1]:
-                        recorder.log_points(f"world/clutter/{seq.sensor}", steps, false, times)
+            log_scans(recorder, candidates.values(), steps, times)
         elif record_measurements:
             log_measurements(recorder, network.sensors, network.split(z[rows]), steps, times)
         for j, name in enumerate(names):
