@@ -210,25 +210,7 @@ class Pipeline:
         self.start(z[None], t[None], dt[None], [prior], [recorder], [truth], record_measurements, record_every, record_seconds)
 
     @classmethod
-    def batch(
-        cls,
-        measurements: Mapping[str, np.ndarray],
-        prior,
-        *,
-        models: Sequence[Any],
-        estimator: Any,
-        sensors: SensorNetwork | Sequence[Sensor],
-        times=None,
-        tau: float | None = None,
-        truth=None,
-        recorders=None,
-        detectors: Sequence[Any] = (),
-        filter_names: Sequence[str] | None = None,
-        registry: Registry | None = None,
-        record_measurements: bool = True,
-        record_every: int = 10_000,
-        record_seconds: float | None = 2.0,
-    ) -> Pipeline:
+    def batch(cls, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None, **options) -> Pipeline:
         """R runs as one pipeline over a bank of R × M filters (module docstring), ready to :meth:`run`.
 
         ``measurements``: sensor name → (R, K+1, m_i) (NaN: not measured); ``prior``:
@@ -236,20 +218,22 @@ class Pipeline:
         covariances (R, n, n); ``times``: (K+1,) shared or (R, K+1) per run, or
         ``tau``; ``truth``: per-run trajectories (sequence of R or mapping run →
         trajectory), recorded beside the estimates; ``recorders``: run index →
-        recorder for the runs to record.  The other options as for the constructor.
-        Clutter candidates are not batched (run those one by one).
+        recorder for the runs to record.  ``options`` as for the constructor
+        (``models``, ``estimator``, ``sensors``, ``tau``, ``detectors``, …); clutter
+        candidates are not batched (run those one by one).
         """
         arrays, R, steps = batch_measurements(measurements)
-        t, dt = batch_times(times, tau, R, steps)
-        priors = batch_priors(prior, R)
-        truths = per_run(truth, R, "truth")
-        recorders = per_run(recorders, R, "recorders")
-        self = cls.__new__(cls)
-        self.compose(models, estimator, sensors, detectors, filter_names, registry)
-        self.candidates = None
-        z = self.network.stack({name: a.reshape(R * steps, a.shape[-1]) for name, a in arrays.items()})
-        self.start(z.reshape(R, steps, -1), t, dt, priors, recorders, truths, record_measurements, record_every, record_seconds)
-        return self
+        t, dt = batch_times(times, options.pop("tau", None), R, steps)
+        priors, truths, recorders = batch_priors(prior, R), per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
+        if "candidates" in options:
+            raise ValueError("candidates: clutter candidates are not batched; run those one by one")
+        streaming = {key: options.pop(key) for key in ("record_measurements", "record_every", "record_seconds") if key in options}
+        pipeline = cls.__new__(cls)
+        pipeline.compose(**options)
+        pipeline.candidates = None
+        z = pipeline.network.stack({name: a.reshape(R * steps, a.shape[-1]) for name, a in arrays.items()}).reshape(R, steps, -1)
+        pipeline.start(z, t, dt, priors, recorders, truths, **streaming)
+        return pipeline
 
     @classmethod
     def run_batch(cls, measurements: Mapping[str, np.ndarray], prior, **options) -> list[PipelineResult]:
@@ -260,7 +244,7 @@ class Pipeline:
         return [pipeline.result(r) for r in range(pipeline.runs)]
 
     # -- composition
-    def compose(self, models, estimator, sensors, detectors, filter_names, registry) -> None:
+    def compose(self, models, estimator, sensors, detectors=(), filter_names=None, registry=None) -> None:
         """Resolve and check the components: the models (one layout), the estimator, the network, the detectors
         (unique labels) and the filter names."""
         self.models: list[MotionModel] = [resolve("motion_model", m, registry) for m in models]
@@ -311,7 +295,7 @@ class Pipeline:
                 raise ValueError(f"candidates[{name!r}]: expected a ScanSequence of sensor {name!r}, got {seq!r}")
         return {name: candidates[name] for name in self.network.names}
 
-    def start(self, z, t, dt, priors, recorders, truths, record_measurements, record_every, record_seconds) -> None:
+    def start(self, z, t, dt, priors, recorders, truths, record_measurements=True, record_every=10_000, record_seconds=2.0) -> None:
         """Initialize the bank of R runs: measurements z (R, K, Σm), times t (R, K), Δt (R, K−1), one prior,
         recorder and truth per run; preallocate the per-step arrays."""
         R, M = len(priors), len(self.models)
