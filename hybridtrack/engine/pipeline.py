@@ -257,7 +257,7 @@ class Pipeline:
         self.estimator: Estimator = resolve("estimator", estimator, registry)
         self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
         self.detectors: list[Detector] = [resolve("detector", d, registry) for d in detectors]
-        labels = [d.label for d in self.detectors]
+        self.labels = labels = [d.label for d in self.detectors]
         if len(set(labels)) != len(labels):
             raise ValueError(
                 f"detectors: labels must be unique, got {labels}; give each instance a label, e.g. ('glr', {{...}}, 'glr_fast')"
@@ -307,7 +307,7 @@ class Pipeline:
             raise ValueError(f"record_every: expected a whole number of steps ≥ 1, got {record_every!r}")
         if record_seconds is not None and not (isinstance(record_seconds, (int, float)) and record_seconds > 0):
             raise ValueError(f"record_seconds: expected a positive number of seconds or None, got {record_seconds!r}")
-        self.runs = R
+        self.runs, self.every_run = R, np.arange(R)
         self.Z, self.T, self.DT = z, t, dt
         self.z, self.times, self.intervals = (z[0], t[0], dt[0]) if R == 1 else (z, t, dt)
         self.priors = priors
@@ -345,6 +345,7 @@ class Pipeline:
         self.logged = 0  # steps already handed to the recorders
         self.lines_logged = 0  # number of steps the static path lines were logged for
         recorded = [r for r, rec in enumerate(self.recorders) if rec is not None]
+        self.recording = bool(recorded)
         #: per recorded run, the states of the steps not yet handed over (Estimator.records_states)
         self._pending_states = {r: [] for r in recorded} if recorded and getattr(est, "records_states", False) else None
         self.last_flush = time.monotonic()
@@ -370,7 +371,7 @@ class Pipeline:
         rebuilt only when Δt changes; nonlinear models: relinearized at each
         filter's current mean every step (EKF).
         """
-        dt = np.broadcast_to(np.asarray(dt, dtype=float), (self.runs,))
+        dt = np.full(self.runs, float(dt)) if np.ndim(dt) == 0 else dt
         if self.linear:
             return self.run_transitions.bank(dt)
         M = len(self.models)
@@ -390,17 +391,16 @@ class Pipeline:
         if k > 0:
             state = est.predict(state, self.transitions(self.DT[:, k - 1]))
         z = self.Z[:, k]
-        missing = np.isnan(z)
         if self.candidates is not None:
             groups = [np.arange(1)]
             state, innovation = est.update(state, [seq.scan(k) for seq in self.candidates.values()], sensors, self.layout)
             updates = [innovation]
-        elif (missing == missing[0]).all():
-            groups = [np.arange(R)]
+        elif R == 1 or (np.isnan(z) == np.isnan(z[0])).all():
+            groups = [self.every_run]
             state, innovation = est.update(state, z[0] if R == 1 else np.repeat(z, M, axis=0), sensors, self.layout)
             updates = [innovation]
         else:
-            patterns, which = np.unique(missing, axis=0, return_inverse=True)
+            patterns, which = np.unique(np.isnan(z), axis=0, return_inverse=True)
             groups = [np.flatnonzero(which.reshape(-1) == g) for g in range(len(patterns))]
             parts, updates = [], []
             for runs in groups:
@@ -415,16 +415,18 @@ class Pipeline:
         mean, cov = est.mean(state), est.covariance(state)
         self.means[:, k] = np.asarray(mean).reshape(R, M, -1)
         self.covs[:, k] = np.asarray(cov).reshape(R, M, *self.covs.shape[-2:])
-        outputs = {}
         for runs, innovation in zip(groups, updates):
             self.store_scores(k, runs, innovation)
-            columns = [[d.step(k, innovation)] for d in self.detectors] if R == 1 else [b.step(k, runs, innovation) for b in self.batches]
+            if R == 1:  # a single run steps the detectors it was given
+                outputs = {d.label: d.step(k, innovation) for d in self.detectors}
+                self.store_detectors(k, 0, outputs)
+                continue
+            columns = [b.step(k, runs, innovation) for b in self.batches]
             for position, r in enumerate(runs):
-                outputs = {d.label: column[position] for d, column in zip(self.detectors, columns)}
-                self.store_detectors(k, int(r), outputs)
+                self.store_detectors(k, int(r), {label: column[position] for label, column in zip(self.labels, columns)})
         self.processed = k + 1
         due = self.processed - self.logged
-        if any(rec is not None for rec in self.recorders) and (
+        if self.recording and (
             due >= self.record_every
             or (self._pending_states is not None and due >= STATE_CHUNK)
             or (self.record_seconds is not None and time.monotonic() - self.last_flush >= self.record_seconds)
@@ -442,11 +444,12 @@ class Pipeline:
     def store_scores(self, k: int, runs: np.ndarray, innovation: Innovation) -> None:
         """Write step k's ℓ, NIS and ν of the runs ``runs`` (NaN: nothing measured / a component missing)."""
         G, (M, m) = runs.size, self.nu.shape[2:]
+        rows = slice(None) if G == self.runs else runs  # every run: a plain slice is the faster write
         dim = innovation.measurement_dim
-        self.nis[runs, k] = np.asarray(innovation.nis).reshape(G, M) if dim > 0 else np.nan
-        self.loglik[runs, k] = np.asarray(innovation.loglik).reshape(G, M) if dim > 0 else np.nan
+        self.nis[rows, k] = np.asarray(innovation.nis).reshape(G, M) if dim > 0 else np.nan
+        self.loglik[rows, k] = np.asarray(innovation.loglik).reshape(G, M) if dim > 0 else np.nan
         complete = dim == m and np.shape(innovation.nu) == (G * M, m) and np.shape(innovation.S) == (G * M, m, m)
-        self.nu[runs, k] = np.asarray(innovation.nu).reshape(G, M, m) if complete else np.nan
+        self.nu[rows, k] = np.asarray(innovation.nu).reshape(G, M, m) if complete else np.nan
         if runs[0] == 0:
             self.S[k] = np.asarray(innovation.S)[:M] if complete else np.nan
             if self.runs == 1 and (not complete or type(innovation) is not Innovation):
@@ -538,7 +541,7 @@ class Pipeline:
 
         Calling it again without new steps logs nothing.
         """
-        if self.processed and self.lines_logged != self.processed and any(rec is not None for rec in self.recorders):
+        if self.processed and self.lines_logged != self.processed and self.recording:
             self.hand_over(lines=True)
 
     def hand_over(self, lines: bool) -> None:
