@@ -108,7 +108,8 @@ class Recorder(Protocol):
         """One or more 2-D segments per step: starts, ends of shape (K, 2) or (K, L, 2) (e.g. bearing lines)."""
 
     def log_result(self, result, **context) -> None:
-        """A finished run's result, handed over by the engine or an algorithm after the run
+        """A finished run's result, handed over by the engine or an algorithm after the run, or the finished
+        steps of a run still going (a pipeline hands them in chunks, ``start=…``)
         (:func:`hybridtrack.recording.results.log_result`, by the result's type)."""
 
     def flush(self) -> None:
