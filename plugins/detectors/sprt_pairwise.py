@@ -164,23 +164,16 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
             raise ValueError(f"loglik: the bank changed from {self.L.shape[0]} to {M} filters; call reset() first")
         if self.hypotheses is not None and len(self.hypotheses) != M:
             raise ValueError(f"hypotheses: {len(self.hypotheses)} names for a bank of {M} filters")
-        L, active, frozen, chosen, ratio, out = rule_step(
-            self.L[None],
-            self.active[None],
-            self.frozen[None],
-            np.array([self.decided is None]),
-            loglik[None],
-            np.array([m > 0]),
-            self.lower,
-            self.upper,
-        )
+        state = (self.L[None], self.active[None], self.frozen[None], np.array([self.decided is None]))
+        L, active, frozen, chosen, ratio, out = rule_step(*state, loglik[None], np.array([m > 0]), self.lower, self.upper)
         self.L, self.active, self.frozen = L[0], active[0], frozen[0]
         decision = None
         if chosen[0] >= 0:
             i = self.decided = int(chosen[0])
             decision = acceptance(step, self.label, self.hypothesis_name(i), float(ratio[0, i]), self.upper)
-        ratio = out[0]
-        return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision)
+        return DetectorStep(
+            {"log_ratio": out[0], "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision
+        )
 
     def batch(self, runs: int) -> PairwiseSPRTBatch:
         """``runs`` copies of this test vectorized over the runs (each equal to a copy of this test)."""
