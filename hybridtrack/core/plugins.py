@@ -31,7 +31,7 @@ from __future__ import annotations
 import functools
 import os
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from importlib.metadata import entry_points
 
 import attrs
@@ -39,9 +39,9 @@ import pluggy
 
 from hybridtrack.core import hookspecs
 from hybridtrack.core.commands import Command, Commands
-from hybridtrack.core.components import Labelled, require
+from hybridtrack.core.components import require
 from hybridtrack.core.kinds import KINDS
-from hybridtrack.core.registry import Registry
+from hybridtrack.core.registry import Registry, registry_or_default
 
 ENTRY_POINT_GROUP = "hybridtrack"
 DISABLE_ENV = "HYBRIDTRACK_DISABLE_PLUGINS"
@@ -222,62 +222,19 @@ def reset() -> None:
     _default.cache_clear()
 
 
-def resolve_registry(registry: Registry | None) -> Registry:
-    """``registry``, or the default one when None."""
-    return get_registry() if registry is None else registry
+#: ``registry``, or the default one when None
+resolve_registry = registry_or_default
 
 
 def check_component(kind: str, name: str, component, registry: Registry | None = None):
-    """``component``, built by the factory registered as ``name`` of ``kind``, if it implements the kind's interface.
-
-    Otherwise a TypeError naming the component, the plugin and the
-    distribution that registered the factory, and what the object lacks.
-    """
-    try:
-        return require(component, KINDS[kind].interface, f"{kind} {name!r}")
-    except TypeError as error:
-        entry = resolve_registry(registry).entry(kind, name)
-        raise TypeError(
-            f"{error} (the factory of {kind} {name!r} registered by plugin {entry.plugin!r}"
-            f" (distribution {entry.distribution or 'none'}) returned a {type(component).__name__})"
-        ) from None
+    """``component`` if it implements the interface of ``kind`` (:meth:`Registry.check` on the default registry
+    when ``registry`` is None)."""
+    return resolve_registry(registry).check(kind, name, component)
 
 
 def resolve(kind: str, spec, registry: Registry | None = None):
-    """A component of ``kind`` from an object, a registered name, ``(name, parameters)`` or ``(name, parameters, label)``.
-
-    The object (given or built) must implement the interface of ``kind``
-    (:data:`hybridtrack.core.kinds.KINDS`); a wrong type is a TypeError
-    naming the interface, and a factory returning the wrong type names the
-    registered component, its plugin and distribution (:func:`check_component`).  A label (third item, or a ``"label"`` key in the
-    parameters) names the instance in a run (estimators and detectors).
-    """
-    if kind not in KINDS:
-        raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(KINDS)}")
-    base = KINDS[kind].interface
-    label = None
-    if not isinstance(spec, (str, tuple)):
-        return require(spec, base, kind)
-    if isinstance(spec, str):
-        name, parameters = spec, {}
-    elif (
-        isinstance(spec, tuple)
-        and len(spec) in (2, 3)
-        and isinstance(spec[0], str)
-        and isinstance(spec[1], Mapping)
-        and (len(spec) == 2 or isinstance(spec[2], str))
-    ):
-        name, parameters = spec[0], dict(spec[1])
-        label = spec[2] if len(spec) == 3 else None
-    else:
-        raise TypeError(
-            f"{kind}: expected a {base.__name__}, a registered name, (name, parameters) or (name, parameters, label), got {spec!r}"
-        )
-    label = parameters.pop("label", None) if label is None else label
-    registry = resolve_registry(registry)
-    component = check_component(kind, name, registry.create(kind, name, **parameters), registry)
-    if label is not None:
-        if not isinstance(component, Labelled):
-            raise ValueError(f"{kind} {name!r}: a label names estimators and detectors; {kind}s have none")
-        component.label = label
-    return component
+    """A component of ``kind`` from an object, a name, ``(name, parameters)`` or ``(name, parameters, label)``
+    (:meth:`Registry.resolve` on the default registry when ``registry`` is None)."""
+    if not isinstance(spec, (str, tuple)) and kind in KINDS:
+        return require(spec, KINDS[kind].interface, kind)  # an object needs no registry
+    return resolve_registry(registry).resolve(kind, spec)

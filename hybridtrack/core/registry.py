@@ -6,11 +6,13 @@ plugin and distribution that registered it (for ``hybridtrack plugins``).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import inspect
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import attrs
 
+from hybridtrack.core.components import Labelled, require
 from hybridtrack.core.kinds import KINDS
 
 
@@ -79,8 +81,66 @@ class Registry:
         return self.entry(kind, name).factory
 
     def create(self, kind: str, name: str, /, **parameters) -> Any:
-        """Build the component ``name`` of ``kind`` with ``parameters``."""
-        return self.get(kind, name)(**parameters)
+        """Build the component ``name`` of ``kind`` with ``parameters``.
+
+        A factory with a ``registry`` parameter (a component composed of other components, e.g. a detector
+        wrapping another one, an algorithm over a bank) is handed this registry unless ``parameters`` name one,
+        so the parts it resolves come from where it came from.
+        """
+        factory = self.get(kind, name)
+        if "registry" not in parameters and accepts_registry(factory):
+            parameters["registry"] = self
+        return factory(**parameters)
+
+    def check(self, kind: str, name: str, component) -> Any:
+        """``component``, built by the factory registered as ``name`` of ``kind``, if it implements the kind's
+        interface; otherwise a TypeError naming the component, the plugin and the distribution that registered
+        the factory, and what the object lacks."""
+        try:
+            return require(component, KINDS[kind].interface, f"{kind} {name!r}")
+        except TypeError as error:
+            entry = self.entry(kind, name)
+            raise TypeError(
+                f"{error} (the factory of {kind} {name!r} registered by plugin {entry.plugin!r}"
+                f" (distribution {entry.distribution or 'none'}) returned a {type(component).__name__})"
+            ) from None
+
+    def resolve(self, kind: str, spec) -> Any:
+        """A component of ``kind`` from an object, a registered name, ``(name, parameters)`` or ``(name, parameters, label)``.
+
+        The object (given or built) must implement the interface of ``kind``
+        (:data:`hybridtrack.core.kinds.KINDS`); a wrong type is a TypeError
+        naming the interface, and a factory returning the wrong type names the
+        registered component, its plugin and distribution (:meth:`check`).  A label (third item, or a
+        ``"label"`` key in the parameters) names the instance in a run (estimators and detectors).
+        """
+        if kind not in KINDS:
+            raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(KINDS)}")
+        base = KINDS[kind].interface
+        label = None
+        if not isinstance(spec, (str, tuple)):
+            return require(spec, base, kind)
+        if isinstance(spec, str):
+            name, parameters = spec, {}
+        elif (
+            len(spec) in (2, 3)
+            and isinstance(spec[0], str)
+            and isinstance(spec[1], Mapping)
+            and (len(spec) == 2 or isinstance(spec[2], str))
+        ):
+            name, parameters = spec[0], dict(spec[1])
+            label = spec[2] if len(spec) == 3 else None
+        else:
+            raise TypeError(
+                f"{kind}: expected a {base.__name__}, a registered name, (name, parameters) or (name, parameters, label), got {spec!r}"
+            )
+        label = parameters.pop("label", None) if label is None else label
+        component = self.check(kind, name, self.create(kind, name, **parameters))
+        if label is not None:
+            if not isinstance(component, Labelled):
+                raise ValueError(f"{kind} {name!r}: a label names estimators and detectors; {kind}s have none")
+            component.label = label
+        return component
 
     def names(self, kind: str) -> list[str]:
         return sorted(self._check_kind(kind))
@@ -92,6 +152,24 @@ class Registry:
         """A :class:`Registrar` adding entries of ``kind`` for ``plugin``; a class factory that does not
         implement the kind's interface is rejected at registration."""
         return Registrar(self, kind, plugin, distribution, version, on_error)
+
+
+def registry_or_default(registry: Registry | None) -> Registry:
+    """``registry``, or when None the default registry of the installed plugins (:func:`hybridtrack.get_registry`,
+    loaded on first use, so that a plugin importing the contract does not load the plugin system)."""
+    if registry is None:
+        import hybridtrack
+
+        return hybridtrack.get_registry()
+    return registry
+
+
+def accepts_registry(factory: Callable[..., Any]) -> bool:
+    """Whether ``factory`` takes a ``registry`` keyword (a composite component)."""
+    try:
+        return "registry" in inspect.signature(factory).parameters
+    except (TypeError, ValueError):  # a builtin or C callable without a signature
+        return False
 
 
 @attrs.define

@@ -102,3 +102,24 @@ def test_one_table_of_kinds_drives_hooks_registry_and_checks():
     for kind in KINDS.values():
         assert callable(getattr(hookspecs, kind.hook)), f"no hookspec {kind.hook} for kind {kind.name}"
     assert set(_CHECKS) == set(KINDS) and Registry().names("algorithm") == []
+
+
+def test_a_composite_component_resolves_its_parts_in_the_registry_it_came_from():
+    """Registry.create hands itself to a factory with a ``registry`` parameter: dynamic_threshold built from a
+    registry holding a private detector finds it there (the default registry does not know it)."""
+    from hybridtrack.core.plugins import get_registry
+    from hybridtrack_plugins.detectors.dynamic_threshold import DynamicThreshold
+    from hybridtrack_plugins.detectors.glr import GLR
+
+    class PrivateGLR(GLR):
+        name = "private_glr"
+
+    registry = Registry()
+    registry.add(Entry("detector", "private_glr", PrivateGLR, "test"))
+    registry.add(Entry("detector", "dynamic_threshold", DynamicThreshold, "test"))
+    wrapper = registry.resolve("detector", ("dynamic_threshold", {"detector": "private_glr"}))
+    assert type(wrapper.detector) is PrivateGLR
+    assert "private_glr" not in get_registry().names("detector")
+    with pytest.raises(KeyError, match="unknown detector 'private_glr'"):
+        DynamicThreshold(detector="private_glr")  # built directly: the default registry
+    assert type(DynamicThreshold(detector="private_glr", registry=registry).detector) is PrivateGLR

@@ -22,7 +22,7 @@ import numpy as np
 
 from hybridtrack.core.algorithm import Algorithm
 from hybridtrack.core.interfaces import TransitionBank
-from hybridtrack.core.plugins import resolve
+from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.types import Gaussian
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
@@ -50,7 +50,8 @@ class MostLikely(Algorithm):
     def __init__(
         self, *, modes: Sequence[Any], sensors, tau: float | None = None, estimator: Any = "kalman", name="most_likely", registry=None
     ):
-        self.models = [resolve("motion_model", mode, registry) for mode in modes]
+        registry = registry_or_default(registry)
+        self.models = [registry.resolve("motion_model", mode) for mode in modes]
         layouts = {model.layout for model in self.models}
         if len(layouts) != 1:
             raise ValueError(f"modes: a fixed bank needs one state layout, got {sorted(layouts)}")
@@ -58,7 +59,7 @@ class MostLikely(Algorithm):
         self.modes = tuple(model.name for model in self.models)
         self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
         self.tau, self.name = tau, name
-        self.estimator = resolve("estimator", estimator, registry)
+        self.estimator = registry.resolve("estimator", estimator)
 
     def run(self, measurements: Mapping[str, np.ndarray], prior, *, times=None, recorder=None) -> MostLikelyRun:
         prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
