@@ -180,14 +180,14 @@ def _multiple_model(cases: list[Case], method: str, models, **kwargs):
     same = all(c.times.shape == cases[0].times.shape and np.array_equal(c.times, cases[0].times) for c in cases)
     out = []
     if same and len(cases) > 1:
-        z = np.stack([c.z for c in cases], axis=1)
+        z = np.stack([c.z for c in cases])
         means = np.stack([c.prior[0] for c in cases])
         covs = np.stack([c.prior[1] for c in cases])
         start = time.perf_counter()
-        run = est.run({"position": z}, (means, covs), times=cases[0].times)
+        runs = est.run_batch({"position": z}, (means, covs), times=cases[0].times)
         seconds = (time.perf_counter() - start) / len(cases)
-        for r in range(len(cases)):
-            out.append((run.means[:, r][:, POS], run.log_mode_probabilities[:, r], seconds))
+        for run in runs:
+            out.append((run.means[:, POS], run.log_mode_probabilities, seconds))
     else:
         for c in cases:
             start = time.perf_counter()

@@ -29,11 +29,12 @@ from hybridtrack.core.interfaces import (
     Solver,
     TransitionBank,
 )
-from hybridtrack.core.plugins import get_registry, load_plugins
 from hybridtrack.core.types import SEED001_TABLE1, Decision, Gaussian, Measurement, Schedule, Segment
 
 #: name → module of the names imported on first use (PEP 562)
 LAZY = {
+    "get_registry": "hybridtrack.core.plugins",
+    "load_plugins": "hybridtrack.core.plugins",
     "Pipeline": "hybridtrack.engine.pipeline",
     "simulate": "hybridtrack.engine.simulate",
     "simulate_trajectory": "hybridtrack.engine.simulate",
@@ -86,7 +87,5 @@ __all__ = [  # noqa: F822  (the LAZY names resolve through __getattr__)
     "Solver",
     "TransitionBank",
     "__version__",
-    "get_registry",
     "hookimpl",
-    "load_plugins",
 ]

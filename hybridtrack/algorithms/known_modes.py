@@ -21,6 +21,7 @@ from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Gaussian
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch_inputs import batch_measurements, batch_prior, batch_times, run_groups
+from hybridtrack.engine.pipeline import mode_label
 from hybridtrack.engine.results import RunResult
 from hybridtrack.engine.simulate import build_models
 from hybridtrack.sdk.network import SensorNetwork
@@ -91,8 +92,6 @@ def run_known_modes_batch(
     layout = models[0].layout
     x0, P0 = batch_prior(prior, R, len(layout))
     filters = resolve("estimator", estimator, registry)
-    from hybridtrack.engine.pipeline import mode_label  # here: engine.pipeline still imports hybridtrack.recording
-
     labels = [mode_label(m) for m in models]
     modes = tuple(dict.fromkeys(labels))
     mode = np.concatenate([[modes.index(labels[0])]] + [np.full(s.steps, modes.index(x)) for x, s in zip(labels, schedule.segments)])

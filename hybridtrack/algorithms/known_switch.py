@@ -25,13 +25,16 @@ import numpy as np
 
 from hybridtrack.algorithms.mode_sets import resolve_modes, turn_bank
 from hybridtrack.algorithms.switch_state import SwitchAugmented, augmented_layout, augmented_prior
-from hybridtrack.core.interfaces import Estimator, HypothesisTest, HypothesisTestBatch, Sensor, require
+from hybridtrack.core.components import require
+from hybridtrack.core.interfaces import Estimator, Sensor
 from hybridtrack.core.plugins import resolve, resolve_registry
+from hybridtrack.core.protocols import HypothesisTest, HypothesisTestBatch
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Schedule
 from hybridtrack.core.validation import check_positive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch_inputs import batch_measurements, batch_prior, batch_times, check_recorders, per_run, run_groups
+from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.mixtures import mixture
 from hybridtrack.sdk.network import SensorNetwork
@@ -166,8 +169,6 @@ class KnownSwitchAdaptive:
         self.switch_inflation = check_positive(switch_inflation, "switch_inflation")
         registry = resolve_registry(registry)
         self.models = resolve_modes(modes if modes is not None else turn_bank(r_min, r_max, n, noise_cov), registry)
-        from hybridtrack.engine.pipeline import mode_labels  # here: engine.pipeline still imports hybridtrack.recording
-
         self.hypotheses = mode_labels(self.models)
         self.layout = self.models[0].layout
         joint = switch_estimate == "joint"

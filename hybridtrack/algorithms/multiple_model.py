@@ -58,8 +58,8 @@ The outputs (means, covariances, each model's estimate) are in the union layout.
 
 The filters of one layout form one bank of the inner estimator, so a step is
 one ``initialize``/``predict``/``update`` per distinct layout over every
-model (and every run when the inputs are stacked: prior (R, n),
-measurements (K+1, R, m)).  The inner estimator is re-initialized from the
+model and every run (R runs: prior (R, n), measurements (R, K+1, m); one
+run is the batch of one).  The inner estimator is re-initialized from the
 mixed (x̂_0j, P_0j) at every step: a mixture of Gaussians has no factor form
 to carry over, so a square-root estimator starts each step from a fresh
 factor of P_0j.
@@ -81,64 +81,17 @@ import numpy as np
 from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor, TransitionBank
 from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.registry import Registry
-from hybridtrack.core.types import Gaussian
-from hybridtrack.core.validation import as_float_array, check_covariance, check_positive
+from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.engine.bank import grouped_transitions
-from hybridtrack.engine.pipeline import mode_label
-from hybridtrack.recording import log_estimate, log_measurements
+from hybridtrack.engine.results import RunResult
+from hybridtrack.sdk.mixtures import logsumexp, mixture
 from hybridtrack.sdk.network import SensorNetwork
-from hybridtrack.sdk.timestamps import check_tau, step_intervals
+from hybridtrack.sdk.timestamps import check_tau
 
 METHODS = ("imm", "gpb1", "gpb2")
 
 
-# --------------------------------------------------------------------------- log-space helpers
-
-
-def log_sum_exp(values: np.ndarray, axis: int) -> np.ndarray:
-    """ln Σ exp(values) along ``axis``, −∞ for an all −∞ slice, without overflow or underflow."""
-    top = np.max(values, axis=axis, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
-    with np.errstate(divide="ignore"):
-        return np.squeeze(top, axis) + np.log(np.sum(np.exp(values - top), axis=axis))
-
-
-def normalized_weights(log_weights: np.ndarray, axis: int) -> np.ndarray:
-    """exp(log_weights) normalized along ``axis``; an all −∞ slice (weight zero) gets equal weights.
-
-    The equal weights only fill a slice whose result carries probability zero
-    (e.g. the mixed estimate of a mode no mode can switch into), so any finite
-    choice is exact.
-    """
-    top = np.max(log_weights, axis=axis, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
-    w = np.exp(log_weights - top)
-    total = np.sum(w, axis=axis, keepdims=True)
-    return np.where(total > 0, w / np.where(total > 0, total, 1.0), 1.0 / log_weights.shape[axis])
-
-
-def moment_match(weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """x̄ = Σ_i w_i x_i, P̄ = Σ_i w_i (P_i + (x_i − x̄)(x_i − x̄)ᵀ) over axis −2 of ``weights`` (..., I, J).
-
-    means (..., I, n), covs (..., I, n, n) → (..., J, n), (..., J, n, n): one
-    merged Gaussian per column j (BLK 2001 eq. 11.6.6-9 and 11.6.6-10).
-    """
-    mean = np.einsum("...ij,...in->...jn", weights, means)
-    d = means[..., :, None, :] - mean[..., None, :, :]
-    cov = np.einsum("...ij,...inm->...jnm", weights, covs) + np.einsum("...ij,...ijn,...ijm->...jnm", weights, d, d)
-    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
-
-
-def merge_pairs(weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """GPB2's merge per column j: x̄_j = Σ_i w_ij x_ij, P̄_j = Σ_i w_ij (P_ij + (x_ij − x̄_j)(x_ij − x̄_j)ᵀ).
-
-    weights (..., I, J), means (..., I, J, n), covs (..., I, J, n, n) → (..., J, n), (..., J, n, n)
-    (BLK 2001 §11.6.5).
-    """
-    mean = np.einsum("...ij,...ijn->...jn", weights, means)
-    d = means - mean[..., None, :, :]
-    cov = np.einsum("...ij,...ijnm->...jnm", weights, covs) + np.einsum("...ij,...ijn,...ijm->...jnm", weights, d, d)
-    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+# --------------------------------------------------------------------------- Markov chain and layouts
 
 
 def union_layout(layouts: Sequence[Sequence[str]]) -> tuple[str, ...]:
@@ -219,23 +172,17 @@ class MultipleModelState:
         return np.exp(self.log_mode_probabilities)
 
 
-@attrs.frozen(eq=False)
-class MultipleModelRun:
-    """A multiple-model run over steps 0 … K.
+@attrs.frozen(eq=False, kw_only=True)
+class MultipleModelRun(RunResult):
+    """A multiple-model run over steps 0 … K: the :class:`~hybridtrack.engine.results.RunResult` in the union
+    ``layout``, ``modes`` the model labels, ``mode`` (K+1,) the most probable model argmax_j μ_j per step, and
 
-    Single run: ``means`` (K+1, n), ``covs`` (K+1, n, n), ``log_mode_probabilities``
-    (K+1, r), ``model_means`` (K+1, r, n), ``model_covs`` (K+1, r, n, n),
-    ``model_loglik`` (K+1, r), ``loglik`` (K+1,).  Stacked runs put the run
-    axis R after the step axis ((K+1, R, n), (K+1, R, r), …).  ``layout`` is
-    the union layout, ``modes`` the model labels.
+    ``method`` (imm, gpb1, gpb2), ``log_mode_probabilities`` (K+1, r) ln μ_j, each model's ``model_means``
+    (K+1, r, n), ``model_covs`` (K+1, r, n, n) and ``model_loglik`` (K+1, r) ln Λ_j, the mixture's ``loglik``
+    (K+1,) ln p(z_k | Z_{k−1}) (as on :class:`MultipleModelState`).
     """
 
-    layout: tuple[str, ...]
-    modes: tuple[str, ...]
     method: str
-    times: np.ndarray
-    means: np.ndarray
-    covs: np.ndarray
     log_mode_probabilities: np.ndarray
     model_means: np.ndarray
     model_covs: np.ndarray
@@ -244,17 +191,8 @@ class MultipleModelRun:
 
     @property
     def mode_probabilities(self) -> np.ndarray:
-        """μ_j per step (K+1, r) (or (K+1, R, r))."""
+        """μ_j per step (K+1, r)."""
         return np.exp(self.log_mode_probabilities)
-
-    @property
-    def most_probable(self) -> np.ndarray:
-        """argmax_j μ_j per step (K+1,) (or (K+1, R)), an index into ``modes``."""
-        return np.argmax(self.log_mode_probabilities, axis=-1)
-
-
-#: the per-step fields of a :class:`MultipleModelRun` after ``times``, as named on :class:`MultipleModelState`
-RUN_FIELDS = ("mean", "cov", "log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik")
 
 
 # --------------------------------------------------------------------------- the estimator
@@ -299,11 +237,14 @@ class MultipleModelEstimator:
         r = len(self.models)
         if r == 0:
             raise ValueError("models: expected at least one motion model, got an empty sequence")
+        from hybridtrack.engine.pipeline import mode_label  # in the call: engine.pipeline still imports the recording layer
+
         labels = [mode_label(m) for m in self.models]
         self.modes = tuple(x if labels.count(x) == 1 else f"{x}_{i}" for i, x in enumerate(labels))
         if (transition_matrix is None) == (sojourn is None):
             raise ValueError("transition_matrix, sojourn: give exactly one (Π of shape (r, r), or the mean sojourn time in seconds)")
-        self._matrix = None if transition_matrix is None else markov_matrix(transition_matrix, r)
+        with np.errstate(divide="ignore"):
+            self._log_matrix = None if transition_matrix is None else np.log(markov_matrix(transition_matrix, r))
         self._sojourn = None
         if sojourn is not None:
             values = np.broadcast_to(np.asarray(sojourn, dtype=float), (r,)) if np.ndim(sojourn) == 0 else np.asarray(sojourn, float)
@@ -316,18 +257,9 @@ class MultipleModelEstimator:
         self.estimator: Estimator = resolve("estimator", estimator, registry)
         self.name = name or method
         self.layout = union_layout([m.layout for m in self.models])
-        n = len(self.layout)
         self._positions = [np.array([self.layout.index(c) for c in m.layout]) for m in self.models]
-        fill_mean = self._per_component(missing_mean, "missing_mean", positive=False)
-        fill_var = self._per_component(missing_variance, "missing_variance", positive=True)
-        self._missing_mean, self._missing_var = fill_mean, fill_var
-        # each model's expansion to the union layout: fill mean and variance on the components it lacks
-        self._fill_mean = np.zeros((r, n))
-        self._fill_var = np.zeros((r, n))
-        for j, pos in enumerate(self._positions):
-            lacking = np.setdiff1d(np.arange(n), pos)
-            self._fill_mean[j, lacking] = fill_mean[lacking]
-            self._fill_var[j, lacking] = fill_var[lacking]
+        self._missing_mean = self._per_component(missing_mean, "missing_mean", positive=False)
+        self._missing_var = self._per_component(missing_variance, "missing_variance", positive=True)
         groups: dict[tuple[str, ...], list[int]] = {}
         for j, m in enumerate(self.models):
             groups.setdefault(tuple(m.layout), []).append(j)
@@ -350,47 +282,32 @@ class MultipleModelEstimator:
         return out
 
     # ------------------------------------------------------------------ Markov chain
-    def log_transition_matrix(self, dt: float | None) -> np.ndarray:
-        """ln Π for a step of ``dt`` seconds (−∞ for a forbidden switch)."""
-        if self._matrix is not None:
-            key = -1.0
-            matrix = self._matrix
-        else:
-            key = float(dt)
-            matrix = None if key in self._log_matrices else sojourn_matrix(self._sojourn, key)
-        if key not in self._log_matrices:
-            with np.errstate(divide="ignore"):
-                self._log_matrices[key] = np.log(matrix)
-        return self._log_matrices[key]
-
-    def log_transition_matrices(self, dt) -> np.ndarray:
-        """ln Π(Δt_r) for steps ``dt`` (R,) → (R, r, r); the Δt not seen before are computed in one expm call."""
-        if self._matrix is not None:
-            return np.broadcast_to(self.log_transition_matrix(None), (len(dt),) + self._matrix.shape)
-        keys = [float(d) for d in dt]
+    def log_transition_matrix(self, dt) -> np.ndarray:
+        """ln Π (−∞ for a forbidden switch) for one step of ``dt`` seconds (→ (r, r)) or steps (R,) (→ (R, r, r));
+        the Δt not seen before are computed in one expm call."""
+        steps = np.asarray(dt, dtype=float)
+        if self._log_matrix is not None:
+            return np.broadcast_to(self._log_matrix, steps.shape + self._log_matrix.shape)
+        keys = [float(d) for d in steps.reshape(-1)]
         new = sorted({key for key in keys if key not in self._log_matrices})
         if new:
             with np.errstate(divide="ignore"):
-                for key, matrix in zip(new, np.log(sojourn_matrix(self._sojourn, np.array(new)))):
-                    self._log_matrices[key] = matrix
-        return np.stack([self._log_matrices[key] for key in keys])
+                self._log_matrices.update(zip(new, np.log(sojourn_matrix(self._sojourn, np.array(new)))))
+        r = len(self.models)
+        return np.stack([self._log_matrices[key] for key in keys]).reshape(steps.shape + (r, r))
 
     # ------------------------------------------------------------------ layouts
-    def expand(self, means: np.ndarray, covs: np.ndarray, model: int) -> tuple[np.ndarray, np.ndarray]:
-        """Model ``model``'s (…, n_j) means and covariances in the union layout, lacking components filled."""
-        pos = self._positions[model]
-        x = np.broadcast_to(self._fill_mean[model], means.shape[:-1] + (len(self.layout),)).copy()
-        x[..., pos] = means
-        P = np.zeros(covs.shape[:-2] + (len(self.layout),) * 2)
-        diag = np.arange(len(self.layout))
-        P[..., diag, diag] = self._fill_var[model]
-        P[..., pos[:, None], pos[None, :]] = covs
+    def expand(self, means: np.ndarray, covs: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(…, n_j) means and covariances of the union-layout components at ``positions`` in the union layout; each
+        component they lack at ``missing_mean`` with variance ``missing_variance``, uncorrelated with the rest."""
+        n = len(self.layout)
+        lacking = np.setdiff1d(np.arange(n), positions)
+        x = np.broadcast_to(self._missing_mean, means.shape[:-1] + (n,)).copy()
+        x[..., positions] = means
+        P = np.zeros(covs.shape[:-2] + (n, n))
+        P[..., lacking, lacking] = self._missing_var[lacking]
+        P[..., positions[:, None], positions[None, :]] = covs
         return x, P
-
-    def project(self, means: np.ndarray, covs: np.ndarray, model: int) -> tuple[np.ndarray, np.ndarray]:
-        """Union-layout means and covariances restricted to model ``model``'s components (the Gaussian marginal)."""
-        pos = self._positions[model]
-        return means[..., pos], covs[..., pos[:, None], pos[None, :]]
 
     # ------------------------------------------------------------------ the parts
     def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
@@ -440,8 +357,7 @@ class MultipleModelEstimator:
             x = np.asarray(self.estimator.mean(state), dtype=float).reshape(R, rows.size, pos.size)
             P = np.asarray(self.estimator.covariance(state), dtype=float).reshape(R, rows.size, pos.size, pos.size)
             P = 0.5 * (P + np.swapaxes(P, -1, -2))
-            model = members[0]  # one layout: the same expansion for every member
-            means[:, rows], covs[:, rows] = self.expand(x, P, model)
+            means[:, rows], covs[:, rows] = self.expand(x, P, pos)  # one layout: the same expansion for every member
             loglik[:, rows] = np.asarray(innovation.loglik, dtype=float).reshape(R, rows.size)
         return means, covs, loglik
 
@@ -455,9 +371,8 @@ class MultipleModelEstimator:
         return bank
 
     def _combine(self, model_means, model_covs, log_mu, model_loglik, loglik) -> MultipleModelState:
-        mu = normalized_weights(log_mu, axis=-1)
-        mean, cov = moment_match(mu[..., None], model_means, model_covs)
-        return MultipleModelState(model_means, model_covs, log_mu, mean[:, 0], cov[:, 0], model_loglik, loglik)
+        mean, cov = mixture(log_mu, model_means, model_covs)
+        return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, loglik)
 
     # ------------------------------------------------------------------ steps
     def start(self, prior_mean, prior_cov, z0, mode_probabilities=None, prior_layout: Sequence[str] | None = None) -> MultipleModelState:
@@ -467,7 +382,7 @@ class MultipleModelEstimator:
         cov = np.asarray(prior_cov, dtype=float)
         R = mean.shape[0]
         layout = self._prior_layout(mean.shape[-1], prior_layout)
-        x, P = self._prior_in_union(mean, cov, layout)
+        x, P = self.expand(mean, cov, np.array([self.layout.index(c) for c in layout]))
         if mode_probabilities is None:
             log_mu0 = np.full(r, -np.log(r))
         else:
@@ -480,20 +395,17 @@ class MultipleModelEstimator:
         starts_P = np.broadcast_to(P[:, None], (R, r) + P.shape[-2:])
         means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), None, z0)
         joint = ell + log_mu0
-        total = log_sum_exp(joint, axis=-1)
+        total = logsumexp(joint, axis=-1)
         return self._combine(means, covs, joint - total[:, None], ell, total)
 
     def step(self, state: MultipleModelState, z: np.ndarray, dt) -> MultipleModelState:
         """One step k ≥ 1 over Δt = ``dt`` (seconds, one for all runs or (R,) per run) with measurements z (R, Σm)
         (NaN: not measured)."""
         r = len(self.models)
-        if np.ndim(dt) == 0:
-            log_pi = self.log_transition_matrix(float(dt))[None]
-        else:
-            log_pi = self.log_transition_matrices(dt)  # ln Π(Δt_r) per run, (R, r, r)
+        log_pi = self.log_transition_matrix(dt if np.ndim(dt) else [dt])  # ln Π(Δt_r): (1, r, r) shared or (R, r, r)
         log_mu = state.log_mode_probabilities
         joint_prior = log_pi + log_mu[:, :, None]  # ln π_ij μ_i, (R, i, j)
-        log_cbar = log_sum_exp(joint_prior, axis=1)  # ln c̄_j (R, j)
+        log_cbar = logsumexp(joint_prior, axis=1)  # ln c̄_j (R, j)
         if self.method == "gpb2":
             R, n = state.mean.shape
             starts_x = np.repeat(state.model_means, r, axis=1)  # filter (i, j) at row i·r + j starts from model i
@@ -501,23 +413,25 @@ class MultipleModelEstimator:
             x, P, ell = self._filter(starts_x, starts_P, np.tile(np.arange(r), r), dt, z)
             ell = ell.reshape(R, r, r)
             joint = joint_prior + ell  # ln π_ij μ_i Λ_ij
-            log_mu_j = log_sum_exp(joint, axis=1)
-            w = normalized_weights(joint, axis=1)  # μ_{ij} / μ_j over i
-            means, covs = merge_pairs(w, x.reshape(R, r, r, n), P.reshape(R, r, r, n, n))
+            log_mu_j = logsumexp(joint, axis=1)
+            # model j merges its filters (i, j) with weights μ_ij / μ_j over i
+            means, covs = mixture(
+                np.swapaxes(joint, 1, 2), np.swapaxes(x.reshape(R, r, r, n), 1, 2), np.swapaxes(P.reshape(R, r, r, n, n), 1, 2)
+            )
             model_ell = log_mu_j - log_cbar
             model_ell = np.where(np.isfinite(log_cbar), model_ell, 0.0)
-            total = log_sum_exp(log_mu_j, axis=-1)
+            total = logsumexp(log_mu_j, axis=-1)
             return self._combine(means, covs, log_mu_j - total[:, None], model_ell, total)
         if self.method == "imm":
-            w = normalized_weights(joint_prior, axis=1)  # μ_{i|j}
-            starts_x, starts_P = moment_match(w, state.model_means, state.model_covs)
+            # model j starts from the mixture of the models i with μ_{i|j} ∝ π_ij μ_i
+            starts_x, starts_P = mixture(np.swapaxes(joint_prior, 1, 2), state.model_means[:, None], state.model_covs[:, None])
         else:  # gpb1: every filter starts from the merged estimate
             R = log_mu.shape[0]
             starts_x = np.broadcast_to(state.mean[:, None], (R, r) + state.mean.shape[-1:])
             starts_P = np.broadcast_to(state.cov[:, None], (R, r) + state.cov.shape[-2:])
         means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), dt, z)
         joint = ell + log_cbar
-        total = log_sum_exp(joint, axis=-1)
+        total = logsumexp(joint, axis=-1)
         return self._combine(means, covs, joint - total[:, None], ell, total)
 
     def _prior_layout(self, n: int, prior_layout) -> tuple[str, ...]:
@@ -536,17 +450,6 @@ class MultipleModelEstimator:
                 return tuple(m.layout)
         raise ValueError(f"prior: mean of {n} components matches neither the union layout {self.layout} nor a model's layout")
 
-    def _prior_in_union(self, mean, cov, layout) -> tuple[np.ndarray, np.ndarray]:
-        n = len(self.layout)
-        pos = np.array([self.layout.index(c) for c in layout])
-        lacking = np.setdiff1d(np.arange(n), pos)
-        x = np.broadcast_to(self._missing_mean, mean.shape[:-1] + (n,)).copy()
-        x[..., pos] = mean
-        P = np.zeros(cov.shape[:-2] + (n, n))
-        P[..., lacking, lacking] = self._missing_var[lacking]  # components the prior lacks: missing_mean, missing_variance
-        P[..., pos[:, None], pos[None, :]] = cov
-        return x, P
-
     # ------------------------------------------------------------------ the run
     def run(
         self,
@@ -559,31 +462,13 @@ class MultipleModelEstimator:
         recorder=None,
         truth=None,
     ) -> MultipleModelRun:
-        """The estimator over measurements of steps 0 … K at ``times`` (seconds; default 0, τ, 2τ, …).
-
-        ``measurements``: sensor name → (K+1, m) for one run, or (K+1, R, m)
-        for R runs at once (then ``prior`` has a mean (R, n) and covariances
-        (R, n, n), or one shared prior).  ``prior``: a Gaussian or (mean, cov)
-        in the union layout or a model's layout (``prior_layout`` names it when
-        ambiguous).  ``mode_probabilities``: μ_0 (r,), default uniform.
-        ``recorder`` (single run): the estimate, one ``mode_probability``
-        series per model, the most probable mode and the measurements.
-        """
-        z, stacked = self._stack(measurements)
-        K = z.shape[0] - 1
-        t, dt = step_intervals(times, self.tau, K + 1)
-        states = self._states(z, prior, [float(d) for d in dt], mode_probabilities, prior_layout)
-
-        def series(field):
-            out = np.stack([getattr(s, field) for s in states])
-            return out if stacked else out[:, 0]
-
-        run = MultipleModelRun(self.layout, self.modes, self.method, t, *(series(field) for field in RUN_FIELDS))
-        if recorder is not None:
-            if stacked:
-                raise ValueError("recorder: a recording holds one run; record the runs one at a time")
-            self._record(recorder, z[:, 0], run, truth)
-        return run
+        """One run: :meth:`run_batch` of one, ``measurements`` sensor name → (K+1, m) at ``times`` (K+1,)
+        (seconds; default 0, τ, 2τ, …); ``recorder`` gets the finished run (``recorder.log_result``)."""
+        one = {name: np.asarray(value, dtype=float)[None] for name, value in measurements.items()}
+        recorders = None if recorder is None else [recorder]
+        return self.run_batch(
+            one, prior, times=times, truth=[truth], recorders=recorders, mode_probabilities=mode_probabilities, prior_layout=prior_layout
+        )[0]
 
     def run_batch(
         self,
@@ -592,82 +477,55 @@ class MultipleModelEstimator:
         *,
         times=None,
         truth=None,
-        recorders: Mapping[int, Any] | None = None,
+        recorders=None,
         mode_probabilities=None,
         prior_layout: Sequence[str] | None = None,
     ) -> list[MultipleModelRun]:
-        """R runs vectorized over runs × models, one :class:`MultipleModelRun` per run, equal to :meth:`run` of each.
+        """R runs vectorized over runs × models, one :class:`MultipleModelRun` per run.
 
         ``measurements``: sensor name → (R, K+1, m) (NaN: not measured; runs may
         miss different components); ``times``: (K+1,) shared or (R, K+1) per run
-        (irregular), default ``tau``; ``prior``: one Gaussian or per-run means
-        (R, n) and covariances (R, n, n); ``truth``: per-run trajectories (a
-        sequence of R or run → trajectory) recorded beside the estimates;
-        ``recorders``: run index → recorder for the runs to record.
+        (irregular), default ``tau``; ``prior``: a Gaussian or (mean, cov) shared,
+        or per-run means (R, n) and covariances (R, n, n), in the union layout or
+        a model's layout (``prior_layout`` names it when ambiguous);
+        ``mode_probabilities``: μ_0 (r,), default uniform; ``truth``: per-run
+        trajectories (a sequence of R or run → trajectory) recorded beside the
+        estimates; ``recorders``: run index → recorder (or a sequence of R) for
+        the runs to record, each handed its finished run (``recorder.log_result``:
+        the estimate, one ``mode_probability`` series per model, the most
+        probable mode, the measurements).
         """
-        from hybridtrack.engine.batch import batch_measurements, batch_times, per_run
+        from hybridtrack.engine.batch import batch_measurements, batch_priors, batch_times, per_run  # as mode_label
 
         arrays, R, steps = batch_measurements(measurements)
         T, DT = batch_times(times, self.tau, R, steps)
-        truths = per_run(truth, R, "truth")
-        recorders = dict(recorders or {})
-        per_run(recorders, R, "recorders")
-        z, _ = self._stack({name: np.swapaxes(a, 0, 1) for name, a in arrays.items()})
+        truths, recorders = per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
+        z = self.network.stack({name: a.reshape(R * steps, a.shape[-1]) for name, a in arrays.items()}).reshape(R, steps, -1)
+        priors = batch_priors(prior, R)
+        mean, cov = np.stack([p.mean for p in priors]), np.stack([p.cov for p in priors])
+        states = [self.start(mean, cov, z[:, 0], mode_probabilities, prior_layout)]
         same = bool((DT == DT[:1]).all())
-        dts = [float(DT[0, k]) if same else np.array(DT[:, k]) for k in range(steps - 1)]
-        states = self._states(z, prior, dts, mode_probabilities, prior_layout)
-        stacked = {field: np.stack([getattr(s, field) for s in states]) for field in RUN_FIELDS}
+        for k in range(1, steps):
+            states.append(self.step(states[-1], z[:, k], float(DT[0, k - 1]) if same else np.array(DT[:, k - 1])))
+        field = {name: np.stack([getattr(s, name) for s in states], axis=1) for name in attrs.fields_dict(MultipleModelState)}
+        own = ("log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik")
         runs = []
         for r in range(R):
             t = np.array(T[r])
             t.setflags(write=False)
-            runs.append(MultipleModelRun(self.layout, self.modes, self.method, t, *(stacked[f][:, r] for f in RUN_FIELDS)))
-        for r, recorder in recorders.items():
-            self._record(recorder, z[:, r], runs[r], truths[r])
+            mode = np.argmax(field["log_mode_probabilities"][r], axis=-1)
+            run = MultipleModelRun(
+                layout=self.layout,
+                modes=self.modes,
+                times=t,
+                means=field["mean"][r],
+                covs=field["cov"][r],
+                mode=mode,
+                method=self.method,
+                **{name: field[name][r] for name in own},
+            )
+            runs.append(run)
+            if recorders[r] is not None:
+                measured = self.network.split(z[r])
+                recorders[r].log_result(run, name=self.name, sensors=self.network.sensors, measurements=measured, truth=truths[r])
         return runs
-
-    def _states(self, z, prior, dts, mode_probabilities, prior_layout) -> list[MultipleModelState]:
-        """The state after each step of z (K+1, R, Σm): start, then one step per Δt of ``dts`` (a float or (R,))."""
-        R = z.shape[1]
-        mean, cov = (prior.mean, prior.cov) if isinstance(prior, Gaussian) else prior
-        mean, cov = np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
-        if mean.ndim == 1:
-            g = Gaussian(mean, cov)
-            mean, cov = np.broadcast_to(g.mean, (R,) + g.mean.shape), np.broadcast_to(g.cov, (R,) + g.cov.shape)
-        else:
-            mean = as_float_array(mean, "prior mean", (R, None))
-            cov = as_float_array(cov, "prior cov", (R, mean.shape[1], mean.shape[1]))
-            for i in range(R):
-                check_covariance(cov[i], f"prior cov[{i}]", mean.shape[1])
-        states = [self.start(mean, cov, z[0], mode_probabilities, prior_layout)]
-        for k, dt in enumerate(dts, start=1):
-            states.append(self.step(states[-1], z[k], dt))
-        return states
-
-    def _stack(self, measurements: Mapping[str, np.ndarray]) -> tuple[np.ndarray, bool]:
-        """z (K+1, R, Σm) and whether the runs were stacked (measurements (K+1, R, m))."""
-        arrays = {name: np.asarray(value, dtype=float) for name, value in measurements.items()}
-        dims = {a.ndim for a in arrays.values()}
-        if dims == {3}:
-            shapes = {a.shape[:2] for a in arrays.values()}
-            if len(shapes) != 1:
-                raise ValueError(f"measurements: stacked runs need one (K+1, R) for every sensor, got {sorted(shapes)}")
-            steps, R = shapes.pop()
-            flat = self.network.stack({name: a.reshape(steps * R, a.shape[-1]) for name, a in arrays.items()})
-            return flat.reshape(steps, R, -1), True
-        if dims - {2}:
-            raise ValueError(f"measurements: expected arrays (K+1, m) for one run or (K+1, R, m) for R runs, got ndim {sorted(dims)}")
-        return self.network.stack(arrays)[:, None, :], False
-
-    def _record(self, recorder, z: np.ndarray, run: MultipleModelRun, truth) -> None:
-        steps = np.arange(run.means.shape[0])
-        times = run.times
-        if truth is not None:
-            recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
-        log_measurements(recorder, self.network.sensors, self.network.split(z), steps, times)
-        position = [self.layout.index("x"), self.layout.index("y")]
-        log_estimate(recorder, self.name, steps, run.means, run.covs, position, times)
-        for j, mode in enumerate(self.modes):
-            recorder.log_scalars(f"estimator/{self.name}/mode_probability/{mode}", steps, run.mode_probabilities[:, j], times)
-        recorder.log_scalars(f"estimator/{self.name}/mode", steps, run.most_probable.astype(float), times)
-        recorder.log_modes(f"world/estimate/{self.name}", steps, run.most_probable, self.modes, times)

@@ -32,12 +32,15 @@ import numpy as np
 
 from hybridtrack.algorithms.algorithm4 import algorithm4_bank_size, wald_pair
 from hybridtrack.algorithms.mode_sets import resolve_modes
-from hybridtrack.core.interfaces import ChangeTimeTest, Estimator, ScoreDetector, Sensor, require
+from hybridtrack.core.components import require
+from hybridtrack.core.interfaces import Estimator, Sensor
 from hybridtrack.core.plugins import resolve, resolve_registry
+from hybridtrack.core.protocols import ChangeTimeTest, ScoreDetector
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch_inputs import batch_measurements, batch_prior, batch_times, check_recorders, per_run, run_groups
+from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import check_tau
@@ -81,12 +84,12 @@ class UnknownChangeRun(RunResult):
 
 
 def _entries(test, r: int) -> tuple[np.ndarray, np.ndarray]:
-    """(alternative p, ln ψ) of run ``r``'s entries in a change-time test batch (its copy's, for the looped default)."""
-    copies = getattr(test, "copies", None)
-    if copies is not None:
-        return np.asarray(copies[r].modes), np.asarray(copies[r].log_psi)
-    mine = test.run == r
-    return test.modes[mine], test.log_psi[mine]
+    """(alternative p, ln ψ) of run ``r``'s entries in a change-time test batch: the flat arrays of a vectorized
+    batch (``sprt_unknown_change``), else run r's copy's."""
+    if hasattr(test, "log_psi"):
+        mine = test.run == r
+        return test.modes[mine], test.log_psi[mine]
+    return np.asarray(test.copies[r].modes), np.asarray(test.copies[r].log_psi)
 
 
 class UnknownChangeAdaptive:
@@ -127,8 +130,6 @@ class UnknownChangeAdaptive:
         self.models = resolve_modes(modes, registry)
         if len(self.models) < 2:
             raise ValueError(f"modes: a change needs at least two modes, got {len(self.models)}")
-        from hybridtrack.engine.pipeline import mode_labels  # here: engine.pipeline still imports hybridtrack.recording
-
         self.labels = mode_labels(self.models)
         self.layout = self.models[0].layout
         if isinstance(initial_mode, bool) or not isinstance(initial_mode, (int, np.integer)) or not 0 <= initial_mode < len(self.models):

@@ -19,14 +19,14 @@ Mode names are the motion models' registry names (``straight``,
 ``left_turn``, ``right_turn``, ``stop``, and ``acceleration`` for
 ``constant_acceleration``); ``radius`` is the turn radius in metres of the
 model followed (None off turns).  **Segments** come from the per-step mode —
-the mode *followed* by the unknown-change estimator (its filter 0), or the
-*most probable* model argmax_j μ_j of the IMM — with consecutive steps of the
-same (mode, radius) merged; a segment runs from the time of its first step to
-the time of the next segment's first step (the last one to the last report).
-**Decisions** are the detector's decisions (time of the step, the mode it
-chose; a "no change" decision names the current mode) for ``unknown_change``,
-and the steps where the most probable model changes for ``imm`` (which has no
-detector).
+the mode *followed* by the algorithm (``mode`` of its result: the unknown-change
+estimator's filter 0), or the *most probable* model argmax_j μ_j of the IMM —
+with consecutive steps of the same (mode, radius) merged; a segment runs from
+the time of its first step to the time of the next segment's first step (the
+last one to the last report).  **Decisions** are the detector's decisions
+(time of the step, the mode it chose; a "no change" decision names the current
+mode) for an algorithm with a detector (``unknown_change``), else the steps
+where the followed or most probable mode changes (``imm``, which has none).
 
 Configuration (TOML; unknown keys and tables are refused)::
 
@@ -59,7 +59,8 @@ Configuration (TOML; unknown keys and tables are refused)::
     velocity_sigma = 10.0     # m/s
 
     [estimator]
-    kind = "unknown_change"   # or "imm"
+    algorithm = "unknown_change"  # a registered algorithm: "imm", "gpb1", "gpb2", a third party's
+                              # (``kind`` is the older spelling; kind = "imm" with method = "gpb2" is "gpb2")
     filter = "kalman"         # the registered estimator inside (default kalman)
     process_noise = 0.3       # σ_w (m/s per step): every model's noise_cov = σ_w² I on the velocities
     modes = ["straight", "left_turn", "right_turn"]   # registry names, or tables {name = "left_turn", radius = 500.0}
@@ -69,9 +70,16 @@ Configuration (TOML; unknown keys and tables are refused)::
     beta = 0.01
     bank_size = 30            # alternative filters kept (an integer, or "algorithm4"); default 30
     initial_mode = "straight" # the mode at the start (a name from modes; default the first)
-    # imm only:
+    # imm, gpb1, gpb2 only:
     sojourn = 60.0            # mean sojourn time (s), one number or one per mode
-    method = "imm"            # "imm", "gpb1" or "gpb2"
+    # any algorithm: further keywords of its factory
+    parameters = {}
+
+The algorithm is built from the registry as ``(algorithm, {modes, sensors,
+estimator, name, registry, …})`` — the modes, the position sensor, the filter,
+the name ``"track"``, and the keys above that belong to it, then
+``parameters`` — so any registered algorithm that takes those keywords
+(:class:`hybridtrack.core.algorithm.Algorithm`) can be named.
 
 The unknown-change estimator needs modes of one state layout (straight,
 turns, stop); the IMM also mixes ``constant_acceleration`` (6 states) with
@@ -91,8 +99,8 @@ files read from latitude/longitude, ``map/measurements`` and
 (the estimate converted back with :func:`hybridtrack.io.track_files.unproject`),
 which the recording's layout shows in a map view.
 
-Every user error — a missing file, unknown key, bad value, unknown estimator
-kind or mode — is a :class:`ConfigError` (a ValueError) naming the key.
+Every user error — a missing file, unknown key, bad value, unknown algorithm
+or mode — is a :class:`ConfigError` (a ValueError) naming the key.
 """
 
 from __future__ import annotations
@@ -113,7 +121,8 @@ from hybridtrack.io.track_files import SOLENT_AIS, Track, read_tracks, unproject
 
 #: reader presets by name (the ``preset`` key of ``[reader]``)
 PRESETS = {"solent_ais": SOLENT_AIS}
-KINDS = ("unknown_change", "imm")
+#: the multiple-model algorithms (``method`` of the older ``kind = "imm"`` spelling picks one)
+MULTIPLE_MODEL = ("imm", "gpb1", "gpb2")
 #: registry name → summary mode name
 SUMMARY_NAMES = {"constant_acceleration": "acceleration"}
 TURNS = ("left_turn", "right_turn")
@@ -130,9 +139,13 @@ _SECTIONS = {
     "altitude": {"sigma", "acceleration_density", "velocity_sigma"},
     "prior": {"velocity", "position_sigma", "velocity_sigma"},
     "estimator": {
-        "kind", "filter", "process_noise", "modes", "radii", "alpha", "beta", "bank_size", "initial_mode", "sojourn", "method",
+        "algorithm", "kind", "filter", "process_noise", "modes", "radii", "alpha", "beta", "bank_size", "initial_mode", "sojourn",
+        "method", "parameters",
     },
 }  # fmt: skip
+#: the keywords the tracker itself gives every algorithm (``[estimator] parameters`` may not repeat them)
+_RESERVED = {"modes", "sensors", "estimator", "name", "registry", "alpha", "beta", "bank_size", "initial_mode", "sojourn"}
+#: keys that belong to one algorithm (``imm``: the whole multiple-model family)
 _KIND_ONLY = {"unknown_change": {"alpha", "beta", "bank_size", "initial_mode"}, "imm": {"sojourn", "method"}}
 
 
@@ -146,8 +159,10 @@ def _positive(section: str, key: str, value, where: str) -> float:
     return float(value)
 
 
-def load_config(config: str | os.PathLike | Mapping[str, Any]) -> dict:
-    """The checked configuration (a dict of the four sections, defaults filled) from a TOML file or a mapping."""
+def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) -> dict:
+    """The checked configuration (a dict of the four sections, defaults filled) from a TOML file or a mapping.
+
+    ``[estimator] algorithm`` must name an algorithm of ``registry`` (default: the installed plugins')."""
     if isinstance(config, Mapping):
         where, raw = "config", dict(config)
     else:
@@ -201,20 +216,30 @@ def load_config(config: str | os.PathLike | Mapping[str, Any]) -> dict:
     prior["velocity_sigma"] = _positive("prior", "velocity_sigma", prior.get("velocity_sigma", 10.0), where)
 
     est = out["estimator"]
-    kind = est.get("kind")
-    if kind not in KINDS:
-        raise ConfigError(f"{where}: [estimator] kind = {kind!r}; expected one of {KINDS}")
-    other = next(k for k in KINDS if k != kind)
-    misplaced = sorted(set(est) & _KIND_ONLY[other])
-    if misplaced:
-        raise ConfigError(f"{where}: [estimator] key(s) {misplaced} belong to kind {other!r}, not {kind!r}")
+    kind = _algorithm(est, where, registry)
+    family = "imm" if kind in MULTIPLE_MODEL else kind
+    for other, keys in _KIND_ONLY.items():
+        misplaced = sorted(set(est) & keys) if other != family else []
+        if misplaced:
+            raise ConfigError(f"{where}: [estimator] key(s) {misplaced} belong to kind {other!r}, not {kind!r}")
+    method = est.pop("method", None)
+    if method is not None:  # the older spelling: kind = "imm", method = "gpb2"
+        if method not in MULTIPLE_MODEL or kind not in ("imm", method):
+            raise ConfigError(f"{where}: [estimator] method = {method!r}; expected one of {MULTIPLE_MODEL} (or name it: algorithm = ...)")
+        kind = method
+    est["algorithm"] = kind
+    parameters = est.setdefault("parameters", {})
+    if not isinstance(parameters, Mapping) or set(parameters) & _RESERVED:
+        raise ConfigError(
+            f"{where}: [estimator] parameters = {parameters!r}; expected a table of further keyword arguments (not {sorted(_RESERVED)})"
+        )
     est["process_noise"] = _positive("estimator", "process_noise", est.get("process_noise", 0.1), where)
     est["modes"] = _modes(est.get("modes", ["straight", "left_turn", "right_turn"]), est.get("radii"), where)
     est.pop("radii", None)
     est.setdefault("filter", "kalman")
     if not isinstance(est["filter"], str):
         raise ConfigError(f"{where}: [estimator] filter = {est['filter']!r}; expected a registered estimator name")
-    if kind == "unknown_change":
+    if family == "unknown_change":
         for key in ("alpha", "beta"):
             value = _positive("estimator", key, est.get(key, 0.01), where)
             if value >= 0.5:
@@ -229,7 +254,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any]) -> dict:
         if first not in names:
             raise ConfigError(f"{where}: [estimator] initial_mode = {first!r}; expected one of {names}")
         est["initial_mode"] = names.index(first)
-    else:
+    elif family == "imm":
         sojourn = est.get("sojourn", 60.0)
         values = sojourn if isinstance(sojourn, list) else [sojourn]
         for v in values:
@@ -237,8 +262,22 @@ def load_config(config: str | os.PathLike | Mapping[str, Any]) -> dict:
         if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
             raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
         est["sojourn"] = sojourn
-        est.setdefault("method", "imm")
     return out
+
+
+def _algorithm(est: dict, where: str, registry) -> str:
+    """The registry name of ``[estimator] algorithm`` (or of its older spelling ``kind``), checked."""
+    from hybridtrack.core.plugins import resolve_registry
+
+    given = [key for key in ("algorithm", "kind") if key in est]
+    if len(given) != 1:
+        raise ConfigError(f"{where}: [estimator] algorithm (a registered algorithm name) is required, once (kind is its older spelling)")
+    key = given[0]
+    name = est.pop(key)
+    known = resolve_registry(registry).names("algorithm")
+    if name not in known:
+        raise ConfigError(f"{where}: [estimator] {key} = {name!r}; expected a registered algorithm, one of {known}")
+    return name
 
 
 def _label(name: str, params: Mapping) -> str:
@@ -276,10 +315,12 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 # --------------------------------------------------------------------------- building and running
 
 
+#: the checked keys each algorithm's factory takes besides the modes, sensors, filter, name and registry
+_KEYWORDS = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), **{m: ("sojourn",) for m in MULTIPLE_MODEL}}
+
+
 def _build(config: dict, registry=None):
-    """The estimator object and its sensor from a checked configuration (registry resolution, no plugin imports)."""
-    from hybridtrack.algorithms.multiple_model import MultipleModelEstimator
-    from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
+    """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
     from hybridtrack.core.plugins import resolve
 
     sigma = config["measurement"]["sigma"]
@@ -292,29 +333,12 @@ def _build(config: dict, registry=None):
             specs.append(resolve("motion_model", (name, {**params, "noise_cov": q}), registry))
         except KeyError as error:
             raise ConfigError(f"[estimator] modes: unknown motion model {name!r} ({error.args[0] if error.args else error})") from None
+    parameters = {key: est[key] for key in _KEYWORDS.get(est["algorithm"], ())}
+    parameters.update(modes=specs, sensors=[sensor], estimator=est["filter"], name="track", registry=registry, **est["parameters"])
     try:
-        if est["kind"] == "unknown_change":
-            estimator = UnknownChangeAdaptive(
-                modes=specs,
-                sensors=[sensor],
-                estimator=est["filter"],
-                alpha=est["alpha"],
-                beta=est["beta"],
-                bank_size=est["bank_size"],
-                initial_mode=est["initial_mode"],
-                name="track",
-                registry=registry,
-            )
-        else:
-            estimator = MultipleModelEstimator(
-                specs,
-                sensors=[sensor],
-                sojourn=est["sojourn"],
-                estimator=est["filter"],
-                method=est["method"],
-                name="track",
-                registry=registry,
-            )
+        estimator = resolve("algorithm", (est["algorithm"], parameters), registry)
+    except (TypeError, ValueError) as error:  # a keyword the algorithm does not take, a bad value, not an algorithm
+        raise ConfigError(f"[estimator] algorithm {est['algorithm']!r}: {error}") from None
     except KeyError as error:
         raise ConfigError(f"[estimator]: {error.args[0] if error.args else error}") from None
     return estimator, sensor, specs
@@ -479,16 +503,14 @@ def track_one(
     finally:
         if recorder is not None:
             recorder.close()
-    kinds = config["estimator"]["kind"]
-    index = run.mode if kinds == "unknown_change" else run.most_probable
-    per_step = [_summary_mode(models[int(i)]) for i in index]
+    per_step = [_summary_mode(models[int(i)]) for i in run.mode]  # the followed mode, or the most probable model
     modes = [m for m, _ in per_step]
     radii = [r for _, r in per_step]
-    if kinds == "unknown_change":
-        by_label = dict(zip(estimator.labels, models))
+    if getattr(estimator, "detector", None) is not None:
+        by_label = dict(zip(run.modes, models))
         decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]
     else:
-        switches = np.flatnonzero(np.diff(index)) + 1
+        switches = np.flatnonzero(np.diff(run.mode)) + 1
         decisions = [{"time": float(run.times[k]), "mode": modes[k]} for k in switches]
     if out is not None:
         np.savez(
@@ -529,7 +551,7 @@ def track_file(
     file is a ConfigError.  ``progress`` shows a tqdm bar over the objects (on stderr)."""
     from tqdm.auto import tqdm
 
-    cfg = load_config(config)
+    cfg = load_config(config, registry)
     if not Path(path).is_file():
         raise FileNotFoundError(2, "no such position file", str(path))
     try:

@@ -1,12 +1,14 @@
 """The ``hybridtrack`` command line: ``hybridtrack <command> [options]``.
 
-Each sub-command is a :class:`Command` (name, one-line help, a function adding
-its arguments to a sub-parser, a function running it) living in its own module
-under :mod:`hybridtrack.cli`.  Adding one is: write the module with a
-``COMMAND = Command(...)`` and list the module in :data:`COMMAND_MODULES`.
-Modules are imported only when the parser is built, and a command's heavy
-imports belong inside its ``run`` function, so ``hybridtrack --version`` stays
-fast.
+Sub-commands come through the plugin hook ``register_commands(commands)``
+(:mod:`hybridtrack.core.commands`): ``commands.add(name, help, configure,
+run)``.  The built-in ones (``plugins``, ``simulate``, ``inspect``, ``run``,
+``track``) are one module each under :mod:`hybridtrack.cli`, listed in
+:data:`COMMAND_MODULES` and loaded before the entry-point plugins (so their
+names stay theirs, and disabling plugins never removes them); a third party
+adds one from its plugin module like any component.  A command's heavy
+imports belong inside its ``run`` function; ``hybridtrack --version`` is
+answered before any plugin is loaded, so it stays fast.
 
 ``main(argv)`` returns the exit status instead of exiting, so tests call it in
 process; the console script ``hybridtrack`` is ``sys.exit(main())``.
@@ -31,11 +33,14 @@ import importlib
 import math
 import os
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 
-import attrs
+from hybridtrack.core.commands import Command, UsageError
 
-#: modules defining a ``COMMAND``, in the order ``--help`` lists them
+__all__ = ["Command", "UsageError", "build_parser", "commands", "integer_option", "main", "number_option"]
+
+#: the built-in command modules (each with a ``register_commands`` hook), in the order ``--help`` lists them
 COMMAND_MODULES: tuple[str, ...] = (
     "hybridtrack.cli.plugins",
     "hybridtrack.cli.simulate",
@@ -51,13 +56,6 @@ BROKEN_PIPE_STATUS = 141
 
 #: OSErrors about a file the user named: one line and status 2 (other OSErrors: one line and status 1)
 _USER_FILE_ERRORS = (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError, FileExistsError)
-
-
-class UsageError(Exception):
-    """A user error a command reports: printed as ``hybridtrack <command>: error: <message>``, exit status 2.
-
-    The message names the option or file, the value and what is expected.
-    """
 
 
 def integer_option(minimum: int, expected: str) -> Callable[[str], int]:
@@ -127,25 +125,32 @@ def _silence_stdout() -> None:
         pass
 
 
-@attrs.frozen
-class Command:
-    """A sub-command: ``configure(parser)`` adds its arguments, ``run(args)`` returns the exit status."""
-
-    name: str
-    help: str
-    configure: Callable[[argparse.ArgumentParser], None]
-    run: Callable[[argparse.Namespace], int]
+def builtin_plugins() -> list:
+    """The modules of :data:`COMMAND_MODULES`, the command line's own plugins."""
+    return [importlib.import_module(name) for name in COMMAND_MODULES]
 
 
 def commands() -> dict[str, Command]:
-    """Name → :class:`Command` for every module in :data:`COMMAND_MODULES`."""
-    found: dict[str, Command] = {}
-    for module_name in COMMAND_MODULES:
-        command = importlib.import_module(module_name).COMMAND
-        if command.name in found:
-            raise RuntimeError(f"command {command.name!r} defined twice ({module_name})")
-        found[command.name] = command
-    return found
+    """Name → :class:`Command`: the built-in ones, then those the installed plugins add through ``register_commands``.
+
+    Loading problems are not shown here (``hybridtrack plugins`` lists them, and
+    a command that builds components warns as the registry loads).
+    """
+    from hybridtrack.core.plugins import load_plugins
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_plugins(builtins=builtin_plugins()).commands
+
+
+def _asks_version(argv: Sequence[str]) -> bool:
+    """Whether ``--version`` (or a prefix argparse accepts, ``--vers``) comes before any command or ``--help``."""
+    for arg in argv:
+        if not arg.startswith("--") or "=" in arg or "--help".startswith(arg):
+            return False
+        if len(arg) > 2 and "--version".startswith(arg):
+            return True
+    return False
 
 
 def build_parser(available: dict[str, Command] | None = None) -> argparse.ArgumentParser:
@@ -172,7 +177,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     status 141 and no output.
     """
     _tolerate_console_encoding()
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser({} if _asks_version(argv) else None)  # --version: no plugin loaded
     try:
         try:
             args = parser.parse_args(argv)

@@ -16,7 +16,8 @@ import argparse
 import json
 import sys
 
-from hybridtrack.cli import Command, UsageError
+from hybridtrack.cli import UsageError
+from hybridtrack.core.hookspecs import hookimpl
 
 EXIT_TRUNCATED = 3
 
@@ -40,4 +41,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMAND = Command("inspect", "summarize a recording (.rrd) offline", configure, run)
+@hookimpl
+def register_commands(commands):
+    commands.add("inspect", "summarize a recording (.rrd) offline", configure, run)

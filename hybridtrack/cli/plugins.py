@@ -14,7 +14,7 @@ import json
 import sys
 import warnings
 
-from hybridtrack.cli import Command
+from hybridtrack.core.hookspecs import hookimpl
 
 JSON_KEYS = ("plugin", "distribution", "version", "kind", "name")
 
@@ -54,11 +54,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from hybridtrack.cli import builtin_plugins
     from hybridtrack.core.plugins import load_plugins
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the problems are printed below, once each
-        loaded = load_plugins()
+        loaded = load_plugins(builtins=builtin_plugins())  # with the commands, whose clashes are problems too
     for problem in loaded.problems:
         print(f"warning: {problem}", file=sys.stderr)
     if args.json:
@@ -68,4 +69,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMAND = Command("plugins", "list the installed plugins and the components they provide", configure, run)
+@hookimpl
+def register_commands(commands):
+    commands.add("plugins", "list the installed plugins and the components they provide", configure, run)

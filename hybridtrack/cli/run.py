@@ -28,7 +28,8 @@ from __future__ import annotations
 
 import argparse
 
-from hybridtrack.cli import Command, integer_option, number_option
+from hybridtrack.cli import integer_option, number_option
+from hybridtrack.core.hookspecs import hookimpl
 
 _positive = integer_option(1, "a positive integer")
 _non_negative = integer_option(0, "a non-negative integer")
@@ -202,4 +203,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMAND = Command("run", "run a seeded, resumable Monte Carlo campaign of an experiment", configure, run)
+@hookimpl
+def register_commands(commands):
+    commands.add("run", "run a seeded, resumable Monte Carlo campaign of an experiment", configure, run)

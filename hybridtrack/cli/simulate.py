@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import argparse
 
-from hybridtrack.cli import Command, UsageError, integer_option, number_option
+from hybridtrack.cli import UsageError, integer_option, number_option
+from hybridtrack.core.hookspecs import hookimpl
 
 #: the default initial state, by component name (converted to the first mode's layout)
 DEFAULT_X0 = {"x": 0.0, "vx": 0.0, "y": 0.0, "vy": 2.0}
@@ -184,4 +185,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMAND = Command("simulate", "simulate a schedule's trajectory and measurements to .npz and .rrd", configure, run)
+@hookimpl
+def register_commands(commands):
+    commands.add("simulate", "simulate a schedule's trajectory and measurements to .npz and .rrd", configure, run)

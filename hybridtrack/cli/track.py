@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import argparse
 
-from hybridtrack.cli import Command, UsageError
+from hybridtrack.cli import UsageError
+from hybridtrack.core.hookspecs import hookimpl
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -45,4 +46,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMAND = Command("track", "track every object of a position file with a configured estimator", configure, run)
+@hookimpl
+def register_commands(commands):
+    commands.add("track", "track every object of a position file with a configured estimator", configure, run)

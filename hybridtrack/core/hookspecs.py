@@ -1,14 +1,18 @@
-"""pluggy hook specifications: one ``register_<kind>s(registry)`` hook per interface.
+"""pluggy hook specifications: one ``register_<kind>s(registry)`` hook per component kind, and ``register_commands``.
 
-A plugin module implements any of them with :data:`hookimpl` and calls
-``registry.add(name, factory)`` for each component it provides; ``factory``
-is a class or callable that takes keyword parameters and returns the component.
+A plugin module implements any of them with :data:`hookimpl`.  A kind's hook
+calls ``registry.add(name, factory)`` for each component it provides
+(``factory`` is a class or callable that takes keyword parameters and returns
+the component; the kinds, hooks and interfaces are :data:`hybridtrack.core.kinds.KINDS`):
 
     from hybridtrack import hookimpl
 
     @hookimpl
     def register_motion_models(registry):
         registry.add("zigzag", ZigZag)
+
+``register_commands(commands)`` adds sub-commands to the ``hybridtrack``
+command line (:class:`hybridtrack.core.commands.Commands`).
 """
 
 import pluggy
@@ -43,11 +47,11 @@ def register_solvers(registry):
     """Register Solver factories."""
 
 
-#: hook name for each interface kind
-HOOKS = {
-    "motion_model": "register_motion_models",
-    "sensor": "register_sensors",
-    "estimator": "register_estimators",
-    "detector": "register_detectors",
-    "solver": "register_solvers",
-}
+@hookspec
+def register_algorithms(registry):
+    """Register Algorithm factories (:class:`hybridtrack.core.algorithm.Algorithm`)."""
+
+
+@hookspec
+def register_commands(commands):
+    """Add sub-commands of the command line: ``commands.add(name, help, configure, run)``."""

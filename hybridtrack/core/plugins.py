@@ -1,9 +1,12 @@
 """Plugin loading on pluggy.
 
 Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions,
-found through the ``hybridtrack`` entry-point group.  The built-ins in
-``hybridtrack_plugins`` are declared there by this project's own
-``pyproject.toml``, exactly like a third-party package would.
+found through the ``hybridtrack`` entry-point group.  The built-ins — each
+module of ``hybridtrack_plugins`` and the algorithms'
+:mod:`hybridtrack.algorithms.registration` — are declared there by this
+project's own ``pyproject.toml``, exactly like a third-party package would.
+Every kind of :data:`hybridtrack.core.kinds.KINDS` is registered through its
+hook; sub-commands of the command line through ``register_commands``.
 
 Loading isolates faults: a plugin that fails to import (any exception,
 ``SystemExit`` and other ``BaseException`` subclasses included), implements a
@@ -15,10 +18,12 @@ one exception let through: a plugin raising it at import cannot be told apart
 from the user pressing Ctrl-C, and a Ctrl-C must interrupt.  This project's
 own plugins load first, so a component name taken by a built-in stays the
 built-in's.  ``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks plugins by
-entry-point name (or distribution name); a name that matches no installed
-plugin gives a warning listing the known names.  A factory (not a class)
-returning the wrong type is caught at first use (:func:`resolve`,
-:func:`check_component`) by a TypeError naming the plugin and distribution.
+entry-point name, by family (``filters`` blocks ``filters.kalman``, …: the
+part of an entry-point name before its first dot) or by distribution name; a
+name that matches no installed plugin gives a warning listing the known
+names.  A factory (not a class) returning the wrong type is caught at first
+use (:func:`resolve`, :func:`check_component`) by a TypeError naming the
+plugin and distribution.
 """
 
 from __future__ import annotations
@@ -26,15 +31,17 @@ from __future__ import annotations
 import functools
 import os
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from importlib.metadata import entry_points
 
 import attrs
 import pluggy
 
 from hybridtrack.core import hookspecs
-from hybridtrack.core.interfaces import INTERFACES, Labelled, require
-from hybridtrack.core.registry import Registry
+from hybridtrack.core.commands import Command, Commands
+from hybridtrack.core.components import require
+from hybridtrack.core.kinds import KINDS
+from hybridtrack.core.registry import Registry, registry_or_default
 
 ENTRY_POINT_GROUP = "hybridtrack"
 DISABLE_ENV = "HYBRIDTRACK_DISABLE_PLUGINS"
@@ -59,16 +66,21 @@ class PluginInfo:
 
 @attrs.frozen
 class LoadedPlugins:
-    """The outcome of :func:`load_plugins`: the registry, the plugins and what went wrong."""
+    """The outcome of :func:`load_plugins`: the registry, the plugins, the commands they add and what went wrong."""
 
     registry: Registry
     plugins: tuple[PluginInfo, ...]
     problems: tuple[str, ...]
     manager: pluggy.PluginManager = attrs.field(repr=False)
+    commands: dict[str, Command] = attrs.field(factory=dict, repr=False)
 
 
 def disabled_from_env() -> set[str]:
     return {name.strip() for name in os.environ.get(DISABLE_ENV, "").split(",") if name.strip()}
+
+
+def _family(name: str) -> str:
+    return name.partition(".")[0]
 
 
 def load_plugins(
@@ -77,12 +89,16 @@ def load_plugins(
     entrypoints: bool = True,
     disabled: Iterable[str] | None = None,
     strict: bool = False,
+    builtins: Iterable[object] = (),
 ) -> LoadedPlugins:
-    """Load the entry-point plugins (unless ``entrypoints=False``) and the ``extra`` plugin objects.
+    """Load the ``builtins``, the entry-point plugins (unless ``entrypoints=False``) and the ``extra`` plugin objects.
 
+    ``builtins`` are the application's own plugin objects (the command line's
+    commands): loaded first, so their names stay theirs, never disabled, and
+    not listed in ``plugins``.
     ``disabled`` defaults to the names in ``HYBRIDTRACK_DISABLE_PLUGINS``.
     Problems are warned about (``strict=True``: raised as :class:`PluginError`);
-    problems with ``extra`` objects always raise, since the caller wrote them.
+    problems with ``builtins`` and ``extra`` objects always raise, since the caller wrote them.
     """
     blocked = disabled_from_env() if disabled is None else set(disabled)
     manager = pluggy.PluginManager(hookspecs.PROJECT)
@@ -97,7 +113,8 @@ def load_plugins(
         warnings.warn(message, PluginWarning, stacklevel=3)
 
     def _unknown_blocked(points) -> None:
-        known = {point.name for point in points} | {point.dist.name for point in points if getattr(point, "dist", None)}
+        known = {point.name for point in points} | {_family(point.name) for point in points}
+        known |= {point.dist.name for point in points if getattr(point, "dist", None)}
         known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
         unknown = sorted(blocked - known)
         if unknown:
@@ -119,6 +136,10 @@ def load_plugins(
             return
         infos[info.name] = info
 
+    builtins = list(builtins)
+    own = [PluginInfo(getattr(obj, "__name__", None) or type(obj).__name__) for obj in builtins]
+    for obj, info in zip(builtins, own):
+        register(obj, info, from_code=True)
     extra = list(extra)
     points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order)
     if blocked:
@@ -127,7 +148,7 @@ def load_plugins(
         for point in points:
             dist = getattr(point, "dist", None)
             info = PluginInfo(point.name, dist.name if dist else None, dist.version if dist else None)
-            if point.name in blocked or info.distribution in blocked:
+            if blocked & {point.name, _family(point.name), info.distribution}:
                 manager.set_blocked(point.name)
                 continue
             if point.name in infos:
@@ -148,26 +169,30 @@ def load_plugins(
             continue
         register(obj, PluginInfo(name), from_code=True)
 
-    registry = Registry()
-    for kind, hook_name in hookspecs.HOOKS.items():
+    def call(hook_name: str, argument) -> None:
+        """Each plugin's implementation of ``hook_name`` with ``argument`` (a registrar, or one made per plugin)."""
         for impl in getattr(manager.hook, hook_name).get_hookimpls():
             info = infos[impl.plugin_name]
             from_code = info.distribution is None
-            registrar = registry.bind(
-                kind,
-                info.name,
-                info.distribution,
-                info.version,
-                on_error=lambda error, fc=from_code: report(str(error), fc),
-                interface=INTERFACES[kind],
-            )
             try:
-                impl.function(**{arg: registrar for arg in impl.argnames})
+                impl.function(**{arg: argument(info, from_code) for arg in impl.argnames})
             except (PluginError, KeyboardInterrupt):
                 raise
             except BaseException as error:  # noqa: BLE001
                 report(f"plugin {info.name!r} (distribution {info.distribution or 'none'}) failed in {hook_name}: {error!r}", from_code)
-    return LoadedPlugins(registry, tuple(infos.values()), tuple(problems), manager)
+
+    registry = Registry()
+    for kind in KINDS.values():
+        call(
+            kind.hook,
+            lambda info, from_code, kind=kind.name: registry.bind(
+                kind, info.name, info.distribution, info.version, on_error=lambda error: report(str(error), from_code)
+            ),
+        )
+    commands: dict[str, Command] = {}
+    call("register_commands", lambda info, from_code: Commands(commands, info.name, lambda error: report(str(error), from_code)))
+    plugins = tuple(info for info in infos.values() if info not in own)
+    return LoadedPlugins(registry, plugins, tuple(problems), manager, commands)
 
 
 def _load_order(point) -> tuple[bool, str]:
@@ -197,62 +222,19 @@ def reset() -> None:
     _default.cache_clear()
 
 
-def resolve_registry(registry: Registry | None) -> Registry:
-    """``registry``, or the default one when None."""
-    return get_registry() if registry is None else registry
+#: ``registry``, or the default one when None
+resolve_registry = registry_or_default
 
 
 def check_component(kind: str, name: str, component, registry: Registry | None = None):
-    """``component``, built by the factory registered as ``name`` of ``kind``, if it implements the kind's interface.
-
-    Otherwise a TypeError naming the component, the plugin and the
-    distribution that registered the factory, and what the object lacks.
-    """
-    try:
-        return require(component, INTERFACES[kind], f"{kind} {name!r}")
-    except TypeError as error:
-        entry = resolve_registry(registry).entry(kind, name)
-        raise TypeError(
-            f"{error} (the factory of {kind} {name!r} registered by plugin {entry.plugin!r}"
-            f" (distribution {entry.distribution or 'none'}) returned a {type(component).__name__})"
-        ) from None
+    """``component`` if it implements the interface of ``kind`` (:meth:`Registry.check` on the default registry
+    when ``registry`` is None)."""
+    return resolve_registry(registry).check(kind, name, component)
 
 
 def resolve(kind: str, spec, registry: Registry | None = None):
-    """A component of ``kind`` from an object, a registered name, ``(name, parameters)`` or ``(name, parameters, label)``.
-
-    The object (given or built) must implement the interface of ``kind``
-    (:data:`hybridtrack.core.interfaces.INTERFACES`); a wrong type is a TypeError
-    naming the interface, and a factory returning the wrong type names the
-    registered component, its plugin and distribution (:func:`check_component`).  A label (third item, or a ``"label"`` key in the
-    parameters) names the instance in a run (estimators and detectors).
-    """
-    if kind not in INTERFACES:
-        raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(INTERFACES)}")
-    base = INTERFACES[kind]
-    label = None
-    if not isinstance(spec, (str, tuple)):
-        return require(spec, base, kind)
-    if isinstance(spec, str):
-        name, parameters = spec, {}
-    elif (
-        isinstance(spec, tuple)
-        and len(spec) in (2, 3)
-        and isinstance(spec[0], str)
-        and isinstance(spec[1], Mapping)
-        and (len(spec) == 2 or isinstance(spec[2], str))
-    ):
-        name, parameters = spec[0], dict(spec[1])
-        label = spec[2] if len(spec) == 3 else None
-    else:
-        raise TypeError(
-            f"{kind}: expected a {base.__name__}, a registered name, (name, parameters) or (name, parameters, label), got {spec!r}"
-        )
-    label = parameters.pop("label", None) if label is None else label
-    registry = resolve_registry(registry)
-    component = check_component(kind, name, registry.create(kind, name, **parameters), registry)
-    if label is not None:
-        if not isinstance(component, Labelled):
-            raise ValueError(f"{kind} {name!r}: a label names estimators and detectors; {kind}s have none")
-        component.label = label
-    return component
+    """A component of ``kind`` from an object, a name, ``(name, parameters)`` or ``(name, parameters, label)``
+    (:meth:`Registry.resolve` on the default registry when ``registry`` is None)."""
+    if not isinstance(spec, (str, tuple)) and kind in KINDS:
+        return require(spec, KINDS[kind].interface, kind)  # an object needs no registry
+    return resolve_registry(registry).resolve(kind, spec)

@@ -165,3 +165,47 @@ def check_magnitude(array: np.ndarray, name: str, what: str) -> np.ndarray:
             f"(its square or products overflow); expected |value| ≤ {FILTER_MAGNITUDE_LIMIT:.0e}"
         )
     return array
+
+
+def check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a bank prior: mean (M, n), cov (M, n, n) symmetric positive definite, within the filters' arithmetic.
+
+    Every entry of mean and cov must have |value| ≤ ``FILTER_MAGNITUDE_LIMIT``
+    (1e150) and every variance be ≥ its inverse 1e-150 (the information forms
+    invert P): beyond, the filters' products overflow float64.  Errors are
+    ValueErrors naming the argument.
+    """
+    mean = as_float_array(mean, "mean", (None, None))
+    M, n = mean.shape
+    cov = as_float_array(cov, "cov", (M, n, n))
+    check_magnitude(mean, "mean", "prior mean")
+    check_magnitude(cov, "cov", "prior covariance")
+    variances = np.diagonal(cov, axis1=-2, axis2=-1)
+    tiny = (variances > 0) & (variances < 1.0 / FILTER_MAGNITUDE_LIMIT)
+    if tiny.any():
+        index = tuple(int(i) for i in np.argwhere(tiny)[0])
+        raise ValueError(
+            f"cov: prior variance {float(variances[index]):.3g} at index {index + index[-1:]} is too small for the float64 "
+            f"arithmetic of the filter (its inverse, the information, overflows); expected variances ≥ {1.0 / FILTER_MAGNITUDE_LIMIT:.0e}"
+        )
+    check_covariance(cov, "cov", n, definite=True)
+    return mean, cov
+
+
+def check_prior_mixture(means, covs, weights) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Validate a bank's prior mixtures Σ_c w_c N(means_c, covs_c): means (M, C, n), covs (M, C, n, n) each as
+    :func:`check_prior` requires, weights (M, C) ≥ 0 with a positive sum per filter.
+
+    Returns (means, covs, weights, totals (M,)) as float arrays; errors are ValueErrors naming the argument.
+    """
+    means = as_float_array(means, "means", (None, None, None))
+    M, C, n = means.shape
+    covs = as_float_array(covs, "covs", (M, C, n, n))
+    weights = as_float_array(weights, "weights", (M, C))
+    if (weights < 0).any():
+        raise ValueError(f"weights: expected weights ≥ 0, got a minimum of {float(weights.min())!r}")
+    total = weights.sum(axis=1)
+    if not (total > 0).all():
+        raise ValueError(f"weights: every filter needs a positive total weight, got sums {total.tolist()}")
+    check_prior(means.reshape(M * C, n), covs.reshape(M * C, n, n))
+    return means, covs, weights, total

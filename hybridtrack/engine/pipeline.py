@@ -1,4 +1,4 @@
-"""Compose and run: measurements → estimator bank → detectors → recorder.
+"""Compose and run: measurements → estimator bank → detectors, over one run or R runs as one bank.
 
 A :class:`Pipeline` runs one bank of M filters, filter j using motion model j,
 on the stacked measurements of a sensor network:
@@ -21,20 +21,43 @@ Components are given as objects or by registered name (``"kalman"``,
 ``("left_turn", {"radius": 3.0})``, ``("signal_function", {"window": 10}, "sf10")``
 with a label).  Measurement times are ``times`` (seconds, strictly increasing,
 any spacing: real data) or ``tau`` (regular sampling); each step's transition
-is built for its own Δt, and the recording's ``time`` timeline holds the times.
+is built for its own Δt.
+
+**R runs, one loop.**  A run is a batch of one: :meth:`Pipeline.batch` (and
+:meth:`Pipeline.run_batch`) takes R measurement sequences (sensor → (R, K+1,
+m_i)), with per-run times, priors, truths and recorders, and runs them as one
+bank of R × M filters (row r·M + j is filter j of run r), each step one
+``predict`` and one ``update`` of the whole bank, in the same loop as a single
+run.  Transitions come from :class:`~hybridtrack.engine.batch.RunTransitions`.
+When runs miss different components at step k the runs are grouped by NaN
+pattern (a bank's pattern is one for all its filters): each group is cut out
+with the estimator's ``take``, updated, and the groups joined back with
+``concatenate`` and ``take`` (the bank keeps its own form, e.g. square-root
+factors).  Each run has its own copy of every detector through the one
+batching protocol, ``detector.batch(R)`` (:meth:`~hybridtrack.core.interfaces.Detector.batch`:
+looped deep copies by default, vectorized where a class overrides it); a
+single run steps the detectors it was given.  A sampling estimator (particle
+filter) initializes each run's bank with its own copy of the estimator, so run
+r draws what a single run with that estimator draws.  Results equal R single
+runs to rounding (1e-12, tests/kernel/test_batch.py).
 
 Memory: the per-step results live in arrays preallocated for the K steps of the
-measurements (means (K, M, n), covariances (K, M, n, n), NIS, ℓ, ν and S, the
+measurements (means (R, K, M, n), covariances (R, K, M, n, n), NIS, ℓ, ν, the
 detectors' series), not in one object per step; :meth:`Pipeline.result` returns
 read-only views of them and ``pipeline.results[k]`` rebuilds the
-:class:`StepResult` of step k from them.  Recording is streamed: the rows
-processed since the last flush are sent to the recorder every ``record_every``
-steps or ``record_seconds`` seconds of wall time, whichever comes first, and the
-recorder is flushed to disk, so a killed run loses at most that much work.
+:class:`StepResult` of step k (run 0) from them.
+
+Recording is not done here: a run given a recorder hands it the finished
+steps, ``recorder.log_result(result, start=…, lines=…, …)`` (the writer is
+:func:`hybridtrack.recording.pipeline.log_pipeline`), every ``record_every``
+steps or ``record_seconds`` seconds of wall time, whichever comes first, and
+flushes it, so a killed run loses at most that much work; :meth:`Pipeline.record`
+hands over the rest and the static path lines at the end.
 """
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any, overload
@@ -46,11 +69,12 @@ from hybridtrack.core.interfaces import Detector, DetectorStep, Estimator, Innov
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Decision, Gaussian
-from hybridtrack.recording import NullRecorder, decision_text, log_estimate, log_measurements, nis_bounds
+from hybridtrack.engine.batch import RunTransitions, batch_measurements, batch_priors, batch_times, per_run
+from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
 
-#: the most steps whose bank states a recording pipeline keeps before it streams them
+#: the most steps whose bank states a recording pipeline keeps before it hands them over
 #: (for estimators that record their states: particle clouds, mixtures, hypotheses)
 STATE_CHUNK = 100
 
@@ -71,7 +95,7 @@ class StepResult:
     """One step of a pipeline: its time, the bank's posterior, its innovation and the detectors' outputs (by label).
 
     With candidates in clutter ``innovation`` is a
-    :class:`~hybridtrack.core.interfaces.ClutterInnovation` holding the associations.
+    :class:`~hybridtrack.core.protocols.ClutterInnovation` holding the associations.
     """
 
     step: int
@@ -82,66 +106,41 @@ class StepResult:
     detectors: dict[str, DetectorStep]
 
 
-@attrs.frozen(eq=False)
-class RunResult:
-    """A whole run: times (K+1,), means (K+1, M, n), covs (K+1, M, n, n), nis and loglik (K+1, M), innovations
-    (K+1, M, Σm) (NaN where a step lacked some measurement), detector statistics label → series →
-    array over steps, and the decisions."""
+@attrs.frozen(eq=False, kw_only=True)
+class PipelineResult(RunResult):
+    """A fixed bank's run: :class:`~hybridtrack.engine.results.RunResult` with ``modes`` the filter names, means
+    (K+1, M, n), covs (K+1, M, n, n) for every filter and ``mode`` None; plus ``nis`` and ``loglik`` (K+1, M)
+    (NaN where nothing was measured), ``innovations`` ν (K+1, M, Σm) (NaN where a step lacked some measurement)
+    and the detectors' ``statistics``, label → series → array over steps (NaN where a detector did not report)."""
 
-    layout: tuple[str, ...]
-    filters: tuple[str, ...]
-    times: np.ndarray
-    means: np.ndarray
-    covs: np.ndarray
     nis: np.ndarray
     loglik: np.ndarray
     innovations: np.ndarray
     statistics: dict[str, dict[str, np.ndarray]]
-    decisions: tuple[Decision, ...]
 
-
-def store_detector_outputs(
-    series: dict[str, dict[str, np.ndarray]],
-    statistic_keys: dict[str, set[str]],
-    threshold_keys: dict[str, set[str]],
-    k: int,
-    steps: int,
-    outputs: Mapping[str, DetectorStep],
-) -> None:
-    """Write the detectors' outputs of step k (label → DetectorStep) into ``series`` (label → name → (steps, …),
-    NaN where a detector did not report that name) and note which names are statistics and which thresholds."""
-    for label, output in outputs.items():
-        table = series.setdefault(label, {})
-        statistic_keys.setdefault(label, set()).update(output.statistics)
-        threshold_keys.setdefault(label, set()).update(output.thresholds)
-        for key, value in {**output.statistics, **output.thresholds}.items():
-            value = np.asarray(value, dtype=float)
-            if key not in table:
-                table[key] = np.full((steps, *value.shape), np.nan)
-            elif table[key].shape[1:] != value.shape:
-                raise ValueError(
-                    f"detector {label!r}: series {key!r} changed shape at step {k}: "
-                    f"got {value.shape}, expected {table[key].shape[1:]} as at its earlier steps"
-                )
-            table[key][k] = value
+    @property
+    def filters(self) -> tuple[str, ...]:
+        """The filter names (``modes``)."""
+        return self.modes
 
 
 class StepResults(Sequence):
     """The steps processed so far, ``pipeline.results``: ``len``, ``results[k]`` (negative k and slices too), iteration.
 
-    Each :class:`StepResult` is rebuilt from the pipeline's preallocated arrays
-    (copies, so changing one does not change the pipeline).  The innovation of a
-    step with every measurement component is an :class:`Innovation` of the stored
-    ν, S, ℓ and NIS; other steps (missing components, clutter associations) keep
-    the estimator's own object.  Detector outputs hold every series the detector
-    has reported so far (NaN at steps where it did not report one).
+    Each :class:`StepResult` (of run 0) is rebuilt from the pipeline's
+    preallocated arrays (copies, so changing one does not change the pipeline).
+    The innovation of a step with every measurement component is an
+    :class:`Innovation` of the stored ν, S, ℓ and NIS; other steps of a single
+    run (missing components, clutter associations) keep the estimator's own
+    object.  Detector outputs hold every series the detector has reported so
+    far (NaN at steps where it did not report one).
     """
 
     def __init__(self, pipeline: Pipeline):
-        self._pipeline = pipeline
+        self.pipeline = pipeline
 
     def __len__(self) -> int:
-        return self._pipeline._count
+        return self.pipeline.processed
 
     @overload
     def __getitem__(self, k: int) -> StepResult: ...
@@ -149,13 +148,13 @@ class StepResults(Sequence):
     def __getitem__(self, k: slice) -> list[StepResult]: ...
     def __getitem__(self, k):
         if isinstance(k, slice):
-            return [self._pipeline._step_result(i) for i in range(*k.indices(len(self)))]
+            return [self.pipeline.step_result(i) for i in range(*k.indices(len(self)))]
         if not isinstance(k, (int, np.integer)) or isinstance(k, bool):
             raise TypeError(f"results[{k!r}]: expected an integer step or a slice")
         n = len(self)
         if not -n <= k < n:
             raise IndexError(f"results[{k}]: step out of range, {n} steps processed")
-        return self._pipeline._step_result(int(k) % n)
+        return self.pipeline.step_result(int(k) % n)
 
 
 class Pipeline:
@@ -165,8 +164,8 @@ class Pipeline:
     ``sensors`` (a :class:`SensorNetwork` or a list of sensors); ``measurements``
     (sensor name → (steps, m_i)); ``prior`` (a :class:`Gaussian` or (mean, cov),
     in the models' layout); ``times`` (seconds, one per measurement step) or
-    ``tau`` (regular sampling); ``detectors`` (labels must be unique); ``recorder`` (defaults to
-    :class:`NullRecorder`); ``truth`` (an optional trajectory to record beside
+    ``tau`` (regular sampling); ``detectors`` (labels must be unique); ``recorder``
+    (None: nothing recorded); ``truth`` (an optional trajectory to record beside
     the estimates); ``filter_names`` to label the bank; ``record_measurements``
     (False when another pipeline on the same recorder already logs them);
     ``candidates`` (sensor name → :class:`~hybridtrack.sdk.scans.ScanSequence`, one
@@ -176,6 +175,7 @@ class Pipeline:
     ``record_every`` (steps, default 10,000) and ``record_seconds`` (wall-clock
     seconds, default 2.0; None: by steps only, so that two runs with the same seed
     always give the same chunks) bound how much work a killed recorded run loses.
+    R runs at once: :meth:`batch`, :meth:`run_batch`.
     """
 
     def __init__(
@@ -198,6 +198,55 @@ class Pipeline:
         record_every: int = 10_000,
         record_seconds: float | None = 2.0,
     ):
+        self.compose(models, estimator, sensors, detectors, filter_names, registry)
+        self.candidates = self.check_candidates(candidates, measurements)
+        if self.candidates is not None:
+            measurements = {name: seq.target_measurements() for name, seq in self.candidates.items()}
+        elif measurements is None:
+            raise ValueError("measurements: required (sensor name → (steps, m_i)) unless candidates are given")
+        z = self.network.stack(measurements)
+        t, dt = step_intervals(times, tau, z.shape[0])
+        prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
+        self.start(z[None], t[None], dt[None], [prior], [recorder], [truth], record_measurements, record_every, record_seconds)
+
+    @classmethod
+    def batch(cls, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None, **options) -> Pipeline:
+        """R runs as one pipeline over a bank of R × M filters (module docstring), ready to :meth:`run`.
+
+        ``measurements``: sensor name → (R, K+1, m_i) (NaN: not measured); ``prior``:
+        one Gaussian (or (mean, cov)) for all runs, or per-run means (R, n) and
+        covariances (R, n, n); ``times``: (K+1,) shared or (R, K+1) per run, or
+        ``tau``; ``truth``: per-run trajectories (sequence of R or mapping run →
+        trajectory), recorded beside the estimates; ``recorders``: run index →
+        recorder for the runs to record.  ``options`` as for the constructor
+        (``models``, ``estimator``, ``sensors``, ``tau``, ``detectors``, …); clutter
+        candidates are not batched (run those one by one).
+        """
+        arrays, R, steps = batch_measurements(measurements)
+        t, dt = batch_times(times, options.pop("tau", None), R, steps)
+        priors, truths, recorders = batch_priors(prior, R), per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
+        if "candidates" in options:
+            raise ValueError("candidates: clutter candidates are not batched; run those one by one")
+        streaming = {key: options.pop(key) for key in ("record_measurements", "record_every", "record_seconds") if key in options}
+        pipeline = cls.__new__(cls)
+        pipeline.compose(**options)
+        pipeline.candidates = None
+        z = pipeline.network.stack({name: a.reshape(R * steps, a.shape[-1]) for name, a in arrays.items()}).reshape(R, steps, -1)
+        pipeline.start(z, t, dt, priors, recorders, truths, **streaming)
+        return pipeline
+
+    @classmethod
+    def run_batch(cls, measurements: Mapping[str, np.ndarray], prior, **options) -> list[PipelineResult]:
+        """Run R measurement sequences as one stacked bank (:meth:`batch`, same arguments): one
+        :class:`PipelineResult` per run, equal to ``Pipeline(..., measurements=run r).run()``."""
+        pipeline = cls.batch(measurements, prior, **options)
+        pipeline.run()
+        return [pipeline.result(r) for r in range(pipeline.runs)]
+
+    # -- composition
+    def compose(self, models, estimator, sensors, detectors=(), filter_names=None, registry=None) -> None:
+        """Resolve and check the components: the models (one layout), the estimator, the network, the detectors
+        (unique labels) and the filter names."""
         self.models: list[MotionModel] = [resolve("motion_model", m, registry) for m in models]
         if not self.models:
             raise ValueError("models: a bank needs at least one motion model")
@@ -207,23 +256,13 @@ class Pipeline:
         self.layout = self.models[0].layout
         self.estimator: Estimator = resolve("estimator", estimator, registry)
         self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
-        self.candidates = self._check_candidates(candidates, measurements)
-        if self.candidates is not None:
-            measurements = {name: seq.target_measurements() for name, seq in self.candidates.items()}
-        elif measurements is None:
-            raise ValueError("measurements: required (sensor name → (steps, m_i)) unless candidates are given")
-        self.z = self.network.stack(measurements)
-        self.times, self.intervals = step_intervals(times, tau, self.z.shape[0])
         self.detectors: list[Detector] = [resolve("detector", d, registry) for d in detectors]
-        labels = [d.label for d in self.detectors]
+        self.labels = labels = [d.label for d in self.detectors]
         if len(set(labels)) != len(labels):
             raise ValueError(
                 f"detectors: labels must be unique, got {labels}; give each instance a label, e.g. ('glr', {{...}}, 'glr_fast')"
             )
-        self.recorder = recorder if recorder is not None else NullRecorder()
-        self.record_measurements = record_measurements
-        self.truth = truth
-        self.filter_names = tuple(filter_names) if filter_names is not None else self._default_names()
+        self.filter_names = tuple(filter_names) if filter_names is not None else mode_labels(self.models)
         if len(self.filter_names) != len(self.models):
             raise ValueError(f"filter_names: expected {len(self.models)} names, got {len(self.filter_names)}")
         bad = [n for n in self.filter_names if not isinstance(n, str) or not n.strip() or "/" in n]
@@ -236,49 +275,7 @@ class Pipeline:
             if getattr(detector, "hypotheses", ()) is None:
                 detector.hypotheses = self.filter_names
 
-        prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
-        if prior.dim != len(self.layout):
-            raise ValueError(f"prior: expected a state of the layout {self.layout}, got dimension {prior.dim}")
-        self.prior = prior
-        M = len(self.models)
-        self.state = self.estimator.initialize(np.tile(prior.mean, (M, 1)), np.tile(prior.cov, (M, 1, 1)))
-        self.linear = all(m.linear for m in self.models)
-        self._transitions: tuple[float, TransitionBank] | None = None
-        if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
-            raise ValueError(f"record_every: expected a whole number of steps ≥ 1, got {record_every!r}")
-        if record_seconds is not None and not (isinstance(record_seconds, (int, float)) and record_seconds > 0):
-            raise ValueError(f"record_seconds: expected a positive number of seconds or None, got {record_seconds!r}")
-        self.record_every = int(record_every)
-        self.record_seconds = record_seconds
-        self._allocate(M)
-        self.results = StepResults(self)
-        self.decisions: list[Decision] = []
-        self._result: RunResult | None = None
-        self._logged = 0  # steps already sent to the recorder
-        #: the states of the steps not yet streamed, for an estimator that records them (Estimator.records_states)
-        self._pending_states = (
-            [] if getattr(self.estimator, "records_states", False) and not isinstance(self.recorder, NullRecorder) else None
-        )
-        self._static_logged = 0  # number of steps the static path lines were logged for
-        self._last_flush = time.monotonic()
-
-    def _allocate(self, M: int) -> None:
-        """Preallocate the per-step arrays for the K measurement steps (pages are touched only as steps fill them)."""
-        K, n, m = self.steps, len(self.layout), self.network.measurement_dim
-        self._count = 0
-        self._means = np.empty((K, M, n))
-        self._covs = np.empty((K, M, n, n))
-        self._nis = np.empty((K, M))
-        self._loglik = np.empty((K, M))
-        self._nu = np.empty((K, M, m))  # NaN rows where a step lacked some measurement
-        self._S = np.empty((K, M, m, m))
-        self._innovation_objects: dict[int, Innovation] = {}  # steps whose innovation is not a complete plain one
-        self._series: dict[str, dict[str, np.ndarray]] = {}  # detector label → series → (K, ...) NaN-filled
-        self._threshold_keys: dict[str, set[str]] = {}
-        self._statistic_keys: dict[str, set[str]] = {}
-        self._decision_at: dict[tuple[int, str], Decision] = {}
-
-    def _check_candidates(self, candidates, measurements):
+    def check_candidates(self, candidates, measurements):
         """Validate ``candidates`` (one ScanSequence per network sensor) against the estimator."""
         if candidates is None:
             return None
@@ -298,109 +295,214 @@ class Pipeline:
                 raise ValueError(f"candidates[{name!r}]: expected a ScanSequence of sensor {name!r}, got {seq!r}")
         return {name: candidates[name] for name in self.network.names}
 
-    def _default_names(self) -> tuple[str, ...]:
-        return mode_labels(self.models)
+    def start(self, z, t, dt, priors, recorders, truths, record_measurements=True, record_every=10_000, record_seconds=2.0) -> None:
+        """Initialize the bank of R runs: measurements z (R, K, Σm), times t (R, K), Δt (R, K−1), one prior,
+        recorder and truth per run; preallocate the per-step arrays."""
+        R, M = len(priors), len(self.models)
+        for r, p in enumerate(priors):
+            if p.dim != len(self.layout):
+                where = "" if R == 1 else f" (run {r})"
+                raise ValueError(f"prior{where}: expected a state of the layout {self.layout}, got dimension {p.dim}")
+        if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
+            raise ValueError(f"record_every: expected a whole number of steps ≥ 1, got {record_every!r}")
+        if record_seconds is not None and not (isinstance(record_seconds, (int, float)) and record_seconds > 0):
+            raise ValueError(f"record_seconds: expected a positive number of seconds or None, got {record_seconds!r}")
+        self.runs, self.every_run = R, np.arange(R)
+        self.Z, self.T, self.DT = z, t, dt
+        self.z, self.times, self.intervals = (z[0], t[0], dt[0]) if R == 1 else (z, t, dt)
+        self.priors = priors
+        self.prior = priors[0]
+        self.recorders, self.truths = list(recorders), list(truths)
+        self.recorder, self.truth = self.recorders[0], self.truths[0]
+        self.record_measurements = record_measurements
+        self.record_every, self.record_seconds = int(record_every), record_seconds
+        est = self.estimator
+        if est.sampling and R > 1:  # each run initialized as its own pipeline would be: a fresh copy of the estimator
+            fresh = copy.deepcopy(est)
+            self.state = est.concatenate(
+                [copy.deepcopy(fresh).initialize(np.tile(p.mean, (M, 1)), np.tile(p.cov, (M, 1, 1))) for p in priors]
+            )
+        else:
+            self.state = est.initialize(
+                np.repeat(np.stack([p.mean for p in priors]), M, 0), np.repeat(np.stack([p.cov for p in priors]), M, 0)
+            )
+        self.linear = all(m.linear for m in self.models)
+        self.run_transitions = RunTransitions(self.models, priors)
+        self.batches = [d.batch(R) for d in self.detectors] if R > 1 else None
+        K, n, m = z.shape[1], len(self.layout), z.shape[2]
+        self.processed = 0
+        self.means, self.covs = np.empty((R, K, M, n)), np.empty((R, K, M, n, n))
+        self.nis, self.loglik = np.empty((R, K, M)), np.empty((R, K, M))
+        self.nu = np.empty((R, K, M, m))  # NaN rows where a step lacked some measurement
+        self.S = np.empty((K, M, m, m))  # run 0's, for results[k]
+        self.innovation_objects: dict[int, Innovation] = {}  # a single run's steps whose innovation is not a complete plain one
+        self.series: list[dict[str, dict[str, np.ndarray]]] = [{} for _ in range(R)]  # label → series → (K, ...)
+        self.statistic_keys: dict[str, set[str]] = {}
+        self.threshold_keys: dict[str, set[str]] = {}
+        self.run_decisions: list[list[Decision]] = [[] for _ in range(R)]
+        self.decision_at: dict[tuple[int, str], Decision] = {}  # run 0's
+        self.results = StepResults(self)
+        self.logged = 0  # steps already handed to the recorders
+        self.lines_logged = 0  # number of steps the static path lines were logged for
+        recorded = [r for r, rec in enumerate(self.recorders) if rec is not None]
+        self.recording = bool(recorded)
+        #: per recorded run, the states of the steps not yet handed over (Estimator.records_states)
+        self._pending_states = {r: [] for r in recorded} if recorded and getattr(est, "records_states", False) else None
+        self.last_flush = time.monotonic()
 
     @property
     def steps(self) -> int:
         """Number of steps in the measurements (0..steps−1)."""
-        return self.z.shape[0]
+        return self.Z.shape[1]
 
     @property
     def done(self) -> bool:
-        return self._count >= self.steps
+        return self.processed >= self.steps
 
-    def transitions(self, dt: float) -> TransitionBank:
-        """The bank's transitions over ``dt`` seconds.
+    @property
+    def decisions(self) -> list[Decision]:
+        """Run 0's decisions so far (:meth:`result` gives each run's)."""
+        return self.run_decisions[0]
 
-        Linear models: fixed at the prior mean (the switch state) and rebuilt
-        only when Δt changes; nonlinear models: relinearized at each filter's
-        current mean every step (EKF).
+    def transitions(self, dt) -> TransitionBank:
+        """The bank's transitions over ``dt`` seconds (one per run, or one for all).
+
+        Linear models: fixed at each run's prior mean (the switch state) and
+        rebuilt only when Δt changes; nonlinear models: relinearized at each
+        filter's current mean every step (EKF).
         """
-        if not self.linear:
-            means = self.estimator.mean(self.state)
-            return TransitionBank.stack([m.transition(dt, x) for m, x in zip(self.models, means)])
-        if self._transitions is None or self._transitions[0] != dt:
-            self._transitions = (dt, TransitionBank.stack([m.transition(dt, self.prior.mean) for m in self.models]))
-        return self._transitions[1]
+        dt = np.full(self.runs, float(dt)) if np.ndim(dt) == 0 else dt
+        if self.linear:
+            return self.run_transitions.bank(dt)
+        M = len(self.models)
+        means = self.estimator.mean(self.state)
+        return TransitionBank.stack([self.models[i % M].transition(float(dt[i // M]), x) for i, x in enumerate(means)])
 
+    # -- the loop
     def step(self) -> StepResult:
-        """Process the next step, store it, stream the recording when due, and return the step's result."""
-        k = self._count
+        """Process the next step of every run, store it, hand the recorders their steps when due, and return the
+        step's result (run 0's)."""
+        k = self.processed
         if k >= self.steps:
             raise StopIteration(f"all {self.steps} steps processed")
+        R, M = self.runs, len(self.models)
+        est, sensors = self.estimator, self.network.sensors
         state = self.state
         if k > 0:
-            state = self.estimator.predict(state, self.transitions(float(self.intervals[k - 1])))
-        z = self.z[k] if self.candidates is None else [seq.scan(k) for seq in self.candidates.values()]
-        state, innovation = self.estimator.update(state, z, self.network.sensors, self.layout)
+            state = est.predict(state, self.transitions(self.DT[:, k - 1]))
+        z = self.Z[:, k]
+        if self.candidates is not None:
+            groups = [np.arange(1)]
+            state, innovation = est.update(state, [seq.scan(k) for seq in self.candidates.values()], sensors, self.layout)
+            updates = [innovation]
+        elif R == 1 or (np.isnan(z) == np.isnan(z[0])).all():
+            groups = [self.every_run]
+            state, innovation = est.update(state, z[0] if R == 1 else np.repeat(z, M, axis=0), sensors, self.layout)
+            updates = [innovation]
+        else:
+            patterns, which = np.unique(np.isnan(z), axis=0, return_inverse=True)
+            groups = [np.flatnonzero(which.reshape(-1) == g) for g in range(len(patterns))]
+            parts, updates = [], []
+            for runs in groups:
+                part, innovation = est.update(est.take(state, self.rows(runs)), np.repeat(z[runs], M, axis=0), sensors, self.layout)
+                parts.append(part)
+                updates.append(innovation)
+            state = est.take(est.concatenate(parts), np.argsort(np.concatenate([self.rows(runs) for runs in groups])))
         self.state = state
         if self._pending_states is not None:
-            self._pending_states.append(state)
-        outputs = {}
-        for detector in self.detectors:
-            output = detector.step(k, innovation)
-            outputs[detector.label] = output
-            if output.decision is not None:
-                decision = attrs.evolve(output.decision, time=float(self.times[k]))
-                self.decisions.append(decision)
-                self._decision_at[(k, detector.label)] = decision
-        mean, cov = self.estimator.mean(state), self.estimator.covariance(state)
-        self._store(k, mean, cov, innovation, outputs)
-        self._count = k + 1
-        self._result = None
-        due = self._count - self._logged
-        if (
+            for r, pending in self._pending_states.items():
+                pending.append(state if R == 1 else est.take(state, self.rows([r])))
+        mean, cov = est.mean(state), est.covariance(state)
+        self.means[:, k] = np.asarray(mean).reshape(R, M, -1)
+        self.covs[:, k] = np.asarray(cov).reshape(R, M, *self.covs.shape[-2:])
+        for runs, innovation in zip(groups, updates):
+            self.store_scores(k, runs, innovation)
+            if R == 1:  # a single run steps the detectors it was given
+                outputs = {d.label: d.step(k, innovation) for d in self.detectors}
+                self.store_detectors(k, 0, outputs)
+                continue
+            columns = [b.step(k, runs, innovation) for b in self.batches]
+            for position, r in enumerate(runs):
+                self.store_detectors(k, int(r), {label: column[position] for label, column in zip(self.labels, columns)})
+        self.processed = k + 1
+        due = self.processed - self.logged
+        if self.recording and (
             due >= self.record_every
             or (self._pending_states is not None and due >= STATE_CHUNK)
-            or (self.record_seconds is not None and time.monotonic() - self._last_flush >= self.record_seconds)
+            or (self.record_seconds is not None and time.monotonic() - self.last_flush >= self.record_seconds)
         ):
-            self._stream()
-        return StepResult(k, float(self.times[k]), mean, cov, innovation, outputs)
+            self.hand_over(lines=False)
+        if R == 1:
+            return StepResult(k, float(self.T[0, k]), mean, cov, updates[0], outputs)
+        return self.step_result(k)
 
-    def _store(self, k: int, mean, cov, innovation: Innovation, outputs: dict[str, DetectorStep]) -> None:
-        """Write step k into the preallocated arrays (see :class:`RunResult` for the NaN conventions)."""
-        M, m = self._nu.shape[1:]
-        self._means[k] = mean
-        self._covs[k] = cov
+    def rows(self, runs) -> np.ndarray:
+        """The bank rows of the runs ``runs`` (r·M + j, run by run)."""
+        M = len(self.models)
+        return (np.asarray(runs)[:, None] * M + np.arange(M)).reshape(-1)
+
+    def store_scores(self, k: int, runs: np.ndarray, innovation: Innovation) -> None:
+        """Write step k's ℓ, NIS and ν of the runs ``runs`` (NaN: nothing measured / a component missing)."""
+        G, (M, m) = runs.size, self.nu.shape[2:]
+        rows = slice(None) if G == self.runs else runs  # every run: a plain slice is the faster write
         dim = innovation.measurement_dim
-        self._nis[k] = innovation.nis if dim > 0 else np.nan
-        self._loglik[k] = innovation.loglik if dim > 0 else np.nan
-        complete = dim == m and np.shape(innovation.nu) == (M, m) and np.shape(innovation.S) == (M, m, m)
-        if complete:
-            self._nu[k] = innovation.nu
-            self._S[k] = innovation.S
-        else:
-            self._nu[k] = np.nan
-            self._S[k] = np.nan
-        if not complete or type(innovation) is not Innovation:
-            self._innovation_objects[k] = innovation
-        store_detector_outputs(self._series, self._statistic_keys, self._threshold_keys, k, self.steps, outputs)
+        self.nis[rows, k] = np.asarray(innovation.nis).reshape(G, M) if dim > 0 else np.nan
+        self.loglik[rows, k] = np.asarray(innovation.loglik).reshape(G, M) if dim > 0 else np.nan
+        complete = dim == m and np.shape(innovation.nu) == (G * M, m) and np.shape(innovation.S) == (G * M, m, m)
+        self.nu[rows, k] = np.asarray(innovation.nu).reshape(G, M, m) if complete else np.nan
+        if runs[0] == 0:
+            self.S[k] = np.asarray(innovation.S)[:M] if complete else np.nan
+            if self.runs == 1 and (not complete or type(innovation) is not Innovation):
+                self.innovation_objects[k] = innovation
 
-    def _step_result(self, k: int) -> StepResult:
-        """The :class:`StepResult` of processed step k, rebuilt from the stored arrays."""
-        innovation = self._innovation_objects.get(k)
+    def store_detectors(self, k: int, r: int, outputs: Mapping[str, DetectorStep]) -> None:
+        """Write run r's detector outputs of step k into its series (label → name → (K, …), NaN where a detector
+        did not report that name) and its decisions (timed with the run's step time)."""
+        table_of = self.series[r]
+        for label, output in outputs.items():
+            table = table_of.setdefault(label, {})
+            self.statistic_keys.setdefault(label, set()).update(output.statistics)
+            self.threshold_keys.setdefault(label, set()).update(output.thresholds)
+            for key, value in {**output.statistics, **output.thresholds}.items():
+                value = np.asarray(value, dtype=float)
+                if key not in table:
+                    table[key] = np.full((self.steps, *value.shape), np.nan)
+                elif table[key].shape[1:] != value.shape:
+                    raise ValueError(
+                        f"detector {label!r}: series {key!r} changed shape at step {k}: "
+                        f"got {value.shape}, expected {table[key].shape[1:]} as at its earlier steps"
+                    )
+                table[key][k] = value
+            if output.decision is not None:
+                decision = attrs.evolve(output.decision, time=float(self.T[r, k]))
+                self.run_decisions[r].append(decision)
+                if r == 0:
+                    self.decision_at[(k, label)] = decision
+
+    def step_result(self, k: int) -> StepResult:
+        """The :class:`StepResult` of processed step k (run 0), rebuilt from the stored arrays."""
+        innovation = self.innovation_objects.get(k)
         if innovation is None:
-            innovation = Innovation(self._nu[k].copy(), self._S[k].copy(), self._loglik[k].copy(), self._nis[k].copy())
+            innovation = Innovation(self.nu[0, k].copy(), self.S[k].copy(), self.loglik[0, k].copy(), self.nis[0, k].copy())
         outputs = {}
         for detector in self.detectors:
             label = detector.label
-            series = self._series.get(label, {})
+            series = self.series[0].get(label, {})
             value = {key: (float(a[k]) if a.ndim == 1 else a[k].copy()) for key, a in series.items()}
-            thresholds = self._threshold_keys.get(label, set())
-            statistics = self._statistic_keys.get(label, set())
+            thresholds = self.threshold_keys.get(label, set())
+            statistics = self.statistic_keys.get(label, set())
             outputs[label] = DetectorStep(
                 statistics={key: v for key, v in value.items() if key in statistics},
                 thresholds={key: v for key, v in value.items() if key in thresholds},
-                decision=self._decision_at.get((k, label)),
+                decision=self.decision_at.get((k, label)),
             )
-        return StepResult(k, float(self.times[k]), self._means[k].copy(), self._covs[k].copy(), innovation, outputs)
+        return StepResult(k, float(self.T[0, k]), self.means[0, k].copy(), self.covs[0, k].copy(), innovation, outputs)
 
-    def run(self) -> RunResult:
-        """Process the remaining steps, record the run and return it.
+    def run(self) -> PipelineResult:
+        """Process the remaining steps, record the run(s) and return run 0's result.
 
         If a step raises, what was processed before is still recorded.  While it
-        runs, the recording is streamed (see ``record_every``/``record_seconds``).
+        runs, the recorders get their steps in chunks (``record_every``/``record_seconds``).
         """
         try:
             while not self.done:
@@ -409,148 +511,66 @@ class Pipeline:
             self.record()
         return self.result()
 
-    @classmethod
-    def run_batch(
-        cls, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None, **options
-    ) -> list[RunResult]:
-        """Run R measurement sequences as one stacked bank of R × M filters: one :class:`RunResult` per run,
-        equal to ``Pipeline(..., measurements=run r).run()`` (see :func:`hybridtrack.engine.batch.run_pipeline_batch`,
-        which takes the same ``options`` as the constructor: ``models``, ``estimator``, ``sensors``, ``tau``,
-        ``detectors``, ``filter_names``, ``registry``)."""
-        from hybridtrack.engine.batch import run_pipeline_batch
-
-        return run_pipeline_batch(measurements, prior, times=times, truth=truth, recorders=recorders, **options)
-
-    def replay(self, result: RunResult, threshold_keys: Mapping[str, set[str]] | None = None) -> None:
-        """Load a finished run (e.g. one run of :meth:`run_batch`) of this pipeline's measurements into its storage
-        and record it; ``threshold_keys`` (label → names) tells thresholds from statistics in ``results[k]``."""
-        if self._count:
-            raise RuntimeError("replay: this pipeline has already processed steps")
-        k = result.means.shape[0]
-        if k != self.steps or result.means.shape[1:] != self._means.shape[1:]:
-            raise ValueError(f"result: expected a run of {self.steps} steps of this bank, got means of shape {result.means.shape}")
-        self._means[:], self._covs[:], self._nis[:], self._loglik[:], self._nu[:] = (
-            result.means,
-            result.covs,
-            result.nis,
-            result.loglik,
-            result.innovations,
-        )
-        self._S[:] = np.nan
-        threshold_keys = threshold_keys or {}
-        for label, series in result.statistics.items():
-            self._series[label] = {key: np.array(values) for key, values in series.items()}
-            self._threshold_keys[label] = set(threshold_keys.get(label, ()))
-            self._statistic_keys[label] = set(series) - self._threshold_keys[label]
-        self.decisions = list(result.decisions)
-        self._decision_at = {(d.step, d.detector): d for d in result.decisions}
-        self._count = k
-        self._result = None
-        self.record()
-
-    def result(self) -> RunResult:
-        """The steps processed so far as arrays: read-only views of the pipeline's storage (no copy)."""
-        if not self._count:
+    def result(self, run: int = 0) -> PipelineResult:
+        """Run ``run``'s steps processed so far as arrays: read-only views of the pipeline's storage (no copy)."""
+        if not self.processed:
             raise RuntimeError("no step has been processed yet")
-        if self._result is None:
-            self._result = self._build_result()
-        return self._result
-
-    def _build_result(self) -> RunResult:
-        k = self._count
+        k = self.processed
 
         def view(array):
             out = array[:k]
             out.flags.writeable = False
             return out
 
-        return RunResult(
+        return PipelineResult(
             layout=self.layout,
-            filters=self.filter_names,
-            times=view(self.times),
-            means=view(self._means),
-            covs=view(self._covs),
-            nis=view(self._nis),
-            loglik=view(self._loglik),
-            innovations=view(self._nu),
-            statistics={label: {key: view(a) for key, a in series.items()} for label, series in self._series.items()},
-            decisions=tuple(self.decisions),
+            modes=self.filter_names,
+            times=view(self.T[run]),
+            means=view(self.means[run]),
+            covs=view(self.covs[run]),
+            decisions=tuple(self.run_decisions[run]),
+            nis=view(self.nis[run]),
+            loglik=view(self.loglik[run]),
+            innovations=view(self.nu[run]),
+            statistics={label: {key: view(a) for key, a in series.items()} for label, series in self.series[run].items()},
         )
 
+    # -- recording: the recorders get finished steps, the writer is hybridtrack.recording.pipeline
     def record(self) -> None:
-        """Bring the recording up to date: the steps not yet streamed, then the static path lines, then a flush.
+        """Bring the recordings up to date: the steps not yet handed over, the static path lines, a flush.
 
-        Logs the truth, measurements, estimates (points and 2σ ellipses), NIS, ℓ,
-        ν, clutter associations, detector series and decisions of the new steps;
-        calling it again without new steps logs nothing.
+        Calling it again without new steps logs nothing.
         """
-        if self._count == 0 or self._static_logged == self._count or isinstance(self.recorder, NullRecorder):
-            return
-        self._stream(flush=False)
-        rec = self.recorder
-        k = self._count
-        steps, times = np.arange(k), self.times[:k]
-        if self.truth is not None:
-            rec.log_path("world/truth", steps, self.truth.positions[:k], times, points=False)
-        position = [self.layout.index("x"), self.layout.index("y")]
-        for j, name in enumerate(self.filter_names):
-            rec.log_path(f"world/estimate/{name}", steps, self._means[:k, j][:, position], times, points=False)
-        self._static_logged = k
-        self._flush_recorder()
+        if self.processed and self.lines_logged != self.processed and self.recording:
+            self.hand_over(lines=True)
 
-    def _flush_recorder(self) -> None:
-        flush = getattr(self.recorder, "flush", None)
-        if flush is not None:
-            flush()
-        self._last_flush = time.monotonic()
-
-    def _stream(self, flush: bool = True) -> None:
-        """Log steps [logged, processed) to the recorder (per-step rows only; the static path lines come in :meth:`record`)."""
-        start, stop = self._logged, self._count
-        if stop <= start or isinstance(self.recorder, NullRecorder):
-            self._logged = stop
-            self._last_flush = time.monotonic()
-            return
-        rec = self.recorder
-        rows = slice(start, stop)
-        steps, times = np.arange(start, stop), self.times[rows]
-        if self.truth is not None:
-            positions = self.truth.positions[rows]
-            rec.log_path("world/truth", steps[: len(positions)], positions, times[: len(positions)], line=False)
-        if self.record_measurements and self.candidates is not None:
-            for seq in self.candidates.values():  # as hybridtrack.recording.clutter.log_scans, for rows start..stop
-                if seq.measurement_dim == 2:
-                    rec.log_points(f"world/measurements/{seq.sensor}", steps, seq.target_measurements()[rows], times)
-                    false = seq.false_measurements()[rows]
-                    if false.shape[1]:
-                        rec.log_points(f"world/clutter/{seq.sensor}", steps, false, times)
-        elif self.record_measurements:
-            log_measurements(rec, self.network.sensors, self.network.split(self.z[rows]), steps, times)
-        position = [self.layout.index("x"), self.layout.index("y")]
-        for j, name in enumerate(self.filter_names):
-            log_estimate(rec, name, steps, self._means[rows, j], self._covs[rows, j], position, times, line=False)
-            rec.log_scalars(f"estimator/{name}/nis", steps, self._nis[rows, j], times)
-            rec.log_scalars(f"estimator/{name}/loglik", steps, self._loglik[rows, j], times)
-            rec.log_scalars(f"estimator/{name}/innovation", steps, self._nu[rows, j], times)
-        rec.log_scalars(
-            "estimator/nis_bounds", steps, nis_bounds(np.isfinite(self.z[rows]).sum(axis=1)), times, names=["χ² 2.5 %", "χ² 97.5 %"]
-        )
-        if self.candidates is not None:
-            from hybridtrack.recording.clutter import log_associations
-
-            log_associations(rec, self.filter_names, steps, [self._innovation_objects.get(i) for i in steps], times)
-        for detector in self.detectors:
-            hypotheses = tuple(getattr(detector, "hypotheses", None) or self.filter_names)
-            for key, values in self._series.get(detector.label, {}).items():
-                width = values.shape[1] if values.ndim == 2 else 0
-                names = hypotheses if width == len(hypotheses) else hypotheses[1:] if width == len(hypotheses) - 1 else None
-                rec.log_scalars(f"detector/{detector.label}/{key}", steps, values[rows], times, names=names)
-        for decision in self.decisions:
-            if start <= decision.step < stop:
-                rec.log_event(decision.step, decision_text(decision), decision.time)
-        if self._pending_states:
-            self.estimator.record_states(rec, self.filter_names, steps, self._pending_states, self.layout, times)
-            self._pending_states.clear()
-        self._logged = stop
-        if flush:
-            self._flush_recorder()
+    def hand_over(self, lines: bool) -> None:
+        """Give each recorder its run's steps [logged, processed) (``recorder.log_result``; with ``lines`` the static
+        path lines of steps 0 … processed − 1 too) and flush it."""
+        for r, recorder in enumerate(self.recorders):
+            if recorder is None:
+                continue
+            states = None if self._pending_states is None else self._pending_states[r]
+            recorder.log_result(
+                self.result(r),
+                start=self.logged,
+                lines=lines,
+                network=self.network,
+                measurements=self.Z[r],
+                candidates=self.candidates,
+                truth=self.truths[r],
+                record_measurements=self.record_measurements,
+                hypotheses={d.label: tuple(getattr(d, "hypotheses", None) or self.filter_names) for d in self.detectors},
+                innovations=self.innovation_objects,
+                estimator=self.estimator,
+                states=states,
+            )
+            if states:
+                states.clear()
+            flush = getattr(recorder, "flush", None)
+            if flush is not None:
+                flush()
+        self.logged = self.processed
+        if lines:
+            self.lines_logged = self.processed
+        self.last_flush = time.monotonic()

@@ -4,9 +4,15 @@ Reads results; never called from inside a step.  Modules: :mod:`.recorder`
 (the recorders and the log helpers), :mod:`.results` (``log_result``, by result type),
 :mod:`.adaptive` (the adaptive algorithms' results), :mod:`.layout` (the blueprint built from
 the content), :mod:`.style` (palette, legend names), :mod:`.clutter` (scans and
-associations), :mod:`.inspection` (reading a recording back).
+associations), :mod:`.pipeline` (a pipeline's run), :mod:`.multiple_model` (the
+IMM/GPB result writer), :mod:`.inspection` (reading a recording back).
 """
 
+from hybridtrack.recording import (
+    adaptive,  # noqa: F401  (registers the KnownSwitchRun, UnknownChangeRun and ScheduleRun writers)
+    multiple_model,  # noqa: F401  (registers the MultipleModelRun writer)
+    pipeline,  # noqa: F401  (registers the writer of a pipeline run with log_result)
+)
 from hybridtrack.recording.recorder import (
     APPLICATION_ID,
     LEGEND_CORNERS,
@@ -66,5 +72,3 @@ __all__ = [
     "short_decision",
     "spatial_style",
 ]
-
-from hybridtrack.recording import adaptive  # noqa: E402, F401  (registers the adaptive results' writers with log_result)

@@ -6,19 +6,19 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.core.interfaces import ClutterInnovation
+from hybridtrack.core.protocols import ClutterInnovation
 from hybridtrack.sdk.scans import ScanSequence
 
 
 def log_scans(recorder, sequences: Sequence[ScanSequence], steps: np.ndarray, times: np.ndarray | None = None) -> None:
     """False candidates under ``world/clutter/<sensor>`` and target-originated ones under
-    ``world/measurements/<sensor>`` (2-D sensors only: the split uses the simulator's labels)."""
+    ``world/measurements/<sensor>`` at ``steps`` (2-D sensors only: the split uses the simulator's labels)."""
+    steps = np.asarray(steps)
     for seq in sequences:
         if seq.measurement_dim != 2:
             continue
-        K = len(steps)
-        recorder.log_points(f"world/measurements/{seq.sensor}", steps, seq.target_measurements()[:K], times)
-        false = seq.false_measurements()[:K]
+        recorder.log_points(f"world/measurements/{seq.sensor}", steps, seq.target_measurements()[steps], times)
+        false = seq.false_measurements()[steps]
         if false.shape[1]:
             recorder.log_points(f"world/clutter/{seq.sensor}", steps, false, times)
 
@@ -28,7 +28,7 @@ def log_associations(
 ) -> None:
     """Gates, association weights and association likelihoods of clutter-aware updates.
 
-    ``innovations`` holds one :class:`~hybridtrack.core.interfaces.ClutterInnovation`
+    ``innovations`` holds one :class:`~hybridtrack.core.protocols.ClutterInnovation`
     (or plain Innovation, skipped) per step.  Per filter j and sensor s:
 
     * ``world/estimate/<filter>/gate`` — the gate {z : (z − ẑ)ᵀS⁻¹(z − ẑ) ≤ γ}

@@ -108,7 +108,8 @@ class Recorder(Protocol):
         """One or more 2-D segments per step: starts, ends of shape (K, 2) or (K, L, 2) (e.g. bearing lines)."""
 
     def log_result(self, result, **context) -> None:
-        """A finished run's result, handed over by the engine or an algorithm after the run
+        """A finished run's result, handed over by the engine or an algorithm after the run, or the finished
+        steps of a run still going (a pipeline hands them in chunks, ``start=…``)
         (:func:`hybridtrack.recording.results.log_result`, by the result's type)."""
 
     def flush(self) -> None:
@@ -118,50 +119,23 @@ class Recorder(Protocol):
         """Flush and close; idempotent."""
 
 
+def _ignore(*args, **kwargs) -> None:
+    return None
+
+
 class NullRecorder:
-    """Records nothing (recording turned off)."""
+    """Records nothing (recording turned off): every ``log_…`` method of :class:`Recorder` and of its optional
+    extensions, ``flush`` and ``close`` accept their arguments and do nothing."""
 
-    def log_result(self, result, **context):
-        pass
-
-    def log_path(self, entity, steps, positions, times=None, *, points=True, line=True):
-        pass
-
-    def log_points(self, entity, steps, points, times=None):
-        pass
-
-    def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
-        pass
-
-    def log_geo_path(self, entity, steps, lat_lon, times=None):
-        pass
-
-    def log_scalars(self, entity, steps, values, times=None, names=None):
-        pass
-
-    def log_event(self, step, text, time=None, level="INFO"):
-        pass
-
-    def log_modes(self, entity, steps, modes, names, times=None):
-        pass
-
-    def log_ellipses(self, entity, steps, centers, covs, times=None, sigmas=2.0):
-        pass
-
-    def log_lines(self, entity, steps, starts, ends, times=None):
-        pass
-
-    def flush(self):
-        pass
-
-    def close(self):
-        pass
+    def __getattr__(self, name: str):
+        if name.startswith("log_") or name in ("flush", "close"):
+            return _ignore
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        self.close()
         return False
 
 

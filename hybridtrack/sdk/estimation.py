@@ -29,8 +29,8 @@ from typing import Any
 import attrs
 import numpy as np
 
-from hybridtrack.core.interfaces import Estimator, Innovation, TransitionBank, check_prior
-from hybridtrack.core.validation import FILTER_MAGNITUDE_LIMIT, as_float_array
+from hybridtrack.core.interfaces import Estimator, Innovation, TransitionBank
+from hybridtrack.core.validation import FILTER_MAGNITUDE_LIMIT, as_float_array, check_prior
 from hybridtrack.sdk.measurements import MeasurementAssembler
 
 

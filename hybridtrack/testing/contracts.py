@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from hybridtrack.core.algorithm import Algorithm
 from hybridtrack.core.interfaces import (
-    KINDS,
     Detector,
     DetectorStep,
     Estimator,
@@ -32,6 +32,8 @@ from hybridtrack.core.interfaces import (
     Solver,
     TransitionBank,
 )
+from hybridtrack.core.kinds import KINDS
+from hybridtrack.core.types import Decision, Gaussian
 from hybridtrack.testing._reference import (
     CV_LAYOUT,
     LinearPositionSensor,
@@ -44,6 +46,7 @@ from hybridtrack.testing._reference import (
 
 __all__ = [
     "build_example",
+    "check_algorithm",
     "check_component",
     "check_detector",
     "check_estimator",
@@ -550,6 +553,80 @@ def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
     return solution
 
 
+# --------------------------------------------------------------------------- algorithms
+
+
+def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float = 1.0, seed: int = 0) -> Any:
+    """Check an :class:`~hybridtrack.core.algorithm.Algorithm` factory on a target moving straight; return the result.
+
+    An algorithm is configured with the sensors it reads, so the check builds
+    it: ``factory(sensors=[LinearPositionSensor("contract_xy")], tau=τ,
+    **example_parameters(factory))``, R = 4 I (σ = 2 m), and runs it on K+1 =
+    ``steps`` + 1 fixes of a constant-velocity target (10 m/s east, 5 m/s
+    north) with the factory's ``example_run`` keywords.  It must be an
+    Algorithm with a string ``name`` and a ``layout`` holding x and y; the
+    result has ``times`` 0, τ, … (K+1,), finite ``means`` (K+1, n) and
+    symmetric PSD ``covs`` (K+1, n, n) (a fixed bank: (K+1, M, n), (K+1, M, n, n)),
+    ``decisions`` (when it has them) :class:`~hybridtrack.core.types.Decision` s in step order;
+    the same ``times`` given explicitly, and a second run of the same
+    instance, give the same result; the estimate follows the target (mean
+    position error below 5 σ).
+    """
+    instance = factory(sensors=[LinearPositionSensor("contract_xy", ("x", "y"), 4.0 * np.eye(2))], tau=tau, **example_parameters(factory))
+    label = _label(instance, "algorithm")
+    _require(isinstance(instance, Algorithm), label, "is not a hybridtrack.core.algorithm.Algorithm (it needs a `run` method)")
+    _registry_name(instance, label)
+    layout = tuple(getattr(instance, "layout", ()) or ())
+    _require({"x", "y"} <= set(layout), label, f"`layout` must name the state components, with x and y; got {layout!r}")
+    rng = np.random.default_rng(seed)
+    t = tau * np.arange(steps + 1)
+    truth = {"x": 10.0 * t, "vx": np.full_like(t, 10.0), "y": 5.0 * t, "vy": np.full_like(t, 5.0)}
+    z = np.column_stack([truth["x"], truth["y"]]) + 2.0 * rng.standard_normal((steps + 1, 2))
+    variances = {"x": 25.0, "y": 25.0, "vx": 4.0, "vy": 4.0}
+    prior = Gaussian(np.array([truth[c][0] if c in truth else 0.0 for c in layout]), np.diag([variances.get(c, 1.0) for c in layout]))
+    options = dict(getattr(factory, "example_run", None) or {})
+
+    def run(**times) -> Any:
+        try:
+            return instance.run({"contract_xy": z.copy()}, prior, **options, **times)
+        except Exception as error:
+            raise AssertionError(f"{label}: run on {steps + 1} steps of a straight track raised {error!r}") from error
+
+    result = run()
+    K1, n = steps + 1, len(layout)
+    _close(
+        _array(getattr(result, "times", None), label, "result times"),
+        t,
+        label,
+        "result times (default 0, τ, 2τ, …)",
+        rtol=1e-12,
+        atol=1e-12,
+    )
+    means = _array(getattr(result, "means", None), label, "result means")
+    _require(
+        means.shape in ((K1, n),) or (means.ndim == 3 and means.shape[::2] == (K1, n)),
+        label,
+        f"means has shape {means.shape}, expected ({K1}, {n})",
+    )
+    covs = _array(getattr(result, "covs", None), label, "result covs", means.shape + (n,))
+    _symmetric_psd(covs, label, "result covs", definite=False)
+    decisions = tuple(getattr(result, "decisions", ()) or ())
+    _require(all(isinstance(d, Decision) for d in decisions), label, f"decisions must be Decision objects, got {decisions!r}")
+    steps_decided = [d.step for d in decisions]
+    _require(
+        steps_decided == sorted(steps_decided) and all(0 <= k <= steps for k in steps_decided),
+        label,
+        f"decision steps {steps_decided} not in step order within 0 … {steps}",
+    )
+    for what, other in (("a run given the same times", run(times=t.copy())), ("a second run of the same instance", run())):
+        _close(np.asarray(other.means, dtype=float), means, label, f"means of {what}", rtol=0, atol=0)
+    true_xy = np.column_stack([truth["x"], truth["y"]])
+    offset = means[..., [layout.index("x"), layout.index("y")]] - (true_xy[:, None, :] if means.ndim == 3 else true_xy)
+    error = float(np.mean(np.linalg.norm(offset, axis=-1)))
+    _require(error < 10.0, label, f"the estimate does not follow a straight target: mean position error {error:.3g} m (σ = 2 m)")
+    return result
+
+
 # --------------------------------------------------------------------------- dispatch
 
 _CHECKS: dict[str, Callable[..., Any]] = {
@@ -558,12 +635,14 @@ _CHECKS: dict[str, Callable[..., Any]] = {
     "estimator": check_estimator,
     "detector": check_detector,
     "solver": check_solver,
+    "algorithm": check_algorithm,
 }
 assert set(_CHECKS) == set(KINDS)
 
 
 def check_component(kind: str, component: Any, **options) -> Any:
-    """Run the check for ``kind`` (one of :data:`hybridtrack.core.interfaces.KINDS`) on ``component``."""
+    """Run the check for ``kind`` (one of :data:`hybridtrack.core.kinds.KINDS`) on ``component`` (an algorithm's factory:
+    the check builds the algorithm, :func:`check_algorithm`)."""
     try:
         check = _CHECKS[kind]
     except KeyError:

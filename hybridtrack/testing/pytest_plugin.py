@@ -3,13 +3,16 @@
 Fixtures, available in any project that has hybridtrack installed:
 
 * ``hybridtrack_contracts`` — the module :mod:`hybridtrack.testing.contracts`
-  (``check_motion_model``, ``check_sensor``, …, ``check_component``,
-  ``build_example``);
+  (``check_motion_model``, ``check_sensor``, …, ``check_algorithm``,
+  ``check_component``, ``build_example``);
 * ``hybridtrack_registry`` — the default :class:`~hybridtrack.core.registry.Registry`
   (entry-point plugins, honouring ``HYBRIDTRACK_DISABLE_PLUGINS``).
 
     def test_weave(hybridtrack_contracts):
         hybridtrack_contracts.check_motion_model(Weave())
+
+    def test_most_likely(hybridtrack_contracts):
+        hybridtrack_contracts.check_algorithm(MostLikely)  # an algorithm's check builds it
 
 The marker ``hybridtrack_contract`` labels such tests (``pytest -m hybridtrack_contract``).
 hybridtrack is imported only when a fixture is used, so the plugin costs

@@ -25,7 +25,8 @@ from abc import abstractmethod
 
 import numpy as np
 
-from hybridtrack.core.interfaces import DetectorStep, ScoreDetector
+from hybridtrack.core.interfaces import DetectorStep
+from hybridtrack.core.protocols import ScoreDetector
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.thresholds import check_probability

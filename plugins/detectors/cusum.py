@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.validation import check_positive
 from hybridtrack_plugins.detectors._scalar import ScalarDetector
 from hybridtrack_plugins.detectors.null_calibration import h0_sample
@@ -50,4 +51,6 @@ class CUSUM(ScalarDetector):
         return max(self._up, self._down)
 
 
-COMPONENTS = {CUSUM.name: CUSUM}
+@hookimpl
+def register_detectors(registry):
+    registry.add(CUSUM.name, CUSUM)

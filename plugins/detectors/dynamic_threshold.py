@@ -23,7 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Detector, DetectorStep, Innovation
+from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.sdk.thresholds import check_probability
@@ -78,10 +80,12 @@ class DynamicThreshold(Detector):
 
     name = "dynamic_threshold"
 
-    def __init__(self, detector: Any = "glr", cue: Any = "speed_drop", likelihood_ratio: float = 4.0):
-        from hybridtrack.engine.pipeline import resolve
-
-        self.detector: Detector = resolve("detector", detector)
+    def __init__(self, detector: Any = "glr", cue: Any = "speed_drop", likelihood_ratio: float = 4.0, registry=None):
+        """``detector`` a Detector or a spec resolved in ``registry`` (the one this detector was built from;
+        the default registry when None)."""
+        self.detector: Detector = (
+            detector if isinstance(detector, Detector) else registry_or_default(registry).resolve("detector", detector)
+        )
         if not hasattr(self.detector, "alpha"):
             raise ValueError(f"detector: {self.detector.name!r} has no settable 'alpha'; its threshold must be a function of α")
         self.cue = _cue(cue)
@@ -137,4 +141,6 @@ class DynamicThreshold(Detector):
         return self._wrap(step, self.detector.observe_value(step, value, m))
 
 
-COMPONENTS = {DynamicThreshold.name: DynamicThreshold}
+@hookimpl
+def register_detectors(registry):
+    registry.add(DynamicThreshold.name, DynamicThreshold)

@@ -16,6 +16,7 @@ from collections import deque
 
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack_plugins.detectors._scalar import ScalarDetector
 from hybridtrack_plugins.detectors.null_calibration import h0_sample
@@ -57,4 +58,6 @@ class GLR(ScalarDetector):
         return self._g
 
 
-COMPONENTS = {GLR.name: GLR}
+@hookimpl
+def register_detectors(registry):
+    registry.add(GLR.name, GLR)

@@ -23,7 +23,9 @@ from collections import deque
 
 import numpy as np
 
-from hybridtrack.core.interfaces import DetectorStep, ScoreDetector
+from hybridtrack import hookimpl
+from hybridtrack.core.interfaces import DetectorStep
+from hybridtrack.core.protocols import ScoreDetector, ScoreDetectorBatch
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.thresholds import THREE_SIGMA_ALPHA, check_probability
@@ -106,17 +108,21 @@ class SignalFunction(ScoreDetector):
                 self.reset()
         return DetectorStep({"signal": signal.copy(), "dof": dof}, {"upper": upper, "lower": lower}, decision)
 
-    @classmethod
-    def observe_runs(cls, detectors, step, loglik, nis, m) -> list[DetectorStep]:
-        """:meth:`observe` for R runs at once (one detector per run, ℓ and NIS (R, M)): vectorized for cumulative
-        detectors of one configuration — Σ NIS, D, S and the bounds (one quantile per distinct D) over the runs —
-        else the per-run loop.  Equal to ``observe`` run by run (the same arithmetic per element)."""
-        first = detectors[0]
-        config = (first.window, first.alpha, first.calibration, first.watch, first.reset_on_alarm)
-        if first.window is not None or any(
-            type(d) is not cls or (d.window, d.alpha, d.calibration, d.watch, d.reset_on_alarm) != config for d in detectors
-        ):
-            return super().observe_runs(detectors, step, loglik, nis, m)
+    def batch(self, runs: int) -> SignalFunctionBatch:
+        """``runs`` copies of this detector, vectorized over the runs when cumulative (:class:`SignalFunctionBatch`)."""
+        return SignalFunctionBatch(self, runs)
+
+
+class SignalFunctionBatch(ScoreDetectorBatch):
+    """R copies of a :class:`SignalFunction` fed together: for a cumulative one, Σ NIS, D, S and the bounds (one
+    quantile per distinct D) over the runs at once; a windowed one (or a subclass) steps the copies one by one.
+    Equal to ``observe`` run by run (the same arithmetic per element)."""
+
+    def observe(self, step, runs, loglik, nis, m) -> list[DetectorStep]:
+        first = self.detector
+        if first.window is not None or type(first) is not SignalFunction:
+            return super().observe(step, runs, loglik, nis, m)
+        detectors = [self.copies[int(r)] for r in runs]
         nis = np.asarray(nis, dtype=float)
         R, M = nis.shape
         if first.watch >= M:
@@ -144,4 +150,6 @@ class SignalFunction(ScoreDetector):
         return outputs
 
 
-COMPONENTS = {SignalFunction.name: SignalFunction}
+@hookimpl
+def register_detectors(registry):
+    registry.add(SignalFunction.name, SignalFunction)

@@ -39,7 +39,9 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import logsumexp
 
-from hybridtrack.core.interfaces import ChangeTimeStep, ChangeTimeTest, ChangeTimeTestBatch, DetectorStep
+from hybridtrack import hookimpl
+from hybridtrack.core.interfaces import DetectorStep
+from hybridtrack.core.protocols import ChangeTimeStep, ChangeTimeTest, ChangeTimeTestBatch
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.thresholds import WaldThresholds
@@ -313,4 +315,6 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         return ChangeTimeSPRTBatch(self, runs)
 
 
-COMPONENTS = {ChangeTimeSPRT.name: ChangeTimeSPRT}
+@hookimpl
+def register_detectors(registry):
+    registry.add(ChangeTimeSPRT.name, ChangeTimeSPRT)

@@ -32,21 +32,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.core.interfaces import BatchStep, DetectorStep, HypothesisTest, HypothesisTestBatch
+from hybridtrack import hookimpl
+from hybridtrack.core.interfaces import DetectorStep
+from hybridtrack.core.protocols import BatchStep, HypothesisTest, HypothesisTestBatch
 from hybridtrack.core.types import Decision
 from hybridtrack.sdk.thresholds import WaldThresholds
 
 
 def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """L_i − max_{j ≠ i, j active} L_j for every i (all j when fewer than two are active)."""
-    pool = active if active.sum() >= 2 else np.ones(L.shape[0], dtype=bool)
-    if L.shape[0] < 2:
-        return np.zeros_like(L)
-    masked = np.where(pool, L, -np.inf)
-    order = np.argsort(masked)[::-1]
-    best, second = masked[order[0]], masked[order[1]]
-    rival = np.where(np.arange(L.shape[0]) == order[0], second, best)
-    return L - rival
+    """L_i − max_{j ≠ i, j active} L_j for every i (all j when fewer than two are active): one row of :func:`batch_margins`."""
+    return batch_margins(np.asarray(L)[None], np.asarray(active)[None])[0]
 
 
 def batch_margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -67,6 +62,30 @@ def batch_margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
     second = masked.max(axis=1)
     rival = np.where(np.arange(H) == lead[:, None], second[:, None], best[:, None])
     return L - rival
+
+
+def rule_step(L, active, frozen, live, loglik, measured, lower: float, upper: float):
+    """Rule (5) at one step for U tests: L, active, frozen (U, H) as they stand, ``live`` (U,) the undecided ones,
+    ℓ (U, H), ``measured`` (U,).  Returns the new (L, active, frozen), ``chosen`` (U,) the hypothesis accepted
+    this step (−1: none), ``ratio`` (U, H) the margins it was accepted with, and the reported ``log_ratio`` (U, H)."""
+    L = np.where((live & measured)[:, None], L + loglik, L)
+    ratio = batch_margins(L, active)
+    dropped = live[:, None] & active & (ratio <= lower)
+    frozen = np.where(dropped, ratio, frozen)
+    active = active & ~dropped
+    ratio = batch_margins(L, active)
+    winners = live[:, None] & active & (ratio >= upper)
+    count = active.sum(axis=1)
+    deciding = live & ((count == 1) | winners.any(axis=1))
+    chosen = np.where(count == 1, np.argmax(active, axis=1), np.argmax(np.where(winners, ratio, -np.inf), axis=1))
+    chosen = np.where(deciding, chosen, -1)
+    rows = np.flatnonzero(deciding)
+    if rows.size:  # the accepted hypothesis keeps its margin over the best of all the others
+        frozen[rows, chosen[rows]] = batch_margins(L[rows], np.ones((rows.size, L.shape[1]), dtype=bool))[
+            np.arange(rows.size), chosen[rows]
+        ]
+        active[rows] = False
+    return L, active, frozen, chosen, ratio, np.where(active, batch_margins(L, active), frozen)
 
 
 def acceptance(step: int, detector: str, name: str, margin: float, upper: float) -> Decision:
@@ -98,33 +117,16 @@ class PairwiseSPRTBatch(HypothesisTestBatch):
             raise ValueError(f"loglik: the bank changed from {self.L.shape[1]} to {H} filters; call reset() first")
         if self.hypotheses is not None and len(self.hypotheses) != H:
             raise ValueError(f"hypotheses: {len(self.hypotheses)} names for a bank of {H} filters")
-        live = self.decided[runs] < 0
-        L, active, frozen = self.L[runs], self.active[runs], self.frozen[runs]
-        L = np.where((live & (np.asarray(m) > 0))[:, None], L + loglik, L)
-        ratio = batch_margins(L, active)
-        dropped = live[:, None] & active & (ratio <= self.lower)
-        frozen = np.where(dropped, ratio, frozen)
-        active = active & ~dropped
-        ratio = batch_margins(L, active)
-        winners = live[:, None] & active & (ratio >= self.upper)
-        count = active.sum(axis=1)
-        deciding = live & ((count == 1) | winners.any(axis=1))
-        chosen = np.where(count == 1, np.argmax(active, axis=1), np.argmax(np.where(winners, ratio, -np.inf), axis=1))
-        decided = np.full(U, -1)
+        L, active, frozen, decided, ratio, out = rule_step(
+            self.L[runs], self.active[runs], self.frozen[runs], self.decided[runs] < 0, loglik, np.asarray(m) > 0, self.lower, self.upper
+        )
         decisions = [None] * U
-        if deciding.any():
-            rows = np.flatnonzero(deciding)
-            full = batch_margins(L[rows], np.ones((rows.size, H), dtype=bool))
-            for j, u in enumerate(rows):
-                i = int(chosen[u])
-                frozen[u, i] = full[j, i]
-                active[u] = False
-                decided[u] = i
-                self.decided[runs[u]] = i
-                name = self.hypotheses[i] if self.hypotheses is not None and i < len(self.hypotheses) else f"H{i}"
-                decisions[u] = acceptance(step, self.detector.label, name, float(ratio[u, i]), self.upper)
+        for u in np.flatnonzero(decided >= 0):
+            i = int(decided[u])
+            self.decided[runs[u]] = i
+            name = self.hypotheses[i] if self.hypotheses is not None and i < len(self.hypotheses) else f"H{i}"
+            decisions[u] = acceptance(step, self.detector.label, name, float(ratio[u, i]), self.upper)
         self.L[runs], self.active[runs], self.frozen[runs] = L, active, frozen
-        out = np.where(active, batch_margins(L, active), frozen)
         return BatchStep(out, active.astype(float), decided, tuple(decisions))
 
 
@@ -162,28 +164,22 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
             raise ValueError(f"loglik: the bank changed from {self.L.shape[0]} to {M} filters; call reset() first")
         if self.hypotheses is not None and len(self.hypotheses) != M:
             raise ValueError(f"hypotheses: {len(self.hypotheses)} names for a bank of {M} filters")
+        state = (self.L[None], self.active[None], self.frozen[None], np.array([self.decided is None]))
+        L, active, frozen, chosen, ratio, out = rule_step(*state, loglik[None], np.array([m > 0]), self.lower, self.upper)
+        self.L, self.active, self.frozen = L[0], active[0], frozen[0]
         decision = None
-        if self.decided is None:
-            if m > 0:
-                self.L = self.L + loglik  # every filter runs on the data; only those in play are compared
-            ratio = margins(self.L, self.active)
-            dropped = self.active & (ratio <= self.lower)
-            self.frozen = np.where(dropped, ratio, self.frozen)
-            self.active = self.active & ~dropped
-            ratio = margins(self.L, self.active)
-            winners = np.flatnonzero(self.active & (ratio >= self.upper))
-            if self.active.sum() == 1 or winners.size:
-                i = int(np.flatnonzero(self.active)[0]) if self.active.sum() == 1 else int(winners[np.argmax(ratio[winners])])
-                self.decided = i
-                self.frozen = np.where(np.arange(M) == i, margins(self.L, np.ones(M, dtype=bool))[i], self.frozen)
-                self.active = np.zeros(M, dtype=bool)
-                decision = acceptance(step, self.label, self.hypothesis_name(i), float(ratio[i]), self.upper)
-        ratio = np.where(self.active, margins(self.L, self.active), self.frozen)
-        return DetectorStep({"log_ratio": ratio, "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision)
+        if chosen[0] >= 0:
+            i = self.decided = int(chosen[0])
+            decision = acceptance(step, self.label, self.hypothesis_name(i), float(ratio[0, i]), self.upper)
+        return DetectorStep(
+            {"log_ratio": out[0], "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision
+        )
 
     def batch(self, runs: int) -> PairwiseSPRTBatch:
         """``runs`` copies of this test vectorized over the runs (each equal to a copy of this test)."""
         return PairwiseSPRTBatch(self, runs)
 
 
-COMPONENTS = {PairwiseSPRT.name: PairwiseSPRT}
+@hookimpl
+def register_detectors(registry):
+    registry.add(PairwiseSPRT.name, PairwiseSPRT)

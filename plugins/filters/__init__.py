@@ -1,10 +1,1 @@
-"""Built-in filters plugins (every module's ``COMPONENTS`` is registered by ``register_estimators``)."""
-
-from hybridtrack import hookimpl
-from hybridtrack_plugins._collect import components
-
-
-@hookimpl
-def register_estimators(registry):
-    for name, factory in components(__name__, __path__).items():
-        registry.add(name, factory)
+"""Built-in filters plugins: each public module registers its own components through its hook and is an entry point."""

@@ -52,11 +52,13 @@ import attrs
 import numpy as np
 from scipy.stats import chi2
 
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_magnitude
 from hybridtrack.sdk.estimation import BankEstimator, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.measurements import block_diagonal
+from hybridtrack.sdk.mixtures import logsumexp, moment_match
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
@@ -137,7 +139,7 @@ def pda_weights(
     log_b = np.broadcast_to(log_b, (M,))
     log_e = np.where(gated, -0.5 * d2, -np.inf)  # (M, L)
     terms = np.concatenate([log_b[:, None], log_e], axis=1)  # (M, 1 + L)
-    total = logsumexp_rows(terms)
+    total = logsumexp(terms, axis=1)
     informative = np.isfinite(total)
     weights = np.zeros_like(terms)
     weights[informative] = np.exp(terms[informative] - total[informative, None])
@@ -146,27 +148,17 @@ def pda_weights(
     if lam > 0:
         loglik = np.where(informative, np.log(P_D) - np.log(lam) - half + total, log_miss)
     else:
-        log_sum = logsumexp_rows(log_e)
+        log_sum = logsumexp(log_e, axis=1)
         loglik = np.where(np.isfinite(log_sum), np.log(P_D) - half + log_sum, log_miss)
     return beta, beta0, loglik
 
 
-def logsumexp_rows(a: np.ndarray) -> np.ndarray:
-    """ln Σ_l exp(a_jl) per row of a (M, L); −∞ for a row of −∞ (or an empty row), without warnings."""
-    top = a.max(axis=1, initial=-np.inf)
-    out = np.full(a.shape[0], -np.inf)
-    ok = np.isfinite(top)
-    if ok.any():
-        out[ok] = top[ok] + np.log(np.exp(a[ok] - top[ok, None]).sum(axis=1))
-    return out
-
-
-def combine(nu: np.ndarray, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Combined innovation ν = Σ β_i ν_i (M, m) and the spread Σ β_i ν_i ν_iᵀ − ν νᵀ (M, m, m)."""
-    combined = np.einsum("jl,jli->ji", beta, nu)
-    second = np.einsum("jl,jli,jlk->jik", beta, nu, nu)
-    spread = second - combined[:, :, None] * combined[:, None, :]
-    return combined, symmetrize(spread)
+def combine(nu: np.ndarray, beta: np.ndarray, beta0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Combined innovation ν = Σ β_i ν_i (M, m) and the spread Σ β_i ν_i ν_iᵀ − ν νᵀ (M, m, m): the moment-matched
+    mean and covariance of the point masses ν_0 = 0 (weight β_0, no candidate is the target's) and ν_i (weight β_i)."""
+    M, L, m = nu.shape
+    points = np.concatenate([np.zeros((M, 1, m)), nu], axis=1)
+    return moment_match(np.concatenate([beta0[:, None], beta], axis=1), points, np.zeros((M, L + 1, m, m)))
 
 
 def check_innovation_covariance(S: np.ndarray) -> np.ndarray:
@@ -290,7 +282,7 @@ class ClutterEstimator(BankEstimator):
         record = Association(sensor_name, np.asarray(candidates), z_pred, S, gamma, d2, gated, beta, beta0, selected, loglik)
         if nu.shape[1] == 0:
             return x, P, np.zeros(x.shape[:1] + S.shape[-1:]), S, record
-        combined, spread = combine(nu, beta)
+        combined, spread = combine(nu, beta, beta0)
         x_new, P_correct, _, _, K = cov_form.update(x, P, combined, H, R, selection, self.form)
         self.check_finite("update", updated_mean=x_new)
         P_new = beta0[:, None, None] * P + (1.0 - beta0)[:, None, None] * P_correct + K @ spread @ np.swapaxes(K, -1, -2)

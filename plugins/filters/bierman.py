@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.sdk.linalg import symmetrize
@@ -82,4 +83,6 @@ class BiermanFilter(BankEstimator):
         return UDState(x, U, d, state.x_predicted, state.U_predicted, state.d_predicted, innovation), innovation
 
 
-COMPONENTS = {"bierman": BiermanFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(BiermanFilter.name, BiermanFilter)

@@ -23,7 +23,7 @@ Weighted points go through the recorder's optional ``log_weighted_points``
 plain ``log_points``.  Other states are skipped.  Slots beyond the widest state
 of the run are padded (a bank's width changes as mixtures are reduced).
 
-No ``COMPONENTS``: a helper of the filter family, not a plugin.
+No hook: a helper of the filter family, not a plugin.
 """
 
 from __future__ import annotations

@@ -30,6 +30,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.sdk.estimation import BankEstimator, NodeMoments, bank_field, empty_innovation, guarded
 from hybridtrack_plugins.filters import _information as info
@@ -156,4 +157,6 @@ class DecentralizedFilter(BankEstimator):
         return new, innovation
 
 
-COMPONENTS = {"decentralized": DecentralizedFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(DecentralizedFilter.name, DecentralizedFilter)

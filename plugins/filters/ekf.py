@@ -16,6 +16,7 @@ seed 003 recommends; ``ekf_ud`` the Bierman UD form.
 
 from __future__ import annotations
 
+from hybridtrack import hookimpl
 from hybridtrack_plugins.filters.bierman import BiermanFilter
 from hybridtrack_plugins.filters.kalman import KalmanFilter
 from hybridtrack_plugins.filters.potter import PotterFilter
@@ -42,4 +43,7 @@ class UDExtendedKalmanFilter(BiermanFilter):
     accepts_nonlinear = True
 
 
-COMPONENTS = {cls.name: cls for cls in (ExtendedKalmanFilter, SquareRootExtendedKalmanFilter, UDExtendedKalmanFilter)}
+@hookimpl
+def register_estimators(registry):
+    for estimator in (ExtendedKalmanFilter, SquareRootExtendedKalmanFilter, UDExtendedKalmanFilter):
+        registry.add(estimator.name, estimator)

@@ -57,10 +57,13 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior, check_prior_mixture
-from hybridtrack.core.validation import as_float_array
+from hybridtrack import hookimpl
+from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.core.protocols import Association, ClutterInnovation
+from hybridtrack.core.validation import as_float_array, check_prior, check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
-from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute, symmetrize
+from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute
+from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalized_weights
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
@@ -76,24 +79,6 @@ from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 from hybridtrack_plugins.sensors.bearing import check_convention, direction
 
 _LAYOUT = ("x", "vx", "y", "vy")
-
-
-def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
-    """ln Σ exp(a) along ``axis``, shifted by the maximum (−∞ entries allowed; all −∞ gives −∞)."""
-    top = np.max(a, axis=axis, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
-    with np.errstate(divide="ignore"):
-        return np.log(np.sum(np.exp(a - top), axis=axis)) + np.squeeze(top, axis=axis)
-
-
-def mixture_moments(x: np.ndarray, P: np.ndarray, log_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Moment-matched Gaussian of mixtures over axis −2 of x (..., C, n):
-    x̄ = Σ w_c x_c / W, P̄ = Σ w_c (P_c + (x_c − x̄)(x_c − x̄)ᵀ) / W, W = Σ w_c (empty slots: w = 0)."""
-    w = np.exp(log_weights - logsumexp(log_weights)[..., None])
-    mean = np.einsum("...c,...ci->...i", w, x)
-    d = x - mean[..., None, :]
-    cov = np.einsum("...c,...cij->...ij", w, P) + np.einsum("...c,...ci,...cj->...ij", w, d, d)
-    return mean, symmetrize(cov)
 
 
 @attrs.frozen(eq=False)
@@ -209,7 +194,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
 
     @staticmethod
     def _state(x, P, log_weights, predicted, innovation=None) -> MixtureState:
-        mean, cov = mixture_moments(x, P, log_weights)
+        mean, cov = mixture(log_weights, x, P)
         pm, pc = (mean, cov) if predicted is None else predicted
         return MixtureState(x, P, log_weights, mean, cov, pm, pc, innovation)
 
@@ -272,13 +257,10 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         x, P = x.reshape(M, C, n), P.reshape(M, C, n, n)
         nu, S, loglik_c = nu.reshape(M, C, m), S.reshape(M, C, m, m), loglik_c.reshape(M, C)
         joint = state.log_weights + loglik_c
-        loglik = logsumexp(joint)
+        loglik = logsumexp(joint, axis=-1)
         log_weights = joint - loglik[:, None]
         # the moment-matched predictive innovation (prior weights)
-        w = np.exp(state.log_weights)
-        nu_mix = np.einsum("mc,mci->mi", w, nu)
-        d = nu - nu_mix[:, None]
-        S_mix = symmetrize(np.einsum("mc,mcij->mij", w, S) + np.einsum("mc,mci,mcj->mij", w, d, d))
+        nu_mix, S_mix = moment_match(np.exp(state.log_weights), nu, S)
         _, nis = CholeskyFactor(S_mix, "mixture innovation covariance S").scores(nu_mix)
         innovation = Innovation(nu_mix, S_mix, loglik, nis)
         x, P, log_weights = self.reduce(x, P, log_weights)
@@ -335,7 +317,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         miss = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
         terms = np.concatenate([np.broadcast_to(miss[:, None, None], (M, C, 1)), child_detect], axis=2)  # (M, C, 1 + L)
         joint = log_weights[:, :, None] + terms
-        loglik = logsumexp(joint.reshape(M, -1))
+        loglik = logsumexp(joint.reshape(M, -1), axis=-1)
         informative = np.isfinite(loglik)
         joint = np.where(informative[:, None, None], joint - np.where(informative, loglik, 0.0)[:, None, None], 0.0)
         if not informative.all():  # nothing possible under the model (P_D P_G = 1 and nothing gated): keep the prior
@@ -345,11 +327,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         x_children = np.concatenate([flat_x[:, None, :], flat_x[:, None, :] + np.einsum("kij,klj->kli", K, nu)], axis=1)
         P_children = np.concatenate([flat_P[:, None], np.broadcast_to(P_new[:, None], (M * C, L, n, n))], axis=1)
         # association record over the mixture: ẑ = Σ w z_c, S moment-matched, β_r, β_0
-        w = np.exp(log_weights)
-        z_c, S_cm = z_pred.reshape(M, C, m), S_c.reshape(M, C, m, m)
-        z_hat = np.einsum("mc,mci->mi", w, z_c)
-        dz = z_c - z_hat[:, None]
-        S = symmetrize(np.einsum("mc,mcij->mij", w, S_cm) + np.einsum("mc,mci,mcj->mij", w, dz, dz))
+        z_hat, S = moment_match(np.exp(log_weights), z_pred.reshape(M, C, m), S_c.reshape(M, C, m, m))
         posterior = np.exp(joint)  # (M, C, 1 + L)
         beta0, beta = posterior[:, :, 0].sum(axis=1), posterior[:, :, 1:].sum(axis=1)
         cand_r = np.broadcast_to(scan.z[None], (M, L, m))
@@ -382,17 +360,17 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
             x, P, log_weights = merge(x, P, log_weights, self.merge_threshold)
         if x.shape[1] > self.max_components:  # compacted: heaviest first
             x, P, log_weights = x[:, : self.max_components], P[:, : self.max_components], log_weights[:, : self.max_components]
-        log_weights = log_weights - logsumexp(log_weights)[:, None]
+        log_weights = log_weights - logsumexp(log_weights, axis=-1)[:, None]
         return _compact(x, P, log_weights)
 
     def prune(self, log_weights: np.ndarray) -> np.ndarray:
         """ln w with the components of normalised weight below ``prune_threshold`` emptied (−∞; each filter's
         heaviest component kept) and the rest renormalised."""
-        log_weights = log_weights - logsumexp(log_weights)[:, None]
+        log_weights = log_weights - logsumexp(log_weights, axis=-1)[:, None]
         if self.prune_threshold > 0:
             keep = (log_weights >= math.log(self.prune_threshold)) | (log_weights == log_weights.max(axis=1, keepdims=True))
             log_weights = np.where(keep, log_weights, -np.inf)
-            log_weights = log_weights - logsumexp(log_weights)[:, None]
+            log_weights = log_weights - logsumexp(log_weights, axis=-1)[:, None]
         return log_weights
 
 
@@ -421,15 +399,11 @@ def merge(x: np.ndarray, P: np.ndarray, log_weights: np.ndarray, threshold: floa
         leader = np.where(join, i, leader)
     one_hot = (leader[:, None, :] == np.arange(C)[None, :, None]) & occupied[:, None, :]  # (M, leader, member)
     member_lw = np.where(one_hot, log_weights[:, None, :], -np.inf)
-    merged_lw = logsumexp(member_lw)  # (M, C): −∞ where i leads nothing
-    with np.errstate(invalid="ignore"):
-        r = np.exp(member_lw - np.where(np.isfinite(merged_lw), merged_lw, 0.0)[..., None])  # w_j / W within a cluster
-    xm = np.einsum("mij,mjk->mik", r, x)
-    d = x[:, None, :, :] - xm[:, :, None, :]  # (M, leader, member, n)
-    Pm = np.einsum("mij,mjkl->mikl", r, P) + np.einsum("mij,mijk,mijl->mikl", r, d, d)
+    merged_lw = logsumexp(member_lw, axis=-1)  # (M, C): −∞ where i leads nothing
+    xm, Pm = moment_match(normalized_weights(member_lw), x[:, None], P[:, None])  # weights w_j / W within a cluster
     empty = ~np.isfinite(merged_lw)
     xm = np.where(empty[..., None], x, xm)
-    Pm = np.where(empty[..., None, None], P, symmetrize(Pm))
+    Pm = np.where(empty[..., None, None], P, Pm)
     return _compact(xm, Pm, merged_lw)
 
 
@@ -514,4 +488,7 @@ def range_parameterised(
 
 GaussianSumFilter.range_parameterised = staticmethod(range_parameterised)
 
-COMPONENTS = {"gaussian_sum": GaussianSumFilter}
+
+@hookimpl
+def register_estimators(registry):
+    registry.add(GaussianSumFilter.name, GaussianSumFilter)

@@ -19,6 +19,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, empty_innovation, guarded
 from hybridtrack.sdk.linalg import cholesky, gaussian_scores, symmetrize
@@ -109,4 +110,6 @@ class InformationFilter(BankEstimator):
         return new, innovation
 
 
-COMPONENTS = {"information": InformationFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(InformationFilter.name, InformationFilter)

@@ -23,6 +23,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.validation import FILTER_MAGNITUDE_LIMIT
 from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
@@ -419,4 +420,6 @@ class _UpdateLane:
         return CovarianceState(x_out, P_out, state.x_predicted, state.P_predicted, innovation), innovation
 
 
-COMPONENTS = {"kalman": KalmanFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(KalmanFilter.name, KalmanFilter)

@@ -48,9 +48,12 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack import hookimpl
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.mixtures import normalized_weights
 from hybridtrack.sdk.scans import check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
@@ -115,7 +118,7 @@ class MHTState:
     @property
     def probabilities(self) -> np.ndarray:
         """p_h = exp(Σ_h) / Σ_g exp(Σ_g) (M, H), 0 for an empty slot."""
-        return hypothesis_probabilities(self.scores)
+        return normalized_weights(self.scores)
 
 
 @attrs.frozen(eq=False)
@@ -124,14 +127,6 @@ class MHTInnovation(ClutterInnovation):
 
     scores: np.ndarray | None = None
     probabilities: np.ndarray | None = None
-
-
-def hypothesis_probabilities(scores: np.ndarray) -> np.ndarray:
-    """Softmax of the scores over each row (M, H); −∞ slots get 0."""
-    top = scores.max(axis=1, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
-    weights = np.exp(scores - top)
-    return weights / weights.sum(axis=1, keepdims=True)
 
 
 def _rows(A: np.ndarray, M: int, H: int) -> np.ndarray:
@@ -292,7 +287,7 @@ class MHTFilter(RecordsFilterStates, BankEstimator):
         new = MHTState(x_new.reshape(M, H, n), P_new.reshape(M, H, n, n), state.x_predicted, state.P_predicted, kept_scores, history, None)
         # the record: the best hypothesis's parent (gate, d², ẑ, S) and its choice; β marginal over hypotheses
         best = rows.reshape(M, H)[:, 0]
-        probabilities = hypothesis_probabilities(kept_scores)
+        probabilities = normalized_weights(kept_scores)
         weights = np.zeros((M, L))
         for column in range(1, 1 + L):
             weights[:, column - 1] = np.where(picked == column - 1, probabilities, 0.0).sum(axis=1)
@@ -340,4 +335,6 @@ class MHTFilter(RecordsFilterStates, BankEstimator):
         return attrs.evolve(state, innovation=innovation), innovation
 
 
-COMPONENTS = {"mht": MHTFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(MHTFilter.name, MHTFilter)

@@ -50,7 +50,9 @@ import attrs
 import numpy as np
 import pywt
 
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack import hookimpl
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import symmetrize
@@ -246,4 +248,6 @@ class MSDAFilter(BankEstimator):
         return attrs.evolve(state, innovation=innovation), innovation
 
 
-COMPONENTS = {"msda": MSDAFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(MSDAFilter.name, MSDAFilter)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack_plugins.filters._association import ClutterEstimator, log_half_det_2pi_s, nearest
 
 
@@ -56,4 +57,6 @@ class NearestNeighbourFilter(ClutterEstimator):
         return beta, missed, selected, loglik
 
 
-COMPONENTS = {"nearest_neighbour": NearestNeighbourFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(NearestNeighbourFilter.name, NearestNeighbourFilter)

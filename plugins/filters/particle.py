@@ -52,7 +52,7 @@ estimate of PDA's association likelihood ln Λ (no gate: P_G = 1), which is what
 the detectors compare across a bank in clutter.  The association weights are
 the posterior probabilities of "candidate r is the target" and "none is",
 β_r ∝ (P_D/λ) Σ_i w⁽ⁱ⁾⁻ N(z_r; h(x⁽ⁱ⁾), R), β_0 ∝ 1 − P_D P_G (Σ β = 1), recorded
-in a :class:`~hybridtrack.core.interfaces.Association` per scan with the particle
+in a :class:`~hybridtrack.core.protocols.Association` per scan with the particle
 prediction ẑ, S, d²_r and the gate.  The innovation reported
 is the combined ν = Σ_r β_r ν_r, ν_r = residual(z_r, ẑ), with S and its NIS;
 several scans of one step are applied one after the other.  With P_D = 1,
@@ -88,10 +88,13 @@ from functools import cached_property
 import attrs
 import numpy as np
 
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Innovation, Sensor, TransitionBank, check_prior_mixture
-from hybridtrack.core.validation import check_magnitude
+from hybridtrack import hookimpl
+from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
+from hybridtrack.core.protocols import Association, ClutterInnovation
+from hybridtrack.core.validation import check_magnitude, check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
+from hybridtrack.sdk.mixtures import logsumexp
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import (
     _as_scans,
@@ -135,14 +138,6 @@ class ParticleClutterInnovation(ClutterInnovation):
     gaussian_loglik: np.ndarray = None
     effective_sample_size: np.ndarray = None
     resampled: np.ndarray = None
-
-
-def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
-    """ln Σ exp(a) along ``axis``, shifted by the maximum; −∞ where every entry is −∞ (no warning, no NaN)."""
-    top = np.max(a, axis=axis, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
-    with np.errstate(divide="ignore"):
-        return np.log(np.sum(np.exp(a - top), axis=axis)) + np.squeeze(top, axis=axis)
 
 
 def weighted_moments(particles: np.ndarray, log_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -537,4 +532,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         return particles, log_weights
 
 
-COMPONENTS = {ParticleFilter.name: ParticleFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(ParticleFilter.name, ParticleFilter)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import ClutterEstimator, pda_weights
 
@@ -56,4 +57,6 @@ class PDAFilter(ClutterEstimator):
         return beta, beta0, selected, loglik
 
 
-COMPONENTS = {"pda": PDAFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(PDAFilter.name, PDAFilter)

@@ -78,7 +78,9 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
-from hybridtrack.core.interfaces import Association, ClutterInnovation, Sensor
+from hybridtrack import hookimpl
+from hybridtrack.core.interfaces import Sensor
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
@@ -517,4 +519,6 @@ class PMHTFilter(BankEstimator):
         return xs, Ps, xf, Pf, xp[:, -1], Pp[:, -1], nis_sum, Wsum, zsyn
 
 
-COMPONENTS = {"pmht": PMHTFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(PMHTFilter.name, PMHTFilter)

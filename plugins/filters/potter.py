@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.sdk.linalg import cholesky, symmetrize
@@ -85,4 +86,6 @@ class PotterFilter(BankEstimator):
         return SquareRootState(x, S, state.x_predicted, state.S_predicted, innovation), innovation
 
 
-COMPONENTS = {"potter": PotterFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(PotterFilter.name, PotterFilter)

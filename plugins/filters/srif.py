@@ -15,6 +15,7 @@ from functools import cached_property
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
 from hybridtrack.sdk.linalg import symmetrize
@@ -102,4 +103,6 @@ class SquareRootInformationFilter(BankEstimator):
         return SRIFState(R, zeta, state.R_predicted, state.zeta_predicted, innovation), innovation
 
 
-COMPONENTS = {"srif": SquareRootInformationFilter}
+@hookimpl
+def register_estimators(registry):
+    registry.add(SquareRootInformationFilter.name, SquareRootInformationFilter)

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
 from hybridtrack.sdk.estimation import BankEstimator, NodeMoments, empty_innovation, guarded
 from hybridtrack_plugins.filters import _sqrt
@@ -122,4 +123,6 @@ class DecentralizedSRIF(BankEstimator):
         return new, innovation
 
 
-COMPONENTS = {"srif_decentralized": DecentralizedSRIF}
+@hookimpl
+def register_estimators(registry):
+    registry.add(DecentralizedSRIF.name, DecentralizedSRIF)

@@ -32,6 +32,7 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank, convert_layout
 from hybridtrack.core.validation import as_float_array, check_covariance
 
@@ -221,4 +222,7 @@ class RightTurn(_Turn):
     direction: ClassVar[int] = -1
 
 
-COMPONENTS = {cls.name: cls for cls in (Straight, LeftTurn, RightTurn, ConstantAcceleration, Stop)}
+@hookimpl
+def register_motion_models(registry):
+    for model in (Straight, LeftTurn, RightTurn, ConstantAcceleration, Stop):
+        registry.add(model.name, model)

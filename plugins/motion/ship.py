@@ -22,6 +22,7 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank
 from hybridtrack.core.validation import as_float_array
 
@@ -140,4 +141,6 @@ class ShipTurn(MotionModel):
         return lambda x: self.linearize(tau, x)
 
 
-COMPONENTS = {ShipTurn.name: ShipTurn}
+@hookimpl
+def register_motion_models(registry):
+    registry.add(ShipTurn.name, ShipTurn)

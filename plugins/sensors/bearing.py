@@ -23,6 +23,7 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.validation import as_float_array, check_covariance
 from hybridtrack.sdk.linalg import wrap_angle
@@ -152,4 +153,6 @@ class BearingSensor(Sensor):
         return wrap_angle(z + self.sigma * rng.standard_normal(z.shape))
 
 
-COMPONENTS = {BearingSensor.registry_name: BearingSensor}
+@hookimpl
+def register_sensors(registry):
+    registry.add(BearingSensor.registry_name, BearingSensor)

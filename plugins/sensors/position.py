@@ -15,6 +15,7 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.validation import check_covariance
 
@@ -67,4 +68,6 @@ class PositionSensor(Sensor):
         return np.broadcast_to(self.matrix(layout), x.shape[:-1] + (len(self.components), len(tuple(layout)))).copy()
 
 
-COMPONENTS = {PositionSensor.registry_name: PositionSensor}
+@hookimpl
+def register_sensors(registry):
+    registry.add(PositionSensor.registry_name, PositionSensor)

@@ -22,6 +22,7 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.validation import as_float_array
 from hybridtrack.sdk.linalg import wrap_angle
@@ -152,4 +153,7 @@ class PolarRadarSensor(_RadarBase):
         return self.simulate_polar(x, layout, rng)
 
 
-COMPONENTS = {RadarSensor.registry_name: RadarSensor, PolarRadarSensor.registry_name: PolarRadarSensor}
+@hookimpl
+def register_sensors(registry):
+    for sensor in (RadarSensor, PolarRadarSensor):
+        registry.add(sensor.registry_name, sensor)

@@ -1,10 +1,1 @@
-"""Built-in solvers plugins (every module's ``COMPONENTS`` is registered by ``register_solvers``)."""
-
-from hybridtrack import hookimpl
-from hybridtrack_plugins._collect import components
-
-
-@hookimpl
-def register_solvers(registry):
-    for name, factory in components(__name__, __path__).items():
-        registry.add(name, factory)
+"""Built-in solvers plugins: each public module registers its own components through its hook and is an entry point."""

@@ -39,6 +39,7 @@ import attrs
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
 from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
@@ -453,4 +454,7 @@ class BatchLevenbergMarquardt(Solver):
         )
 
 
-COMPONENTS = {LevenbergMarquardt.name: LevenbergMarquardt, BatchLevenbergMarquardt.name: BatchLevenbergMarquardt}
+@hookimpl
+def register_solvers(registry):
+    for solver in (LevenbergMarquardt, BatchLevenbergMarquardt):
+        registry.add(solver.name, solver)

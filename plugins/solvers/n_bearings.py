@@ -29,6 +29,7 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
 from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import direction
@@ -202,4 +203,6 @@ class NBearings(Solver):
         return (theta, cov, F, ska, stat, pval, cons), ok, x[..., 0]
 
 
-COMPONENTS = {NBearings.name: NBearings}
+@hookimpl
+def register_solvers(registry):
+    registry.add(NBearings.name, NBearings)

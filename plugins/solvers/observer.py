@@ -12,7 +12,7 @@ y(t) = y_0 + V (sin c(t) − sin c_0)/(ε ω).
 A 180° course change has no shortest direction; ``tie`` chooses (default
 "right": clockwise in the north convention, i.e. increasing course).
 
-No ``COMPONENTS``: this module is a scenario helper, not a plugin.
+No hook: this module is a scenario helper, not a plugin.
 """
 
 from __future__ import annotations

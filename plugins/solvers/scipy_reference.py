@@ -15,6 +15,7 @@ import attrs
 import numpy as np
 from scipy.optimize import least_squares
 
+from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
 from hybridtrack_plugins.solvers.tma_model import (
     BearingsProblem,
@@ -83,4 +84,6 @@ class ScipyLeastSquares(Solver):
         return to_solution(problem, scaled, result.x, F, J.T @ J, njev, result.nfev, result.status > 0, result.message, self.name)
 
 
-COMPONENTS = {ScipyLeastSquares.name: ScipyLeastSquares}
+@hookimpl
+def register_solvers(registry):
+    registry.add(ScipyLeastSquares.name, ScipyLeastSquares)

@@ -13,7 +13,7 @@ Entity paths (timeline ``step`` = bearing index k, ``time`` = t_k seconds):
 * ``solver/<method>/residual`` — wrapped bearing residuals X_k − f_k(θ̂) in degrees;
 * ``events/decisions`` — one line per solution (θ̂, √Ka, χ² test, iterations).
 
-No ``COMPONENTS``: a helper of the solver family, not a plugin.
+No hook: a helper of the solver family, not a plugin.
 """
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from hybridtrack.recording import log_estimate
 from hybridtrack.sdk.linalg import wrap_angle
 from hybridtrack_plugins.sensors.bearing import bearing, direction
 from hybridtrack_plugins.solvers.tma_model import BearingsProblem, TMASolution, propagate
@@ -57,7 +56,10 @@ def record_tma(recorder, problem: BearingsProblem, solutions: Mapping[str, TMASo
         recorder.log_lines("world/bearings", steps, problem.observer, ends, times)
     for name, solution in solutions.items():
         estimate = tracks[name]
-        log_estimate(recorder, name, steps, estimate, track_covariances(solution.covariance, dt), [0, 1], times)
+        recorder.log_path(f"world/estimate/{name}", steps, estimate[:, :2], times)
+        recorder.log_ellipses(
+            f"world/estimate/{name}/ellipse", steps, estimate[:, :2], track_covariances(solution.covariance, dt)[:, :2, :2], times
+        )
         relative = estimate[:, :2] - problem.observer
         predicted = bearing(relative[:, 0], relative[:, 1], problem.convention)
         residual = np.rad2deg(wrap_angle(problem.bearings - predicted))

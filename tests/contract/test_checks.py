@@ -3,18 +3,14 @@
 import numpy as np
 import pytest
 
-from hybridtrack.core.interfaces import (
-    Detector,
-    DetectorStep,
-    Estimator,
-    MotionModel,
-    Solution,
-    Solver,
-    check_prior,
-)
+from hybridtrack.core.algorithm import Algorithm
+from hybridtrack.core.interfaces import Detector, DetectorStep, Estimator, MotionModel, Solution, Solver
+from hybridtrack.core.types import Decision
+from hybridtrack.core.validation import check_prior
 from hybridtrack.testing import (
     LinearPositionSensor,
     build_example,
+    check_algorithm,
     check_component,
     check_detector,
     check_estimator,
@@ -200,6 +196,64 @@ class NaNSolver(ToyLeastSquares):
         return Solution(np.full(2, np.nan), solution.covariance, solution.cost, 1, 1, False)
 
 
+class ToyRun:
+    def __init__(self, times, means, covs, decisions=()):
+        self.times, self.means, self.covs, self.decisions = times, means, covs, decisions
+
+
+class ToyFixes(Algorithm):
+    """Takes each fix as the position, velocity 0 (a correct, if poor, algorithm)."""
+
+    layout = ("x", "vx", "y", "vy")
+
+    def __init__(self, *, sensors, tau=None, name="toy_fixes"):
+        self.sensor, self.tau, self.name = sensors[0], tau, name
+
+    def estimate(self, z):
+        means = np.zeros((len(z), 4))
+        means[:, [0, 2]] = z
+        return means
+
+    def run(self, measurements, prior, *, times=None):
+        z = measurements[self.sensor.name]
+        t = self.tau * np.arange(len(z)) if times is None else np.asarray(times)
+        return ToyRun(t, self.estimate(z), np.broadcast_to(np.eye(4), (len(z), 4, 4)).copy(), self.decisions(len(z)))
+
+    def decisions(self, steps):
+        return (Decision(3, "toy", "straight", 1.0),)
+
+
+class NoRun:
+    layout = ("x", "vx", "y", "vy")
+    name = "no_run"
+
+    def __init__(self, **_):
+        pass
+
+
+class Lost(ToyFixes):
+    def estimate(self, z):
+        return np.zeros((len(z), 4))
+
+
+class Restless(ToyFixes):
+    def estimate(self, z):
+        return super().estimate(z) + np.random.default_rng().normal(size=(len(z), 4))
+
+
+class Backwards(ToyFixes):
+    def decisions(self, steps):
+        return (Decision(5, "toy", "a", 1.0), Decision(2, "toy", "b", 1.0))
+
+
+class SegmentsNeeded(ToyFixes):
+    example_run = {"segments": [10, 10]}
+
+    def run(self, measurements, prior, segments, *, times=None):
+        assert sum(segments) == len(measurements[self.sensor.name]) - 1
+        return super().run(measurements, prior, times=times)
+
+
 # --------------------------------------------------------------------------- tests
 
 
@@ -210,6 +264,23 @@ def test_correct_components_pass():
     check_estimator(ToyKalman())
     check_detector(ToySum())
     assert isinstance(check_solver(ToyLeastSquares()), Solution)
+    assert check_algorithm(ToyFixes).means.shape == (21, 4)
+    check_algorithm(SegmentsNeeded)  # example_run: the further arguments of run
+
+
+@pytest.mark.parametrize(
+    "factory, message",
+    [
+        (NoRun, "is not a hybridtrack.core.algorithm.Algorithm"),
+        (Lost, "does not follow a straight target"),
+        (Restless, "means of a run given the same times"),
+        (Backwards, "not in step order"),
+    ],
+    ids=lambda value: value.__name__ if isinstance(value, type) else None,
+)
+def test_algorithm_violations_are_caught(factory, message):
+    with pytest.raises(AssertionError, match=message):
+        check_algorithm(factory)
 
 
 @pytest.mark.parametrize(
@@ -260,6 +331,7 @@ def test_check_component_dispatches_by_kind_and_rejects_unknown_kinds():
         check_component("sensor", ToyStraight())
     with pytest.raises(ValueError, match="unknown component kind 'filter'"):
         check_component("filter", ToyKalman())
+    check_component("algorithm", ToyFixes)  # an algorithm's factory: the check builds it
 
 
 def test_example_parameters_convention():
@@ -291,4 +363,6 @@ def test_example_parameters_convention():
 def test_the_pytest_plugin_fixtures(hybridtrack_contracts, hybridtrack_registry):
     hybridtrack_contracts.check_component("motion_model", ToyStraight())
     assert hybridtrack_contracts.check_estimator is check_estimator
+    assert hybridtrack_contracts.check_algorithm is check_algorithm
+    assert {"imm", "gpb1", "gpb2", "known_switch", "unknown_change", "known_modes"} <= set(hybridtrack_registry.names("algorithm"))
     assert "straight" in hybridtrack_registry.names("motion_model")

@@ -24,7 +24,7 @@ def test_the_default_registry_is_not_empty():
 
 @pytest.mark.parametrize("entry", ENTRIES, ids=_id)
 def test_component_honours_its_contract(entry):
-    component = build_example(entry.factory)
+    component = entry.factory if entry.kind == "algorithm" else build_example(entry.factory)  # an algorithm's check builds it
     result = check_component(entry.kind, component)
     if entry.kind == "solver" and result is None:
         pytest.skip(f"solver {entry.name!r} defines no example_problem(); only its name was checked")

@@ -12,7 +12,7 @@ import pytest
 from hybridtrack import Gaussian, Schedule
 from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
 from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
-from hybridtrack.core.interfaces import HypothesisTestBatch
+from hybridtrack.core.protocols import HypothesisTestBatch
 from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.detectors.sprt_pairwise import PairwiseSPRT, batch_margins, margins
 from hybridtrack_plugins.sensors.position import PositionSensor
@@ -330,7 +330,7 @@ def test_seed001_experiment_batch_equals_the_runner(tmp_path):
 @pytest.mark.parametrize("bank_size, pruning", [(None, None), (3, "nearest_lower"), (4, "oldest")])
 def test_unknown_change_batch_with_a_looped_test_equals_the_vectorized_one(bank_size, pruning):
     """A change-time test without a vectorized batch (the ChangeTimeTestBatch fallback) gives the same runs."""
-    from hybridtrack.core.interfaces import ChangeTimeTestBatch
+    from hybridtrack.core.protocols import ChangeTimeTestBatch
     from hybridtrack_plugins.detectors.sprt_change import ChangeTimeSPRT
 
     class Looped(ChangeTimeSPRT):

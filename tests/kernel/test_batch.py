@@ -1,5 +1,6 @@
 """Pipeline.run_batch: R runs as one stacked bank equal the per-run Pipeline to 1e-12, for every registered
-estimator and detector the pipeline accepts, with irregular per-run times, per-run priors and NaN components."""
+estimator and detector the pipeline accepts, with irregular per-run times, per-run priors and NaN components;
+a batched run's recording equals the run's own."""
 
 import copy
 
@@ -9,10 +10,11 @@ import pytest
 from hybridtrack import Decision, Detector, DetectorStep, Gaussian, Schedule
 from hybridtrack.core.interfaces import Innovation
 from hybridtrack.core.plugins import get_registry
-from hybridtrack.engine.batch import innovation_rows
+from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.engine.pipeline import Pipeline
 from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
+from hybridtrack.recording.inspection import RecordingFile
 from hybridtrack.testing import build_example
 from hybridtrack_plugins.sensors.position import PositionSensor
 
@@ -109,7 +111,7 @@ def test_batch_records_the_runs_asked_for(tmp_path):
     options = {"models": MODELS, "sensors": SENSORS, "estimator": "kalman", "detectors": ["signal_function"]}
     path = tmp_path / "run1.rrd"
     recorder = RerunRecorder(path)
-    batched = Pipeline.run_batch(z, prior, times=times, recorders={1: recorder}, **options)
+    batched = Pipeline.run_batch(z, prior, times=times, recorders={1: recorder}, record_seconds=None, **options)
     recorder.close()
     assert path.stat().st_size > 0
     reference = tmp_path / "single.rrd"
@@ -124,15 +126,36 @@ def test_batch_records_the_runs_asked_for(tmp_path):
     )
     assert_same(batched[1], pipeline.run())
     single.close()
+    one, alone = RecordingFile(path), RecordingFile(reference)
+    assert one.entity_paths == alone.entity_paths and one.events() == alone.events()
+    for entity in (
+        "estimator/straight/nis",
+        "estimator/left_turn_r3/innovation",
+        "estimator/nis_bounds",
+        "detector/signal_function/signal",
+    ):
+        steps, values = one.series(entity)
+        np.testing.assert_array_equal(steps, alone.series(entity)[0])
+        np.testing.assert_allclose(values, alone.series(entity)[1], **TOL, err_msg=entity)
+    for entity in ("world/measurements/a", "world/estimate/straight"):
+        np.testing.assert_array_equal(one.points(entity)[1], alone.points(entity)[1])
 
 
-def test_innovation_rows_slices_every_per_filter_field():
+def test_innovation_take_slices_every_per_filter_field():
     nu, S = np.arange(12.0).reshape(6, 2), np.tile(np.eye(2), (6, 1, 1))
     innovation = Innovation(nu, S, np.arange(6.0), np.arange(6.0) + 1)
-    part = innovation_rows(innovation, np.array([2, 3]), 6)
+    part = innovation.take(np.array([2, 3]), 6)
     np.testing.assert_array_equal(part.nu, nu[2:4])
     np.testing.assert_array_equal(part.loglik, [2.0, 3.0])
     assert type(part) is Innovation
+    candidates = np.zeros((6, 2))  # L = 6 candidates, as many as filters: describe the scan, not sliced
+    association = Association(
+        "a", candidates, nu, S, 9.0, np.ones((6, 6)), np.ones((6, 6), bool), np.ones((6, 6)), np.zeros(6), np.arange(6), np.arange(6.0)
+    )
+    clutter = ClutterInnovation(nu, S, np.arange(6.0), np.arange(6.0), (association,)).take(np.array([4]), 6)
+    (cut,) = clutter.associations
+    assert type(clutter) is ClutterInnovation and cut.candidates.shape == (6, 2) and cut.weights.shape == (1, 6)
+    np.testing.assert_array_equal(cut.selected, [4])
 
 
 def test_bad_batch_inputs_are_named():

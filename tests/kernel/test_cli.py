@@ -10,7 +10,8 @@ import pytest
 import hybridtrack
 from hybridtrack import cli
 from hybridtrack.cli.plugins import JSON_KEYS
-from hybridtrack.core.interfaces import KINDS
+from hybridtrack.core.kinds import KINDS
+from hybridtrack.core.plugins import PluginError
 
 SCRIPT = Path(sys.executable).with_name("hybridtrack")
 
@@ -44,9 +45,11 @@ def test_plugins_json_lists_every_registered_component(capsys):
     assert all(item["kind"] in KINDS for item in listing)
     registry = hybridtrack.core.plugins.load_plugins().registry
     assert {(i["kind"], i["name"]) for i in listing} == {(e.kind, e.name) for e in registry.entries()}
+    algorithms = {i["name"] for i in listing if i["kind"] == "algorithm"}
+    assert {"imm", "gpb1", "gpb2", "known_switch", "unknown_change", "known_modes"} <= algorithms
     straight = next(i for i in listing if i["name"] == "straight")
     assert straight == {
-        "plugin": "motion",
+        "plugin": "motion.linear_modes",
         "distribution": "hybridtrack",
         "version": hybridtrack.__version__,
         "kind": "motion_model",
@@ -59,11 +62,13 @@ def test_plugins_table_shows_plugins_components_and_summaries(capsys):
     lines = out.splitlines()
     assert status == 0 and lines[0].split() == ["plugin", "distribution", "version", "kind", "name", "summary"]
     (straight,) = [line for line in lines if "straight" in line.split()]
-    assert straight.split()[:5] == ["motion", "hybridtrack", hybridtrack.__version__, "motion_model", "straight"]
+    assert straight.split()[:5] == ["motion.linear_modes", "hybridtrack", hybridtrack.__version__, "motion_model", "straight"]
     summary = hybridtrack.get_registry().entry("motion_model", "straight").summary
     assert summary and straight.endswith(summary)
-    for plugin in ("motion", "sensors", "filters", "detectors", "solvers"):
-        assert any(line.split()[0] == plugin for line in lines[2:]), f"plugin {plugin} missing from the table"
+    for family in ("motion", "sensors", "filters", "detectors", "solvers"):
+        assert any(line.split()[0].startswith(family + ".") for line in lines[2:]), f"plugin family {family} missing from the table"
+    (imm,) = [line for line in lines if "imm" in line.split()]
+    assert imm.split()[:5] == ["algorithms", "hybridtrack", hybridtrack.__version__, "algorithm", "imm"]
 
 
 def test_loading_problems_go_to_stderr(capsys, install_distribution):
@@ -78,14 +83,56 @@ def test_loading_problems_go_to_stderr(capsys, install_distribution):
 def test_disabled_plugins_are_not_listed(capsys, monkeypatch):
     monkeypatch.setenv("HYBRIDTRACK_DISABLE_PLUGINS", "motion")
     _, out, _ = run(capsys, "plugins", "--json")
-    assert not [item for item in json.loads(out) if item["plugin"] == "motion"]
+    listing = json.loads(out)
+    assert not [item for item in listing if item["plugin"].startswith("motion.")] and listing
 
 
-def test_commands_come_from_their_modules_and_names_are_unique(monkeypatch):
-    assert "plugins" in cli.commands()
+def test_commands_come_through_the_hook_and_names_are_unique(monkeypatch):
+    assert list(cli.commands()) == ["plugins", "simulate", "inspect", "run", "track"]
     monkeypatch.setattr(cli, "COMMAND_MODULES", cli.COMMAND_MODULES + ("hybridtrack.cli.plugins",))
-    with pytest.raises(RuntimeError, match="command 'plugins' defined twice"):
+    with pytest.raises(PluginError, match="hybridtrack.cli.plugins"):
         cli.commands()
+
+
+HELLO = """
+from hybridtrack import hookimpl
+from hybridtrack.core.commands import UsageError
+
+
+def run(args):
+    if args.who == "nobody":
+        raise UsageError("who: expected somebody")
+    print(f"hello {args.who}")
+    return 5
+
+
+@hookimpl
+def register_commands(commands):
+    commands.add("hello", "say hello", lambda parser: parser.add_argument("who"), run)
+"""
+
+
+def test_a_third_party_command_plugs_in_through_the_hook(capsys, install_distribution):
+    install_distribution("hybridtrack-hello", {"hello": "ht_cli_hello"}, {"ht_cli_hello": HELLO})
+    status, out, _ = run(capsys, "--help")
+    assert status == 0 and "say hello" in out
+    assert run(capsys, "hello", "world")[:2] == (5, "hello world\n")
+    status, _, err = run(capsys, "hello", "nobody")
+    assert status == 2 and err == "hybridtrack hello: error: who: expected somebody\n"
+    status, _, err = run(capsys, "plugins", "--json")
+    assert status == 0 and err == ""
+
+
+def test_version_loads_no_plugin(capsys, monkeypatch):
+    def refuse():
+        raise AssertionError("--version must not load the plugins")
+
+    monkeypatch.setattr(cli, "commands", refuse)
+    for argv in (["--version"], ["--vers"]):
+        status, out, _ = run(capsys, *argv)
+        assert status == 0 and out.strip() == f"hybridtrack {hybridtrack.__version__}"
+    with pytest.raises(AssertionError, match="must not load"):
+        cli.main(["plugins", "--version"])
 
 
 def test_a_new_command_plugs_into_the_parser(capsys):

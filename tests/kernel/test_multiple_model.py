@@ -115,7 +115,7 @@ def test_imm_equals_filterpy_imm_estimator():
     assert np.all(errors < 1e-9), errors
     assert np.allclose(run.mode_probabilities.sum(axis=1), 1.0)
     # the data switch to the noisy model in steps 20–40 and back
-    assert run.most_probable[35] == 1 and run.most_probable[70] == 0
+    assert run.mode[35] == 1 and run.mode[70] == 0
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -268,7 +268,7 @@ def test_a_mode_whose_probability_underflows_recovers():
     run = MultipleModelEstimator(models, np.eye(2), sensors=[sensor], tau=1.0).run({"position": z}, (np.zeros(4), np.eye(4)))
     assert np.all(np.isfinite(run.log_mode_probabilities))
     assert run.log_mode_probabilities[299, 1] < -745
-    assert run.most_probable[299] == 0 and run.most_probable[-1] == 1
+    assert run.mode[299] == 0 and run.mode[-1] == 1
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -318,7 +318,7 @@ def test_a_left_turn_mode_tracks_a_turn_better_than_straight_alone():
         name: np.sqrt(np.mean(np.sum((r.means[turn][:, [0, 2]] - truth[turn]) ** 2, axis=1))) for name, r in (("cv", cv), ("imm", imm))
     }
     assert error["imm"] < 0.3 * error["cv"], error  # measured: 0.17 m against 1.0 m
-    assert np.mean(imm.most_probable[50:111] == 1) > 0.9 and np.mean(imm.most_probable[10:31] == 0) > 0.9
+    assert np.mean(imm.mode[50:111] == 1) > 0.9 and np.mean(imm.mode[10:31] == 0) > 0.9
 
 
 # --------------------------------------------------------------------------- runs, Markov chain, recording, errors
@@ -328,17 +328,17 @@ def test_a_left_turn_mode_tracks_a_turn_better_than_straight_alone():
 def test_stacked_runs_equal_the_runs_one_at_a_time(method):
     data = [two_cv_problem(K=25, seed=s) for s in range(3)]
     models, sensor, x0, P0, _ = data[0]
-    z = np.stack([d[4] for d in data], axis=1)  # (K+1, R, m)
+    z = np.stack([d[4] for d in data])  # (R, K+1, m)
     means = np.stack([x0, x0 + 1.0, x0 - 1.0])
     covs = np.stack([P0, 2 * P0, 3 * P0])
     estimator = MultipleModelEstimator(models, [[0.9, 0.1], [0.2, 0.8]], sensors=[sensor], tau=1.0, method=method)
-    stacked = estimator.run({"position": z}, (means, covs))
-    assert stacked.means.shape == (26, 3, 4) and stacked.mode_probabilities.shape == (26, 3, 2)
+    stacked = estimator.run_batch({"position": z}, (means, covs))
+    assert len(stacked) == 3 and stacked[0].means.shape == (26, 4) and stacked[0].mode_probabilities.shape == (26, 2)
     for i in range(3):
-        single = estimator.run({"position": z[:, i]}, (means[i], covs[i]))
-        np.testing.assert_allclose(stacked.means[:, i], single.means, atol=1e-12)
-        np.testing.assert_allclose(stacked.covs[:, i], single.covs, atol=1e-12)
-        np.testing.assert_allclose(stacked.log_mode_probabilities[:, i], single.log_mode_probabilities, atol=1e-12)
+        single = estimator.run({"position": z[i]}, (means[i], covs[i]))
+        np.testing.assert_allclose(stacked[i].means, single.means, atol=1e-12)
+        np.testing.assert_allclose(stacked[i].covs, single.covs, atol=1e-12)
+        np.testing.assert_allclose(stacked[i].log_mode_probabilities, single.log_mode_probabilities, atol=1e-12)
 
 
 def test_sojourn_matrix_is_the_continuous_time_chain():

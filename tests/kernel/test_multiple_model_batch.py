@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from hybridtrack import Gaussian
-from hybridtrack.algorithms.multiple_model import RUN_FIELDS, MultipleModelEstimator, sojourn_matrix
+from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, sojourn_matrix
 from hybridtrack.recording import RerunRecorder
 from hybridtrack_plugins.motion.linear_modes import ConstantAcceleration, LeftTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
@@ -45,8 +45,8 @@ def test_batch_equals_each_run(method, estimator):
     for r in range(RUNS):
         single = mm.run({n: a[r] for n, a in z.items()}, Gaussian(prior[0][r], prior[1][r]), times=times[r])
         np.testing.assert_array_equal(batched[r].times, single.times)
-        for field in RUN_FIELDS:
-            name = {"mean": "means", "cov": "covs"}.get(field, field)
+        np.testing.assert_array_equal(batched[r].mode, single.mode)
+        for name in ("means", "covs", "log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik"):
             np.testing.assert_allclose(getattr(batched[r], name), getattr(single, name), **TOL, err_msg=f"run {r} {name}")
 
 

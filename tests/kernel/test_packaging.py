@@ -1,13 +1,15 @@
 """Packaging: plugins/ folders vs declared packages and entry points, and what a wheel really contains.
 
 An editable install imports any sub-package of ``plugins/`` whether or not it
-is declared, so a family missing from ``[tool.setuptools] packages`` or from the
-``hybridtrack`` entry points only shows up in a real wheel (silently absent) or
-after a re-install (silently unloaded).  These tests catch both.
+is declared, so a family missing from ``[tool.setuptools] packages`` or a
+plugin module missing from the ``hybridtrack`` entry points only shows up in a
+real wheel (silently absent) or after a re-install (silently unloaded).  These
+tests catch both, and a component class that no hook registers.
 """
 
 import importlib
 import importlib.metadata
+import inspect
 import subprocess
 import sys
 import tomllib
@@ -44,15 +46,61 @@ def _source_of(module: str) -> Path:
     return path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
 
 
-def test_every_plugin_family_folder_is_a_declared_package_with_an_entry_point():
+def _plugin_modules() -> dict[str, object]:
+    """Import name → module for every public module in a family folder of ``plugins/``."""
+    found = {}
+    for path in sorted(PLUGINS.glob("*/*.py")):
+        if path.name.startswith("_") or not (path.parent / "__init__.py").exists():
+            continue
+        name = f"hybridtrack_plugins.{path.parent.name}.{path.stem}"
+        found[name] = importlib.import_module(name)
+    return found
+
+
+def _hooks(module) -> list[str]:
+    return [name for name, value in vars(module).items() if name.startswith("register_") and hasattr(value, "hybridtrack_impl")]
+
+
+def test_every_plugin_family_folder_is_a_declared_package():
     families = [d.name for d in sorted(PLUGINS.iterdir()) if (d / "__init__.py").exists()]
     assert families, "no plugin family found under plugins/"
-    declared = ENTRY_POINTS["hybridtrack"]
     for family in families:
         assert f"hybridtrack_plugins.{family}" in PACKAGES, f"plugins/{family}/ missing from [tool.setuptools] packages"
-        assert f"hybridtrack_plugins.{family}" in declared.values(), (
-            f"plugins/{family}/ has no entry point in [project.entry-points.hybridtrack]"
+
+
+def test_every_plugin_module_with_a_hook_is_an_entry_point_named_family_dot_module():
+    declared = ENTRY_POINTS["hybridtrack"]
+    modules = {name: module for name, module in _plugin_modules().items() if _hooks(module)}
+    assert len(modules) > 20, sorted(modules)
+    for name in modules:
+        family, module = name.split(".")[1:]
+        assert declared.get(f"{family}.{module}") == name, (
+            f"{name} has hooks {_hooks(modules[name])} but no entry point {family}.{module} = {name!r} in [project.entry-points.hybridtrack]"
         )
+    assert declared["algorithms"] == "hybridtrack.algorithms.registration"
+    for entry, target in declared.items():
+        assert _hooks(importlib.import_module(target)), f"entry point {entry} = {target!r}: the module has no register_ hook"
+
+
+def test_every_component_class_of_a_plugin_module_is_registered():
+    """A public, concrete class implementing a kind's interface and defined in a plugin module is some entry's factory:
+    a module (or a class) nobody registers fails here."""
+    from hybridtrack.core.kinds import KINDS
+    from hybridtrack.core.plugins import load_plugins
+
+    factories = {entry.factory for entry in load_plugins(disabled=()).registry.entries()}
+    unregistered = [
+        f"{module.__name__}.{name}"
+        for module in _plugin_modules().values()
+        for name, value in vars(module).items()
+        if isinstance(value, type)
+        and value.__module__ == module.__name__
+        and not name.startswith("_")
+        and not inspect.isabstract(value)
+        and any(issubclass(value, kind.interface) for kind in KINDS.values())
+        and value not in factories
+    ]
+    assert not unregistered, f"component classes no hook registers: {unregistered}"
 
 
 @pytest.mark.parametrize("top", ["hybridtrack", "hybridtrack_plugins"])

@@ -37,7 +37,7 @@ def test_a_plugin_registered_in_code_shows_up(entrypoints):
     assert (entry.plugin, entry.distribution, entry.version) == ("InlinePlugin", None, None)
     assert PluginInfo("InlinePlugin") in loaded.plugins
     assert loaded.problems == ()
-    assert ("motion" in _names(loaded)) is entrypoints
+    assert ("motion.linear_modes" in _names(loaded)) is entrypoints
     if entrypoints:
         assert loaded.registry.entry("motion_model", "straight").distribution == "hybridtrack"
 
@@ -55,8 +55,8 @@ def test_environment_variable_blocks_the_builtin_motion_family(monkeypatch, fres
     plugins.reset()
     loaded = plugins.default_plugins()
     assert loaded.registry.names("motion_model") == []
-    assert "motion" not in _names(loaded)
-    assert loaded.manager.is_blocked("motion")
+    assert not [name for name in _names(loaded) if name.startswith("motion.")]
+    assert loaded.manager.is_blocked("motion.linear_modes") and loaded.manager.is_blocked("motion.ship")
     assert "position" in loaded.registry.names("sensor"), "the other families still load"
 
 
@@ -126,17 +126,17 @@ def test_broken_third_party_plugins_warn_and_the_others_load(install_distributio
     (broken,) = [m for m in messages if "'broken'" in m]
     assert "hybridtrack-broken" in broken and "failed to import" in broken and "a_module_that_does_not_exist" in broken
     (dupe,) = [m for m in messages if "'dupe'" in m]
-    assert "hybridtrack-dupe" in dupe and "'position'" in dupe and "already registered by plugin 'sensors'" in dupe
+    assert "hybridtrack-dupe" in dupe and "'position'" in dupe and "already registered by plugin 'sensors.position'" in dupe
     (typo,) = [m for m in messages if "'typo'" in m]
     assert "hybridtrack-typo" in typo and "register_sensor" in typo
     (raises,) = [m for m in messages if "'raises'" in m]
     assert "hybridtrack-raises" in raises and "register_detectors" in raises and "boom" in raises
 
     names = _names(loaded)
-    assert {"motion", "sensors", "dupe", "raises"} <= set(names)
+    assert {"motion.linear_modes", "sensors.position", "dupe", "raises"} <= set(names)
     assert "broken" not in names and "typo" not in names
     # the built-in keeps its name although 'dupe' sorts before 'sensors'; dupe's other component loads
-    assert loaded.registry.entry("sensor", "position").plugin == "sensors"
+    assert loaded.registry.entry("sensor", "position").plugin == "sensors.position"
     dupe_only = loaded.registry.entry("sensor", "dupe_only")
     assert (dupe_only.plugin, dupe_only.distribution, dupe_only.version) == ("dupe", "hybridtrack-dupe", "2.0")
     assert "straight" in loaded.registry.names("motion_model")
@@ -153,3 +153,65 @@ def test_a_broken_third_party_plugin_can_be_disabled(install_distribution):
     loaded, caught = _load_with_warnings(disabled=["hybridtrack-broken"])
     assert caught == [] and loaded.problems == ()
     assert loaded.manager.is_blocked("broken")
+
+
+def test_one_plugin_module_can_be_blocked_by_its_entry_point_name():
+    loaded = load_plugins(disabled=["filters.kalman"])
+    assert "kalman" not in loaded.registry.names("estimator") and "information" in loaded.registry.names("estimator")
+    assert loaded.problems == ()
+
+
+def test_algorithms_register_through_their_entry_point_like_any_plugin():
+    loaded = load_plugins(disabled=())
+    for name in ("imm", "gpb1", "gpb2", "known_switch", "unknown_change", "known_modes"):
+        entry = loaded.registry.entry("algorithm", name)
+        assert (entry.plugin, entry.distribution) == ("algorithms", "hybridtrack")
+    imm = plugins.resolve("algorithm", ("imm", {"modes": ["straight", "stop"], "sojourn": 10.0, "sensors": [LinearPositionSensor()]}))
+    assert (imm.method, imm.name) == ("imm", "imm")
+    assert load_plugins(disabled=["algorithms"]).registry.names("algorithm") == []
+
+
+class Hello:
+    """A plugin object adding a command."""
+
+    @hookimpl
+    def register_commands(self, commands):
+        commands.add("hello", "say hello", lambda parser: parser.add_argument("who"), lambda args: print(f"hello {args.who}"))
+
+
+CLASH = """
+from hybridtrack import hookimpl
+
+
+@hookimpl
+def register_commands(commands):
+    commands.add("plugins", "takes a built-in's name", lambda parser: None, lambda args: 1)
+    commands.add("extra_listing", "its other command", lambda parser: None, lambda args: 0)
+"""
+
+
+def test_commands_come_through_the_hook_and_the_builtins_are_not_listed_as_plugins():
+    from hybridtrack import cli
+
+    loaded = load_plugins(builtins=cli.builtin_plugins(), extra=[Hello()], entrypoints=False)
+    assert list(loaded.commands) == ["plugins", "simulate", "inspect", "run", "track", "hello"]
+    assert loaded.commands["hello"].plugin == "Hello" and loaded.commands["plugins"].plugin == "hybridtrack.cli.plugins"
+    assert [info.name for info in loaded.plugins] == ["Hello"] and loaded.problems == ()
+
+
+def test_a_command_name_clash_keeps_the_builtin(install_distribution):
+    from hybridtrack import cli
+
+    install_distribution("hybridtrack-clash", {"clash": "ht_test_clash"}, {"ht_test_clash": CLASH})
+    loaded, caught = _load_with_warnings(builtins=cli.builtin_plugins())
+    (message,) = [str(w.message) for w in caught]
+    assert "command 'plugins' of plugin 'clash' is already added by plugin 'hybridtrack.cli.plugins'" in message
+    assert loaded.commands["plugins"].plugin == "hybridtrack.cli.plugins" and loaded.commands["extra_listing"].plugin == "clash"
+
+    class Clash:
+        @hookimpl
+        def register_commands(self, commands):
+            commands.add("run", "again", lambda parser: None, lambda args: 0)
+
+    with pytest.raises(PluginError, match="command 'run' of plugin 'Clash' is already added"):  # written in code: raised
+        load_plugins(builtins=cli.builtin_plugins(), extra=[Clash()], entrypoints=False)

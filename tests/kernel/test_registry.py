@@ -2,7 +2,7 @@
 
 import pytest
 
-from hybridtrack.core.interfaces import KINDS
+from hybridtrack.core.kinds import KINDS
 from hybridtrack.core.registry import DuplicateComponentError, Entry, Registry, UnknownComponentError
 
 
@@ -82,8 +82,44 @@ def test_registrar_reports_errors_and_keeps_going():
     registry = _registry()
     errors = []
     registrar = registry.bind("motion_model", "zigzag", "hybridtrack-zigzag", "1.0", errors.append)
-    registrar.add("straight", Documented)
-    registrar.add("weave", Documented)
-    assert len(errors) == 1 and isinstance(errors[0], DuplicateComponentError)
+    registrar.add("straight", undocumented)
+    registrar.add("weave", undocumented)
+    registrar.add("swirl", Documented)  # a class, and not a MotionModel: rejected at registration
+    assert len(errors) == 2 and isinstance(errors[0], DuplicateComponentError)
+    assert isinstance(errors[1], TypeError) and "does not implement hybridtrack.core.interfaces.MotionModel" in str(errors[1])
     entry = registry.entry("motion_model", "weave")
     assert (entry.plugin, entry.distribution, entry.version) == ("zigzag", "hybridtrack-zigzag", "1.0")
+    assert "swirl" not in registry.names("motion_model")
+
+
+def test_one_table_of_kinds_drives_hooks_registry_and_checks():
+    from hybridtrack.core import hookspecs
+    from hybridtrack.core.algorithm import Algorithm
+    from hybridtrack.testing.contracts import _CHECKS
+
+    assert list(KINDS) == ["motion_model", "sensor", "estimator", "detector", "solver", "algorithm"]
+    assert KINDS["algorithm"].interface is Algorithm and KINDS["algorithm"].hook == "register_algorithms"
+    for kind in KINDS.values():
+        assert callable(getattr(hookspecs, kind.hook)), f"no hookspec {kind.hook} for kind {kind.name}"
+    assert set(_CHECKS) == set(KINDS) and Registry().names("algorithm") == []
+
+
+def test_a_composite_component_resolves_its_parts_in_the_registry_it_came_from():
+    """Registry.create hands itself to a factory with a ``registry`` parameter: dynamic_threshold built from a
+    registry holding a private detector finds it there (the default registry does not know it)."""
+    from hybridtrack.core.plugins import get_registry
+    from hybridtrack_plugins.detectors.dynamic_threshold import DynamicThreshold
+    from hybridtrack_plugins.detectors.glr import GLR
+
+    class PrivateGLR(GLR):
+        name = "private_glr"
+
+    registry = Registry()
+    registry.add(Entry("detector", "private_glr", PrivateGLR, "test"))
+    registry.add(Entry("detector", "dynamic_threshold", DynamicThreshold, "test"))
+    wrapper = registry.resolve("detector", ("dynamic_threshold", {"detector": "private_glr"}))
+    assert type(wrapper.detector) is PrivateGLR
+    assert "private_glr" not in get_registry().names("detector")
+    with pytest.raises(KeyError, match="unknown detector 'private_glr'"):
+        DynamicThreshold(detector="private_glr")  # built directly: the default registry
+    assert type(DynamicThreshold(detector="private_glr", registry=registry).detector) is PrivateGLR

@@ -20,11 +20,12 @@ import pytest
 from hybridtrack import cli
 from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
 from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
+from hybridtrack.apps.tracking import track_file
 from hybridtrack.core.plugins import load_plugins
 from hybridtrack.core.types import Gaussian, Schedule
 from hybridtrack.engine.pipeline import Pipeline
 from hybridtrack.engine.simulate import simulate, simulate_trajectory
-from hybridtrack.testing import build_example, check_detector, check_estimator, check_motion_model
+from hybridtrack.testing import build_example, check_algorithm, check_detector, check_estimator, check_motion_model
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "thirdparty_plugin"
@@ -106,7 +107,7 @@ def test_the_example_own_tests_pass_with_the_pytest_fixtures(zigzag):
         check=False,
     )
     assert result.returncode == 0, result.stdout + result.stderr
-    assert "9 passed" in result.stdout
+    assert "10 passed" in result.stdout
 
 
 # --------------------------------------------------------------------------- the estimator and detector of the example
@@ -193,3 +194,49 @@ def test_unknown_change_adaptive_detects_the_right_turn_with_the_new_components(
         if bank_size is not None:
             assert run.bank_sizes.max() <= 1 + bank_size + 2
     assert detected >= 4
+
+
+# --------------------------------------------------------------------------- the algorithm of the example
+TRACK_CONFIG = """
+[reader]
+time = "t"
+x = "east"
+y = "north"
+id = "name"
+
+[measurement]
+sigma = 1.0
+
+[estimator]
+algorithm = "most_likely"
+process_noise = 0.05
+modes = ["straight", "left_turn", "right_turn"]
+radii = [200.0]
+"""
+
+
+def test_the_new_algorithm_is_listed_and_passes_the_contract_check(zigzag, capsys):
+    registry = load_plugins().registry
+    entry = registry.entry("algorithm", "most_likely")
+    assert (entry.plugin, entry.distribution) == ("zigzag", "hybridtrack-zigzag")
+    check_algorithm(entry.factory)
+    assert cli.main(["plugins", "--json"]) == 0
+    assert {**WEAVE_ROW, "kind": "algorithm", "name": "most_likely"} in json.loads(capsys.readouterr().out)
+
+
+def test_track_names_the_new_algorithm(zigzag, tmp_path):
+    """A config names the third party's algorithm; its fixed bank (transitions fixed at the first fixes) follows a left turn."""
+    t = np.arange(41) * 2.0
+    angle = t * 10.0 / 200.0  # 10 m/s on a left turn of 200 m from the start, heading east
+    xy = 200.0 * np.column_stack([np.sin(angle), 1.0 - np.cos(angle)])
+    xy += np.random.default_rng(3).normal(0.0, 1.0, xy.shape)
+    csv = tmp_path / "legs.csv"
+    csv.write_text("t,name,east,north\n" + "".join(f"{a:.1f},boat,{x:.3f},{y:.3f}\n" for a, (x, y) in zip(t, xy)))
+    (tmp_path / "c.toml").write_text(TRACK_CONFIG)
+    summary = track_file(csv, tmp_path / "c.toml", tmp_path / "out")
+    (boat,) = summary["objects"]
+    assert boat["segments"][-1] == {"start": boat["segments"][-1]["start"], "end": 80.0, "mode": "left_turn", "radius": 200.0}
+    assert boat["segments"][-1]["start"] <= 20.0
+    assert [d["mode"] for d in boat["decisions"]] == [s["mode"] for s in boat["segments"][1:]]  # no detector: the mode changes
+    npz = np.load(tmp_path / "out" / "boat.npz")
+    assert npz["means"].shape == (41, 4) and np.isfinite(npz["means"]).all()

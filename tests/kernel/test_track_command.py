@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.apps.tracking import load_config, segments_of, track_file
+from hybridtrack.apps.tracking import ConfigError, load_config, segments_of, track_file
 from hybridtrack.cli import main
 from hybridtrack.recording.inspection import RecordingFile
 
@@ -176,7 +176,7 @@ def test_example_configs_load():
     assert ships["measurement"]["sigma"] == 10.0 and ships["reader"]["id"] == "MMSI"
     assert len(ships["estimator"]["modes"]) == 1 + 2 * 3
     aircraft = load_config(ROOT / "examples" / "aircraft.toml")
-    assert aircraft["estimator"]["kind"] == "imm"
+    assert aircraft["estimator"]["algorithm"] == "imm"
 
 
 @pytest.mark.slow
@@ -191,3 +191,54 @@ def test_first_three_solent_vessels_with_the_ships_config(tmp_path):
         assert segs[0]["start"] < segs[-1]["end"] and all(a["end"] == b["start"] for a, b in zip(segs, segs[1:]))
         with np.load(tmp_path / f"{obj['id']}.npz") as npz:
             assert np.all(np.isfinite(npz["means"]))
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        ('kind = "unknown_change"', 'algorithm = "unknown_change"'),
+        ('kind = "imm"\nmethod = "gpb2"', 'algorithm = "gpb2"'),
+        ('kind = "imm"', 'algorithm = "imm"\nparameters = {missing_variance = 1.0}'),
+    ],
+)
+def test_the_older_kind_spelling_reads_the_same_as_the_algorithm_name(tmp_path, old, new):
+    csv = write_csv(tmp_path / "legs.csv")
+    kind = "unknown_change" if "unknown_change" in old else "imm"
+    outputs = {}
+    for which, line in (("old", old), ("new", new)):
+        cfg = write_config(tmp_path / f"{which}.toml", kind)
+        cfg.write_text(cfg.read_text().replace(f'kind = "{kind}"', line))
+        outputs[which] = (track_file(csv, cfg, tmp_path / which, ids=["starboard"]), np.load(tmp_path / which / "starboard.npz"))
+    (old_summary, old_npz), (new_summary, new_npz) = outputs["old"], outputs["new"]
+    assert old_summary == new_summary
+    for key in ("times", "means", "covariances", "radii"):
+        np.testing.assert_array_equal(old_npz[key], new_npz[key])
+    assert load_config(tmp_path / "new.toml")["estimator"]["algorithm"] == load_config(tmp_path / "old.toml")["estimator"]["algorithm"]
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda c: c.replace('kind = "unknown_change"', 'algorithm = "ukf"'), "algorithm = 'ukf'; expected a registered algorithm"),
+        (lambda c: c.replace('kind = "unknown_change"', 'kind = "imm"\nalgorithm = "imm"'), "required, once"),
+        (lambda c: c.replace("alpha = 0.01", 'method = "gpb1"'), "belong to kind 'imm'"),
+        (
+            lambda c: (
+                c.replace('kind = "unknown_change"', 'algorithm = "gpb1"\nmethod = "imm"')
+                .replace("alpha = 0.01\n", "")
+                .replace("beta = 0.01\n", "")
+                .replace("bank_size = 20", "")
+            ),
+            "method = 'imm'",
+        ),
+        (lambda c: c.replace("alpha = 0.01", "parameters = {modes = []}"), "parameters = {'modes': []}"),
+        (lambda c: c.replace("alpha = 0.01", "parameters = {pruning = 3}"), "[estimator] algorithm 'unknown_change': pruning: expected"),
+        (lambda c: c.replace("alpha = 0.01", 'parameters = {prunning = "oldest"}'), "unexpected keyword argument 'prunning'"),
+    ],
+)
+def test_bad_algorithm_settings_are_config_errors(tmp_path, edit, message):
+    csv, cfg = write_csv(tmp_path / "legs.csv"), write_config(tmp_path / "c.toml")
+    cfg.write_text(edit(cfg.read_text()))
+    with pytest.raises(ConfigError) as info:
+        track_file(csv, cfg, tmp_path / "out", ids=["starboard"])
+    assert message in str(info.value)

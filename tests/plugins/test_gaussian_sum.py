@@ -5,8 +5,9 @@ import pytest
 
 import hybridtrack as ht
 from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.sdk.mixtures import logsumexp, mixture
 from hybridtrack.testing.contracts import check_estimator
-from hybridtrack_plugins.filters.gaussian_sum import GaussianSumFilter, logsumexp, merge, mixture_moments, range_parameterised
+from hybridtrack_plugins.filters.gaussian_sum import GaussianSumFilter, merge, range_parameterised
 from hybridtrack_plugins.motion.linear_modes import Straight
 from hybridtrack_plugins.motion.ship import ShipTurn
 from hybridtrack_plugins.sensors.bearing import BearingSensor
@@ -86,7 +87,7 @@ def test_merging_identical_components_leaves_the_mixture_unchanged():
     _close(xm[0, 0], x[0, 0])
     _close(Pm[0, 0], A)
     _close(lwm, [[0.0]], atol=1e-15)
-    before, after = mixture_moments(x, P, lw), mixture_moments(xm, Pm, lwm)
+    before, after = mixture(lw, x, P), mixture(lwm, xm, Pm)
     _close(after[0], before[0])
     _close(after[1], before[1])
 
@@ -96,7 +97,7 @@ def test_merging_is_moment_matched_and_respects_the_threshold():
     P = np.stack([np.eye(2), np.eye(2), np.eye(2)])[None]
     x = np.array([[[0.0, 0.0], [1.0, 0.0], [10.0, 0.0]]])
     lw = np.log([[0.5, 0.3, 0.2]])
-    mean, cov = mixture_moments(x[:, :2], P[:, :2], lw[:, :2])
+    mean, cov = mixture(lw[:, :2], x[:, :2], P[:, :2])
     xm, Pm, lwm = merge(x, P, lw, threshold=4.0)
     assert xm.shape == (1, 2, 2)
     _close(np.exp(lwm), [[0.8, 0.2]])
@@ -116,7 +117,7 @@ def test_pruning_removes_small_weights_and_renormalises():
     pruned = gsum.prune(lw)
     assert np.isneginf(pruned[0, 2]) and np.isfinite(pruned[1]).all()
     _close(np.exp(pruned[0, :2]), np.array([0.6, 0.3999]) / 0.9999)
-    _close(logsumexp(pruned), [0.0, 0.0], atol=1e-15)
+    _close(logsumexp(pruned, axis=-1), [0.0, 0.0], atol=1e-15)
     x = np.zeros((2, 3, 1)) + np.arange(3.0)[None, :, None]
     P = np.ones((2, 3, 1, 1))
     xr, Pr, lwr = gsum.reduce(x, P, lw)  # then the cap of 2: the second filter keeps 0.5 and 0.3
@@ -146,7 +147,7 @@ def _bearings_run(components, steps_every=10.0, sigma_deg=0.5, seed=3, merge_thr
         assert np.isfinite(innovation.loglik).all() and np.isfinite(innovation.nis).all()
         lw = state.log_weights[np.isfinite(state.log_weights)]
         assert np.isfinite(lw).all() and lw.size >= 1
-        _close(logsumexp(state.log_weights), [0.0], atol=1e-12)
+        _close(logsumexp(state.log_weights, axis=-1), [0.0], atol=1e-12)
         truth = np.array([theta[0] + theta[2] * (times[k] - times[0]), theta[1] + theta[3] * (times[k] - times[0])])
         history.append(np.hypot(*(state.mean[0, [0, 2]] - truth)))
     return initial, state, np.array(history), truth_range, truth

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.core.interfaces import ClutterInnovation, TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.core.protocols import ClutterInnovation
 from hybridtrack.sdk.scans import Scan
 from hybridtrack_plugins.filters.gaussian_sum import GaussianSumFilter
 from hybridtrack_plugins.filters.kalman import KalmanFilter

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import hybridtrack as ht
-from hybridtrack.core.interfaces import ClutterInnovation, TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.core.protocols import ClutterInnovation
 from hybridtrack.engine.clutter import ClutterModel, region_around
 from hybridtrack.sdk.scans import Scan
 from hybridtrack_plugins.filters.particle import ParticleClutterInnovation, ParticleFilter

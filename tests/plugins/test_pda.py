@@ -6,7 +6,8 @@ import pytest
 from _filters_support import LAYOUT, MatrixSensor, position_sensor, straight, turn
 from scipy.stats import chi2, multivariate_normal
 
-from hybridtrack.core.interfaces import ClutterInnovation, TransitionBank
+from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.core.protocols import ClutterInnovation
 from hybridtrack.sdk.scans import Scan
 from hybridtrack.testing import check_estimator
 from hybridtrack_plugins.filters.kalman import KalmanFilter

@@ -1,6 +1,6 @@
 """``cumulative_llr``: a change-time SPRT with a GLR-style maximum over change times.
 
-Written only against ``hybridtrack.core.interfaces`` and ``hybridtrack.sdk.thresholds``.
+Written only against ``hybridtrack.core.interfaces``, ``hybridtrack.core.protocols`` and ``hybridtrack.sdk.thresholds``.
 
 H_0: the current mode (row 0 of the bank) goes on; H_p (p = 1 … M−1): the mode
 changed to p at some unknown step.  Each entry e (an alternative p and a
@@ -43,7 +43,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridtrack.core.interfaces import ChangeTimeTest, DetectorStep
+from hybridtrack.core.interfaces import DetectorStep
+from hybridtrack.core.protocols import ChangeTimeTest
 from hybridtrack.core.types import Decision
 from hybridtrack.sdk.thresholds import WaldThresholds
 
