@@ -20,7 +20,8 @@ from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Gaussian
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch_inputs import batch_measurements, batch_prior, batch_times, run_groups
+from hybridtrack.engine.batch import batch_times
+from hybridtrack.engine.batch_inputs import prior_arrays, run_groups, stacked_measurements
 from hybridtrack.engine.pipeline import mode_label
 from hybridtrack.engine.results import RunResult
 from hybridtrack.engine.simulate import build_models
@@ -84,13 +85,13 @@ def run_known_modes_batch(
     registry = resolve_registry(registry)
     models = build_models(schedule, registry, noise_cov)
     network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
-    z = batch_measurements(network, measurements)
+    z = stacked_measurements(network, measurements)
     R, steps = z.shape[:2]
     if steps != schedule.total_steps + 1:
         raise ValueError(f"measurements: expected {schedule.total_steps + 1} steps for the schedule, got {steps}")
     t, dt = batch_times(times, tau, R, steps)
     layout = models[0].layout
-    x0, P0 = batch_prior(prior, R, len(layout))
+    x0, P0 = prior_arrays(prior, R, len(layout))
     filters = resolve("estimator", estimator, registry)
     labels = [mode_label(m) for m in models]
     modes = tuple(dict.fromkeys(labels))

@@ -39,7 +39,8 @@ from hybridtrack.core.protocols import ChangeTimeTest, ScoreDetector
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch_inputs import batch_measurements, batch_prior, batch_times, check_recorders, per_run, run_groups
+from hybridtrack.engine.batch import batch_times, per_run
+from hybridtrack.engine.batch_inputs import prior_arrays, run_groups, stacked_measurements
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
@@ -216,12 +217,12 @@ class UnknownChangeAdaptive:
         a decentralized estimator's node copies keep one copy per run.  Runs of
         a decentralized or sampling estimator each form their own batch of one.
         """
-        z = batch_measurements(self.network, measurements)
+        z = stacked_measurements(self.network, measurements)
         R, K = z.shape[0], z.shape[1] - 1
         t, dt = batch_times(times, self.tau, R, K + 1)
-        x0, P0 = batch_prior(prior, R, len(self.layout))
+        x0, P0 = prior_arrays(prior, R, len(self.layout))
         truths = per_run(truth, R, "truth")
-        recorders = check_recorders(recorders, R)
+        recorders = {r: x for r, x in enumerate(per_run(recorders, R, "recorders")) if x is not None}
         runs = []
         for g in run_groups(self.estimator, R):
             runs += self._runs(z[g], t[g], dt[g], x0[g], P0[g], [i for i, r in enumerate(g) if r in recorders])
