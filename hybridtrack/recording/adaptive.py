@@ -61,7 +61,8 @@ def _log_run(run, recorder, *, measurements, sensors, truth, name: str, detector
 
 
 @log_result.register
-def _known_switch(run: KnownSwitchRun, recorder, *, name: str = "known_switch", truth=None, **context) -> None:
+def log_known_switch_run(run: KnownSwitchRun, recorder, *, name: str = "known_switch", truth=None, **context) -> None:
+    """Algorithm 1's run (module docstring) with the hypothesis followed and the filters running per step."""
     steps = _log_run(run, recorder, name=name, truth=truth, **context)
     recorder.log_scalars(f"estimator/{name}/followed", steps, run.mode.astype(float), run.times)
     recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, run.times)
@@ -71,7 +72,8 @@ def _known_switch(run: KnownSwitchRun, recorder, *, name: str = "known_switch", 
 
 
 @log_result.register
-def _unknown_change(run: UnknownChangeRun, recorder, *, name: str = "unknown_change", truth=None, signal=None, **context) -> None:
+def log_unknown_change_run(run: UnknownChangeRun, recorder, *, name: str = "unknown_change", truth=None, signal=None, **context) -> None:
+    """Algorithm 3's run (module docstring) with the signal function, the bank size and the mode per step."""
     steps = _log_run(run, recorder, name=name, truth=truth, **context)
     times = run.times
     if signal is not None:
@@ -84,7 +86,8 @@ def _unknown_change(run: UnknownChangeRun, recorder, *, name: str = "unknown_cha
 
 
 @log_result.register
-def _known_modes(run: ScheduleRun, recorder, *, name: str = "known_modes", **context) -> None:
+def log_schedule_run(run: ScheduleRun, recorder, *, name: str = "known_modes", **context) -> None:
+    """The told filter's estimate ``world/estimate/<name>`` (2σ ellipses) and its NIS ``estimator/<name>/nis``."""
     steps = np.arange(run.means.shape[0])
     position = [run.layout.index("x"), run.layout.index("y")]
     log_estimate(recorder, name, steps, run.means, run.covs, position, run.times)
