@@ -50,11 +50,10 @@ import numpy as np
 
 from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack.core.plugins import get_registry
-from hybridtrack.core.types import Schedule
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.clutter import ClutterModel, add_clutter, region_around
+from hybridtrack.engine.clutter import ClutterModel, add_clutter, region_around, stack_scans
+from hybridtrack.engine.schedule import Schedule
 from hybridtrack.engine.simulate import simulate_measurements, simulate_trajectory
-from hybridtrack.sdk.scans import stack_scans
 from hybridtrack_plugins.detectors.signal_function import SignalFunction
 from hybridtrack_plugins.detectors.sprt_change import ChangeTimeSPRT
 from hybridtrack_plugins.filters.pda import PDAFilter

@@ -65,7 +65,7 @@ def main(argv=None) -> dict:
         key = "growing" if size is None else f"{pruning}-{size}"
         summary = experiment.summarize(rows)
         if size == "algorithm4":
-            summary["algorithm4_bank_limit"] = adaptive._algorithm4_cached(experiment.example1.X0)
+            summary["algorithm4_bank_limit"] = adaptive.algorithm4_bank_size(experiment.example1.X0)
         results[key] = summary
         delays[key] = [r["delay"] if r["mode"] == "right_turn_r5" else None for r in rows]
         print(key, json.dumps(summary))

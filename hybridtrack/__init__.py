@@ -29,10 +29,13 @@ from hybridtrack.core.interfaces import (
     Solver,
     TransitionBank,
 )
-from hybridtrack.core.types import SEED001_TABLE1, Decision, Gaussian, Measurement, Schedule, Segment
+from hybridtrack.core.types import Decision, Gaussian, Measurement
 
 #: name → module of the names imported on first use (PEP 562)
 LAZY = {
+    "SEED001_TABLE1": "hybridtrack.engine.schedule",
+    "Schedule": "hybridtrack.engine.schedule",
+    "Segment": "hybridtrack.engine.schedule",
     "get_registry": "hybridtrack.core.plugins",
     "load_plugins": "hybridtrack.core.plugins",
     "Pipeline": "hybridtrack.engine.pipeline",
@@ -79,9 +82,6 @@ __all__ = [  # noqa: F822  (the LAZY names resolve through __getattr__)
     "LinearTransition",
     "Measurement",
     "MotionModel",
-    "SEED001_TABLE1",
-    "Schedule",
-    "Segment",
     "Sensor",
     "Solution",
     "Solver",

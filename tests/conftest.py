@@ -29,8 +29,8 @@ def clutter_scenario():
     with clutter of ``density`` and P_D = 0.9 around the track."""
     import numpy as np
 
-    from hybridtrack.core.types import Schedule, Segment
     from hybridtrack.engine.clutter import ClutterModel, region_around, simulate_scans
+    from hybridtrack.engine.schedule import Schedule, Segment
     from hybridtrack.engine.simulate import simulate_trajectory
     from hybridtrack_plugins.sensors.position import PositionSensor
 

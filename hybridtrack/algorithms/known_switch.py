@@ -30,13 +30,13 @@ from hybridtrack.core.interfaces import Estimator, Sensor
 from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.protocols import HypothesisTest, HypothesisTestBatch
 from hybridtrack.core.registry import Registry
-from hybridtrack.core.types import Schedule
 from hybridtrack.core.validation import check_positive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, per_run
 from hybridtrack.engine.batch_inputs import prior_arrays, run_groups, stacked_measurements
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
+from hybridtrack.engine.schedule import Schedule
 from hybridtrack.sdk.mixtures import mixture
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import check_tau

@@ -17,7 +17,7 @@ from typing import Any
 from hybridtrack.core.hookspecs import hookimpl
 from hybridtrack.core.plugins import resolve_registry
 from hybridtrack.core.registry import Registry
-from hybridtrack.core.types import Schedule
+from hybridtrack.engine.schedule import Schedule
 
 #: a turn wide enough for the contract check's straight truth (10 m/s, steps of 1 s)
 _TURN = ("right_turn", {"radius": 100.0})

@@ -56,7 +56,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _load_schedule(path: str | None):
-    from hybridtrack.core.types import SEED001_TABLE1, Schedule
+    from hybridtrack.engine.schedule import SEED001_TABLE1, Schedule
 
     if path is None:
         return SEED001_TABLE1

@@ -1,4 +1,4 @@
-"""The clutter simulator: missed detections and Poisson false measurements over a region (SPEC §6; seed 004).
+"""Scan sequences and the clutter simulator: missed detections and Poisson false measurements over a region (SPEC §6; seed 004).
 
 The false measurements follow the parametric model of Bar-Shalom's PDA
 (Bar-Shalom & Fortmann 1988, §6.4; seed 004 ref. [4]):
@@ -20,7 +20,80 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.validation import as_float_array
-from hybridtrack.sdk.scans import Scan, ScanSequence, check_clutter_density, check_detection_probability
+from hybridtrack.sdk.scans import RowScan, Scan, candidate_array, check_clutter_density, check_detection_probability
+
+
+def stack_scans(scans: Sequence[Scan]) -> RowScan:
+    """One :class:`RowScan` from M scans of one sensor (row j = ``scans[j]``), NaN-padded to the largest L."""
+    scans = list(scans)
+    if not scans or not all(isinstance(s, Scan) for s in scans):
+        raise TypeError(f"scans: expected a non-empty sequence of Scan, got {type(scans).__name__}")
+    names = {s.sensor for s in scans}
+    dims = {s.measurement_dim for s in scans}
+    if len(names) != 1 or len(dims) != 1:
+        raise ValueError(f"scans: expected scans of one sensor and dimension, got sensors {sorted(names)} and dimensions {sorted(dims)}")
+    z = np.full((len(scans), max(s.size for s in scans), dims.pop()), np.nan)
+    for j, scan in enumerate(scans):
+        z[j, : scan.size] = scan.z
+    return RowScan(names.pop(), z)
+
+
+@attrs.frozen(eq=False)
+class ScanSequence:
+    """One sensor's scans at steps 0 … K−1.
+
+    ``points[k]`` (L_k, m) are the candidates of step k; ``target_index[k]`` is
+    the row of the target-originated one, −1 when the target was missed (known
+    to the simulator and to evaluations, never read by an estimator).
+    """
+
+    sensor: str
+    points: tuple[np.ndarray, ...] = attrs.field(converter=lambda ps: tuple(candidate_array(p) for p in ps))
+    target_index: np.ndarray = attrs.field(converter=lambda t: np.array(t, dtype=np.int64, copy=True))
+
+    def __attrs_post_init__(self):
+        dims = {p.shape[1] for p in self.points}
+        if len(dims) > 1:
+            raise ValueError(f"points: every scan of sensor {self.sensor!r} must have the same dimension, got {sorted(dims)}")
+        if self.target_index.shape != (len(self.points),):
+            raise ValueError(f"target_index: expected shape ({len(self.points)},), got {self.target_index.shape}")
+        for k, (p, t) in enumerate(zip(self.points, self.target_index)):
+            if not -1 <= t < p.shape[0]:
+                raise ValueError(f"target_index: step {k} names candidate {t} of a scan of {p.shape[0]}")
+        self.target_index.setflags(write=False)
+
+    @property
+    def steps(self) -> int:
+        return len(self.points)
+
+    @property
+    def measurement_dim(self) -> int:
+        return self.points[0].shape[1]
+
+    @property
+    def counts(self) -> np.ndarray:
+        """L_k, the number of candidates per step (K,)."""
+        return np.array([p.shape[0] for p in self.points], dtype=np.int64)
+
+    def scan(self, k: int) -> Scan:
+        return Scan(self.sensor, self.points[k])
+
+    def target_measurements(self) -> np.ndarray:
+        """The target-originated measurement per step (K, m), NaN where it was missed."""
+        out = np.full((self.steps, self.measurement_dim), np.nan)
+        for k, (p, t) in enumerate(zip(self.points, self.target_index)):
+            if t >= 0:
+                out[k] = p[t]
+        return out
+
+    def false_measurements(self) -> np.ndarray:
+        """The false candidates per step, NaN-padded: (K, max count, m)."""
+        false = [np.delete(p, t, axis=0) if t >= 0 else p for p, t in zip(self.points, self.target_index)]
+        width = max((f.shape[0] for f in false), default=0)
+        out = np.full((self.steps, width, self.measurement_dim), np.nan)
+        for k, f in enumerate(false):
+            out[k, : f.shape[0]] = f
+        return out
 
 
 def _region(value) -> np.ndarray:

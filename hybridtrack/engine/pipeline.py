@@ -13,7 +13,7 @@ nonlinear model is relinearized at each filter's own estimate every step
 (EKF).  Measurements are a mapping sensor name → array (steps, m_i), row k
 holding step k, NaN rows meaning no measurement; see
 :mod:`hybridtrack.io.measurement_files` for the CSV/NPZ layouts.  In clutter they
-are instead ``candidates``, sensor name → :class:`~hybridtrack.sdk.scans.ScanSequence`
+are instead ``candidates``, sensor name → :class:`~hybridtrack.engine.clutter.ScanSequence`
 (a variable number of candidate measurements per step), for an estimator that
 associates them (``nearest_neighbour``, ``pda``: ``accepts_scans = True``).
 
@@ -168,7 +168,7 @@ class Pipeline:
     (None: nothing recorded); ``truth`` (an optional trajectory to record beside
     the estimates); ``filter_names`` to label the bank; ``record_measurements``
     (False when another pipeline on the same recorder already logs them);
-    ``candidates`` (sensor name → :class:`~hybridtrack.sdk.scans.ScanSequence`, one
+    ``candidates`` (sensor name → :class:`~hybridtrack.engine.clutter.ScanSequence`, one
     per sensor) in place of ``measurements`` when tracking in clutter: each step
     passes the sensors' :class:`~hybridtrack.sdk.scans.Scan` list to an estimator
     with ``accepts_scans``; clutter, gates and association weights are recorded;
@@ -279,7 +279,7 @@ class Pipeline:
         """Validate ``candidates`` (one ScanSequence per network sensor) against the estimator."""
         if candidates is None:
             return None
-        from hybridtrack.sdk.scans import ScanSequence
+        from hybridtrack.engine.clutter import ScanSequence
 
         if measurements is not None:
             raise ValueError("candidates: give either measurements or candidates, not both")

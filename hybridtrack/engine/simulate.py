@@ -29,8 +29,8 @@ import numpy as np
 
 from hybridtrack.core.interfaces import MotionModel, Sensor, convert_layout
 from hybridtrack.core.registry import Registry
-from hybridtrack.core.types import Schedule
 from hybridtrack.core.validation import as_float_array, check_covariance
+from hybridtrack.engine.schedule import Schedule
 from hybridtrack.sdk.linalg import psd_square_root
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import check_tau, check_times

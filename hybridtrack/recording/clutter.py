@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from hybridtrack.core.protocols import ClutterInnovation
-from hybridtrack.sdk.scans import ScanSequence
+from hybridtrack.engine.clutter import ScanSequence
 
 
 def log_scans(recorder, sequences: Sequence[ScanSequence], steps: np.ndarray, times: np.ndarray | None = None) -> None:

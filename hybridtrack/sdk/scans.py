@@ -20,15 +20,13 @@ Value types:
 * :class:`RowScan` — one sensor's candidates per filter row at one step,
   z of shape (M, L, m) NaN-padded (stacked runs: row j is run j's scan,
   :func:`stack_scans`); ``nearest_neighbour`` and ``pda`` accept it.
-* :class:`ScanSequence` — one sensor's scans over steps 0 … K plus, for
-  evaluation only, which candidate came from the target (−1: missed).
-The clutter simulator is :mod:`hybridtrack.engine.clutter`; the recording of
+
+Sequences of scans over steps (:class:`~hybridtrack.engine.clutter.ScanSequence`)
+and the clutter simulator are :mod:`hybridtrack.engine.clutter`; the recording of
 scans and associations :mod:`hybridtrack.recording.clutter`.
 """
 
 from __future__ import annotations
-
-from collections.abc import Sequence
 
 import attrs
 import numpy as np
@@ -38,7 +36,8 @@ from hybridtrack.core.validation import as_float_array
 # --------------------------------------------------------------------------- value types
 
 
-def _candidates(value) -> np.ndarray:
+def candidate_array(value) -> np.ndarray:
+    """Candidates z (L, m) as a read-only float64 copy (one candidate (m,) becomes (1, m)); an empty scan keeps its m."""
     array = np.array(value, dtype=np.float64, copy=True)
     if array.ndim == 1 and array.size == 0:
         raise ValueError("z: expected candidates of shape (L, m); an empty scan needs its dimension, e.g. np.zeros((0, 2))")
@@ -58,7 +57,7 @@ class Scan:
     """
 
     sensor: str
-    z: np.ndarray = attrs.field(converter=_candidates)
+    z: np.ndarray = attrs.field(converter=candidate_array)
 
     @property
     def size(self) -> int:
@@ -132,79 +131,6 @@ class RowScan:
     def row(self, j: int) -> Scan:
         """Row j's candidates as a :class:`Scan`."""
         return Scan(self.sensor, self.z[j][self.present[j]])
-
-
-def stack_scans(scans: Sequence[Scan]) -> RowScan:
-    """One :class:`RowScan` from M scans of one sensor (row j = ``scans[j]``), NaN-padded to the largest L."""
-    scans = list(scans)
-    if not scans or not all(isinstance(s, Scan) for s in scans):
-        raise TypeError(f"scans: expected a non-empty sequence of Scan, got {type(scans).__name__}")
-    names = {s.sensor for s in scans}
-    dims = {s.measurement_dim for s in scans}
-    if len(names) != 1 or len(dims) != 1:
-        raise ValueError(f"scans: expected scans of one sensor and dimension, got sensors {sorted(names)} and dimensions {sorted(dims)}")
-    z = np.full((len(scans), max(s.size for s in scans), dims.pop()), np.nan)
-    for j, scan in enumerate(scans):
-        z[j, : scan.size] = scan.z
-    return RowScan(names.pop(), z)
-
-
-@attrs.frozen(eq=False)
-class ScanSequence:
-    """One sensor's scans at steps 0 … K−1.
-
-    ``points[k]`` (L_k, m) are the candidates of step k; ``target_index[k]`` is
-    the row of the target-originated one, −1 when the target was missed (known
-    to the simulator and to evaluations, never read by an estimator).
-    """
-
-    sensor: str
-    points: tuple[np.ndarray, ...] = attrs.field(converter=lambda ps: tuple(_candidates(p) for p in ps))
-    target_index: np.ndarray = attrs.field(converter=lambda t: np.array(t, dtype=np.int64, copy=True))
-
-    def __attrs_post_init__(self):
-        dims = {p.shape[1] for p in self.points}
-        if len(dims) > 1:
-            raise ValueError(f"points: every scan of sensor {self.sensor!r} must have the same dimension, got {sorted(dims)}")
-        if self.target_index.shape != (len(self.points),):
-            raise ValueError(f"target_index: expected shape ({len(self.points)},), got {self.target_index.shape}")
-        for k, (p, t) in enumerate(zip(self.points, self.target_index)):
-            if not -1 <= t < p.shape[0]:
-                raise ValueError(f"target_index: step {k} names candidate {t} of a scan of {p.shape[0]}")
-        self.target_index.setflags(write=False)
-
-    @property
-    def steps(self) -> int:
-        return len(self.points)
-
-    @property
-    def measurement_dim(self) -> int:
-        return self.points[0].shape[1]
-
-    @property
-    def counts(self) -> np.ndarray:
-        """L_k, the number of candidates per step (K,)."""
-        return np.array([p.shape[0] for p in self.points], dtype=np.int64)
-
-    def scan(self, k: int) -> Scan:
-        return Scan(self.sensor, self.points[k])
-
-    def target_measurements(self) -> np.ndarray:
-        """The target-originated measurement per step (K, m), NaN where it was missed."""
-        out = np.full((self.steps, self.measurement_dim), np.nan)
-        for k, (p, t) in enumerate(zip(self.points, self.target_index)):
-            if t >= 0:
-                out[k] = p[t]
-        return out
-
-    def false_measurements(self) -> np.ndarray:
-        """The false candidates per step, NaN-padded: (K, max count, m)."""
-        false = [np.delete(p, t, axis=0) if t >= 0 else p for p, t in zip(self.points, self.target_index)]
-        width = max((f.shape[0] for f in false), default=0)
-        out = np.full((self.steps, width, self.measurement_dim), np.nan)
-        for k, f in enumerate(false):
-            out[k, : f.shape[0]] = f
-        return out
 
 
 # --------------------------------------------------------------------------- parameter checks

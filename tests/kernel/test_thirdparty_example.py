@@ -22,8 +22,9 @@ from hybridtrack.algorithms.known_switch import KnownSwitchAdaptive
 from hybridtrack.algorithms.unknown_change import UnknownChangeAdaptive
 from hybridtrack.apps.tracking import track_file
 from hybridtrack.core.plugins import load_plugins
-from hybridtrack.core.types import Gaussian, Schedule
+from hybridtrack.core.types import Gaussian
 from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.schedule import Schedule
 from hybridtrack.engine.simulate import simulate, simulate_trajectory
 from hybridtrack.testing import build_example, check_algorithm, check_detector, check_estimator, check_motion_model
 from hybridtrack_plugins.sensors.position import PositionSensor

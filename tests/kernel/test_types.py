@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from hybridtrack.core.interfaces import LinearTransition
-from hybridtrack.core.types import SEED001_TABLE1, Decision, Gaussian, Measurement, Schedule, Segment
+from hybridtrack.core.types import Decision, Gaussian, Measurement
+from hybridtrack.engine.schedule import SEED001_TABLE1, Schedule, Segment
 
 NOT_SYMMETRIC = [[1.0, 0.5], [0.0, 1.0]]
 NOT_PSD = [[1.0, 2.0], [2.0, 1.0]]

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridtrack.core.types import Schedule, Segment
+from hybridtrack.engine.schedule import Schedule, Segment
 from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import TRAIL_STEPS, RerunRecorder, content_blueprint, nis_bounds, palette, series_style, spatial_style
 from hybridtrack.recording.inspection import RecordingFile, view_selects

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from hybridtrack.core.types import Schedule, Segment
-from hybridtrack.engine.clutter import ClutterModel, add_clutter, region_around, simulate_scans
+from hybridtrack.engine.clutter import ClutterModel, ScanSequence, add_clutter, region_around, simulate_scans
 from hybridtrack.engine.pipeline import Pipeline
+from hybridtrack.engine.schedule import Schedule, Segment
 from hybridtrack.engine.simulate import simulate_trajectory
 from hybridtrack.recording import RerunRecorder
 from hybridtrack.recording.inspection import RecordingFile
-from hybridtrack.sdk.scans import Scan, ScanSequence
+from hybridtrack.sdk.scans import Scan
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 REGION = [[-10.0, 0.0], [10.0, 5.0]]  # V = 100

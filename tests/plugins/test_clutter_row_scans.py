@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from hybridtrack.core.interfaces import TransitionBank
-from hybridtrack.sdk.scans import RowScan, Scan, stack_scans
+from hybridtrack.engine.clutter import stack_scans
+from hybridtrack.sdk.scans import RowScan, Scan
 from hybridtrack_plugins.filters.nearest_neighbour import NearestNeighbourFilter
 from hybridtrack_plugins.filters.pda import PDAFilter
 from hybridtrack_plugins.motion.linear_modes import Straight

@@ -116,8 +116,9 @@ def test_cumulative_statistic_at_step_50_matches_the_chi2_100_tail(nis_sample):
 
 def test_signal_function_alarms_after_a_mode_change():
     """Data from a left turn r = 3 seen by the straight filter: the signal function leaves ±3."""
-    from hybridtrack.core.types import Gaussian, Schedule
+    from hybridtrack.core.types import Gaussian
     from hybridtrack.engine.pipeline import Pipeline
+    from hybridtrack.engine.schedule import Schedule
     from hybridtrack.engine.simulate import simulate
 
     schedule = Schedule.from_rows([("straight", 20), ("left_turn", 40, 3.0)])

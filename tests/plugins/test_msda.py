@@ -7,8 +7,8 @@ from _filters_support import LAYOUT, position_sensor, straight
 
 from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack.core.plugins import get_registry
-from hybridtrack.core.types import Schedule
 from hybridtrack.engine.clutter import ClutterModel, region_around, simulate_scans
+from hybridtrack.engine.schedule import Schedule
 from hybridtrack.engine.simulate import simulate_trajectory
 from hybridtrack.sdk.scans import Scan
 from hybridtrack.testing import build_example, check_component, check_estimator

@@ -111,8 +111,8 @@ def test_pda_keeps_tracks_that_nearest_neighbour_loses_in_clutter():
     (experiments/clutter.py measures the same over densities; docs/clutter.md.)
     """
     from hybridtrack.core.plugins import get_registry
-    from hybridtrack.core.types import Schedule
     from hybridtrack.engine.clutter import ClutterModel, region_around, simulate_scans
+    from hybridtrack.engine.schedule import Schedule
     from hybridtrack.engine.simulate import simulate_trajectory
     from hybridtrack_plugins.filters.pda import PDAFilter
     from hybridtrack_plugins.sensors.position import PositionSensor

@@ -29,7 +29,7 @@ import pytest
 import hybridtrack.core.plugins as plugins
 from hybridtrack.cli import main
 from hybridtrack.core.plugins import PluginError, PluginWarning, load_plugins, resolve
-from hybridtrack.core.types import Schedule
+from hybridtrack.engine.schedule import Schedule
 from hybridtrack.engine.simulate import build_models
 from hybridtrack.recording import MAX_RECORDABLE_SECONDS, RerunRecorder, check_recordable_times
 

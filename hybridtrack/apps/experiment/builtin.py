@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from hybridtrack.apps.experiment.definition import Experiment
-from hybridtrack.core.types import SEED001_TABLE1, Schedule, Segment
+from hybridtrack.engine.schedule import SEED001_TABLE1, Schedule, Segment
 
 X0 = (0.0, 0.0, 0.0, 2.0)
 
