@@ -94,18 +94,18 @@ class KnownModes:
         from hybridtrack.algorithms.known_modes import run_known_modes
 
         return run_known_modes(
-            self.schedule,
-            estimator=self.estimator,
-            sensors=self.sensors,
-            measurements=measurements,
-            prior=prior,
-            tau=self.tau,
-            times=times,
-            noise_cov=self.noise_cov,
-            recorder=recorder,
-            name=self.name,
-            registry=self.registry,
+            self.schedule, **self.settings(), measurements=measurements, prior=prior, times=times, recorder=recorder, name=self.name
         )
+
+    def run_batch(self, measurements, prior, *, times=None):
+        """:func:`~hybridtrack.algorithms.known_modes.run_known_modes_batch` over the schedule (R runs)."""
+        from hybridtrack.algorithms.known_modes import run_known_modes_batch
+
+        return run_known_modes_batch(self.schedule, **self.settings(), measurements=measurements, prior=prior, times=times)
+
+    def settings(self) -> dict:
+        """The keywords both runs share."""
+        return dict(estimator=self.estimator, sensors=self.sensors, tau=self.tau, noise_cov=self.noise_cov, registry=self.registry)
 
 
 imm.example_parameters = gpb1.example_parameters = gpb2.example_parameters = _MARKOV

@@ -627,6 +627,61 @@ def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float 
     return result
 
 
+def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: int = 20, tau: float = 1.0, seed: int = 0) -> list:
+    """R runs together equal R runs alone, to 1e-12: ``run_batch`` of an algorithm that has one against ``run``.
+
+    Built as :func:`check_algorithm` builds it; the R runs of a straight
+    target differ in their noise draws, their priors (shifted by up to 10 m)
+    and their time stamps (irregular, Δt in [0.5 τ, 1.5 τ]), and the last run
+    misses its fixes at two steps (NaN).  ``times``, ``means``, ``covs`` and
+    ``mode`` of run r of the batch equal those of run r alone (relative 1e-12),
+    and so do the decisions (step and mode).  Returns the batch's results
+    ([] for an algorithm without ``run_batch``).
+    """
+    instance = factory(sensors=[LinearPositionSensor("contract_xy", ("x", "y"), 4.0 * np.eye(2))], tau=tau, **example_parameters(factory))
+    if not callable(getattr(instance, "run_batch", None)):
+        return []
+    label = _label(instance, "algorithm")
+    layout = tuple(instance.layout)
+    rng = np.random.default_rng(seed)
+    times = np.cumsum(np.concatenate([np.zeros((runs, 1)), tau * rng.uniform(0.5, 1.5, (runs, steps))], axis=1), axis=1)
+    z = np.stack([np.column_stack([10.0 * t, 5.0 * t]) for t in times]) + 2.0 * rng.standard_normal((runs, steps + 1, 2))
+    z[-1, [3, 11]] = np.nan
+    start = {"x": 0.0, "y": 0.0, "vx": 10.0, "vy": 5.0}
+    means = np.array([[start.get(c, 0.0) for c in layout] for _ in range(runs)])
+    means[:, [layout.index("x"), layout.index("y")]] += rng.uniform(-10.0, 10.0, (runs, 2))
+    covs = np.broadcast_to(
+        np.diag([25.0 if c in ("x", "y") else 4.0 if c in ("vx", "vy") else 1.0 for c in layout]), (runs, len(layout), len(layout))
+    )
+    options = dict(getattr(factory, "example_run", None) or {})
+    try:
+        together = list(instance.run_batch({"contract_xy": z}, (means, covs.copy()), times=times, **options))
+    except Exception as error:
+        raise AssertionError(f"{label}: run_batch on {runs} runs raised {error!r}") from error
+    _require(len(together) == runs, label, f"run_batch returned {len(together)} results for {runs} runs")
+    for r, batched in enumerate(together):
+        alone = instance.run({"contract_xy": z[r]}, Gaussian(means[r], covs[r]), times=times[r], **options)
+        for field in ("times", "means", "covs", "mode"):
+            a, b = getattr(batched, field, None), getattr(alone, field, None)
+            if a is None and b is None:
+                continue
+            _close(
+                np.asarray(a, dtype=float),
+                np.asarray(b, dtype=float),
+                label,
+                f"run {r}: {field} of the batch vs the run alone",
+                rtol=1e-12,
+                atol=1e-12,
+            )
+        decided = [(d.step, d.mode) for d in getattr(batched, "decisions", ())]
+        _require(
+            decided == [(d.step, d.mode) for d in getattr(alone, "decisions", ())],
+            label,
+            f"run {r}: decisions of the batch differ from the run alone",
+        )
+    return together
+
+
 # --------------------------------------------------------------------------- dispatch
 
 _CHECKS: dict[str, Callable[..., Any]] = {
