@@ -331,15 +331,10 @@ def filter_altitude(times, heights, *, sigma: float, acceleration_density: float
 
 
 def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_measured=None, lat_lon_estimated=None) -> None:
-    """What ``hybridtrack track`` adds to the estimator's own logging (the east-north plane at z = 0):
-
-    * with altitude, the fixes and the estimate in 3-D, ``measured``, ``estimated`` (K, 3) east, north and the
-      measured / filtered altitude (m), as ``world/measurements/altitude`` and ``world/estimate/<name>/altitude``
-      (points per step and the path) in the east-north-up world view;
-    * for latitude/longitude files, ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees as ``GeoPoints``
-      per step and a ``GeoLineStrings`` path under ``map/measurements`` and ``map/estimate/<name>``, which the
-      recording's layout shows in a map view (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`).
-    """
+    """What ``hybridtrack track`` adds to the estimator's own logging (``docs/real_data.md``, *What the recording
+    shows*): ``measured``, ``estimated`` (K, 3) east, north, altitude (m) as ``world/measurements/altitude`` and
+    ``world/estimate/<name>/altitude``; ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees under
+    ``map/measurements`` and ``map/estimate/<name>`` (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`)."""
     from hybridtrack.recording import RerunRecorder
 
     if not isinstance(recorder, RerunRecorder):  # a NullRecorder: nothing to draw
