@@ -359,14 +359,8 @@ def geodesic_inverse(lat1, lon1, lat2, lon2, *, tol: float = 1e-12, max_iter: in
     u_sq = cos2a * (a * a - b * b) / (b * b)
     big_a = 1.0 + u_sq / 16384.0 * (4096.0 + u_sq * (-768.0 + u_sq * (320.0 - 175.0 * u_sq)))
     big_b = u_sq / 1024.0 * (256.0 + u_sq * (-128.0 + u_sq * (74.0 - 47.0 * u_sq)))
-    d_sigma = (
-        big_b
-        * sin_s
-        * (
-            cos2sm
-            + big_b / 4.0 * (cos_s * (-1.0 + 2.0 * cos2sm**2) - big_b / 6.0 * cos2sm * (-3.0 + 4.0 * sin_s**2) * (-3.0 + 4.0 * cos2sm**2))
-        )
-    )
+    bracket = cos_s * (-1.0 + 2.0 * cos2sm**2) - big_b / 6.0 * cos2sm * (-3.0 + 4.0 * sin_s**2) * (-3.0 + 4.0 * cos2sm**2)
+    d_sigma = big_b * sin_s * (cos2sm + big_b / 4.0 * bracket)
     distance = b * big_a * (sigma - d_sigma)
     azimuth = np.degrees(np.arctan2(cu2 * sl, cu1 * su2 - su1 * cu2 * cl)) % 360.0
     return distance, azimuth
