@@ -81,6 +81,11 @@ class ModeLabels:
         return {"parameters": dict(self.parameters), "segments": [dict(s) for s in self.segments]}
 
 
+def _unwrapped(c: np.ndarray) -> np.ndarray:
+    """Σ_{i≤k} wrap(c_i − c_{i−1}) (0 at k = 0), wrap(·) ∈ [−180°, 180°): the course change, unwrapped."""
+    return np.concatenate([[0.0], np.cumsum((np.diff(c) + 180.0) % 360.0 - 180.0)])
+
+
 def _window_sums(times: np.ndarray, valid: np.ndarray, window: float):
     """(t − t₀, window_sum, n): ``window_sum(a)`` sums a over the valid reports within ±window/2 of each report
     (prefix sums, so the cost is O(K) for any window), n counts them."""
@@ -124,7 +129,7 @@ def turn_rate(times, course, window: float = DEFAULTS["window"]) -> np.ndarray:
     u = np.full_like(c, np.nan)
     if valid.any():
         cv = c[valid]
-        u[valid] = cv[0] + np.concatenate([[0.0], np.cumsum((np.diff(cv) + 180.0) % 360.0 - 180.0)])
+        u[valid] = cv[0] + _unwrapped(cv)
     t0, window_sum, n = _window_sums(t, valid, window)
     u0 = np.where(valid, u - (u[valid][0] if valid.any() else 0.0), 0.0)
     st, su = window_sum(t0), window_sum(u0)
@@ -165,7 +170,7 @@ def _segment_rate(t, c, raw, first, last, window) -> float:
     index = index[np.isfinite(c[index])]
     inner = index[(t[index] >= t[first] + window / 2) & (t[index] <= t[last] - window / 2)]
     if inner.size >= 3:
-        u = np.concatenate([[0.0], np.cumsum((np.diff(c[inner]) + 180.0) % 360.0 - 180.0)])
+        u = _unwrapped(c[inner])
         tt = t[inner] - t[inner].mean()
         return float(-np.radians(np.dot(tt, u - u.mean()) / np.dot(tt, tt)))
     w = raw[first + 1 : last + 1]  # the steps ending inside the segment
@@ -195,14 +200,15 @@ def _states(omega, v, p) -> list[str]:
     return out
 
 
-def _runs(modes: list[str]) -> list[list]:
-    runs = []
-    for k, m in enumerate(modes):
-        if runs and runs[-1][0] == m:
-            runs[-1][2] = k
+def _joined(runs: list[list]) -> list[list]:
+    """[mode, first, last] runs with equal neighbours joined."""
+    out = [runs[0]]
+    for r in runs[1:]:
+        if r[0] == out[-1][0]:
+            out[-1][2] = r[2]
         else:
-            runs.append([m, k, k])
-    return runs
+            out.append(r)
+    return out
 
 
 def _merge_short(runs: list[list], t: np.ndarray, min_duration: float) -> list[list]:
@@ -220,13 +226,7 @@ def _merge_short(runs: list[list], t: np.ndarray, min_duration: float) -> list[l
         j = i - 1 if left >= right else i + 1
         runs[j][1], runs[j][2] = min(runs[j][1], runs[i][1]), max(runs[j][2], runs[i][2])
         del runs[i]
-        joined = [runs[0]]
-        for r in runs[1:]:
-            if r[0] == joined[-1][0]:
-                joined[-1][2] = r[2]
-            else:
-                joined.append(r)
-        runs = joined
+        runs = _joined(runs)
     return runs
 
 
@@ -253,7 +253,7 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
     t, c, v = _checked(times, course, speed)
     omega = turn_rate(t, c, p["window"])
     vbar = smoothed_speed(t, v, p["window"])
-    runs = _merge_short(_runs(_states(omega, vbar, p)), t, p["min_duration"])
+    runs = _merge_short(_joined([[m, k, k] for k, m in enumerate(_states(omega, vbar, p))]), t, p["min_duration"])
     raw = _step_rates(t, c)
     segments = []
     modes: list[str] = []

@@ -3,104 +3,37 @@
 :func:`track_file` reads a time-stamped position file with
 :func:`~hybridtrack.io.track_files.read_tracks`, runs one configured estimator per
 object at the report times (irregular Δt_k = t_k − t_{k−1}) and writes, per
-object, ``OUT/<id>.rrd`` (a Rerun recording: measurements, the estimate with
-its 2σ ellipses, the likelihood ratios or mode probabilities, the decisions as
-events), ``OUT/<id>.npz`` (``times`` (K,), ``means`` (K, n), ``covariances``
-(K, n, n), ``modes`` (K,) the summary mode name per step, ``radii`` (K,) the
-turn radius per step (NaN off turns), ``layout``, ``positions`` (K, 2) the
-measured fixes) and ``OUT/summary.json``::
+object, ``OUT/<id>.rrd`` (a Rerun recording: what the estimator logs, plus
+:func:`record_track`'s 3-D altitude and map views), ``OUT/<id>.npz`` (``times``
+(K,), ``means`` (K, n), ``covariances`` (K, n, n), ``modes`` (K,) the summary
+mode name per step, ``radii`` (K,) the turn radius per step (NaN off turns),
+``layout``, ``positions`` (K, 2) the measured fixes; with altitude ``altitude``,
+``altitude_mean``, ``altitude_var`` of :func:`filter_altitude`) and
+``OUT/summary.json``::
 
     {"objects": [{"id": str,
                   "segments": [{"start": float, "end": float, "mode": str, "radius": float | null}],
                   "decisions": [{"time": float, "mode": str}]}],
      "skipped": [{"id": str, "reason": str}]}
 
-Mode names are the motion models' registry names (``straight``,
-``left_turn``, ``right_turn``, ``stop``, and ``acceleration`` for
-``constant_acceleration``); ``radius`` is the turn radius in metres of the
-model followed (None off turns).  **Segments** come from the per-step mode —
-the mode *followed* by the algorithm (``mode`` of its result: the unknown-change
-estimator's filter 0), or the *most probable* model argmax_j μ_j of the IMM —
-with consecutive steps of the same (mode, radius) merged; a segment runs from
-the time of its first step to the time of the next segment's first step (the
-last one to the last report).  **Decisions** are the detector's decisions
-(time of the step, the mode it chose; a "no change" decision names the current
-mode) for an algorithm with a detector (``unknown_change``), else the steps
-where the followed or most probable mode changes (``imm``, which has none).
+Mode names are the motion models' registry names (``acceleration`` for
+``constant_acceleration``), ``radius`` the turn radius (m) of the model
+followed.  **Segments** (:func:`segments_of`) merge consecutive steps of the
+same (mode, radius) of the per-step ``mode`` of the result (the model followed,
+or the most probable one of the IMM).  **Decisions** are the detector's
+decisions for an algorithm with a detector, else the steps where that mode
+changes.
 
-Configuration (TOML; unknown keys and tables are refused)::
-
-    [reader]                  # hybridtrack.io.track_files.read_tracks settings
-    preset = "solent_ais"     # optional: start from tracks_io.SOLENT_AIS
-    time = "Time"             # column names: time, x, y | lat, lon, id, course, speed, alt
-    lat = "Latitude_degrees"
-    lon = "Longitude_degrees"
-    id = "MMSI"
-    origin = "first"          # "first", "mean" or [lat°, lon°] / [lat°, lon°, h]
-    projection = "enu"        # or "equirectangular"
-    max_speed = 30.0          # m/s, speed limit of the jump check
-    jump_tolerance = 50.0     # m
-    speed_unit = "knots"      # "m/s", "knots", "km/h"
-    course_not_available = 360.0
-    speed_not_available = 102.3
-    min_reports = 10          # objects with fewer reports are skipped (default 3, at least 2)
-
-    [measurement]
-    sigma = 25.0              # σ (m): position sensor ("position", {"noise_cov": σ² I})
-
-    [altitude]                # used only when the file has an altitude column (reader key alt)
-    sigma = 10.0              # σ_h (m): altitude measurement noise
-    acceleration_density = 0.1  # q (m²/s³): white-noise vertical acceleration density
-    velocity_sigma = 5.0      # m/s: prior σ of the climb rate
-
-    [prior]
-    velocity = "two_fixes"    # or "zero": v₀ = (p₁ − p₀)/(t₁ − t₀), or 0
-    position_sigma = 250.0    # m (default 10 σ: the step-0 update with the first fix then gives ≈ σ)
-    velocity_sigma = 10.0     # m/s
-
-    [estimator]
-    algorithm = "unknown_change"  # a registered algorithm: "imm", "gpb1", "gpb2", a third party's
-                              # (``kind`` is the older spelling; kind = "imm" with method = "gpb2" is "gpb2")
-    filter = "kalman"         # the registered estimator inside (default kalman)
-    process_noise = 0.3       # σ_w (m/s per step): every model's noise_cov = σ_w² I on the velocities
-    modes = ["straight", "left_turn", "right_turn"]   # registry names, or tables {name = "left_turn", radius = 500.0}
-    radii = [100.0, 500.0, 2000.0]   # turn radii (m): every bare turn name becomes one mode per radius
-    # unknown_change only:
-    alpha = 0.01
-    beta = 0.01
-    bank_size = 30            # alternative filters kept (an integer, or "algorithm4"); default 30
-    initial_mode = "straight" # the mode at the start (a name from modes; default the first)
-    # imm, gpb1, gpb2 only:
-    sojourn = 60.0            # mean sojourn time (s), one number or one per mode
-    # any algorithm: further keywords of its factory
-    parameters = {}
-
-The algorithm is built from the registry as ``(algorithm, {modes, sensors,
-estimator, name, registry, …})`` — the modes, the position sensor, the filter,
-the name ``"track"``, and the keys above that belong to it, then
-``parameters`` — so any registered algorithm that takes those keywords
-(:class:`hybridtrack.core.algorithm.Algorithm`) can be named.
-
-The unknown-change estimator needs modes of one state layout (straight,
-turns, stop); the IMM also mixes ``constant_acceleration`` (6 states) with
-the rest.  **Altitude**, where the file has it, is filtered on its own by
-:func:`filter_altitude` (a 1-D constant-velocity Kalman filter at the report
-times) and written to the ``.npz`` as ``altitude_mean`` (K, 2) (height above
-the origin's height in m, climb rate in m/s) and ``altitude_var`` (K, 2)
-(their variances); the horizontal modes are what the estimator decides.
-
-**Recording** (besides what the estimator logs under ``world/…`` — the
-east-north-up world view, horizontal positions at z = 0 —, ``estimator/…``
-and ``events/…``), by :func:`record_track`: with altitude, the fixes and the
-estimate in 3-D (z = the measured and the filtered altitude) as
-``world/measurements/altitude`` and ``world/estimate/track/altitude``; for
-files read from latitude/longitude, ``map/measurements`` and
-``map/estimate/track`` as ``GeoPoints`` per step and ``GeoLineStrings`` paths
-(the estimate converted back with :func:`hybridtrack.io.track_files.unproject`),
-which the recording's layout shows in a map view.
-
-Every user error — a missing file, unknown key, bad value, unknown algorithm
-or mode — is a :class:`ConfigError` (a ValueError) naming the key.
+The configuration (TOML tables ``[reader]``, ``[measurement]``, ``[altitude]``,
+``[prior]``, ``[estimator]``; unknown keys and tables are refused) is tabulated
+in ``docs/real_data.md`` and checked by :func:`load_config`.  The algorithm is
+built from the registry as ``(algorithm, {modes, sensors, estimator, name,
+registry, …})`` — the modes, the position sensor, the filter, the name
+``"track"``, the keys that belong to it, then ``[estimator] parameters`` — so
+any registered algorithm that takes those keywords
+(:class:`hybridtrack.core.algorithm.Algorithm`) can be named.  Every user
+error — a missing file, unknown key, bad value, unknown algorithm or mode — is
+a :class:`ConfigError` (a ValueError) naming the key.
 """
 
 from __future__ import annotations
@@ -145,8 +78,8 @@ _SECTIONS = {
 }  # fmt: skip
 #: the keywords the tracker itself gives every algorithm (``[estimator] parameters`` may not repeat them)
 _RESERVED = {"modes", "sensors", "estimator", "name", "registry", "alpha", "beta", "bank_size", "initial_mode", "sojourn"}
-#: keys that belong to one algorithm (``imm``: the whole multiple-model family)
-_KIND_ONLY = {"unknown_change": {"alpha", "beta", "bank_size", "initial_mode"}, "imm": {"sojourn", "method"}}
+#: keys that belong to one algorithm (``imm``: the whole multiple-model family), given to its factory (but ``method``)
+_KIND_ONLY = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), "imm": ("sojourn", "method")}
 
 
 class ConfigError(ValueError):
@@ -219,7 +152,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
     kind = _algorithm(est, where, registry)
     family = "imm" if kind in MULTIPLE_MODEL else kind
     for other, keys in _KIND_ONLY.items():
-        misplaced = sorted(set(est) & keys) if other != family else []
+        misplaced = sorted(set(est).intersection(keys)) if other != family else []
         if misplaced:
             raise ConfigError(f"{where}: [estimator] key(s) {misplaced} belong to kind {other!r}, not {kind!r}")
     method = est.pop("method", None)
@@ -315,10 +248,6 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 # --------------------------------------------------------------------------- building and running
 
 
-#: the checked keys each algorithm's factory takes besides the modes, sensors, filter, name and registry
-_KEYWORDS = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), **{m: ("sojourn",) for m in MULTIPLE_MODEL}}
-
-
 def _build(config: dict, registry=None):
     """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
     from hybridtrack.core.plugins import resolve
@@ -333,7 +262,8 @@ def _build(config: dict, registry=None):
             specs.append(resolve("motion_model", (name, {**params, "noise_cov": q}), registry))
         except KeyError as error:
             raise ConfigError(f"[estimator] modes: unknown motion model {name!r} ({error.args[0] if error.args else error})") from None
-    parameters = {key: est[key] for key in _KEYWORDS.get(est["algorithm"], ())}
+    family = "imm" if est["algorithm"] in MULTIPLE_MODEL else est["algorithm"]
+    parameters = {key: est[key] for key in _KIND_ONLY.get(family, ()) if key in est}
     parameters.update(modes=specs, sensors=[sensor], estimator=est["filter"], name="track", registry=registry, **est["parameters"])
     try:
         estimator = resolve("algorithm", (est["algorithm"], parameters), registry)
@@ -350,12 +280,7 @@ def _prior(track: Track, config: dict, layout: Sequence[str]):
     z = track.positions[:, :2]
     v = (z[1] - z[0]) / (track.times[1] - track.times[0]) if p["velocity"] == "two_fixes" else np.zeros(2)
     values = {"x": z[0, 0], "y": z[0, 1], "vx": v[0], "vy": v[1]}
-    variances = {
-        "x": p["position_sigma"] ** 2,
-        "y": p["position_sigma"] ** 2,
-        "vx": p["velocity_sigma"] ** 2,
-        "vy": p["velocity_sigma"] ** 2,
-    }
+    variances = dict.fromkeys(("x", "y"), p["position_sigma"] ** 2) | dict.fromkeys(("vx", "vy"), p["velocity_sigma"] ** 2)
     mean = np.array([values.get(c, 0.0) for c in layout])
     cov = np.diag([variances.get(c, 1.0) for c in layout])
     return mean, cov
@@ -406,15 +331,10 @@ def filter_altitude(times, heights, *, sigma: float, acceleration_density: float
 
 
 def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_measured=None, lat_lon_estimated=None) -> None:
-    """What ``hybridtrack track`` adds to the estimator's own logging (the east-north plane at z = 0):
-
-    * with altitude, the fixes and the estimate in 3-D, ``measured``, ``estimated`` (K, 3) east, north and the
-      measured / filtered altitude (m), as ``world/measurements/altitude`` and ``world/estimate/<name>/altitude``
-      (points per step and the path) in the east-north-up world view;
-    * for latitude/longitude files, ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees as ``GeoPoints``
-      per step and a ``GeoLineStrings`` path under ``map/measurements`` and ``map/estimate/<name>``, which the
-      recording's layout shows in a map view (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`).
-    """
+    """What ``hybridtrack track`` adds to the estimator's own logging (``docs/real_data.md``, *What the recording
+    shows*): ``measured``, ``estimated`` (K, 3) east, north, altitude (m) as ``world/measurements/altitude`` and
+    ``world/estimate/<name>/altitude``; ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees under
+    ``map/measurements`` and ``map/estimate/<name>`` (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`)."""
     from hybridtrack.recording import RerunRecorder
 
     if not isinstance(recorder, RerunRecorder):  # a NullRecorder: nothing to draw
@@ -474,7 +394,7 @@ def track_one(
     estimator, sensor, models = _build(config, registry)
     layout = estimator.layout
     prior = _prior(track, config, layout)
-    z = {sensor.name: np.asarray(track.positions[:, :2], dtype=float)}
+    xy = np.asarray(track.positions[:, :2], dtype=float)
     name = output_name(track.id)
     heights = None
     if track.positions.shape[1] == 3:
@@ -482,23 +402,20 @@ def track_one(
         if origin is not None:  # the geodetic height above the origin's (the ENU up also holds the Earth's curvature)
             heights = unproject(track.positions, origin=origin, projection=projection)[:, 2] - (list(origin) + [0.0])[2]
     altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
-    recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": _jsonable(config)}) if out is not None else None
+    recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}) if out is not None else None
     try:
-        run = estimator.run(z, prior, times=track.times, recorder=recorder)
+        run = estimator.run({sensor.name: xy}, prior, times=track.times, recorder=recorder)
         if recorder is not None:
-            xy = np.asarray(track.positions[:, :2], dtype=float)
             est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
             in_3d = (None, None)
             if heights is not None:
                 in_3d = (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
             geo = (None, None)
             if origin is not None:
-                measured_enu, estimated_enu = xy, est_xy
+                estimated_enu = est_xy
                 if heights is not None:  # the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
-                    up = np.asarray(track.positions[:, 2], dtype=float)
-                    measured_enu = np.column_stack([xy, up])
-                    estimated_enu = np.column_stack([est_xy, altitude[0][:, 0] + up - heights])
-                geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (measured_enu, estimated_enu))
+                    estimated_enu = np.column_stack([est_xy, altitude[0][:, 0] + track.positions[:, 2] - heights])
+                geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (track.positions, estimated_enu))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
     finally:
         if recorder is not None:
@@ -521,18 +438,10 @@ def track_one(
             modes=np.array(modes),
             radii=np.array([np.nan if r is None else r for r in radii]),
             layout=np.array(layout),
-            positions=np.asarray(track.positions[:, :2], dtype=float),
+            positions=xy,
             **({} if altitude is None else {"altitude_mean": altitude[0], "altitude_var": altitude[1], "altitude": heights}),
         )
     return {"id": track.id, "segments": segments_of(run.times, modes, radii), "decisions": decisions}
-
-
-def _jsonable(value):
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    return value
 
 
 def track_file(

@@ -58,34 +58,27 @@ BROKEN_PIPE_STATUS = 141
 _USER_FILE_ERRORS = (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError, FileExistsError)
 
 
-def integer_option(minimum: int, expected: str) -> Callable[[str], int]:
-    """An argparse ``type``: an integer ≥ ``minimum``, else an error saying ``expected``."""
-
-    def parse(text: str) -> int:
+def _option(convert: Callable[[str], float], check: Callable[[float], bool], expected: str) -> Callable[[str], float]:
+    def parse(text: str):
         try:
-            value = int(text)
+            value = convert(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
-        if value < minimum:
+        if not check(value):
             raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
         return value
 
     return parse
+
+
+def integer_option(minimum: int, expected: str) -> Callable[[str], int]:
+    """An argparse ``type``: an integer ≥ ``minimum``, else an error saying ``expected``."""
+    return _option(int, lambda value: value >= minimum, expected)
 
 
 def number_option(check: Callable[[float], bool], expected: str) -> Callable[[str], float]:
     """An argparse ``type``: a finite float passing ``check``, else an error saying ``expected``."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
-        if not (math.isfinite(value) and check(value)):
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
-        return value
-
-    return parse
+    return _option(float, lambda value: math.isfinite(value) and check(value), expected)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -23,6 +23,9 @@ path given (numpy would append ``.npz`` to other names).
 from __future__ import annotations
 
 import argparse
+import os
+import tempfile
+from pathlib import Path
 
 from hybridtrack.cli import UsageError, integer_option, number_option
 from hybridtrack.core.hookspecs import hookimpl
@@ -35,8 +38,6 @@ DEFAULT_PROCESS_NOISE = 1e-3
 _finite = number_option(lambda v: True, "a finite number")
 _positive = number_option(lambda v: v > 0, "a positive finite number")
 _non_negative = number_option(lambda v: v >= 0, "a finite number ≥ 0")
-
-
 _seed = integer_option(0, "a non-negative integer")
 
 
@@ -77,9 +78,6 @@ def _load_schedule(path: str | None):
 
 def _output(option: str, path: str):
     """The checked target of ``option`` and a fresh temporary file in its folder (renamed onto it on success)."""
-    import tempfile
-    from pathlib import Path
-
     target = Path(path)
     if not path or target.is_dir():
         raise UsageError(f"{option} {path!r}: expected a file name, got a directory")
@@ -90,8 +88,6 @@ def _output(option: str, path: str):
         handle, temporary = tempfile.mkstemp(dir=folder, prefix=f".{target.name}.", suffix=".partial")
     except OSError as error:
         raise UsageError(f"{option} {path}: cannot write in folder {str(folder)!r} ({error.strerror or error})") from None
-    import os
-
     os.close(handle)
     return target, Path(temporary)
 
@@ -119,8 +115,6 @@ def _models(args, schedule, registry):
 
 
 def run(args: argparse.Namespace) -> int:
-    import os
-
     import numpy as np
 
     from hybridtrack.core.interfaces import convert_layout

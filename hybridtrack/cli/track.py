@@ -1,8 +1,8 @@
 """``hybridtrack track FILE --config CONFIG.toml --out DIR [--id ID …]``: track every object of a position file.
 
 Runs the estimator configured in CONFIG (TOML: reader settings, measurement
-σ, prior, estimator kind ``unknown_change`` or ``imm`` with its modes — the
-schema is in :mod:`hybridtrack.apps.tracking` and ``docs/real_data.md``) on each
+σ, prior, a registered algorithm with its modes — the schema is in
+``docs/real_data.md``, checked by :mod:`hybridtrack.apps.tracking`) on each
 object of FILE (or the objects named by ``--id``, repeatable) and writes
 ``DIR/<id>.rrd``, ``DIR/<id>.npz`` and ``DIR/summary.json``
 (``{"objects": [{"id", "segments": [{"start", "end", "mode", "radius"}],
@@ -33,13 +33,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from hybridtrack.apps.tracking import ConfigError, track_file
+    from hybridtrack.apps.tracking import track_file
 
     try:
         summary = track_file(args.file, args.config, args.out, args.ids, progress=not args.no_progress and sys.stderr.isatty())
-    except ConfigError as error:
-        raise UsageError(str(error)) from None
-    except ValueError as error:  # the reader's structural faults name the file
+    except ValueError as error:  # a ConfigError names the key, the reader's structural faults name the file
         raise UsageError(str(error)) from None
     n, s = len(summary["objects"]), len(summary["skipped"])
     print(f"tracked {n} object(s), skipped {s}; results in {args.out}")

@@ -1,17 +1,44 @@
 """Reading CSV text the same way for every file format of the project (measurement files, position reports).
 
-:func:`decode_csv_text` accepts UTF-8 (a leading byte-order mark stripped) and
-refuses UTF-16, zip archives, other encodings and NUL bytes, naming the file
-and the offending byte; :func:`csv_records` splits the text into records with
-their line numbers, the separator ``,`` or — when the header line has no comma
-but a semicolon — ``;``, blank records skipped.
+:func:`checked_path` refuses what is not a file name, a directory or a missing file; :func:`decode_csv_text`
+accepts UTF-8 (a leading byte-order mark stripped) and refuses UTF-16, zip archives, other encodings and NUL
+bytes, naming the file and the offending byte; :func:`csv_records` splits the text into records with their line
+numbers, the separator ``,`` or — when the header line has no comma but a semicolon — ``;``, blank records
+skipped; :func:`finite_number` reads a plain decimal cell.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import math
+import os
+import re
 from pathlib import Path
+
+#: a plain ASCII decimal number: no ``inf``/``nan`` words, no ``_`` separators
+NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+
+
+def checked_path(path, expected: str | None = None) -> Path:
+    """``path`` as a Path: a TypeError unless it is a str or os.PathLike; with ``expected`` (what the file should
+    be), an IsADirectoryError for a directory and a FileNotFoundError for a missing file, naming it."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path: expected a file name (str or os.PathLike), got {type(path).__name__} ({path!r})")
+    path = Path(path)
+    if expected is not None and path.is_dir():
+        raise IsADirectoryError(f"{path}: is a directory, expected {expected}")
+    if expected is not None and not path.exists():
+        raise FileNotFoundError(f"{path}: no such file (expected {expected})")
+    return path
+
+
+def finite_number(cell: str) -> float | None:
+    """A finite float, or None for an empty, non-numeric or non-finite cell."""
+    if not NUMBER.fullmatch(cell):
+        return None
+    value = float(cell)
+    return value if math.isfinite(value) else None
 
 
 def decode_csv_text(path: Path, data: bytes, hint: str) -> str:

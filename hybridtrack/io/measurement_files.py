@@ -32,49 +32,23 @@ optionally a 1-D array ``time`` (steps,) of the step times in seconds (a 2-D
 array named ``time`` is still read as a sensor).
 
 :func:`read_measurement_file` returns both, ``(measurements, times or None)``;
-:func:`read_measurements` returns the measurements only.  Bad times (NaN,
-infinite, repeated, decreasing) raise a ValueError naming the file, the row or
-index and the value.  Pass the times on as ``Pipeline(..., times=times)``.
+:func:`read_measurements` returns the measurements only.  Pass the times on as
+``Pipeline(..., times=times)``.
 
-What the readers accept and refuse (every error names the file, and the line
-and column or the array where it applies):
-
-* a missing file is a FileNotFoundError, a directory an IsADirectoryError, a
-  path that is not a str/PathLike a TypeError, a suffix other than ``.csv`` or
-  ``.npz`` a ValueError; everything below is a ValueError.
-* CSV text must be UTF-8; a leading byte-order mark is stripped.  UTF-16, other
-  encodings, NUL bytes and zip archives are refused ("not a UTF-8 text CSV").
-* the separator is ``,``; a file whose header line has no comma but a ``;`` is
-  read with ``;`` (a decimal comma such as ``0,5`` is then refused, with a hint).
-* blank lines are skipped; an empty file, a header without data rows, a first
-  column other than ``step``/``time``, no sensor column, a column name that is
-  not ``<sensor>.<component>`` or appears twice, and rows whose cell count
-  differs from the header are refused.
-* a cell is a decimal number (``1``, ``-0.5``, ``1e-3``), empty or ``nan`` (no
-  value); ``inf``, ``-inf``, ``infinity`` and numbers beyond the float range
-  (``1e400``) are refused, as the array checks refuse them.
-* ``step`` cells are integers 0 … :data:`MAX_STEP` (10⁷), none repeated (the
-  error names the step and both lines); the dense arrays (max step + 1 rows)
-  must fit :data:`MAX_BYTES` (1 GiB of float64), checked before allocating.
-* NPZ files are read with ``allow_pickle=False``; each member's .npy header is
-  checked before any data is loaded: an empty file or archive, a truncated or
-  corrupt zip, a lone ``.npy``, non-``.npy`` or repeated members, arrays of
-  Python objects (refused, never unpickled), non-numeric dtypes (only integers
-  and floats are read), sensor arrays that are not 2-D or have no rows or
-  columns, different step counts, more than :data:`MAX_BYTES` of data, and
-  ``inf`` values are refused.
-
-The writers refuse what the readers could not read back: no sensor, an empty or
-non-str sensor name, zero steps or components, ``inf``, component labels that
-are missing, repeated, empty or hold a ``.``, and a ``step`` CSV longer than
-:data:`MAX_STEP` + 1 steps.
+What the readers accept and refuse — every error names the file, and the line
+and column or the array where it applies — is tabulated in ``docs/sensors.md``
+(*Measurement files*): missing files, directories, suffixes other than ``.csv``
+/ ``.npz``, text that is not UTF-8, malformed headers and rows, ``inf`` cells,
+steps beyond :data:`MAX_STEP`, files beyond :data:`MAX_BYTES` (checked before
+allocating), and NPZ archives that are corrupt or hold Python objects (read with
+``allow_pickle=False``, headers checked before any data is loaded).  Blank CSV
+lines are skipped.  The writers refuse what the readers could not read back.
 """
 
 from __future__ import annotations
 
 import csv
 import math
-import os
 import re
 import zipfile
 from collections.abc import Mapping
@@ -84,7 +58,7 @@ from typing import NamedTuple
 import numpy as np
 
 from hybridtrack.core.validation import as_float_array
-from hybridtrack.io.csv_text import csv_records, decode_csv_text
+from hybridtrack.io.csv_text import NUMBER, checked_path, csv_records, decode_csv_text
 from hybridtrack.sdk.timestamps import check_times
 
 
@@ -114,17 +88,13 @@ def _check(measurements: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return arrays
 
 
-def _check_times(times, steps: int, name: str) -> np.ndarray | None:
-    return None if times is None else check_times(times, name, steps)
-
-
 def _csv_times(path, body) -> list[float]:
     """The ``time`` column, finite and strictly increasing; errors name the file line, the index and the value."""
     times: list[float] = []
     for index, (line, row) in enumerate(body):
         cell = row[0].strip()
         try:
-            if not _NUMBER.fullmatch(cell) and cell.lower().lstrip("+-") not in _NON_FINITE:
+            if not NUMBER.fullmatch(cell) and cell.lower().lstrip("+-") not in _NON_FINITE:
                 raise ValueError
             t = float(cell)
         except ValueError:
@@ -146,24 +116,9 @@ MAX_STEP = 10_000_000
 #: the most memory (bytes of float64) a file's dense measurement arrays may take; checked before allocating
 MAX_BYTES = 2**30
 
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _INTEGER = re.compile(r"[+-]?\d+", re.ASCII)
 _NON_FINITE = {"inf", "infinity", "nan"}
 _CSV_HINT = "expected a UTF-8 text CSV: a header 'step,<sensor>.<component>,…' (or 'time,…') and one row per step"
-
-
-def _path(path) -> Path:
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"path: expected a file name (str or os.PathLike), got {type(path).__name__} ({path!r})")
-    return Path(path)
-
-
-def _existing(path: Path, kind: str) -> None:
-    """A missing file or a directory is a FileNotFoundError/IsADirectoryError naming it."""
-    if path.is_dir():
-        raise IsADirectoryError(f"{path}: is a directory, expected a {kind} measurement file")
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file (expected a {kind} measurement file)")
 
 
 def _header(path: Path, line: int, header: list[str]) -> tuple[str, dict[str, list[int]]]:
@@ -196,7 +151,7 @@ def _cell(path: Path, line: int, column: str, cell: str) -> float:
         pass
     if not cell or cell.lower().lstrip("+-") == "nan":
         return np.nan
-    if not _NUMBER.fullmatch(cell):
+    if not NUMBER.fullmatch(cell):
         if cell.lower().lstrip("+-") in ("inf", "infinity"):
             raise ValueError(f"{path}:{line}: column {column!r} holds {cell!r}; expected a finite number (an empty cell for no value)")
         hint = " (a decimal comma? use a decimal point)" if re.fullmatch(r"[+-]?\d+,\d+", cell) else ""
@@ -227,9 +182,7 @@ def _steps(path: Path, body) -> list[int]:
     return steps
 
 
-def _read_csv(path: str | Path) -> MeasurementFile:
-    path = _path(path)
-    _existing(path, ".csv")
+def _read_csv(path: Path) -> MeasurementFile:
     text = decode_csv_text(path, path.read_bytes(), _CSV_HINT)
     rows = csv_records(path, text)
     if not rows:
@@ -267,11 +220,6 @@ def _read_csv(path: str | Path) -> MeasurementFile:
     return MeasurementFile(_check(values), times)
 
 
-def read_csv(path: str | Path) -> dict[str, np.ndarray]:
-    """Read the CSV layout above (``step`` or ``time`` first column); the times are dropped — see :func:`read_measurement_file`."""
-    return _read_csv(path).measurements
-
-
 def write_csv(
     path: str | Path,
     measurements: Mapping[str, np.ndarray],
@@ -286,7 +234,7 @@ def write_csv(
     """
     arrays = _check(measurements)
     steps = next(iter(arrays.values())).shape[0]
-    times = _check_times(times, steps, "times")
+    times = None if times is None else check_times(times, "times", steps)
     if times is None and steps - 1 > MAX_STEP:
         raise ValueError(f"measurements: {steps} steps, above the step CSV limit {MAX_STEP} + 1 (measurements_io.MAX_STEP); write an NPZ")
     components = components or {}
@@ -369,9 +317,7 @@ def _npz_check(path: Path, name: str, shape: tuple[int, ...], dtype: np.dtype, t
         raise ValueError(f"{path}: array {name!r} has shape {shape}; expected at least one step and one component")
 
 
-def _read_npz(path: str | Path) -> MeasurementFile:
-    path = _path(path)
-    _existing(path, ".npz")
+def _read_npz(path: Path) -> MeasurementFile:
     with open(path, "rb") as handle:
         magic = handle.read(6)
     if not magic:
@@ -402,13 +348,9 @@ def _read_npz(path: str | Path) -> MeasurementFile:
     arrays = _npz_arrays(path, list(headers))
     times = arrays.pop("time") if is_time else None
     measurements = {name: as_float_array(z, f"{path}: array {name!r}", (None, None), allow_nan=True) for name, z in arrays.items()}
-    return MeasurementFile(measurements, _check_times(times, next(iter(steps)), f"{path}: 'time' array"))
-
-
-def read_npz(path: str | Path) -> dict[str, np.ndarray]:
-    """Read the NPZ layout (one (steps, m) array per sensor); a 1-D ``time`` array is checked and dropped — see
-    :func:`read_measurement_file`."""
-    return _read_npz(path).measurements
+    if times is not None:
+        times = check_times(times, f"{path}: 'time' array", next(iter(steps)))
+    return MeasurementFile(measurements, times)
 
 
 def write_npz(path: str | Path, measurements: Mapping[str, np.ndarray], *, times=None) -> None:
@@ -420,20 +362,19 @@ def write_npz(path: str | Path, measurements: Mapping[str, np.ndarray], *, times
     if "time" in arrays:
         raise ValueError("measurements: a sensor named 'time' cannot be written with times (the NPZ array 'time' holds them)")
     steps = next(iter(arrays.values())).shape[0]
-    np.savez(path, time=_check_times(times, steps, "times"), **arrays)
+    np.savez(path, time=check_times(times, "times", steps), **arrays)
 
 
 def read_measurement_file(path: str | Path) -> MeasurementFile:
     """Read a ``.csv`` or ``.npz`` measurement file: ``(measurements, times)``, times None for a ``step`` file."""
-    path = _path(path)
+    path = checked_path(path)
     if path.is_dir():
-        _existing(path, ".csv or .npz")
+        checked_path(path, "a .csv or .npz measurement file")
+    readers = {".csv": _read_csv, ".npz": _read_npz}
     suffix = path.suffix.lower()
-    if suffix == ".csv":
-        return _read_csv(path)
-    if suffix == ".npz":
-        return _read_npz(path)
-    raise ValueError(f"{path}: unknown measurement file type {suffix!r} (expected .csv or .npz)")
+    if suffix not in readers:
+        raise ValueError(f"{path}: unknown measurement file type {suffix!r} (expected .csv or .npz)")
+    return readers[suffix](checked_path(path, f"a {suffix} measurement file"))
 
 
 def read_measurements(path: str | Path) -> dict[str, np.ndarray]:

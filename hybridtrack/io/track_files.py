@@ -45,45 +45,24 @@ Projection (``projection=``):
 Their error against the exact geodesic (Vincenty's inverse formula on the
 WGS-84 ellipsoid, :func:`geodesic_inverse`) is measured by
 :func:`projection_error` and tabulated in ``docs/real_data.md``: at 100 km from
-an origin at 50.8° N, ``enu`` places points within 4.12 m of the azimuthal
-equidistant reference (ranges 4.12 m short, the chord-versus-arc shrinkage
-≈ d³/(6R²)) with a local scale error ≤ 1.2 × 10⁻⁴ (velocities 0.012 % slow
-radially); ``equirectangular`` is off by up to 1.09 km (2.5 km at 70° N).
+an origin at 50.8° N, ``enu`` is within 4.12 m (the chord-versus-arc shrinkage
+≈ d³/(6R²)), ``equirectangular`` off by up to 1.09 km.
 
-What is refused and what is reported.  Structural faults are a ValueError (or
-FileNotFoundError / IsADirectoryError / TypeError) naming the file: an empty
-file, a header without data rows, a configured column missing from the header
-(the error lists the columns present), a used column named twice.  Faults of
-single rows are *reported, not used*: each becomes a :class:`Problem` (file line,
-column, kind, action, message) in the track's ``problems`` (and in
-:attr:`TrackFile.problems`, with the rows that belong to no track), and one
-warning summarises them (``warn=False`` to silence it).  What happens to the row:
-
-* dropped — a time that does not parse (``bad_time``); a position/altitude cell
-  that is empty, non-numeric or infinite (``not_a_number``); latitude outside
-  [−90, 90] or longitude outside [−180, 180] (``out_of_range``); a row with a
-  different number of cells than the header (``bad_row``); an empty id cell
-  (``missing_id``); a second row with the time of an earlier row of the same
-  object (``duplicate_time``: the first row in file order is kept, the message
-  says whether the values were identical); a burst of at most
-  :data:`MAX_OUTLIER_BURST` fixes not reachable from the last good fix (fix j
-  is reachable from fix i when |p_j − p_i| ≤ ``max_speed`` (t_j − t_i) +
-  ``jump_tolerance``) after which the track returns to a reachable fix
-  (``speed_jump``), or the first fix of a track when the next two fixes agree
-  with each other but not with it.  The tolerance absorbs position noise and
-  time-stamp jitter: AIS time stamps are receive times, and two reports 0.3 s
-  apart can carry positions taken ~1 s apart (the Solent file has such pairs
-  with apparent speeds of 33–39 m/s for ships doing 4–13 m/s).
-* flagged and kept — a jump faster than ``max_speed`` after which the track
-  continues consistently from the new place (``speed_jump``, action
-  ``"flagged"``: a relocation or a gap in coverage, which a tracker should see).
-* set to NaN — a course/speed cell that is empty, non-numeric, out of range
-  (course outside [0, 360], negative speed) or equal to the file's
-  "not available" code (``course_not_available``/``speed_not_available``; AIS
-  uses 360° and 102.3 kn); the not-available cells of a track are reported as
-  one ``not_available`` problem naming the count and first lines.
-* sorted — rows of one object out of time order are sorted (stable), reported
-  once per track (``unsorted``).
+What is refused and what is reported (``docs/real_data.md`` has the table).
+Structural faults are a ValueError (or FileNotFoundError / IsADirectoryError /
+TypeError) naming the file: an empty file, a header without data rows, a
+configured column missing from the header (the error lists the columns
+present), a used column named twice.  Faults of single rows are *reported, not
+used*: each becomes a :class:`Problem` (file line, column, kind, action,
+message) in the track's ``problems`` (and in :attr:`TrackFile.problems`, with the
+rows that belong to no track), and one warning summarises them (``warn=False``
+to silence it).  Rows are dropped for a bad time, position or id cell, a wrong
+cell count, a repeated time of one object (the first row is kept) and for
+bursts of at most :data:`MAX_OUTLIER_BURST` fixes not reachable from the last
+good fix (fix j is reachable from fix i when |p_j − p_i| ≤ ``max_speed``
+(t_j − t_i) + ``jump_tolerance``; the tolerance absorbs AIS receive-time
+jitter); a lasting jump is flagged and kept; bad or "not available" course and
+speed cells are set to NaN; rows of one object out of time order are sorted.
 """
 
 from __future__ import annotations
@@ -91,7 +70,6 @@ from __future__ import annotations
 import gzip
 import math
 import os
-import re
 import warnings
 from collections import Counter
 from collections.abc import Sequence
@@ -102,7 +80,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.validation import check_positive
-from hybridtrack.io.csv_text import csv_records, decode_csv_text
+from hybridtrack.io.csv_text import checked_path, csv_records, decode_csv_text, finite_number
 
 #: WGS-84 semi-major axis a (m) and flattening f (NIMA TR8350.2, 3rd ed., table 3.1)
 WGS84_A = 6_378_137.0
@@ -129,7 +107,6 @@ SOLENT_AIS = {
     "speed_not_available": 102.3,
 }
 
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _HINT = "expected a UTF-8 CSV with a header row and one row per position report"
 
 
@@ -148,16 +125,16 @@ class Problem:
     id: str | None = None
 
 
-def _column(shape):
-    return attrs.field(converter=lambda a: _readonly(a, shape), eq=attrs.cmp_using(eq=_equal_nan), hash=False)
+def _column(axes, dtype=np.float64):
+    return attrs.field(converter=lambda a: _readonly(a, axes, dtype), eq=attrs.cmp_using(eq=_equal_nan), hash=False)
 
 
-def _readonly(value, shape):
+def _readonly(value, axes, dtype):
     if value is None:
         return None
-    array = np.array(value, dtype=np.float64, copy=True)
-    if array.ndim != len(shape):
-        raise ValueError(f"expected {len(shape)} axes, got shape {array.shape}")
+    array = np.array(value, dtype=dtype, copy=True)
+    if array.ndim != axes:
+        raise ValueError(f"expected {axes} axes, got shape {array.shape}")
     array.setflags(write=False)
     return array
 
@@ -165,7 +142,7 @@ def _readonly(value, shape):
 def _equal_nan(a, b):
     if a is None or b is None:
         return a is b
-    return np.array_equal(a, b, equal_nan=True)
+    return np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
 
 
 @attrs.frozen
@@ -176,11 +153,11 @@ class Track:
     of each report, and the ``problems`` found in this object's rows (what was dropped, flagged or set to NaN)."""
 
     id: str
-    times: np.ndarray = _column((None,))
-    positions: np.ndarray = _column((None, None))
-    lines: np.ndarray = attrs.field(converter=lambda a: _readonly_int(a), eq=attrs.cmp_using(eq=np.array_equal), hash=False)
-    course: np.ndarray | None = _column((None,))
-    speed: np.ndarray | None = _column((None,))
+    times: np.ndarray = _column(1)
+    positions: np.ndarray = _column(2)
+    lines: np.ndarray = _column(1, np.int64)
+    course: np.ndarray | None = _column(1)
+    speed: np.ndarray | None = _column(1)
     problems: tuple[Problem, ...] = attrs.field(default=(), converter=tuple)
 
     def __attrs_post_init__(self):
@@ -194,12 +171,6 @@ class Track:
 
     def __len__(self) -> int:
         return self.times.shape[0]
-
-
-def _readonly_int(value):
-    array = np.array(value, dtype=np.int64, copy=True).reshape(-1)
-    array.setflags(write=False)
-    return array
 
 
 @attrs.frozen
@@ -243,8 +214,7 @@ def project(lat, lon, h=None, *, origin: Sequence[float], projection: str = "enu
     ``"enu"``: ECEF difference rotated to east-north-up (module docstring; Hofmann-Wellenhof et al. 2008, §10.2.2).
     ``"equirectangular"``: e = Δλ (N₀ + h₀) cos φ₀, n = Δφ M₀, u = h − h₀.
     """
-    if projection not in PROJECTIONS:
-        raise ValueError(f"projection: {projection!r}; expected one of {PROJECTIONS}")
+    _check_projection(projection)
     lat0, lon0, h0 = _origin(origin)
     lat = np.asarray(lat, dtype=np.float64)
     lon = np.asarray(lon, dtype=np.float64)
@@ -257,8 +227,7 @@ def project(lat, lon, h=None, *, origin: Sequence[float], projection: str = "enu
         n = -sp * cl * d[..., 0] - sp * sl * d[..., 1] + cp * d[..., 2]
         u = cp * cl * d[..., 0] + cp * sl * d[..., 1] + sp * d[..., 2]
     else:
-        w = 1.0 - WGS84_E2 * math.sin(phi0) ** 2
-        prime, meridian = WGS84_A / math.sqrt(w), WGS84_A * (1.0 - WGS84_E2) / w**1.5
+        prime, meridian = _radii(phi0)
         dlon = (lon - lon0 + 180.0) % 360.0 - 180.0
         e = np.radians(dlon) * (prime + h0) * math.cos(phi0)
         n = np.radians(lat - lat0) * (meridian + h0)
@@ -300,8 +269,7 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
     for points at the origin's height.  ``"equirectangular"``: φ = φ₀ + n/M₀, λ = λ₀ + e/((N₀ + h₀) cos φ₀),
     h = h₀ + u (exact inverse of its forward formula).
     """
-    if projection not in PROJECTIONS:
-        raise ValueError(f"projection: {projection!r}; expected one of {PROJECTIONS}")
+    _check_projection(projection)
     positions = np.asarray(positions, dtype=np.float64)
     if positions.ndim != 2 or positions.shape[1] not in (2, 3):
         raise ValueError(f"positions: expected (K, 2) east/north or (K, 3) east/north/up metres, got shape {positions.shape}")
@@ -309,8 +277,7 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
     e, n = positions[:, 0], positions[:, 1]
     phi0, lam0 = math.radians(lat0), math.radians(lon0)
     if projection == "equirectangular":
-        w = 1.0 - WGS84_E2 * math.sin(phi0) ** 2
-        prime, meridian = WGS84_A / math.sqrt(w), WGS84_A * (1.0 - WGS84_E2) / w**1.5
+        prime, meridian = _radii(phi0)
         lat = lat0 + np.degrees(n / (meridian + h0))
         lon = (lon0 + np.degrees(e / ((prime + h0) * math.cos(phi0))) + 180.0) % 360.0 - 180.0
         h = h0 + (positions[:, 2] if positions.shape[1] == 3 else 0.0)
@@ -330,6 +297,18 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
         up = up - (geodetic(up)[2] - h0)
     lat, lon, _ = geodetic(up)
     return np.stack([lat, lon], axis=-1)
+
+
+def _check_projection(projection) -> None:
+    if projection not in PROJECTIONS:
+        raise ValueError(f"projection: {projection!r}; expected one of {PROJECTIONS}")
+
+
+def _radii(phi0: float) -> tuple[float, float]:
+    """The prime-vertical and meridian radii of curvature at latitude φ₀ (rad): N₀ = a / √w, M₀ = a (1 − e²) / w^{3/2},
+    w = 1 − e² sin² φ₀ (the ``equirectangular`` projection of the module docstring)."""
+    w = 1.0 - WGS84_E2 * math.sin(phi0) ** 2
+    return WGS84_A / math.sqrt(w), WGS84_A * (1.0 - WGS84_E2) / w**1.5
 
 
 def _origin(origin) -> tuple[float, float, float]:
@@ -380,14 +359,8 @@ def geodesic_inverse(lat1, lon1, lat2, lon2, *, tol: float = 1e-12, max_iter: in
     u_sq = cos2a * (a * a - b * b) / (b * b)
     big_a = 1.0 + u_sq / 16384.0 * (4096.0 + u_sq * (-768.0 + u_sq * (320.0 - 175.0 * u_sq)))
     big_b = u_sq / 1024.0 * (256.0 + u_sq * (-128.0 + u_sq * (74.0 - 47.0 * u_sq)))
-    d_sigma = (
-        big_b
-        * sin_s
-        * (
-            cos2sm
-            + big_b / 4.0 * (cos_s * (-1.0 + 2.0 * cos2sm**2) - big_b / 6.0 * cos2sm * (-3.0 + 4.0 * sin_s**2) * (-3.0 + 4.0 * cos2sm**2))
-        )
-    )
+    bracket = cos_s * (-1.0 + 2.0 * cos2sm**2) - big_b / 6.0 * cos2sm * (-3.0 + 4.0 * sin_s**2) * (-3.0 + 4.0 * cos2sm**2)
+    d_sigma = big_b * sin_s * (cos2sm + big_b / 4.0 * bracket)
     distance = b * big_a * (sigma - d_sigma)
     azimuth = np.degrees(np.arctan2(cu2 * sl, cu1 * su2 - su1 * cu2 * cl)) % 360.0
     return distance, azimuth
@@ -439,25 +412,13 @@ def projection_error(origin: Sequence[float], distance: float = 100e3, *, projec
 
 
 def _text(path: Path) -> str:
-    if path.is_dir():
-        raise IsADirectoryError(f"{path}: is a directory, expected a CSV file of position reports")
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file (expected a CSV file of position reports)")
-    data = path.read_bytes()
+    data = checked_path(path, "a CSV file of position reports").read_bytes()
     if path.suffix.lower() == ".gz":
         try:
             data = gzip.decompress(data)
         except (OSError, EOFError) as error:
             raise ValueError(f"{path}: not a readable gzip file ({error})") from None
     return decode_csv_text(path, data, _HINT)
-
-
-def _number(cell: str) -> float | None:
-    """A finite float, or None for an empty, non-numeric or non-finite cell."""
-    if not _NUMBER.fullmatch(cell):
-        return None
-    value = float(cell)
-    return value if math.isfinite(value) else None
 
 
 def _timestamp(cell: str) -> datetime | None:
@@ -509,15 +470,12 @@ def read_tracks(
     arithmetic mean of the degrees, so it is wrong for tracks that cross the ±180° meridian (give the origin there).  :data:`SOLENT_AIS` holds the settings of the Solent AIS file.
     What is refused, dropped, flagged or set to NaN: the module docstring.
     """
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"path: expected a file name (str or os.PathLike), got {type(path).__name__} ({path!r})")
-    path = Path(path)
+    path = checked_path(path)
     if (lat is None) != (lon is None):
         raise ValueError(f"lat/lon: give both latitude and longitude column names, got lat={lat!r}, lon={lon!r}")
     if speed_unit not in SPEED_UNITS:
         raise ValueError(f"speed_unit: {speed_unit!r}; expected one of {sorted(SPEED_UNITS)}")
-    if projection not in PROJECTIONS:
-        raise ValueError(f"projection: {projection!r}; expected one of {PROJECTIONS}")
+    _check_projection(projection)
     if max_speed is not None:
         max_speed = check_positive(max_speed, "max_speed (m/s)")
     if not (isinstance(jump_tolerance, (int, float)) and math.isfinite(jump_tolerance) and jump_tolerance >= 0):
@@ -556,7 +514,7 @@ def read_tracks(
 
     # numeric seconds or ISO-8601: decided by the first non-empty time cell
     first_time = next((row[columns[time]] for _, row in body if len(row) > columns[time] and row[columns[time]]), "")
-    iso = _number(first_time) is None and _timestamp(first_time) is not None
+    iso = finite_number(first_time) is None and _timestamp(first_time) is not None
     rows: list[_Row] = []
     scale = SPEED_UNITS[speed_unit]
     for line, row in body:
@@ -568,14 +526,14 @@ def read_tracks(
             report(line, id, "missing_id", "dropped", f"column {id!r} is empty; row dropped")
             continue
         cell = row[columns[time]]
-        stamp = _timestamp(cell) if iso else _number(cell)
+        stamp = _timestamp(cell) if iso else finite_number(cell)
         if stamp is None:
             form = "an ISO-8601 timestamp (as in the first row)" if iso else "a finite number of seconds"
             report(line, time, "bad_time", "dropped", f"column {time!r} holds {cell!r}, not {form}; row dropped", key)
             continue
         values = []
         for name in position_columns:
-            value = _number(row[columns[name]])
+            value = finite_number(row[columns[name]])
             if value is None:
                 report(
                     line,
@@ -602,7 +560,7 @@ def read_tracks(
                     extra.append(None)
                     continue
                 cell = row[columns[name]]
-                value = _number(cell)
+                value = finite_number(cell)
                 if value is not None and code is not None and value == code:
                     extra.append("n/a")
                 elif value is None or not low <= value <= high:
@@ -635,12 +593,10 @@ def read_tracks(
             return values
         return project(values[:, 0], values[:, 1], values[:, 2] if alt else None, origin=at, projection=projection)
 
-    check_origin = None
-    if geographic:
-        first = rows[0] if rows else None
-        check_origin = (
-            origin if not isinstance(origin, str) else (None if first is None else (*first.values[:2], first.values[2] if alt else 0.0))
-        )
+    def fix(r):  # (lat°, lon°, h m) of a row of a geographic file
+        return r.values[0], r.values[1], r.values[2] if alt else 0.0
+
+    check_origin = origin if not isinstance(origin, str) else (fix(rows[0]) if rows else None)
     kept_groups: dict[str, list[_Row]] = {}
     for key, group in groups.items():
         order = sorted(range(len(group)), key=lambda i: group[i].time)
@@ -673,12 +629,14 @@ def read_tracks(
             if not kept:
                 origin = None
             elif origin == "first":
-                first = min(kept, key=lambda r: r.line)
-                origin = (first.values[0], first.values[1], first.values[2] if alt else 0.0)
+                origin = fix(min(kept, key=lambda r: r.line))
             else:
                 v = np.array([r.values for r in kept])
                 origin = (float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if alt else 0.0)
         origin = None if origin is None else tuple(float(v) for v in origin)
+
+    def by_place(problem):  # file order: line, then column
+        return problem.line, header.index(problem.column) if problem.column in header else -1
 
     tracks = {}
     for key, group in kept_groups.items():
@@ -696,21 +654,18 @@ def read_tracks(
                     f"{path}:{lines[0]}: id {key!r}: column {name!r} holds {code} (not available) in {len(lines)} rows (lines {shown}); set to NaN",
                     key,
                 )  # fmt: skip
-        mine = tuple(sorted(mine + tuple(missing.values()), key=lambda p: (p.line, header.index(p.column) if p.column in header else -1)))
+        mine = tuple(sorted(mine + tuple(missing.values()), key=by_place))
         problems += list(missing.values())
-        pos = positions_of(group, origin) if group else np.zeros((0, len(position_columns)))
-
         tracks[key] = Track(
             id=key,
             times=np.array([r.time for r in group], dtype=np.float64),
-            positions=pos,
+            positions=positions_of(group, origin),
             lines=[r.line for r in group],
             course=_values(group, "course", course),
             speed=_values(group, "speed", speed),
             problems=mine,
         )
-    order = {name: i for i, name in enumerate(header)}
-    problems.sort(key=lambda p: (p.line, order.get(p.column, -1)))
+    problems.sort(key=by_place)
     if warn and problems:
         counts = Counter(f"{p.kind} ({p.action})" for p in problems)
         summary = ", ".join(f"{n} {kind}" for kind, n in counts.most_common())
