@@ -344,7 +344,7 @@ def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Seq
     sensor = by_name.get(scan.sensor)
     if sensor is None:
         raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
-    model = estimator._assembler.sensor_model(sensor, tuple(layout))
+    model = estimator.assembler.sensor_model(sensor, tuple(layout))
     if model.H is None:
         raise ValueError(f"sensors: {estimator.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
     if type(sensor).measurement_noise is not Sensor.measurement_noise:

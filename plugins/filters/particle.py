@@ -190,7 +190,7 @@ class ParticleState(DerivedMoments):
     innovation: Innovation | None = None
 
     @cached_property
-    def _moments(self) -> tuple[np.ndarray, np.ndarray]:
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
         return weighted_moments(self.particles, self.log_weights)
 
     @property
@@ -450,7 +450,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
             raise ValueError(
                 f"sensors: {self.name!r} in clutter needs a measurement-independent R; sensor {sensor.name!r} computes R from z"
             )
-        model = self._assembler.sensor_model(sensor, layout)
+        model = self.assembler.sensor_model(sensor, layout)
         if scan.measurement_dim != model.dim:
             raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
         check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")

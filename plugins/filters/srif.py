@@ -33,29 +33,29 @@ class SRIFState:
     innovation: Innovation | None = None
 
     @cached_property
-    def _moments(self):
+    def moments(self):
         return _sqrt.srif_moments(self.R, self.zeta)
 
     @cached_property
-    def _predicted_moments(self):
+    def predicted_moments(self):
         return _sqrt.srif_moments(self.R_predicted, self.zeta_predicted)
 
     @property
     def mean(self) -> np.ndarray:
-        return self._moments[0]
+        return self.moments[0]
 
     @property
     def covariance(self) -> np.ndarray:
         """P = R⁻¹R⁻ᵀ (by solves)."""
-        return self._moments[1]
+        return self.moments[1]
 
     @property
     def predicted_mean(self) -> np.ndarray:
-        return self._predicted_moments[0]
+        return self.predicted_moments[0]
 
     @property
     def predicted_covariance(self) -> np.ndarray:
-        return self._predicted_moments[1]
+        return self.predicted_moments[1]
 
     @property
     def information(self) -> np.ndarray:
