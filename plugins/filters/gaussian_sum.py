@@ -67,7 +67,7 @@ from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalize
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
-    _as_scans,
+    as_scans,
     check_gate_probability,
     distances,
     gate_threshold,
@@ -238,7 +238,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
     def update(self, state: MixtureState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         """Component-wise EKF updates, Bayes weights in log space, then pruning and merging (module docstring)."""
         M, C, n = state.x.shape
-        scans = _as_scans(z)
+        scans = as_scans(z)
         if scans is not None or (isinstance(z, (list, tuple)) and len(z) == 0):
             return self._update_scans(state, scans or [], sensors, layout)
         z = np.asarray(z, dtype=float)

@@ -97,7 +97,7 @@ from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, sy
 from hybridtrack.sdk.mixtures import logsumexp
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import (
-    _as_scans,
+    as_scans,
     check_gate_probability,
     distances,
     gate_threshold,
@@ -381,7 +381,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         if not isinstance(state, ParticleState):
             raise TypeError(f"state: expected a ParticleState (from initialize), got {type(state).__name__}")
         M, N, n = state.particles.shape
-        scans = _as_scans(z)
+        scans = as_scans(z)
         if scans is not None or (isinstance(z, (list, tuple)) and len(z) == 0):
             return self._update_scans(state, scans or [], sensors, layout)
         step = self.measurement_step(z, sensors, layout, M, n)
