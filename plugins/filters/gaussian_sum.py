@@ -61,16 +61,18 @@ from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import as_float_array, check_prior, check_prior_mixture
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
+from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute
 from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalized_weights
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     as_scans,
+    candidate_residuals,
     check_gate_probability,
     distances,
     gate_threshold,
+    log_half_det_2pi_s,
     scan_sensor_model,
     sensors_by_name,
     stacked_innovation,
@@ -186,7 +188,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         """A prior mixture per filter: means (M, C, n), covs (M, C, n, n) positive definite, weights (M, C) ≥ 0
         (each row with a positive sum; renormalised; zero weights are empty slots)."""
         means, covs, weights, total = check_prior_mixture(means, covs, weights)
-        M, C, n = means.shape
         with np.errstate(divide="ignore"):
             log_weights = np.log(weights / total[:, None])
         x, P, log_weights = _compact(means, covs, log_weights)
@@ -211,10 +212,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
                 s = attrs.evolve(s, x=x, P=P, log_weights=lw)
             out.append(s)
         return out
-
-    def components(self, state: MixtureState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(x (M, C, n), P (M, C, n, n), w (M, C)) of the mixture (w = 0 in empty slots)."""
-        return state.x, state.P, state.weights
 
     # ------------------------------------------------------------------ predict
     @guarded
@@ -246,7 +243,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         found = self.linearize(state.x.reshape(M * C, n), z_rows, sensors, layout)
         predicted = (state.predicted_mean, state.predicted_covariance)
         if found is None:
-            innovation = Innovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M))
+            innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation), innovation
         step, nu, H = found
         m = nu.shape[-1]
@@ -302,13 +299,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         z_pred = flat_x @ H.T  # (MC, m)
         # the Kalman update of every component (ν = 0 gives the gain and P⁺; the children add K ν_cr)
         _, P_new, S_c, chol_c, K = cov_form.update(flat_x, flat_P, np.zeros((M * C, m)), H, R, model.selection, self.form)
-        cand = np.broadcast_to(scan.z[None], (M * C, L, m))
-        pred = np.broadcast_to(z_pred[:, None, :], (M * C, L, m))
-        nu = cand - pred if model.plain_residual else np.asarray(sensor.residual(cand, pred))  # (MC, L, m)
+        nu = np.asarray(candidate_residuals(z_pred, scan.z, sensor, model))  # (MC, L, m)
         d2 = distances(nu, chol_c)  # (MC, L)
         gamma = gate_threshold(self.gate_probability, m)
         gated = d2 <= gamma
-        half = 0.5 * (m * math.log(2 * math.pi) + 2.0 * np.log(np.diagonal(chol_c, axis1=-2, axis2=-1)).sum(axis=-1))  # ln √|2πS_c|
+        half = log_half_det_2pi_s(chol_c)  # ln √|2πS_c|
         with np.errstate(divide="ignore"):
             log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
@@ -330,9 +325,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         z_hat, S = moment_match(np.exp(log_weights), z_pred.reshape(M, C, m), S_c.reshape(M, C, m, m))
         posterior = np.exp(joint)  # (M, C, 1 + L)
         beta0, beta = posterior[:, :, 0].sum(axis=1), posterior[:, :, 1:].sum(axis=1)
-        cand_r = np.broadcast_to(scan.z[None], (M, L, m))
-        pred_r = np.broadcast_to(z_hat[:, None, :], (M, L, m))
-        nu_r = cand_r - pred_r if model.plain_residual else np.asarray(sensor.residual(cand_r, pred_r))
+        nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
         chol_S = cholesky(S, "innovation covariance S")
         d2_mix = distances(nu_r, chol_S)
         combined = np.einsum("ml,mli->mi", beta, nu_r)
@@ -484,9 +477,6 @@ def range_parameterised(
     covs[:, :, ivx, ivx] = covs[:, :, ivy, ivy] = float(speed_sigma) ** 2
     weights = np.full((M, C), 1.0 / C)
     return means, covs, weights
-
-
-GaussianSumFilter.range_parameterised = staticmethod(range_parameterised)
 
 
 @hookimpl

@@ -91,16 +91,18 @@ import numpy as np
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.protocols import Association, ClutterInnovation
-from hybridtrack.core.validation import check_magnitude, check_prior_mixture
+from hybridtrack.core.validation import check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.sdk.mixtures import logsumexp
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import (
     as_scans,
+    candidate_residuals,
     check_gate_probability,
     distances,
     gate_threshold,
+    scan_sensor_model,
     sensors_by_name,
     stacked_innovation,
 )
@@ -203,14 +205,6 @@ class ParticleState(DerivedMoments):
         """N_eff = 1/Σ w² (M,) of the current weights."""
         return effective_sample_size(self.log_weights)
 
-    @property
-    def bank_size(self) -> int:
-        return self.particles.shape[0]
-
-    @property
-    def particle_count(self) -> int:
-        return self.particles.shape[1]
-
 
 def _check_seed(seed) -> np.random.Generator:
     if isinstance(seed, np.random.Generator):
@@ -292,14 +286,9 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
     def initialize(self, mean, cov) -> ParticleState:
         """N particles per filter drawn from N(mean, cov); uniform weights; a fresh stream key per filter."""
         x, P = self.check_prior(mean, cov)
-        M, n = x.shape
-        keys = self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True)
-        counters = np.zeros(M, dtype=np.int64)
-        e = self._normals(keys, counters, _INITIALIZE, (self.particles, n))
-        particles = x[:, None, :] + e @ np.swapaxes(cholesky(P, "cov"), -1, -2)
-        log_weights = np.full((M, self.particles), -math.log(self.particles))
-        mean_, cov_ = weighted_moments(particles, log_weights)
-        return ParticleState(particles, log_weights, keys, counters + 1, mean_, cov_, None)
+        keys, counters = self._new_streams(x.shape[0])
+        e = self._normals(keys, counters, _INITIALIZE, (self.particles, x.shape[1]))
+        return self._initial_state(x[:, None, :] + e @ np.swapaxes(cholesky(P, "cov"), -1, -2), keys)
 
     def initialize_mixture(self, means, covs, weights) -> ParticleState:
         """N particles per filter drawn from a Gaussian mixture Σ_c w_c N(means_c, covs_c) (e.g. the range-parameterised
@@ -312,8 +301,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         means, covs, weights, total = check_prior_mixture(means, covs, weights)
         M, C, n = means.shape
         roots = cholesky(covs, "covs")
-        keys = self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True)
-        counters = np.zeros(M, dtype=np.int64)
+        keys, counters = self._new_streams(M)
         generators = list(self._generators(keys, counters, _INITIALIZE))
         u = np.array([g.random() for g in generators])
         c = np.cumsum(weights / total[:, None], axis=1)
@@ -322,10 +310,17 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         component = np.minimum((points[:, :, None] >= c[:, None, :]).sum(axis=2), C - 1)  # first c with c_c > point
         e = np.stack([g.standard_normal((self.particles, n)) for g in generators])
         rows = np.arange(M)[:, None]
-        particles = means[rows, component] + np.einsum("mkij,mkj->mki", roots[rows, component], e)
-        log_weights = np.full((M, self.particles), -math.log(self.particles))
-        mean_, cov_ = weighted_moments(particles, log_weights)
-        return ParticleState(particles, log_weights, keys, counters + 1, mean_, cov_, None)
+        return self._initial_state(means[rows, component] + np.einsum("mkij,mkj->mki", roots[rows, component], e), keys)
+
+    def _new_streams(self, M: int) -> tuple[np.ndarray, np.ndarray]:
+        """A fresh stream key (M, 2) per filter from ``seed``, and the step counters at 0."""
+        return self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True), np.zeros(M, dtype=np.int64)
+
+    def _initial_state(self, particles: np.ndarray, keys: np.ndarray) -> ParticleState:
+        """The state of freshly drawn particles (M, N, n): uniform weights 1/N, the counters past the draw."""
+        log_weights = np.full(particles.shape[:2], -math.log(self.particles))
+        mean, cov = weighted_moments(particles, log_weights)
+        return ParticleState(particles, log_weights, keys, np.ones(len(keys), dtype=np.int64), mean, cov, None)
 
     # ------------------------------------------------------------------ predict
     def _noise_root(self, bank: TransitionBank) -> np.ndarray:
@@ -345,17 +340,15 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         if not isinstance(state, ParticleState):
             raise TypeError(f"state: expected a ParticleState (from initialize), got {type(state).__name__}")
         M, N, n = state.particles.shape
-        if callable(transitions) and not isinstance(transitions, TransitionBank):
-            flat = state.particles.reshape(M * N, n)
-            bank = self.check_transitions(transitions, M * N, n, flat)
-            root = self._noise_root(bank)
-            e = self._normals(state.keys, state.counters, _PREDICT, (N, root.shape[-1]))
+        per_particle = callable(transitions) and not isinstance(transitions, TransitionBank)
+        flat = state.particles.reshape(M * N, n)
+        bank = self.check_transitions(transitions, M * N, n, flat) if per_particle else self.check_transitions(transitions, M, n)
+        root = self._noise_root(bank)
+        e = self._normals(state.keys, state.counters, _PREDICT, (N, root.shape[-1]))
+        if per_particle:
             moved = np.einsum("kij,kj->ki", bank.F, flat) + bank.B + np.einsum("kij,kj->ki", root, e.reshape(M * N, -1))
             particles = moved.reshape(M, N, n)
         else:
-            bank = self.check_transitions(transitions, M, n)
-            root = self._noise_root(bank)
-            e = self._normals(state.keys, state.counters, _PREDICT, (N, root.shape[-1]))
             particles = state.particles @ np.swapaxes(bank.F, -1, -2)
             particles += bank.B[:, None, :]
             particles += e @ np.swapaxes(root, -1, -2)
@@ -401,16 +394,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         d = nu - nu_mean[:, None, :]
         S = symmetrize(np.swapaxes(d * w_prior[..., None], -1, -2) @ d + R)
         gaussian_loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu_mean)
-        ess = effective_sample_size(log_weights)
-        resampled = ess < self.threshold * N
-        particles = state.particles
-        if resampled.any():
-            particles, log_weights = self._resample(state, particles, log_weights, np.flatnonzero(resampled))
-        counters = state.counters + 1
-        innovation = ParticleInnovation(nu_mean, S, loglik, nis, gaussian_loglik, ess, resampled)
-        new = ParticleState(particles, log_weights, state.keys, counters, state.x_predicted, state.P_predicted, innovation)
-        self.check_finite("update", updated_mean=new.mean)
-        return new, innovation
+        return self._resampled(state, log_weights, ParticleInnovation, nu_mean, S, loglik, nis, gaussian_loglik)
 
     # ------------------------------------------------------------------ update in clutter
     def _update_scans(self, state: ParticleState, scans: list, sensors, layout):
@@ -423,7 +407,8 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         loglik = np.zeros(M)
         used, blocks, records = [], [], []
         for scan in scans:
-            sensor, model, R = self._scan_model(scan, by_name, layout)
+            sensor, model = scan_sensor_model(self, scan, by_name, layout, linear=False)
+            R = np.asarray(sensor.noise_cov, dtype=float)
             log_weights, scan_loglik, record, combined, S = self._scan_weights(log_weights, state.particles, scan, sensor, model, R, layout)
             records.append(record)
             loglik = loglik + np.where(np.isfinite(scan_loglik), scan_loglik, 0.0)  # −∞: impossible under the model, no measurement
@@ -431,30 +416,21 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
                 used.append(combined)
                 blocks.append(S)
         nu, S, gaussian_loglik, nis = stacked_innovation(M, used, blocks, factored=True)
+        return self._resampled(state, log_weights, ParticleClutterInnovation, nu, S, loglik, nis, tuple(records), gaussian_loglik)
+
+    def _resampled(self, state: ParticleState, log_weights, innovation_class, *scores):
+        """The updated state: N_eff of the new weights, systematic resampling where N_eff < threshold · N, and the
+        innovation ``innovation_class(*scores, N_eff, resampled)``."""
+        N = state.particles.shape[1]
         ess = effective_sample_size(log_weights)
         resampled = ess < self.threshold * N
         particles = state.particles
         if resampled.any():
             particles, log_weights = self._resample(state, particles, log_weights, np.flatnonzero(resampled))
-        innovation = ParticleClutterInnovation(nu, S, loglik, nis, tuple(records), gaussian_loglik, ess, resampled)
+        innovation = innovation_class(*scores, ess, resampled)
         new = ParticleState(particles, log_weights, state.keys, state.counters + 1, state.x_predicted, state.P_predicted, innovation)
         self.check_finite("update", updated_mean=new.mean)
         return new, innovation
-
-    def _scan_model(self, scan, by_name: dict, layout: tuple):
-        """(sensor, SensorModel, R) of a scan, checked: a sensor given, of the scan's dimension, R independent of z."""
-        sensor = by_name.get(scan.sensor)
-        if sensor is None:
-            raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
-        if type(sensor).measurement_noise is not Sensor.measurement_noise:
-            raise ValueError(
-                f"sensors: {self.name!r} in clutter needs a measurement-independent R; sensor {sensor.name!r} computes R from z"
-            )
-        model = self.assembler.sensor_model(sensor, layout)
-        if scan.measurement_dim != model.dim:
-            raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
-        check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
-        return sensor, model, np.asarray(sensor.noise_cov, dtype=float)
 
     def _scan_weights(self, log_weights, particles, scan, sensor, model, R, layout):
         """One scan: posterior log-weights (M, N), ln Λ̂ (M,), the Association and the combined ν (M, m), S (M, m, m)."""
@@ -478,9 +454,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
             log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
         gamma = gate_threshold(self.gate_probability, m)
-        cand_r = np.broadcast_to(scan.z[None], (M, L, m))
-        pred_r = np.broadcast_to(z_hat[:, None, :], (M, L, m))
-        nu_r = cand_r - pred_r if model.plain_residual else np.asarray(sensor.residual(cand_r, pred_r))
+        nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
         d2 = distances(nu_r, chol_S)  # (M, L)
         gated = d2 <= gamma
         cols = np.flatnonzero(gated.any(axis=0))  # candidates inside some filter's gate: the only ones evaluated
@@ -489,9 +463,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         beta = np.zeros((M, L))
         if cols.size:
             Lg = cols.size
-            cand = np.broadcast_to(scan.z[cols][None, None, :, :], (M, N, Lg, m))
-            pred = np.broadcast_to(h[:, :, None, :], (M, N, Lg, m))
-            nu_i = cand - pred if model.plain_residual else np.asarray(sensor.residual(cand, pred))
+            nu_i = np.asarray(candidate_residuals(h.reshape(M * N, m), scan.z[cols], sensor, model)).reshape(M, N, Lg, m)
             log_n, _ = CholeskyFactor(R, "measurement noise R").scores(nu_i)  # (M, N, Lg)
             log_detected = np.where(gated[:, None, cols], log_detect + log_n, -np.inf)
             terms = np.concatenate([np.broadcast_to(miss_term[:, None, None], (M, N, 1)), log_detected], axis=2)

@@ -133,11 +133,6 @@ class PMHTState(CovarianceMoments):
     log_posterior: np.ndarray = bank_field(0)
     innovation: ClutterInnovation | None = None
 
-    @property
-    def association_weights(self) -> np.ndarray:
-        """w_{T,r} of the newest scan (M, L̄), 0 for padding; for recording."""
-        return self.weights[:, -1]
-
 
 def _pad_axis(a: np.ndarray, axis: int, size: int, value) -> np.ndarray:
     if a.shape[axis] >= size:
