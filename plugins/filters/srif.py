@@ -17,14 +17,15 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, empty_innovation, guarded
 from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
 
 @attrs.frozen(eq=False, slots=False)
-class SRIFState:
-    """R (…, M, n, n), ζ (…, M, n) now and after the last prediction; leading node axis for the decentralized form."""
+class SRIFState(DerivedMoments):
+    """R (…, M, n, n), ζ (…, M, n) now and after the last prediction; leading node axis for the decentralized form.
+    The moments x = R⁻¹ζ, P = R⁻¹R⁻ᵀ (by solves) are computed on first reading."""
 
     R: np.ndarray = bank_field(-3)
     zeta: np.ndarray = bank_field(-2)
@@ -41,20 +42,11 @@ class SRIFState:
         return _sqrt.srif_moments(self.R_predicted, self.zeta_predicted)
 
     @property
-    def mean(self) -> np.ndarray:
-        return self.moments[0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        """P = R⁻¹R⁻ᵀ (by solves)."""
-        return self.moments[1]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
+    def x_predicted(self) -> np.ndarray:
         return self.predicted_moments[0]
 
     @property
-    def predicted_covariance(self) -> np.ndarray:
+    def P_predicted(self) -> np.ndarray:
         return self.predicted_moments[1]
 
     @property

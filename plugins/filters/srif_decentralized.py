@@ -39,11 +39,11 @@ class DecentralizedSRIFState(NodeMoments, SRIFState):
 
     @property
     def predicted_mean(self) -> np.ndarray:
-        return self.predicted_moments[0][0]
+        return self.x_predicted[0]
 
     @property
     def predicted_covariance(self) -> np.ndarray:
-        return self.predicted_moments[1][0]
+        return self.P_predicted[0]
 
 
 class DecentralizedSRIF(NodeBank):
