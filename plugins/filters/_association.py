@@ -233,16 +233,10 @@ class ScanEstimator(BankEstimator):
                 return attrs.evolve(state, innovation=innovation), innovation
             state, nu, S, record = self.associate_scan(state, *found)
             return self.finish(state, [nu], [S], [record])
-        by_name = sensors_by_name(sensors)
-        used, blocks, records = [], [], []
-        for scan in scans:
-            sensor, model = scan_sensor_model(self, scan, by_name, layout)
-            state, nu, S, record = self.associate_scan(state, *self.scan_candidates(state, scan, sensor, model))
-            records.append(record)
-            if scan.size:
-                used.append(nu)
-                blocks.append(S)
-        return self.finish(state, used, blocks, records)
+        return self.finish(*scan_by_scan(self, state, scans, sensors, layout, self._scan_step))
+
+    def _scan_step(self, state, scan, sensor, model):
+        return self.associate_scan(state, *self.scan_candidates(state, scan, sensor, model))
 
     def stacked_candidates(self, state, z, sensors, layout):
         """The one candidate of a stacked z, as :meth:`associate_scan` takes it, or None when nothing was measured:
@@ -338,6 +332,32 @@ class ClutterEstimator(ScanEstimator):
     @abstractmethod
     def associate(self, d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
         """(β_i (M, L), β_0 (M,), selected (M,), ln Λ or ℓ (M,)) from d² (M, L), the gate mask and chol S."""
+
+
+def scan_by_scan(estimator: BankEstimator, state, scans, sensors, layout, step, linear: bool = True):
+    """``step(state, scan, sensor, model) → (state, ν used (M, m), S (M, m, m), Association)`` applied to the scans
+    one sensor after the other (sequential multisensor association), each scan's sensor looked up and checked by
+    :func:`scan_sensor_model`: the last state, the ν and S of the scans with candidates (for
+    :func:`stacked_innovation`) and every scan's Association."""
+    by_name = sensors_by_name(sensors)
+    used, blocks, records = [], [], []
+    for scan in scans:
+        sensor, model = scan_sensor_model(estimator, scan, by_name, layout, linear)
+        state, nu, S, record = step(state, scan, sensor, model)
+        records.append(record)
+        if scan.size:
+            used.append(nu)
+            blocks.append(S)
+    return state, used, blocks, records
+
+
+def summed_loglik(records: Sequence[Association], M: int) -> np.ndarray:
+    """ℓ = Σ ln Λ (M,) over a step's Associations, a scan impossible under the model (ln Λ = −∞) counting as no
+    measurement (0)."""
+    loglik = np.zeros(M)
+    for record in records:
+        loglik = loglik + np.where(np.isfinite(record.loglik), record.loglik, 0.0)
+    return loglik
 
 
 def sensors_by_name(sensors: Sensor | Sequence[Sensor]) -> dict:

@@ -73,9 +73,9 @@ from hybridtrack_plugins.filters._association import (
     distances,
     gate_threshold,
     log_half_det_2pi_s,
-    scan_sensor_model,
-    sensors_by_name,
+    scan_by_scan,
     stacked_innovation,
+    summed_loglik,
 )
 from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 from hybridtrack_plugins.sensors.bearing import check_convention, direction
@@ -267,29 +267,20 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
     # ------------------------------------------------------------------ update in clutter
     def _update_scans(self, state: MixtureState, scans: list, sensors, layout):
         """Branch every component on each scan (missed + one child per gated candidate), then reduce (module docstring)."""
-        M, C, n = state.x.shape
+        M, _, n = state.x.shape
         check_layout(layout, n)
-        by_name = sensors_by_name(sensors)
-        x, P, log_weights = state.x, state.P, state.log_weights
-        loglik = np.zeros(M)
-        used, blocks, records = [], [], []
-        for scan in scans:
-            sensor, model = scan_sensor_model(self, scan, by_name, layout)
-            x, P, log_weights, scan_loglik, record, combined, S = self._branch(x, P, log_weights, scan, sensor, model)
-            x, P, log_weights = self.reduce(x, P, log_weights)
-            records.append(record)
-            loglik = loglik + np.where(np.isfinite(scan_loglik), scan_loglik, 0.0)
-            if scan.size:
-                used.append(combined)
-                blocks.append(S)
+        mixture = (state.x, state.P, state.log_weights)
+        (x, P, log_weights), used, blocks, records = scan_by_scan(self, mixture, scans, sensors, layout, self._branch)
         nu, S, _, nis = stacked_innovation(M, used, blocks, factored=True)
-        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
+        innovation = ClutterInnovation(nu, S, summed_loglik(records, M), nis, tuple(records))
         self.check_finite("update", updated_mean=x, updated_covariance=P)
         predicted = (state.predicted_mean, state.predicted_covariance)
         return self._state(x, P, log_weights, predicted, innovation), innovation
 
-    def _branch(self, x, P, log_weights, scan, sensor, model):
-        """Children of one scan: x (M, C(1+L), n), P, ln w (normalised), ln Λ (M,), the Association, combined ν, S."""
+    def _branch(self, mixture, scan, sensor, model):
+        """One scan: the children x (M, C(1+L), n), P, ln w (normalised) of the mixture (x, P, ln w), reduced;
+        the combined ν, S and the Association (ln Λ (M,) its ``loglik``)."""
+        x, P, log_weights = mixture
         M, C, n = x.shape
         L, m = scan.z.shape
         P_D, lam = self.detection_probability, self.clutter_density
@@ -333,15 +324,8 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         record = Association(
             sensor.name, scan.z, z_hat, S, gamma, d2_mix, gated.reshape(M, C, L).any(axis=1), beta, beta0, selected, loglik
         )
-        return (
-            x_children.reshape(M, C * (1 + L), n),
-            P_children.reshape(M, C * (1 + L), n, n),
-            joint.reshape(M, C * (1 + L)),
-            loglik,
-            record,
-            combined,
-            S,
-        )
+        children = self.reduce(x_children.reshape(M, C * (1 + L), n), P_children.reshape(M, C * (1 + L), n, n), joint.reshape(M, -1))
+        return children, combined, S, record
 
     # ------------------------------------------------------------------ reduction
     def reduce(self, x, P, log_weights):

@@ -102,9 +102,9 @@ from hybridtrack_plugins.filters._association import (
     check_gate_probability,
     distances,
     gate_threshold,
-    scan_sensor_model,
-    sensors_by_name,
+    scan_by_scan,
     stacked_innovation,
+    summed_loglik,
 )
 from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 
@@ -401,21 +401,14 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         """w ∝ w⁻ Λ(x) scan after scan, ℓ = Σ ln Λ̂, then N_eff and resampling as in :meth:`update`."""
         M, N, n = state.particles.shape
         check_layout(layout, n)
-        by_name = sensors_by_name(sensors)
         layout = tuple(layout)
-        log_weights = state.log_weights
-        loglik = np.zeros(M)
-        used, blocks, records = [], [], []
-        for scan in scans:
-            sensor, model = scan_sensor_model(self, scan, by_name, layout, linear=False)
-            R = np.asarray(sensor.noise_cov, dtype=float)
-            log_weights, scan_loglik, record, combined, S = self._scan_weights(log_weights, state.particles, scan, sensor, model, R, layout)
-            records.append(record)
-            loglik = loglik + np.where(np.isfinite(scan_loglik), scan_loglik, 0.0)  # −∞: impossible under the model, no measurement
-            if scan.size:
-                used.append(combined)
-                blocks.append(S)
+
+        def step(log_weights, scan, sensor, model):
+            return self._scan_weights(log_weights, state.particles, scan, sensor, model, layout)
+
+        log_weights, used, blocks, records = scan_by_scan(self, state.log_weights, scans, sensors, layout, step, linear=False)
         nu, S, gaussian_loglik, nis = stacked_innovation(M, used, blocks, factored=True)
+        loglik = summed_loglik(records, M)
         return self._resampled(state, log_weights, ParticleClutterInnovation, nu, S, loglik, nis, tuple(records), gaussian_loglik)
 
     def _resampled(self, state: ParticleState, log_weights, innovation_class, *scores):
@@ -432,9 +425,11 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         self.check_finite("update", updated_mean=new.mean)
         return new, innovation
 
-    def _scan_weights(self, log_weights, particles, scan, sensor, model, R, layout):
-        """One scan: posterior log-weights (M, N), ln Λ̂ (M,), the Association and the combined ν (M, m), S (M, m, m)."""
+    def _scan_weights(self, log_weights, particles, scan, sensor, model, layout):
+        """One scan: posterior log-weights (M, N), the combined ν (M, m), S (M, m, m) and the Association (ln Λ̂ (M,)
+        its ``loglik``)."""
         M, N, n = particles.shape
+        R = np.asarray(sensor.noise_cov, dtype=float)
         L, m = scan.z.shape
         P_D, lam = self.detection_probability, self.clutter_density
         flat = particles.reshape(M * N, n)
@@ -483,7 +478,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         combined = np.einsum("jl,jli->ji", beta, nu_r)
         selected = np.where(any_gated & (beta.sum(axis=1) > 0), np.argmax(beta, axis=1) if L else -1, -1).astype(np.int64)
         record = Association(sensor.name, scan.z, z_hat, S, gamma, d2, gated, beta, beta0, selected, loglik)
-        return new_log_weights, loglik, record, combined, S
+        return new_log_weights, combined, S, record
 
     def _resample(self, state: ParticleState, particles, log_weights, rows: np.ndarray):
         """Systematic resampling of the filters ``rows`` (then weights 1/N), with the regularisation jitter if enabled."""
