@@ -127,6 +127,15 @@ def nearest_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
     return beta, (selected < 0).astype(float), selected, loglik
 
 
+def pad_axis(a: np.ndarray, axis: int, size: int, value) -> np.ndarray:
+    """``a`` padded with ``value`` to at least ``size`` entries along ``axis`` (as it is when it has them)."""
+    if a.shape[axis] >= size:
+        return a
+    shape = list(a.shape)
+    shape[axis] = size - a.shape[axis]
+    return np.concatenate([a, np.full(shape, value, dtype=a.dtype)], axis=axis)
+
+
 def log_half_det_2pi_s(L: np.ndarray) -> np.ndarray:
     """ln √|2π S| = ½(m ln 2π + ln det S) for S = L Lᵀ (M,)."""
     m = L.shape[-1]

@@ -60,7 +60,7 @@ import numpy as np
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.protocols import Association, ClutterInnovation
-from hybridtrack.core.validation import as_float_array, check_prior, check_prior_mixture
+from hybridtrack.core.validation import as_float_array, check_positive, check_positive_int, check_prior, check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute
 from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalized_weights
@@ -168,13 +168,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         prune_threshold = float(prune_threshold)
         if not (0.0 <= prune_threshold < 1.0):
             raise ValueError(f"prune_threshold: expected a weight in [0, 1), got {prune_threshold!r}")
-        if isinstance(max_components, bool) or not isinstance(max_components, (int, np.integer)) or max_components < 1:
-            raise ValueError(f"max_components: expected an integer ≥ 1, got {max_components!r}")
+        self.max_components = check_positive_int(max_components, "max_components")
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
         self.merge_threshold = merge_threshold
         self.prune_threshold = prune_threshold
-        self.max_components = int(max_components)
         self.form = form
         self.engine = cov_form.check_engine(engine)
 
@@ -421,14 +419,11 @@ def range_parameterised(
         "observer_position",
         (M, 2),
     )
-    for name, value in (("sigma_bearing", sigma_bearing), ("speed_sigma", speed_sigma)):
-        if not (math.isfinite(float(value)) and float(value) > 0):
-            raise ValueError(f"{name}: expected a positive finite value, got {value!r}")
+    sigma_bearing, speed_sigma = check_positive(sigma_bearing, "sigma_bearing"), check_positive(speed_sigma, "speed_sigma")
     r_min, r_max = float(r_min), float(r_max)
     if not (math.isfinite(r_min) and math.isfinite(r_max) and 0 < r_min < r_max):
         raise ValueError(f"r_min, r_max: expected 0 < r_min < r_max (finite), got r_min={r_min!r}, r_max={r_max!r}")
-    if isinstance(components, bool) or not isinstance(components, (int, np.integer)) or components < 1:
-        raise ValueError(f"components: expected an integer ≥ 1, got {components!r}")
+    C = check_positive_int(components, "components")
     velocity = as_float_array(velocity, "velocity", (2,))
     layout = tuple(layout)
     missing = [k for k in ("x", "y", "vx", "vy") if k not in layout]
@@ -438,7 +433,6 @@ def range_parameterised(
         raise ValueError(f"layout: range parameterisation sets x, y, vx, vy only, got {layout}")
     n = len(layout)
     ix, iy, ivx, ivy = (layout.index(k) for k in ("x", "y", "vx", "vy"))
-    C = int(components)
     rho = (r_max / r_min) ** (1.0 / C)
     edges = r_min * rho ** np.arange(C + 1)
     r = 0.5 * (edges[:-1] + edges[1:])  # (C,)

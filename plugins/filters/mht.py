@@ -49,7 +49,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.protocols import Association, ClutterInnovation
-from hybridtrack.core.validation import check_positive_int
+from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.sdk.estimation import bank_field
 from hybridtrack.sdk.mixtures import normalized_weights
 from hybridtrack.sdk.scans import check_detection_probability
@@ -137,10 +137,7 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
     ):
         super().__init__(gate_probability, form)
         self.detection_probability = check_detection_probability(detection_probability)
-        lam = float(clutter_density)
-        if not (math.isfinite(lam) and lam > 0.0):
-            raise ValueError(f"clutter_density: expected a finite λ > 0 (the score has ln(P_D/λ)), got {clutter_density!r}")
-        self.clutter_density = lam
+        self.clutter_density = check_positive(clutter_density, "clutter_density", what="λ; the score has ln(P_D/λ)")
         self.window = check_positive_int(window, "window", what="the N of N-scan pruning")
         self.max_hypotheses = check_positive_int(max_hypotheses, "max_hypotheses", what="the cap on hypotheses per filter")
         P_G = 1.0 if self.gate_probability is None else self.gate_probability
@@ -148,7 +145,7 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         #: ln(1 − P_D P_G), −∞ when a miss is impossible (P_D = 1, no gate)
         self.log_miss = math.log(miss) if miss > 0 else -math.inf
         #: ln(P_D / λ)
-        self.log_detect = math.log(self.detection_probability) - math.log(lam)
+        self.log_detect = math.log(self.detection_probability) - math.log(self.clutter_density)
 
     def initialize(self, mean, cov) -> MHTState:
         x, P = self.check_prior(mean, cov)

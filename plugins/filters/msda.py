@@ -54,7 +54,7 @@ from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.estimation import CovarianceMoments, bank_field
 from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import ScanEstimator, nearest_weights
+from hybridtrack_plugins.filters._association import ScanEstimator, nearest_weights, pad_axis
 
 #: the extension mode of the transform: length-preserving and orthogonal
 MODE = "periodization"
@@ -77,14 +77,8 @@ class MSDAState(CovarianceMoments):
 
 
 def _widen(state: MSDAState, m: int) -> MSDAState:
-    mb = state.residuals.shape[2]
-    if m <= mb:
-        return state
-    M, N, _ = state.residuals.shape
-    n = state.H.shape[3]
-    residuals = np.concatenate([state.residuals, np.zeros((M, N, m - mb))], axis=2)
-    H = np.concatenate([state.H, np.zeros((M, N, m - mb, n))], axis=2)
-    return attrs.evolve(state, residuals=residuals, H=H)
+    """The window's slots padded to at least m residual components."""
+    return attrs.evolve(state, residuals=pad_axis(state.residuals, 2, m, 0.0), H=pad_axis(state.H, 2, m, 0.0))
 
 
 class MSDAFilter(ScanEstimator):
@@ -138,10 +132,8 @@ class MSDAFilter(ScanEstimator):
         # the window, newest last: this scan's residual, its H, its dimension (0: nothing gated)
         s = _widen(state, m)
         mb = s.residuals.shape[2]
-        r_new = np.zeros((M, mb))
-        r_new[:, :m] = chosen
-        H_new = np.zeros((M, mb, n))
-        H_new[:, :m] = H
+        r_new = pad_axis(chosen, 1, mb, 0.0)
+        H_new = pad_axis(np.broadcast_to(H, (M, m, n)), 1, mb, 0.0)
         residuals = np.concatenate([s.residuals[:, 1:], r_new[:, None]], axis=1)
         Hw = np.concatenate([s.H[:, 1:], H_new[:, None]], axis=1)
         dims = np.concatenate([s.dims[:, 1:], np.where(has, m, 0)[:, None]], axis=1)

@@ -84,7 +84,7 @@ from hybridtrack.sdk.estimation import CovarianceMoments, bank_field, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import ScanEstimator, gate_threshold, innovation_covariance, log_half_det_2pi_s
+from hybridtrack_plugins.filters._association import ScanEstimator, gate_threshold, innovation_covariance, log_half_det_2pi_s, pad_axis
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
 MIN_WEIGHT = 1e-9
@@ -134,14 +134,6 @@ class PMHTState(CovarianceMoments):
     innovation: ClutterInnovation | None = None
 
 
-def _pad_axis(a: np.ndarray, axis: int, size: int, value) -> np.ndarray:
-    if a.shape[axis] >= size:
-        return a
-    shape = list(a.shape)
-    shape[axis] = size - a.shape[axis]
-    return np.concatenate([a, np.full(shape, value, dtype=a.dtype)], axis=axis)
-
-
 def _widen(state: PMHTState, m: int, L: int) -> PMHTState:
     """The slots padded to at least m measurement components and L candidates."""
     mb, Lb = state.H.shape[2], state.candidates.shape[2]
@@ -149,19 +141,19 @@ def _widen(state: PMHTState, m: int, L: int) -> PMHTState:
         return state
     m2, L2 = max(m, mb), max(L, Lb)
     M, W = state.valid.shape
-    H = _pad_axis(state.H, 2, m2, 0.0)
+    H = pad_axis(state.H, 2, m2, 0.0)
     R = np.zeros((M, W, m2, m2))
     R[:, :, :mb, :mb] = state.R
     R[:, :, mb:, mb:] = np.eye(m2 - mb)
-    cand = _pad_axis(_pad_axis(state.candidates, 3, m2, 0.0), 2, L2, 0.0)
+    cand = pad_axis(pad_axis(state.candidates, 3, m2, 0.0), 2, L2, 0.0)
     return attrs.evolve(
         state,
         H=H,
         R=R,
         pad=state.pad + (m2 - mb),
         candidates=cand,
-        present=_pad_axis(state.present, 2, L2, False),
-        weights=_pad_axis(state.weights, 2, L2, 0.0),
+        present=pad_axis(state.present, 2, L2, False),
+        weights=pad_axis(state.weights, 2, L2, 0.0),
     )
 
 
@@ -310,15 +302,12 @@ class PMHTFilter(ScanEstimator):
         kept_present = np.take_along_axis(gated, order, axis=1)
         s = _widen(state, m, Lg)
         mb, Lb = s.H.shape[2], s.candidates.shape[2]
-        Hs = np.zeros((M, mb, n))
-        Hs[:, :m] = H
+        Hs = pad_axis(np.broadcast_to(H, (M, m, n)), 1, mb, 0.0)
         Rs = np.zeros((M, mb, mb))
         Rs[:, :m, :m] = R
         Rs[:, m:, m:] = np.eye(mb - m)
-        cs = np.zeros((M, Lb, mb))
-        cs[:, :Lg, :m] = kept
-        pr = np.zeros((M, Lb), dtype=bool)
-        pr[:, :Lg] = kept_present
+        cs = pad_axis(pad_axis(kept, 2, mb, 0.0), 1, Lb, 0.0)
+        pr = pad_axis(kept_present, 1, Lb, False)
 
         def shift(a, new):
             return np.concatenate([a[:, 1:], new[:, None]], axis=1)
