@@ -7,24 +7,10 @@ covariance S_j = H P⁻_j Hᵀ + R, and
     d²_ji = ν_jiᵀ S_j⁻¹ ν_ji                       (squared Mahalanobis distance)
     gate:  d²_ji ≤ γ,   γ = χ²_m quantile of P_G    (the gate probability P_G)
 
-Nearest neighbour (Bar-Shalom & Fortmann 1988, §6.2; seed 004 "метод
-ближайшего соседа"): the gated candidate with the smallest d² is taken as the
-target's and the filter updated with it as a Kalman filter would.
-
-Probabilistic data association, parametric version (Bar-Shalom & Fortmann
-1988, §6.4; Bar-Shalom, Daum & Huang 2009, IEEE Control Systems 29(6), eqs.
-(21)–(27); seed 004 "Алгоритм вероятностного объединения данных" and its
-ref. [4]).  With e_i = exp(−½ d²_i) over the gated candidates and
-
-    b = λ √|2π S| (1 − P_D P_G) / P_D,
-
-    β_i = e_i / (b + Σ_j e_j),   β_0 = b / (b + Σ_j e_j)            (association weights)
-    ν = Σ_i β_i ν_i                                                 (combined innovation)
-    x⁺ = x⁻ + K ν,   K = P⁻ Hᵀ S⁻¹
-    P⁺ = β_0 P⁻ + (1 − β_0) Pᶜ + K [Σ_i β_i ν_i ν_iᵀ − ν νᵀ] Kᵀ     (spread of innovations)
-
-with Pᶜ = (I − K H) P⁻ the covariance of a correct single-measurement update.
-With nothing gated and b = 0 (no clutter model) β_0 = 1: prediction only.
+Nearest neighbour (:mod:`.nearest_neighbour`) takes the gated candidate with
+the smallest d²; probabilistic data association (:mod:`.pda`, whose docstring
+has the equations) weighs them all with β_i ∝ e_i = exp(−½ d²_i) against
+b = λ √|2π S| (1 − P_D P_G) / P_D for "none is the target's".
 
 The association likelihood of a scan, the likelihood of the m_k gated
 candidates given the filter divided by the clutter-only factor
@@ -145,7 +131,7 @@ def log_half_det_2pi_s(L: np.ndarray) -> np.ndarray:
 def pda_weights(
     d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float, gate_probability: float | None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """β_i (M, L), β_0 (M,) and ln Λ (M,) of the parametric PDA (module docstring).
+    """β_i (M, L), β_0 (M,) and ln Λ (M,) of the parametric PDA (:mod:`.pda`; Λ in the module docstring).
 
     ln b = ln λ + ln √|2πS| + ln(1 − P_D P_G) − ln P_D (−∞ when λ = 0 or P_D P_G = 1).
     """
