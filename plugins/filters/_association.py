@@ -49,8 +49,6 @@ from hybridtrack.sdk.scans import RowScan, Scan
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
-# --------------------------------------------------------------------------- checks
-
 
 def check_gate_probability(value) -> float | None:
     """P_G in (0, 1), or None for no gate (every candidate is considered, P_G = 1)."""
@@ -67,9 +65,6 @@ def gate_threshold(gate_probability: float | None, m: int) -> float:
     if gate_probability is None:
         return float("inf")
     return float(chi2.ppf(gate_probability, m))
-
-
-# --------------------------------------------------------------------------- maths
 
 
 def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray, selection=None) -> np.ndarray:
@@ -166,9 +161,6 @@ def combine(nu: np.ndarray, beta: np.ndarray, beta0: np.ndarray) -> tuple[np.nda
     M, L, m = nu.shape
     points = np.concatenate([np.zeros((M, 1, m)), nu], axis=1)
     return moment_match(np.concatenate([beta0[:, None], beta], axis=1), points, np.zeros((M, L + 1, m, m)))
-
-
-# --------------------------------------------------------------------------- estimator plumbing
 
 
 class ScanEstimator(BankEstimator):

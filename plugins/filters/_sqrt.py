@@ -45,9 +45,6 @@ def _scalar_scores(nu_i, a_i):
     return -0.5 * (LOG_2PI + np.log(a_i) + nu_i * nu_i / a_i), nu_i * nu_i / a_i
 
 
-# ----------------------------------------------------------------------- Potter
-
-
 def potter_predict(x, S, F, B, W):
     """x⁻ = F x + B; S⁻ lower triangular with S⁻S⁻ᵀ = F S Sᵀ Fᵀ + W Wᵀ, from QR of [(F S)ᵀ; Wᵀ]."""
     x_pred = np.einsum("mij,mj->mi", F, x) + B
@@ -82,9 +79,6 @@ def potter_update(x, S, H, nu, R):
         loglik = loglik + li
         nis = nis + ni
     return x, S, loglik, nis
-
-
-# ----------------------------------------------------------------------- Bierman UD
 
 
 def ud_factor(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -173,9 +167,6 @@ def bierman_update(x, U, d, H, nu, R):
         loglik = loglik + li
         nis = nis + ni
     return x, U, d, loglik, nis
-
-
-# ----------------------------------------------------------------------- SRIF
 
 
 def srif_from_moments(x, P):

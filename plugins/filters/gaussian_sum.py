@@ -176,7 +176,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         self.form = form
         self.engine = cov_form.check_engine(engine)
 
-    # ------------------------------------------------------------------ initialize
     def initialize(self, mean, cov) -> MixtureState:
         """One component per filter (weight 1): the EKF's prior."""
         x, P = check_prior(mean, cov)
@@ -211,7 +210,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
             out.append(s)
         return out
 
-    # ------------------------------------------------------------------ predict
     @guarded
     def predict(self, state: MixtureState, transitions) -> MixtureState:
         """Every component predicted as an EKF; a linearizing callable is evaluated at each component mean."""
@@ -228,7 +226,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
         return self._state(x, P, state.log_weights, predicted=None)
 
-    # ------------------------------------------------------------------ update
     @guarded
     def update(self, state: MixtureState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         """Component-wise EKF updates, Bayes weights in log space, then pruning and merging (module docstring)."""
@@ -262,7 +259,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         self.check_finite("update", updated_mean=x, updated_covariance=P)
         return self._state(x, P, log_weights, predicted, innovation), innovation
 
-    # ------------------------------------------------------------------ update in clutter
     def _update_scans(self, state: MixtureState, scans: list, sensors, layout):
         """Branch every component on each scan (missed + one child per gated candidate), then reduce (module docstring)."""
         M, _, n = state.x.shape
@@ -325,7 +321,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         children = self.reduce(x_children.reshape(M, C * (1 + L), n), P_children.reshape(M, C * (1 + L), n, n), joint.reshape(M, -1))
         return children, combined, S, record
 
-    # ------------------------------------------------------------------ reduction
     def reduce(self, x, P, log_weights):
         """Prune (w < prune_threshold, the heaviest kept), merge (d² ≤ merge_threshold), cap at max_components,
         renormalise; returns compacted (x, P, ln w)."""

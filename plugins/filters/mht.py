@@ -175,7 +175,6 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         name = "+".join(m.sensor.name for m in step.models)
         return step.residual(z_pred)[:, None, :], Hm, R, step.selection, name, step.z, z_pred
 
-    # ------------------------------------------------------------------ pieces
     def associate_scan(self, state: MHTState, nu, Hm, R, selection, sensor_name, candidates, z_pred):
         """One scan: every hypothesis branches (missed, each gated candidate), scored, N-scan rule, cap.
 

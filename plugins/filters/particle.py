@@ -270,7 +270,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         self._seeds = _check_seed(seed)
         self._root_cache: tuple | None = None
 
-    # ------------------------------------------------------------------ random numbers
     @staticmethod
     def _generators(keys: np.ndarray, counters: np.ndarray, stage: int, rows=None):
         """One generator per filter (of ``rows``), seeded by (key, stage, counter): a filter's draws depend on its state only."""
@@ -282,7 +281,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
     def _normals(self, state_keys, counters, stage, shape) -> np.ndarray:
         return np.stack([g.standard_normal(shape) for g in self._generators(state_keys, counters, stage)])
 
-    # ------------------------------------------------------------------ initialize
     def initialize(self, mean, cov) -> ParticleState:
         """N particles per filter drawn from N(mean, cov); uniform weights; a fresh stream key per filter."""
         x, P = self.check_prior(mean, cov)
@@ -322,7 +320,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         mean, cov = weighted_moments(particles, log_weights)
         return ParticleState(particles, log_weights, keys, np.ones(len(keys), dtype=np.int64), mean, cov, None)
 
-    # ------------------------------------------------------------------ predict
     def _noise_root(self, bank: TransitionBank) -> np.ndarray:
         """W (K, n, r) with W Wᵀ = G Q Gᵀ: the bank's ``noise_root``, else the PSD square root of Q (cached per bank)."""
         if bank.noise_root is not None:
@@ -356,7 +353,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         x, P = weighted_moments(particles, state.log_weights)
         return ParticleState(particles, state.log_weights, state.keys, state.counters + 1, x, P, None)
 
-    # ------------------------------------------------------------------ update
     def _residuals(self, step, particles: np.ndarray, layout) -> np.ndarray:
         """ν⁽ⁱ⁾ = residual(z, h(x⁽ⁱ⁾)) (M, N, m) of the present components, through the step's sensor models."""
         M, N, n = particles.shape
@@ -396,7 +392,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         gaussian_loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu_mean)
         return self._resampled(state, log_weights, ParticleInnovation, nu_mean, S, loglik, nis, gaussian_loglik)
 
-    # ------------------------------------------------------------------ update in clutter
     def _update_scans(self, state: ParticleState, scans: list, sensors, layout):
         """w ∝ w⁻ Λ(x) scan after scan, ℓ = Σ ln Λ̂, then N_eff and resampling as in :meth:`update`."""
         M, N, n = state.particles.shape

@@ -199,7 +199,6 @@ class PMHTFilter(ScanEstimator):
         """λ = 0 and no gate: every candidate has w = 1; with one per step this is the Kalman filter."""
         return self.clutter_density == 0.0 and self.gate_probability is None
 
-    # ------------------------------------------------------------------ the Estimator API
     def initialize(self, mean, cov) -> PMHTState:
         x, P = self.check_prior(mean, cov)
         M, n = x.shape
@@ -350,7 +349,6 @@ class PMHTFilter(ScanEstimator):
         )
         return new, nu, S, record
 
-    # ------------------------------------------------------------------ EM
     def _estep(self, X, Hw, cw, pw, LR, logdet_R):
         """ln N(z_{t,r}; H x_t, R) (M, W, L̄) and w_{t,r} = P_D N / (λ + P_D N) (0 where not present)."""
         zhat = np.einsum("mwij,mwj->mwi", Hw, X)
