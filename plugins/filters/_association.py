@@ -85,20 +85,13 @@ def distances(nu: np.ndarray, L: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", w, w)
 
 
-def nearest(d2: np.ndarray, gated: np.ndarray) -> np.ndarray:
-    """Index (M,) of the gated candidate with the smallest d², −1 where none is gated."""
-    if d2.shape[1] == 0:
-        return np.full(d2.shape[0], -1, dtype=np.int64)
-    masked = np.where(gated, d2, np.inf)
-    index = np.argmin(masked, axis=1)
-    return np.where(gated.any(axis=1), index, -1).astype(np.int64)
-
-
 def nearest_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
-    """The nearest neighbour's association (β_i one-hot (M, L), β_0 (M,), selected i* (M,), ℓ (M,)):
-    i* = :func:`nearest`, ℓ = −½(m ln 2π + ln det S + d²_{i*}) of the chosen candidate (NaN where none is gated)."""
+    """The nearest neighbour's association (β_i one-hot (M, L), β_0 (M,), selected i* (M,), ℓ (M,)): i* the gated
+    candidate with the smallest d² (−1 where none is gated), ℓ = −½(m ln 2π + ln det S + d²_{i*}) (NaN for none)."""
     M = d2.shape[0]
-    selected = nearest(d2, gated)
+    selected = np.full(M, -1, dtype=np.int64)
+    if d2.shape[1]:
+        selected = np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1).astype(np.int64)
     rows = np.flatnonzero(selected >= 0)
     beta = np.zeros(d2.shape)
     beta[rows, selected[rows]] = 1.0

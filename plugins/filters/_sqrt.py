@@ -214,17 +214,6 @@ def srif_predict(Rinfo, zeta, F, B, W):
     return _from_root(S_pred, x_pred)
 
 
-def srif_rows(H, nu, R, x_lin):
-    """Whitened measurement rows [H̃, z̃] with z̃ = L_R⁻¹(ν + H x_lin) (= L_R⁻¹ z for a linear sensor).
-
-    ν is the innovation at the linearization point x_lin (x⁻), so the rows hold
-    the linearized measurement z ≈ h(x⁻) + H (x − x⁻).  Returns (H̃, z̃, ln det R).
-    """
-    Ht, nut, log_det_R = whiten(H, nu, R)
-    zt = nut + np.einsum("...ij,...j->...i", Ht, x_lin)
-    return Ht, zt, log_det_R
-
-
 def srif_update(Rinfo, zeta, rows):
     """QR of [[R⁻, ζ⁻], [H̃_1, z̃_1], …] = [[R⁺, ζ⁺], [0, e]] (SPEC §3); NIS = e².
 

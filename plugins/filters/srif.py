@@ -87,7 +87,9 @@ class SquareRootInformationFilter(BankEstimator):
             innovation = empty_innovation(x.shape[0])
             return attrs.evolve(state, innovation=innovation), innovation
         step, nu, H = found
-        Ht, zt, log_det_R = _sqrt.srif_rows(H, nu, step.R, x)
+        # the whitened rows [H̃, z̃], z̃ = L_R⁻¹(ν + H x⁻): the linearized measurement z ≈ h(x⁻) + H (x − x⁻)
+        Ht, nut, log_det_R = _sqrt.whiten(H, nu, step.R)
+        zt = nut + np.einsum("...ij,...j->...i", Ht, x)
         R, zeta, e2 = _sqrt.srif_update(state.R, state.zeta, [(Ht, zt)])
         loglik = _sqrt.srif_scores(state.R, R, log_det_R, e2, step.dim)
         innovation = Innovation(nu, srif_innovation(nu, H, state.R, step.R), loglik, e2)
