@@ -219,14 +219,20 @@ class ScanEstimator(BankEstimator):
         return self.associate_scan(state, *self.scan_candidates(state, scan, sensor, model))
 
     def stacked_candidates(self, state, z, sensors, layout):
-        """The one candidate of a stacked z, as :meth:`associate_scan` takes it, or None when nothing was measured:
-        ν (M, 1, m), H, R, the selection, the sensors' name, z and ẑ."""
-        found = self.linearize(state.x, z, sensors, layout)
-        if found is None:
+        """The one candidate of a stacked z against every row of x (filters, or hypotheses), as :meth:`associate_scan`
+        takes it, or None when nothing was measured: ν (rows, 1, m), H, R, the selection, the sensors' name, z, ẑ."""
+        M, n = state.x.shape[0], state.x.shape[-1]
+        step = self.measurement_step(z, sensors, layout, M, n)
+        if step is None:
             return None
-        step, nu, H = found
+        per_filter = state.x.size // (M * n)  # rows of x per filter
+        R = np.asarray(step.R)
+        if per_filter > 1:
+            step = step.with_z(np.repeat(step.z, per_filter, axis=0)) if step.z.shape[0] > 1 else step
+            R = np.repeat(R, per_filter, axis=0) if R.ndim == 3 else R
+        step, nu, H = self.linearize(state.x.reshape(-1, n), z, sensors, layout, step)
         z_pred = np.broadcast_to(step.z, nu.shape) - nu
-        return nu[:, None, :], H, step.R, step.selection, "+".join(m.sensor.name for m in step.models), step.z, z_pred
+        return nu[:, None, :], H, R, step.selection, "+".join(m.sensor.name for m in step.models), step.z, z_pred
 
     def scan_candidates(self, state, scan, sensor, model):
         """A scan's candidates as :meth:`associate_scan` takes them: ν_ji = z_i ⊖ H x_j (rows, L, m) of every row of

@@ -158,23 +158,6 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         history = np.full((M, H, N), _NO_SCAN, dtype=np.int64)
         return MHTState(xs, Ps, xs, Ps, scores, history, None)
 
-    def stacked_candidates(self, state: MHTState, z, sensors, layout):
-        """The one candidate of a stacked z against every hypothesis: ν (M H, 1, m), H, R (rows), …, ẑ (M H, m)."""
-        M, H, n = state.x.shape
-        step = self.measurement_step(z, sensors, layout, M, n)
-        if step is None:
-            return None
-        if step.H is None:
-            names = [m.sensor.name for m in step.models if m.H is None]
-            raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {names} are nonlinear")
-        if step.z.shape[0] > 1:
-            step = step.with_z(np.repeat(step.z, H, axis=0))
-        z_pred, Hm = step.predicted(state.x.reshape(M * H, n), layout)
-        R = np.asarray(step.R)
-        R = np.repeat(R, H, axis=0) if R.ndim == 3 else R
-        name = "+".join(m.sensor.name for m in step.models)
-        return step.residual(z_pred)[:, None, :], Hm, R, step.selection, name, step.z, z_pred
-
     def associate_scan(self, state: MHTState, nu, Hm, R, selection, sensor_name, candidates, z_pred):
         """One scan: every hypothesis branches (missed, each gated candidate), scored, N-scan rule, cap.
 
