@@ -247,9 +247,8 @@ class ScanEstimator(BankEstimator):
         chol = cholesky(S, "innovation covariance S")
         gamma = gate_threshold(self.gate_probability, S.shape[-1])
         d2 = distances(nu, chol)
-        self.check_finite(
-            "update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2
-        )  # an inf d² would drop a candidate silently
+        # an inf d² would drop a candidate silently
+        self.check_finite("update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2)
         return S, chol, gamma, d2, d2 <= gamma
 
     @abstractmethod
