@@ -98,10 +98,6 @@ class MixtureState:
     innovation: Innovation | None = None
 
     @property
-    def bank_size(self) -> int:
-        return self.x.shape[0]
-
-    @property
     def weights(self) -> np.ndarray:
         """w_c (M, C), 0 for empty slots."""
         return np.exp(self.log_weights)
@@ -205,7 +201,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
             if pad:
                 x = np.concatenate([s.x, np.repeat(s.x[:, :1], pad, axis=1)], axis=1)
                 P = np.concatenate([s.P, np.repeat(s.P[:, :1], pad, axis=1)], axis=1)
-                lw = np.concatenate([s.log_weights, np.full((s.bank_size, pad), -np.inf)], axis=1)
+                lw = np.concatenate([s.log_weights, np.full((s.x.shape[0], pad), -np.inf)], axis=1)
                 s = attrs.evolve(s, x=x, P=P, log_weights=lw)
             out.append(s)
         return out

@@ -430,10 +430,9 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         flat = particles.reshape(M * N, n)
         h = model.measure(flat, layout).reshape(M, N, m)
         # the particle prediction of z: ẑ = h(x̄) + Σ w δ, δ = residual(h(x), h(x̄)) (wrapped about the mean for angles)
-        x_bar = np.einsum("mk,mki->mi", np.exp(log_weights), particles)
-        h_bar = model.measure(x_bar, layout)
-        delta = h - h_bar[:, None, :] if model.plain_residual else sensor.residual(h, np.broadcast_to(h_bar[:, None, :], h.shape))
         w = np.exp(log_weights)
+        h_bar = model.measure(np.einsum("mk,mki->mi", w, particles), layout)
+        delta = h - h_bar[:, None, :] if model.plain_residual else sensor.residual(h, np.broadcast_to(h_bar[:, None, :], h.shape))
         delta_mean = np.einsum("mk,mki->mi", w, delta)
         z_hat = h_bar + delta_mean
         d = delta - delta_mean[:, None, :]

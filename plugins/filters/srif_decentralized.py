@@ -85,9 +85,7 @@ class DecentralizedSRIF(NodeBank):
         # every node assimilates all rows by one QR
         R, zeta, e2 = _sqrt.srif_update(state.R, state.zeta, rows)
         node_loglik = _sqrt.srif_scores(state.R, R, log_det_R, e2, step.dim)
-        x_prior = state.node_means[0]
-        z_pred, H = step.predicted(x_prior, layout)
-        nu = step.residual(z_pred)
+        _, nu, H = self.linearize(state.node_means[0], z, sensors, layout, step)
         innovation = Innovation(nu, srif_innovation(nu, H, state.R[0], step.R), node_loglik[0], e2[0])
         self.check_finite(
             "update", innovation_covariance=innovation.S, updated_information_state=zeta, node_NIS=e2, node_loglik=node_loglik
