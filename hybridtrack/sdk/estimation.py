@@ -35,26 +35,26 @@ from hybridtrack.sdk.measurements import MeasurementAssembler
 
 
 class NodeMoments:
-    """Mixin for decentralized states: ``_moments`` = (x (N, M, n), P (N, M, n, n)) over the N nodes;
+    """Mixin for decentralized states: ``moments`` = (x (N, M, n), P (N, M, n, n)) over the N nodes;
     ``mean``/``covariance`` read node 0 (every node holds the same estimate up to rounding)."""
 
     @property
     def node_means(self) -> np.ndarray:
         """Every node's x (N, M, n)."""
-        return self._moments[0]
+        return self.moments[0]
 
     @property
     def node_covariances(self) -> np.ndarray:
         """Every node's P (N, M, n, n)."""
-        return self._moments[1]
+        return self.moments[1]
 
     @property
     def mean(self) -> np.ndarray:
-        return self._moments[0][0]
+        return self.moments[0][0]
 
     @property
     def covariance(self) -> np.ndarray:
-        return self._moments[1][0]
+        return self.moments[1][0]
 
 
 class PredictedMoments:
@@ -89,18 +89,18 @@ class CovarianceMoments(PredictedMoments):
 
 class DerivedMoments(PredictedMoments):
     """Mixin for states whose moments are computed from another form (information, particles): the state
-    defines ``_moments`` = (x (M, n), P (M, n, n)), typically a ``cached_property``; ``mean``/``covariance`` read it
+    defines ``moments`` = (x (M, n), P (M, n, n)), typically a ``cached_property``; ``mean``/``covariance`` read it
     (and the prediction's, :class:`PredictedMoments`)."""
 
     __slots__ = ()
 
     @property
     def mean(self) -> np.ndarray:
-        return self._moments[0]
+        return self.moments[0]
 
     @property
     def covariance(self) -> np.ndarray:
-        return self._moments[1]
+        return self.moments[1]
 
 
 def bank_field(axis: int = 0, **kwargs):
@@ -238,7 +238,7 @@ class BankEstimator(Estimator):
     """
 
     def __init__(self):
-        self._assembler = MeasurementAssembler()
+        self.assembler = MeasurementAssembler()
         self._checked_transitions: tuple | None = None
 
     # ------------------------------------------------------------------ checks
@@ -302,7 +302,7 @@ class BankEstimator(Estimator):
         out (:mod:`hybridtrack.sdk.measurements`); None means nothing was measured.
         """
         check_layout(layout, n)
-        return self._assembler.assemble(z, sensors, layout, bank_size)
+        return self.assembler.assemble(z, sensors, layout, bank_size)
 
     def linearize(self, x: np.ndarray, z, sensors: Sequence, layout: Sequence[str], step=None):
         """(step, ν, H) at x (M, n), or None when nothing was measured (prediction only).

@@ -7,24 +7,10 @@ covariance S_j = H P⁻_j Hᵀ + R, and
     d²_ji = ν_jiᵀ S_j⁻¹ ν_ji                       (squared Mahalanobis distance)
     gate:  d²_ji ≤ γ,   γ = χ²_m quantile of P_G    (the gate probability P_G)
 
-Nearest neighbour (Bar-Shalom & Fortmann 1988, §6.2; seed 004 "метод
-ближайшего соседа"): the gated candidate with the smallest d² is taken as the
-target's and the filter updated with it as a Kalman filter would.
-
-Probabilistic data association, parametric version (Bar-Shalom & Fortmann
-1988, §6.4; Bar-Shalom, Daum & Huang 2009, IEEE Control Systems 29(6), eqs.
-(21)–(27); seed 004 "Алгоритм вероятностного объединения данных" and its
-ref. [4]).  With e_i = exp(−½ d²_i) over the gated candidates and
-
-    b = λ √|2π S| (1 − P_D P_G) / P_D,
-
-    β_i = e_i / (b + Σ_j e_j),   β_0 = b / (b + Σ_j e_j)            (association weights)
-    ν = Σ_i β_i ν_i                                                 (combined innovation)
-    x⁺ = x⁻ + K ν,   K = P⁻ Hᵀ S⁻¹
-    P⁺ = β_0 P⁻ + (1 − β_0) Pᶜ + K [Σ_i β_i ν_i ν_iᵀ − ν νᵀ] Kᵀ     (spread of innovations)
-
-with Pᶜ = (I − K H) P⁻ the covariance of a correct single-measurement update.
-With nothing gated and b = 0 (no clutter model) β_0 = 1: prediction only.
+Nearest neighbour (:mod:`.nearest_neighbour`) takes the gated candidate with
+the smallest d²; probabilistic data association (:mod:`.pda`, whose docstring
+has the equations) weighs them all with β_i ∝ e_i = exp(−½ d²_i) against
+b = λ √|2π S| (1 − P_D P_G) / P_D for "none is the target's".
 
 The association likelihood of a scan, the likelihood of the m_k gated
 candidates given the filter divided by the clutter-only factor
@@ -59,10 +45,9 @@ from hybridtrack.sdk.estimation import BankEstimator, check_layout, empty_innova
 from hybridtrack.sdk.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.measurements import block_diagonal
 from hybridtrack.sdk.mixtures import logsumexp, moment_match
+from hybridtrack.sdk.scans import RowScan, Scan
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters.kalman import CovarianceState
-
-# --------------------------------------------------------------------------- checks
 
 
 def check_gate_probability(value) -> float | None:
@@ -80,12 +65,6 @@ def gate_threshold(gate_probability: float | None, m: int) -> float:
     if gate_probability is None:
         return float("inf")
     return float(chi2.ppf(gate_probability, m))
-
-
-# --------------------------------------------------------------------------- records
-
-
-# --------------------------------------------------------------------------- maths
 
 
 def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray, selection=None) -> np.ndarray:
@@ -106,13 +85,29 @@ def distances(nu: np.ndarray, L: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", w, w)
 
 
-def nearest(d2: np.ndarray, gated: np.ndarray) -> np.ndarray:
-    """Index (M,) of the gated candidate with the smallest d², −1 where none is gated."""
-    if d2.shape[1] == 0:
-        return np.full(d2.shape[0], -1, dtype=np.int64)
-    masked = np.where(gated, d2, np.inf)
-    index = np.argmin(masked, axis=1)
-    return np.where(gated.any(axis=1), index, -1).astype(np.int64)
+def nearest_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
+    """The nearest neighbour's association (β_i one-hot (M, L), β_0 (M,), selected i* (M,), ℓ (M,)): i* the gated
+    candidate with the smallest d² (−1 where none is gated), ℓ = −½(m ln 2π + ln det S + d²_{i*}) (NaN for none)."""
+    M = d2.shape[0]
+    selected = np.full(M, -1, dtype=np.int64)
+    if d2.shape[1]:
+        selected = np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1).astype(np.int64)
+    rows = np.flatnonzero(selected >= 0)
+    beta = np.zeros(d2.shape)
+    beta[rows, selected[rows]] = 1.0
+    loglik = np.full(M, np.nan)
+    if rows.size:
+        loglik[rows] = -0.5 * d2[rows, selected[rows]] - log_half_det_2pi_s(L)[rows]
+    return beta, (selected < 0).astype(float), selected, loglik
+
+
+def pad_axis(a: np.ndarray, axis: int, size: int, value) -> np.ndarray:
+    """``a`` padded with ``value`` to at least ``size`` entries along ``axis`` (as it is when it has them)."""
+    if a.shape[axis] >= size:
+        return a
+    shape = list(a.shape)
+    shape[axis] = size - a.shape[axis]
+    return np.concatenate([a, np.full(shape, value, dtype=a.dtype)], axis=axis)
 
 
 def log_half_det_2pi_s(L: np.ndarray) -> np.ndarray:
@@ -124,7 +119,7 @@ def log_half_det_2pi_s(L: np.ndarray) -> np.ndarray:
 def pda_weights(
     d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float, gate_probability: float | None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """β_i (M, L), β_0 (M,) and ln Λ (M,) of the parametric PDA (module docstring).
+    """β_i (M, L), β_0 (M,) and ln Λ (M,) of the parametric PDA (:mod:`.pda`; Λ in the module docstring).
 
     ln b = ln λ + ln √|2πS| + ln(1 − P_D P_G) − ln P_D (−∞ when λ = 0 or P_D P_G = 1).
     """
@@ -161,16 +156,8 @@ def combine(nu: np.ndarray, beta: np.ndarray, beta0: np.ndarray) -> tuple[np.nda
     return moment_match(np.concatenate([beta0[:, None], beta], axis=1), points, np.zeros((M, L + 1, m, m)))
 
 
-def check_innovation_covariance(S: np.ndarray) -> np.ndarray:
-    """L = chol(S) (M, m, m), the clear error of ``_linalg.cholesky`` when S is not positive definite."""
-    return cholesky(S, "innovation covariance S")
-
-
-# --------------------------------------------------------------------------- estimator plumbing
-
-
-class ClutterEstimator(BankEstimator):
-    """Covariance-form bank whose update associates candidates before correcting (NN, PDA).
+class ScanEstimator(BankEstimator):
+    """Covariance-form bank of one-target trackers in clutter, updated scan by scan (NN, PDA, MSDA, MHT, PMHT).
 
     ``update(state, z, sensors, layout)`` accepts, for ``z``:
 
@@ -181,24 +168,20 @@ class ClutterEstimator(BankEstimator):
       sensor named ``scan.sensor`` (one of ``sensors``), L ≥ 0;
     * a sequence of Scans — processed one sensor after the other (sequential
       multisensor association); the :class:`ClutterInnovation` stacks their ν
-      with S block-diagonal;
-    * a :class:`~hybridtrack.sdk.scans.RowScan` (or a sequence mixing them with
-      Scans) — candidates per filter row (M, L, m), NaN-padded: row j is gated
-      and weighed against its own candidates only (padding is never gated),
-      so stacked runs (one filter each) update as one bank, row j's state and
-      association equal to the one-filter update with its own Scan to
-      rounding.  A row whose slots are all padding updates as a row with
-      nothing gated (state unchanged for NN; β_0 = 1 for PDA); its
-      ClutterInnovation entry is then that of ν = 0, where a scan with no
-      candidate at all adds no innovation block.
+      with S block-diagonal.
 
-    Linear sensors with a measurement-independent R only.  Subclasses give the
-    weights: :meth:`associate` (d², gated, chol S) → (β_i, β_0, selected, ln Λ).
+    Linear sensors with a measurement-independent R only.  A subclass gives
+    :meth:`associate_scan` (the state and one scan's candidates → the new
+    state, the ν used, S and the Association), and may change how the
+    candidates are formed (:meth:`stacked_candidates`, :meth:`scan_candidates`)
+    and the innovation (:meth:`finish`).
     """
 
     exact_kalman = False
     #: the pipeline may pass a list of Scans (candidates in clutter) as z
     accepts_scans = True
+    #: RowScans (candidates per filter row) accepted
+    row_scans = False
 
     def __init__(self, gate_probability: float | None, form: str = "joseph"):
         super().__init__()
@@ -207,94 +190,159 @@ class ClutterEstimator(BankEstimator):
         self.gate_probability = check_gate_probability(gate_probability)
         self.form = form
 
-    # ------------------------------------------------------------------ the Estimator API
+    @guarded
+    def predict(self, state, transitions):
+        """x⁻ = F x + B, P⁻ = F P Fᵀ + Q (seed 000 eqs. 4–5) of every filter's x (M, n) or hypotheses x (M, H, n)."""
+        M, n = state.x.shape[0], state.x.shape[-1]
+        bank = self.check_transitions(transitions, M, n, state.mean)
+        per_filter = state.x.size // (M * n)
+        F, B, Q = (np.repeat(A, per_filter, axis=0) for A in (bank.F, bank.B, bank.Q))
+        x, P = cov_form.predict(state.x.reshape(-1, n), state.P.reshape(-1, n, n), F, B, Q)
+        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
+        x, P = x.reshape(state.x.shape), P.reshape(state.P.shape)
+        return attrs.evolve(state, x=x, P=P, x_predicted=x, P_predicted=P, innovation=None)
+
+    @guarded
+    def update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        check_layout(layout, state.x.shape[-1])
+        scans = as_scans(z, rows=self.row_scans)
+        if scans is None:
+            found = self.stacked_candidates(state, z, sensors, layout)
+            if found is None:
+                innovation = empty_innovation(state.x.shape[0])
+                return attrs.evolve(state, innovation=innovation), innovation
+            state, nu, S, record = self.associate_scan(state, *found)
+            return self.finish(state, [nu], [S], [record])
+        return self.finish(*scan_by_scan(self, state, scans, sensors, layout, self._scan_step))
+
+    def _scan_step(self, state, scan, sensor, model):
+        return self.associate_scan(state, *self.scan_candidates(state, scan, sensor, model))
+
+    def stacked_candidates(self, state, z, sensors, layout):
+        """The one candidate of a stacked z against every row of x (filters, or hypotheses), as :meth:`associate_scan`
+        takes it, or None when nothing was measured: ν (rows, 1, m), H, R, the selection, the sensors' name, z, ẑ."""
+        M, n = state.x.shape[0], state.x.shape[-1]
+        step = self.measurement_step(z, sensors, layout, M, n)
+        if step is None:
+            return None
+        per_filter = state.x.size // (M * n)  # rows of x per filter
+        R = np.asarray(step.R)
+        if per_filter > 1:
+            step = step.with_z(np.repeat(step.z, per_filter, axis=0)) if step.z.shape[0] > 1 else step
+            R = np.repeat(R, per_filter, axis=0) if R.ndim == 3 else R
+        step, nu, H = self.linearize(state.x.reshape(-1, n), z, sensors, layout, step)
+        z_pred = np.broadcast_to(step.z, nu.shape) - nu
+        return nu[:, None, :], H, R, step.selection, "+".join(m.sensor.name for m in step.models), step.z, z_pred
+
+    def scan_candidates(self, state, scan, sensor, model):
+        """A scan's candidates as :meth:`associate_scan` takes them: ν_ji = z_i ⊖ H x_j (rows, L, m) of every row of
+        x (filters, or hypotheses), H, R, the selection, the sensor's name, the candidates and ẑ."""
+        z_pred = predict_measurement(state.x.reshape(-1, state.x.shape[-1]), model)
+        nu = candidate_residuals(z_pred, scan.z, sensor, model)
+        return nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred
+
+    def gate(self, nu, P, H, R, selection=None):
+        """S = H P Hᵀ + R, chol S, γ, d² (rows, L) and the gate mask d² ≤ γ of the candidates' ν (rows, L, m)."""
+        S = innovation_covariance(P, H, R, selection)
+        chol = cholesky(S, "innovation covariance S")
+        gamma = gate_threshold(self.gate_probability, S.shape[-1])
+        d2 = distances(nu, chol)
+        # an inf d² would drop a candidate silently
+        self.check_finite("update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2)
+        return S, chol, gamma, d2, d2 <= gamma
+
+    @abstractmethod
+    def associate_scan(self, state, *candidates):
+        """(new state, ν used (M, m), S (M, m, m), Association) of one scan's candidates."""
+
+    def finish(self, state, used, blocks, records):
+        """The state with the step's :class:`ClutterInnovation` (:func:`stacked_innovation` of the scans used)."""
+        innovation = ClutterInnovation(*stacked_innovation(state.x.shape[0], used, blocks), tuple(records))
+        return attrs.evolve(state, innovation=innovation), innovation
+
+
+class ClutterEstimator(ScanEstimator):
+    """Covariance-form bank whose update associates candidates before correcting (NN, PDA).
+
+    ``z`` as for :class:`ScanEstimator`, and also a
+    :class:`~hybridtrack.sdk.scans.RowScan` (or a sequence mixing them with
+    Scans) — candidates per filter row (M, L, m), NaN-padded: row j is gated
+    and weighed against its own candidates only (padding is never gated),
+    so stacked runs (one filter each) update as one bank, row j's state and
+    association equal to the one-filter update with its own Scan to
+    rounding.  A row whose slots are all padding updates as a row with
+    nothing gated (state unchanged for NN; β_0 = 1 for PDA); its
+    ClutterInnovation entry is then that of ν = 0, where a scan with no
+    candidate at all adds no innovation block.
+
+    Subclasses give the weights: :meth:`associate` (d², gated, chol S) → (β_i, β_0, selected, ln Λ).
+    """
+
+    row_scans = True
+
     def initialize(self, mean, cov) -> CovarianceState:
         x, P = self.check_prior(mean, cov)
         return CovarianceState(x, P, x, P, None)
 
-    @guarded
-    def predict(self, state: CovarianceState, transitions) -> CovarianceState:
-        M, n = state.x.shape
-        bank = self.check_transitions(transitions, M, n, state.x)
-        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
-        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        return CovarianceState(x, P, x, P, None)
+    def scan_candidates(self, state, scan, sensor, model):
+        """As :meth:`ScanEstimator.scan_candidates`, plus for a RowScan the mask (M, L) of its real candidates."""
+        if scan.z.ndim == 2:
+            return super().scan_candidates(state, scan, sensor, model)
+        M = state.x.shape[0]
+        if scan.z.shape[0] != M:
+            raise ValueError(f"z: RowScan of sensor {scan.sensor!r} has {scan.z.shape[0]} rows for a bank of {M} filters")
+        z_pred = predict_measurement(state.x, model)
+        candidates = np.where(scan.present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
+        nu = candidate_residuals(z_pred, candidates, sensor, model)
+        return nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, scan.present
 
-    @guarded
-    def update(self, state: CovarianceState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        M, n = state.x.shape
-        check_layout(layout, n)
-        scans = _as_scans(z, rows=True)
-        if scans is None:
-            return self._update_stacked(state, z, sensors, layout)
-        by_name = sensors_by_name(sensors)
-        x, P = state.x, state.P
-        used, blocks, associations = [], [], []
-        for scan in scans:
-            sensor, model = scan_sensor_model(self, scan, by_name, layout)
-            z_pred = predict_measurement(x, model)
-            present = None
-            if scan.z.ndim == 3:  # a RowScan: each row its own candidates, NaN padding
-                if scan.z.shape[0] != M:
-                    raise ValueError(f"z: RowScan of sensor {scan.sensor!r} has {scan.z.shape[0]} rows for a bank of {M} filters")
-                present = scan.present
-                candidates = np.where(present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
-            else:
-                candidates = scan.z
-            nu = candidate_residuals(z_pred, candidates, sensor, model)
-            x, P, nu_used, S, association = self._associate_and_update(
-                x, P, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, present
-            )
-            associations.append(association)
-            if scan.size:
-                used.append(nu_used)
-                blocks.append(S)
-        return self._finish(state, x, P, used, blocks, associations)
-
-    # ------------------------------------------------------------------ pieces
-    def _update_stacked(self, state, z, sensors, layout):
-        found = self.linearize(state.x, z, sensors, layout)
-        if found is None:
-            innovation = empty_innovation(state.x.shape[0])
-            return attrs.evolve(state, innovation=innovation), innovation
-        step, nu, H = found
-        name = "+".join(m.sensor.name for m in step.models)
-        z_pred = np.broadcast_to(step.z, nu.shape) - nu
-        x, P, nu_used, S, association = self._associate_and_update(
-            state.x, state.P, nu[:, None, :], H, step.R, step.selection, name, step.z, z_pred
-        )
-        return self._finish(state, x, P, [nu_used], [S], [association])
-
-    def _associate_and_update(self, x, P, nu, H, R, selection, sensor_name, candidates, z_pred, present=None):
-        """Gate, weigh and update with one scan: ν (M, L, m) → x⁺, P⁺, ν used (M, m), S, Association;
+    def associate_scan(self, state, nu, H, R, selection, sensor_name, candidates, z_pred, present=None):
+        """Gate, weigh and update with one scan: ν (M, L, m) → the updated state, ν used (M, m), S, Association;
         ``present`` (M, L) marks a RowScan's real candidates (padding gets d² = ∞, never gated)."""
-        S = innovation_covariance(P, H, R, selection)
-        L = check_innovation_covariance(S)
-        gamma = gate_threshold(self.gate_probability, S.shape[-1])
-        d2 = distances(nu, L)
-        self.check_finite(
-            "update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2
-        )  # an inf d² would drop a candidate silently
+        x, P = state.x, state.P
+        S, L, gamma, d2, gated = self.gate(nu, P, H, R, selection)
         if present is not None:
             d2 = np.where(present, d2, np.inf)
-        gated = d2 <= gamma
+            gated = d2 <= gamma
         beta, beta0, selected, loglik = self.associate(d2, gated, L)
         record = Association(sensor_name, np.asarray(candidates), z_pred, S, gamma, d2, gated, beta, beta0, selected, loglik)
         if nu.shape[1] == 0:
-            return x, P, np.zeros(x.shape[:1] + S.shape[-1:]), S, record
+            return state, np.zeros(x.shape[:1] + S.shape[-1:]), S, record
         combined, spread = combine(nu, beta, beta0)
         x_new, P_correct, _, _, K = cov_form.update(x, P, combined, H, R, selection, self.form)
         self.check_finite("update", updated_mean=x_new)
         P_new = beta0[:, None, None] * P + (1.0 - beta0)[:, None, None] * P_correct + K @ spread @ np.swapaxes(K, -1, -2)
-        return x_new, symmetrize(P_new), combined, S, record
-
-    def _finish(self, state, x, P, used, blocks, associations):
-        innovation = ClutterInnovation(*stacked_innovation(x.shape[0], used, blocks), tuple(associations))
-        return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
+        return attrs.evolve(state, x=x_new, P=symmetrize(P_new)), combined, S, record
 
     @abstractmethod
     def associate(self, d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
         """(β_i (M, L), β_0 (M,), selected (M,), ln Λ or ℓ (M,)) from d² (M, L), the gate mask and chol S."""
+
+
+def scan_by_scan(estimator: BankEstimator, state, scans, sensors, layout, step, linear: bool = True):
+    """``step(state, scan, sensor, model) → (state, ν used (M, m), S (M, m, m), Association)`` applied to the scans
+    one sensor after the other (sequential multisensor association), each scan's sensor looked up and checked by
+    :func:`scan_sensor_model`: the last state, the ν and S of the scans with candidates (for
+    :func:`stacked_innovation`) and every scan's Association."""
+    by_name = sensors_by_name(sensors)
+    used, blocks, records = [], [], []
+    for scan in scans:
+        sensor, model = scan_sensor_model(estimator, scan, by_name, layout, linear)
+        state, nu, S, record = step(state, scan, sensor, model)
+        records.append(record)
+        if scan.size:
+            used.append(nu)
+            blocks.append(S)
+    return state, used, blocks, records
+
+
+def summed_loglik(records: Sequence[Association], M: int) -> np.ndarray:
+    """ℓ = Σ ln Λ (M,) over a step's Associations, a scan impossible under the model (ln Λ = −∞) counting as no
+    measurement (0)."""
+    loglik = np.zeros(M)
+    for record in records:
+        loglik = loglik + np.where(np.isfinite(record.loglik), record.loglik, 0.0)
+    return loglik
 
 
 def sensors_by_name(sensors: Sensor | Sequence[Sensor]) -> dict:
@@ -338,14 +386,15 @@ def stacked_innovation(M: int, used: Sequence[np.ndarray], blocks: Sequence[np.n
     return nu, S, loglik, nis
 
 
-def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Sequence[str]):
-    """(sensor, its cached SensorModel) for a clutter scan, checked: the sensor is among those given, linear, with
-    a measurement-independent R, of the scan's dimension, and the candidates within the filter's arithmetic."""
+def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Sequence[str], linear: bool = True):
+    """(sensor, its cached SensorModel) for a clutter scan, checked: the sensor is among those given, linear (unless
+    ``linear`` is False), with a measurement-independent R, of the scan's dimension, and the candidates within the
+    filter's arithmetic."""
     sensor = by_name.get(scan.sensor)
     if sensor is None:
         raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
-    model = estimator._assembler.sensor_model(sensor, tuple(layout))
-    if model.H is None:
+    model = estimator.assembler.sensor_model(sensor, tuple(layout))
+    if linear and model.H is None:
         raise ValueError(f"sensors: {estimator.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
     if type(sensor).measurement_noise is not Sensor.measurement_noise:
         raise ValueError(f"sensors: {estimator.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
@@ -355,11 +404,9 @@ def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Seq
     return sensor, model
 
 
-def _as_scans(z, rows: bool = False):
+def as_scans(z, rows: bool = False):
     """z as a list of Scans, or None for a stacked measurement array; with ``rows`` RowScans are accepted too
     (nearest neighbour and PDA), else a RowScan is a TypeError naming the estimators that take it."""
-    from hybridtrack.sdk.scans import RowScan, Scan
-
     items = [z] if isinstance(z, (Scan, RowScan)) else z
     if isinstance(items, (list, tuple)) and items and all(isinstance(s, (Scan, RowScan)) for s in items):
         if not rows and any(isinstance(s, RowScan) for s in items):

@@ -24,12 +24,6 @@ def to_information(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return Y, cholesky_solve(L, x)
 
 
-def to_covariance(Y: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(x, P) = (I⁻¹ s, I⁻¹)."""
-    P, L = spd_inverse(Y, "information matrix I")
-    return cholesky_solve(L, s), P
-
-
 def innovation_information(H: np.ndarray, R: np.ndarray, nu: np.ndarray):
     """One node's contribution (seed 000 eqs. 18–19) formed about the prediction x⁻.
 

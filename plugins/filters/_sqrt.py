@@ -45,9 +45,6 @@ def _scalar_scores(nu_i, a_i):
     return -0.5 * (LOG_2PI + np.log(a_i) + nu_i * nu_i / a_i), nu_i * nu_i / a_i
 
 
-# ----------------------------------------------------------------------- Potter
-
-
 def potter_predict(x, S, F, B, W):
     """x⁻ = F x + B; S⁻ lower triangular with S⁻S⁻ᵀ = F S Sᵀ Fᵀ + W Wᵀ, from QR of [(F S)ᵀ; Wᵀ]."""
     x_pred = np.einsum("mij,mj->mi", F, x) + B
@@ -82,9 +79,6 @@ def potter_update(x, S, H, nu, R):
         loglik = loglik + li
         nis = nis + ni
     return x, S, loglik, nis
-
-
-# ----------------------------------------------------------------------- Bierman UD
 
 
 def ud_factor(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -175,22 +169,26 @@ def bierman_update(x, U, d, H, nu, R):
     return x, U, d, loglik, nis
 
 
-# ----------------------------------------------------------------------- SRIF
-
-
 def srif_from_moments(x, P):
     """R with RᵀR = P⁻¹ (R = L⁻¹ for P = L Lᵀ, lower triangular) and ζ = R x."""
-    L = cholesky(P, "covariance P")
-    eye = np.broadcast_to(np.eye(P.shape[-1]), P.shape)
-    return forward_substitute(L, eye), forward_substitute(L, x[..., None])[..., 0]
+    return _from_root(cholesky(P, "covariance P"), x)
+
+
+def _from_root(L, x):
+    """R = L⁻¹ and ζ = R x by forward substitution, L lower triangular."""
+    return forward_substitute(L, np.broadcast_to(np.eye(L.shape[-1]), L.shape)), forward_substitute(L, x[..., None])[..., 0]
+
+
+def _to_root(Rinfo, zeta):
+    """S = R⁻¹ (P = S Sᵀ) and x = R⁻¹ζ by solves with R (no inverse)."""
+    S = np.linalg.solve(Rinfo, np.broadcast_to(np.eye(Rinfo.shape[-1]), Rinfo.shape))
+    return S, np.linalg.solve(Rinfo, zeta[..., None])[..., 0]
 
 
 def srif_moments(Rinfo, zeta):
     """x = R⁻¹ζ and P = R⁻¹R⁻ᵀ by solves with R (no inverse)."""
-    n = Rinfo.shape[-1]
-    Sq = np.linalg.solve(Rinfo, np.broadcast_to(np.eye(n), Rinfo.shape))
-    x = np.linalg.solve(Rinfo, zeta[..., None])[..., 0]
-    return x, Sq @ np.swapaxes(Sq, -1, -2)
+    S, x = _to_root(Rinfo, zeta)
+    return x, S @ np.swapaxes(S, -1, -2)
 
 
 def srif_predict(Rinfo, zeta, F, B, W):
@@ -211,22 +209,9 @@ def srif_predict(Rinfo, zeta, F, B, W):
         bottom = np.concatenate([-Rd @ W, Rd, (zeta + np.einsum("...ij,...j->...i", Rd, B))[..., None]], axis=-1)
         T = triangular_r(np.concatenate([top, bottom], axis=-2))
         return T[..., r:, r : r + n], T[..., r:, r + n]
-    eye = np.broadcast_to(np.eye(n), Rinfo.shape)
-    S = np.linalg.solve(Rinfo, eye)
-    x = np.linalg.solve(Rinfo, zeta[..., None])[..., 0]
+    S, x = _to_root(Rinfo, zeta)
     x_pred, S_pred = potter_predict(x, S, F, B, W)
-    return forward_substitute(S_pred, np.broadcast_to(np.eye(n), S_pred.shape)), forward_substitute(S_pred, x_pred[..., None])[..., 0]
-
-
-def srif_rows(H, nu, R, x_lin):
-    """Whitened measurement rows [H̃, z̃] with z̃ = L_R⁻¹(ν + H x_lin) (= L_R⁻¹ z for a linear sensor).
-
-    ν is the innovation at the linearization point x_lin (x⁻), so the rows hold
-    the linearized measurement z ≈ h(x⁻) + H (x − x⁻).  Returns (H̃, z̃, ln det R).
-    """
-    Ht, nut, log_det_R = whiten(H, nu, R)
-    zt = nut + np.einsum("...ij,...j->...i", Ht, x_lin)
-    return Ht, zt, log_det_R
+    return _from_root(S_pred, x_pred)
 
 
 def srif_update(Rinfo, zeta, rows):

@@ -16,13 +16,13 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
 from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
 
 @attrs.frozen(eq=False)
-class UDState:
+class UDState(CovarianceMoments):
     """x (M, n), U (M, n, n) unit upper triangular, d (M, n): P = U diag(d) Uᵀ; and the last prediction."""
 
     x: np.ndarray = bank_field(0)
@@ -34,19 +34,11 @@ class UDState:
     innovation: Innovation | None = None
 
     @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
+    def P(self) -> np.ndarray:
         return _sqrt.ud_covariance(self.U, self.d)
 
     @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
+    def P_predicted(self) -> np.ndarray:
         return _sqrt.ud_covariance(self.U_predicted, self.d_predicted)
 
 

@@ -25,7 +25,6 @@ this filter equals exactly (Rao & Durrant-Whyte 1991).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from functools import cached_property
 
 import attrs
 import numpy as np
@@ -37,26 +36,24 @@ from hybridtrack_plugins.filters import _information as info
 from hybridtrack_plugins.filters.information import information_predict, stacked_innovation
 
 
-@attrs.frozen(eq=False, slots=False)
+@attrs.frozen(eq=False)
 class DecentralizedState(NodeMoments):
-    """Per-node information states: I (N, M, n, n), s (N, M, n); x⁻, P⁻ (N, M, …)."""
+    """Per-node information states: I (N, M, n, n), s (N, M, n); x⁻, P⁻ and the moments (x, P) (N, M, …)."""
 
     Y: np.ndarray = bank_field(1)
     s: np.ndarray = bank_field(1)
     x_predicted: np.ndarray = bank_field(1)
     P_predicted: np.ndarray = bank_field(1)
+    moments: tuple = bank_field(1)
     innovation: Innovation | None = None
     node_nis: np.ndarray | None = None
     node_loglik: np.ndarray | None = None
-    moments: tuple | None = bank_field(1, default=None)
+    #: the fields holding a copy per node (axis 0)
+    node_fields = ("Y", "s", "x_predicted", "P_predicted", "moments")
 
     @property
     def nodes(self) -> int:
         return self.Y.shape[0]
-
-    @cached_property
-    def _moments(self):
-        return self.moments if self.moments is not None else info.to_covariance(self.Y, self.s)
 
     @property
     def predicted_mean(self) -> np.ndarray:
@@ -67,14 +64,26 @@ class DecentralizedState(NodeMoments):
         return self.P_predicted[0]
 
 
-class DecentralizedFilter(BankEstimator):
-    """Decentralized information KF (Algorithm 2 of seed 000): N nodes = the sensors given to ``update``.
+def replicate(state, N: int):
+    """The state with node 0's copy of every field of ``state.node_fields`` repeated to N nodes (axis 0)."""
+
+    def rep(a):
+        return tuple(rep(v) for v in a) if isinstance(a, tuple) else np.repeat(a[:1], N, axis=0)
+
+    return attrs.evolve(state, **{name: rep(getattr(state, name)) for name in state.node_fields})
+
+
+def node_rows(a: np.ndarray, N: int) -> np.ndarray:
+    """A per-filter array (M, …) repeated for the N nodes as rows (N M, …)."""
+    return np.broadcast_to(a, (N,) + a.shape).reshape((N * a.shape[0],) + a.shape[1:])
+
+
+class NodeBank(BankEstimator):
+    """A bank holding a copy of every filter per node; the nodes are the sensors given to ``update``.
 
     ``nodes``: the number of nodes, if known at ``initialize``; otherwise the
     single initial copy is replicated to ``len(sensors)`` nodes at the first update.
     """
-
-    name = "decentralized"
 
     def __init__(self, nodes: int | None = None):
         super().__init__()
@@ -82,66 +91,61 @@ class DecentralizedFilter(BankEstimator):
             raise ValueError(f"nodes: expected a positive integer, got {nodes!r}")
         self.nodes = None if nodes is None else int(nodes)
 
-    def initialize(self, mean, cov) -> DecentralizedState:
-        x, P = self.check_prior(mean, cov)
-        Y, s = info.to_information(x, P)
-        N = self.nodes or 1
-        rep = lambda a: np.broadcast_to(a, (N,) + a.shape).copy()  # noqa: E731
-        return DecentralizedState(rep(Y), rep(s), rep(x), rep(P), moments=(rep(x), rep(P)))
-
     def conform(self, states: list) -> list:
         """A bank started from one prior has one node copy until its first update: replicate it to the others' N."""
         N = max(s.nodes for s in states)
-        return [s if s.nodes == N else self._replicate(s, N) for s in states]
+        return [s if s.nodes == N else replicate(s, N) for s in states]
 
-    def node_scores(self, state: DecentralizedState):
+    def node_scores(self, state):
         if state.node_loglik is None:
             return None
         return state.node_loglik, state.node_nis
+
+    def per_node(self, state, sensors):
+        """(state, sensors) with one node per sensor: a single node copy is replicated, another count is a ValueError."""
+        if isinstance(sensors, Sensor):
+            sensors = (sensors,)
+        if state.nodes != len(sensors):
+            if state.nodes != 1:
+                raise ValueError(f"sensors: expected {state.nodes} sensors (one per node of this decentralized filter), got {len(sensors)}")
+            state = replicate(state, len(sensors))
+        return state, sensors
+
+
+class DecentralizedFilter(NodeBank):
+    """Decentralized information KF (Algorithm 2 of seed 000): N nodes = the sensors given to ``update``."""
+
+    name = "decentralized"
+
+    def initialize(self, mean, cov) -> DecentralizedState:
+        x, P = self.check_prior(mean, cov)
+        Y, s = info.to_information(x, P)
+        return replicate(DecentralizedState(Y[None], s[None], x[None], P[None], (x[None], P[None])), self.nodes or 1)
 
     @guarded
     def predict(self, state: DecentralizedState, transitions: TransitionBank) -> DecentralizedState:
         N, M, n = state.s.shape
         bank = self.check_transitions(transitions, M, n)
-        flat = lambda a: np.broadcast_to(a, (N,) + a.shape).reshape((N * M,) + a.shape[1:])  # noqa: E731
-        x, P = state._moments
-        Y, s, x, P = information_predict(
-            state.Y.reshape(N * M, n, n),
-            state.s.reshape(N * M, n),
-            flat(bank.F),
-            flat(bank.B),
-            flat(bank.Q),
-            (x.reshape(N * M, n), P.reshape(N * M, n, n)),
-            self.check_finite,
-        )
-        shape = lambda a: a.reshape((N, M) + a.shape[1:])  # noqa: E731
-        return DecentralizedState(shape(Y), shape(s), shape(x), shape(P), moments=(shape(x), shape(P)))
-
-    def _replicate(self, state: DecentralizedState, N: int) -> DecentralizedState:
-        rep = lambda a: np.broadcast_to(a[:1], (N,) + a.shape[1:]).copy()  # noqa: E731
-        x, P = state._moments
-        return DecentralizedState(rep(state.Y), rep(state.s), rep(state.x_predicted), rep(state.P_predicted), moments=(rep(x), rep(P)))
+        x, P = state.moments
+        F, B, Q = (node_rows(a, N) for a in (bank.F, bank.B, bank.Q))
+        Y, s, x, P = information_predict(x.reshape(N * M, n), P.reshape(N * M, n, n), F, B, Q, self.check_finite)
+        Y, s, x, P = (a.reshape((N, M) + a.shape[1:]) for a in (Y, s, x, P))
+        return DecentralizedState(Y, s, x, P, (x, P))
 
     @guarded
     def update(self, state: DecentralizedState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        N, M, n = state.s.shape
-        if N != len(sensors):
-            if N != 1:
-                raise ValueError(f"sensors: expected {N} sensors (one per node of this decentralized filter), got {len(sensors)}")
-            state = self._replicate(state, len(sensors))
-            N = len(sensors)
+        state, sensors = self.per_node(state, sensors)
+        M, n = state.s.shape[1:]
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation, node_nis=None, node_loglik=None, moments=state._moments), innovation
+            return attrs.evolve(state, innovation=innovation, node_nis=None, node_loglik=None), innovation
         if step.H is None:
             raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
         # Each node's contribution (eqs. 18–19), formed about the prediction: ν_j = z_j − H_j x⁻.
         # Every node holds the same x⁻ (Algorithm 2 keeps them in step), so node i evaluates the
         # broadcast (ΔI_j, g_j, q_j, ln det R_j) about its own x_i⁻ (N, M, n).
-        x_prior, P_prior = state._moments
+        x_prior, P_prior = state.moments
         dY = g = q = log_det_R = 0.0
         for model, block in zip(step.models, step.blocks):
             nu_j = step.z[:, block] - x_prior @ model.H.T  # (N, M, m_j)
@@ -153,7 +157,7 @@ class DecentralizedFilter(BankEstimator):
         node_loglik, node_nis = info.local_scores(state.Y, Y, g, delta, q, log_det_R, step.dim)
         self.check_finite("update", updated_mean=x_post, node_NIS=node_nis, node_loglik=node_loglik)
         innovation = stacked_innovation(step, x_prior[0], P_prior[0], layout)
-        new = DecentralizedState(Y, s, state.x_predicted, state.P_predicted, innovation, node_nis, node_loglik, (x_post, P_post))
+        new = DecentralizedState(Y, s, state.x_predicted, state.P_predicted, (x_post, P_post), innovation, node_nis, node_loglik)
         return new, innovation
 
 

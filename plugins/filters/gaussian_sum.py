@@ -60,20 +60,22 @@ import numpy as np
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.protocols import Association, ClutterInnovation
-from hybridtrack.core.validation import as_float_array, check_prior, check_prior_mixture
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
+from hybridtrack.core.validation import as_float_array, check_positive, check_positive_int, check_prior, check_prior_mixture
+from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute
 from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalized_weights
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
-    _as_scans,
+    as_scans,
+    candidate_residuals,
     check_gate_probability,
     distances,
     gate_threshold,
-    scan_sensor_model,
-    sensors_by_name,
+    log_half_det_2pi_s,
+    scan_by_scan,
     stacked_innovation,
+    summed_loglik,
 )
 from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 from hybridtrack_plugins.sensors.bearing import check_convention, direction
@@ -94,10 +96,6 @@ class MixtureState:
     predicted_mean: np.ndarray = bank_field(0)
     predicted_covariance: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
-
-    @property
-    def bank_size(self) -> int:
-        return self.x.shape[0]
 
     @property
     def weights(self) -> np.ndarray:
@@ -166,17 +164,14 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         prune_threshold = float(prune_threshold)
         if not (0.0 <= prune_threshold < 1.0):
             raise ValueError(f"prune_threshold: expected a weight in [0, 1), got {prune_threshold!r}")
-        if isinstance(max_components, bool) or not isinstance(max_components, (int, np.integer)) or max_components < 1:
-            raise ValueError(f"max_components: expected an integer ≥ 1, got {max_components!r}")
+        self.max_components = check_positive_int(max_components, "max_components")
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
         self.merge_threshold = merge_threshold
         self.prune_threshold = prune_threshold
-        self.max_components = int(max_components)
         self.form = form
         self.engine = cov_form.check_engine(engine)
 
-    # ------------------------------------------------------------------ initialize
     def initialize(self, mean, cov) -> MixtureState:
         """One component per filter (weight 1): the EKF's prior."""
         x, P = check_prior(mean, cov)
@@ -186,7 +181,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         """A prior mixture per filter: means (M, C, n), covs (M, C, n, n) positive definite, weights (M, C) ≥ 0
         (each row with a positive sum; renormalised; zero weights are empty slots)."""
         means, covs, weights, total = check_prior_mixture(means, covs, weights)
-        M, C, n = means.shape
         with np.errstate(divide="ignore"):
             log_weights = np.log(weights / total[:, None])
         x, P, log_weights = _compact(means, covs, log_weights)
@@ -207,16 +201,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
             if pad:
                 x = np.concatenate([s.x, np.repeat(s.x[:, :1], pad, axis=1)], axis=1)
                 P = np.concatenate([s.P, np.repeat(s.P[:, :1], pad, axis=1)], axis=1)
-                lw = np.concatenate([s.log_weights, np.full((s.bank_size, pad), -np.inf)], axis=1)
+                lw = np.concatenate([s.log_weights, np.full((s.x.shape[0], pad), -np.inf)], axis=1)
                 s = attrs.evolve(s, x=x, P=P, log_weights=lw)
             out.append(s)
         return out
 
-    def components(self, state: MixtureState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(x (M, C, n), P (M, C, n, n), w (M, C)) of the mixture (w = 0 in empty slots)."""
-        return state.x, state.P, state.weights
-
-    # ------------------------------------------------------------------ predict
     @guarded
     def predict(self, state: MixtureState, transitions) -> MixtureState:
         """Every component predicted as an EKF; a linearizing callable is evaluated at each component mean."""
@@ -233,12 +222,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
         return self._state(x, P, state.log_weights, predicted=None)
 
-    # ------------------------------------------------------------------ update
     @guarded
     def update(self, state: MixtureState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         """Component-wise EKF updates, Bayes weights in log space, then pruning and merging (module docstring)."""
         M, C, n = state.x.shape
-        scans = _as_scans(z)
+        scans = as_scans(z)
         if scans is not None or (isinstance(z, (list, tuple)) and len(z) == 0):
             return self._update_scans(state, scans or [], sensors, layout)
         z = np.asarray(z, dtype=float)
@@ -246,7 +234,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         found = self.linearize(state.x.reshape(M * C, n), z_rows, sensors, layout)
         predicted = (state.predicted_mean, state.predicted_covariance)
         if found is None:
-            innovation = Innovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M))
+            innovation = empty_innovation(M)
             return attrs.evolve(state, innovation=innovation), innovation
         step, nu, H = found
         m = nu.shape[-1]
@@ -267,32 +255,22 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         self.check_finite("update", updated_mean=x, updated_covariance=P)
         return self._state(x, P, log_weights, predicted, innovation), innovation
 
-    # ------------------------------------------------------------------ update in clutter
     def _update_scans(self, state: MixtureState, scans: list, sensors, layout):
         """Branch every component on each scan (missed + one child per gated candidate), then reduce (module docstring)."""
-        M, C, n = state.x.shape
+        M, _, n = state.x.shape
         check_layout(layout, n)
-        by_name = sensors_by_name(sensors)
-        x, P, log_weights = state.x, state.P, state.log_weights
-        loglik = np.zeros(M)
-        used, blocks, records = [], [], []
-        for scan in scans:
-            sensor, model = scan_sensor_model(self, scan, by_name, layout)
-            x, P, log_weights, scan_loglik, record, combined, S = self._branch(x, P, log_weights, scan, sensor, model)
-            x, P, log_weights = self.reduce(x, P, log_weights)
-            records.append(record)
-            loglik = loglik + np.where(np.isfinite(scan_loglik), scan_loglik, 0.0)
-            if scan.size:
-                used.append(combined)
-                blocks.append(S)
+        mixture = (state.x, state.P, state.log_weights)
+        (x, P, log_weights), used, blocks, records = scan_by_scan(self, mixture, scans, sensors, layout, self._branch)
         nu, S, _, nis = stacked_innovation(M, used, blocks, factored=True)
-        innovation = ClutterInnovation(nu, S, loglik, nis, tuple(records))
+        innovation = ClutterInnovation(nu, S, summed_loglik(records, M), nis, tuple(records))
         self.check_finite("update", updated_mean=x, updated_covariance=P)
         predicted = (state.predicted_mean, state.predicted_covariance)
         return self._state(x, P, log_weights, predicted, innovation), innovation
 
-    def _branch(self, x, P, log_weights, scan, sensor, model):
-        """Children of one scan: x (M, C(1+L), n), P, ln w (normalised), ln Λ (M,), the Association, combined ν, S."""
+    def _branch(self, mixture, scan, sensor, model):
+        """One scan: the children x (M, C(1+L), n), P, ln w (normalised) of the mixture (x, P, ln w), reduced;
+        the combined ν, S and the Association (ln Λ (M,) its ``loglik``)."""
+        x, P, log_weights = mixture
         M, C, n = x.shape
         L, m = scan.z.shape
         P_D, lam = self.detection_probability, self.clutter_density
@@ -302,13 +280,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         z_pred = flat_x @ H.T  # (MC, m)
         # the Kalman update of every component (ν = 0 gives the gain and P⁺; the children add K ν_cr)
         _, P_new, S_c, chol_c, K = cov_form.update(flat_x, flat_P, np.zeros((M * C, m)), H, R, model.selection, self.form)
-        cand = np.broadcast_to(scan.z[None], (M * C, L, m))
-        pred = np.broadcast_to(z_pred[:, None, :], (M * C, L, m))
-        nu = cand - pred if model.plain_residual else np.asarray(sensor.residual(cand, pred))  # (MC, L, m)
+        nu = np.asarray(candidate_residuals(z_pred, scan.z, sensor, model))  # (MC, L, m)
         d2 = distances(nu, chol_c)  # (MC, L)
         gamma = gate_threshold(self.gate_probability, m)
         gated = d2 <= gamma
-        half = 0.5 * (m * math.log(2 * math.pi) + 2.0 * np.log(np.diagonal(chol_c, axis1=-2, axis2=-1)).sum(axis=-1))  # ln √|2πS_c|
+        half = log_half_det_2pi_s(chol_c)  # ln √|2πS_c|
         with np.errstate(divide="ignore"):
             log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
@@ -330,9 +306,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         z_hat, S = moment_match(np.exp(log_weights), z_pred.reshape(M, C, m), S_c.reshape(M, C, m, m))
         posterior = np.exp(joint)  # (M, C, 1 + L)
         beta0, beta = posterior[:, :, 0].sum(axis=1), posterior[:, :, 1:].sum(axis=1)
-        cand_r = np.broadcast_to(scan.z[None], (M, L, m))
-        pred_r = np.broadcast_to(z_hat[:, None, :], (M, L, m))
-        nu_r = cand_r - pred_r if model.plain_residual else np.asarray(sensor.residual(cand_r, pred_r))
+        nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
         chol_S = cholesky(S, "innovation covariance S")
         d2_mix = distances(nu_r, chol_S)
         combined = np.einsum("ml,mli->mi", beta, nu_r)
@@ -340,17 +314,9 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         record = Association(
             sensor.name, scan.z, z_hat, S, gamma, d2_mix, gated.reshape(M, C, L).any(axis=1), beta, beta0, selected, loglik
         )
-        return (
-            x_children.reshape(M, C * (1 + L), n),
-            P_children.reshape(M, C * (1 + L), n, n),
-            joint.reshape(M, C * (1 + L)),
-            loglik,
-            record,
-            combined,
-            S,
-        )
+        children = self.reduce(x_children.reshape(M, C * (1 + L), n), P_children.reshape(M, C * (1 + L), n, n), joint.reshape(M, -1))
+        return children, combined, S, record
 
-    # ------------------------------------------------------------------ reduction
     def reduce(self, x, P, log_weights):
         """Prune (w < prune_threshold, the heaviest kept), merge (d² ≤ merge_threshold), cap at max_components,
         renormalise; returns compacted (x, P, ln w)."""
@@ -444,14 +410,11 @@ def range_parameterised(
         "observer_position",
         (M, 2),
     )
-    for name, value in (("sigma_bearing", sigma_bearing), ("speed_sigma", speed_sigma)):
-        if not (math.isfinite(float(value)) and float(value) > 0):
-            raise ValueError(f"{name}: expected a positive finite value, got {value!r}")
+    sigma_bearing, speed_sigma = check_positive(sigma_bearing, "sigma_bearing"), check_positive(speed_sigma, "speed_sigma")
     r_min, r_max = float(r_min), float(r_max)
     if not (math.isfinite(r_min) and math.isfinite(r_max) and 0 < r_min < r_max):
         raise ValueError(f"r_min, r_max: expected 0 < r_min < r_max (finite), got r_min={r_min!r}, r_max={r_max!r}")
-    if isinstance(components, bool) or not isinstance(components, (int, np.integer)) or components < 1:
-        raise ValueError(f"components: expected an integer ≥ 1, got {components!r}")
+    C = check_positive_int(components, "components")
     velocity = as_float_array(velocity, "velocity", (2,))
     layout = tuple(layout)
     missing = [k for k in ("x", "y", "vx", "vy") if k not in layout]
@@ -461,7 +424,6 @@ def range_parameterised(
         raise ValueError(f"layout: range parameterisation sets x, y, vx, vy only, got {layout}")
     n = len(layout)
     ix, iy, ivx, ivy = (layout.index(k) for k in ("x", "y", "vx", "vy"))
-    C = int(components)
     rho = (r_max / r_min) ** (1.0 / C)
     edges = r_min * rho ** np.arange(C + 1)
     r = 0.5 * (edges[:-1] + edges[1:])  # (C,)
@@ -484,9 +446,6 @@ def range_parameterised(
     covs[:, :, ivx, ivx] = covs[:, :, ivy, ivy] = float(speed_sigma) ** 2
     weights = np.full((M, C), 1.0 / C)
     return means, covs, weights
-
-
-GaussianSumFilter.range_parameterised = staticmethod(range_parameterised)
 
 
 @hookimpl

@@ -14,7 +14,6 @@ kept as ``state.nis_information``.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from functools import cached_property
 
 import attrs
 import numpy as np
@@ -27,21 +26,17 @@ from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _information as info
 
 
-@attrs.frozen(eq=False, slots=False)
+@attrs.frozen(eq=False)
 class InformationState(DerivedMoments):
-    """I (M, n, n) and s (M, n), with x⁻, P⁻ of the last prediction."""
+    """I (M, n, n) and s (M, n), with x⁻, P⁻ of the last prediction and the moments (x, P) of I and s."""
 
     Y: np.ndarray = bank_field(0)
     s: np.ndarray = bank_field(0)
     x_predicted: np.ndarray = bank_field(0)
     P_predicted: np.ndarray = bank_field(0)
+    moments: tuple = bank_field(0)
     innovation: Innovation | None = None
     nis_information: np.ndarray | None = None
-    moments: tuple | None = bank_field(0, default=None)  # (x, P) when already known, else computed from (I, s) on demand
-
-    @cached_property
-    def _moments(self):
-        return self.moments if self.moments is not None else info.to_covariance(self.Y, self.s)
 
     @property
     def information(self) -> np.ndarray:
@@ -49,18 +44,15 @@ class InformationState(DerivedMoments):
         return self.Y
 
 
-def information_predict(Y, s, F, B, Q, moments=None, check=None):
-    """(I⁻, s⁻, x⁻, P⁻) from (I⁺, s⁺) through the covariance prediction (seed 000 eqs. 16–17).
+def information_predict(x, P, F, B, Q, check):
+    """(I⁻, s⁻, x⁻, P⁻) from the moments (x⁺, P⁺) of (I⁺, s⁺) through the covariance prediction (seed 000 eqs. 16–17).
 
-    ``moments``: (x⁺, P⁺) when the state already holds them (then x⁺ is not
-    recovered from s⁺ = I⁺x⁺ by a solve, whose error grows with |x|).  ``check``:
-    called as ``check("predict", predicted_mean=x⁻, predicted_covariance=P⁻)``
-    before P⁻ is inverted (e.g. :meth:`BankEstimator.check_finite`).
+    The state holds x⁺ (never recovered from s⁺ = I⁺x⁺ by a solve, whose error
+    grows with |x|).  ``check`` is called as ``check("predict", predicted_mean=x⁻,
+    predicted_covariance=P⁻)`` before P⁻ is inverted (:meth:`BankEstimator.check_finite`).
     """
-    x, P = info.to_covariance(Y, s) if moments is None else moments
     x_pred, P_pred = cov_form.predict(x, P, F, B, Q)
-    if check is not None:
-        check("predict", predicted_mean=x_pred, predicted_covariance=P_pred)
+    check("predict", predicted_mean=x_pred, predicted_covariance=P_pred)
     Y_pred, s_pred = info.to_information(x_pred, P_pred)
     return Y_pred, s_pred, x_pred, P_pred
 
@@ -82,14 +74,14 @@ class InformationFilter(BankEstimator):
     def initialize(self, mean, cov) -> InformationState:
         x, P = self.check_prior(mean, cov)
         Y, s = info.to_information(x, P)
-        return InformationState(Y, s, x, P, moments=(x, P))
+        return InformationState(Y, s, x, P, (x, P))
 
     @guarded
     def predict(self, state: InformationState, transitions: TransitionBank) -> InformationState:
         M, n = state.s.shape
         bank = self.check_transitions(transitions, M, n)
-        Y, s, x, P = information_predict(state.Y, state.s, bank.F, bank.B, bank.Q, state._moments, self.check_finite)
-        return InformationState(Y, s, x, P, moments=(x, P))
+        Y, s, x, P = information_predict(*state.moments, bank.F, bank.B, bank.Q, self.check_finite)
+        return InformationState(Y, s, x, P, (x, P))
 
     @guarded
     def update(self, state: InformationState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
@@ -97,7 +89,7 @@ class InformationFilter(BankEstimator):
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation, nis_information=None, moments=state._moments), innovation
+            return attrs.evolve(state, innovation=innovation, nis_information=None), innovation
         if step.H is None:
             raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
         x_prior, P_prior = state.mean, state.covariance  # the prior of this update
@@ -106,7 +98,7 @@ class InformationFilter(BankEstimator):
         Y, s, x_post, P_post, delta = info.assimilate(x_prior, state.Y, dY, g)
         self.check_finite("update", updated_mean=x_post)
         _, nis_local = info.local_scores(state.Y, Y, g, delta, q, log_det_R, step.dim)
-        new = InformationState(Y, s, state.x_predicted, state.P_predicted, innovation, nis_local, (x_post, P_post))
+        new = InformationState(Y, s, state.x_predicted, state.P_predicted, (x_post, P_post), innovation, nis_local)
         return new, innovation
 
 

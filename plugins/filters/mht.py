@@ -43,33 +43,18 @@ has score −∞ and every hypothesis is the Kalman filter.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.protocols import Association, ClutterInnovation
-from hybridtrack.core.validation import check_positive_int
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.core.validation import check_positive, check_positive_int
+from hybridtrack.sdk.estimation import bank_field
 from hybridtrack.sdk.mixtures import normalized_weights
 from hybridtrack.sdk.scans import check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import (
-    _as_scans,
-    candidate_residuals,
-    check_gate_probability,
-    check_innovation_covariance,
-    distances,
-    gate_threshold,
-    innovation_covariance,
-    log_half_det_2pi_s,
-    predict_measurement,
-    scan_sensor_model,
-    sensors_by_name,
-    stacked_innovation,
-)
+from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, stacked_innovation
 from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 
 #: history entry of a scan not yet seen (the root hypothesis); −1 is "missed", i ≥ 0 candidate i
@@ -129,12 +114,7 @@ class MHTInnovation(ClutterInnovation):
     probabilities: np.ndarray | None = None
 
 
-def _rows(A: np.ndarray, M: int, H: int) -> np.ndarray:
-    """A per-filter stack (M, …) repeated for the H hypotheses of each filter → (M H, …); shared arrays as they are."""
-    return np.repeat(A, H, axis=0) if A.ndim == 3 else A
-
-
-class MHTFilter(RecordsFilterStates, BankEstimator):
+class MHTFilter(RecordsFilterStates, ScanEstimator):
     """Track-oriented MHT over a bank (module docstring).
 
     ``detection_probability`` P_D in (0, 1], ``clutter_density`` λ > 0,
@@ -144,9 +124,6 @@ class MHTFilter(RecordsFilterStates, BankEstimator):
     """
 
     name = "mht"
-    exact_kalman = False
-    accepts_scans = True
-
     example_parameters = {"detection_probability": 0.9, "clutter_density": 0.01, "gate_probability": 0.99, "window": 2, "max_hypotheses": 4}
 
     def __init__(
@@ -158,26 +135,18 @@ class MHTFilter(RecordsFilterStates, BankEstimator):
         max_hypotheses: int = 10,
         form: str = "joseph",
     ):
-        super().__init__()
-        if form not in cov_form.UPDATE_FORMS:
-            raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
+        super().__init__(gate_probability, form)
         self.detection_probability = check_detection_probability(detection_probability)
-        lam = float(clutter_density)
-        if not (math.isfinite(lam) and lam > 0.0):
-            raise ValueError(f"clutter_density: expected a finite λ > 0 (the score has ln(P_D/λ)), got {clutter_density!r}")
-        self.clutter_density = lam
-        self.gate_probability = check_gate_probability(gate_probability)
+        self.clutter_density = check_positive(clutter_density, "clutter_density", what="λ; the score has ln(P_D/λ)")
         self.window = check_positive_int(window, "window", what="the N of N-scan pruning")
         self.max_hypotheses = check_positive_int(max_hypotheses, "max_hypotheses", what="the cap on hypotheses per filter")
-        self.form = form
         P_G = 1.0 if self.gate_probability is None else self.gate_probability
         miss = 1.0 - self.detection_probability * P_G
         #: ln(1 − P_D P_G), −∞ when a miss is impossible (P_D = 1, no gate)
         self.log_miss = math.log(miss) if miss > 0 else -math.inf
         #: ln(P_D / λ)
-        self.log_detect = math.log(self.detection_probability) - math.log(lam)
+        self.log_detect = math.log(self.detection_probability) - math.log(self.clutter_density)
 
-    # ------------------------------------------------------------------ the Estimator API
     def initialize(self, mean, cov) -> MHTState:
         x, P = self.check_prior(mean, cov)
         M, n = x.shape
@@ -189,69 +158,15 @@ class MHTFilter(RecordsFilterStates, BankEstimator):
         history = np.full((M, H, N), _NO_SCAN, dtype=np.int64)
         return MHTState(xs, Ps, xs, Ps, scores, history, None)
 
-    @guarded
-    def predict(self, state: MHTState, transitions) -> MHTState:
-        M, H, n = state.x.shape
-        bank = self.check_transitions(transitions, M, n, state.x[:, 0])
-        F, B, Q = (np.repeat(A, H, axis=0) for A in (bank.F, bank.B, bank.Q))
-        x, P = cov_form.predict(state.x.reshape(M * H, n), state.P.reshape(M * H, n, n), F, B, Q)
-        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        x, P = x.reshape(M, H, n), P.reshape(M, H, n, n)
-        return MHTState(x, P, x, P, state.scores, state.history, None)
-
-    @guarded
-    def update(self, state: MHTState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        M, H, n = state.x.shape
-        check_layout(layout, n)
-        scans = _as_scans(z)
-        current = state
-        if scans is None:
-            step = self.measurement_step(z, sensors, layout, M, n)
-            if step is None:
-                innovation = empty_innovation(M)
-                return attrs.evolve(state, innovation=innovation), innovation
-            if step.H is None:
-                names = [m.sensor.name for m in step.models if m.H is None]
-                raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {names} are nonlinear")
-            if step.z.shape[0] > 1:
-                step = step.with_z(np.repeat(step.z, H, axis=0))
-            z_pred, Hm = step.predicted(state.x.reshape(M * H, n), layout)
-            nu = step.residual(z_pred)[:, None, :]
-            name = "+".join(m.sensor.name for m in step.models)
-            R = _rows(np.asarray(step.R), M, H)
-            current, record, nu_best, S_best = self._branch(current, nu, Hm, R, step.selection, name, step.z, z_pred)
-            return self._finish(current, [nu_best], [S_best], [record])
-        by_name = sensors_by_name(sensors)
-        used, blocks, records = [], [], []
-        for scan in scans:
-            sensor, model = scan_sensor_model(self, scan, by_name, layout)
-            x = current.x.reshape(M * H, n)
-            z_pred = predict_measurement(x, model)
-            nu = candidate_residuals(z_pred, scan.z, sensor, model)
-            current, record, nu_best, S_best = self._branch(
-                current, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred
-            )
-            records.append(record)
-            if scan.size:
-                used.append(nu_best)
-                blocks.append(S_best)
-        return self._finish(current, used, blocks, records)
-
-    # ------------------------------------------------------------------ pieces
-    def _branch(self, state: MHTState, nu, Hm, R, selection, sensor_name, candidates, z_pred):
+    def associate_scan(self, state: MHTState, nu, Hm, R, selection, sensor_name, candidates, z_pred):
         """One scan: every hypothesis branches (missed, each gated candidate), scored, N-scan rule, cap.
 
-        ν (M H, L, m) → the new state, the Association, the best hypothesis's ν (M, m) and S (M, m, m).
+        ν (M H, L, m) → the new state, the best hypothesis's ν (M, m) and S (M, m, m), the Association.
         """
         M, H, n = state.x.shape
         L, N = nu.shape[1], self.window
         x, P = state.x.reshape(M * H, n), state.P.reshape(M * H, n, n)
-        S = innovation_covariance(P, Hm, R, selection)
-        chol = check_innovation_covariance(S)
-        gamma = gate_threshold(self.gate_probability, S.shape[-1])
-        d2 = distances(nu, chol)
-        self.check_finite("update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2)
-        gated = d2 <= gamma
+        S, chol, gamma, d2, gated = self.gate(nu, P, Hm, R, selection)
         ell = -0.5 * d2 - log_half_det_2pi_s(chol)[:, None]  # ℓ_hi (M H, L)
         # child scores (M, H, 1 + L): column 0 missed, column 1 + i candidate i
         parent = state.scores[:, :, None]
@@ -300,7 +215,7 @@ class MHTFilter(RecordsFilterStates, BankEstimator):
         record = Association(
             sensor_name, np.asarray(candidates), zp, S[best], gamma, d2[best], gated[best], weights, missed, selected, loglik
         )
-        return new, record, nu_sel.reshape(M, H, -1)[:, 0], S[best]
+        return new, nu_sel.reshape(M, H, -1)[:, 0], S[best], record
 
     def _select(self, scores: np.ndarray, history: np.ndarray):
         """Per filter: children sorted by score; of those with equal last-N histories the best only; the first H.
@@ -329,7 +244,7 @@ class MHTFilter(RecordsFilterStates, BankEstimator):
         kept = np.where(valid, np.take_along_axis(s, first, axis=1), -np.inf)
         return chosen, kept
 
-    def _finish(self, state: MHTState, used, blocks, records):
+    def finish(self, state: MHTState, used, blocks, records):
         nu, S, loglik, nis = stacked_innovation(state.x.shape[0], used, blocks)
         innovation = MHTInnovation(nu, S, loglik, nis, tuple(records), state.scores, state.probabilities)
         return attrs.evolve(state, innovation=innovation), innovation

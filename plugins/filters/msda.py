@@ -44,34 +44,17 @@ weights, ℓ of the chosen candidate).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import attrs
 import numpy as np
 import pywt
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_positive_int
-from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.estimation import CovarianceMoments, bank_field
 from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import (
-    _as_scans,
-    candidate_residuals,
-    check_gate_probability,
-    check_innovation_covariance,
-    distances,
-    gate_threshold,
-    innovation_covariance,
-    log_half_det_2pi_s,
-    nearest,
-    predict_measurement,
-    scan_sensor_model,
-    sensors_by_name,
-    stacked_innovation,
-)
+from hybridtrack_plugins.filters._association import ScanEstimator, nearest_weights, pad_axis
 
 #: the extension mode of the transform: length-preserving and orthogonal
 MODE = "periodization"
@@ -94,33 +77,22 @@ class MSDAState(CovarianceMoments):
 
 
 def _widen(state: MSDAState, m: int) -> MSDAState:
-    mb = state.residuals.shape[2]
-    if m <= mb:
-        return state
-    M, N, _ = state.residuals.shape
-    n = state.H.shape[3]
-    residuals = np.concatenate([state.residuals, np.zeros((M, N, m - mb))], axis=2)
-    H = np.concatenate([state.H, np.zeros((M, N, m - mb, n))], axis=2)
-    return attrs.evolve(state, residuals=residuals, H=H)
+    """The window's slots padded to at least m residual components."""
+    return attrs.evolve(state, residuals=pad_axis(state.residuals, 2, m, 0.0), H=pad_axis(state.H, 2, m, 0.0))
 
 
-class MSDAFilter(BankEstimator):
+class MSDAFilter(ScanEstimator):
     """MSDA over a bank (module docstring): ``gate_probability`` P_G in (0, 1) or ``None`` (no gate),
     ``window`` N ≥ 1 scans, ``wavelet`` a discrete PyWavelets name (default ``"haar"``), ``level`` J
     (None: the deepest for N; 0: no transform, NN), ``form`` the covariance update form."""
 
     name = "msda"
-    exact_kalman = False
-    accepts_scans = True
     example_parameters = {"gate_probability": 0.99, "window": 1}
 
     def __init__(
         self, gate_probability: float | None = 0.99, window: int = 2, wavelet: str = "haar", level: int | None = None, form: str = "joseph"
     ):
-        super().__init__()
-        if form not in cov_form.UPDATE_FORMS:
-            raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
-        self.gate_probability = check_gate_probability(gate_probability)
+        super().__init__(gate_probability, form)
         self.window = check_positive_int(window, "window", what="the number of scans fused")
         if not isinstance(wavelet, str) or wavelet not in pywt.wavelist(kind="discrete"):
             raise ValueError(f"wavelet: expected a discrete wavelet name of PyWavelets (e.g. 'haar', 'db2'), got {wavelet!r}")
@@ -133,9 +105,7 @@ class MSDAFilter(BankEstimator):
                 f"level: expected an integer in 0 … {deepest} (the deepest {wavelet!r} level for window {self.window}), got {level!r}"
             )
         self.level = int(level)
-        self.form = form
 
-    # ------------------------------------------------------------------ the Estimator API
     def initialize(self, mean, cov) -> MSDAState:
         x, P = self.check_prior(mean, cov)
         M, n = x.shape
@@ -147,75 +117,23 @@ class MSDAFilter(BankEstimator):
         m = max(s.residuals.shape[2] for s in states)
         return [_widen(s, m) for s in states]
 
-    @guarded
-    def predict(self, state: MSDAState, transitions) -> MSDAState:
-        M, n = state.x.shape
-        bank = self.check_transitions(transitions, M, n, state.x)
-        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
-        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        return attrs.evolve(state, x=x, P=P, x_predicted=x, P_predicted=P, innovation=None)
-
-    @guarded
-    def update(self, state: MSDAState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        M, n = state.x.shape
-        check_layout(layout, n)
-        scans = _as_scans(z)
-        if scans is None:
-            found = self.linearize(state.x, z, sensors, layout)
-            if found is None:
-                innovation = empty_innovation(M)
-                return attrs.evolve(state, innovation=innovation), innovation
-            step, nu, H = found
-            name = "+".join(m.sensor.name for m in step.models)
-            z_pred = np.broadcast_to(step.z, nu.shape) - nu
-            new, nu_used, S, record = self._scan(state, nu[:, None, :], H, step.R, step.selection, name, step.z, z_pred)
-            return self._finish(new, [nu_used], [S], [record])
-        by_name = sensors_by_name(sensors)
-        current = state
-        used, blocks, records = [], [], []
-        for scan in scans:
-            sensor, model = scan_sensor_model(self, scan, by_name, layout)
-            x = current.x
-            z_pred = predict_measurement(x, model)
-            nu = candidate_residuals(z_pred, scan.z, sensor, model)
-            current, nu_used, S, record = self._scan(current, nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred)
-            records.append(record)
-            if scan.size:
-                used.append(nu_used)
-                blocks.append(S)
-        return self._finish(current, used, blocks, records)
-
-    # ------------------------------------------------------------------ pieces
-    def _scan(self, state: MSDAState, nu, H, R, selection, sensor_name, candidates, z_pred):
+    def associate_scan(self, state: MSDAState, nu, H, R, selection, sensor_name, candidates, z_pred):
         """NN choice of one scan, the window slid by one, the fused residual, the Kalman update."""
         x, P = state.x, state.P
         M, n = x.shape
         m = nu.shape[-1]
-        S = innovation_covariance(P, H, R, selection)
-        chol = check_innovation_covariance(S)
-        gamma = gate_threshold(self.gate_probability, m)
-        d2 = distances(nu, chol)
-        self.check_finite("update", innovation_covariance=S, innovation=nu, squared_distances_d2=d2)
-        gated = d2 <= gamma
-        selected = nearest(d2, gated)
-        rows = np.flatnonzero(selected >= 0)
-        beta = np.zeros(d2.shape)
-        beta[rows, selected[rows]] = 1.0
-        missed = (selected < 0).astype(float)
-        loglik = np.full(M, np.nan)
-        if rows.size:
-            loglik[rows] = -0.5 * d2[rows, selected[rows]] - log_half_det_2pi_s(chol)[rows]
+        S, chol, gamma, d2, gated = self.gate(nu, P, H, R, selection)
+        beta, missed, selected, loglik = nearest_weights(d2, gated, chol)
         record = Association(sensor_name, np.asarray(candidates), z_pred, S, gamma, d2, gated, beta, missed, selected, loglik)
         has = selected >= 0
+        rows = np.flatnonzero(has)
         chosen = np.zeros((M, m))
         chosen[rows] = nu[rows, selected[rows]]
         # the window, newest last: this scan's residual, its H, its dimension (0: nothing gated)
         s = _widen(state, m)
         mb = s.residuals.shape[2]
-        r_new = np.zeros((M, mb))
-        r_new[:, :m] = chosen
-        H_new = np.zeros((M, mb, n))
-        H_new[:, :m] = H
+        r_new = pad_axis(chosen, 1, mb, 0.0)
+        H_new = pad_axis(np.broadcast_to(H, (M, m, n)), 1, mb, 0.0)
         residuals = np.concatenate([s.residuals[:, 1:], r_new[:, None]], axis=1)
         Hw = np.concatenate([s.H[:, 1:], H_new[:, None]], axis=1)
         dims = np.concatenate([s.dims[:, 1:], np.where(has, m, 0)[:, None]], axis=1)
@@ -242,10 +160,6 @@ class MSDAFilter(BankEstimator):
         approximation = [coefficients[0]] + [np.zeros_like(c) for c in coefficients[1:]]
         smooth = pywt.waverec(approximation, self.wavelet, mode=MODE, axis=1)
         return smooth[:, self.window - 1]
-
-    def _finish(self, state: MSDAState, used, blocks, records):
-        innovation = ClutterInnovation(*stacked_innovation(state.x.shape[0], used, blocks), tuple(records))
-        return attrs.evolve(state, innovation=innovation), innovation
 
 
 @hookimpl

@@ -18,10 +18,8 @@ Gating, distances and the shared update are in
 
 from __future__ import annotations
 
-import numpy as np
-
 from hybridtrack import hookimpl
-from hybridtrack_plugins.filters._association import ClutterEstimator, log_half_det_2pi_s, nearest
+from hybridtrack_plugins.filters._association import ClutterEstimator, nearest_weights
 
 
 class NearestNeighbourFilter(ClutterEstimator):
@@ -44,17 +42,7 @@ class NearestNeighbourFilter(ClutterEstimator):
         return self.gate_probability is None
 
     def associate(self, d2, gated, L):
-        M, count = d2.shape
-        selected = nearest(d2, gated)
-        rows = np.flatnonzero(selected >= 0)
-        beta = np.zeros((M, count))
-        beta[rows, selected[rows]] = 1.0
-        missed = (selected < 0).astype(float)
-        loglik = np.full(M, np.nan)
-        if rows.size:
-            # ℓ of the chosen candidate: −½(m ln 2π + ln det S + d²)
-            loglik[rows] = -0.5 * d2[rows, selected[rows]] - log_half_det_2pi_s(L)[rows]
-        return beta, missed, selected, loglik
+        return nearest_weights(d2, gated, L)
 
 
 @hookimpl

@@ -91,18 +91,20 @@ import numpy as np
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.protocols import Association, ClutterInnovation
-from hybridtrack.core.validation import check_magnitude, check_prior_mixture
+from hybridtrack.core.validation import check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.sdk.mixtures import logsumexp
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import (
-    _as_scans,
+    as_scans,
+    candidate_residuals,
     check_gate_probability,
     distances,
     gate_threshold,
-    sensors_by_name,
+    scan_by_scan,
     stacked_innovation,
+    summed_loglik,
 )
 from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 
@@ -190,7 +192,7 @@ class ParticleState(DerivedMoments):
     innovation: Innovation | None = None
 
     @cached_property
-    def _moments(self) -> tuple[np.ndarray, np.ndarray]:
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
         return weighted_moments(self.particles, self.log_weights)
 
     @property
@@ -202,14 +204,6 @@ class ParticleState(DerivedMoments):
     def effective_sample_size(self) -> np.ndarray:
         """N_eff = 1/Σ w² (M,) of the current weights."""
         return effective_sample_size(self.log_weights)
-
-    @property
-    def bank_size(self) -> int:
-        return self.particles.shape[0]
-
-    @property
-    def particle_count(self) -> int:
-        return self.particles.shape[1]
 
 
 def _check_seed(seed) -> np.random.Generator:
@@ -276,7 +270,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         self._seeds = _check_seed(seed)
         self._root_cache: tuple | None = None
 
-    # ------------------------------------------------------------------ random numbers
     @staticmethod
     def _generators(keys: np.ndarray, counters: np.ndarray, stage: int, rows=None):
         """One generator per filter (of ``rows``), seeded by (key, stage, counter): a filter's draws depend on its state only."""
@@ -288,18 +281,12 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
     def _normals(self, state_keys, counters, stage, shape) -> np.ndarray:
         return np.stack([g.standard_normal(shape) for g in self._generators(state_keys, counters, stage)])
 
-    # ------------------------------------------------------------------ initialize
     def initialize(self, mean, cov) -> ParticleState:
         """N particles per filter drawn from N(mean, cov); uniform weights; a fresh stream key per filter."""
         x, P = self.check_prior(mean, cov)
-        M, n = x.shape
-        keys = self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True)
-        counters = np.zeros(M, dtype=np.int64)
-        e = self._normals(keys, counters, _INITIALIZE, (self.particles, n))
-        particles = x[:, None, :] + e @ np.swapaxes(cholesky(P, "cov"), -1, -2)
-        log_weights = np.full((M, self.particles), -math.log(self.particles))
-        mean_, cov_ = weighted_moments(particles, log_weights)
-        return ParticleState(particles, log_weights, keys, counters + 1, mean_, cov_, None)
+        keys, counters = self._new_streams(x.shape[0])
+        e = self._normals(keys, counters, _INITIALIZE, (self.particles, x.shape[1]))
+        return self._initial_state(x[:, None, :] + e @ np.swapaxes(cholesky(P, "cov"), -1, -2), keys)
 
     def initialize_mixture(self, means, covs, weights) -> ParticleState:
         """N particles per filter drawn from a Gaussian mixture Σ_c w_c N(means_c, covs_c) (e.g. the range-parameterised
@@ -312,8 +299,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         means, covs, weights, total = check_prior_mixture(means, covs, weights)
         M, C, n = means.shape
         roots = cholesky(covs, "covs")
-        keys = self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True)
-        counters = np.zeros(M, dtype=np.int64)
+        keys, counters = self._new_streams(M)
         generators = list(self._generators(keys, counters, _INITIALIZE))
         u = np.array([g.random() for g in generators])
         c = np.cumsum(weights / total[:, None], axis=1)
@@ -322,12 +308,18 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         component = np.minimum((points[:, :, None] >= c[:, None, :]).sum(axis=2), C - 1)  # first c with c_c > point
         e = np.stack([g.standard_normal((self.particles, n)) for g in generators])
         rows = np.arange(M)[:, None]
-        particles = means[rows, component] + np.einsum("mkij,mkj->mki", roots[rows, component], e)
-        log_weights = np.full((M, self.particles), -math.log(self.particles))
-        mean_, cov_ = weighted_moments(particles, log_weights)
-        return ParticleState(particles, log_weights, keys, counters + 1, mean_, cov_, None)
+        return self._initial_state(means[rows, component] + np.einsum("mkij,mkj->mki", roots[rows, component], e), keys)
 
-    # ------------------------------------------------------------------ predict
+    def _new_streams(self, M: int) -> tuple[np.ndarray, np.ndarray]:
+        """A fresh stream key (M, 2) per filter from ``seed``, and the step counters at 0."""
+        return self._seeds.integers(0, np.iinfo(np.uint64).max, size=(M, 2), dtype=np.uint64, endpoint=True), np.zeros(M, dtype=np.int64)
+
+    def _initial_state(self, particles: np.ndarray, keys: np.ndarray) -> ParticleState:
+        """The state of freshly drawn particles (M, N, n): uniform weights 1/N, the counters past the draw."""
+        log_weights = np.full(particles.shape[:2], -math.log(self.particles))
+        mean, cov = weighted_moments(particles, log_weights)
+        return ParticleState(particles, log_weights, keys, np.ones(len(keys), dtype=np.int64), mean, cov, None)
+
     def _noise_root(self, bank: TransitionBank) -> np.ndarray:
         """W (K, n, r) with W Wᵀ = G Q Gᵀ: the bank's ``noise_root``, else the PSD square root of Q (cached per bank)."""
         if bank.noise_root is not None:
@@ -345,17 +337,15 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         if not isinstance(state, ParticleState):
             raise TypeError(f"state: expected a ParticleState (from initialize), got {type(state).__name__}")
         M, N, n = state.particles.shape
-        if callable(transitions) and not isinstance(transitions, TransitionBank):
-            flat = state.particles.reshape(M * N, n)
-            bank = self.check_transitions(transitions, M * N, n, flat)
-            root = self._noise_root(bank)
-            e = self._normals(state.keys, state.counters, _PREDICT, (N, root.shape[-1]))
+        per_particle = callable(transitions) and not isinstance(transitions, TransitionBank)
+        flat = state.particles.reshape(M * N, n)
+        bank = self.check_transitions(transitions, M * N, n, flat) if per_particle else self.check_transitions(transitions, M, n)
+        root = self._noise_root(bank)
+        e = self._normals(state.keys, state.counters, _PREDICT, (N, root.shape[-1]))
+        if per_particle:
             moved = np.einsum("kij,kj->ki", bank.F, flat) + bank.B + np.einsum("kij,kj->ki", root, e.reshape(M * N, -1))
             particles = moved.reshape(M, N, n)
         else:
-            bank = self.check_transitions(transitions, M, n)
-            root = self._noise_root(bank)
-            e = self._normals(state.keys, state.counters, _PREDICT, (N, root.shape[-1]))
             particles = state.particles @ np.swapaxes(bank.F, -1, -2)
             particles += bank.B[:, None, :]
             particles += e @ np.swapaxes(root, -1, -2)
@@ -363,7 +353,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         x, P = weighted_moments(particles, state.log_weights)
         return ParticleState(particles, state.log_weights, state.keys, state.counters + 1, x, P, None)
 
-    # ------------------------------------------------------------------ update
     def _residuals(self, step, particles: np.ndarray, layout) -> np.ndarray:
         """ν⁽ⁱ⁾ = residual(z, h(x⁽ⁱ⁾)) (M, N, m) of the present components, through the step's sensor models."""
         M, N, n = particles.shape
@@ -381,7 +370,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         if not isinstance(state, ParticleState):
             raise TypeError(f"state: expected a ParticleState (from initialize), got {type(state).__name__}")
         M, N, n = state.particles.shape
-        scans = _as_scans(z)
+        scans = as_scans(z)
         if scans is not None or (isinstance(z, (list, tuple)) and len(z) == 0):
             return self._update_scans(state, scans or [], sensors, layout)
         step = self.measurement_step(z, sensors, layout, M, n)
@@ -401,73 +390,49 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         d = nu - nu_mean[:, None, :]
         S = symmetrize(np.swapaxes(d * w_prior[..., None], -1, -2) @ d + R)
         gaussian_loglik, nis = CholeskyFactor(S, "innovation covariance S").scores(nu_mean)
-        ess = effective_sample_size(log_weights)
-        resampled = ess < self.threshold * N
-        particles = state.particles
-        if resampled.any():
-            particles, log_weights = self._resample(state, particles, log_weights, np.flatnonzero(resampled))
-        counters = state.counters + 1
-        innovation = ParticleInnovation(nu_mean, S, loglik, nis, gaussian_loglik, ess, resampled)
-        new = ParticleState(particles, log_weights, state.keys, counters, state.x_predicted, state.P_predicted, innovation)
-        self.check_finite("update", updated_mean=new.mean)
-        return new, innovation
+        return self._resampled(state, log_weights, ParticleInnovation, nu_mean, S, loglik, nis, gaussian_loglik)
 
-    # ------------------------------------------------------------------ update in clutter
     def _update_scans(self, state: ParticleState, scans: list, sensors, layout):
         """w ∝ w⁻ Λ(x) scan after scan, ℓ = Σ ln Λ̂, then N_eff and resampling as in :meth:`update`."""
         M, N, n = state.particles.shape
         check_layout(layout, n)
-        by_name = sensors_by_name(sensors)
         layout = tuple(layout)
-        log_weights = state.log_weights
-        loglik = np.zeros(M)
-        used, blocks, records = [], [], []
-        for scan in scans:
-            sensor, model, R = self._scan_model(scan, by_name, layout)
-            log_weights, scan_loglik, record, combined, S = self._scan_weights(log_weights, state.particles, scan, sensor, model, R, layout)
-            records.append(record)
-            loglik = loglik + np.where(np.isfinite(scan_loglik), scan_loglik, 0.0)  # −∞: impossible under the model, no measurement
-            if scan.size:
-                used.append(combined)
-                blocks.append(S)
+
+        def step(log_weights, scan, sensor, model):
+            return self._scan_weights(log_weights, state.particles, scan, sensor, model, layout)
+
+        log_weights, used, blocks, records = scan_by_scan(self, state.log_weights, scans, sensors, layout, step, linear=False)
         nu, S, gaussian_loglik, nis = stacked_innovation(M, used, blocks, factored=True)
+        loglik = summed_loglik(records, M)
+        return self._resampled(state, log_weights, ParticleClutterInnovation, nu, S, loglik, nis, tuple(records), gaussian_loglik)
+
+    def _resampled(self, state: ParticleState, log_weights, innovation_class, *scores):
+        """The updated state: N_eff of the new weights, systematic resampling where N_eff < threshold · N, and the
+        innovation ``innovation_class(*scores, N_eff, resampled)``."""
+        N = state.particles.shape[1]
         ess = effective_sample_size(log_weights)
         resampled = ess < self.threshold * N
         particles = state.particles
         if resampled.any():
             particles, log_weights = self._resample(state, particles, log_weights, np.flatnonzero(resampled))
-        innovation = ParticleClutterInnovation(nu, S, loglik, nis, tuple(records), gaussian_loglik, ess, resampled)
+        innovation = innovation_class(*scores, ess, resampled)
         new = ParticleState(particles, log_weights, state.keys, state.counters + 1, state.x_predicted, state.P_predicted, innovation)
         self.check_finite("update", updated_mean=new.mean)
         return new, innovation
 
-    def _scan_model(self, scan, by_name: dict, layout: tuple):
-        """(sensor, SensorModel, R) of a scan, checked: a sensor given, of the scan's dimension, R independent of z."""
-        sensor = by_name.get(scan.sensor)
-        if sensor is None:
-            raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
-        if type(sensor).measurement_noise is not Sensor.measurement_noise:
-            raise ValueError(
-                f"sensors: {self.name!r} in clutter needs a measurement-independent R; sensor {sensor.name!r} computes R from z"
-            )
-        model = self._assembler.sensor_model(sensor, layout)
-        if scan.measurement_dim != model.dim:
-            raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
-        check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
-        return sensor, model, np.asarray(sensor.noise_cov, dtype=float)
-
-    def _scan_weights(self, log_weights, particles, scan, sensor, model, R, layout):
-        """One scan: posterior log-weights (M, N), ln Λ̂ (M,), the Association and the combined ν (M, m), S (M, m, m)."""
+    def _scan_weights(self, log_weights, particles, scan, sensor, model, layout):
+        """One scan: posterior log-weights (M, N), the combined ν (M, m), S (M, m, m) and the Association (ln Λ̂ (M,)
+        its ``loglik``)."""
         M, N, n = particles.shape
+        R = np.asarray(sensor.noise_cov, dtype=float)
         L, m = scan.z.shape
         P_D, lam = self.detection_probability, self.clutter_density
         flat = particles.reshape(M * N, n)
         h = model.measure(flat, layout).reshape(M, N, m)
         # the particle prediction of z: ẑ = h(x̄) + Σ w δ, δ = residual(h(x), h(x̄)) (wrapped about the mean for angles)
-        x_bar = np.einsum("mk,mki->mi", np.exp(log_weights), particles)
-        h_bar = model.measure(x_bar, layout)
-        delta = h - h_bar[:, None, :] if model.plain_residual else sensor.residual(h, np.broadcast_to(h_bar[:, None, :], h.shape))
         w = np.exp(log_weights)
+        h_bar = model.measure(np.einsum("mk,mki->mi", w, particles), layout)
+        delta = h - h_bar[:, None, :] if model.plain_residual else sensor.residual(h, np.broadcast_to(h_bar[:, None, :], h.shape))
         delta_mean = np.einsum("mk,mki->mi", w, delta)
         z_hat = h_bar + delta_mean
         d = delta - delta_mean[:, None, :]
@@ -478,9 +443,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
             log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
         gamma = gate_threshold(self.gate_probability, m)
-        cand_r = np.broadcast_to(scan.z[None], (M, L, m))
-        pred_r = np.broadcast_to(z_hat[:, None, :], (M, L, m))
-        nu_r = cand_r - pred_r if model.plain_residual else np.asarray(sensor.residual(cand_r, pred_r))
+        nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
         d2 = distances(nu_r, chol_S)  # (M, L)
         gated = d2 <= gamma
         cols = np.flatnonzero(gated.any(axis=0))  # candidates inside some filter's gate: the only ones evaluated
@@ -489,9 +452,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         beta = np.zeros((M, L))
         if cols.size:
             Lg = cols.size
-            cand = np.broadcast_to(scan.z[cols][None, None, :, :], (M, N, Lg, m))
-            pred = np.broadcast_to(h[:, :, None, :], (M, N, Lg, m))
-            nu_i = cand - pred if model.plain_residual else np.asarray(sensor.residual(cand, pred))
+            nu_i = np.asarray(candidate_residuals(h.reshape(M * N, m), scan.z[cols], sensor, model)).reshape(M, N, Lg, m)
             log_n, _ = CholeskyFactor(R, "measurement noise R").scores(nu_i)  # (M, N, Lg)
             log_detected = np.where(gated[:, None, cols], log_detect + log_n, -np.inf)
             terms = np.concatenate([np.broadcast_to(miss_term[:, None, None], (M, N, 1)), log_detected], axis=2)
@@ -511,7 +472,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         combined = np.einsum("jl,jli->ji", beta, nu_r)
         selected = np.where(any_gated & (beta.sum(axis=1) > 0), np.argmax(beta, axis=1) if L else -1, -1).astype(np.int64)
         record = Association(sensor.name, scan.z, z_hat, S, gamma, d2, gated, beta, beta0, selected, loglik)
-        return new_log_weights, loglik, record, combined, S
+        return new_log_weights, combined, S, record
 
     def _resample(self, state: ParticleState, particles, log_weights, rows: np.ndarray):
         """Systematic resampling of the filters ``rows`` (then weights 1/N), with the regularisation jitter if enabled."""

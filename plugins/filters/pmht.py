@@ -73,31 +73,18 @@ window only for ``window = 1`` or λ = 0.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_positive, check_positive_int
-from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.estimation import CovarianceMoments, bank_field, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import (
-    _as_scans,
-    check_gate_probability,
-    check_innovation_covariance,
-    distances,
-    gate_threshold,
-    innovation_covariance,
-    log_half_det_2pi_s,
-    scan_sensor_model,
-    sensors_by_name,
-    stacked_innovation,
-)
+from hybridtrack_plugins.filters._association import ScanEstimator, gate_threshold, innovation_covariance, log_half_det_2pi_s, pad_axis
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
 MIN_WEIGHT = 1e-9
@@ -146,19 +133,6 @@ class PMHTState(CovarianceMoments):
     log_posterior: np.ndarray = bank_field(0)
     innovation: ClutterInnovation | None = None
 
-    @property
-    def association_weights(self) -> np.ndarray:
-        """w_{T,r} of the newest scan (M, L̄), 0 for padding; for recording."""
-        return self.weights[:, -1]
-
-
-def _pad_axis(a: np.ndarray, axis: int, size: int, value) -> np.ndarray:
-    if a.shape[axis] >= size:
-        return a
-    shape = list(a.shape)
-    shape[axis] = size - a.shape[axis]
-    return np.concatenate([a, np.full(shape, value, dtype=a.dtype)], axis=axis)
-
 
 def _widen(state: PMHTState, m: int, L: int) -> PMHTState:
     """The slots padded to at least m measurement components and L candidates."""
@@ -167,23 +141,28 @@ def _widen(state: PMHTState, m: int, L: int) -> PMHTState:
         return state
     m2, L2 = max(m, mb), max(L, Lb)
     M, W = state.valid.shape
-    H = _pad_axis(state.H, 2, m2, 0.0)
+    H = pad_axis(state.H, 2, m2, 0.0)
     R = np.zeros((M, W, m2, m2))
     R[:, :, :mb, :mb] = state.R
     R[:, :, mb:, mb:] = np.eye(m2 - mb)
-    cand = _pad_axis(_pad_axis(state.candidates, 3, m2, 0.0), 2, L2, 0.0)
+    cand = pad_axis(pad_axis(state.candidates, 3, m2, 0.0), 2, L2, 0.0)
     return attrs.evolve(
         state,
         H=H,
         R=R,
         pad=state.pad + (m2 - mb),
         candidates=cand,
-        present=_pad_axis(state.present, 2, L2, False),
-        weights=_pad_axis(state.weights, 2, L2, 0.0),
+        present=pad_axis(state.present, 2, L2, False),
+        weights=pad_axis(state.weights, 2, L2, 0.0),
     )
 
 
-class PMHTFilter(BankEstimator):
+def _no_pending(M: int, n: int) -> dict:
+    """No transition since the newest slot: F = I, B = 0, Q = 0."""
+    return {"pending_F": np.broadcast_to(np.eye(n), (M, n, n)).copy(), "pending_B": np.zeros((M, n)), "pending_Q": np.zeros((M, n, n))}
+
+
+class PMHTFilter(ScanEstimator):
     """PMHT by EM over a sliding window of scans (module docstring).
 
     ``detection_probability`` P_D in (0, 1], ``clutter_density`` λ ≥ 0 (false
@@ -194,7 +173,6 @@ class PMHTFilter(BankEstimator):
     """
 
     name = "pmht"
-    accepts_scans = True
     example_parameters = {"detection_probability": 0.9, "clutter_density": 0.01, "gate_probability": 0.99, "window": 1}
 
     def __init__(
@@ -207,16 +185,12 @@ class PMHTFilter(BankEstimator):
         tolerance: float = 1e-6,
         form: str = "joseph",
     ):
-        super().__init__()
-        if form not in cov_form.UPDATE_FORMS:
-            raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
+        super().__init__(gate_probability, form)
         self.detection_probability = check_detection_probability(detection_probability)
         self.clutter_density = check_clutter_density(clutter_density)
-        self.gate_probability = check_gate_probability(gate_probability)
         self.window = check_positive_int(window, "window", what="the number of scans of the EM batch")
         self.max_iterations = check_positive_int(max_iterations, "max_iterations", what="EM iterations per scan")
         self.tolerance = check_positive(tolerance, "tolerance", what="the rise of the log posterior below which EM stops")
-        self.form = form
         self.log_pd = math.log(self.detection_probability)
         self.log_lambda = math.log(self.clutter_density) if self.clutter_density > 0 else -math.inf
 
@@ -225,13 +199,10 @@ class PMHTFilter(BankEstimator):
         """λ = 0 and no gate: every candidate has w = 1; with one per step this is the Kalman filter."""
         return self.clutter_density == 0.0 and self.gate_probability is None
 
-    # ------------------------------------------------------------------ the Estimator API
     def initialize(self, mean, cov) -> PMHTState:
         x, P = self.check_prior(mean, cov)
         M, n = x.shape
         W = self.window
-        eye = np.broadcast_to(np.eye(n), (M, n, n)).copy()
-        slots_eye = np.broadcast_to(np.eye(n), (M, W, n, n)).copy()
         return PMHTState(
             x=x,
             P=P,
@@ -239,11 +210,9 @@ class PMHTFilter(BankEstimator):
             P_predicted=P,
             prior_x=x,
             prior_P=P,
-            pending_F=eye,
-            pending_B=np.zeros((M, n)),
-            pending_Q=np.zeros((M, n, n)),
+            **_no_pending(M, n),
             valid=np.zeros((M, W), dtype=bool),
-            F=slots_eye,
+            F=np.broadcast_to(np.eye(n), (M, W, n, n)).copy(),
             B=np.zeros((M, W, n)),
             Q=np.zeros((M, W, n, n)),
             H=np.zeros((M, W, 0, n)),
@@ -268,78 +237,51 @@ class PMHTFilter(BankEstimator):
 
     @guarded
     def predict(self, state: PMHTState, transitions) -> PMHTState:
-        M, n = state.x.shape
-        bank = self.check_transitions(transitions, M, n, state.x)
-        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q)
-        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        # the transition since the newest slot, composed: F' = F F_p, B' = F B_p + B, Q' = F Q_p Fᵀ + Q
+        """The covariance prediction, and the transition since the newest slot composed:
+        F' = F F_p, B' = F B_p + B, Q' = F Q_p Fᵀ + Q."""
+        new = super().predict(state, transitions)
+        bank = self.check_transitions(transitions, *state.x.shape)  # checked by the prediction: not again
         Fp = bank.F @ state.pending_F
         Bp = np.einsum("mij,mj->mi", bank.F, state.pending_B) + bank.B
         Qp = symmetrize(bank.F @ state.pending_Q @ np.swapaxes(bank.F, -1, -2) + bank.Q)
-        return attrs.evolve(state, x=x, P=P, x_predicted=x, P_predicted=P, pending_F=Fp, pending_B=Bp, pending_Q=Qp, innovation=None)
+        return attrs.evolve(new, pending_F=Fp, pending_B=Bp, pending_Q=Qp)
 
-    @guarded
-    def update(self, state: PMHTState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+    def stacked_candidates(self, state: PMHTState, z, sensors, layout):
+        """The one candidate of a stacked z: candidates (M, 1, m), H, R, the sensors' name, z; None if nothing was measured."""
         M, n = state.x.shape
-        check_layout(layout, n)
-        scans = _as_scans(z)
-        pieces = []  # (candidates (M, L, m), H (m, n), R (m, m) or (M, m, m), sensor name, record candidates)
-        if scans is None:
-            step = self.measurement_step(z, sensors, layout, M, n)
-            if step is None:
-                innovation = empty_innovation(M)
-                return attrs.evolve(state, innovation=innovation), innovation
-            if step.H is None:
-                names = [m.sensor.name for m in step.models if m.H is None]
-                raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {names} are nonlinear")
-            if not step.plain_residual:
-                raise ValueError(f"sensors: {self.name!r} needs sensors whose residual is z − H x (no angle wrapping)")
-            cands = np.broadcast_to(step.z, (M, step.dim))[:, None, :]
-            pieces.append((cands, step.H, np.asarray(step.R), "+".join(m.sensor.name for m in step.models), step.z))
-        else:
-            by_name = sensors_by_name(sensors)
-            for scan in scans:
-                sensor, model = scan_sensor_model(self, scan, by_name, layout)
-                if not model.plain_residual:
-                    raise ValueError(f"sensors: {self.name!r} needs sensors whose residual is z − H x; {sensor.name!r} wraps angles")
-                cands = np.broadcast_to(scan.z[None], (M,) + scan.z.shape)
-                pieces.append((cands, model.H, np.asarray(sensor.noise_cov), sensor.name, scan.z))
-        current = state
-        used, blocks, records = [], [], []
-        for cands, H, R, name, raw in pieces:
-            if cands.shape[1] == 0:  # an empty scan: no slot, prediction only; its record says so
-                records.append(self._empty_record(current, H, R, name, raw))
-                continue
-            current, nu, S, record = self._scan(current, cands, H, R, name, raw)
-            used.append(nu)
-            blocks.append(S)
-            records.append(record)
-        innovation = ClutterInnovation(*stacked_innovation(M, used, blocks), tuple(records))  # current is state if none used
-        return attrs.evolve(current, innovation=innovation), innovation
+        step = self.measurement_step(z, sensors, layout, M, n)
+        if step is None:
+            return None
+        if step.H is None:
+            names = [m.sensor.name for m in step.models if m.H is None]
+            raise ValueError(f"sensors: {self.name!r} takes linear sensors only; {names} are nonlinear")
+        if not step.plain_residual:
+            raise ValueError(f"sensors: {self.name!r} needs sensors whose residual is z − H x (no angle wrapping)")
+        cands = np.broadcast_to(step.z, (M, step.dim))[:, None, :]
+        return cands, step.H, np.asarray(step.R), "+".join(m.sensor.name for m in step.models), step.z
 
-    # ------------------------------------------------------------------ one scan
-    def _empty_record(self, state: PMHTState, H, R, name, raw) -> Association:
-        M, m = state.x.shape[0], H.shape[0]
-        S = innovation_covariance(state.P, H, R)
-        none = np.zeros((M, 0))
-        gamma = gate_threshold(self.gate_probability, m)
-        return Association(
-            name, np.asarray(raw), state.x @ H.T, S, gamma, none, none.astype(bool), none, np.ones(M), np.full(M, -1), np.zeros(M)
-        )
+    def scan_candidates(self, state: PMHTState, scan, sensor, model):
+        """A scan's candidates (M, L, m) for every filter, H, R, the sensor's name and the scan's z."""
+        if not model.plain_residual:
+            raise ValueError(f"sensors: {self.name!r} needs sensors whose residual is z − H x; {sensor.name!r} wraps angles")
+        cands = np.broadcast_to(scan.z[None], (state.x.shape[0],) + scan.z.shape)
+        return cands, model.H, np.asarray(sensor.noise_cov), sensor.name, scan.z
 
-    def _scan(self, state: PMHTState, cands: np.ndarray, H: np.ndarray, R: np.ndarray, name: str, raw):
-        """Gate the scan at the prediction, add it as the newest slot (sliding the window), run EM."""
+    def associate_scan(self, state: PMHTState, cands: np.ndarray, H: np.ndarray, R: np.ndarray, name: str, raw):
+        """Gate the scan at the prediction, add it as the newest slot (sliding the window), run EM; an empty scan
+        adds no slot (prediction only) and its record says so."""
         M, n = state.x.shape
         L, m = cands.shape[1], cands.shape[2]
-        # gate at the prediction: d² = νᵀ S⁻¹ ν ≤ γ, S = H P⁻ Hᵀ + R
-        S_pred = innovation_covariance(state.P, H, R)
-        L_pred = check_innovation_covariance(S_pred)
-        gamma = gate_threshold(self.gate_probability, m)
         z_pred = state.x @ H.T
-        nu_pred = cands - z_pred[:, None, :]
-        d2 = distances(nu_pred, L_pred)
-        self.check_finite("update", innovation_covariance=S_pred, innovation=nu_pred, squared_distances_d2=d2)
-        gated = d2 <= gamma
+        if L == 0:
+            none = np.zeros((M, 0))
+            S, gamma = innovation_covariance(state.P, H, R), gate_threshold(self.gate_probability, m)
+            record = Association(
+                name, np.asarray(raw), z_pred, S, gamma, none, none.astype(bool), none, np.ones(M), np.full(M, -1), np.zeros(M)
+            )
+            return state, None, None, record
+        # gate at the prediction: d² = νᵀ S⁻¹ ν ≤ γ, S = H P⁻ Hᵀ + R
+        S_pred, L_pred, gamma, d2, gated = self.gate(cands - z_pred[:, None, :], state.P, H, R)
         ell = -0.5 * d2 - log_half_det_2pi_s(L_pred)[:, None]  # ln N(ν_r; 0, S) at the prediction
         with np.errstate(divide="ignore"):
             if self.clutter_density > 0:
@@ -359,32 +301,21 @@ class PMHTFilter(BankEstimator):
         kept_present = np.take_along_axis(gated, order, axis=1)
         s = _widen(state, m, Lg)
         mb, Lb = s.H.shape[2], s.candidates.shape[2]
-        Hs = np.zeros((M, mb, n))
-        Hs[:, :m] = H
+        Hs = pad_axis(np.broadcast_to(H, (M, m, n)), 1, mb, 0.0)
         Rs = np.zeros((M, mb, mb))
         Rs[:, :m, :m] = R
         Rs[:, m:, m:] = np.eye(mb - m)
-        cs = np.zeros((M, Lb, mb))
-        cs[:, :Lg, :m] = kept
-        pr = np.zeros((M, Lb), dtype=bool)
-        pr[:, :Lg] = kept_present
+        cs = pad_axis(pad_axis(kept, 2, mb, 0.0), 1, Lb, 0.0)
+        pr = pad_axis(kept_present, 1, Lb, False)
 
         def shift(a, new):
             return np.concatenate([a[:, 1:], new[:, None]], axis=1)
 
-        valid = shift(s.valid, np.ones(M, dtype=bool))
-        F = shift(s.F, s.pending_F)
-        B = shift(s.B, s.pending_B)
-        Q = shift(s.Q, s.pending_Q)
-        Hw = shift(s.H, Hs)
-        Rw = shift(s.R, Rs)
-        pad = shift(s.pad, np.full(M, mb - m))
-        cw = shift(s.candidates, cs)
-        pw = shift(s.present, pr)
+        newest = {"valid": np.ones(M, dtype=bool), "F": s.pending_F, "B": s.pending_B, "Q": s.pending_Q, "H": Hs, "R": Rs}
+        newest.update(pad=np.full(M, mb - m), candidates=cs, present=pr)
+        slots = {name: shift(getattr(s, name), value) for name, value in newest.items()}
         guess = shift(s.smoothed_mean, state.x)  # the new scan starts from the prediction
-        xs, Ps, xf, Pf, xp_T, Pp_T, weights, iterations, log_posterior = self._em(
-            prior_x, prior_P, valid, F, B, Q, Hw, Rw, pad, cw, pw, guess
-        )
+        xs, Ps, xf, Pf, xp_T, Pp_T, weights, iterations, log_posterior = self._em(prior_x, prior_P, guess, **slots)
         # the newest scan's synthetic innovation ν = z̃ − H x⁻ (real components only), S = H P⁻ Hᵀ + R / W
         w_T = np.zeros((M, L))  # back to the scan's candidate order
         np.put_along_axis(w_T, order, weights[:, -1, :Lg], axis=1)
@@ -406,18 +337,8 @@ class PMHTFilter(BankEstimator):
             P_predicted=Pp_T,
             prior_x=prior_x,
             prior_P=prior_P,
-            pending_F=np.broadcast_to(np.eye(n), (M, n, n)).copy(),
-            pending_B=np.zeros((M, n)),
-            pending_Q=np.zeros((M, n, n)),
-            valid=valid,
-            F=F,
-            B=B,
-            Q=Q,
-            H=Hw,
-            R=Rw,
-            pad=pad,
-            candidates=cw,
-            present=pw,
+            **_no_pending(M, n),
+            **slots,
             weights=weights,
             smoothed_mean=xs,
             smoothed_covariance=Ps,
@@ -428,7 +349,6 @@ class PMHTFilter(BankEstimator):
         )
         return new, nu, S, record
 
-    # ------------------------------------------------------------------ EM
     def _estep(self, X, Hw, cw, pw, LR, logdet_R):
         """ln N(z_{t,r}; H x_t, R) (M, W, L̄) and w_{t,r} = P_D N / (λ + P_D N) (0 where not present)."""
         zhat = np.einsum("mwij,mwj->mwi", Hw, X)
@@ -442,7 +362,9 @@ class PMHTFilter(BankEstimator):
         terms = np.where(pw, np.logaddexp(self.log_lambda, a) if self.clutter_density > 0 else a, 0.0)
         return w, terms.sum(axis=(1, 2))
 
-    def _em(self, prior_x, prior_P, valid, F, B, Q, Hw, Rw, pad, cw, pw, guess):
+    def _em(self, prior_x, prior_P, guess, valid, F, B, Q, H, R, pad, candidates, present):
+        """EM over the window's slots from the initial guess X̂⁰ (M, W, n) (module docstring)."""
+        Hw, Rw, cw, pw = H, R, candidates, present
         M, W, n = guess.shape
         mb = Hw.shape[2]
         LR = cholesky(Rw, "measurement noise R")

@@ -16,13 +16,13 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
 from hybridtrack.sdk.linalg import cholesky, symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
 
 @attrs.frozen(eq=False)
-class SquareRootState:
+class SquareRootState(CovarianceMoments):
     """x (M, n), S (M, n, n) with P = S Sᵀ; the same for the last prediction."""
 
     x: np.ndarray = bank_field(0)
@@ -32,27 +32,13 @@ class SquareRootState:
     innovation: Innovation | None = None
 
     @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
+    def P(self) -> np.ndarray:
         """P = S Sᵀ."""
         return self.S @ np.swapaxes(self.S, -1, -2)
 
     @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
+    def P_predicted(self) -> np.ndarray:
         return self.S_predicted @ np.swapaxes(self.S_predicted, -1, -2)
-
-
-def factored_innovation(nu, H, root, R, loglik, nis):
-    """Innovation with S = (H S⁻)(H S⁻)ᵀ + R from a covariance factor, ℓ and NIS from the scalar steps."""
-    HS = H @ root
-    return Innovation(nu, symmetrize(HS @ np.swapaxes(HS, -1, -2) + R), loglik, nis)
 
 
 class PotterFilter(BankEstimator):
@@ -81,7 +67,8 @@ class PotterFilter(BankEstimator):
             return attrs.evolve(state, innovation=innovation), innovation
         step, nu, H = found
         x, S, loglik, nis = _sqrt.potter_update(state.x, state.S, H, nu, step.R)
-        innovation = factored_innovation(nu, H, state.S, step.R, loglik, nis)
+        HS = H @ state.S  # S = (H S⁻)(H S⁻)ᵀ + R from the factor; ℓ and NIS from the scalar steps
+        innovation = Innovation(nu, symmetrize(HS @ np.swapaxes(HS, -1, -2) + step.R), loglik, nis)
         self.check_finite("update", innovation_covariance=innovation.S, updated_mean=x)
         return SquareRootState(x, S, state.x_predicted, state.S_predicted, innovation), innovation
 

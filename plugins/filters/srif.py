@@ -17,14 +17,15 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, empty_innovation, guarded
 from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
 
 @attrs.frozen(eq=False, slots=False)
-class SRIFState:
-    """R (…, M, n, n), ζ (…, M, n) now and after the last prediction; leading node axis for the decentralized form."""
+class SRIFState(DerivedMoments):
+    """R (…, M, n, n), ζ (…, M, n) now and after the last prediction; leading node axis for the decentralized form.
+    The moments x = R⁻¹ζ, P = R⁻¹R⁻ᵀ (by solves) are computed on first reading."""
 
     R: np.ndarray = bank_field(-3)
     zeta: np.ndarray = bank_field(-2)
@@ -33,29 +34,20 @@ class SRIFState:
     innovation: Innovation | None = None
 
     @cached_property
-    def _moments(self):
+    def moments(self):
         return _sqrt.srif_moments(self.R, self.zeta)
 
     @cached_property
-    def _predicted_moments(self):
+    def predicted_moments(self):
         return _sqrt.srif_moments(self.R_predicted, self.zeta_predicted)
 
     @property
-    def mean(self) -> np.ndarray:
-        return self._moments[0]
+    def x_predicted(self) -> np.ndarray:
+        return self.predicted_moments[0]
 
     @property
-    def covariance(self) -> np.ndarray:
-        """P = R⁻¹R⁻ᵀ (by solves)."""
-        return self._moments[1]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self._predicted_moments[0]
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self._predicted_moments[1]
+    def P_predicted(self) -> np.ndarray:
+        return self.predicted_moments[1]
 
     @property
     def information(self) -> np.ndarray:
@@ -95,7 +87,9 @@ class SquareRootInformationFilter(BankEstimator):
             innovation = empty_innovation(x.shape[0])
             return attrs.evolve(state, innovation=innovation), innovation
         step, nu, H = found
-        Ht, zt, log_det_R = _sqrt.srif_rows(H, nu, step.R, x)
+        # the whitened rows [H̃, z̃], z̃ = L_R⁻¹(ν + H x⁻): the linearized measurement z ≈ h(x⁻) + H (x − x⁻)
+        Ht, nut, log_det_R = _sqrt.whiten(H, nu, step.R)
+        zt = nut + np.einsum("...ij,...j->...i", Ht, x)
         R, zeta, e2 = _sqrt.srif_update(state.R, state.zeta, [(Ht, zt)])
         loglik = _sqrt.srif_scores(state.R, R, log_det_R, e2, step.dim)
         innovation = Innovation(nu, srif_innovation(nu, H, state.R, step.R), loglik, e2)

@@ -18,8 +18,9 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import BankEstimator, NodeMoments, empty_innovation, guarded
+from hybridtrack.sdk.estimation import NodeMoments, empty_innovation, guarded
 from hybridtrack_plugins.filters import _sqrt
+from hybridtrack_plugins.filters.decentralized import NodeBank, node_rows, replicate
 from hybridtrack_plugins.filters.srif import SRIFState, srif_innovation
 
 
@@ -29,6 +30,8 @@ class DecentralizedSRIFState(NodeMoments, SRIFState):
 
     node_nis: np.ndarray | None = None
     node_loglik: np.ndarray | None = None
+    #: the fields holding a copy per node (axis 0)
+    node_fields = ("R", "zeta", "R_predicted", "zeta_predicted")
 
     @property
     def nodes(self) -> int:
@@ -36,67 +39,37 @@ class DecentralizedSRIFState(NodeMoments, SRIFState):
 
     @property
     def predicted_mean(self) -> np.ndarray:
-        return self._predicted_moments[0][0]
+        return self.x_predicted[0]
 
     @property
     def predicted_covariance(self) -> np.ndarray:
-        return self._predicted_moments[1][0]
+        return self.P_predicted[0]
 
 
-class DecentralizedSRIF(BankEstimator):
+class DecentralizedSRIF(NodeBank):
     """Decentralized SRIF: nodes exchange whitened measurement rows (N nodes = the sensors given to ``update``)."""
 
     name = "srif_decentralized"
 
-    def __init__(self, nodes: int | None = None):
-        super().__init__()
-        if nodes is not None and (int(nodes) != nodes or nodes < 1):
-            raise ValueError(f"nodes: expected a positive integer, got {nodes!r}")
-        self.nodes = None if nodes is None else int(nodes)
-
     def initialize(self, mean, cov) -> DecentralizedSRIFState:
         x, P = self.check_prior(mean, cov)
         R, zeta = _sqrt.srif_from_moments(x, P)
-        N = self.nodes or 1
-        rep = lambda a: np.broadcast_to(a, (N,) + a.shape).copy()  # noqa: E731
-        return DecentralizedSRIFState(rep(R), rep(zeta), rep(R), rep(zeta))
-
-    def conform(self, states: list) -> list:
-        """A bank started from one prior has one node copy until its first update: replicate it to the others' N."""
-        N = max(s.nodes for s in states)
-        return [s if s.nodes == N else self._replicate(s, N) for s in states]
-
-    def node_scores(self, state: DecentralizedSRIFState):
-        if state.node_loglik is None:
-            return None
-        return state.node_loglik, state.node_nis
-
-    @staticmethod
-    def _replicate(state: DecentralizedSRIFState, N: int) -> DecentralizedSRIFState:
-        rep = lambda a: np.broadcast_to(a[:1], (N,) + a.shape[1:]).copy()  # noqa: E731
-        return DecentralizedSRIFState(rep(state.R), rep(state.zeta), rep(state.R_predicted), rep(state.zeta_predicted))
+        return replicate(DecentralizedSRIFState(R[None], zeta[None], R[None], zeta[None]), self.nodes or 1)
 
     @guarded
     def predict(self, state: DecentralizedSRIFState, transitions) -> DecentralizedSRIFState:
         N, M, n = state.zeta.shape
         bank = self.check_transitions(transitions, M, n)
-        flat = lambda a: np.broadcast_to(a, (N,) + a.shape).reshape((N * M,) + a.shape[1:])  # noqa: E731
-        W = _sqrt.noise_root(bank)
-        R, zeta = _sqrt.srif_predict(state.R.reshape(N * M, n, n), state.zeta.reshape(N * M, n), flat(bank.F), flat(bank.B), flat(W))
+        F, B, W = (node_rows(a, N) for a in (bank.F, bank.B, _sqrt.noise_root(bank)))
+        R, zeta = _sqrt.srif_predict(state.R.reshape(N * M, n, n), state.zeta.reshape(N * M, n), F, B, W)
         self.check_finite("predict", predicted_information_factor=R, predicted_information_state=zeta)
         R, zeta = R.reshape(N, M, n, n), zeta.reshape(N, M, n)
         return DecentralizedSRIFState(R, zeta, R, zeta)
 
     @guarded
     def update(self, state: DecentralizedSRIFState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        if isinstance(sensors, Sensor):
-            sensors = (sensors,)
-        N, M, n = state.zeta.shape
-        if N != len(sensors):
-            if N != 1:
-                raise ValueError(f"sensors: expected {N} sensors (one per node of this decentralized filter), got {len(sensors)}")
-            state = self._replicate(state, len(sensors))
-            N = len(sensors)
+        state, sensors = self.per_node(state, sensors)
+        M, n = state.zeta.shape[1:]
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             innovation = empty_innovation(M)
@@ -112,9 +85,7 @@ class DecentralizedSRIF(BankEstimator):
         # every node assimilates all rows by one QR
         R, zeta, e2 = _sqrt.srif_update(state.R, state.zeta, rows)
         node_loglik = _sqrt.srif_scores(state.R, R, log_det_R, e2, step.dim)
-        x_prior = state.node_means[0]
-        z_pred, H = step.predicted(x_prior, layout)
-        nu = step.residual(z_pred)
+        _, nu, H = self.linearize(state.node_means[0], z, sensors, layout, step)
         innovation = Innovation(nu, srif_innovation(nu, H, state.R[0], step.R), node_loglik[0], e2[0])
         self.check_finite(
             "update", innovation_covariance=innovation.S, updated_information_state=zeta, node_NIS=e2, node_loglik=node_loglik

@@ -82,8 +82,8 @@ def test_selection_path_equals_general_h():
     est_sel, est_gen = KalmanFilter(), KalmanFilter()
     a = _run(est_sel, bank_of([tr]), [sel], Z[0], x0, P0)
     b = _run(est_gen, bank_of([tr]), [general], Z[0], x0, P0)
-    assert est_sel._assembler.sensor_model(sel, LAYOUT).selection == (0, 2)
-    assert est_gen._assembler.sensor_model(general, LAYOUT).selection is None
+    assert est_sel.assembler.sensor_model(sel, LAYOUT).selection == (0, 2)
+    assert est_gen.assembler.sensor_model(general, LAYOUT).selection is None
     for (sa, ia), (sb, ib) in zip(a, b):
         np.testing.assert_allclose(sa.mean, sb.mean, rtol=1e-12, atol=1e-290)
         np.testing.assert_allclose(sa.covariance, sb.covariance, rtol=1e-12, atol=1e-290)
