@@ -24,7 +24,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import attrs
 import numpy as np
@@ -294,6 +294,33 @@ class BankEstimator(Estimator):
             bad = ~np.isfinite(array)
             if bad.any():
                 raise ValueError(_overflow_message(stage, key.replace("_", " "), array, bad, self.name))
+
+    # ------------------------------------------------------------------ the update, as a template
+    #: state fields holding results of the last update besides ``innovation`` (cleared to None by :meth:`unmeasured`)
+    update_results: ClassVar[tuple[str, ...]] = ()
+
+    @guarded
+    def update(self, state, z, sensors: Sequence, layout: Sequence[str]):
+        """The template update: the present sensors' model of this step (:meth:`measurement_step`, NaN
+        components left out); nothing measured → :meth:`unmeasured`; else :meth:`update_measured`, the form's
+        own maths.  A form that needs more (clutter scans, node copies, compiled lanes) overrides ``update`` and
+        calls :meth:`unmeasured` for the step without a measurement."""
+        M, n = self.mean(state).shape
+        step = self.measurement_step(z, sensors, layout, M, n)
+        if step is None:
+            return self.unmeasured(state, M)
+        return self.update_measured(state, step, z, sensors, layout)
+
+    def update_measured(self, state, step, z, sensors: Sequence, layout: Sequence[str]):
+        """The update of a step with a measurement: ``step`` the assembled :class:`~hybridtrack.sdk.measurements.
+        MeasurementStep` (never None); returns (state, Innovation)."""
+        raise NotImplementedError(f"{type(self).__name__}: override update_measured (or update)")
+
+    def unmeasured(self, state, bank_size: int):
+        """The update of a step where nothing was measured, the one branch every form shares: the prediction
+        is the posterior and the innovation is empty (m = 0, ℓ = 0, NIS = 0; :func:`empty_innovation`)."""
+        innovation = empty_innovation(bank_size)
+        return attrs.evolve(state, innovation=innovation, **dict.fromkeys(self.update_results)), innovation
 
     def measurement_step(self, z, sensors: Sequence, layout: Sequence[str], bank_size: int, n: int):
         """The present sensors' stacked model of this step (:class:`~hybridtrack.sdk.measurements.MeasurementStep`), or None.

@@ -41,7 +41,7 @@ from scipy.stats import chi2
 from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_magnitude
-from hybridtrack.sdk.estimation import BankEstimator, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, check_layout, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.measurements import block_diagonal
 from hybridtrack.sdk.mixtures import logsumexp, moment_match
@@ -209,8 +209,7 @@ class ScanEstimator(BankEstimator):
         if scans is None:
             found = self.stacked_candidates(state, z, sensors, layout)
             if found is None:
-                innovation = empty_innovation(state.x.shape[0])
-                return attrs.evolve(state, innovation=innovation), innovation
+                return self.unmeasured(state, state.x.shape[0])
             state, nu, S, record = self.associate_scan(state, *found)
             return self.finish(state, [nu], [S], [record])
         return self.finish(*scan_by_scan(self, state, scans, sensors, layout, self._scan_step))

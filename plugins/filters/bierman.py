@@ -16,7 +16,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, guarded
 from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
@@ -60,13 +60,8 @@ class BiermanFilter(BankEstimator):
         self.check_finite("predict", predicted_mean=x, predicted_variances_d=d, predicted_covariance_factor_U=U)
         return UDState(x, U, d, x, U, d)
 
-    @guarded
-    def update(self, state: UDState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        found = self.linearize(state.x, z, sensors, layout)
-        if found is None:
-            innovation = empty_innovation(state.x.shape[0])
-            return attrs.evolve(state, innovation=innovation), innovation
-        step, nu, H = found
+    def update_measured(self, state: UDState, step, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        step, nu, H = self.linearize(state.x, z, sensors, layout, step)
         x, U, d, loglik, nis = _sqrt.bierman_update(state.x, state.U, state.d, H, nu, step.R)
         HU = H @ state.U
         S = symmetrize((HU * state.d[..., None, :]) @ np.swapaxes(HU, -1, -2) + step.R)

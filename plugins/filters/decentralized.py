@@ -31,7 +31,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
-from hybridtrack.sdk.estimation import BankEstimator, NodeMoments, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, NodeMoments, bank_field, guarded
 from hybridtrack_plugins.filters import _information as info
 from hybridtrack_plugins.filters.information import information_predict, stacked_innovation
 
@@ -84,6 +84,8 @@ class NodeBank(BankEstimator):
     ``nodes``: the number of nodes, if known at ``initialize``; otherwise the
     single initial copy is replicated to ``len(sensors)`` nodes at the first update.
     """
+
+    update_results = ("node_nis", "node_loglik")
 
     def __init__(self, nodes: int | None = None):
         super().__init__()
@@ -138,8 +140,7 @@ class DecentralizedFilter(NodeBank):
         M, n = state.s.shape[1:]
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
-            innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation, node_nis=None, node_loglik=None), innovation
+            return self.unmeasured(state, M)
         if step.H is None:
             raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
         # Each node's contribution (eqs. 18–19), formed about the prediction: ν_j = z_j − H_j x⁻.

@@ -61,7 +61,7 @@ from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import as_float_array, check_positive, check_positive_int, check_prior, check_prior_mixture
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute
 from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalized_weights
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
@@ -234,8 +234,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         found = self.linearize(state.x.reshape(M * C, n), z_rows, sensors, layout)
         predicted = (state.predicted_mean, state.predicted_covariance)
         if found is None:
-            innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation), innovation
+            return self.unmeasured(state, M)
         step, nu, H = found
         m = nu.shape[-1]
         engine = cov_form.resolve_engine(self.engine, n, m)

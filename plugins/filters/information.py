@@ -20,7 +20,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
-from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, guarded
 from hybridtrack.sdk.linalg import cholesky, gaussian_scores, symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _information as info
@@ -83,13 +83,9 @@ class InformationFilter(BankEstimator):
         Y, s, x, P = information_predict(*state.moments, bank.F, bank.B, bank.Q, self.check_finite)
         return InformationState(Y, s, x, P, (x, P))
 
-    @guarded
-    def update(self, state: InformationState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        M, n = state.s.shape
-        step = self.measurement_step(z, sensors, layout, M, n)
-        if step is None:
-            innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation, nis_information=None), innovation
+    update_results = ("nis_information",)
+
+    def update_measured(self, state: InformationState, step, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         if step.H is None:
             raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
         x_prior, P_prior = state.mean, state.covariance  # the prior of this update

@@ -26,7 +26,7 @@ import numpy as np
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.validation import FILTER_MAGNITUDE_LIMIT
-from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, guarded
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
 
@@ -350,8 +350,7 @@ class KalmanFilter(BankEstimator):
         if isinstance(state, AxisState):
             step = self.measurement_step(z, sensors, layout, M, n)
             if step is None:
-                innovation = empty_innovation(M)
-                return attrs.evolve(state, innovation=innovation), innovation
+                return self.unmeasured(state, M)
             plan = self._axis_plan(step, state.axes) if step.H is not None else None
             if plan is not None:
                 result = self._update_axes(state, step, plan)
@@ -362,8 +361,7 @@ class KalmanFilter(BankEstimator):
         else:
             found = self.linearize(state.x, z, sensors, layout)
         if found is None:
-            innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation), innovation
+            return self.unmeasured(state, M)
         step, nu, H = found
         engine = self.dense_engine(n, nu.shape[-1])
         x, P, S, loglik, nis = cov_form.update_scored(state.x, state.P, nu, H, step.R, step.selection, self.form, engine)

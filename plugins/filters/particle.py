@@ -92,7 +92,7 @@ from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
 from hybridtrack.core.protocols import Association, ClutterInnovation
 from hybridtrack.core.validation import check_prior_mixture
-from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.sdk.mixtures import logsumexp
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
@@ -375,8 +375,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
             return self._update_scans(state, scans or [], sensors, layout)
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
-            innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation), innovation
+            return self.unmeasured(state, M)
         nu = self._residuals(step, state.particles, layout)
         R = np.asarray(step.R, dtype=float)
         particle_loglik, _ = CholeskyFactor(R if R.ndim == 2 else R[:, None], "measurement noise R").scores(nu)

@@ -16,7 +16,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, guarded
 from hybridtrack.sdk.linalg import cholesky, symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
@@ -59,13 +59,8 @@ class PotterFilter(BankEstimator):
         self.check_finite("predict", predicted_mean=x, predicted_covariance_factor=S)
         return SquareRootState(x, S, x, S)
 
-    @guarded
-    def update(self, state: SquareRootState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        found = self.linearize(state.x, z, sensors, layout)
-        if found is None:
-            innovation = empty_innovation(state.x.shape[0])
-            return attrs.evolve(state, innovation=innovation), innovation
-        step, nu, H = found
+    def update_measured(self, state: SquareRootState, step, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        step, nu, H = self.linearize(state.x, z, sensors, layout, step)
         x, S, loglik, nis = _sqrt.potter_update(state.x, state.S, H, nu, step.R)
         HS = H @ state.S  # S = (H S⁻)(H S⁻)ᵀ + R from the factor; ℓ and NIS from the scalar steps
         innovation = Innovation(nu, symmetrize(HS @ np.swapaxes(HS, -1, -2) + step.R), loglik, nis)

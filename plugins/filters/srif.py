@@ -17,7 +17,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, empty_innovation, guarded
+from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, guarded
 from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _sqrt
 
@@ -79,14 +79,9 @@ class SquareRootInformationFilter(BankEstimator):
         self.check_finite("predict", predicted_information_factor=R, predicted_information_state=zeta)
         return SRIFState(R, zeta, R, zeta)
 
-    @guarded
-    def update(self, state: SRIFState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+    def update_measured(self, state: SRIFState, step, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         x = state.mean
-        found = self.linearize(x, z, sensors, layout)
-        if found is None:
-            innovation = empty_innovation(x.shape[0])
-            return attrs.evolve(state, innovation=innovation), innovation
-        step, nu, H = found
+        step, nu, H = self.linearize(x, z, sensors, layout, step)
         # the whitened rows [H̃, z̃], z̃ = L_R⁻¹(ν + H x⁻): the linearized measurement z ≈ h(x⁻) + H (x − x⁻)
         Ht, nut, log_det_R = _sqrt.whiten(H, nu, step.R)
         zt = nut + np.einsum("...ij,...j->...i", Ht, x)

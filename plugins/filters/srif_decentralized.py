@@ -18,7 +18,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import NodeMoments, empty_innovation, guarded
+from hybridtrack.sdk.estimation import NodeMoments, guarded
 from hybridtrack_plugins.filters import _sqrt
 from hybridtrack_plugins.filters.decentralized import NodeBank, node_rows, replicate
 from hybridtrack_plugins.filters.srif import SRIFState, srif_innovation
@@ -72,8 +72,7 @@ class DecentralizedSRIF(NodeBank):
         M, n = state.zeta.shape[1:]
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
-            innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation, node_nis=None, node_loglik=None), innovation
+            return self.unmeasured(state, M)
         if step.H is None:
             raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
         # each measuring node whitens its own data into rows and broadcasts them

@@ -27,7 +27,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
-from hybridtrack.sdk.estimation import BankEstimator, bank_field, empty_innovation
+from hybridtrack.sdk.estimation import BankEstimator, bank_field
 from hybridtrack.sdk.linalg import cholesky, cholesky_solve, gaussian_scores, symmetrize
 
 
@@ -74,13 +74,10 @@ class InfoKalman(BankEstimator):
         P = symmetrize(bank.F @ state.P @ np.swapaxes(bank.F, -1, -2) + bank.Q)
         return InfoState(x, P, x, P)
 
-    def update(self, state: InfoState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+    def update_measured(self, state: InfoState, step, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        """A measured step (the template ``update`` of BankEstimator handles the step without one)."""
         M, n = state.x.shape
-        found = self.linearize(state.x, z, sensors, layout)
-        if found is None:  # nothing measured at this step: prediction only
-            innovation = empty_innovation(M)
-            return attrs.evolve(state, innovation=innovation), innovation
-        step, nu, H = found  # ν (M, m), H (m, n)
+        step, nu, H = self.linearize(state.x, z, sensors, layout, step)  # ν (M, m), H (m, n)
         R = np.broadcast_to(step.R, (M,) + step.R.shape[-2:])
         HP = H @ state.P  # (M, m, n)
         S = symmetrize(HP @ H.T + R)
