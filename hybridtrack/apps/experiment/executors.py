@@ -24,13 +24,14 @@ raises the error.
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import multiprocessing
 import os
 import re
 import threading
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, InvalidStateError, ProcessPoolExecutor, wait
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import InvalidStateError, ProcessPoolExecutor, as_completed
 from typing import Any
 
 from hybridtrack.apps.experiment.worker import worker_init
@@ -110,7 +111,24 @@ def check_scheduler_address(scheduler: Any) -> Any:
     return scheduler
 
 
-class InlineExecutor:
+def _results(finished: Iterable, cancel_pending: Callable[[], None]) -> Iterator[Any]:
+    """The results of the futures ``finished`` as they come; at the first failure cancel the pending tasks,
+    yield the results of those still running, then raise it."""
+    error: BaseException | None = None
+    for future in finished:
+        if future.cancelled():
+            continue
+        failure = future.exception()
+        if failure is None:
+            yield future.result()
+        elif error is None:
+            error = failure
+            cancel_pending()
+    if error is not None:
+        raise error
+
+
+class InlineExecutor(contextlib.AbstractContextManager):
     """Runs every task in this process, in order."""
 
     name = "inline"
@@ -118,9 +136,6 @@ class InlineExecutor:
 
     def __init__(self):
         self._stopped = False
-
-    def __enter__(self):
-        return self
 
     def cancel_pending(self) -> None:
         self._stopped = True
@@ -135,21 +150,16 @@ class InlineExecutor:
             yield function(*task)
 
 
-class ProcessExecutor:
+class ProcessExecutor(contextlib.AbstractContextManager):
     """A pool of ``workers`` spawned processes (default: the CPU count)."""
 
     name = "process"
 
     def __init__(self, workers: int | None = None):
-        if workers is not None and (not isinstance(workers, int) or workers < 1):
-            raise ValueError(f"workers: expected a positive integer, got {workers!r}")
         self.workers = workers or os.cpu_count() or 1
         self._pool: ProcessPoolExecutor | None = None
         self._pending: set = set()
         self._processes: list = []
-
-    def __enter__(self):
-        return self
 
     def cancel_pending(self) -> None:
         for future in self._pending:
@@ -205,31 +215,16 @@ class ProcessExecutor:
         self._pending = {self._pool.submit(function, *task) for task in tasks}
         # the pool starts its workers while tasks are submitted; remember them to end them on an interrupt
         self._processes = [process for process in multiprocessing.active_children() if process not in before]
-        error: BaseException | None = None
-        while self._pending:
-            finished, self._pending = wait(self._pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                if future.cancelled():
-                    continue
-                failure = future.exception()
-                if failure is None:
-                    yield future.result()
-                elif error is None:
-                    error = failure
-                    self.cancel_pending()
-        if error is not None:
-            raise error
+        yield from _results(as_completed(self._pending), self.cancel_pending)
 
 
-class DaskExecutor:
+class DaskExecutor(contextlib.AbstractContextManager):
     """Tasks on a Dask distributed cluster reached at ``scheduler`` (an address or a ``distributed.Client``)."""
 
     name = "dask"
 
     def __init__(self, scheduler, timeout: float = CONNECT_TIMEOUT):
         self.scheduler = check_scheduler_address(scheduler)
-        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not 0 < timeout < float("inf"):
-            raise ValueError(f"connect timeout: expected a positive number of seconds, got {timeout!r}")
         self.timeout = float(timeout)
         self._client = None
         self._owns_client = False
@@ -277,18 +272,7 @@ class DaskExecutor:
         if not tasks:
             return
         self._futures = [self._client.submit(function, *task, pure=False) for task in tasks]
-        error: BaseException | None = None
-        for future in as_completed(self._futures, loop=self._client.loop):
-            if future.cancelled():
-                continue
-            if future.status == "error":
-                if error is None:
-                    error = future.exception()
-                    self.cancel_pending()
-                continue
-            yield future.result()
-        if error is not None:
-            raise error
+        yield from _results(as_completed(self._futures, loop=self._client.loop), self.cancel_pending)
 
 
 def make_executor(name: str, *, workers: int | None = None, scheduler=None, timeout: float = CONNECT_TIMEOUT):
