@@ -94,19 +94,26 @@ class ChunkOutcome:
     interrupted: bool = False
 
 
-def _as_row(experiment: str, index: int, name: Any, value: Any) -> np.ndarray:
-    if not isinstance(name, str) or not name or name in ("index", "__campaign__"):
+def _row(experiment: str, index: int, result: Any, source: str) -> dict[str, np.ndarray]:
+    """One run's results (what ``source`` returned for run ``index``) as arrays: a mapping name → numbers, checked."""
+    if not isinstance(result, Mapping):
         raise TypeError(
-            f"experiment {experiment!r}, run {index}: result names must be non-empty strings "
-            f"other than 'index' and '__campaign__', got {name!r}"
+            f"experiment {experiment!r}, run {index}: {source} returned {type(result).__name__}, expected a mapping name → number or array"
         )
-    array = np.asarray(value)
-    if array.dtype.kind not in "biuf":
-        raise TypeError(
-            f"experiment {experiment!r}, run {index}: result {name!r} is {type(value).__name__} "
-            f"(dtype {array.dtype}), expected a number or a numeric array"
-        )
-    return array
+    row = {}
+    for name, value in result.items():
+        if not isinstance(name, str) or not name or name in ("index", "__campaign__"):
+            raise TypeError(
+                f"experiment {experiment!r}, run {index}: result names must be non-empty strings "
+                f"other than 'index' and '__campaign__', got {name!r}"
+            )
+        row[name] = np.asarray(value)
+        if row[name].dtype.kind not in "biuf":
+            raise TypeError(
+                f"experiment {experiment!r}, run {index}: result {name!r} is {type(value).__name__} "
+                f"(dtype {row[name].dtype}), expected a number or a numeric array"
+            )
+    return row
 
 
 def _stack(experiment: str, indices: Sequence[int], rows: list[Mapping[str, Any]]) -> dict[str, np.ndarray]:
@@ -128,10 +135,6 @@ def _stack(experiment: str, indices: Sequence[int], rows: list[Mapping[str, Any]
     return stacked
 
 
-def _experiment(source: str | Experiment) -> Experiment:
-    return resolve_locator(source) if isinstance(source, str) else source
-
-
 def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> list[dict[str, np.ndarray]]:
     """``run_batch``'s result (one mapping per run, or name → array stacked over the runs) as one row per run."""
     count = len(indices)
@@ -150,18 +153,13 @@ def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> 
         )
     if len(result) != count:
         raise ValueError(f"experiment {experiment.name!r}: run_batch returned {len(result)} results for {count} runs")
-    rows = []
-    for index, row in zip(indices, result):
-        if not isinstance(row, Mapping):
-            raise TypeError(f"experiment {experiment.name!r}, run {index}: run_batch gave {type(row).__name__}, expected a mapping")
-        rows.append({name: _as_row(experiment.name, index, name, value) for name, value in row.items()})
-    return rows
+    return [_row(experiment.name, index, row, "run_batch") for index, row in zip(indices, result)]
 
 
 def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
     """Run ``indices`` of the experiment (a locator or the object itself) with ``parameters``: as one batch when
     the experiment has ``run_batch``, else (or to locate a failure) one run at a time."""
-    experiment = _experiment(source)
+    experiment = resolve_locator(source) if isinstance(source, str) else source
     if experiment.run_batch is None or not indices:
         return _run_each(experiment, parameters, seed, indices)
     indices = [int(i) for i in indices]
@@ -189,13 +187,7 @@ def _run_each(experiment: Experiment, parameters: Mapping[str, Any], seed: int, 
     for index in indices:
         rng = np.random.default_rng(run_seed(seed, index))
         try:
-            result = experiment.run_one(int(index), rng, **parameters)
-            if not isinstance(result, Mapping):
-                raise TypeError(
-                    f"experiment {experiment.name!r}, run {index}: run_one returned "
-                    f"{type(result).__name__}, expected a mapping name → number or array"
-                )
-            row = {name: _as_row(experiment.name, index, name, value) for name, value in result.items()}
+            row = _row(experiment.name, index, experiment.run_one(int(index), rng, **parameters), "run_one")
         except Exception as error:  # reported with the finished runs, re-raised by the campaign
             failure = (int(index), f"{type(error).__name__}: {error}\n{traceback.format_exc()}")
             break
