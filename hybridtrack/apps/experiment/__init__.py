@@ -18,7 +18,6 @@ from hybridtrack.apps.experiment.definition import (
     UnknownExperiment,
     known_experiments,
     load_experiment,
-    register_experiment,
 )
 from hybridtrack.apps.experiment.executors import EXECUTORS
 from hybridtrack.apps.experiment.store import CampaignLocked, CampaignMismatch, CorruptResults, ResultStore
@@ -39,7 +38,6 @@ __all__ = [
     "UnknownExperiment",
     "known_experiments",
     "load_experiment",
-    "register_experiment",
     "run_campaign",
     "run_seed",
 ]

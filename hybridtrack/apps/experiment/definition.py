@@ -32,6 +32,7 @@ into an :class:`Experiment` whose ``locator`` is set.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import importlib.util
@@ -41,7 +42,7 @@ from typing import Any
 
 import attrs
 
-#: registered name → locator; :func:`register_experiment` adds to it
+#: registered name → locator
 EXPERIMENTS: dict[str, str] = {
     "demo_rmse": "hybridtrack.apps.experiment.builtin:DEMO_RMSE",
 }
@@ -49,15 +50,9 @@ EXPERIMENTS: dict[str, str] = {
 #: where ``hybridtrack run NAME`` also looks for ``NAME.py`` (relative to the working directory)
 SCRIPT_FOLDER = Path("experiments")
 
-_resolved: dict[str, Experiment] = {}
-
 
 class UnknownExperiment(LookupError):
     """A name that is neither registered nor a script; the message lists what is known."""
-
-
-def _parameters(value: Mapping[str, Any] | None) -> dict[str, Any]:
-    return dict(value or {})
 
 
 @attrs.frozen(eq=False)
@@ -74,7 +69,7 @@ class Experiment:
 
     name: str
     run_one: Callable[..., Mapping[str, Any]]
-    parameters: dict[str, Any] = attrs.field(factory=dict, converter=_parameters)
+    parameters: dict[str, Any] = attrs.field(factory=dict, converter=lambda value: dict(value or {}))
     description: str = ""
     locator: str | None = None
     run_batch: Callable[..., Any] | None = None
@@ -96,13 +91,6 @@ class Experiment:
         if unknown:
             raise ValueError(f"experiment {self.name!r}: unknown parameter(s) {unknown}; its parameters are {sorted(self.parameters)}")
         return {**self.parameters, **overrides}
-
-
-def register_experiment(name: str, locator: str) -> None:
-    """Make ``hybridtrack run NAME`` find the experiment at ``locator``; a name taken is an error."""
-    if name in EXPERIMENTS and EXPERIMENTS[name] != locator:
-        raise ValueError(f"experiment name {name!r} is already registered ({EXPERIMENTS[name]})")
-    EXPERIMENTS[name] = locator
 
 
 def _load_script(path: Path) -> Any:
@@ -127,10 +115,9 @@ def _split_locator(locator: str) -> tuple[str, str]:
     return target, attribute
 
 
+@functools.cache
 def resolve_locator(locator: str) -> Experiment:
     """The :class:`Experiment` a locator points at (cached per process)."""
-    if locator in _resolved:
-        return _resolved[locator]
     target, attribute = _split_locator(locator)
     if target.endswith(".py"):
         path = Path(target)
@@ -142,9 +129,7 @@ def resolve_locator(locator: str) -> Experiment:
     experiment = getattr(holder, attribute, None)
     if not isinstance(experiment, Experiment):
         raise UnknownExperiment(f"{target} has no Experiment named {attribute} (found {type(experiment).__name__})")
-    experiment = attrs.evolve(experiment, locator=locator)
-    _resolved[locator] = experiment
-    return experiment
+    return attrs.evolve(experiment, locator=locator)
 
 
 def known_experiments() -> list[str]:
@@ -163,11 +148,8 @@ def load_experiment(spec: str | Experiment) -> Experiment:
         return spec
     if spec in EXPERIMENTS:
         return resolve_locator(EXPERIMENTS[spec])
-    path = Path(spec)
     if spec.endswith(".py"):
-        if not path.is_file():
-            raise UnknownExperiment(f"experiment script {spec} does not exist")
-        return resolve_locator(str(path.resolve()))
+        return resolve_locator(str(Path(spec).resolve()))
     script = SCRIPT_FOLDER / f"{spec}.py"
     if script.is_file():
         return resolve_locator(str(script.resolve()))
