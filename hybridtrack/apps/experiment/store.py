@@ -248,31 +248,26 @@ class ResultStore:
     def manifest_path(self) -> Path:
         return self.folder / MANIFEST
 
-    def manifest(self) -> dict | None:
-        """The recorded manifest, or ``None`` for a new folder; :class:`CorruptResults` naming the file when damaged."""
-        problem = self._manifest_problem()
-        if isinstance(problem, str):
-            remedy = _REMEDY.format(folder=self.folder).replace("recompute its runs", "write a new one")
-            raise CorruptResults(f"manifest {self.manifest_path} {problem}; {remedy}")
-        return problem
-
-    def _manifest_problem(self) -> dict | str | None:
-        """The parsed manifest, ``None`` when absent, or a string saying what is wrong with it."""
+    def manifest(self, set_aside: bool = False) -> dict | None:
+        """The recorded manifest, or ``None`` for a new folder; :class:`CorruptResults` naming the file when
+        damaged (with ``set_aside``: the file moved to ``set_aside/`` and ``None``)."""
         path = self.manifest_path
         if not path.exists():
             return None
         try:
             text = path.read_text(encoding="utf-8")
+            problem = _check_manifest(data := json.loads(text)) if text.strip() else "is empty, expected a JSON object"
         except (OSError, UnicodeDecodeError) as error:
-            return f"cannot be read ({error})"
-        if not text.strip():
-            return "is empty, expected a JSON object"
-        try:
-            data = json.loads(text)
+            problem = f"cannot be read ({error})"
         except json.JSONDecodeError as error:
-            return f"is not valid JSON ({error})"
-        problem = _check_manifest(data)
-        return data if problem is None else problem
+            problem = f"is not valid JSON ({error})"
+        if problem is None:
+            return data
+        if not set_aside:
+            remedy = _REMEDY.format(folder=self.folder).replace("recompute its runs", "write a new one")
+            raise CorruptResults(f"manifest {path} {problem}; {remedy}")
+        self._set_aside(path, f"manifest {problem}")
+        return None
 
     def open(
         self,
@@ -298,12 +293,7 @@ class ResultStore:
             leftover.unlink(missing_ok=True)
         identity = campaign_identity(experiment, parameters, seed)
         wanted = {**identity, "locator": locator, "n": int(n)}
-        recorded = self._manifest_problem()
-        if isinstance(recorded, str):
-            if not set_aside:
-                self.manifest()  # raises, naming the file
-            self._set_aside(self.manifest_path, f"manifest {recorded}")
-            recorded = None
+        recorded = self.manifest(set_aside)
         if recorded is not None:
             details = _differences(recorded, identity)
             if details:
@@ -359,7 +349,7 @@ class ResultStore:
                 raise type(error)(f"{error}; {_REMEDY.format(folder=self.folder)}") from error
             self._set_aside(path, str(error))
 
-        readable: list[tuple[Path, dict[str, np.ndarray]]] = []
+        readable: list[tuple[Path, dict[str, np.ndarray], str]] = []
         for path in self.chunk_files():
             try:
                 arrays = read_chunk(path)
@@ -379,23 +369,21 @@ class ResultStore:
                 reject(path, error)
                 continue
             arrays.pop(IDENTITY_ARRAY, None)
-            readable.append((path, arrays))
+            layout = "{" + ", ".join(f"{name}: {arrays[name].shape[1:]}" for name in sorted(arrays)) + "}"
+            readable.append((path, arrays, layout))
 
-        runs_per_layout: dict[str, int] = {}
-        first_with: dict[str, Path] = {}
-        for path, arrays in readable:
-            layout = _describe({name: values.shape[1:] for name, values in arrays.items()})
-            runs_per_layout[layout] = runs_per_layout.get(layout, 0) + arrays["index"].size
-            first_with.setdefault(layout, path)
-        majority = max(runs_per_layout, key=runs_per_layout.get) if readable else ""  # ties: the first file's
+        runs: dict[str, int] = {}
+        for _, arrays, layout in readable:
+            runs[layout] = runs.get(layout, 0) + arrays["index"].size
+        majority = max(runs, key=runs.get, default="")  # ties: the first file's
         owner: dict[int, Path] = {}
-        for path, arrays in readable:
-            layout = _describe({name: values.shape[1:] for name, values in arrays.items()})
+        for path, arrays, layout in readable:
             try:
                 if layout != majority:
+                    first = next(other for other, _, kind in readable if kind == majority)
                     raise CorruptResults(
                         f"chunk file {path}: result names and shapes per run {layout} differ from "
-                        f"{majority} in {first_with[majority].name} and the other chunks"
+                        f"{majority} in {first.name} and the other chunks"
                     )
                 twice = sorted(int(i) for i in arrays["index"] if int(i) in owner)
                 if twice:
@@ -426,7 +414,7 @@ class ResultStore:
             if values.shape[:1] != indices.shape:
                 raise ValueError(f"write_chunk: {name!r} has {values.shape[:1]} rows for {indices.size} runs")
             arrays[name] = values
-        identity = self.identity if self.identity is not None else self._reference_identity()[0]
+        identity = self._reference_identity()[0]
         if identity is not None:
             arrays[IDENTITY_ARRAY] = np.array(json.dumps(identity, sort_keys=True))
         path = self.folder / f"runs-{indices.min():07d}-{indices.max():07d}.npz"
@@ -445,12 +433,6 @@ class ResultStore:
             return {"index": np.zeros(0, dtype=np.int64)}
         merged = {name: np.concatenate(parts) for name, parts in columns.items()}
         order = np.argsort(merged["index"], kind="stable")
-        merged = {name: values[order] for name, values in merged.items()}
         if n is not None:
-            keep = merged["index"] < n
-            merged = {name: values[keep] for name, values in merged.items()}
-        return merged
-
-
-def _describe(shapes: Mapping[str, tuple]) -> str:
-    return "{" + ", ".join(f"{name}: {shape}" for name, shape in sorted(shapes.items())) + "}"
+            order = order[merged["index"][order] < n]
+        return {name: values[order] for name, values in merged.items()}
