@@ -27,6 +27,8 @@ scheduler address); 130 interrupted by Ctrl-C (the finished runs are stored).
 from __future__ import annotations
 
 import argparse
+import json
+from typing import Any
 
 from hybridtrack.cli import integer_option, number_option
 from hybridtrack.core.hookspecs import hookimpl
@@ -47,19 +49,20 @@ def _run_list(text: str) -> list[int]:
     return indices
 
 
-def _one_line_errors(parser: argparse.ArgumentParser) -> None:
-    """Report a bad option of this command as one line ``hybridtrack run: error: …`` (no usage block), exit status 2."""
-
-    def error(message: str):
-        parser.exit(2, f"{parser.prog}: error: {' '.join(message.split())}\n")
-
-    parser.error = error
+def _parameter(text: str) -> tuple[str, Any]:
+    """``"key=value"`` → (key, value), the value parsed as JSON when it parses (numbers, lists, true/false), else text."""
+    key, separator, value = text.partition("=")
+    if not separator or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from hybridtrack.apps.experiment.executors import EXECUTORS
 
-    _one_line_errors(parser)
     parser.add_argument("experiment", metavar="EXPERIMENT", help="registered name, experiments/NAME.py, or a script path")
     parser.add_argument("--n", type=_positive, default=100, help="number of runs (default 100)")
     parser.add_argument("--executor", choices=EXECUTORS, default="process", help="where runs execute (default process)")
@@ -68,7 +71,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--chunk", type=_positive, help="runs per stored chunk (default: about 4 chunks per worker, ≤ 25)")
     parser.add_argument("--out", metavar="DIR", help="result folder (default runs/EXPERIMENT)")
     parser.add_argument("--seed", type=_non_negative, default=0, help="campaign seed; run i uses child i of SeedSequence(seed)")
-    parser.add_argument("--param", action="append", metavar="KEY=VALUE", help="override an experiment parameter (repeatable)")
+    parser.add_argument(
+        "--param", type=_parameter, action="append", metavar="KEY=VALUE", help="override an experiment parameter (repeatable)"
+    )
     parser.add_argument(
         "--set-aside",
         action="store_true",
@@ -95,13 +100,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     import sys
     from pathlib import Path
 
     import numpy as np
 
-    from hybridtrack.apps.experiment.campaign import Campaign, CampaignInterrupted, RunFailed, campaign_parameters
+    from hybridtrack.apps.experiment.campaign import Campaign, CampaignInterrupted, RunFailed
     from hybridtrack.apps.experiment.definition import UnknownExperiment
     from hybridtrack.apps.experiment.recordings import (
         accepts_recorder,
@@ -116,13 +120,12 @@ def run(args: argparse.Namespace) -> int:
         print("hybridtrack run: --executor dask needs --scheduler ADDRESS", file=sys.stderr)
         return 2
     try:
-        parameters = campaign_parameters(args.param)
         campaign = Campaign(
             args.experiment,
             args.n,
             args.out or Path("runs") / Path(args.experiment).stem,
             seed=args.seed,
-            parameters=parameters,
+            parameters=dict(args.param or []),
             executor=args.executor,
             scheduler=args.scheduler,
             workers=args.workers,
@@ -131,11 +134,7 @@ def run(args: argparse.Namespace) -> int:
             set_aside=args.set_aside,
             connect_timeout=args.connect_timeout,
         )
-        chosen: list[int] = []
-        if args.record is not None:
-            chosen = choose_runs(args.n, args.record)
-        elif args.record_runs is not None:
-            chosen = check_run_indices(args.record_runs, args.n)
+        chosen = choose_runs(args.n, args.record) if args.record else check_run_indices(args.record_runs or [], args.n)
         if chosen and not accepts_recorder(campaign.experiment):
             raise TypeError(
                 f"--record: experiment {campaign.experiment.name!r} cannot record its runs "
@@ -146,10 +145,9 @@ def run(args: argparse.Namespace) -> int:
         if chosen:
             folder = Path(args.record_dir) if args.record_dir else result.out / "recordings"
             recorded = record_runs(campaign.experiment, chosen, folder, seed=campaign.seed, parameters=campaign.parameters)
-            for index, (path, replayed) in recorded.items():
-                position = int(np.flatnonzero(result.arrays["index"] == index)[0])
+            for index, (path, replayed) in recorded.items():  # result.arrays hold runs 0 … n−1 in order
                 if any(
-                    not np.allclose(values, result.arrays[name][position], rtol=1e-9, atol=0, equal_nan=True)
+                    not np.allclose(values, result.arrays[name][index], rtol=1e-9, atol=0, equal_nan=True)
                     for name, values in replayed.items()
                 ):
                     print(

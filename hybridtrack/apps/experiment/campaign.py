@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 import os
 import sys
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -210,19 +209,3 @@ class Campaign:
 def run_campaign(experiment: Experiment | str, n: int, out: str | os.PathLike, **options: Any) -> CampaignResult:
     """Shorthand for ``Campaign(experiment, n, out, **options).run()``."""
     return Campaign(experiment, n, out, **options).run()
-
-
-def campaign_parameters(pairs: list[str] | None) -> Mapping[str, Any]:
-    """``["key=value", …]`` → dict, each value parsed as JSON when it parses (numbers, lists, true/false), else text."""
-    import json
-
-    parsed: dict[str, Any] = {}
-    for pair in pairs or []:
-        key, separator, text = pair.partition("=")
-        if not separator or not key:
-            raise ValueError(f"--param: expected KEY=VALUE, got {pair!r}")
-        try:
-            parsed[key] = json.loads(text)
-        except json.JSONDecodeError:
-            parsed[key] = text
-    return parsed
