@@ -37,6 +37,7 @@ import numpy as np
 
 from hybridtrack.apps.experiment.definition import Experiment, load_experiment
 from hybridtrack.apps.experiment.worker import run_seed
+from hybridtrack.core.validation import check_positive_int
 
 #: the timeline of a summary recording: the run index
 RUN_TIMELINE = "run"
@@ -54,9 +55,8 @@ def accepts_recorder(experiment: Experiment) -> bool:
 
 def choose_runs(n: int, k: int) -> list[int]:
     """``k`` run indices spread evenly over ``0 … n−1``: ``round(linspace(0, n−1, k))`` (all ``n`` when k ≥ n)."""
-    for name, value, low in (("n", n, 1), ("record", k, 1)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise ValueError(f"{name}: expected an integer ≥ {low}, got {value!r}")
+    check_positive_int(n, "n")
+    check_positive_int(k, "record")
     if k >= n:
         return list(range(n))
     return sorted({int(i) for i in np.round(np.linspace(0, n - 1, k)).astype(int)})
