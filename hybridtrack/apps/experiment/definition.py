@@ -105,20 +105,14 @@ def _load_script(path: Path) -> Any:
     return module
 
 
-def _split_locator(locator: str) -> tuple[str, str]:
-    """(module or script path, attribute) of a locator."""
-    if locator.endswith(".py"):
-        return locator, "EXPERIMENT"
-    target, separator, attribute = locator.rpartition(":")
-    if not separator or not target or not attribute:
-        raise UnknownExperiment(f"locator {locator!r}: expected 'module:ATTRIBUTE', 'script.py' or 'script.py:ATTRIBUTE'")
-    return target, attribute
-
-
 @functools.cache
 def resolve_locator(locator: str) -> Experiment:
     """The :class:`Experiment` a locator points at (cached per process)."""
-    target, attribute = _split_locator(locator)
+    target, separator, attribute = locator.rpartition(":")
+    if locator.endswith(".py"):
+        target, attribute = locator, "EXPERIMENT"
+    elif not separator or not target or not attribute:
+        raise UnknownExperiment(f"locator {locator!r}: expected 'module:ATTRIBUTE', 'script.py' or 'script.py:ATTRIBUTE'")
     if target.endswith(".py"):
         path = Path(target)
         if not path.is_file():
