@@ -1,27 +1,14 @@
-"""``hybridtrack run EXPERIMENT``: a seeded, resumable Monte Carlo campaign.
+"""``hybridtrack run EXPERIMENT``: a seeded, resumable Monte Carlo campaign (:mod:`hybridtrack.apps.experiment`).
 
 EXPERIMENT is a registered name (``demo_rmse``), a script ``path/to/foo.py``
 defining ``EXPERIMENT``, or NAME for ``experiments/NAME.py`` in the working
-directory.  Results go to ``--out`` (default ``runs/EXPERIMENT``) chunk by
-chunk; running the same command again after an interruption computes only the
-missing runs.  Prints the mean (and standard deviation) of every result over
-the runs, or with ``--json`` the same as JSON.
-
-Recordings (:mod:`hybridtrack.apps.experiment.recordings`): ``--record K`` replays
-K runs spread evenly over the indices (``round(linspace(0, n−1, K))``: the
-first and the last included), ``--record-runs I,J,…`` the runs named, each with
-the generator it had in the campaign, into ``--record-dir`` (default
-``OUT/recordings/``) as ``run_<index>.rrd`` (5 digits); the experiment's
-``run_one`` must take a ``recorder`` keyword argument (``demo_rmse`` does).
-``--summary-recording`` writes ``OUT/summary.rrd``: every result as a series
-over the run index (timeline ``run``).
+directory.  Prints the mean (and standard deviation) of every result over the
+runs, or with ``--json`` the same as JSON.  The options, the recordings and
+the storage: docs/experiments.md.
 
 Exit status: 0 done; 1 a run of the experiment failed (its traceback is
 printed; the runs before it are stored); 2 a user error, one line on stderr
-naming the option or file (unknown experiment, bad option value, a folder of
-another campaign or in use by one, a damaged file in the folder — rerun with
-``--set-aside`` to move it to ``OUT/set_aside/`` —, a malformed or unreachable
-scheduler address); 130 interrupted by Ctrl-C (the finished runs are stored).
+naming the option or file; 130 interrupted by Ctrl-C (the finished runs are stored).
 """
 
 from __future__ import annotations

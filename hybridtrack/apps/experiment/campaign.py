@@ -4,20 +4,13 @@
     result = campaign.run()              # computes only the runs missing from runs/demo
     result.arrays["rmse"]                # (200,) ordered by run index
 
-Run ``i`` always gets child ``i`` of ``SeedSequence(seed)`` (see
-:mod:`hybridtrack.apps.experiment.worker`), so the arrays are the same whatever the
-executor, the chunk size, or how many times the campaign was interrupted and
-resumed.  Missing runs are cut into chunks; every finished chunk is written to
-the result folder at once (:mod:`hybridtrack.apps.experiment.store`).  A failing run
-stops the campaign with :class:`RunFailed` after the runs finished before it
-are stored; running the campaign again resumes from there.
-
-The campaign holds the folder's lock while it runs (a second campaign on the
-same folder gets :class:`~hybridtrack.apps.experiment.store.CampaignLocked`).  A
-Ctrl-C (KeyboardInterrupt) stores the chunks finished so far, cancels the
-rest, ends the workers and raises :class:`CampaignInterrupted`; running the
-campaign again resumes.  ``set_aside=True`` moves unreadable or foreign files
-of the folder into ``OUT/set_aside/`` and recomputes their runs.
+Run ``i`` always gets child ``i`` of ``SeedSequence(seed)``
+(:mod:`~hybridtrack.apps.experiment.worker`), so the arrays do not depend on the
+executor, the chunk size or interruptions.  Every finished chunk is stored at
+once (:mod:`~hybridtrack.apps.experiment.store`), under the folder's lock.  A
+failing run stops the campaign with :class:`RunFailed`, Ctrl-C with
+:class:`CampaignInterrupted`, both after the runs finished before are stored;
+running the campaign again resumes.
 """
 
 from __future__ import annotations

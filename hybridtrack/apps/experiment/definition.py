@@ -2,25 +2,15 @@
 
 An :class:`Experiment` is a name, a function ``run_one(index, rng, **parameters)``
 returning one run's results (a mapping name → float or array, the same names
-and shapes for every run) and default ``parameters``.  The runner gives run
-``index`` the random generator ``numpy.random.default_rng(child)`` where
-``child`` is the ``index``-th child of ``SeedSequence(seed)``; ``run_one`` must
-draw all its randomness from that generator.
+and shapes for every run) and default ``parameters``; ``run_one`` draws all its
+randomness from ``rng``, the generator of run ``index``.  An optional
+``run_batch(indices, rngs, **parameters)`` runs a chunk at once with the same
+per-run generators and must give ``run_one``'s results (docs/experiments.md,
+"Batched experiments").
 
-An experiment may also declare ``run_batch(indices, rngs, **parameters)``: the
-runs ``indices`` of a chunk at once (e.g. stacked into one bank with
-``Pipeline.run_batch``), ``rngs[i]`` the generator of run ``indices[i]`` —
-the same per-run generator ``run_one`` would get, so each run must draw only
-from its own generator and the results cannot depend on the chunking.  It
-returns one mapping per run (a list, in the order of ``indices``), or one
-mapping name → array stacked over the runs (first axis ``len(indices)``);
-the results must equal ``run_one``'s (the runner falls back to ``run_one``
-for experiments without ``run_batch``, and to locate a failing run).
-
-Worker processes (``process`` and ``dask`` executors) do not receive the
-function itself but a *locator* string they resolve on their side, so an
-experiment defined in a script that is not an importable module still runs
-there:
+Worker processes receive not the function but a *locator* string they resolve
+on their side, so an experiment defined in a script that is not an importable
+module still runs there:
 
 * ``"package.module:ATTRIBUTE"`` — an importable module's attribute;
 * ``"/path/to/script.py"`` (or ``"/path/to/script.py:ATTRIBUTE"``) — a file

@@ -1,25 +1,13 @@
-"""Where chunks of runs execute: in this process, a local process pool, or a Dask cluster.
+"""Where chunks of runs execute: ``inline`` (this process), ``process`` (default; a pool of spawned
+processes) or ``dask`` (a running Dask scheduler).
 
 Each executor is a context manager with ``map_unordered(function, tasks)``
 yielding ``function(*task)`` for every task as soon as it finishes, in any
 order, and ``cancel_pending()`` to start no further task (those already running
 still finish and are yielded).  When a task raises, the executor cancels what
 has not started, still yields the results of tasks already running, and then
-raises the error.
-
-* ``inline``: one after the other in this process (debugging, tiny campaigns);
-* ``process`` (default): ``concurrent.futures.ProcessPoolExecutor`` with the
-  ``spawn`` start method (safe with threads and on every platform).  Workers
-  ignore SIGINT and exit when the main process dies
-  (:func:`~hybridtrack.apps.experiment.worker.worker_init`); leaving the ``with``
-  block on an exception (Ctrl-C included) terminates the workers still
-  running instead of waiting for them;
-* ``dask``: ``distributed.Client(scheduler)`` on a running scheduler
-  (``tcp://host:port``), e.g. ``dask scheduler`` + ``dask worker`` or a
-  ``LocalCluster``.  The address is checked by :func:`check_scheduler_address`
-  before connecting, and the connection times out after ``timeout`` seconds.
-  Workers must be able to import ``hybridtrack`` and read the experiment
-  script's path.
+raises the error.  Leaving a process pool's ``with`` block on an exception
+(Ctrl-C included) terminates its workers instead of waiting for them.
 """
 
 from __future__ import annotations

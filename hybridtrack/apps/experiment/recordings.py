@@ -1,28 +1,12 @@
 """Recordings of a campaign: chosen runs replayed with a recorder, and a summary of every run.
 
-A campaign stores numbers only.  To look at it afterwards:
-
-* :func:`record_runs` replays chosen runs in this process with a
-  :class:`~hybridtrack.recording.RerunRecorder` each, writing
-  ``FOLDER/run_<index>.rrd`` (index zero-padded to 5 digits).  Run ``i``
-  gets the same generator as in the campaign (child ``i`` of
-  ``SeedSequence(seed)``, :func:`~hybridtrack.apps.experiment.worker.run_seed`), so
-  the recording shows exactly the run whose numbers are stored; the replay's
-  results are returned so a caller can check they equal the stored ones.  The
-  experiment's ``run_one`` must take a ``recorder`` keyword argument (the
-  built-in ``demo_rmse`` does).
-* :func:`choose_runs` picks K run indices spread evenly over ``0 … n−1``
-  (the first and the last included): ``round(linspace(0, n−1, K))``.
-* :func:`write_summary_recording` writes one recording of the whole campaign:
-  every result as a series over the run index (timeline ``run``): a scalar
-  result is one series ``campaign/<name>``, a result of shape (c,) is c series
-  under ``campaign/<name>`` named ``<name>[0]`` …; results of higher rank are
-  left out (their names are returned).  Its blueprint has one time-series
-  panel per result.  :func:`read_summary_recording` reads the series back.
-
-``hybridtrack run EXPERIMENT --record K`` (or ``--record-runs I,J,…``) and
-``--summary-recording`` use these; the files go to ``OUT/recordings/`` and
-``OUT/summary.rrd`` unless ``--record-dir`` says otherwise.
+A campaign stores numbers only.  :func:`record_runs` replays chosen runs
+(:func:`choose_runs`) with the generators they had in the campaign, one
+``RerunRecorder`` file each, so a recording shows exactly a stored run;
+:func:`write_summary_recording` writes every result as a series over the run
+index, :func:`read_summary_recording` reads it back.  ``hybridtrack run
+EXPERIMENT --record K`` (``--record-runs I,J,…``) and ``--summary-recording``
+use them (docs/experiments.md, "Recordings of a campaign").
 """
 
 from __future__ import annotations

@@ -5,29 +5,17 @@ Layout of ``OUT/``::
     manifest.json                  experiment, locator, parameters, seed, requested n
     .lock                          held (flock) by the campaign writing here; holds its pid
     runs-0000000-0000019.npz       arrays "index" (c,), "__campaign__" and one (c, …) array per result name
-    runs-0000020-0000039.npz
-    …
     set_aside/                     unusable files moved away by ``set_aside=True`` (``--set-aside``)
 
-Every file is written to a temporary name in the same folder, flushed to disk
-and renamed over its final name (``os.replace`` is atomic on POSIX), so a
-campaign killed at any moment leaves only complete chunk files plus perhaps a
-``*.tmp-*`` file, which the next :meth:`ResultStore.open` deletes.  The chunk
-files are the record of which runs are done: a resumed campaign computes only
-the indices no chunk holds.
-
-One campaign at a time may write to a folder: :meth:`ResultStore.locked` takes
-an exclusive ``flock`` on ``OUT/.lock`` (released by the kernel when the
-process ends, even by SIGKILL, so no stale lock survives); a second campaign
-gets :class:`CampaignLocked` naming the folder and the holder's pid.
-
+Every file is written to a temporary name in the same folder, flushed and
+renamed over its final name (atomic on POSIX), so a killed campaign leaves
+only complete chunk files plus perhaps a ``*.tmp-*`` file, which
+:meth:`ResultStore.open` deletes; the chunk files are the record of which runs
+are done.  One campaign at a time writes to a folder (:meth:`ResultStore.locked`).
 Every chunk records its campaign's identity (format, experiment, parameters,
-seed) as the JSON text array ``__campaign__``, so a chunk of another campaign
-is refused even when ``manifest.json`` is gone.  Every file read is checked:
-an empty, truncated or foreign chunk, or a damaged manifest, raises
-:class:`CorruptResults` naming the file and what is wrong; with
-``set_aside=True`` such files are moved into ``OUT/set_aside/`` instead (with
-a line in ``OUT/set_aside/REASONS.txt``) and their runs are computed again.
+seed) as the JSON text array ``__campaign__``, and every file read is checked
+(:class:`CorruptResults`, :class:`CampaignMismatch`; the rules: docs/experiments.md,
+"Storage and resumption").
 """
 
 from __future__ import annotations

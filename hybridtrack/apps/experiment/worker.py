@@ -3,27 +3,15 @@
 Run ``i`` of a campaign seeded ``seed`` uses ``numpy.random.default_rng(
 SeedSequence(seed, spawn_key=(i,)))`` — exactly the ``i``-th child of
 ``SeedSequence(seed).spawn(n)`` for any n > i, computed without spawning the
-others.  So a run's numbers depend only on (experiment, parameters, seed, i):
-not on the executor, the chunking, the number of runs or the resume order.
+others — so its numbers do not depend on the executor, the chunking or the
+resume order.
 
-A chunk stops at the first failing run and returns the runs finished before it
-together with the failure, so the campaign can store them before reporting it.
-A Ctrl-C (KeyboardInterrupt) inside a run likewise returns the runs finished
-before it, flagged ``interrupted``.
-
-An experiment with ``run_batch`` gets the whole chunk as one batch: the runs'
-indices and their generators (each built by the rule above, so a run's numbers
-do not depend on which chunk it falls in).  When the batch raises, the chunk is
-run again one run at a time with ``run_one`` (fresh generators) to find the
-failing run and keep the runs before it; if every run then succeeds, the chunk
-is stored from ``run_one`` and the batch's error is still reported (a
-``run_batch`` that disagrees with ``run_one`` is a bug to see).  A Ctrl-C
-inside a batch loses that chunk only (``interrupted``, nothing stored from it).
-
-Process-pool workers start with :func:`worker_init`: they ignore SIGINT (the
-main process handles Ctrl-C and ends them) and a watchdog thread ends the
-worker within :data:`PARENT_POLL` seconds once its parent process is gone (a
-SIGKILLed campaign leaves no worker behind).
+A chunk stops at the first failing run (or Ctrl-C) and returns the runs
+finished before it with the failure (or ``interrupted``), so the campaign can
+store them first.  An experiment with ``run_batch`` gets the chunk as one batch;
+when the batch raises, the chunk is run again with ``run_one`` to name the
+failing run (docs/experiments.md, "Batched experiments").  Process-pool workers
+start with :func:`worker_init`.
 """
 
 from __future__ import annotations
