@@ -12,13 +12,7 @@ The command line is ``hybridtrack run EXPERIMENT [--n N] [--executor …] [--out
 """
 
 from hybridtrack.apps.experiment.campaign import Campaign, CampaignInterrupted, CampaignResult, RunFailed, run_campaign
-from hybridtrack.apps.experiment.definition import (
-    EXPERIMENTS,
-    Experiment,
-    UnknownExperiment,
-    known_experiments,
-    load_experiment,
-)
+from hybridtrack.apps.experiment.definition import EXPERIMENTS, Experiment, UnknownExperiment, known_experiments, load_experiment
 from hybridtrack.apps.experiment.executors import EXECUTORS
 from hybridtrack.apps.experiment.store import CampaignLocked, CampaignMismatch, CorruptResults, ResultStore
 from hybridtrack.apps.experiment.worker import run_seed

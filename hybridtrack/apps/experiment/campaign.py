@@ -110,16 +110,11 @@ def _progress(total: int, done: int, description: str, enabled: bool):
 class Campaign:
     """``n`` runs of ``experiment`` (an :class:`Experiment`, a registered name or a script path) into ``out``.
 
-    ``parameters`` override the experiment's defaults; ``executor`` is
-    ``inline``, ``process`` (default) or ``dask`` (needs ``scheduler``, an
-    address or a ``distributed.Client``); ``workers`` sizes the process pool;
-    ``chunk_size`` runs are stored per file (default: about four chunks per
-    worker, at most 25 runs; for an experiment with ``run_batch``, where a
-    chunk is one batch, one chunk per worker of at most its ``batch_size``); ``progress`` shows a tqdm bar when stderr is a
-    terminal; ``set_aside`` moves unreadable or foreign chunk files (and a
-    damaged manifest) into ``OUT/set_aside/`` instead of stopping, and their
-    runs are computed again; ``connect_timeout`` is how long the dask
-    executor waits for the scheduler, in seconds.
+    The options are those of ``hybridtrack run`` (docs/experiments.md): ``parameters`` override the
+    experiment's defaults; ``executor`` ``dask`` needs ``scheduler`` (an address or a
+    ``distributed.Client``); ``chunk_size`` runs per stored file (default: about four chunks per worker,
+    at most 25 runs; for an experiment with ``run_batch`` one batch per worker of at most its
+    ``batch_size``); ``progress`` shows a tqdm bar when stderr is a terminal.
     """
 
     experiment: Experiment = attrs.field(converter=load_experiment)

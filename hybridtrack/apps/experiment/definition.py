@@ -33,9 +33,7 @@ from typing import Any
 import attrs
 
 #: registered name → locator
-EXPERIMENTS: dict[str, str] = {
-    "demo_rmse": "hybridtrack.apps.experiment.builtin:DEMO_RMSE",
-}
+EXPERIMENTS: dict[str, str] = {"demo_rmse": "hybridtrack.apps.experiment.builtin:DEMO_RMSE"}
 
 #: where ``hybridtrack run NAME`` also looks for ``NAME.py`` (relative to the working directory)
 SCRIPT_FOLDER = Path("experiments")

@@ -80,7 +80,6 @@ def record_runs(
     experiment = load_experiment(experiment)
     if not accepts_recorder(experiment):
         raise TypeError(f"experiment {experiment.name!r} cannot record its runs: its run_one takes no 'recorder' keyword argument")
-    folder = Path(folder)
     written = {}
     for index in indices:
         path = run_recording_path(folder, index)

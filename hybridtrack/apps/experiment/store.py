@@ -42,7 +42,6 @@ SET_ASIDE = "set_aside"
 #: the reserved chunk array holding the campaign identity as JSON text
 IDENTITY_ARRAY = "__campaign__"
 RESERVED = ("index", IDENTITY_ARRAY)
-_CHUNK_GLOB = "runs-*.npz"
 _IDENTITY = ("experiment", "parameters", "seed")
 _REMEDY = "run again with --set-aside (Python: set_aside=True) to move it to {folder}/set_aside/ and recompute its runs"
 
@@ -311,9 +310,6 @@ class ResultStore:
         return target
 
     # -- chunks -------------------------------------------------------------
-    def chunk_files(self) -> list[Path]:
-        return sorted(self.folder.glob(_CHUNK_GLOB))
-
     def _reference_identity(self) -> tuple[dict[str, Any] | None, bool]:
         """The identity chunks must match (this store's, else the manifest's) and whether a manifest vouches for old chunks."""
         if self.identity is not None:
@@ -338,7 +334,7 @@ class ResultStore:
             self._set_aside(path, str(error))
 
         readable: list[tuple[Path, dict[str, np.ndarray], str]] = []
-        for path in self.chunk_files():
+        for path in sorted(self.folder.glob("runs-*.npz")):
             try:
                 arrays = read_chunk(path)
                 identity = chunk_identity(path, arrays)
