@@ -25,15 +25,12 @@ _non_negative = integer_option(0, "a non-negative integer")
 _seconds = number_option(lambda v: v > 0, "a positive number of seconds")
 
 
+_run_index = integer_option(0, "non-negative run indices separated by commas (3,17,40)")
+
+
 def _run_list(text: str) -> list[int]:
-    """``"3,17,40"`` → [3, 17, 40] (non-negative integers)."""
-    try:
-        indices = [int(part) for part in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected run indices separated by commas (3,17,40), got {text!r}") from None
-    if any(index < 0 for index in indices):
-        raise argparse.ArgumentTypeError(f"run indices must be non-negative, got {text!r}")
-    return indices
+    """``"3,17,40"`` → [3, 17, 40]."""
+    return [_run_index(part) for part in text.split(",")]
 
 
 def _parameter(text: str) -> tuple[str, Any]:

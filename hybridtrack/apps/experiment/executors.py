@@ -169,8 +169,7 @@ class ProcessExecutor(contextlib.AbstractContextManager):
         threading.excepthook = quiet_hook
         try:
             for process in self._processes:
-                if process.is_alive():
-                    process.terminate()
+                process.terminate()  # a no-op for a process that has ended
             for process in self._processes:
                 process.join(1.0)
                 if process.is_alive():

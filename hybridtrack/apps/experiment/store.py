@@ -199,7 +199,6 @@ class ResultStore:
         #: (original path, new path, reason) of every file this store moved into ``set_aside/``
         self.set_aside_files: list[tuple[Path, Path, str]] = []
 
-    # -- lock ---------------------------------------------------------------
     @contextlib.contextmanager
     def locked(self) -> Iterator[None]:
         """Hold the folder's exclusive lock (creating the folder); :class:`CampaignLocked` when another campaign holds it."""
@@ -230,7 +229,6 @@ class ResultStore:
             raise NotADirectoryError(f"result folder {self.folder} is a file, expected a folder (choose another --out)")
         self.folder.mkdir(parents=True, exist_ok=True)
 
-    # -- manifest -----------------------------------------------------------
     @property
     def manifest_path(self) -> Path:
         return self.folder / MANIFEST
@@ -293,7 +291,6 @@ class ResultStore:
             _atomic_write(self.manifest_path, lambda handle: handle.write(text.encode("utf-8")))
         return done
 
-    # -- set aside ----------------------------------------------------------
     def _set_aside(self, path: Path, reason: str) -> Path:
         """Move ``path`` into ``set_aside/`` (never overwriting) and note why in ``set_aside/REASONS.txt``."""
         folder = self.folder / SET_ASIDE
@@ -309,7 +306,6 @@ class ResultStore:
         self.set_aside_files.append((path, target, reason))
         return target
 
-    # -- chunks -------------------------------------------------------------
     def _reference_identity(self) -> tuple[dict[str, Any] | None, bool]:
         """The identity chunks must match (this store's, else the manifest's) and whether a manifest vouches for old chunks."""
         if self.identity is not None:
