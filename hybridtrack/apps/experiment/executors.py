@@ -119,7 +119,6 @@ def _results(finished: Iterable, cancel_pending: Callable[[], None]) -> Iterator
 class InlineExecutor(contextlib.AbstractContextManager):
     """Runs every task in this process, in order."""
 
-    name = "inline"
     workers = 1
 
     def __init__(self):
@@ -140,8 +139,6 @@ class InlineExecutor(contextlib.AbstractContextManager):
 
 class ProcessExecutor(contextlib.AbstractContextManager):
     """A pool of ``workers`` spawned processes (default: the CPU count)."""
-
-    name = "process"
 
     def __init__(self, workers: int | None = None):
         self.workers = workers or os.cpu_count() or 1
@@ -207,8 +204,6 @@ class ProcessExecutor(contextlib.AbstractContextManager):
 
 class DaskExecutor(contextlib.AbstractContextManager):
     """Tasks on a Dask distributed cluster reached at ``scheduler`` (an address or a ``distributed.Client``)."""
-
-    name = "dask"
 
     def __init__(self, scheduler, timeout: float = CONNECT_TIMEOUT):
         self.scheduler = check_scheduler_address(scheduler)

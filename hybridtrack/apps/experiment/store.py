@@ -72,21 +72,13 @@ def _atomic_write(path: Path, write) -> None:
         raise
 
 
-def _json_round_trip(value: Any, what: str) -> Any:
-    try:
-        return json.loads(json.dumps(value, sort_keys=True))
-    except (TypeError, ValueError) as error:
-        raise ValueError(f"{what} must be JSON-serializable to be recorded in {MANIFEST}: {error}") from error
-
-
 def campaign_identity(experiment: str, parameters: Mapping[str, Any], seed: int) -> dict[str, Any]:
     """What makes two campaigns the same (format, experiment name, parameters, seed); ``n`` and the locator may differ."""
-    return {
-        "format": FORMAT,
-        "experiment": experiment,
-        "parameters": _json_round_trip(dict(parameters), "experiment parameters"),
-        "seed": int(seed),
-    }
+    try:
+        parameters = json.loads(json.dumps(dict(parameters), sort_keys=True))
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"experiment parameters must be JSON-serializable to be recorded in {MANIFEST}: {error}") from error
+    return {"format": FORMAT, "experiment": experiment, "parameters": parameters, "seed": int(seed)}
 
 
 def _differences(recorded: Mapping[str, Any], wanted: Mapping[str, Any]) -> str:
@@ -194,6 +186,7 @@ class ResultStore:
 
     def __init__(self, folder: str | os.PathLike):
         self.folder = Path(folder)
+        self.manifest_path = self.folder / MANIFEST
         self.identity: dict[str, Any] | None = None
         self._manifest_present = True
         #: (original path, new path, reason) of every file this store moved into ``set_aside/``
@@ -228,10 +221,6 @@ class ResultStore:
         if self.folder.exists() and not self.folder.is_dir():
             raise NotADirectoryError(f"result folder {self.folder} is a file, expected a folder (choose another --out)")
         self.folder.mkdir(parents=True, exist_ok=True)
-
-    @property
-    def manifest_path(self) -> Path:
-        return self.folder / MANIFEST
 
     def manifest(self, set_aside: bool = False) -> dict | None:
         """The recorded manifest, or ``None`` for a new folder; :class:`CorruptResults` naming the file when
