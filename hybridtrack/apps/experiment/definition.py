@@ -116,12 +116,8 @@ def resolve_locator(locator: str) -> Experiment:
 
 def known_experiments() -> list[str]:
     """Registered names and the scripts in ``experiments/`` of the working directory that define ``EXPERIMENT``."""
-    names = set(EXPERIMENTS)
-    if SCRIPT_FOLDER.is_dir():
-        for script in SCRIPT_FOLDER.glob("*.py"):
-            if not script.name.startswith("_") and "EXPERIMENT" in script.read_text(encoding="utf-8", errors="replace"):
-                names.add(script.stem)
-    return sorted(names)
+    scripts = [path for path in SCRIPT_FOLDER.glob("[!_]*.py") if "EXPERIMENT" in path.read_text("utf-8", errors="replace")]
+    return sorted({*EXPERIMENTS, *(path.stem for path in scripts)})
 
 
 def load_experiment(spec: str | Experiment) -> Experiment:
