@@ -74,11 +74,7 @@ def check_scheduler_address(scheduler: Any) -> Any:
         host, bracket, port = rest[1:].partition("]")
         if not bracket or not port.startswith(":"):
             raise bad("an IPv6 host needs [ADDRESS]:PORT")
-        try:
-            ipaddress.IPv6Address(host)
-        except ValueError:
-            raise bad(f"{host!r} is not an IPv6 address") from None
-        port = port[1:]
+        port, version = port[1:], ipaddress.IPv6Address
     else:
         host, colon, port = rest.rpartition(":")
         if not colon:
@@ -87,13 +83,14 @@ def check_scheduler_address(scheduler: Any) -> Any:
             raise bad("has no host")
         if ":" in host:
             raise bad("has more than one ':' (write an IPv6 host as [ADDRESS])")
-        if re.fullmatch(r"[0-9.]+", host):
-            try:
-                ipaddress.IPv4Address(host)
-            except ValueError:
-                raise bad(f"{host!r} is not an IPv4 address") from None
-        elif not _HOSTNAME.match(host):
+        version = ipaddress.IPv4Address if re.fullmatch(r"[0-9.]+", host) else None
+        if version is None and not _HOSTNAME.match(host):
             raise bad(f"{host!r} is not a host name")
+    if version is not None:
+        try:
+            version(host)
+        except ValueError:
+            raise bad(f"{host!r} is not an {version.__name__.removesuffix('Address')} address") from None
     if not port.isdigit() or not 1 <= int(port) <= 65535:
         raise bad(f"port {port!r} is not an integer in 1-65535")
     return scheduler
