@@ -92,16 +92,6 @@ def record_runs(
     return written
 
 
-def _summary_blueprint(entities: list[str]):
-    import rerun.blueprint as rrb
-
-    return rrb.Blueprint(
-        rrb.Grid(*[rrb.TimeSeriesView(origin=f"/{entity}", name=entity.removeprefix("campaign/")) for entity in entities]),
-        rrb.TimePanel(timeline=RUN_TIMELINE, state="collapsed"),
-        collapse_panels=True,
-    )
-
-
 def write_summary_recording(arrays: Mapping[str, np.ndarray], path: str | Path, configuration: Mapping[str, Any]) -> list[str]:
     """Every result of ``arrays`` (name → (n, …) by run, plus ``index``) as series over the run index, into ``path``.
 
@@ -110,6 +100,7 @@ def write_summary_recording(arrays: Mapping[str, np.ndarray], path: str | Path, 
     recording id.
     """
     import rerun as rr
+    import rerun.blueprint as rrb
 
     from hybridtrack.recording import APPLICATION_ID, recording_id
 
@@ -131,7 +122,9 @@ def write_summary_recording(arrays: Mapping[str, np.ndarray], path: str | Path, 
     path.parent.mkdir(parents=True, exist_ok=True)
     configuration = dict(configuration)
     stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id({"summary": configuration}))
-    stream.save(str(path), default_blueprint=_summary_blueprint(sorted(series)))
+    panels = [rrb.TimeSeriesView(origin=f"/{entity}", name=entity.removeprefix("campaign/")) for entity in sorted(series)]
+    blueprint = rrb.Blueprint(rrb.Grid(*panels), rrb.TimePanel(timeline=RUN_TIMELINE, state="collapsed"), collapse_panels=True)
+    stream.save(str(path), default_blueprint=blueprint)
     try:
         stream.send_property("configuration", rr.AnyValues(json=json.dumps(configuration, sort_keys=True, default=str)))
         for entity, (values, names) in sorted(series.items()):
@@ -148,8 +141,7 @@ def read_summary_recording(path: str | Path) -> dict[str, tuple[np.ndarray, np.n
     """The series of a summary recording: result name → (run indices (n,), values (n,) or (n, c)), sorted by run."""
     import rerun as rr
 
-    runs: dict[str, list[int]] = {}
-    values: dict[str, list] = {}
+    series: dict[str, list[tuple[int, Any]]] = {}
     for chunk in rr.chunk.RrdReader(str(path)).stream():
         entity = chunk.entity_path
         if not entity.startswith("/campaign/"):
@@ -160,11 +152,10 @@ def read_summary_recording(path: str | Path) -> dict[str, tuple[np.ndarray, np.n
         name = entity.removeprefix("/campaign/")
         for run, value in zip(batch.column(RUN_TIMELINE).to_pylist(), batch.column("Scalars:scalars").to_pylist()):
             if run is not None and value is not None:
-                runs.setdefault(name, []).append(int(run))
-                values.setdefault(name, []).append(value)
+                series.setdefault(name, []).append((int(run), value))
     table = {}
-    for name in runs:
-        order = np.argsort(runs[name], kind="stable")
-        array = np.array(values[name], dtype=np.float64)[order]
-        table[name] = (np.asarray(runs[name], dtype=np.int64)[order], array[:, 0] if array.shape[1] == 1 else array)
+    for name, pairs in series.items():
+        pairs.sort(key=lambda pair: pair[0])  # stable: a run logged twice keeps its order
+        array = np.array([value for _, value in pairs], dtype=np.float64)
+        table[name] = (np.array([run for run, _ in pairs], dtype=np.int64), array[:, 0] if array.shape[1] == 1 else array)
     return table
