@@ -394,13 +394,10 @@ class ResultStore:
 
     def load(self, n: int | None = None) -> dict[str, np.ndarray]:
         """Every stored run (indices below ``n`` when given), sorted by index: name → (runs, …), plus ``index``."""
-        columns: dict[str, list[np.ndarray]] = {}
-        for _, chunk in self._chunks():
-            for name, values in chunk.items():
-                columns.setdefault(name, []).append(values)
-        if not columns:
+        chunks = [arrays for _, arrays in self._chunks()]  # all with the same names: _chunks raises otherwise
+        if not chunks:
             return {"index": np.zeros(0, dtype=np.int64)}
-        merged = {name: np.concatenate(parts) for name, parts in columns.items()}
+        merged = {name: np.concatenate([chunk[name] for chunk in chunks]) for name in chunks[0]}
         order = np.argsort(merged["index"], kind="stable")
         if n is not None:
             order = order[merged["index"][order] < n]
