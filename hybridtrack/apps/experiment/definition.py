@@ -45,15 +45,9 @@ class UnknownExperiment(LookupError):
 
 @attrs.frozen(eq=False)
 class Experiment:
-    """A named Monte Carlo experiment: ``run_one(index, rng, **parameters) -> dict``.
-
-    ``parameters`` are the defaults (overridable per campaign); they must be
-    JSON-serializable since the result folder's manifest records them.
-    ``locator`` says how a worker process finds this object again (set by
-    :func:`load_experiment`; ``None`` means pickle the function by reference).
-    ``run_batch`` (optional) runs a chunk of runs at once (module docstring);
-    ``batch_size`` is then the default chunk size of a campaign (runs per batch).
-    """
+    """A named Monte Carlo experiment (module docstring); ``parameters`` are the JSON-serializable defaults
+    (the manifest records them); ``locator`` says how a worker process finds it again (``None``: pickle the
+    function by reference); ``batch_size`` is the default chunk size of a campaign with ``run_batch``."""
 
     name: str
     run_one: Callable[..., Mapping[str, Any]]
