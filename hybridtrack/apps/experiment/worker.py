@@ -104,27 +104,24 @@ def _row(experiment: str, index: int, result: Any, source: str) -> dict[str, np.
     return row
 
 
-def _stack(experiment: str, indices: Sequence[int], rows: list[Mapping[str, Any]]) -> dict[str, np.ndarray]:
+def _stack(experiment: str, rows: Mapping[int, Mapping[str, Any]]) -> dict[str, np.ndarray]:
+    """Run index → results as name → (runs, …), checked: the same names and shapes in every run."""
     if not rows:
         return {}
-    names = sorted(rows[0])
-    for index, row in zip(indices, rows):
+    first = next(iter(rows))
+    names = sorted(rows[first])
+    for index, row in rows.items():
         if sorted(row) != names:
-            raise ValueError(
-                f"experiment {experiment!r}, run {index}: results {sorted(row)} differ from {names} returned by run {indices[0]}"
-            )
-    stacked = {}
+            raise ValueError(f"experiment {experiment!r}, run {index}: results {sorted(row)} differ from {names} returned by run {first}")
     for name in names:
-        values = [row[name] for row in rows]
-        shapes = {np.shape(v) for v in values}
+        shapes = {np.shape(row[name]) for row in rows.values()}
         if len(shapes) != 1:
-            raise ValueError(f"experiment {experiment!r}: result {name!r} changes shape between runs {list(indices)}: {sorted(shapes)}")
-        stacked[name] = np.stack(values)
-    return stacked
+            raise ValueError(f"experiment {experiment!r}: result {name!r} changes shape between runs {list(rows)}: {sorted(shapes)}")
+    return {name: np.stack([row[name] for row in rows.values()]) for name in names}
 
 
-def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> list[dict[str, np.ndarray]]:
-    """``run_batch``'s result (one mapping per run, or name → array stacked over the runs) as one row per run."""
+def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> dict[int, dict[str, np.ndarray]]:
+    """``run_batch``'s result (one mapping per run, or name → array stacked over the runs) as run index → row."""
     count = len(indices)
     if isinstance(result, Mapping):
         for name, value in result.items():
@@ -141,7 +138,7 @@ def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> 
         )
     if len(result) != count:
         raise ValueError(f"experiment {experiment.name!r}: run_batch returned {len(result)} results for {count} runs")
-    return [_row(experiment.name, index, row, "run_batch") for index, row in zip(indices, result)]
+    return {index: _row(experiment.name, index, row, "run_batch") for index, row in zip(indices, result)}
 
 
 def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
@@ -153,8 +150,7 @@ def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int
     indices = [int(i) for i in indices]
     rngs = [np.random.default_rng(run_seed(seed, index)) for index in indices]
     try:
-        rows = _batch_rows(experiment, indices, experiment.run_batch(indices, rngs, **parameters))
-        stacked = _stack(experiment.name, indices, rows)
+        stacked = _stack(experiment.name, _batch_rows(experiment, indices, experiment.run_batch(indices, rngs, **parameters)))
     except Exception as error:
         report = f"{type(error).__name__} in run_batch of runs {indices[0]}…{indices[-1]}: {error}\n{traceback.format_exc()}"
         outcome = _run_each(experiment, parameters, seed, indices)
@@ -168,10 +164,8 @@ def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int
 
 def _run_each(experiment: Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
     """The chunk one run at a time with ``run_one``, stopping at the first failure or Ctrl-C."""
-    done: list[int] = []
-    rows: list[dict[str, np.ndarray]] = []
-    failure = None
-    interrupted = False
+    rows: dict[int, dict[str, np.ndarray]] = {}
+    failure, interrupted = None, False
     for index in indices:
         rng = np.random.default_rng(run_seed(seed, index))
         try:
@@ -182,10 +176,9 @@ def _run_each(experiment: Experiment, parameters: Mapping[str, Any], seed: int, 
         except KeyboardInterrupt:  # the runs finished so far are still stored
             interrupted = True
             break
-        done.append(int(index))
-        rows.append(row)
+        rows[int(index)] = row
     try:
-        stacked = _stack(experiment.name, done, rows)
+        stacked = _stack(experiment.name, rows)
     except ValueError as error:
-        return ChunkOutcome((), {}, (done[0], f"ValueError: {error}"), interrupted)
-    return ChunkOutcome(tuple(done), stacked, failure, interrupted)
+        return ChunkOutcome((), {}, (next(iter(rows)), f"ValueError: {error}"), interrupted)
+    return ChunkOutcome(tuple(rows), stacked, failure, interrupted)
