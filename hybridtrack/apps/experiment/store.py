@@ -284,11 +284,10 @@ class ResultStore:
         """Move ``path`` into ``set_aside/`` (never overwriting) and note why in ``set_aside/REASONS.txt``."""
         folder = self.folder / SET_ASIDE
         folder.mkdir(exist_ok=True)
-        target = folder / path.name
-        copy = 1
+        target, copy = folder / path.name, 0
         while target.exists():
-            target = folder / f"{path.name}.{copy}"
             copy += 1
+            target = folder / f"{path.name}.{copy}"
         os.replace(path, target)
         with open(folder / "REASONS.txt", "a", encoding="utf-8") as notes:
             notes.write(f"{target.name}: {reason}\n")
