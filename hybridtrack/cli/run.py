@@ -1,32 +1,21 @@
-"""``hybridtrack run EXPERIMENT``: a seeded, resumable Monte Carlo campaign.
+"""``hybridtrack run EXPERIMENT``: a seeded, resumable Monte Carlo campaign (:mod:`hybridtrack.apps.experiment`).
 
 EXPERIMENT is a registered name (``demo_rmse``), a script ``path/to/foo.py``
 defining ``EXPERIMENT``, or NAME for ``experiments/NAME.py`` in the working
-directory.  Results go to ``--out`` (default ``runs/EXPERIMENT``) chunk by
-chunk; running the same command again after an interruption computes only the
-missing runs.  Prints the mean (and standard deviation) of every result over
-the runs, or with ``--json`` the same as JSON.
-
-Recordings (:mod:`hybridtrack.apps.experiment.recordings`): ``--record K`` replays
-K runs spread evenly over the indices (``round(linspace(0, n−1, K))``: the
-first and the last included), ``--record-runs I,J,…`` the runs named, each with
-the generator it had in the campaign, into ``--record-dir`` (default
-``OUT/recordings/``) as ``run_<index>.rrd`` (5 digits); the experiment's
-``run_one`` must take a ``recorder`` keyword argument (``demo_rmse`` does).
-``--summary-recording`` writes ``OUT/summary.rrd``: every result as a series
-over the run index (timeline ``run``).
+directory.  Prints the mean (and standard deviation) of every result over the
+runs, or with ``--json`` the same as JSON.  The options, the recordings and
+the storage: docs/experiments.md.
 
 Exit status: 0 done; 1 a run of the experiment failed (its traceback is
 printed; the runs before it are stored); 2 a user error, one line on stderr
-naming the option or file (unknown experiment, bad option value, a folder of
-another campaign or in use by one, a damaged file in the folder — rerun with
-``--set-aside`` to move it to ``OUT/set_aside/`` —, a malformed or unreachable
-scheduler address); 130 interrupted by Ctrl-C (the finished runs are stored).
+naming the option or file; 130 interrupted by Ctrl-C (the finished runs are stored).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+from typing import Any
 
 from hybridtrack.cli import integer_option, number_option
 from hybridtrack.core.hookspecs import hookimpl
@@ -36,30 +25,28 @@ _non_negative = integer_option(0, "a non-negative integer")
 _seconds = number_option(lambda v: v > 0, "a positive number of seconds")
 
 
+_run_index = integer_option(0, "non-negative run indices separated by commas (3,17,40)")
+
+
 def _run_list(text: str) -> list[int]:
-    """``"3,17,40"`` → [3, 17, 40] (non-negative integers)."""
+    """``"3,17,40"`` → [3, 17, 40]."""
+    return [_run_index(part) for part in text.split(",")]
+
+
+def _parameter(text: str) -> tuple[str, Any]:
+    """``"key=value"`` → (key, value), the value parsed as JSON when it parses (numbers, lists, true/false), else text."""
+    key, separator, value = text.partition("=")
+    if not separator or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
     try:
-        indices = [int(part) for part in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected run indices separated by commas (3,17,40), got {text!r}") from None
-    if any(index < 0 for index in indices):
-        raise argparse.ArgumentTypeError(f"run indices must be non-negative, got {text!r}")
-    return indices
-
-
-def _one_line_errors(parser: argparse.ArgumentParser) -> None:
-    """Report a bad option of this command as one line ``hybridtrack run: error: …`` (no usage block), exit status 2."""
-
-    def error(message: str):
-        parser.exit(2, f"{parser.prog}: error: {' '.join(message.split())}\n")
-
-    parser.error = error
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from hybridtrack.apps.experiment.executors import EXECUTORS
 
-    _one_line_errors(parser)
     parser.add_argument("experiment", metavar="EXPERIMENT", help="registered name, experiments/NAME.py, or a script path")
     parser.add_argument("--n", type=_positive, default=100, help="number of runs (default 100)")
     parser.add_argument("--executor", choices=EXECUTORS, default="process", help="where runs execute (default process)")
@@ -68,7 +55,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--chunk", type=_positive, help="runs per stored chunk (default: about 4 chunks per worker, ≤ 25)")
     parser.add_argument("--out", metavar="DIR", help="result folder (default runs/EXPERIMENT)")
     parser.add_argument("--seed", type=_non_negative, default=0, help="campaign seed; run i uses child i of SeedSequence(seed)")
-    parser.add_argument("--param", action="append", metavar="KEY=VALUE", help="override an experiment parameter (repeatable)")
+    parser.add_argument(
+        "--param", type=_parameter, action="append", metavar="KEY=VALUE", help="override an experiment parameter (repeatable)"
+    )
     parser.add_argument(
         "--set-aside",
         action="store_true",
@@ -95,13 +84,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     import sys
     from pathlib import Path
 
     import numpy as np
 
-    from hybridtrack.apps.experiment.campaign import Campaign, CampaignInterrupted, RunFailed, campaign_parameters
+    from hybridtrack.apps.experiment.campaign import Campaign, CampaignInterrupted, RunFailed
     from hybridtrack.apps.experiment.definition import UnknownExperiment
     from hybridtrack.apps.experiment.recordings import (
         accepts_recorder,
@@ -116,13 +104,12 @@ def run(args: argparse.Namespace) -> int:
         print("hybridtrack run: --executor dask needs --scheduler ADDRESS", file=sys.stderr)
         return 2
     try:
-        parameters = campaign_parameters(args.param)
         campaign = Campaign(
             args.experiment,
             args.n,
             args.out or Path("runs") / Path(args.experiment).stem,
             seed=args.seed,
-            parameters=parameters,
+            parameters=dict(args.param or []),
             executor=args.executor,
             scheduler=args.scheduler,
             workers=args.workers,
@@ -131,11 +118,7 @@ def run(args: argparse.Namespace) -> int:
             set_aside=args.set_aside,
             connect_timeout=args.connect_timeout,
         )
-        chosen: list[int] = []
-        if args.record is not None:
-            chosen = choose_runs(args.n, args.record)
-        elif args.record_runs is not None:
-            chosen = check_run_indices(args.record_runs, args.n)
+        chosen = choose_runs(args.n, args.record) if args.record else check_run_indices(args.record_runs or [], args.n)
         if chosen and not accepts_recorder(campaign.experiment):
             raise TypeError(
                 f"--record: experiment {campaign.experiment.name!r} cannot record its runs "
@@ -146,10 +129,9 @@ def run(args: argparse.Namespace) -> int:
         if chosen:
             folder = Path(args.record_dir) if args.record_dir else result.out / "recordings"
             recorded = record_runs(campaign.experiment, chosen, folder, seed=campaign.seed, parameters=campaign.parameters)
-            for index, (path, replayed) in recorded.items():
-                position = int(np.flatnonzero(result.arrays["index"] == index)[0])
+            for index, (path, replayed) in recorded.items():  # result.arrays hold runs 0 … n−1 in order
                 if any(
-                    not np.allclose(values, result.arrays[name][position], rtol=1e-9, atol=0, equal_nan=True)
+                    not np.allclose(values, result.arrays[name][index], rtol=1e-9, atol=0, equal_nan=True)
                     for name, values in replayed.items()
                 ):
                     print(

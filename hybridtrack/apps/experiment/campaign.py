@@ -4,20 +4,13 @@
     result = campaign.run()              # computes only the runs missing from runs/demo
     result.arrays["rmse"]                # (200,) ordered by run index
 
-Run ``i`` always gets child ``i`` of ``SeedSequence(seed)`` (see
-:mod:`hybridtrack.apps.experiment.worker`), so the arrays are the same whatever the
-executor, the chunk size, or how many times the campaign was interrupted and
-resumed.  Missing runs are cut into chunks; every finished chunk is written to
-the result folder at once (:mod:`hybridtrack.apps.experiment.store`).  A failing run
-stops the campaign with :class:`RunFailed` after the runs finished before it
-are stored; running the campaign again resumes from there.
-
-The campaign holds the folder's lock while it runs (a second campaign on the
-same folder gets :class:`~hybridtrack.apps.experiment.store.CampaignLocked`).  A
-Ctrl-C (KeyboardInterrupt) stores the chunks finished so far, cancels the
-rest, ends the workers and raises :class:`CampaignInterrupted`; running the
-campaign again resumes.  ``set_aside=True`` moves unreadable or foreign files
-of the folder into ``OUT/set_aside/`` and recomputes their runs.
+Run ``i`` always gets child ``i`` of ``SeedSequence(seed)``
+(:mod:`~hybridtrack.apps.experiment.worker`), so the arrays do not depend on the
+executor, the chunk size or interruptions.  Every finished chunk is stored at
+once (:mod:`~hybridtrack.apps.experiment.store`), under the folder's lock.  A
+failing run stops the campaign with :class:`RunFailed`, Ctrl-C with
+:class:`CampaignInterrupted`, both after the runs finished before are stored;
+running the campaign again resumes.
 """
 
 from __future__ import annotations
@@ -25,7 +18,6 @@ from __future__ import annotations
 import math
 import os
 import sys
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -51,38 +43,27 @@ class CampaignInterrupted(KeyboardInterrupt):
         )
         self.out, self.n, self.stored, self.computed = out, n, stored, computed
 
-    def __str__(self) -> str:
-        return str(self.args[0])
+
+def _is_integer(value, low: int) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= low
 
 
-def _positive_int(instance, attribute, value):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{attribute.name}: expected a positive integer, got {value!r}")
+def _valid(test, expected: str, error: type[Exception] = ValueError):
+    """An attrs validator: ``test(value)`` or ``error`` naming the field and saying ``expected``."""
+
+    def check(instance, attribute, value):
+        if not test(value):
+            raise error(f"{attribute.name}: expected {expected}, got {value!r}")
+
+    return check
 
 
-def _optional_positive_int(instance, attribute, value):
-    if value is not None:
-        _positive_int(instance, attribute, value)
-
-
-def _seed(instance, attribute, value):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise ValueError(f"seed: expected a non-negative integer, got {value!r}")
+_positive_int = _valid(lambda value: _is_integer(value, 1), "a positive integer")
 
 
 def _executor(instance, attribute, value):
     if value not in EXECUTORS:
         raise ValueError(f"unknown executor {value!r}; choose one of {', '.join(EXECUTORS)}")
-
-
-def _timeout(instance, attribute, value):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not 0 < value < math.inf:
-        raise ValueError(f"{attribute.name}: expected a positive number of seconds, got {value!r}")
-
-
-def _boolean(instance, attribute, value):
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{attribute.name}: expected True or False, got {value!r}")
 
 
 def chunks(indices: np.ndarray, size: int) -> list[tuple[int, ...]]:
@@ -129,45 +110,38 @@ def _progress(total: int, done: int, description: str, enabled: bool):
 class Campaign:
     """``n`` runs of ``experiment`` (an :class:`Experiment`, a registered name or a script path) into ``out``.
 
-    ``parameters`` override the experiment's defaults; ``executor`` is
-    ``inline``, ``process`` (default) or ``dask`` (needs ``scheduler``, an
-    address or a ``distributed.Client``); ``workers`` sizes the process pool;
-    ``chunk_size`` runs are stored per file (default: about four chunks per
-    worker, at most 25 runs; for an experiment with ``run_batch``, where a
-    chunk is one batch, one chunk per worker of at most its ``batch_size``); ``progress`` shows a tqdm bar when stderr is a
-    terminal; ``set_aside`` moves unreadable or foreign chunk files (and a
-    damaged manifest) into ``OUT/set_aside/`` instead of stopping, and their
-    runs are computed again; ``connect_timeout`` is how long the dask
-    executor waits for the scheduler, in seconds.
+    The options are those of ``hybridtrack run`` (docs/experiments.md): ``parameters`` override the
+    experiment's defaults; ``executor`` ``dask`` needs ``scheduler`` (an address or a
+    ``distributed.Client``); ``chunk_size`` runs per stored file (default: about four chunks per worker,
+    at most 25 runs; for an experiment with ``run_batch`` one batch per worker of at most its
+    ``batch_size``); ``progress`` shows a tqdm bar when stderr is a terminal.
     """
 
     experiment: Experiment = attrs.field(converter=load_experiment)
     n: int = attrs.field(validator=_positive_int)
     out: Path = attrs.field(converter=Path)
-    seed: int = attrs.field(default=0, validator=_seed)
+    seed: int = attrs.field(default=0, validator=_valid(lambda value: _is_integer(value, 0), "a non-negative integer"))
     parameters: dict[str, Any] = attrs.field(factory=dict, converter=dict)
     executor: str = attrs.field(default="process", validator=_executor)
     scheduler: Any = None
-    workers: int | None = attrs.field(default=None, validator=_optional_positive_int)
-    chunk_size: int | None = attrs.field(default=None, validator=_optional_positive_int)
+    workers: int | None = attrs.field(default=None, validator=attrs.validators.optional(_positive_int))
+    chunk_size: int | None = attrs.field(default=None, validator=attrs.validators.optional(_positive_int))
     progress: bool = True
-    set_aside: bool = attrs.field(default=False, validator=_boolean)
-    connect_timeout: float = attrs.field(default=CONNECT_TIMEOUT, validator=_timeout)
+    set_aside: bool = attrs.field(
+        default=False, validator=_valid(lambda value: isinstance(value, (bool, np.bool_)), "True or False", TypeError)
+    )
+    connect_timeout: float = attrs.field(
+        default=CONNECT_TIMEOUT,
+        validator=_valid(
+            lambda value: not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating)) and 0 < value < math.inf,
+            "a positive number of seconds",
+        ),
+    )
 
     def __attrs_post_init__(self):
         object.__setattr__(self, "parameters", self.experiment.with_parameters(**self.parameters))
         if self.executor == "dask":
             check_scheduler_address(self.scheduler)
-
-    @property
-    def store(self) -> ResultStore:
-        return ResultStore(self.out)
-
-    def missing(self) -> np.ndarray:
-        """Run indices below n that no stored chunk holds (reads the folder, changes nothing)."""
-        store = self.store
-        done = store.completed() if store.chunk_files() else np.zeros(0, dtype=np.int64)
-        return np.setdiff1d(np.arange(self.n), done)
 
     def _chunk_size(self, missing: int, workers: int) -> int:
         if self.chunk_size is not None:
@@ -178,7 +152,7 @@ class Campaign:
 
     def run(self) -> CampaignResult:
         """Compute the missing runs (storing each chunk as it finishes) and return every run's results."""
-        store = self.store
+        store = ResultStore(self.out)
         with store.locked():
             done = store.open(
                 experiment=self.experiment.name,
@@ -189,15 +163,27 @@ class Campaign:
                 set_aside=self.set_aside,
             )
             missing = np.setdiff1d(np.arange(self.n), done)
-            reused = self.n - len(missing)
-            stored = [0]  # runs stored by this call, counted as chunks arrive
+            reused, computed = self.n - len(missing), 0
             failures: list[tuple[int, str]] = []
+            executor = make_executor(self.executor, workers=self.workers, scheduler=self.scheduler, timeout=self.connect_timeout)
             try:
                 if len(missing):
-                    self._compute(store, missing, reused, stored, failures)
+                    with executor, _progress(self.n, reused, self.experiment.name, self.progress) as bar:
+                        source = self.experiment.locator or self.experiment
+                        size = self._chunk_size(len(missing), executor.workers)
+                        tasks = [(source, self.parameters, int(self.seed), chunk) for chunk in chunks(missing, size)]
+                        for outcome in executor.map_unordered(run_chunk, tasks):
+                            if outcome.indices:
+                                store.write_chunk(outcome.indices, outcome.results)
+                                computed += len(outcome.indices)
+                                bar.update(len(outcome.indices))
+                            if outcome.interrupted:
+                                raise KeyboardInterrupt
+                            if outcome.failure is not None:
+                                failures.append(outcome.failure)
+                                executor.cancel_pending()
             except KeyboardInterrupt:
-                raise CampaignInterrupted(self.out, self.n, reused + stored[0], stored[0]) from None
-            computed = stored[0]
+                raise CampaignInterrupted(self.out, self.n, reused + computed, computed) from None
             if failures:
                 index, report = min(failures)
                 raise RunFailed(
@@ -207,48 +193,7 @@ class Campaign:
             arrays = store.load(self.n)
         return CampaignResult(self.experiment.name, self.out, self.n, arrays, computed, reused, tuple(store.set_aside_files))
 
-    def _compute(self, store: ResultStore, missing: np.ndarray, reused: int, stored: list[int], failures: list) -> None:
-        """Run ``missing`` on the executor, storing every chunk as it arrives (``stored[0]`` counts the runs)."""
-        source = self.experiment.locator or self.experiment
-        executor = make_executor(self.executor, workers=self.workers, scheduler=self.scheduler, timeout=self.connect_timeout)
-        with executor:
-            tasks = [
-                (source, self.parameters, int(self.seed), chunk)
-                for chunk in chunks(missing, self._chunk_size(len(missing), executor.workers))
-            ]
-            with _progress(self.n, reused, self.experiment.name, self.progress) as bar:
-                for outcome in executor.map_unordered(run_chunk, tasks):
-                    if outcome.indices:
-                        store.write_chunk(outcome.indices, outcome.results)
-                        stored[0] += len(outcome.indices)
-                        bar.update(len(outcome.indices))
-                    if outcome.interrupted:
-                        raise KeyboardInterrupt
-                    if outcome.failure is not None:
-                        failures.append(outcome.failure)
-                        executor.cancel_pending()
-
-    def results(self) -> dict[str, np.ndarray]:
-        """The runs stored so far (index below n), without computing anything."""
-        return self.store.load(self.n)
-
 
 def run_campaign(experiment: Experiment | str, n: int, out: str | os.PathLike, **options: Any) -> CampaignResult:
     """Shorthand for ``Campaign(experiment, n, out, **options).run()``."""
     return Campaign(experiment, n, out, **options).run()
-
-
-def campaign_parameters(pairs: list[str] | None) -> Mapping[str, Any]:
-    """``["key=value", …]`` → dict, each value parsed as JSON when it parses (numbers, lists, true/false), else text."""
-    import json
-
-    parsed: dict[str, Any] = {}
-    for pair in pairs or []:
-        key, separator, text = pair.partition("=")
-        if not separator or not key:
-            raise ValueError(f"--param: expected KEY=VALUE, got {pair!r}")
-        try:
-            parsed[key] = json.loads(text)
-        except json.JSONDecodeError:
-            parsed[key] = text
-    return parsed

@@ -2,25 +2,15 @@
 
 An :class:`Experiment` is a name, a function ``run_one(index, rng, **parameters)``
 returning one run's results (a mapping name → float or array, the same names
-and shapes for every run) and default ``parameters``.  The runner gives run
-``index`` the random generator ``numpy.random.default_rng(child)`` where
-``child`` is the ``index``-th child of ``SeedSequence(seed)``; ``run_one`` must
-draw all its randomness from that generator.
+and shapes for every run) and default ``parameters``; ``run_one`` draws all its
+randomness from ``rng``, the generator of run ``index``.  An optional
+``run_batch(indices, rngs, **parameters)`` runs a chunk at once with the same
+per-run generators and must give ``run_one``'s results (docs/experiments.md,
+"Batched experiments").
 
-An experiment may also declare ``run_batch(indices, rngs, **parameters)``: the
-runs ``indices`` of a chunk at once (e.g. stacked into one bank with
-``Pipeline.run_batch``), ``rngs[i]`` the generator of run ``indices[i]`` —
-the same per-run generator ``run_one`` would get, so each run must draw only
-from its own generator and the results cannot depend on the chunking.  It
-returns one mapping per run (a list, in the order of ``indices``), or one
-mapping name → array stacked over the runs (first axis ``len(indices)``);
-the results must equal ``run_one``'s (the runner falls back to ``run_one``
-for experiments without ``run_batch``, and to locate a failing run).
-
-Worker processes (``process`` and ``dask`` executors) do not receive the
-function itself but a *locator* string they resolve on their side, so an
-experiment defined in a script that is not an importable module still runs
-there:
+Worker processes receive not the function but a *locator* string they resolve
+on their side, so an experiment defined in a script that is not an importable
+module still runs there:
 
 * ``"package.module:ATTRIBUTE"`` — an importable module's attribute;
 * ``"/path/to/script.py"`` (or ``"/path/to/script.py:ATTRIBUTE"``) — a file
@@ -32,6 +22,7 @@ into an :class:`Experiment` whose ``locator`` is set.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import importlib.util
@@ -41,40 +32,26 @@ from typing import Any
 
 import attrs
 
-#: registered name → locator; :func:`register_experiment` adds to it
-EXPERIMENTS: dict[str, str] = {
-    "demo_rmse": "hybridtrack.apps.experiment.builtin:DEMO_RMSE",
-}
+#: registered name → locator
+EXPERIMENTS: dict[str, str] = {"demo_rmse": "hybridtrack.apps.experiment.builtin:DEMO_RMSE"}
 
 #: where ``hybridtrack run NAME`` also looks for ``NAME.py`` (relative to the working directory)
 SCRIPT_FOLDER = Path("experiments")
-
-_resolved: dict[str, Experiment] = {}
 
 
 class UnknownExperiment(LookupError):
     """A name that is neither registered nor a script; the message lists what is known."""
 
 
-def _parameters(value: Mapping[str, Any] | None) -> dict[str, Any]:
-    return dict(value or {})
-
-
 @attrs.frozen(eq=False)
 class Experiment:
-    """A named Monte Carlo experiment: ``run_one(index, rng, **parameters) -> dict``.
-
-    ``parameters`` are the defaults (overridable per campaign); they must be
-    JSON-serializable since the result folder's manifest records them.
-    ``locator`` says how a worker process finds this object again (set by
-    :func:`load_experiment`; ``None`` means pickle the function by reference).
-    ``run_batch`` (optional) runs a chunk of runs at once (module docstring);
-    ``batch_size`` is then the default chunk size of a campaign (runs per batch).
-    """
+    """A named Monte Carlo experiment (module docstring); ``parameters`` are the JSON-serializable defaults
+    (the manifest records them); ``locator`` says how a worker process finds it again (``None``: pickle the
+    function by reference); ``batch_size`` is the default chunk size of a campaign with ``run_batch``."""
 
     name: str
     run_one: Callable[..., Mapping[str, Any]]
-    parameters: dict[str, Any] = attrs.field(factory=dict, converter=_parameters)
+    parameters: dict[str, Any] = attrs.field(factory=dict, converter=lambda value: dict(value or {}))
     description: str = ""
     locator: str | None = None
     run_batch: Callable[..., Any] | None = None
@@ -98,13 +75,6 @@ class Experiment:
         return {**self.parameters, **overrides}
 
 
-def register_experiment(name: str, locator: str) -> None:
-    """Make ``hybridtrack run NAME`` find the experiment at ``locator``; a name taken is an error."""
-    if name in EXPERIMENTS and EXPERIMENTS[name] != locator:
-        raise ValueError(f"experiment name {name!r} is already registered ({EXPERIMENTS[name]})")
-    EXPERIMENTS[name] = locator
-
-
 def _load_script(path: Path) -> Any:
     path = path.resolve()
     digest = hashlib.sha1(str(path).encode()).hexdigest()[:10]
@@ -117,21 +87,14 @@ def _load_script(path: Path) -> Any:
     return module
 
 
-def _split_locator(locator: str) -> tuple[str, str]:
-    """(module or script path, attribute) of a locator."""
-    if locator.endswith(".py"):
-        return locator, "EXPERIMENT"
-    target, separator, attribute = locator.rpartition(":")
-    if not separator or not target or not attribute:
-        raise UnknownExperiment(f"locator {locator!r}: expected 'module:ATTRIBUTE', 'script.py' or 'script.py:ATTRIBUTE'")
-    return target, attribute
-
-
+@functools.cache
 def resolve_locator(locator: str) -> Experiment:
     """The :class:`Experiment` a locator points at (cached per process)."""
-    if locator in _resolved:
-        return _resolved[locator]
-    target, attribute = _split_locator(locator)
+    target, separator, attribute = locator.rpartition(":")
+    if locator.endswith(".py"):
+        target, attribute = locator, "EXPERIMENT"
+    elif not separator or not target or not attribute:
+        raise UnknownExperiment(f"locator {locator!r}: expected 'module:ATTRIBUTE', 'script.py' or 'script.py:ATTRIBUTE'")
     if target.endswith(".py"):
         path = Path(target)
         if not path.is_file():
@@ -142,19 +105,13 @@ def resolve_locator(locator: str) -> Experiment:
     experiment = getattr(holder, attribute, None)
     if not isinstance(experiment, Experiment):
         raise UnknownExperiment(f"{target} has no Experiment named {attribute} (found {type(experiment).__name__})")
-    experiment = attrs.evolve(experiment, locator=locator)
-    _resolved[locator] = experiment
-    return experiment
+    return attrs.evolve(experiment, locator=locator)
 
 
 def known_experiments() -> list[str]:
     """Registered names and the scripts in ``experiments/`` of the working directory that define ``EXPERIMENT``."""
-    names = set(EXPERIMENTS)
-    if SCRIPT_FOLDER.is_dir():
-        for script in SCRIPT_FOLDER.glob("*.py"):
-            if not script.name.startswith("_") and "EXPERIMENT" in script.read_text(encoding="utf-8", errors="replace"):
-                names.add(script.stem)
-    return sorted(names)
+    scripts = [path for path in SCRIPT_FOLDER.glob("[!_]*.py") if "EXPERIMENT" in path.read_text("utf-8", errors="replace")]
+    return sorted({*EXPERIMENTS, *(path.stem for path in scripts)})
 
 
 def load_experiment(spec: str | Experiment) -> Experiment:
@@ -163,11 +120,8 @@ def load_experiment(spec: str | Experiment) -> Experiment:
         return spec
     if spec in EXPERIMENTS:
         return resolve_locator(EXPERIMENTS[spec])
-    path = Path(spec)
     if spec.endswith(".py"):
-        if not path.is_file():
-            raise UnknownExperiment(f"experiment script {spec} does not exist")
-        return resolve_locator(str(path.resolve()))
+        return resolve_locator(str(Path(spec).resolve()))
     script = SCRIPT_FOLDER / f"{spec}.py"
     if script.is_file():
         return resolve_locator(str(script.resolve()))

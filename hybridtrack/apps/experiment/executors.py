@@ -1,36 +1,25 @@
-"""Where chunks of runs execute: in this process, a local process pool, or a Dask cluster.
+"""Where chunks of runs execute: ``inline`` (this process), ``process`` (default; a pool of spawned
+processes) or ``dask`` (a running Dask scheduler).
 
 Each executor is a context manager with ``map_unordered(function, tasks)``
 yielding ``function(*task)`` for every task as soon as it finishes, in any
 order, and ``cancel_pending()`` to start no further task (those already running
 still finish and are yielded).  When a task raises, the executor cancels what
 has not started, still yields the results of tasks already running, and then
-raises the error.
-
-* ``inline``: one after the other in this process (debugging, tiny campaigns);
-* ``process`` (default): ``concurrent.futures.ProcessPoolExecutor`` with the
-  ``spawn`` start method (safe with threads and on every platform).  Workers
-  ignore SIGINT and exit when the main process dies
-  (:func:`~hybridtrack.apps.experiment.worker.worker_init`); leaving the ``with``
-  block on an exception (Ctrl-C included) terminates the workers still
-  running instead of waiting for them;
-* ``dask``: ``distributed.Client(scheduler)`` on a running scheduler
-  (``tcp://host:port``), e.g. ``dask scheduler`` + ``dask worker`` or a
-  ``LocalCluster``.  The address is checked by :func:`check_scheduler_address`
-  before connecting, and the connection times out after ``timeout`` seconds.
-  Workers must be able to import ``hybridtrack`` and read the experiment
-  script's path.
+raises the error.  Leaving a process pool's ``with`` block on an exception
+(Ctrl-C included) terminates its workers instead of waiting for them.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import multiprocessing
 import os
 import re
 import threading
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, InvalidStateError, ProcessPoolExecutor, wait
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import InvalidStateError, ProcessPoolExecutor, as_completed
 from typing import Any
 
 from hybridtrack.apps.experiment.worker import worker_init
@@ -85,11 +74,7 @@ def check_scheduler_address(scheduler: Any) -> Any:
         host, bracket, port = rest[1:].partition("]")
         if not bracket or not port.startswith(":"):
             raise bad("an IPv6 host needs [ADDRESS]:PORT")
-        try:
-            ipaddress.IPv6Address(host)
-        except ValueError:
-            raise bad(f"{host!r} is not an IPv6 address") from None
-        port = port[1:]
+        port, version = port[1:], ipaddress.IPv6Address
     else:
         host, colon, port = rest.rpartition(":")
         if not colon:
@@ -98,29 +83,43 @@ def check_scheduler_address(scheduler: Any) -> Any:
             raise bad("has no host")
         if ":" in host:
             raise bad("has more than one ':' (write an IPv6 host as [ADDRESS])")
-        if re.fullmatch(r"[0-9.]+", host):
-            try:
-                ipaddress.IPv4Address(host)
-            except ValueError:
-                raise bad(f"{host!r} is not an IPv4 address") from None
-        elif not _HOSTNAME.match(host):
+        version = ipaddress.IPv4Address if re.fullmatch(r"[0-9.]+", host) else None
+        if version is None and not _HOSTNAME.match(host):
             raise bad(f"{host!r} is not a host name")
+    if version is not None:
+        try:
+            version(host)
+        except ValueError:
+            raise bad(f"{host!r} is not an {version.__name__.removesuffix('Address')} address") from None
     if not port.isdigit() or not 1 <= int(port) <= 65535:
         raise bad(f"port {port!r} is not an integer in 1-65535")
     return scheduler
 
 
-class InlineExecutor:
+def _results(finished: Iterable, cancel_pending: Callable[[], None]) -> Iterator[Any]:
+    """The results of the futures ``finished`` as they come; at the first failure cancel the pending tasks,
+    yield the results of those still running, then raise it."""
+    error: BaseException | None = None
+    for future in finished:
+        if future.cancelled():
+            continue
+        failure = future.exception()
+        if failure is None:
+            yield future.result()
+        elif error is None:
+            error = failure
+            cancel_pending()
+    if error is not None:
+        raise error
+
+
+class InlineExecutor(contextlib.AbstractContextManager):
     """Runs every task in this process, in order."""
 
-    name = "inline"
     workers = 1
 
     def __init__(self):
         self._stopped = False
-
-    def __enter__(self):
-        return self
 
     def cancel_pending(self) -> None:
         self._stopped = True
@@ -135,21 +134,14 @@ class InlineExecutor:
             yield function(*task)
 
 
-class ProcessExecutor:
+class ProcessExecutor(contextlib.AbstractContextManager):
     """A pool of ``workers`` spawned processes (default: the CPU count)."""
 
-    name = "process"
-
     def __init__(self, workers: int | None = None):
-        if workers is not None and (not isinstance(workers, int) or workers < 1):
-            raise ValueError(f"workers: expected a positive integer, got {workers!r}")
         self.workers = workers or os.cpu_count() or 1
         self._pool: ProcessPoolExecutor | None = None
         self._pending: set = set()
         self._processes: list = []
-
-    def __enter__(self):
-        return self
 
     def cancel_pending(self) -> None:
         for future in self._pending:
@@ -171,8 +163,7 @@ class ProcessExecutor:
         threading.excepthook = quiet_hook
         try:
             for process in self._processes:
-                if process.is_alive():
-                    process.terminate()
+                process.terminate()  # a no-op for a process that has ended
             for process in self._processes:
                 process.join(1.0)
                 if process.is_alive():
@@ -205,31 +196,14 @@ class ProcessExecutor:
         self._pending = {self._pool.submit(function, *task) for task in tasks}
         # the pool starts its workers while tasks are submitted; remember them to end them on an interrupt
         self._processes = [process for process in multiprocessing.active_children() if process not in before]
-        error: BaseException | None = None
-        while self._pending:
-            finished, self._pending = wait(self._pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                if future.cancelled():
-                    continue
-                failure = future.exception()
-                if failure is None:
-                    yield future.result()
-                elif error is None:
-                    error = failure
-                    self.cancel_pending()
-        if error is not None:
-            raise error
+        yield from _results(as_completed(self._pending), self.cancel_pending)
 
 
-class DaskExecutor:
+class DaskExecutor(contextlib.AbstractContextManager):
     """Tasks on a Dask distributed cluster reached at ``scheduler`` (an address or a ``distributed.Client``)."""
-
-    name = "dask"
 
     def __init__(self, scheduler, timeout: float = CONNECT_TIMEOUT):
         self.scheduler = check_scheduler_address(scheduler)
-        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not 0 < timeout < float("inf"):
-            raise ValueError(f"connect timeout: expected a positive number of seconds, got {timeout!r}")
         self.timeout = float(timeout)
         self._client = None
         self._owns_client = False
@@ -277,18 +251,7 @@ class DaskExecutor:
         if not tasks:
             return
         self._futures = [self._client.submit(function, *task, pure=False) for task in tasks]
-        error: BaseException | None = None
-        for future in as_completed(self._futures, loop=self._client.loop):
-            if future.cancelled():
-                continue
-            if future.status == "error":
-                if error is None:
-                    error = future.exception()
-                    self.cancel_pending()
-                continue
-            yield future.result()
-        if error is not None:
-            raise error
+        yield from _results(as_completed(self._futures, loop=self._client.loop), self.cancel_pending)
 
 
 def make_executor(name: str, *, workers: int | None = None, scheduler=None, timeout: float = CONNECT_TIMEOUT):

@@ -1,28 +1,12 @@
 """Recordings of a campaign: chosen runs replayed with a recorder, and a summary of every run.
 
-A campaign stores numbers only.  To look at it afterwards:
-
-* :func:`record_runs` replays chosen runs in this process with a
-  :class:`~hybridtrack.recording.RerunRecorder` each, writing
-  ``FOLDER/run_<index>.rrd`` (index zero-padded to 5 digits).  Run ``i``
-  gets the same generator as in the campaign (child ``i`` of
-  ``SeedSequence(seed)``, :func:`~hybridtrack.apps.experiment.worker.run_seed`), so
-  the recording shows exactly the run whose numbers are stored; the replay's
-  results are returned so a caller can check they equal the stored ones.  The
-  experiment's ``run_one`` must take a ``recorder`` keyword argument (the
-  built-in ``demo_rmse`` does).
-* :func:`choose_runs` picks K run indices spread evenly over ``0 … n−1``
-  (the first and the last included): ``round(linspace(0, n−1, K))``.
-* :func:`write_summary_recording` writes one recording of the whole campaign:
-  every result as a series over the run index (timeline ``run``): a scalar
-  result is one series ``campaign/<name>``, a result of shape (c,) is c series
-  under ``campaign/<name>`` named ``<name>[0]`` …; results of higher rank are
-  left out (their names are returned).  Its blueprint has one time-series
-  panel per result.  :func:`read_summary_recording` reads the series back.
-
-``hybridtrack run EXPERIMENT --record K`` (or ``--record-runs I,J,…``) and
-``--summary-recording`` use these; the files go to ``OUT/recordings/`` and
-``OUT/summary.rrd`` unless ``--record-dir`` says otherwise.
+A campaign stores numbers only.  :func:`record_runs` replays chosen runs
+(:func:`choose_runs`) with the generators they had in the campaign, one
+``RerunRecorder`` file each, so a recording shows exactly a stored run;
+:func:`write_summary_recording` writes every result as a series over the run
+index, :func:`read_summary_recording` reads it back.  ``hybridtrack run
+EXPERIMENT --record K`` (``--record-runs I,J,…``) and ``--summary-recording``
+use them (docs/experiments.md, "Recordings of a campaign").
 """
 
 from __future__ import annotations
@@ -37,6 +21,7 @@ import numpy as np
 
 from hybridtrack.apps.experiment.definition import Experiment, load_experiment
 from hybridtrack.apps.experiment.worker import run_seed
+from hybridtrack.core.validation import check_positive_int
 
 #: the timeline of a summary recording: the run index
 RUN_TIMELINE = "run"
@@ -54,9 +39,8 @@ def accepts_recorder(experiment: Experiment) -> bool:
 
 def choose_runs(n: int, k: int) -> list[int]:
     """``k`` run indices spread evenly over ``0 … n−1``: ``round(linspace(0, n−1, k))`` (all ``n`` when k ≥ n)."""
-    for name, value, low in (("n", n, 1), ("record", k, 1)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise ValueError(f"{name}: expected an integer ≥ {low}, got {value!r}")
+    check_positive_int(n, "n")
+    check_positive_int(k, "record")
     if k >= n:
         return list(range(n))
     return sorted({int(i) for i in np.round(np.linspace(0, n - 1, k)).astype(int)})
@@ -96,7 +80,6 @@ def record_runs(
     experiment = load_experiment(experiment)
     if not accepts_recorder(experiment):
         raise TypeError(f"experiment {experiment.name!r} cannot record its runs: its run_one takes no 'recorder' keyword argument")
-    folder = Path(folder)
     written = {}
     for index in indices:
         path = run_recording_path(folder, index)
@@ -109,16 +92,6 @@ def record_runs(
     return written
 
 
-def _summary_blueprint(entities: list[str]):
-    import rerun.blueprint as rrb
-
-    return rrb.Blueprint(
-        rrb.Grid(*[rrb.TimeSeriesView(origin=f"/{entity}", name=entity.removeprefix("campaign/")) for entity in entities]),
-        rrb.TimePanel(timeline=RUN_TIMELINE, state="collapsed"),
-        collapse_panels=True,
-    )
-
-
 def write_summary_recording(arrays: Mapping[str, np.ndarray], path: str | Path, configuration: Mapping[str, Any]) -> list[str]:
     """Every result of ``arrays`` (name → (n, …) by run, plus ``index``) as series over the run index, into ``path``.
 
@@ -127,6 +100,7 @@ def write_summary_recording(arrays: Mapping[str, np.ndarray], path: str | Path, 
     recording id.
     """
     import rerun as rr
+    import rerun.blueprint as rrb
 
     from hybridtrack.recording import APPLICATION_ID, recording_id
 
@@ -148,7 +122,9 @@ def write_summary_recording(arrays: Mapping[str, np.ndarray], path: str | Path, 
     path.parent.mkdir(parents=True, exist_ok=True)
     configuration = dict(configuration)
     stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id({"summary": configuration}))
-    stream.save(str(path), default_blueprint=_summary_blueprint(sorted(series)))
+    panels = [rrb.TimeSeriesView(origin=f"/{entity}", name=entity.removeprefix("campaign/")) for entity in sorted(series)]
+    blueprint = rrb.Blueprint(rrb.Grid(*panels), rrb.TimePanel(timeline=RUN_TIMELINE, state="collapsed"), collapse_panels=True)
+    stream.save(str(path), default_blueprint=blueprint)
     try:
         stream.send_property("configuration", rr.AnyValues(json=json.dumps(configuration, sort_keys=True, default=str)))
         for entity, (values, names) in sorted(series.items()):
@@ -165,8 +141,7 @@ def read_summary_recording(path: str | Path) -> dict[str, tuple[np.ndarray, np.n
     """The series of a summary recording: result name → (run indices (n,), values (n,) or (n, c)), sorted by run."""
     import rerun as rr
 
-    runs: dict[str, list[int]] = {}
-    values: dict[str, list] = {}
+    series: dict[str, list[tuple[int, Any]]] = {}
     for chunk in rr.chunk.RrdReader(str(path)).stream():
         entity = chunk.entity_path
         if not entity.startswith("/campaign/"):
@@ -177,11 +152,10 @@ def read_summary_recording(path: str | Path) -> dict[str, tuple[np.ndarray, np.n
         name = entity.removeprefix("/campaign/")
         for run, value in zip(batch.column(RUN_TIMELINE).to_pylist(), batch.column("Scalars:scalars").to_pylist()):
             if run is not None and value is not None:
-                runs.setdefault(name, []).append(int(run))
-                values.setdefault(name, []).append(value)
+                series.setdefault(name, []).append((int(run), value))
     table = {}
-    for name in runs:
-        order = np.argsort(runs[name], kind="stable")
-        array = np.array(values[name], dtype=np.float64)[order]
-        table[name] = (np.asarray(runs[name], dtype=np.int64)[order], array[:, 0] if array.shape[1] == 1 else array)
+    for name, pairs in series.items():
+        pairs.sort(key=lambda pair: pair[0])  # stable: a run logged twice keeps its order
+        array = np.array([value for _, value in pairs], dtype=np.float64)
+        table[name] = (np.array([run for run, _ in pairs], dtype=np.int64), array[:, 0] if array.shape[1] == 1 else array)
     return table

@@ -5,29 +5,17 @@ Layout of ``OUT/``::
     manifest.json                  experiment, locator, parameters, seed, requested n
     .lock                          held (flock) by the campaign writing here; holds its pid
     runs-0000000-0000019.npz       arrays "index" (c,), "__campaign__" and one (c, …) array per result name
-    runs-0000020-0000039.npz
-    …
     set_aside/                     unusable files moved away by ``set_aside=True`` (``--set-aside``)
 
-Every file is written to a temporary name in the same folder, flushed to disk
-and renamed over its final name (``os.replace`` is atomic on POSIX), so a
-campaign killed at any moment leaves only complete chunk files plus perhaps a
-``*.tmp-*`` file, which the next :meth:`ResultStore.open` deletes.  The chunk
-files are the record of which runs are done: a resumed campaign computes only
-the indices no chunk holds.
-
-One campaign at a time may write to a folder: :meth:`ResultStore.locked` takes
-an exclusive ``flock`` on ``OUT/.lock`` (released by the kernel when the
-process ends, even by SIGKILL, so no stale lock survives); a second campaign
-gets :class:`CampaignLocked` naming the folder and the holder's pid.
-
+Every file is written to a temporary name in the same folder, flushed and
+renamed over its final name (atomic on POSIX), so a killed campaign leaves
+only complete chunk files plus perhaps a ``*.tmp-*`` file, which
+:meth:`ResultStore.open` deletes; the chunk files are the record of which runs
+are done.  One campaign at a time writes to a folder (:meth:`ResultStore.locked`).
 Every chunk records its campaign's identity (format, experiment, parameters,
-seed) as the JSON text array ``__campaign__``, so a chunk of another campaign
-is refused even when ``manifest.json`` is gone.  Every file read is checked:
-an empty, truncated or foreign chunk, or a damaged manifest, raises
-:class:`CorruptResults` naming the file and what is wrong; with
-``set_aside=True`` such files are moved into ``OUT/set_aside/`` instead (with
-a line in ``OUT/set_aside/REASONS.txt``) and their runs are computed again.
+seed) as the JSON text array ``__campaign__``, and every file read is checked
+(:class:`CorruptResults`, :class:`CampaignMismatch`; the rules: docs/experiments.md,
+"Storage and resumption").
 """
 
 from __future__ import annotations
@@ -54,7 +42,6 @@ SET_ASIDE = "set_aside"
 #: the reserved chunk array holding the campaign identity as JSON text
 IDENTITY_ARRAY = "__campaign__"
 RESERVED = ("index", IDENTITY_ARRAY)
-_CHUNK_GLOB = "runs-*.npz"
 _IDENTITY = ("experiment", "parameters", "seed")
 _REMEDY = "run again with --set-aside (Python: set_aside=True) to move it to {folder}/set_aside/ and recompute its runs"
 
@@ -85,21 +72,13 @@ def _atomic_write(path: Path, write) -> None:
         raise
 
 
-def _json_round_trip(value: Any, what: str) -> Any:
-    try:
-        return json.loads(json.dumps(value, sort_keys=True))
-    except (TypeError, ValueError) as error:
-        raise ValueError(f"{what} must be JSON-serializable to be recorded in {MANIFEST}: {error}") from error
-
-
 def campaign_identity(experiment: str, parameters: Mapping[str, Any], seed: int) -> dict[str, Any]:
     """What makes two campaigns the same (format, experiment name, parameters, seed); ``n`` and the locator may differ."""
-    return {
-        "format": FORMAT,
-        "experiment": experiment,
-        "parameters": _json_round_trip(dict(parameters), "experiment parameters"),
-        "seed": int(seed),
-    }
+    try:
+        parameters = json.loads(json.dumps(dict(parameters), sort_keys=True))
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"experiment parameters must be JSON-serializable to be recorded in {MANIFEST}: {error}") from error
+    return {"format": FORMAT, "experiment": experiment, "parameters": parameters, "seed": int(seed)}
 
 
 def _differences(recorded: Mapping[str, Any], wanted: Mapping[str, Any]) -> str:
@@ -207,12 +186,12 @@ class ResultStore:
 
     def __init__(self, folder: str | os.PathLike):
         self.folder = Path(folder)
+        self.manifest_path = self.folder / MANIFEST
         self.identity: dict[str, Any] | None = None
         self._manifest_present = True
         #: (original path, new path, reason) of every file this store moved into ``set_aside/``
         self.set_aside_files: list[tuple[Path, Path, str]] = []
 
-    # -- lock ---------------------------------------------------------------
     @contextlib.contextmanager
     def locked(self) -> Iterator[None]:
         """Hold the folder's exclusive lock (creating the folder); :class:`CampaignLocked` when another campaign holds it."""
@@ -243,36 +222,26 @@ class ResultStore:
             raise NotADirectoryError(f"result folder {self.folder} is a file, expected a folder (choose another --out)")
         self.folder.mkdir(parents=True, exist_ok=True)
 
-    # -- manifest -----------------------------------------------------------
-    @property
-    def manifest_path(self) -> Path:
-        return self.folder / MANIFEST
-
-    def manifest(self) -> dict | None:
-        """The recorded manifest, or ``None`` for a new folder; :class:`CorruptResults` naming the file when damaged."""
-        problem = self._manifest_problem()
-        if isinstance(problem, str):
-            remedy = _REMEDY.format(folder=self.folder).replace("recompute its runs", "write a new one")
-            raise CorruptResults(f"manifest {self.manifest_path} {problem}; {remedy}")
-        return problem
-
-    def _manifest_problem(self) -> dict | str | None:
-        """The parsed manifest, ``None`` when absent, or a string saying what is wrong with it."""
+    def manifest(self, set_aside: bool = False) -> dict | None:
+        """The recorded manifest, or ``None`` for a new folder; :class:`CorruptResults` naming the file when
+        damaged (with ``set_aside``: the file moved to ``set_aside/`` and ``None``)."""
         path = self.manifest_path
         if not path.exists():
             return None
         try:
             text = path.read_text(encoding="utf-8")
+            problem = _check_manifest(data := json.loads(text)) if text.strip() else "is empty, expected a JSON object"
         except (OSError, UnicodeDecodeError) as error:
-            return f"cannot be read ({error})"
-        if not text.strip():
-            return "is empty, expected a JSON object"
-        try:
-            data = json.loads(text)
+            problem = f"cannot be read ({error})"
         except json.JSONDecodeError as error:
-            return f"is not valid JSON ({error})"
-        problem = _check_manifest(data)
-        return data if problem is None else problem
+            problem = f"is not valid JSON ({error})"
+        if problem is None:
+            return data
+        if not set_aside:
+            remedy = _REMEDY.format(folder=self.folder).replace("recompute its runs", "write a new one")
+            raise CorruptResults(f"manifest {path} {problem}; {remedy}")
+        self._set_aside(path, f"manifest {problem}")
+        return None
 
     def open(
         self,
@@ -298,12 +267,7 @@ class ResultStore:
             leftover.unlink(missing_ok=True)
         identity = campaign_identity(experiment, parameters, seed)
         wanted = {**identity, "locator": locator, "n": int(n)}
-        recorded = self._manifest_problem()
-        if isinstance(recorded, str):
-            if not set_aside:
-                self.manifest()  # raises, naming the file
-            self._set_aside(self.manifest_path, f"manifest {recorded}")
-            recorded = None
+        recorded = self.manifest(set_aside)
         if recorded is not None:
             details = _differences(recorded, identity)
             if details:
@@ -316,25 +280,19 @@ class ResultStore:
             _atomic_write(self.manifest_path, lambda handle: handle.write(text.encode("utf-8")))
         return done
 
-    # -- set aside ----------------------------------------------------------
     def _set_aside(self, path: Path, reason: str) -> Path:
         """Move ``path`` into ``set_aside/`` (never overwriting) and note why in ``set_aside/REASONS.txt``."""
         folder = self.folder / SET_ASIDE
         folder.mkdir(exist_ok=True)
-        target = folder / path.name
-        copy = 1
+        target, copy = folder / path.name, 0
         while target.exists():
-            target = folder / f"{path.name}.{copy}"
             copy += 1
+            target = folder / f"{path.name}.{copy}"
         os.replace(path, target)
         with open(folder / "REASONS.txt", "a", encoding="utf-8") as notes:
             notes.write(f"{target.name}: {reason}\n")
         self.set_aside_files.append((path, target, reason))
         return target
-
-    # -- chunks -------------------------------------------------------------
-    def chunk_files(self) -> list[Path]:
-        return sorted(self.folder.glob(_CHUNK_GLOB))
 
     def _reference_identity(self) -> tuple[dict[str, Any] | None, bool]:
         """The identity chunks must match (this store's, else the manifest's) and whether a manifest vouches for old chunks."""
@@ -359,8 +317,8 @@ class ResultStore:
                 raise type(error)(f"{error}; {_REMEDY.format(folder=self.folder)}") from error
             self._set_aside(path, str(error))
 
-        readable: list[tuple[Path, dict[str, np.ndarray]]] = []
-        for path in self.chunk_files():
+        readable: list[tuple[Path, dict[str, np.ndarray], str]] = []
+        for path in sorted(self.folder.glob("runs-*.npz")):
             try:
                 arrays = read_chunk(path)
                 identity = chunk_identity(path, arrays)
@@ -379,23 +337,21 @@ class ResultStore:
                 reject(path, error)
                 continue
             arrays.pop(IDENTITY_ARRAY, None)
-            readable.append((path, arrays))
+            layout = "{" + ", ".join(f"{name}: {arrays[name].shape[1:]}" for name in sorted(arrays)) + "}"
+            readable.append((path, arrays, layout))
 
-        runs_per_layout: dict[str, int] = {}
-        first_with: dict[str, Path] = {}
-        for path, arrays in readable:
-            layout = _describe({name: values.shape[1:] for name, values in arrays.items()})
-            runs_per_layout[layout] = runs_per_layout.get(layout, 0) + arrays["index"].size
-            first_with.setdefault(layout, path)
-        majority = max(runs_per_layout, key=runs_per_layout.get) if readable else ""  # ties: the first file's
+        runs: dict[str, int] = {}
+        for _, arrays, layout in readable:
+            runs[layout] = runs.get(layout, 0) + arrays["index"].size
+        majority = max(runs, key=runs.get, default="")  # ties: the first file's
         owner: dict[int, Path] = {}
-        for path, arrays in readable:
-            layout = _describe({name: values.shape[1:] for name, values in arrays.items()})
+        for path, arrays, layout in readable:
             try:
                 if layout != majority:
+                    first = next(other for other, _, kind in readable if kind == majority)
                     raise CorruptResults(
                         f"chunk file {path}: result names and shapes per run {layout} differ from "
-                        f"{majority} in {first_with[majority].name} and the other chunks"
+                        f"{majority} in {first.name} and the other chunks"
                     )
                 twice = sorted(int(i) for i in arrays["index"] if int(i) in owner)
                 if twice:
@@ -426,7 +382,7 @@ class ResultStore:
             if values.shape[:1] != indices.shape:
                 raise ValueError(f"write_chunk: {name!r} has {values.shape[:1]} rows for {indices.size} runs")
             arrays[name] = values
-        identity = self.identity if self.identity is not None else self._reference_identity()[0]
+        identity = self._reference_identity()[0]
         if identity is not None:
             arrays[IDENTITY_ARRAY] = np.array(json.dumps(identity, sort_keys=True))
         path = self.folder / f"runs-{indices.min():07d}-{indices.max():07d}.npz"
@@ -437,20 +393,11 @@ class ResultStore:
 
     def load(self, n: int | None = None) -> dict[str, np.ndarray]:
         """Every stored run (indices below ``n`` when given), sorted by index: name → (runs, …), plus ``index``."""
-        columns: dict[str, list[np.ndarray]] = {}
-        for _, chunk in self._chunks():
-            for name, values in chunk.items():
-                columns.setdefault(name, []).append(values)
-        if not columns:
+        chunks = [arrays for _, arrays in self._chunks()]  # all with the same names: _chunks raises otherwise
+        if not chunks:
             return {"index": np.zeros(0, dtype=np.int64)}
-        merged = {name: np.concatenate(parts) for name, parts in columns.items()}
+        merged = {name: np.concatenate([chunk[name] for chunk in chunks]) for name in chunks[0]}
         order = np.argsort(merged["index"], kind="stable")
-        merged = {name: values[order] for name, values in merged.items()}
         if n is not None:
-            keep = merged["index"] < n
-            merged = {name: values[keep] for name, values in merged.items()}
-        return merged
-
-
-def _describe(shapes: Mapping[str, tuple]) -> str:
-    return "{" + ", ".join(f"{name}: {shape}" for name, shape in sorted(shapes.items())) + "}"
+            order = order[merged["index"][order] < n]
+        return {name: values[order] for name, values in merged.items()}

@@ -3,27 +3,15 @@
 Run ``i`` of a campaign seeded ``seed`` uses ``numpy.random.default_rng(
 SeedSequence(seed, spawn_key=(i,)))`` — exactly the ``i``-th child of
 ``SeedSequence(seed).spawn(n)`` for any n > i, computed without spawning the
-others.  So a run's numbers depend only on (experiment, parameters, seed, i):
-not on the executor, the chunking, the number of runs or the resume order.
+others — so its numbers do not depend on the executor, the chunking or the
+resume order.
 
-A chunk stops at the first failing run and returns the runs finished before it
-together with the failure, so the campaign can store them before reporting it.
-A Ctrl-C (KeyboardInterrupt) inside a run likewise returns the runs finished
-before it, flagged ``interrupted``.
-
-An experiment with ``run_batch`` gets the whole chunk as one batch: the runs'
-indices and their generators (each built by the rule above, so a run's numbers
-do not depend on which chunk it falls in).  When the batch raises, the chunk is
-run again one run at a time with ``run_one`` (fresh generators) to find the
-failing run and keep the runs before it; if every run then succeeds, the chunk
-is stored from ``run_one`` and the batch's error is still reported (a
-``run_batch`` that disagrees with ``run_one`` is a bug to see).  A Ctrl-C
-inside a batch loses that chunk only (``interrupted``, nothing stored from it).
-
-Process-pool workers start with :func:`worker_init`: they ignore SIGINT (the
-main process handles Ctrl-C and ends them) and a watchdog thread ends the
-worker within :data:`PARENT_POLL` seconds once its parent process is gone (a
-SIGKILLed campaign leaves no worker behind).
+A chunk stops at the first failing run (or Ctrl-C) and returns the runs
+finished before it with the failure (or ``interrupted``), so the campaign can
+store them first.  An experiment with ``run_batch`` gets the chunk as one batch;
+when the batch raises, the chunk is run again with ``run_one`` to name the
+failing run (docs/experiments.md, "Batched experiments").  Process-pool workers
+start with :func:`worker_init`.
 """
 
 from __future__ import annotations
@@ -94,46 +82,46 @@ class ChunkOutcome:
     interrupted: bool = False
 
 
-def _as_row(experiment: str, index: int, name: Any, value: Any) -> np.ndarray:
-    if not isinstance(name, str) or not name or name in ("index", "__campaign__"):
+def _row(experiment: str, index: int, result: Any, source: str) -> dict[str, np.ndarray]:
+    """One run's results (what ``source`` returned for run ``index``) as arrays: a mapping name → numbers, checked."""
+    if not isinstance(result, Mapping):
         raise TypeError(
-            f"experiment {experiment!r}, run {index}: result names must be non-empty strings "
-            f"other than 'index' and '__campaign__', got {name!r}"
+            f"experiment {experiment!r}, run {index}: {source} returned {type(result).__name__}, expected a mapping name → number or array"
         )
-    array = np.asarray(value)
-    if array.dtype.kind not in "biuf":
-        raise TypeError(
-            f"experiment {experiment!r}, run {index}: result {name!r} is {type(value).__name__} "
-            f"(dtype {array.dtype}), expected a number or a numeric array"
-        )
-    return array
+    row = {}
+    for name, value in result.items():
+        if not isinstance(name, str) or not name or name in ("index", "__campaign__"):
+            raise TypeError(
+                f"experiment {experiment!r}, run {index}: result names must be non-empty strings "
+                f"other than 'index' and '__campaign__', got {name!r}"
+            )
+        row[name] = np.asarray(value)
+        if row[name].dtype.kind not in "biuf":
+            raise TypeError(
+                f"experiment {experiment!r}, run {index}: result {name!r} is {type(value).__name__} "
+                f"(dtype {row[name].dtype}), expected a number or a numeric array"
+            )
+    return row
 
 
-def _stack(experiment: str, indices: Sequence[int], rows: list[Mapping[str, Any]]) -> dict[str, np.ndarray]:
+def _stack(experiment: str, rows: Mapping[int, Mapping[str, Any]]) -> dict[str, np.ndarray]:
+    """Run index → results as name → (runs, …), checked: the same names and shapes in every run."""
     if not rows:
         return {}
-    names = sorted(rows[0])
-    for index, row in zip(indices, rows):
+    first = next(iter(rows))
+    names = sorted(rows[first])
+    for index, row in rows.items():
         if sorted(row) != names:
-            raise ValueError(
-                f"experiment {experiment!r}, run {index}: results {sorted(row)} differ from {names} returned by run {indices[0]}"
-            )
-    stacked = {}
+            raise ValueError(f"experiment {experiment!r}, run {index}: results {sorted(row)} differ from {names} returned by run {first}")
     for name in names:
-        values = [row[name] for row in rows]
-        shapes = {np.shape(v) for v in values}
+        shapes = {np.shape(row[name]) for row in rows.values()}
         if len(shapes) != 1:
-            raise ValueError(f"experiment {experiment!r}: result {name!r} changes shape between runs {list(indices)}: {sorted(shapes)}")
-        stacked[name] = np.stack(values)
-    return stacked
+            raise ValueError(f"experiment {experiment!r}: result {name!r} changes shape between runs {list(rows)}: {sorted(shapes)}")
+    return {name: np.stack([row[name] for row in rows.values()]) for name in names}
 
 
-def _experiment(source: str | Experiment) -> Experiment:
-    return resolve_locator(source) if isinstance(source, str) else source
-
-
-def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> list[dict[str, np.ndarray]]:
-    """``run_batch``'s result (one mapping per run, or name → array stacked over the runs) as one row per run."""
+def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> dict[int, dict[str, np.ndarray]]:
+    """``run_batch``'s result (one mapping per run, or name → array stacked over the runs) as run index → row."""
     count = len(indices)
     if isinstance(result, Mapping):
         for name, value in result.items():
@@ -150,25 +138,19 @@ def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> 
         )
     if len(result) != count:
         raise ValueError(f"experiment {experiment.name!r}: run_batch returned {len(result)} results for {count} runs")
-    rows = []
-    for index, row in zip(indices, result):
-        if not isinstance(row, Mapping):
-            raise TypeError(f"experiment {experiment.name!r}, run {index}: run_batch gave {type(row).__name__}, expected a mapping")
-        rows.append({name: _as_row(experiment.name, index, name, value) for name, value in row.items()})
-    return rows
+    return {index: _row(experiment.name, index, row, "run_batch") for index, row in zip(indices, result)}
 
 
 def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
     """Run ``indices`` of the experiment (a locator or the object itself) with ``parameters``: as one batch when
     the experiment has ``run_batch``, else (or to locate a failure) one run at a time."""
-    experiment = _experiment(source)
+    experiment = resolve_locator(source) if isinstance(source, str) else source
     if experiment.run_batch is None or not indices:
         return _run_each(experiment, parameters, seed, indices)
     indices = [int(i) for i in indices]
     rngs = [np.random.default_rng(run_seed(seed, index)) for index in indices]
     try:
-        rows = _batch_rows(experiment, indices, experiment.run_batch(indices, rngs, **parameters))
-        stacked = _stack(experiment.name, indices, rows)
+        stacked = _stack(experiment.name, _batch_rows(experiment, indices, experiment.run_batch(indices, rngs, **parameters)))
     except Exception as error:
         report = f"{type(error).__name__} in run_batch of runs {indices[0]}…{indices[-1]}: {error}\n{traceback.format_exc()}"
         outcome = _run_each(experiment, parameters, seed, indices)
@@ -182,30 +164,21 @@ def run_chunk(source: str | Experiment, parameters: Mapping[str, Any], seed: int
 
 def _run_each(experiment: Experiment, parameters: Mapping[str, Any], seed: int, indices: Sequence[int]) -> ChunkOutcome:
     """The chunk one run at a time with ``run_one``, stopping at the first failure or Ctrl-C."""
-    done: list[int] = []
-    rows: list[dict[str, np.ndarray]] = []
-    failure = None
-    interrupted = False
+    rows: dict[int, dict[str, np.ndarray]] = {}
+    failure, interrupted = None, False
     for index in indices:
         rng = np.random.default_rng(run_seed(seed, index))
         try:
-            result = experiment.run_one(int(index), rng, **parameters)
-            if not isinstance(result, Mapping):
-                raise TypeError(
-                    f"experiment {experiment.name!r}, run {index}: run_one returned "
-                    f"{type(result).__name__}, expected a mapping name → number or array"
-                )
-            row = {name: _as_row(experiment.name, index, name, value) for name, value in result.items()}
+            row = _row(experiment.name, index, experiment.run_one(int(index), rng, **parameters), "run_one")
         except Exception as error:  # reported with the finished runs, re-raised by the campaign
             failure = (int(index), f"{type(error).__name__}: {error}\n{traceback.format_exc()}")
             break
         except KeyboardInterrupt:  # the runs finished so far are still stored
             interrupted = True
             break
-        done.append(int(index))
-        rows.append(row)
+        rows[int(index)] = row
     try:
-        stacked = _stack(experiment.name, done, rows)
+        stacked = _stack(experiment.name, rows)
     except ValueError as error:
-        return ChunkOutcome((), {}, (done[0], f"ValueError: {error}"), interrupted)
-    return ChunkOutcome(tuple(done), stacked, failure, interrupted)
+        return ChunkOutcome((), {}, (next(iter(rows)), f"ValueError: {error}"), interrupted)
+    return ChunkOutcome(tuple(rows), stacked, failure, interrupted)
