@@ -2,7 +2,8 @@
 
 Written for plugin authors (the built-in filters use it exactly as a third
 party would): subclass :class:`BankEstimator`, implement ``initialize``,
-``predict`` and ``update`` for one algebraic form, and declare the state as an
+``predict`` and ``update_measured`` for one algebraic form (the template
+``update`` handles a step without a measurement), and declare the state as an
 attrs class whose per-filter arrays are :func:`bank_field` s; ``take`` and
 ``concatenate`` (the bank operations of the
 :class:`~hybridtrack.core.interfaces.Estimator` contract) then work on the state's
@@ -295,30 +296,25 @@ class BankEstimator(Estimator):
             if bad.any():
                 raise ValueError(_overflow_message(stage, key.replace("_", " "), array, bad, self.name))
 
-    # ------------------------------------------------------------------ the update, as a template
-    #: state fields holding results of the last update besides ``innovation`` (cleared to None by :meth:`unmeasured`)
+    #: state fields holding results of the last update besides ``innovation`` (cleared by :meth:`unmeasured`)
     update_results: ClassVar[tuple[str, ...]] = ()
 
     @guarded
     def update(self, state, z, sensors: Sequence, layout: Sequence[str]):
-        """The template update: the present sensors' model of this step (:meth:`measurement_step`, NaN
-        components left out); nothing measured → :meth:`unmeasured`; else :meth:`update_measured`, the form's
-        own maths.  A form that needs more (clutter scans, node copies, compiled lanes) overrides ``update`` and
-        calls :meth:`unmeasured` for the step without a measurement."""
+        """Template: the step's sensor model (:meth:`measurement_step`); nothing measured → :meth:`unmeasured`,
+        else :meth:`update_measured` (the form's maths, given the step).  Forms needing more (scans, node copies,
+        compiled lanes) override ``update`` and call :meth:`unmeasured` for a step without a measurement."""
         M, n = self.mean(state).shape
         step = self.measurement_step(z, sensors, layout, M, n)
-        if step is None:
-            return self.unmeasured(state, M)
-        return self.update_measured(state, step, z, sensors, layout)
+        return self.unmeasured(state, M) if step is None else self.update_measured(state, step, z, sensors, layout)
 
     def update_measured(self, state, step, z, sensors: Sequence, layout: Sequence[str]):
-        """The update of a step with a measurement: ``step`` the assembled :class:`~hybridtrack.sdk.measurements.
-        MeasurementStep` (never None); returns (state, Innovation)."""
+        """(state, Innovation) after a step with a measurement; ``step`` the assembled MeasurementStep."""
         raise NotImplementedError(f"{type(self).__name__}: override update_measured (or update)")
 
     def unmeasured(self, state, bank_size: int):
-        """The update of a step where nothing was measured, the one branch every form shares: the prediction
-        is the posterior and the innovation is empty (m = 0, ℓ = 0, NIS = 0; :func:`empty_innovation`)."""
+        """The one branch every form shares, a step without a measurement: the prediction is the posterior, the
+        innovation empty (m = 0, ℓ = 0, NIS = 0)."""
         innovation = empty_innovation(bank_size)
         return attrs.evolve(state, innovation=innovation, **dict.fromkeys(self.update_results)), innovation
 
