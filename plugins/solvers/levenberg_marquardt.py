@@ -43,8 +43,8 @@ from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
 from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
+from hybridtrack_plugins.solvers.observer import example_problem
 from hybridtrack_plugins.solvers.tma_model import (
-    CONSTANT_FIT_MESSAGE,
     N_PARAMETERS,
     BatchTMASolution,
     BearingsBatch,
@@ -53,17 +53,12 @@ from hybridtrack_plugins.solvers.tma_model import (
     Scaling,
     TMASolution,
     check_start,
-    constant_bearing,
-    constant_bearing_solution,
-    constant_fits_as_well,
+    conclude,
     normal_equations,
     require_maneuver,
     solve_observable_rows,
-    summarize,
+    solve_one,
     time_powers,
-    to_solution,
-    warn_constant_bearing,
-    warn_unobservable,
 )
 
 #: step 7 counts ΔF ≥ −ROUNDING_RTOL·F as "no increase": a change at the rounding level of F
@@ -120,38 +115,34 @@ def minimize(scaled: ScaledProblem, s: np.ndarray, settings: LMSettings):
     Returns (s, F, H at s, iterations, evaluations, converged, message).
     """
     F, r = scaled.cost(s)
-    evaluations, iterations = 1, 0
+    evaluations, iterations, dF = 1, 0, np.inf
     lam = settings.lam0
     while True:
         J = scaled.jacobian(s)  # step 2
         H, g = J.T @ J, J.T @ r
+        if dF < settings.F_tol:  # step 9 (dF of the step accepted last)
+            return s, F, H, iterations, evaluations, True, STOP_CONVERGED
+        if iterations >= settings.max_iterations:
+            return s, F, H, iterations, evaluations, False, STOP_ITERATIONS
         while True:
             A = H + lam * np.diag(np.diag(H))  # step 3
             try:
                 factor = cho_factor(A)  # step 4
             except (LinAlgError, ValueError):
-                lam *= settings.lam_up
-                if lam > settings.lam_max:
-                    return s, F, H, iterations, evaluations, False, STOP_LAMBDA
-                continue
-            s_new = s + cho_solve(factor, g)  # steps 5–6
-            F_new, r_new = scaled.cost(s_new)
-            evaluations += 1
-            dF = F - F_new
-            if np.isfinite(F_new) and dF >= -ROUNDING_RTOL * F:
-                break
-            lam *= settings.lam_up  # step 7
+                factor = None
+            if factor is not None:
+                s_new = s + cho_solve(factor, g)  # steps 5–6
+                F_new, r_new = scaled.cost(s_new)
+                evaluations += 1
+                dF = F - F_new
+                if np.isfinite(F_new) and dF >= -ROUNDING_RTOL * F:
+                    break
+            lam *= settings.lam_up  # steps 4 and 7
             if lam > settings.lam_max:
                 return s, F, H, iterations, evaluations, False, STOP_LAMBDA
         s, F, r = s_new, F_new, r_new  # step 8
         lam *= settings.lam_down
         iterations += 1
-        if dF < settings.F_tol:  # step 9
-            J = scaled.jacobian(s)
-            return s, F, J.T @ J, iterations, evaluations, True, STOP_CONVERGED
-        if iterations >= settings.max_iterations:
-            J = scaled.jacobian(s)
-            return s, F, J.T @ J, iterations, evaluations, False, STOP_ITERATIONS
 
 
 @attrs.frozen
@@ -159,13 +150,7 @@ class LevenbergMarquardt(Solver):
     """Maximum likelihood θ by the seed's Levenberg–Marquardt (one problem; see the module doc)."""
 
     name: ClassVar[str] = "levenberg_marquardt"
-
-    @staticmethod
-    def example_problem():
-        """A 60-bearing seed 002 problem (contract checks)."""
-        from hybridtrack_plugins.solvers.observer import example_problem
-
-        return example_problem()
+    example_problem = staticmethod(example_problem)  # a 60-bearing seed 002 problem (contract checks)
 
     settings: LMSettings = attrs.field(factory=LMSettings)
 
@@ -173,14 +158,8 @@ class LevenbergMarquardt(Solver):
         if not isinstance(problem, BearingsProblem):
             raise ValueError(f"problem: expected a BearingsProblem, got {type(problem).__name__}")
         require_maneuver(problem.times, problem.observer)
-        theta0 = _initial_guess(problem, self.name)
-        if constant_bearing(problem.bearings, problem.sigma):
-            return constant_bearing_solution(problem, self.name)
-        scaled = ScaledProblem.build(problem.times, problem.bearings, problem.observer, theta0, problem.reference_time, problem.convention)
-        s0 = scaled.scaling.to_scaled(theta0)
-        check_start(s0, scaled.tau, scaled.ox, scaled.oy, problem.times)
-        s, F, H, it, nf, converged, message = minimize(scaled, s0, self.settings)
-        return to_solution(problem, scaled, s, F, H, it, nf, converged, message, self.name)
+        _initial_guess(problem, self.name)
+        return solve_one(problem, lambda scaled, s0: minimize(scaled, s0, self.settings), self.name)
 
 
 # --------------------------------------------------------------------------- batch
@@ -357,13 +336,7 @@ class BatchLevenbergMarquardt(Solver):
     """
 
     name: ClassVar[str] = "levenberg_marquardt_batch"
-
-    @staticmethod
-    def example_problem():
-        """A 60-bearing seed 002 problem (contract checks)."""
-        from hybridtrack_plugins.solvers.observer import example_problem
-
-        return example_problem()
+    example_problem = staticmethod(example_problem)
 
     settings: LMSettings = attrs.field(factory=LMSettings)
     chunk_size: int = attrs.field(default=1024, converter=int, validator=_positive)
@@ -377,11 +350,8 @@ class BatchLevenbergMarquardt(Solver):
     def solve(self, problem: BearingsProblem) -> TMASolution:
         if not isinstance(problem, BearingsProblem):
             raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
-        theta0 = _initial_guess(problem, self.name)
-        batch = BearingsBatch(
-            problem.times, problem.bearings[None], problem.observer, problem.sigma, theta0, problem.reference_time, problem.convention
-        )
-        return self.solve_batch(batch).solution(0)
+        _initial_guess(problem, self.name)
+        return self.solve_batch(problem.batch()).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
         if not isinstance(batch, BearingsBatch):
@@ -392,7 +362,7 @@ class BatchLevenbergMarquardt(Solver):
 
     def _solve_rows(self, batch: BearingsBatch, numbers: np.ndarray) -> BatchTMASolution:
         """Solve every problem of ``batch`` (problem ``numbers`` of the caller's batch, for error messages)."""
-        B, n = batch.bearings.shape
+        B = len(batch)
         theta0 = np.broadcast_to(_initial_guess(batch, self.name), (B, N_PARAMETERS))
         scaling = Scaling.build(batch.times, batch.observer, theta0, batch.reference_time)
         s0 = scaling.to_scaled(theta0)
@@ -424,34 +394,8 @@ class BatchLevenbergMarquardt(Solver):
                 one = Scaling.build(batch.times, batch.observer_of(i), theta0[i], batch.reference_time)
                 o1 = one.observer(batch.observer_of(i))
                 check_start(one.to_scaled(theta0[i]), one.tau(batch.times), o1[:, 0], o1[:, 1], batch.times, int(numbers[i]))
-        theta, cov, ska, stat, pval, cons, observable = summarize(scaling, s, F, H, n, batch.sigma)
-        if not observable.all():
-            warn_unobservable(int((~observable).sum()), self.name)
         messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
-        messages = tuple(m if o else m + "; unobservable: JᵀJ singular" for m, o in zip(messages, observable))
-        if batch.sigma is None:  # σ unknown: does a constant bearing fit as well? (the pre-check needs σ)
-            fit = observable & constant_fits_as_well(batch.bearings, F)
-            if fit.any():
-                warn_constant_bearing(numbers[fit], self.name, fit=True)
-                cov = np.where(fit[:, None, None], np.nan, cov)
-                observable = observable & ~fit
-                messages = tuple(m + "; " + CONSTANT_FIT_MESSAGE if f else m for m, f in zip(messages, fit))
-        return BatchTMASolution(
-            parameters=theta,
-            covariance=cov,
-            cost=F,
-            iterations=it,
-            evaluations=nf,
-            converged=(status == 0) & observable,
-            sqrt_ka=ska,
-            chi2_statistic=stat,
-            chi2_dof=n - N_PARAMETERS,
-            chi2_pvalue=pval,
-            consistent=cons,
-            reference_time=batch.reference_time,
-            messages=messages,
-            method=self.name,
-        )
+        return conclude(batch, scaling, s, F, H, it, nf, status == 0, messages, numbers, self.name)
 
 
 @hookimpl
