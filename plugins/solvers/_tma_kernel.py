@@ -359,36 +359,21 @@ def damped_step(H, g, lam, L, delta):
 
 
 @_njit()
-def minimize_problems(
-    s0,
-    tau,
-    ox,
-    oy,
-    X,
-    lam0,
-    lam_up,
-    lam_down,
-    F_tol,
-    max_iterations,
-    lam_max,
-    rounding_rtol,
-    out_s,
-    out_F,
-    out_H,
-    out_it,
-    out_nf,
-    out_status,
-):
+def minimize_problems(s0, tau, ox, oy, X, settings):
     """Seed 002 §4.3 steps 1–9 for each row of s0 (m, 4) with bearings X (m, n), any finite radians ("north"
-    convention); õx, õy (1, n) shared or (m, n).
+    convention); õx, õy (1, n) shared or (m, n); ``settings`` = (λ_0, λ_up, λ_down, F_tol, max_iterations,
+    λ_max, rounding_rtol).
 
     Per problem: F, H, g at s; A = H + λ diag(H); not positive definite → λ ← λ λ_up;
     else s_new = s + A⁻¹g, one evaluation; accepted when F(s_new) is finite and
     F − F(s_new) ≥ −rounding_rtol·F (then λ ← λ λ_down, and H, g come from the same pass),
     else λ ← λ λ_up.  Stops: ΔF < F_tol (status 0), ``max_iterations`` accepted steps (1),
-    λ > λ_max (2).  Fills out_s (m, 4), out_F, out_H (m, 4, 4), out_it, out_nf, out_status.
+    λ > λ_max (2).  Returns s (m, 4), F (m,), H (m, 4, 4), iterations, evaluations, status (m,).
     """
+    lam0, lam_up, lam_down, F_tol, max_iterations, lam_max, rounding_rtol = settings
     m = s0.shape[0]
+    out_s, out_F, out_H = np.empty((m, 4)), np.empty(m), np.empty((m, 4, 4))
+    out_it, out_nf, out_status = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64)
     sums = np.empty(14)
     sxi, cxi = np.empty(X.shape[1]), np.empty(X.shape[1])
     H, H_new = np.empty((4, 4)), np.empty((4, 4))
@@ -439,3 +424,4 @@ def minimize_problems(
             for t in range(4):
                 out_H[i, j, t] = H[j, t]
         out_F[i], out_it[i], out_nf[i], out_status[i] = F, it, nf, status
+    return out_s, out_F, out_H, out_it, out_nf, out_status

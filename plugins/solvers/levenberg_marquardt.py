@@ -292,30 +292,9 @@ def minimize_compiled(tau, ox, oy, X, convention, s, settings: LMSettings):
 
     if convention != "north":
         ox, oy, s = oy, ox, s[:, _MIRROR]
-    m = s.shape[0]
-    ox, oy = np.atleast_2d(ox), np.atleast_2d(oy)
-    out_s, out_F, out_H = np.empty((m, 4)), np.empty(m), np.empty((m, 4, 4))
-    out_it, out_nf, out_status = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64)
-    _tma_kernel.minimize_problems(
-        np.ascontiguousarray(s, dtype=float),
-        np.ascontiguousarray(tau),
-        np.ascontiguousarray(ox),
-        np.ascontiguousarray(oy),
-        np.ascontiguousarray(X, dtype=float),
-        settings.lam0,
-        settings.lam_up,
-        settings.lam_down,
-        settings.F_tol,
-        settings.max_iterations,
-        settings.lam_max,
-        ROUNDING_RTOL,
-        out_s,
-        out_F,
-        out_H,
-        out_it,
-        out_nf,
-        out_status,
-    )
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (s, tau, np.atleast_2d(ox), np.atleast_2d(oy), X)]
+    settings = attrs.astuple(settings) + (ROUNDING_RTOL,)  # (λ_0, λ_up, λ_down, F_tol, max_iterations, λ_max) in field order
+    out_s, out_F, out_H, out_it, out_nf, out_status = _tma_kernel.minimize_problems(*arrays, settings)
     if convention != "north":
         out_s, out_H = out_s[:, _MIRROR], out_H[:, _MIRROR][:, :, _MIRROR]
     return out_s, out_F, out_H, out_it, out_nf, out_status
