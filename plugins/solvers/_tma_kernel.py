@@ -124,9 +124,11 @@ def fit_atan_polynomial(degree=10, nodes=200):
     return in_x(np.polynomial.Polynomial([-1.0, 2.0 / u_max])).coef
 
 
-# Taylor coefficients (−1)^k/(2k+1)! of sin (k = 1 … 8) and (−1)^k/(2k)! of cos (k = 2 … 8), for |y| ≤ π/4
-_S3, _S5, _S7, _S9, _S11, _S13, _S15, _S17 = ((-1) ** k / math.factorial(2 * k + 1) for k in range(1, 9))
-_K4, _K6, _K8, _K10, _K12, _K14, _K16 = ((-1) ** k / math.factorial(2 * k) for k in range(2, 9))
+# Taylor coefficients (−1)^k/(2k+1)! of sin (k = 8 … 1) and (−1)^k/(2k)! of cos (k = 8 … 2), for |y| ≤ π/4,
+# and ATAN_P, each highest power first (for :func:`horner`)
+_SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(8, 0, -1))
+_COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(8, 1, -1))
+_ATAN = ATAN_P[::-1]
 TWO_OVER_PI = 0.6366197723675814
 
 
@@ -138,25 +140,22 @@ def _njit(**options):
 
 
 _FAST = {"reassoc", "contract"}
-_C0, _C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8, _C9, _C10 = ATAN_P
+
+
+@_njit(fastmath=_FAST, inline="always")
+def horner(coefficients, u):
+    """Σ_j c_j u^j by Horner's rule, ``coefficients`` (c_d, …, c_1, c_0) highest power first."""
+    poly = coefficients[0]
+    for c in coefficients[1:]:
+        poly = poly * u + c
+    return poly
 
 
 @_njit(fastmath=_FAST, inline="always")
 def atan_small(z):
     """atan(z) = z + z u P(u), u = z², for |z| ≤ tan(π/8) (:data:`ATAN_P`, Horner)."""
     u = z * z
-    poly = _C10
-    poly = poly * u + _C9
-    poly = poly * u + _C8
-    poly = poly * u + _C7
-    poly = poly * u + _C6
-    poly = poly * u + _C5
-    poly = poly * u + _C4
-    poly = poly * u + _C3
-    poly = poly * u + _C2
-    poly = poly * u + _C1
-    poly = poly * u + _C0
-    return z + z * (u * poly)
+    return z + z * (u * horner(_ATAN, u))
 
 
 @_njit(fastmath=_FAST, inline="always")
@@ -193,23 +192,8 @@ def unit_vectors(X, sx, cx):
         n = math.floor(x * TWO_OVER_PI + 0.5)
         y = (x - n * PI_2_HI) - n * PI_2_LO
         u = y * y
-        sp = _S17
-        sp = sp * u + _S15
-        sp = sp * u + _S13
-        sp = sp * u + _S11
-        sp = sp * u + _S9
-        sp = sp * u + _S7
-        sp = sp * u + _S5
-        sp = sp * u + _S3
-        sin_y = y + y * (u * sp)
-        cp = _K16
-        cp = cp * u + _K14
-        cp = cp * u + _K12
-        cp = cp * u + _K10
-        cp = cp * u + _K8
-        cp = cp * u + _K6
-        cp = cp * u + _K4
-        cos_y = 1.0 + (u * (u * cp) - 0.5 * u)
+        sin_y = y + y * (u * horner(_SIN, u))
+        cos_y = 1.0 + (u * (u * horner(_COS, u)) - 0.5 * u)
         q = n - 4.0 * math.floor(n * 0.25)
         odd = q == 1.0 or q == 3.0
         sin_x = cos_y if odd else sin_y
