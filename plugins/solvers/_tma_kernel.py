@@ -231,13 +231,10 @@ def _add(acc, a, b, w, r, t):
 def pass_small(s, tau, ox, oy, sx, cx, out):
     """One pass over the bearings assuming small residuals; ``out`` (14,) ← F and the 13 sums; returns the violations.
 
-    "north" convention (the kernel's only one; "math" is its mirror image, see
-    :func:`minimize_problems`): with a = Δx, b = Δy and (sx, cx) = (sin X, cos X),
-    r = X − φ has sin r = (sx b − cx a)/ρ and cos r = (cx b + sx a)/ρ, so
-    r = atan2(S, C) with S = sx b − cx a, C = cx b + sx a (no wrap needed),
-    p = b/ρ², q = −a/ρ².  Here |S| ≤ tan(π/8) C is assumed, r = atan_small(S/C),
-    and S/C and 1/ρ² come from one division 1/(C ρ²); the count of bearings
-    where the assumption fails is returned (then :func:`pass_general` is used).
+    a, b, S = sx b − cx a, C = cx b + sx a, p, q as in the module doc ("north", (sx, cx) = (sin X, cos X)).
+    Here |S| ≤ tan(π/8) C is assumed, r = atan_small(S/C), and S/C and 1/ρ² come from one
+    division 1/(C ρ²); the count of bearings where the assumption fails is returned
+    (then :func:`pass_general` is used).
     ``out`` = (F, Σp², Σp²τ, Σp²τ², Σpq, Σpqτ, Σpqτ², Σq², Σq²τ, Σq²τ², Σpr, Σprτ, Σqr, Σqrτ).
     """
     s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
@@ -360,17 +357,14 @@ def minimize_problems(s0, tau, ox, oy, X, settings):
     out_it, out_nf, out_status = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64)
     sums = np.empty(14)
     sxi, cxi = np.empty(X.shape[1]), np.empty(X.shape[1])
-    H, H_new = np.empty((4, 4)), np.empty((4, 4))
-    g, g_new = np.empty(4), np.empty(4)
-    L = np.zeros((4, 4))
+    H, g, L = np.empty((4, 4)), np.empty(4), np.zeros((4, 4))
     delta, s, s_new = np.empty(4), np.empty(4), np.empty(4)
     shared = ox.shape[0] == 1
     for i in range(m):
         row = 0 if shared else i
         oxi, oyi = ox[row], oy[row]
         unit_vectors(X[i], sxi, cxi)
-        for j in range(4):
-            s[j] = s0[i, j]
+        s[:] = s0[i]
         F, small = evaluate(s, tau, oxi, oyi, sxi, cxi, sums, False)
         normal_from_sums(sums, H, g)
         lam = lam0
@@ -386,12 +380,8 @@ def minimize_problems(s0, tau, ox, oy, X, settings):
                 dF = F - F_new
                 accept = math.isfinite(F_new) and dF >= -rounding_rtol * F
             if accept:
-                normal_from_sums(sums, H_new, g_new)
-                for j in range(4):
-                    s[j] = s_new[j]
-                    g[j] = g_new[j]
-                    for t in range(4):
-                        H[j, t] = H_new[j, t]
+                normal_from_sums(sums, H, g)  # the sums of the trial point's pass
+                s[:] = s_new
                 F = F_new
                 lam *= lam_down
                 it += 1
@@ -403,9 +393,6 @@ def minimize_problems(s0, tau, ox, oy, X, settings):
                 lam *= lam_up
                 if lam > lam_max:
                     status = STATUS_LAMBDA
-        for j in range(4):
-            out_s[i, j] = s[j]
-            for t in range(4):
-                out_H[i, j, t] = H[j, t]
+        out_s[i], out_H[i] = s, H
         out_F[i], out_it[i], out_nf[i], out_status[i] = F, it, nf, status
     return out_s, out_F, out_H, out_it, out_nf, out_status

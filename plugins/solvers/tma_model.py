@@ -467,19 +467,6 @@ def relative(s, tau, ox, oy):
     return dx, dy
 
 
-def residuals(s, tau, ox, oy, X, convention):
-    """r_k = wrap(X_k − f_k(s)) (seed 002 eq. 5, wrapped to (−π, π]); X must already lie in (−π, π]."""
-    dx, dy = relative(s, tau, ox, oy)
-    return angle_difference(X, bearing(dx, dy, convention))
-
-
-def jacobian(s, tau, ox, oy, convention):
-    """J = ∂f/∂s, rows (p_k, q_k, p_k τ_k, q_k τ_k), shape (..., n, 4)."""
-    dx, dy = relative(s, tau, ox, oy)
-    p, q = bearing_gradient(dx, dy, convention)
-    return np.stack([p, q, p * tau, q * tau], axis=-1)
-
-
 def time_powers(tau) -> np.ndarray:
     """T_k = (1, τ_k, τ_k²), shape (n, 3)."""
     return np.stack([np.ones_like(tau), tau, tau * tau], axis=-1)
@@ -527,14 +514,18 @@ class ScaledProblem:
         return cls(scaling.tau(times), o[..., 0], o[..., 1], wrap_angle(bearings), convention, scaling)
 
     def residuals(self, s):
-        return residuals(s, self.tau, self.ox, self.oy, self.X, self.convention)
+        """r_k = wrap(X_k − f_k(s)) (seed 002 eq. 5, wrapped to (−π, π]; X already lies there)."""
+        dx, dy = relative(s, self.tau, self.ox, self.oy)
+        return angle_difference(self.X, bearing(dx, dy, self.convention))
 
     def cost(self, s):
         r = self.residuals(s)
         return np.einsum("...k,...k->...", r, r), r
 
     def jacobian(self, s):
-        return jacobian(s, self.tau, self.ox, self.oy, self.convention)
+        """J = ∂f/∂s, rows (p_k, q_k, p_k τ_k, q_k τ_k), shape (..., n, 4)."""
+        p, q = bearing_gradient(*relative(s, self.tau, self.ox, self.oy), self.convention)
+        return np.stack([p, q, p * self.tau, q * self.tau], axis=-1)
 
 
 # --------------------------------------------------------------------------- answers
