@@ -21,13 +21,8 @@ works in the scaled parameters of :mod:`.tma_model`; Marquardt's diag(H) makes
 the steps themselves invariant to that scaling, which only conditions the
 Cholesky factorization.
 
-:class:`LevenbergMarquardt` runs one problem with ``scipy.linalg.cho_factor``;
-:class:`BatchLevenbergMarquardt` runs the same steps for B problems, each with
-its own λ, counters and stopping rule: by default problem by problem in the
-compiled kernel of :mod:`._tma_kernel` (numba; one fused pass over the bearings
-per trial gives F, H = JᵀJ and Jᵀr), or, without numba, all at once in numpy
-(problems that stop leave the active set), using H and Jᵀr assembled from
-time-power sums (:func:`.tma_model.normal_equations`) and a masked 4×4 Cholesky.
+:class:`LevenbergMarquardt` runs one problem (:func:`minimize`, ``scipy.linalg.cho_factor``);
+:class:`BatchLevenbergMarquardt` runs the same steps for B problems, on the engines its docstring describes.
 """
 
 from __future__ import annotations
@@ -247,10 +242,9 @@ def minimize_batch(chunk: _Chunk, s: np.ndarray, settings: LMSettings):
         accept = ok & np.isfinite(F_new) & (dF >= -ROUNDING_RTOL * F)
         lam = np.where(accept, lam * settings.lam_down, lam * settings.lam_up)  # steps 7–8
         it += accept
-        stop = np.full(ids.size, -1)
-        stop[accept & (dF < settings.F_tol)] = 0
-        stop[accept & (stop < 0) & (it >= settings.max_iterations)] = 1
-        stop[~accept & (lam > settings.lam_max)] = 2
+        stop = np.select(
+            [accept & (dF < settings.F_tol), accept & (it >= settings.max_iterations), ~accept & (lam > settings.lam_max)], [0, 1, 2], -1
+        )
         s = np.where(accept[:, None], s_new, s)
         F = np.where(accept, F_new, F)
         H = np.where(accept[:, None, None], H_new, H)  # step 2 at the new s

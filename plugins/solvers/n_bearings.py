@@ -78,9 +78,7 @@ def solve_normal(H, b):
     # reject near-singular systems like lstsq's rank test would
     ok &= np.diagonal(L, axis1=-2, axis2=-1).min(axis=-1) ** 2 > 1e-12
     x = cholesky_solve(L, c * e) * e
-    eye = np.eye(3)
-    N_inv = np.stack([cholesky_solve(L, np.broadcast_to(eye[j], c.shape)) for j in range(3)], axis=-1)
-    N_inv *= e[:, :, None] * e[:, None, :]
+    N_inv = cholesky_solve(L, np.broadcast_to(np.eye(3), L.shape)) * (e[:, :, None] * e[:, None, :])
     return np.where(ok[:, None], x, np.nan), np.where(ok[:, None, None], N_inv, np.nan), ok
 
 
