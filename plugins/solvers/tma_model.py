@@ -38,13 +38,7 @@ from hybridtrack.core.interfaces import Solution
 from hybridtrack.core.validation import as_float_array
 from hybridtrack.sdk.linalg import wrap_angle
 from hybridtrack.sdk.timestamps import check_times
-from hybridtrack_plugins.sensors.bearing import (
-    angle_difference,
-    bearing,
-    bearing_gradient,
-    check_convention,
-    direction,
-)
+from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient, check_convention, direction
 
 #: θ has four components
 N_PARAMETERS = 4
