@@ -33,7 +33,7 @@ atan2(y, x): with A = |y|, B = |x|, m = min(A, B), M = max(A, B),
     z = (m − M)/(m + M), + π/4   otherwise      (atan(m/M) = π/4 + atan((m − M)/(m + M))),
 
 so |z| ≤ tan(π/8) and atan(z) = z + z u P(u), u = z², P a degree-10 polynomial
-(:data:`ATAN_P` from :func:`fit_atan_polynomial`: a least-squares fit at 200
+(:data:`ATAN_P`, derived by ``fit_atan_polynomial`` in ``tests/plugins/test_tma_kernel.py``: a least-squares fit at 200
 Chebyshev nodes on [0, tan²(π/8)] to the series P(u) = Σ_{k≥1} (−1)^k u^{k−1}/(2k+1)
 evaluated in 50-digit decimals; error < 10⁻¹⁵ in P, < 3·10⁻¹⁷ relative in atan).
 Then θ = π/2 − θ when A > B, θ = π − θ when x < 0, and the sign of y (π/4, π/2,
@@ -70,7 +70,7 @@ except ImportError:  # pragma: no cover - exercised only without numba
 
 AVAILABLE = numba is not None
 
-#: P(u) with atan(z) = z + z u P(u), u = z² ≤ tan²(π/8): coefficients of u⁰ … u¹⁰ from :func:`fit_atan_polynomial`
+#: P(u) with atan(z) = z + z u P(u), u = z² ≤ tan²(π/8): coefficients of u⁰ … u¹⁰ (module doc)
 ATAN_P = (
     -0.33333333333333337,
     0.19999999999995072,
@@ -91,37 +91,6 @@ PI_2_HI, PI_2_LO = 1.5707963267948966, 6.123233995736766e-17
 PI_HI, PI_LO = 3.141592653589793, 1.2246467991473532e-16
 
 STATUS_CONVERGED, STATUS_ITERATIONS, STATUS_LAMBDA = 0, 1, 2
-
-
-def fit_atan_polynomial(degree=10, nodes=200):
-    """The derivation of :data:`ATAN_P` (not used at run time): P(u) = (atan(√u)/√u − 1)/u on [0, tan²(π/8)].
-
-    P(u) = Σ_{k≥1} (−1)^k u^{k−1}/(2k+1) is summed in 50-digit decimals at
-    ``nodes`` Chebyshev nodes, fitted by least squares in the Chebyshev basis of
-    the given degree, and returned as monomial coefficients in u (u⁰ first).
-    """
-    from decimal import Decimal, localcontext
-
-    with localcontext() as context:
-        context.prec = 50
-        tan_pi_8 = Decimal(2).sqrt() - 1
-        u_max = float(tan_pi_8 * tan_pi_8)
-
-        def series(u):
-            u, total, power, k = Decimal(u), Decimal(0), Decimal(1), 1
-            while True:
-                term = power / (2 * k + 1)
-                total += -term if k % 2 else term
-                if term < Decimal(10) ** -40:
-                    return float(total)
-                power *= u
-                k += 1
-
-        x = np.cos(np.pi * (np.arange(nodes) + 0.5) / nodes)  # Chebyshev nodes on [−1, 1], u = (x + 1) u_max / 2
-        values = np.array([series(float(v)) for v in (x + 1) / 2 * u_max])
-    chebyshev = np.linalg.lstsq(np.polynomial.chebyshev.chebvander(x, degree), values, rcond=None)[0]
-    in_x = np.polynomial.Polynomial(np.polynomial.chebyshev.cheb2poly(chebyshev))
-    return in_x(np.polynomial.Polynomial([-1.0, 2.0 / u_max])).coef
 
 
 # Taylor coefficients (−1)^k/(2k+1)! of sin (k = 8 … 1) and (−1)^k/(2k)! of cos (k = 8 … 2), for |y| ≤ π/4,
