@@ -37,12 +37,12 @@ from hybridtrack_plugins.solvers.observer import example_problem
 from hybridtrack_plugins.solvers.tma_model import (
     CONSTANT_FIT_MESSAGE,
     LONE,
-    N_PARAMETERS,
     BatchTMASolution,
     BearingsBatch,
     BearingsProblem,
     ScaledProblem,
     TMASolution,
+    answers,
     fit_statistics,
     flag_constant_fits,
     require_maneuver,
@@ -155,24 +155,10 @@ class NBearings(Solver):
         converged = ok & (r0 > 0) & ~fit
         singular = "unobservable: the N-bearings system is " + ("rank deficient" if lstsq else "singular")
         behind = "range r_0 ≤ 0" + (": the bearings do not fit a target ahead of the observer" if lstsq else "")
-        return BatchTMASolution(
-            parameters=theta,
-            covariance=np.where(fit[:, None, None], np.nan, cov),
-            cost=F,
-            iterations=np.zeros(len(F), int),
-            evaluations=np.zeros(len(F), int),
-            converged=converged,
-            sqrt_ka=ska,
-            chi2_statistic=stat,
-            chi2_dof=n - N_PARAMETERS,
-            chi2_pvalue=pval,
-            consistent=cons,
-            reference_time=batch.reference_time,
-            messages=tuple(
-                CONSTANT_FIT_MESSAGE if f else "closed form" if c else behind if o else singular for c, o, f in zip(converged, ok, fit)
-            ),
-            method=self.name,
-        )
+        messages = (CONSTANT_FIT_MESSAGE if f else "closed form" if c else behind if o else singular for c, o, f in zip(converged, ok, fit))
+        cov = np.where(fit[:, None, None], np.nan, cov)
+        zeros = np.zeros(len(F), int)
+        return answers(batch, theta, cov, F, (ska, stat, pval, cons), zeros, zeros, converged, messages, self.name)
 
 
 @hookimpl

@@ -684,25 +684,35 @@ def conclude(batch, scaling, s, F, H, iterations, evaluations, converged, messag
     a constant bearing that fits as well (:func:`flag_constant_fits`), makes the
     answer unobservable: a warning, covariance NaN, ``converged`` False, a note in its message.
     """
-    theta, cov, ska, stat, pval, cons, observable = summarize(scaling, s, F, H, batch.size, batch.sigma)
+    theta, cov, *statistics, observable = summarize(scaling, s, F, H, batch.size, batch.sigma)
     if not observable.all():
         warn_unobservable(int((~observable).sum()), method)
     fit = flag_constant_fits(batch, F, observable, numbers, method)
     notes = ("unobservable: JᵀJ singular" if not o else CONSTANT_FIT_MESSAGE if f else "" for o, f in zip(observable, fit))
+    messages = [_note(m, note) if note else m for m, note in zip(messages, notes)]
+    cov = np.where(fit[:, None, None], np.nan, cov)
+    converged = np.asarray(converged) & observable & ~fit
+    return answers(batch, theta, cov, F, statistics, iterations, evaluations, converged, messages, method)
+
+
+def answers(batch, theta, cov, F, statistics, iterations, evaluations, converged, messages, method) -> BatchTMASolution:
+    """The :class:`BatchTMASolution` of ``batch`` from θ (B, 4), covariance, F and ``statistics`` =
+    (√Ka, χ², p-value, consistent) of :func:`fit_statistics`."""
+    ska, stat, pval, cons = statistics
     return BatchTMASolution(
         parameters=theta,
-        covariance=np.where(fit[:, None, None], np.nan, cov),
+        covariance=cov,
         cost=F,
         iterations=np.asarray(iterations),
         evaluations=np.asarray(evaluations),
-        converged=np.asarray(converged) & observable & ~fit,
+        converged=converged,
         sqrt_ka=ska,
         chi2_statistic=stat,
         chi2_dof=batch.size - N_PARAMETERS,
         chi2_pvalue=pval,
         consistent=cons,
         reference_time=batch.reference_time,
-        messages=tuple(_note(m, note) if note else m for m, note in zip(messages, notes)),
+        messages=tuple(messages),
         method=method,
     )
 
