@@ -36,6 +36,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
+from hybridtrack.core.validation import check_positive
 from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
 from hybridtrack_plugins.solvers.observer import example_problem
@@ -70,9 +71,7 @@ STOP_ITERATIONS = "max_iterations reached"
 STOP_LAMBDA = "λ > lam_max: no step decreases F"
 
 
-def _positive(instance, attribute, value):
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{attribute.name}: expected a positive finite number, got {value!r}")
+_positive = lambda instance, attribute, value: check_positive(value, attribute.name)
 
 
 @attrs.frozen
