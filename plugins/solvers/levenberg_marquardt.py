@@ -220,9 +220,8 @@ def minimize_batch(chunk: _Chunk, s: np.ndarray, settings: LMSettings):
     0 converged, 1 max_iterations, 2 λ overflow.
     """
     m = s.shape[0]
-    out_s, out_F = s.copy(), np.empty(m)
-    out_H = np.empty((m, 4, 4))
-    out_it, out_nf, out_status = np.zeros(m, int), np.ones(m, int), np.full(m, -1)
+    out_s, out_F, out_H = np.empty((m, 4)), np.empty(m), np.empty((m, 4, 4))  # every row is written when it stops
+    out_it, out_nf, out_status = np.empty(m, int), np.empty(m, int), np.empty(m, int)
     ids = np.arange(m)
     F, H, g = chunk.evaluate(s)
     lam = np.full(m, settings.lam0)
@@ -363,9 +362,10 @@ class BatchLevenbergMarquardt(Solver):
             s[rows], F[rows], H[rows], it[rows], nf[rows], status[rows] = out
             # a start on the observer gives a NaN F or H that no step can leave: name the problem
             for i in rows.start + np.flatnonzero(~(np.isfinite(F[rows]) & np.isfinite(H[rows]).all(axis=(1, 2)))):
-                one = Scaling.build(batch.times, batch.observer_of(i), theta0[i], batch.reference_time)
-                o1 = one.observer(batch.observer_of(i))
-                check_start(one.to_scaled(theta0[i]), one.tau(batch.times), o1[:, 0], o1[:, 1], batch.times, int(numbers[i]))
+                one = ScaledProblem.build(
+                    batch.times, batch.bearings[i], batch.observer_of(i), theta0[i], batch.reference_time, batch.convention
+                )
+                check_start(one.scaling.to_scaled(theta0[i]), one.tau, one.ox, one.oy, batch.times, int(numbers[i]))
         messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
         return conclude(batch, scaling, s, F, H, it, nf, status == 0, messages, numbers, self.name)
 

@@ -137,9 +137,7 @@ class ObserverPath:
         """Course (radians, wrapped) at ``times``."""
         times = as_float_array(times, "times")
         index = self._piece_index(times)
-        c0 = np.array([p.course for p in self.pieces])[index]
-        rate = np.array([p.rate for p in self.pieces])[index]
-        start = np.array([p.start for p in self.pieces])[index]
+        c0, rate, start = np.array([(p.course, p.rate, p.start) for p in self.pieces])[index].T
         return wrap_angle(c0 + rate * (times - start))
 
 

@@ -547,10 +547,6 @@ class TMASolution(Solution):
     def sqrt_ka_deg(self) -> float:
         return float(np.rad2deg(self.sqrt_ka))
 
-    def state_at(self, t: float) -> np.ndarray:
-        """(x, y, vx, vy) of the estimated target at time ``t``."""
-        return propagate(self.parameters, t - self.reference_time)
-
 
 @attrs.frozen(eq=False)
 class BatchTMASolution:
