@@ -476,11 +476,8 @@ def normal_equations(p, q, r, powers, out=None):
     n = p.shape[-1]
     lead = np.broadcast_shapes(p.shape, q.shape, r.shape)[:-1]
     W = np.empty(lead + (5, n)) if out is None else out
-    np.multiply(p, p, out=W[..., 0, :])
-    np.multiply(p, q, out=W[..., 1, :])
-    np.multiply(q, q, out=W[..., 2, :])
-    np.multiply(p, r, out=W[..., 3, :])
-    np.multiply(q, r, out=W[..., 4, :])
+    for i, (u, v) in enumerate(((p, p), (p, q), (q, q), (p, r), (q, r))):
+        np.multiply(u, v, out=W[..., i, :])
     S = (W.reshape(-1, n) @ powers).reshape(lead + (15,))  # one 2-D product for the whole stack
     return S[..., _H_FROM_S].reshape(lead + (4, 4)), S[..., _G_FROM_S]
 
