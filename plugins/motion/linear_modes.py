@@ -148,10 +148,6 @@ class _Turn(MotionModel):
     direction: ClassVar[int] = 1
     example_parameters: ClassVar[dict] = {"radius": 5.0}
 
-    def angular_rate(self, switch_state: np.ndarray) -> float:
-        """ω = |v_s| / r at the switching moment."""
-        return float(np.hypot(switch_state[1], switch_state[3])) / self.radius
-
     def turn_centre(self, switch_state: np.ndarray) -> np.ndarray:
         """(x_c, y_c) = (x_s ∓ v_ys/ω, y_s ± v_xs/ω) = position + r · (unit normal towards the turn side)."""
         x, vx, y, vy = switch_state
@@ -160,38 +156,17 @@ class _Turn(MotionModel):
             raise ValueError("turn centre undefined at zero speed")
         return np.array([x - self.direction * self.radius * vy / speed, y + self.direction * self.radius * vx / speed])
 
-    def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
-        tau = _check_tau(tau)
-        x, vx, y, vy = as_float_array(switch_state, "switch_state", (4,))
-        w = self.angular_rate(np.array([x, vx, y, vy]))
+    def coefficients(self, tau: float, switch_states: np.ndarray):
+        """cos ωτ, sin(ωτ)/ω, −ω sin ωτ (the entries of Φ_axis) and B (..., 4) at switch states (..., 4), ω = |v_s|/r.
+
+        B = [x_c(1−c), ω x_c s, y_c(1−c), ω y_c s] with x_c = x_s − d·v_ys/ω,
+        y_c = y_s + d·v_xs/ω (d = ``direction``), written without dividing by ω.
+        """
+        x, vx, y, vy = np.moveaxis(switch_states, -1, 0)
+        w = np.hypot(vx, vy) / self.radius
         c, s = np.cos(w * tau), np.sin(w * tau)
         sin_over_w = tau * np.sinc(w * tau / np.pi)  # sin(ωτ)/ω, τ at ω = 0
         one_minus_cos_over_w = w * (tau * np.sinc(w * tau / (2 * np.pi))) ** 2 / 2  # (1 − cos ωτ)/ω
-        F = _blockdiag(np.array([[c, sin_over_w], [-w * s, c]]))
-        d = self.direction
-        # B = [x_c(1−c), ω x_c s, y_c(1−c), ω y_c s] with x_c = x_s − d·v_ys/ω, y_c = y_s + d·v_xs/ω
-        B = np.array(
-            [
-                x * (1 - c) - d * vy * one_minus_cos_over_w,
-                (w * x - d * vy) * s,
-                y * (1 - c) + d * vx * one_minus_cos_over_w,
-                (w * y + d * vx) * s,
-            ]
-        )
-        return LinearTransition(F, B, G_4, self.noise_cov)
-
-    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
-        """:meth:`transition` at S switch states at once (the same formulas, vectorized over the rows)."""
-        tau = _check_tau(tau)
-        x, vx, y, vy = as_float_array(switch_states, "switch_states", (None, 4)).T
-        w = np.hypot(vx, vy) / self.radius
-        c, s = np.cos(w * tau), np.sin(w * tau)
-        sin_over_w = tau * np.sinc(w * tau / np.pi)
-        one_minus_cos_over_w = w * (tau * np.sinc(w * tau / (2 * np.pi))) ** 2 / 2
-        F = np.zeros((w.size, 4, 4))
-        F[:, 0, 0] = F[:, 1, 1] = F[:, 2, 2] = F[:, 3, 3] = c
-        F[:, 0, 1] = F[:, 2, 3] = sin_over_w
-        F[:, 1, 0] = F[:, 3, 2] = -w * s
         d = self.direction
         B = np.stack(
             [
@@ -200,9 +175,22 @@ class _Turn(MotionModel):
                 y * (1 - c) + d * vx * one_minus_cos_over_w,
                 (w * y + d * vx) * s,
             ],
-            axis=1,
+            axis=-1,
         )
-        noise = _repeat(TransitionBank.stack([LinearTransition(np.eye(4), np.zeros(4), G_4, self.noise_cov)]), w.size)
+        return c, sin_over_w, -w * s, B
+
+    def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
+        c, sin_over_w, minus_w_sin, B = self.coefficients(_check_tau(tau), as_float_array(switch_state, "switch_state", (4,)))
+        return LinearTransition(_blockdiag(np.array([[c, sin_over_w], [minus_w_sin, c]])), B, G_4, self.noise_cov)
+
+    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
+        """:meth:`transition` at S switch states at once (the same formulas, vectorized over the rows)."""
+        c, sin_over_w, minus_w_sin, B = self.coefficients(_check_tau(tau), as_float_array(switch_states, "switch_states", (None, 4)))
+        F = np.zeros((c.size, 4, 4))
+        F[:, 0, 0] = F[:, 1, 1] = F[:, 2, 2] = F[:, 3, 3] = c
+        F[:, 0, 1] = F[:, 2, 3] = sin_over_w
+        F[:, 1, 0] = F[:, 3, 2] = minus_w_sin
+        noise = _repeat(TransitionBank.stack([LinearTransition(np.eye(4), np.zeros(4), G_4, self.noise_cov)]), c.size)
         return TransitionBank(F, B, noise.Q, noise.noise_root)
 
 

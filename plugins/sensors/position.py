@@ -19,8 +19,6 @@ from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.validation import check_covariance
 
-DEFAULT_NOISE = ((0.01, 0.0), (0.0, 0.01))
-
 
 def _components(value) -> tuple[str, ...]:
     value = (value,) if isinstance(value, str) else tuple(value)
@@ -47,18 +45,17 @@ class PositionSensor(Sensor):
 
     def matrix(self, layout: Sequence[str]) -> np.ndarray:
         """H (m, n): row i selects component ``components[i]`` of ``layout``."""
-        layout = tuple(layout)
-        missing = [c for c in self.components if c not in layout]
-        if missing:
-            raise ValueError(f"sensor {self.name!r} measures {missing} not in the state layout {layout}")
-        H = np.zeros((len(self.components), len(layout)))
-        H[np.arange(len(self.components)), [layout.index(c) for c in self.components]] = 1.0
+        H = np.zeros((len(self.components), len(tuple(layout))))
+        H[np.arange(len(self.components)), self.indices(layout)] = 1.0
         return H
 
     def indices(self, layout: Sequence[str]) -> list[int]:
         """Indices of the measured components in ``layout`` (H as a selection)."""
-        self.matrix(layout)
-        return [tuple(layout).index(c) for c in self.components]
+        layout = tuple(layout)
+        missing = [c for c in self.components if c not in layout]
+        if missing:
+            raise ValueError(f"sensor {self.name!r} measures {missing} not in the state layout {layout}")
+        return [layout.index(c) for c in self.components]
 
     def measure(self, x, layout):
         return np.asarray(x, dtype=float)[..., self.indices(layout)]

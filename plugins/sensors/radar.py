@@ -58,8 +58,12 @@ class _RadarBase(Sensor):
 
     def polar(self, x, layout: Sequence[str]) -> np.ndarray:
         """(ρ, θ) of states x (..., n) seen from the site."""
-        px, py = _positions(x, layout)
-        dx, dy = px - self.site[0], py - self.site[1]
+        return self.to_polar(np.stack(_positions(x, layout), axis=-1))
+
+    def to_polar(self, z) -> np.ndarray:
+        """(ρ, θ) of a position z (..., 2) (e.g. a pseudo-measurement) seen from the site."""
+        z = np.asarray(z, dtype=float)
+        dx, dy = z[..., 0] - self.site[0], z[..., 1] - self.site[1]
         return np.stack([np.hypot(dx, dy), np.arctan2(dy, dx)], axis=-1)
 
     def simulate_polar(self, x, layout: Sequence[str], rng: np.random.Generator) -> np.ndarray:
@@ -96,8 +100,7 @@ class RadarSensor(_RadarBase):
     linear: ClassVar[bool] = True
 
     def measure(self, x, layout):
-        px, py = _positions(x, layout)
-        return np.stack([px, py], axis=-1)
+        return np.stack(_positions(x, layout), axis=-1)
 
     def jacobian(self, x, layout):
         layout = tuple(layout)
@@ -105,12 +108,6 @@ class RadarSensor(_RadarBase):
         H = np.zeros((2, len(layout)))
         H[0, layout.index("x")] = H[1, layout.index("y")] = 1.0
         return np.broadcast_to(H, np.shape(x)[:-1] + H.shape).copy()
-
-    def to_polar(self, z) -> np.ndarray:
-        """(ρ, θ) of a pseudo-measurement z (..., 2)."""
-        z = np.asarray(z, dtype=float)
-        dx, dy = z[..., 0] - self.site[0], z[..., 1] - self.site[1]
-        return np.stack([np.hypot(dx, dy), np.arctan2(dy, dx)], axis=-1)
 
     def measurement_noise(self, z) -> np.ndarray:
         """The converted covariance at the measured (ρ, θ) recovered from z."""

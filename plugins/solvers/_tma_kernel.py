@@ -33,7 +33,7 @@ atan2(y, x): with A = |y|, B = |x|, m = min(A, B), M = max(A, B),
     z = (m − M)/(m + M), + π/4   otherwise      (atan(m/M) = π/4 + atan((m − M)/(m + M))),
 
 so |z| ≤ tan(π/8) and atan(z) = z + z u P(u), u = z², P a degree-10 polynomial
-(:data:`ATAN_P` from :func:`fit_atan_polynomial`: a least-squares fit at 200
+(:data:`ATAN_P`, derived by ``fit_atan_polynomial`` in ``tests/plugins/test_tma_kernel.py``: a least-squares fit at 200
 Chebyshev nodes on [0, tan²(π/8)] to the series P(u) = Σ_{k≥1} (−1)^k u^{k−1}/(2k+1)
 evaluated in 50-digit decimals; error < 10⁻¹⁵ in P, < 3·10⁻¹⁷ relative in atan).
 Then θ = π/2 − θ when A > B, θ = π − θ when x < 0, and the sign of y (π/4, π/2,
@@ -70,7 +70,7 @@ except ImportError:  # pragma: no cover - exercised only without numba
 
 AVAILABLE = numba is not None
 
-#: P(u) with atan(z) = z + z u P(u), u = z² ≤ tan²(π/8): coefficients of u⁰ … u¹⁰ from :func:`fit_atan_polynomial`
+#: P(u) with atan(z) = z + z u P(u), u = z² ≤ tan²(π/8): coefficients of u⁰ … u¹⁰ (module doc)
 ATAN_P = (
     -0.33333333333333337,
     0.19999999999995072,
@@ -93,40 +93,11 @@ PI_HI, PI_LO = 3.141592653589793, 1.2246467991473532e-16
 STATUS_CONVERGED, STATUS_ITERATIONS, STATUS_LAMBDA = 0, 1, 2
 
 
-def fit_atan_polynomial(degree=10, nodes=200):
-    """The derivation of :data:`ATAN_P` (not used at run time): P(u) = (atan(√u)/√u − 1)/u on [0, tan²(π/8)].
-
-    P(u) = Σ_{k≥1} (−1)^k u^{k−1}/(2k+1) is summed in 50-digit decimals at
-    ``nodes`` Chebyshev nodes, fitted by least squares in the Chebyshev basis of
-    the given degree, and returned as monomial coefficients in u (u⁰ first).
-    """
-    from decimal import Decimal, localcontext
-
-    with localcontext() as context:
-        context.prec = 50
-        tan_pi_8 = Decimal(2).sqrt() - 1
-        u_max = float(tan_pi_8 * tan_pi_8)
-
-        def series(u):
-            u, total, power, k = Decimal(u), Decimal(0), Decimal(1), 1
-            while True:
-                term = power / (2 * k + 1)
-                total += -term if k % 2 else term
-                if term < Decimal(10) ** -40:
-                    return float(total)
-                power *= u
-                k += 1
-
-        x = np.cos(np.pi * (np.arange(nodes) + 0.5) / nodes)  # Chebyshev nodes on [−1, 1], u = (x + 1) u_max / 2
-        values = np.array([series(float(v)) for v in (x + 1) / 2 * u_max])
-    chebyshev = np.linalg.lstsq(np.polynomial.chebyshev.chebvander(x, degree), values, rcond=None)[0]
-    in_x = np.polynomial.Polynomial(np.polynomial.chebyshev.cheb2poly(chebyshev))
-    return in_x(np.polynomial.Polynomial([-1.0, 2.0 / u_max])).coef
-
-
-# Taylor coefficients (−1)^k/(2k+1)! of sin (k = 1 … 8) and (−1)^k/(2k)! of cos (k = 2 … 8), for |y| ≤ π/4
-_S3, _S5, _S7, _S9, _S11, _S13, _S15, _S17 = ((-1) ** k / math.factorial(2 * k + 1) for k in range(1, 9))
-_K4, _K6, _K8, _K10, _K12, _K14, _K16 = ((-1) ** k / math.factorial(2 * k) for k in range(2, 9))
+# Taylor coefficients (−1)^k/(2k+1)! of sin (k = 8 … 1) and (−1)^k/(2k)! of cos (k = 8 … 2), for |y| ≤ π/4,
+# and ATAN_P, each highest power first (for :func:`horner`)
+_SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(8, 0, -1))
+_COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(8, 1, -1))
+_ATAN = ATAN_P[::-1]
 TWO_OVER_PI = 0.6366197723675814
 
 
@@ -138,25 +109,22 @@ def _njit(**options):
 
 
 _FAST = {"reassoc", "contract"}
-_C0, _C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8, _C9, _C10 = ATAN_P
+
+
+@_njit(fastmath=_FAST, inline="always")
+def horner(coefficients, u):
+    """Σ_j c_j u^j by Horner's rule, ``coefficients`` (c_d, …, c_1, c_0) highest power first."""
+    poly = coefficients[0]
+    for c in coefficients[1:]:
+        poly = poly * u + c
+    return poly
 
 
 @_njit(fastmath=_FAST, inline="always")
 def atan_small(z):
     """atan(z) = z + z u P(u), u = z², for |z| ≤ tan(π/8) (:data:`ATAN_P`, Horner)."""
     u = z * z
-    poly = _C10
-    poly = poly * u + _C9
-    poly = poly * u + _C8
-    poly = poly * u + _C7
-    poly = poly * u + _C6
-    poly = poly * u + _C5
-    poly = poly * u + _C4
-    poly = poly * u + _C3
-    poly = poly * u + _C2
-    poly = poly * u + _C1
-    poly = poly * u + _C0
-    return z + z * (u * poly)
+    return z + z * (u * horner(_ATAN, u))
 
 
 @_njit(fastmath=_FAST, inline="always")
@@ -193,23 +161,8 @@ def unit_vectors(X, sx, cx):
         n = math.floor(x * TWO_OVER_PI + 0.5)
         y = (x - n * PI_2_HI) - n * PI_2_LO
         u = y * y
-        sp = _S17
-        sp = sp * u + _S15
-        sp = sp * u + _S13
-        sp = sp * u + _S11
-        sp = sp * u + _S9
-        sp = sp * u + _S7
-        sp = sp * u + _S5
-        sp = sp * u + _S3
-        sin_y = y + y * (u * sp)
-        cp = _K16
-        cp = cp * u + _K14
-        cp = cp * u + _K12
-        cp = cp * u + _K10
-        cp = cp * u + _K8
-        cp = cp * u + _K6
-        cp = cp * u + _K4
-        cos_y = 1.0 + (u * (u * cp) - 0.5 * u)
+        sin_y = y + y * (u * horner(_SIN, u))
+        cos_y = 1.0 + (u * (u * horner(_COS, u)) - 0.5 * u)
         q = n - 4.0 * math.floor(n * 0.25)
         odd = q == 1.0 or q == 3.0
         sin_x = cos_y if odd else sin_y
@@ -247,13 +200,10 @@ def _add(acc, a, b, w, r, t):
 def pass_small(s, tau, ox, oy, sx, cx, out):
     """One pass over the bearings assuming small residuals; ``out`` (14,) ← F and the 13 sums; returns the violations.
 
-    "north" convention (the kernel's only one; "math" is its mirror image, see
-    :func:`minimize_problems`): with a = Δx, b = Δy and (sx, cx) = (sin X, cos X),
-    r = X − φ has sin r = (sx b − cx a)/ρ and cos r = (cx b + sx a)/ρ, so
-    r = atan2(S, C) with S = sx b − cx a, C = cx b + sx a (no wrap needed),
-    p = b/ρ², q = −a/ρ².  Here |S| ≤ tan(π/8) C is assumed, r = atan_small(S/C),
-    and S/C and 1/ρ² come from one division 1/(C ρ²); the count of bearings
-    where the assumption fails is returned (then :func:`pass_general` is used).
+    a, b, S = sx b − cx a, C = cx b + sx a, p, q as in the module doc ("north", (sx, cx) = (sin X, cos X)).
+    Here |S| ≤ tan(π/8) C is assumed, r = atan_small(S/C), and S/C and 1/ρ² come from one
+    division 1/(C ρ²); the count of bearings where the assumption fails is returned
+    (then :func:`pass_general` is used).
     ``out`` = (F, Σp², Σp²τ, Σp²τ², Σpq, Σpqτ, Σpqτ², Σq², Σq²τ, Σq²τ², Σpr, Σprτ, Σqr, Σqrτ).
     """
     s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
@@ -359,49 +309,31 @@ def damped_step(H, g, lam, L, delta):
 
 
 @_njit()
-def minimize_problems(
-    s0,
-    tau,
-    ox,
-    oy,
-    X,
-    lam0,
-    lam_up,
-    lam_down,
-    F_tol,
-    max_iterations,
-    lam_max,
-    rounding_rtol,
-    out_s,
-    out_F,
-    out_H,
-    out_it,
-    out_nf,
-    out_status,
-):
+def minimize_problems(s0, tau, ox, oy, X, settings):
     """Seed 002 §4.3 steps 1–9 for each row of s0 (m, 4) with bearings X (m, n), any finite radians ("north"
-    convention); õx, õy (1, n) shared or (m, n).
+    convention); õx, õy (1, n) shared or (m, n); ``settings`` = (λ_0, λ_up, λ_down, F_tol, max_iterations,
+    λ_max, rounding_rtol).
 
     Per problem: F, H, g at s; A = H + λ diag(H); not positive definite → λ ← λ λ_up;
     else s_new = s + A⁻¹g, one evaluation; accepted when F(s_new) is finite and
     F − F(s_new) ≥ −rounding_rtol·F (then λ ← λ λ_down, and H, g come from the same pass),
     else λ ← λ λ_up.  Stops: ΔF < F_tol (status 0), ``max_iterations`` accepted steps (1),
-    λ > λ_max (2).  Fills out_s (m, 4), out_F, out_H (m, 4, 4), out_it, out_nf, out_status.
+    λ > λ_max (2).  Returns s (m, 4), F (m,), H (m, 4, 4), iterations, evaluations, status (m,).
     """
+    lam0, lam_up, lam_down, F_tol, max_iterations, lam_max, rounding_rtol = settings
     m = s0.shape[0]
+    out_s, out_F, out_H = np.empty((m, 4)), np.empty(m), np.empty((m, 4, 4))
+    out_it, out_nf, out_status = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64)
     sums = np.empty(14)
     sxi, cxi = np.empty(X.shape[1]), np.empty(X.shape[1])
-    H, H_new = np.empty((4, 4)), np.empty((4, 4))
-    g, g_new = np.empty(4), np.empty(4)
-    L = np.zeros((4, 4))
+    H, g, L = np.empty((4, 4)), np.empty(4), np.zeros((4, 4))
     delta, s, s_new = np.empty(4), np.empty(4), np.empty(4)
     shared = ox.shape[0] == 1
     for i in range(m):
         row = 0 if shared else i
         oxi, oyi = ox[row], oy[row]
         unit_vectors(X[i], sxi, cxi)
-        for j in range(4):
-            s[j] = s0[i, j]
+        s[:] = s0[i]
         F, small = evaluate(s, tau, oxi, oyi, sxi, cxi, sums, False)
         normal_from_sums(sums, H, g)
         lam = lam0
@@ -417,12 +349,8 @@ def minimize_problems(
                 dF = F - F_new
                 accept = math.isfinite(F_new) and dF >= -rounding_rtol * F
             if accept:
-                normal_from_sums(sums, H_new, g_new)
-                for j in range(4):
-                    s[j] = s_new[j]
-                    g[j] = g_new[j]
-                    for t in range(4):
-                        H[j, t] = H_new[j, t]
+                normal_from_sums(sums, H, g)  # the sums of the trial point's pass
+                s[:] = s_new
                 F = F_new
                 lam *= lam_down
                 it += 1
@@ -434,8 +362,6 @@ def minimize_problems(
                 lam *= lam_up
                 if lam > lam_max:
                     status = STATUS_LAMBDA
-        for j in range(4):
-            out_s[i, j] = s[j]
-            for t in range(4):
-                out_H[i, j, t] = H[j, t]
+        out_s[i], out_H[i] = s, H
         out_F[i], out_it[i], out_nf[i], out_status[i] = F, it, nf, status
+    return out_s, out_F, out_H, out_it, out_nf, out_status

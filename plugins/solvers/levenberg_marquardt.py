@@ -21,13 +21,8 @@ works in the scaled parameters of :mod:`.tma_model`; Marquardt's diag(H) makes
 the steps themselves invariant to that scaling, which only conditions the
 Cholesky factorization.
 
-:class:`LevenbergMarquardt` runs one problem with ``scipy.linalg.cho_factor``;
-:class:`BatchLevenbergMarquardt` runs the same steps for B problems, each with
-its own λ, counters and stopping rule: by default problem by problem in the
-compiled kernel of :mod:`._tma_kernel` (numba; one fused pass over the bearings
-per trial gives F, H = JᵀJ and Jᵀr), or, without numba, all at once in numpy
-(problems that stop leave the active set), using H and Jᵀr assembled from
-time-power sums (:func:`.tma_model.normal_equations`) and a masked 4×4 Cholesky.
+:class:`LevenbergMarquardt` runs one problem (:func:`minimize`, ``scipy.linalg.cho_factor``);
+:class:`BatchLevenbergMarquardt` runs the same steps for B problems, on the engines its docstring describes.
 """
 
 from __future__ import annotations
@@ -41,10 +36,11 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
+from hybridtrack.core.validation import check_positive
 from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
+from hybridtrack_plugins.solvers.observer import example_problem
 from hybridtrack_plugins.solvers.tma_model import (
-    CONSTANT_FIT_MESSAGE,
     N_PARAMETERS,
     BatchTMASolution,
     BearingsBatch,
@@ -53,17 +49,12 @@ from hybridtrack_plugins.solvers.tma_model import (
     Scaling,
     TMASolution,
     check_start,
-    constant_bearing,
-    constant_bearing_solution,
-    constant_fits_as_well,
+    conclude,
     normal_equations,
     require_maneuver,
     solve_observable_rows,
-    summarize,
+    solve_one,
     time_powers,
-    to_solution,
-    warn_constant_bearing,
-    warn_unobservable,
 )
 
 #: step 7 counts ΔF ≥ −ROUNDING_RTOL·F as "no increase": a change at the rounding level of F
@@ -80,9 +71,7 @@ STOP_ITERATIONS = "max_iterations reached"
 STOP_LAMBDA = "λ > lam_max: no step decreases F"
 
 
-def _positive(instance, attribute, value):
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{attribute.name}: expected a positive finite number, got {value!r}")
+_positive = lambda instance, attribute, value: check_positive(value, attribute.name)
 
 
 @attrs.frozen
@@ -120,38 +109,34 @@ def minimize(scaled: ScaledProblem, s: np.ndarray, settings: LMSettings):
     Returns (s, F, H at s, iterations, evaluations, converged, message).
     """
     F, r = scaled.cost(s)
-    evaluations, iterations = 1, 0
+    evaluations, iterations, dF = 1, 0, np.inf
     lam = settings.lam0
     while True:
         J = scaled.jacobian(s)  # step 2
         H, g = J.T @ J, J.T @ r
+        if dF < settings.F_tol:  # step 9 (dF of the step accepted last)
+            return s, F, H, iterations, evaluations, True, STOP_CONVERGED
+        if iterations >= settings.max_iterations:
+            return s, F, H, iterations, evaluations, False, STOP_ITERATIONS
         while True:
             A = H + lam * np.diag(np.diag(H))  # step 3
             try:
                 factor = cho_factor(A)  # step 4
             except (LinAlgError, ValueError):
-                lam *= settings.lam_up
-                if lam > settings.lam_max:
-                    return s, F, H, iterations, evaluations, False, STOP_LAMBDA
-                continue
-            s_new = s + cho_solve(factor, g)  # steps 5–6
-            F_new, r_new = scaled.cost(s_new)
-            evaluations += 1
-            dF = F - F_new
-            if np.isfinite(F_new) and dF >= -ROUNDING_RTOL * F:
-                break
-            lam *= settings.lam_up  # step 7
+                factor = None
+            if factor is not None:
+                s_new = s + cho_solve(factor, g)  # steps 5–6
+                F_new, r_new = scaled.cost(s_new)
+                evaluations += 1
+                dF = F - F_new
+                if np.isfinite(F_new) and dF >= -ROUNDING_RTOL * F:
+                    break
+            lam *= settings.lam_up  # steps 4 and 7
             if lam > settings.lam_max:
                 return s, F, H, iterations, evaluations, False, STOP_LAMBDA
         s, F, r = s_new, F_new, r_new  # step 8
         lam *= settings.lam_down
         iterations += 1
-        if dF < settings.F_tol:  # step 9
-            J = scaled.jacobian(s)
-            return s, F, J.T @ J, iterations, evaluations, True, STOP_CONVERGED
-        if iterations >= settings.max_iterations:
-            J = scaled.jacobian(s)
-            return s, F, J.T @ J, iterations, evaluations, False, STOP_ITERATIONS
 
 
 @attrs.frozen
@@ -159,13 +144,7 @@ class LevenbergMarquardt(Solver):
     """Maximum likelihood θ by the seed's Levenberg–Marquardt (one problem; see the module doc)."""
 
     name: ClassVar[str] = "levenberg_marquardt"
-
-    @staticmethod
-    def example_problem():
-        """A 60-bearing seed 002 problem (contract checks)."""
-        from hybridtrack_plugins.solvers.observer import example_problem
-
-        return example_problem()
+    example_problem = staticmethod(example_problem)  # a 60-bearing seed 002 problem (contract checks)
 
     settings: LMSettings = attrs.field(factory=LMSettings)
 
@@ -173,14 +152,8 @@ class LevenbergMarquardt(Solver):
         if not isinstance(problem, BearingsProblem):
             raise ValueError(f"problem: expected a BearingsProblem, got {type(problem).__name__}")
         require_maneuver(problem.times, problem.observer)
-        theta0 = _initial_guess(problem, self.name)
-        if constant_bearing(problem.bearings, problem.sigma):
-            return constant_bearing_solution(problem, self.name)
-        scaled = ScaledProblem.build(problem.times, problem.bearings, problem.observer, theta0, problem.reference_time, problem.convention)
-        s0 = scaled.scaling.to_scaled(theta0)
-        check_start(s0, scaled.tau, scaled.ox, scaled.oy, problem.times)
-        s, F, H, it, nf, converged, message = minimize(scaled, s0, self.settings)
-        return to_solution(problem, scaled, s, F, H, it, nf, converged, message, self.name)
+        _initial_guess(problem, self.name)
+        return solve_one(problem, lambda scaled, s0: minimize(scaled, s0, self.settings), self.name)
 
 
 # --------------------------------------------------------------------------- batch
@@ -247,9 +220,8 @@ def minimize_batch(chunk: _Chunk, s: np.ndarray, settings: LMSettings):
     0 converged, 1 max_iterations, 2 λ overflow.
     """
     m = s.shape[0]
-    out_s, out_F = s.copy(), np.empty(m)
-    out_H = np.empty((m, 4, 4))
-    out_it, out_nf, out_status = np.zeros(m, int), np.ones(m, int), np.full(m, -1)
+    out_s, out_F, out_H = np.empty((m, 4)), np.empty(m), np.empty((m, 4, 4))  # every row is written when it stops
+    out_it, out_nf, out_status = np.empty(m, int), np.empty(m, int), np.empty(m, int)
     ids = np.arange(m)
     F, H, g = chunk.evaluate(s)
     lam = np.full(m, settings.lam0)
@@ -268,10 +240,9 @@ def minimize_batch(chunk: _Chunk, s: np.ndarray, settings: LMSettings):
         accept = ok & np.isfinite(F_new) & (dF >= -ROUNDING_RTOL * F)
         lam = np.where(accept, lam * settings.lam_down, lam * settings.lam_up)  # steps 7–8
         it += accept
-        stop = np.full(ids.size, -1)
-        stop[accept & (dF < settings.F_tol)] = 0
-        stop[accept & (stop < 0) & (it >= settings.max_iterations)] = 1
-        stop[~accept & (lam > settings.lam_max)] = 2
+        stop = np.select(
+            [accept & (dF < settings.F_tol), accept & (it >= settings.max_iterations), ~accept & (lam > settings.lam_max)], [0, 1, 2], -1
+        )
         s = np.where(accept[:, None], s_new, s)
         F = np.where(accept, F_new, F)
         H = np.where(accept[:, None, None], H_new, H)  # step 2 at the new s
@@ -313,30 +284,9 @@ def minimize_compiled(tau, ox, oy, X, convention, s, settings: LMSettings):
 
     if convention != "north":
         ox, oy, s = oy, ox, s[:, _MIRROR]
-    m = s.shape[0]
-    ox, oy = np.atleast_2d(ox), np.atleast_2d(oy)
-    out_s, out_F, out_H = np.empty((m, 4)), np.empty(m), np.empty((m, 4, 4))
-    out_it, out_nf, out_status = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64)
-    _tma_kernel.minimize_problems(
-        np.ascontiguousarray(s, dtype=float),
-        np.ascontiguousarray(tau),
-        np.ascontiguousarray(ox),
-        np.ascontiguousarray(oy),
-        np.ascontiguousarray(X, dtype=float),
-        settings.lam0,
-        settings.lam_up,
-        settings.lam_down,
-        settings.F_tol,
-        settings.max_iterations,
-        settings.lam_max,
-        ROUNDING_RTOL,
-        out_s,
-        out_F,
-        out_H,
-        out_it,
-        out_nf,
-        out_status,
-    )
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (s, tau, np.atleast_2d(ox), np.atleast_2d(oy), X)]
+    settings = attrs.astuple(settings) + (ROUNDING_RTOL,)  # (λ_0, λ_up, λ_down, F_tol, max_iterations, λ_max) in field order
+    out_s, out_F, out_H, out_it, out_nf, out_status = _tma_kernel.minimize_problems(*arrays, settings)
     if convention != "north":
         out_s, out_H = out_s[:, _MIRROR], out_H[:, _MIRROR][:, :, _MIRROR]
     return out_s, out_F, out_H, out_it, out_nf, out_status
@@ -357,13 +307,7 @@ class BatchLevenbergMarquardt(Solver):
     """
 
     name: ClassVar[str] = "levenberg_marquardt_batch"
-
-    @staticmethod
-    def example_problem():
-        """A 60-bearing seed 002 problem (contract checks)."""
-        from hybridtrack_plugins.solvers.observer import example_problem
-
-        return example_problem()
+    example_problem = staticmethod(example_problem)
 
     settings: LMSettings = attrs.field(factory=LMSettings)
     chunk_size: int = attrs.field(default=1024, converter=int, validator=_positive)
@@ -377,11 +321,8 @@ class BatchLevenbergMarquardt(Solver):
     def solve(self, problem: BearingsProblem) -> TMASolution:
         if not isinstance(problem, BearingsProblem):
             raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
-        theta0 = _initial_guess(problem, self.name)
-        batch = BearingsBatch(
-            problem.times, problem.bearings[None], problem.observer, problem.sigma, theta0, problem.reference_time, problem.convention
-        )
-        return self.solve_batch(batch).solution(0)
+        _initial_guess(problem, self.name)
+        return self.solve_batch(problem.batch()).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
         if not isinstance(batch, BearingsBatch):
@@ -392,7 +333,7 @@ class BatchLevenbergMarquardt(Solver):
 
     def _solve_rows(self, batch: BearingsBatch, numbers: np.ndarray) -> BatchTMASolution:
         """Solve every problem of ``batch`` (problem ``numbers`` of the caller's batch, for error messages)."""
-        B, n = batch.bearings.shape
+        B = len(batch)
         theta0 = np.broadcast_to(_initial_guess(batch, self.name), (B, N_PARAMETERS))
         scaling = Scaling.build(batch.times, batch.observer, theta0, batch.reference_time)
         s0 = scaling.to_scaled(theta0)
@@ -421,37 +362,12 @@ class BatchLevenbergMarquardt(Solver):
             s[rows], F[rows], H[rows], it[rows], nf[rows], status[rows] = out
             # a start on the observer gives a NaN F or H that no step can leave: name the problem
             for i in rows.start + np.flatnonzero(~(np.isfinite(F[rows]) & np.isfinite(H[rows]).all(axis=(1, 2)))):
-                one = Scaling.build(batch.times, batch.observer_of(i), theta0[i], batch.reference_time)
-                o1 = one.observer(batch.observer_of(i))
-                check_start(one.to_scaled(theta0[i]), one.tau(batch.times), o1[:, 0], o1[:, 1], batch.times, int(numbers[i]))
-        theta, cov, ska, stat, pval, cons, observable = summarize(scaling, s, F, H, n, batch.sigma)
-        if not observable.all():
-            warn_unobservable(int((~observable).sum()), self.name)
+                one = ScaledProblem.build(
+                    batch.times, batch.bearings[i], batch.observer_of(i), theta0[i], batch.reference_time, batch.convention
+                )
+                check_start(one.scaling.to_scaled(theta0[i]), one.tau, one.ox, one.oy, batch.times, int(numbers[i]))
         messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
-        messages = tuple(m if o else m + "; unobservable: JᵀJ singular" for m, o in zip(messages, observable))
-        if batch.sigma is None:  # σ unknown: does a constant bearing fit as well? (the pre-check needs σ)
-            fit = observable & constant_fits_as_well(batch.bearings, F)
-            if fit.any():
-                warn_constant_bearing(numbers[fit], self.name, fit=True)
-                cov = np.where(fit[:, None, None], np.nan, cov)
-                observable = observable & ~fit
-                messages = tuple(m + "; " + CONSTANT_FIT_MESSAGE if f else m for m, f in zip(messages, fit))
-        return BatchTMASolution(
-            parameters=theta,
-            covariance=cov,
-            cost=F,
-            iterations=it,
-            evaluations=nf,
-            converged=(status == 0) & observable,
-            sqrt_ka=ska,
-            chi2_statistic=stat,
-            chi2_dof=n - N_PARAMETERS,
-            chi2_pvalue=pval,
-            consistent=cons,
-            reference_time=batch.reference_time,
-            messages=messages,
-            method=self.name,
-        )
+        return conclude(batch, scaling, s, F, H, it, nf, status == 0, messages, numbers, self.name)
 
 
 @hookimpl

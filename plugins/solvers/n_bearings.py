@@ -33,22 +33,20 @@ from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
 from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import direction
+from hybridtrack_plugins.solvers.observer import example_problem
 from hybridtrack_plugins.solvers.tma_model import (
     CONSTANT_FIT_MESSAGE,
-    N_PARAMETERS,
+    LONE,
     BatchTMASolution,
     BearingsBatch,
     BearingsProblem,
     ScaledProblem,
     TMASolution,
-    constant_bearing,
-    constant_bearing_solution,
-    constant_fits_as_well,
+    answers,
     fit_statistics,
+    flag_constant_fits,
     require_maneuver,
-    solution,
     solve_observable_rows,
-    warn_constant_bearing,
     warn_unobservable,
 )
 
@@ -63,12 +61,12 @@ def pseudo_linear_system(tau, bearings, ox, oy, convention):
 
 
 def solve_lstsq(H, b):
-    """One regression by ``np.linalg.lstsq`` (SVD): x, (HᵀH)⁻¹ and whether H has full rank."""
-    x, _, rank, singular = np.linalg.lstsq(H, b, rcond=None)
+    """One regression H (1, n, 3), b (1, n) by ``np.linalg.lstsq`` (SVD): x (1, 3), (HᵀH)⁻¹ and whether H has full rank."""
+    x, _, rank, singular = np.linalg.lstsq(H[0], b[0], rcond=None)
     if rank < 3:
-        return np.full(3, np.nan), np.full((3, 3), np.nan), False
-    V = np.linalg.svd(H, full_matrices=False)[2]
-    return x, (V.T / singular**2) @ V, True
+        return np.full((1, 3), np.nan), np.full((1, 3, 3), np.nan), np.array([False])
+    V = np.linalg.svd(H[0], full_matrices=False)[2]
+    return x[None], ((V.T / singular**2) @ V)[None], np.array([True])
 
 
 def solve_normal(H, b):
@@ -80,9 +78,7 @@ def solve_normal(H, b):
     # reject near-singular systems like lstsq's rank test would
     ok &= np.diagonal(L, axis1=-2, axis2=-1).min(axis=-1) ** 2 > 1e-12
     x = cholesky_solve(L, c * e) * e
-    eye = np.eye(3)
-    N_inv = np.stack([cholesky_solve(L, np.broadcast_to(eye[j], c.shape)) for j in range(3)], axis=-1)
-    N_inv *= e[:, :, None] * e[:, None, :]
+    N_inv = cholesky_solve(L, np.broadcast_to(np.eye(3), L.shape)) * (e[:, :, None] * e[:, None, :])
     return np.where(ok[:, None], x, np.nan), np.where(ok[:, None, None], N_inv, np.nan), ok
 
 
@@ -120,30 +116,14 @@ class NBearings(Solver):
     """
 
     name: ClassVar[str] = "n_bearings"
-
-    @staticmethod
-    def example_problem():
-        """A 60-bearing seed 002 problem (contract checks)."""
-        from hybridtrack_plugins.solvers.observer import example_problem
-
-        return example_problem()
+    example_problem = staticmethod(example_problem)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
         if not isinstance(problem, BearingsProblem):
             raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
         require_maneuver(problem.times, problem.observer)
-        if constant_bearing(problem.bearings, problem.sigma):
-            return constant_bearing_solution(problem, self.name)
-        (theta, cov, F, ska, stat, pval, cons), ok, r0 = self._run(problem, batch=False)
-        converged, message = bool(ok and r0 > 0), "closed form"
-        if not ok:
-            message = "unobservable: the N-bearings system is rank deficient"
-        elif problem.sigma is None and constant_fits_as_well(problem.bearings, F):
-            warn_constant_bearing(-1, self.name, fit=True)
-            converged, message, cov = False, CONSTANT_FIT_MESSAGE, np.full_like(cov, np.nan)
-        elif r0 <= 0:
-            message = "range r_0 ≤ 0: the bearings do not fit a target ahead of the observer"
-        return solution(problem, theta, cov, F, (ska, stat, pval, cons), 0, 0, converged, message, self.name)
+        rows = lambda batch, numbers: self._solve_rows(batch, numbers, lstsq=True)
+        return solve_observable_rows(problem.batch(), rows, self.name, LONE).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
         if not isinstance(batch, BearingsBatch):
@@ -151,56 +131,34 @@ class NBearings(Solver):
         require_maneuver(batch.times, batch.observer)
         return solve_observable_rows(batch, self._solve_rows, self.name)
 
-    def _solve_rows(self, batch: BearingsBatch, numbers) -> BatchTMASolution:
-        (theta, cov, F, ska, stat, pval, cons), ok, r0 = self._run(batch, batch=True)
-        converged = ok & (r0 > 0)
-        messages = tuple(
-            "closed form" if c else ("unobservable: the N-bearings system is singular" if not o else "range r_0 ≤ 0")
-            for c, o in zip(converged, ok)
-        )
-        if batch.sigma is None:  # σ unknown: does a constant bearing fit as well? (the pre-check needs σ)
-            fit = ok & constant_fits_as_well(batch.bearings, F)
-            if fit.any():
-                warn_constant_bearing(np.asarray(numbers)[fit], self.name, fit=True)
-                converged, cov = converged & ~fit, np.where(fit[:, None, None], np.nan, cov)
-                messages = tuple(CONSTANT_FIT_MESSAGE if f else m for m, f in zip(messages, fit))
-        return BatchTMASolution(
-            parameters=theta,
-            covariance=cov,
-            cost=F,
-            iterations=np.zeros(len(F), int),
-            evaluations=np.zeros(len(F), int),
-            converged=converged,
-            sqrt_ka=ska,
-            chi2_statistic=stat,
-            chi2_dof=batch.size - N_PARAMETERS,
-            chi2_pvalue=pval,
-            consistent=cons,
-            reference_time=batch.reference_time,
-            messages=messages,
-            method=self.name,
-        )
-
-    def _run(self, problem, batch: bool):
-        require_maneuver(problem.times, problem.observer)
-        n, conv = problem.size, problem.convention
-        X = wrap_angle(problem.bearings)
-        scaled = ScaledProblem.build(problem.times, X, problem.observer, None, problem.times[0], conv)
+    def _solve_rows(self, batch: BearingsBatch, numbers, lstsq: bool = False) -> BatchTMASolution:
+        """The regression of every problem of ``batch``: by :func:`solve_lstsq` (``lstsq``, one problem) or :func:`solve_normal`."""
+        n, conv = batch.size, batch.convention
+        X = wrap_angle(batch.bearings)
+        scaled = ScaledProblem.build(batch.times, X, batch.observer, None, batch.times[0], conv)
         H, b = pseudo_linear_system(scaled.tau, X, scaled.ox, scaled.oy, conv)
-        x, HtH_inv, ok = solve_normal(H, b) if batch else solve_lstsq(H, b)
+        x, HtH_inv, ok = solve_lstsq(H, b) if lstsq else solve_normal(H, b)
         residual = b - np.einsum("...ki,...i->...k", H, x)
         residual_ss = np.einsum("...k,...k->...", residual, residual)
         if not np.all(ok):
             warn_unobservable(int(np.size(ok) - np.count_nonzero(ok)), self.name)
         args = (x, HtH_inv, residual_ss, n, X[..., 0])
-        theta, _ = assemble(*args, np.zeros(np.shape(residual_ss)), scaled.scaling, problem.reference_time, conv)
+        theta, _ = assemble(*args, np.zeros(np.shape(residual_ss)), scaled.scaling, batch.reference_time, conv)
         # √Ka and the χ² test judge θ_N under the ML model, as the seed's table does (§5.1)
-        at_ref = ScaledProblem.build(problem.times, X, problem.observer, None, problem.reference_time, conv)
+        at_ref = ScaledProblem.build(batch.times, X, batch.observer, None, batch.reference_time, conv)
         F, _ = at_ref.cost(at_ref.scaling.to_scaled(theta))
-        ska, stat, pval, cons = fit_statistics(F, n, problem.sigma)
-        variance_phi0 = problem.sigma**2 if problem.sigma is not None else ska**2
-        theta, cov = assemble(*args, variance_phi0, scaled.scaling, problem.reference_time, conv)
-        return (theta, cov, F, ska, stat, pval, cons), ok, x[..., 0]
+        ska, stat, pval, cons = fit_statistics(F, n, batch.sigma)
+        variance_phi0 = batch.sigma**2 if batch.sigma is not None else ska**2
+        theta, cov = assemble(*args, variance_phi0, scaled.scaling, batch.reference_time, conv)
+        r0 = x[..., 0]
+        fit = flag_constant_fits(batch, F, ok, numbers, self.name)
+        converged = ok & (r0 > 0) & ~fit
+        singular = "unobservable: the N-bearings system is " + ("rank deficient" if lstsq else "singular")
+        behind = "range r_0 ≤ 0" + (": the bearings do not fit a target ahead of the observer" if lstsq else "")
+        messages = (CONSTANT_FIT_MESSAGE if f else "closed form" if c else behind if o else singular for c, o, f in zip(converged, ok, fit))
+        cov = np.where(fit[:, None, None], np.nan, cov)
+        zeros = np.zeros(len(F), int)
+        return answers(batch, theta, cov, F, (ska, stat, pval, cons), zeros, zeros, converged, messages, self.name)
 
 
 @hookimpl

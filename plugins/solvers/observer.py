@@ -95,8 +95,7 @@ class ObserverPath:
                 if not seg.rate > 0:
                     raise ValueError(f"segments[{i}]: turn rate must be positive, got {seg.rate}")
                 delta = float(wrap_angle(np.deg2rad(seg.course) - course))  # (−π, π]
-                way = seg.direction if (seg.direction != "shortest" or abs(delta) >= np.pi - 1e-12) else None
-                way = tie if way == "shortest" else way
+                way = tie if seg.direction == "shortest" and abs(delta) >= np.pi - 1e-12 else seg.direction
                 if way == "right":  # increasing course (clockwise in the north convention)
                     angle = delta if delta >= 0 else delta + 2 * np.pi
                 elif way == "left":
@@ -138,9 +137,7 @@ class ObserverPath:
         """Course (radians, wrapped) at ``times``."""
         times = as_float_array(times, "times")
         index = self._piece_index(times)
-        c0 = np.array([p.course for p in self.pieces])[index]
-        rate = np.array([p.rate for p in self.pieces])[index]
-        start = np.array([p.start for p in self.pieces])[index]
+        c0, rate, start = np.array([(p.course, p.rate, p.start) for p in self.pieces])[index].T
         return wrap_angle(c0 + rate * (times - start))
 
 
@@ -172,10 +169,7 @@ def simulate_bearings(
     times = as_float_array(times, "times", (None,))
     observer = as_float_array(observer, "observer", (len(times), 2))
     t_r = times[0] if reference_time is None else reference_time
-    dt = times - t_r
-    positions = np.stack(
-        [theta[..., 0, None] + theta[..., 2, None] * dt, theta[..., 1, None] + theta[..., 3, None] * dt], axis=-1
-    )  # (..., n, 2)
+    positions = theta[..., None, :2] + theta[..., None, 2:] * (times - t_r)[:, None]  # x0 + v (t − t_r), (..., n, 2)
     sensor = BearingSensor(sigma=sigma if sigma > 0 else 1.0, observer=observer, convention=convention)
     if sigma < 0:
         raise ValueError(f"sigma: expected σ ≥ 0, got {sigma}")

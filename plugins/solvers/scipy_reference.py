@@ -17,16 +17,8 @@ from scipy.optimize import least_squares
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
-from hybridtrack_plugins.solvers.tma_model import (
-    BearingsProblem,
-    ScaledProblem,
-    TMASolution,
-    check_start,
-    constant_bearing,
-    constant_bearing_solution,
-    require_maneuver,
-    to_solution,
-)
+from hybridtrack_plugins.solvers.observer import example_problem
+from hybridtrack_plugins.solvers.tma_model import BearingsProblem, ScaledProblem, TMASolution, require_maneuver, solve_one
 
 
 def _tolerance(instance, attribute, value):
@@ -39,13 +31,7 @@ class ScipyLeastSquares(Solver):
     """ML θ by ``scipy.optimize.least_squares`` with the analytic Jacobian (reference variant)."""
 
     name: ClassVar[str] = "scipy_least_squares"
-
-    @staticmethod
-    def example_problem():
-        """A 60-bearing seed 002 problem (contract checks)."""
-        from hybridtrack_plugins.solvers.observer import example_problem
-
-        return example_problem()
+    example_problem = staticmethod(example_problem)
 
     method: str = attrs.field(default="lm", validator=attrs.validators.in_(("lm", "trf", "dogbox")))
     ftol: float = attrs.field(default=1e-10, converter=float, validator=_tolerance)
@@ -54,14 +40,7 @@ class ScipyLeastSquares(Solver):
 
     def residual_functions(self, scaled: ScaledProblem):
         """(fun, jac) of s for ``least_squares``: r(s) = wrap(X − f(s)) and ∂r/∂s = −J(s)."""
-
-        def fun(s):
-            return scaled.residuals(s)
-
-        def jac(s):
-            return -scaled.jacobian(s)
-
-        return fun, jac
+        return scaled.residuals, lambda s: -scaled.jacobian(s)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
         if not isinstance(problem, BearingsProblem):
@@ -69,19 +48,15 @@ class ScipyLeastSquares(Solver):
         require_maneuver(problem.times, problem.observer)
         if problem.initial is None:
             raise ValueError(f"{self.name}: problem.initial is None; give a starting guess θ")
-        if constant_bearing(problem.bearings, problem.sigma):
-            return constant_bearing_solution(problem, self.name)
-        scaled = ScaledProblem.build(
-            problem.times, problem.bearings, problem.observer, problem.initial, problem.reference_time, problem.convention
-        )
-        s0 = scaled.scaling.to_scaled(problem.initial)
-        check_start(s0, scaled.tau, scaled.ox, scaled.oy, problem.times)
+        return solve_one(problem, self.least_squares, self.name)
+
+    def least_squares(self, scaled: ScaledProblem, s0: np.ndarray):
+        """``least_squares`` from s0: (s, F, JᵀJ, iterations = njev, evaluations = nfev, converged, message)."""
         fun, jac = self.residual_functions(scaled)
         result = least_squares(fun, s0, jac=jac, method=self.method, ftol=self.ftol, xtol=self.xtol, gtol=self.gtol)
         J = scaled.jacobian(result.x)
-        F = float(result.fun @ result.fun)
         njev = result.njev if result.njev is not None else result.nfev
-        return to_solution(problem, scaled, result.x, F, J.T @ J, njev, result.nfev, result.status > 0, result.message, self.name)
+        return result.x, float(result.fun @ result.fun), J.T @ J, njev, result.nfev, result.status > 0, result.message
 
 
 @hookimpl

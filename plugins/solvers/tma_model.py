@@ -38,13 +38,7 @@ from hybridtrack.core.interfaces import Solution
 from hybridtrack.core.validation import as_float_array
 from hybridtrack.sdk.linalg import wrap_angle
 from hybridtrack.sdk.timestamps import check_times
-from hybridtrack_plugins.sensors.bearing import (
-    angle_difference,
-    bearing,
-    bearing_gradient,
-    check_convention,
-    direction,
-)
+from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient, check_convention, direction
 
 #: θ has four components
 N_PARAMETERS = 4
@@ -164,6 +158,10 @@ class BearingsProblem:
     def size(self) -> int:
         return self.bearings.shape[0]
 
+    def batch(self) -> BearingsBatch:
+        """This problem as a batch of one."""
+        return BearingsBatch(self.times, self.bearings[None], self.observer, self.sigma, self.initial, self.reference_time, self.convention)
+
 
 @attrs.frozen(eq=False)
 class BearingsBatch:
@@ -209,9 +207,7 @@ class BearingsBatch:
         return self.observer if self.observer.ndim == 2 else self.observer[i]
 
     def initial_of(self, i: int):
-        if self.initial is None:
-            return None
-        return self.initial if self.initial.ndim == 1 else self.initial[i]
+        return self.initial if self.initial is None or self.initial.ndim == 1 else self.initial[i]
 
     def subset(self, rows) -> BearingsBatch:
         """The problems ``rows`` (an index array) as a batch of their own."""
@@ -219,7 +215,7 @@ class BearingsBatch:
             self,
             bearings=self.bearings[rows],
             observer=self.observer if self.observer.ndim == 2 else self.observer[rows],
-            initial=self.initial if self.initial is None or self.initial.ndim == 1 else self.initial[rows],
+            initial=self.initial_of(rows),
         )
 
     def problem(self, i: int) -> BearingsProblem:
@@ -343,78 +339,43 @@ def warn_constant_bearing(rows, method: str, fit: bool = False) -> None:
     )
 
 
-def solution(problem: BearingsProblem, theta, cov, cost, statistics, iterations, evaluations, converged, message, method) -> TMASolution:
-    """A :class:`TMASolution` of one problem from θ, its covariance, the cost F and ``statistics`` =
-    (√Ka, χ², p-value, consistent) of :func:`fit_statistics`."""
-    ska, stat, pval, cons = statistics
-    return TMASolution(
-        parameters=theta,
-        covariance=cov,
-        cost=float(cost),
-        iterations=int(iterations),
-        evaluations=int(evaluations),
-        converged=bool(converged),
-        message=message,
-        reference_time=problem.reference_time,
-        sqrt_ka=float(ska),
-        chi2_statistic=float(stat),
-        chi2_dof=problem.size - N_PARAMETERS,
-        chi2_pvalue=float(pval),
-        consistent=None if cons is None else bool(cons),
-        method=method,
-    )
+#: ``numbers`` of a lone problem (not part of a batch): warnings and errors do not number it
+LONE = np.array([-1])
 
 
-def constant_bearing_solution(problem: BearingsProblem, method: str) -> TMASolution:
-    """The answer to a constant-bearing problem: NaN θ and covariance, ``converged=False`` (warns)."""
-    warn_constant_bearing(-1, method)
-    nan = float("nan")
-    statistics = fit_statistics(np.array(nan), problem.size, problem.sigma)
-    theta, cov = np.full(N_PARAMETERS, nan), np.full((N_PARAMETERS, N_PARAMETERS), nan)
-    return solution(problem, theta, cov, nan, statistics, 0, 0, False, CONSTANT_BEARING_MESSAGE, method)
+def solve_observable_rows(batch: BearingsBatch, solve, method: str, numbers=None) -> BatchTMASolution:
+    """``solve(sub_batch, numbers)`` on the problems without a constant bearing; the others get NaN answers.
 
-
-def solve_observable_rows(batch: BearingsBatch, solve, method: str) -> BatchTMASolution:
-    """``solve(sub_batch, rows)`` on the problems ``rows`` without a constant bearing; the others get NaN answers.
-
-    Constant-bearing problems (:func:`constant_bearing`) are not solved: their
-    θ, covariance, cost and statistics are NaN, ``converged`` False, their message
+    ``numbers`` (B,) name the problems in warnings and errors (default 0 … B − 1;
+    :data:`LONE` for a problem on its own).  Constant-bearing problems
+    (:func:`constant_bearing`) are not solved: their θ, covariance, cost and
+    statistics are NaN, ``converged`` False, their message
     :data:`CONSTANT_BEARING_MESSAGE` (one :class:`UnobservabilityWarning` names them).
     """
+    numbers = np.arange(len(batch)) if numbers is None else numbers
     constant = constant_bearing(batch.bearings, batch.sigma)
     if not constant.any():
-        return solve(batch, np.arange(len(batch)))
-    B, n = batch.bearings.shape
+        return solve(batch, numbers)
+    warn_constant_bearing(numbers[constant], method)
     rows = np.flatnonzero(~constant)
-    warn_constant_bearing(np.flatnonzero(constant), method)
-    part = solve(batch.subset(rows), rows) if rows.size else None
+    part = solve(batch.subset(rows), numbers[rows]) if rows.size else None
+    B, n = batch.bearings.shape
     nan = float("nan")
-
-    def merged(name, fill, shape=()):
-        out = np.full((B,) + shape, fill)  # dtype of fill: float NaN, bool False, int 0
-        if part is not None:
-            out[rows] = getattr(part, name)
-        return out
-
-    messages = [CONSTANT_BEARING_MESSAGE] * B
-    if part is not None:
-        for i, m in zip(rows, part.messages):
-            messages[i] = m
-    consistent = None
+    fills = dict(parameters=nan, covariance=nan, cost=nan, iterations=0, evaluations=0, converged=False, sqrt_ka=nan)
+    fills.update(chi2_statistic=nan, chi2_pvalue=nan)
     if batch.sigma is not None and batch.sigma > 0 and n > N_PARAMETERS:
-        consistent = merged("consistent", False)
+        fills["consistent"] = False  # the χ² test is defined
+    shapes = {"parameters": (N_PARAMETERS,), "covariance": (N_PARAMETERS, N_PARAMETERS)}
+    fields = {name: np.full((B,) + shapes.get(name, ()), fill) for name, fill in fills.items()}  # dtype of fill
+    messages = np.full(B, CONSTANT_BEARING_MESSAGE, dtype=object)
+    if part is not None:
+        for name, values in fields.items():
+            values[rows] = getattr(part, name)
+        messages[rows] = part.messages
+    fields.setdefault("consistent", None)
     return BatchTMASolution(
-        parameters=merged("parameters", nan, (N_PARAMETERS,)),
-        covariance=merged("covariance", nan, (N_PARAMETERS, N_PARAMETERS)),
-        cost=merged("cost", nan),
-        iterations=merged("iterations", 0),
-        evaluations=merged("evaluations", 0),
-        converged=merged("converged", False),
-        sqrt_ka=merged("sqrt_ka", nan),
-        chi2_statistic=merged("chi2_statistic", nan),
+        **fields,
         chi2_dof=n - N_PARAMETERS,
-        chi2_pvalue=merged("chi2_pvalue", nan),
-        consistent=consistent,
         reference_time=batch.reference_time,
         messages=tuple(messages),
         method=method,
@@ -500,19 +461,6 @@ def relative(s, tau, ox, oy):
     return dx, dy
 
 
-def residuals(s, tau, ox, oy, X, convention):
-    """r_k = wrap(X_k − f_k(s)) (seed 002 eq. 5, wrapped to (−π, π]); X must already lie in (−π, π]."""
-    dx, dy = relative(s, tau, ox, oy)
-    return angle_difference(X, bearing(dx, dy, convention))
-
-
-def jacobian(s, tau, ox, oy, convention):
-    """J = ∂f/∂s, rows (p_k, q_k, p_k τ_k, q_k τ_k), shape (..., n, 4)."""
-    dx, dy = relative(s, tau, ox, oy)
-    p, q = bearing_gradient(dx, dy, convention)
-    return np.stack([p, q, p * tau, q * tau], axis=-1)
-
-
 def time_powers(tau) -> np.ndarray:
     """T_k = (1, τ_k, τ_k²), shape (n, 3)."""
     return np.stack([np.ones_like(tau), tau, tau * tau], axis=-1)
@@ -528,36 +476,14 @@ def normal_equations(p, q, r, powers, out=None):
     n = p.shape[-1]
     lead = np.broadcast_shapes(p.shape, q.shape, r.shape)[:-1]
     W = np.empty(lead + (5, n)) if out is None else out
-    np.multiply(p, p, out=W[..., 0, :])
-    np.multiply(p, q, out=W[..., 1, :])
-    np.multiply(q, q, out=W[..., 2, :])
-    np.multiply(p, r, out=W[..., 3, :])
-    np.multiply(q, r, out=W[..., 4, :])
+    for i, (u, v) in enumerate(((p, p), (p, q), (q, q), (p, r), (q, r))):
+        np.multiply(u, v, out=W[..., i, :])
     S = (W.reshape(-1, n) @ powers).reshape(lead + (15,))  # one 2-D product for the whole stack
     return S[..., _H_FROM_S].reshape(lead + (4, 4)), S[..., _G_FROM_S]
 
 
-# S flattened as 3 i + j (weight i, power j): H_ab and g_a read off it
-_H_FROM_S = np.array(
-    [
-        0,
-        3,
-        1,
-        4,  # H_0· = Σp², Σpq, Σp²τ, Σpqτ
-        3,
-        6,
-        4,
-        7,  # H_1· = Σpq, Σq², Σpqτ, Σq²τ
-        1,
-        4,
-        2,
-        5,  # H_2· = Σp²τ, Σpqτ, Σp²τ², Σpqτ²
-        4,
-        7,
-        5,
-        8,  # H_3· = Σpqτ, Σq²τ, Σpqτ², Σq²τ²
-    ]
-)
+# S flattened as 3 i + j (weight i, power j): H_ab and g_a read off it, H rows Σ(p, q, pτ, qτ)·(p, q, pτ, qτ)
+_H_FROM_S = np.array([[0, 3, 1, 4], [3, 6, 4, 7], [1, 4, 2, 5], [4, 7, 5, 8]]).ravel()
 _G_FROM_S = np.array([9, 12, 10, 13])  # g = Σpr, Σqr, Σprτ, Σqrτ
 
 
@@ -579,14 +505,18 @@ class ScaledProblem:
         return cls(scaling.tau(times), o[..., 0], o[..., 1], wrap_angle(bearings), convention, scaling)
 
     def residuals(self, s):
-        return residuals(s, self.tau, self.ox, self.oy, self.X, self.convention)
+        """r_k = wrap(X_k − f_k(s)) (seed 002 eq. 5, wrapped to (−π, π]; X already lies there)."""
+        dx, dy = relative(s, self.tau, self.ox, self.oy)
+        return angle_difference(self.X, bearing(dx, dy, self.convention))
 
     def cost(self, s):
         r = self.residuals(s)
         return np.einsum("...k,...k->...", r, r), r
 
     def jacobian(self, s):
-        return jacobian(s, self.tau, self.ox, self.oy, self.convention)
+        """J = ∂f/∂s, rows (p_k, q_k, p_k τ_k, q_k τ_k), shape (..., n, 4)."""
+        p, q = bearing_gradient(*relative(s, self.tau, self.ox, self.oy), self.convention)
+        return np.stack([p, q, p * self.tau, q * self.tau], axis=-1)
 
 
 # --------------------------------------------------------------------------- answers
@@ -613,10 +543,6 @@ class TMASolution(Solution):
     @property
     def sqrt_ka_deg(self) -> float:
         return float(np.rad2deg(self.sqrt_ka))
-
-    def state_at(self, t: float) -> np.ndarray:
-        """(x, y, vx, vy) of the estimated target at time ``t``."""
-        return propagate(self.parameters, t - self.reference_time)
 
 
 @attrs.frozen(eq=False)
@@ -730,18 +656,78 @@ def warn_unobservable(count: int, method: str) -> None:
     )
 
 
-def to_solution(problem: BearingsProblem, scaled: ScaledProblem, s, F, H, iterations, evaluations, converged, message, method):
-    """Assemble a :class:`TMASolution` for one problem (warns when θ is unobservable)."""
-    theta, cov, ska, stat, pval, cons, observable = summarize(scaled.scaling, s, F, H, problem.size, problem.sigma)
-    if not observable:
-        warn_unobservable(1, method)
-        converged = False
-        message = (message + "; " if message else "") + "unobservable: JᵀJ singular"
-    elif problem.sigma is None and constant_fits_as_well(problem.bearings, F):
-        warn_constant_bearing(-1, method, fit=True)
-        converged, cov = False, np.full_like(cov, np.nan)
-        message = (message + "; " if message else "") + CONSTANT_FIT_MESSAGE
-    return solution(problem, theta, cov, F, (ska, stat, pval, cons), iterations, evaluations, converged, message, method)
+def _note(message: str, note: str) -> str:
+    return f"{message}; {note}" if message else note
+
+
+def flag_constant_fits(batch: BearingsBatch, F, candidates, numbers, method: str) -> np.ndarray:
+    """The ``candidates`` (B,) that a constant bearing fits as well (:func:`constant_fits_as_well`, σ unknown only); warns."""
+    if batch.sigma is not None:  # σ known: the pre-check (constant_bearing) has decided
+        return np.zeros(len(candidates), bool)
+    fit = candidates & constant_fits_as_well(batch.bearings, F)
+    if fit.any():
+        warn_constant_bearing(numbers[fit], method, fit=True)
+    return fit
+
+
+def conclude(batch, scaling, s, F, H, iterations, evaluations, converged, messages, numbers, method) -> BatchTMASolution:
+    """The answers s (B, 4) of an iterative solver, with F (B,) and H = JᵀJ (B, 4, 4) there (scaled units).
+
+    θ, covariance and tests by :func:`summarize`.  A singular JᵀJ, or (σ unknown)
+    a constant bearing that fits as well (:func:`flag_constant_fits`), makes the
+    answer unobservable: a warning, covariance NaN, ``converged`` False, a note in its message.
+    """
+    theta, cov, *statistics, observable = summarize(scaling, s, F, H, batch.size, batch.sigma)
+    if not observable.all():
+        warn_unobservable(int((~observable).sum()), method)
+    fit = flag_constant_fits(batch, F, observable, numbers, method)
+    notes = ("unobservable: JᵀJ singular" if not o else CONSTANT_FIT_MESSAGE if f else "" for o, f in zip(observable, fit))
+    messages = [_note(m, note) if note else m for m, note in zip(messages, notes)]
+    cov = np.where(fit[:, None, None], np.nan, cov)
+    converged = np.asarray(converged) & observable & ~fit
+    return answers(batch, theta, cov, F, statistics, iterations, evaluations, converged, messages, method)
+
+
+def answers(batch, theta, cov, F, statistics, iterations, evaluations, converged, messages, method) -> BatchTMASolution:
+    """The :class:`BatchTMASolution` of ``batch`` from θ (B, 4), covariance, F and ``statistics`` =
+    (√Ka, χ², p-value, consistent) of :func:`fit_statistics`."""
+    ska, stat, pval, cons = statistics
+    return BatchTMASolution(
+        parameters=theta,
+        covariance=cov,
+        cost=F,
+        iterations=np.asarray(iterations),
+        evaluations=np.asarray(evaluations),
+        converged=converged,
+        sqrt_ka=ska,
+        chi2_statistic=stat,
+        chi2_dof=batch.size - N_PARAMETERS,
+        chi2_pvalue=pval,
+        consistent=cons,
+        reference_time=batch.reference_time,
+        messages=tuple(messages),
+        method=method,
+    )
+
+
+def solve_one(problem: BearingsProblem, minimize, method: str) -> TMASolution:
+    """One problem by ``minimize(scaled, s0)`` → (s, F, H = JᵀJ, iterations, evaluations, converged, message).
+
+    The problem in scaled units (:class:`ScaledProblem`) from its ``initial``
+    guess (refused by :func:`check_start` on the observer); a constant bearing
+    is not solved (:func:`solve_observable_rows`); the answer by :func:`conclude`.
+    """
+
+    def solve(batch, numbers):
+        scaled = ScaledProblem.build(
+            problem.times, problem.bearings, problem.observer, problem.initial, problem.reference_time, problem.convention
+        )
+        s0 = scaled.scaling.to_scaled(problem.initial)
+        check_start(s0, scaled.tau, scaled.ox, scaled.oy, problem.times)
+        s, F, H, it, nf, converged, message = minimize(scaled, s0)
+        return conclude(batch, scaled.scaling, s[None], np.array([F]), H[None], [it], [nf], [converged], [message], numbers, method)
+
+    return solve_observable_rows(problem.batch(), solve, method, LONE).solution(0)
 
 
 # --------------------------------------------------------------------------- kinematics
