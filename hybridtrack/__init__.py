@@ -1,15 +1,10 @@
 """hybridtrack: estimation of hybrid (mode-switching) motion.
 
-Layers, imports pointing downwards only (``docs/architecture.md``):
-:mod:`hybridtrack.core` (the contract) ← :mod:`hybridtrack.sdk` (plugin
-authors' toolkit) ← :mod:`hybridtrack.engine` (the bank, the pipeline, the
-simulator) ← :mod:`hybridtrack.algorithms` ← :mod:`hybridtrack.recording` /
-:mod:`hybridtrack.io` ← :mod:`hybridtrack.apps` ← :mod:`hybridtrack.cli`.
-Components are plugins found through the ``hybridtrack`` entry-point group.
-
-The user surface is importable from here; the contract names are imported at
-once, the rest (pipeline, simulator, recorder, readers, algorithms) on first
-use, so a plugin importing :mod:`hybridtrack.core` loads nothing above it.
+Layers, imports pointing downwards (``docs/architecture.md``): core ← sdk ←
+engine ← algorithms ← recording / io ← apps ← cli.  The user surface is
+importable from here: the contract names at once, the rest (pipeline,
+simulator, recorder, readers, algorithms) on first use (PEP 562), so a plugin
+importing :mod:`hybridtrack.core` loads nothing above it.
 """
 
 import importlib

@@ -24,14 +24,9 @@ rely on; :func:`hybridtrack.testing.check_algorithm` checks it):
   more per run (Algorithm 1's known switching steps) takes it as a further
   argument of ``run``.
 
-``example_parameters`` (keywords besides ``sensors`` and ``tau``) and
-``example_run`` (keywords of ``run``), on the factory, let the check build and
-run it on its own.
-
-The built-in classes (``KnownSwitchAdaptive``, ``UnknownChangeAdaptive``,
-``MultipleModelEstimator``) satisfy the contract without subclassing: a class
-with a ``run`` method counts as an Algorithm (structural, as the ABCs of
-:mod:`collections.abc`); a third party may subclass it.
+A class with a ``run`` method counts as an Algorithm (structural, as the ABCs
+of :mod:`collections.abc`); the contract check's conventions
+(``example_parameters``, ``example_run``) are in ``docs/plugins.md``.
 """
 
 from __future__ import annotations
