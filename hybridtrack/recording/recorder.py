@@ -379,7 +379,7 @@ class RerunRecorder:
         import pyarrow as pa
 
         rr = self._rr
-        strip_type = rr.components.LineStrip3DBatch._ARROW_DATATYPE
+        strip_type = rr.components.LineStrip3DBatch(None).as_arrow_array().type  # the component's Arrow type
         strips = np.ascontiguousarray(_xyz(strips), dtype=np.float32)
         S, P = strips.shape[:2]
         points = pa.FixedSizeListArray.from_arrays(pa.array(strips.reshape(-1)), type=strip_type.value_type)
