@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import shutil
 import struct
 import tempfile
@@ -166,15 +167,8 @@ class RecordingFile:
         """Copy the first ``length`` bytes (the whole messages) to a temporary file removed with this object."""
         folder = tempfile.mkdtemp(prefix="hybridtrack-inspect-")
         weakref.finalize(self, shutil.rmtree, folder, True)
-        target = Path(folder) / self.path.name
-        with self.path.open("rb") as source, target.open("wb") as sink:
-            remaining = length
-            while remaining:
-                block = source.read(min(remaining, 1 << 20))
-                if not block:
-                    break
-                sink.write(block)
-                remaining -= len(block)
+        target = Path(shutil.copyfile(self.path, Path(folder) / self.path.name))
+        os.truncate(target, length)
         return target
 
     def _reader(self):
@@ -214,10 +208,8 @@ class RecordingFile:
         for entity, batch in self._chunks():
             names = set(batch.schema.names) - {"rerun.controls.RowId"}
             self._components.setdefault(entity, set()).update(names)
-            if entity == "/__properties/configuration" and "json" in names:
-                values = [v for v in batch.column("json").to_pylist() if v]
-                if values:
-                    configuration = values[-1][0]
+            if entity == "/__properties/configuration" and "json" in names and _last_value(batch, "json"):
+                configuration = _last_value(batch, "json")[0]
             if "step" not in names or batch.num_rows == 0:
                 continue
             steps = batch.column("step")
