@@ -201,7 +201,7 @@ class RerunRecorder:
         self._modes: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, ...]]] = {}
         self._geo: list[np.ndarray] = []  # the corners of every geo path (for the map view's zoom)
         self._breaks: dict[str, np.ndarray] = {}  # a hypothesis's path: where its pieces in play start (rows of its track)
-        self._events: list[tuple[int, float | None, str]] = []
+        self._events: list[tuple[int, str]] = []  # the decisions: (step, text)
         self._time_step: float | None = None
         self._closed = False
 
@@ -333,7 +333,7 @@ class RerunRecorder:
             self.stream.set_time("time", duration=float(time))
         self.stream.log("events/decisions", self._rr.TextLog(text, level=level))
         self._note("events/decisions", "TextLog")
-        self._events.append((int(step), None if time is None else float(time), str(text)))
+        self._events.append((int(step), str(text)))
 
     def log_modes(self, entity, steps, modes, names, times=None):
         steps = np.asarray(steps, dtype=np.int64)
@@ -452,7 +452,7 @@ class RerunRecorder:
             reference = (moded or [e for e in whole if e.endswith("truth")] or whole)[0]
             steps, points = lifted[reference]
             marks: dict[int, list[str]] = {}  # the decisions of one step share one mark and one label
-            for step, _, text in self._events:
+            for step, text in self._events:
                 marks.setdefault(step, []).append(short_decision(text))
             at = np.clip(np.searchsorted(steps, list(marks)), 0, len(steps) - 1)
             self.stream.log(
