@@ -20,6 +20,7 @@ import hashlib
 import json
 import re
 from collections.abc import Sequence
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
@@ -110,7 +111,7 @@ def _ignore(*args, **kwargs) -> None:
     return None
 
 
-class NullRecorder:
+class NullRecorder(AbstractContextManager):
     """Records nothing (recording turned off): every ``log_…`` method of :class:`Recorder` and of its optional
     extensions, ``flush`` and ``close`` accept their arguments and do nothing."""
 
@@ -118,9 +119,6 @@ class NullRecorder:
         if name.startswith("log_") or name in ("flush", "close"):
             return _ignore
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
-    def __enter__(self):
-        return self
 
     def __exit__(self, *exc):
         return False
@@ -166,7 +164,7 @@ def _rows(times, rows):
 SPACETIME_POINTS = 4000
 
 
-class RerunRecorder:
+class RerunRecorder(AbstractContextManager):
     """A file recording (.rrd) on its own ``rerun.RecordingStream``.
 
     ``configuration`` (a JSON-able dict, seed included) gives the recording id,
@@ -499,9 +497,6 @@ class RerunRecorder:
                 self.stream.send_blueprint(content_blueprint(self.content, time_step=self._time_step, eyes=eyes, map_zoom=zoom))
                 self.stream.flush()
                 self.stream.disconnect()
-
-    def __enter__(self):
-        return self
 
     def __exit__(self, *exc):
         self.close()
