@@ -22,7 +22,6 @@ that prefix to a temporary file when the cut falls inside a message) and sets
 
 from __future__ import annotations
 
-import functools
 import json
 import os
 import shutil
@@ -325,16 +324,15 @@ class RecordingFile:
             if not path.startswith("/view/"):
                 continue
             view = views.setdefault(path.split("/")[2], {"name": None, "class": None, "origin": "/", "contents": ["$origin/**"]})
-            last = functools.partial(_last_value, batch)
             if path.endswith("/ViewContents") and "ViewContents:query" in names:
-                view["contents"] = last("ViewContents:query") or []
+                view["contents"] = _last_value(batch, "ViewContents:query") or []
             for column, key in (
                 ("ViewBlueprint:class_identifier", "class"),
                 ("ViewBlueprint:display_name", "name"),
                 ("ViewBlueprint:space_origin", "origin"),
             ):
-                if column in names and last(column):
-                    view[key] = last(column)[0]
+                if column in names and _last_value(batch, column):
+                    view[key] = _last_value(batch, column)[0]
         return [v for v in views.values() if v["class"] is not None]
 
     def unviewed_entities(self) -> list[str]:
