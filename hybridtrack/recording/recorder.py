@@ -414,11 +414,7 @@ class RerunRecorder(AbstractContextManager):
                 strips = [points[a : min(b + 1, len(points))] for a, b in zip(bounds[:-1], bounds[1:])]
                 labels = [names[m] if 0 <= m < len(names) else "undecided" for m in at[bounds[:-1]]]
                 colours = [palette(n) if n != "undecided" else colour for n in labels]
-                self.stream.log(
-                    target,
-                    rr.LineStrips3D(strips, colors=colours, labels=labels, radii=[rr.Radius.ui_points(2.0)], show_labels=False),
-                    static=True,
-                )
+                style = {"colors": colours, "labels": labels, "radii": [rr.Radius.ui_points(2.0)], "show_labels": False}
                 if cuts.size:
                     self.stream.log(
                         f"{target}/changes",
@@ -434,16 +430,12 @@ class RerunRecorder(AbstractContextManager):
                     self._note(f"{target}/changes", "3D")
             elif is_hypothesis(entity):  # pieces in play, unlabelled: the fan out of each switch
                 strips = [piece for piece in np.split(points, self._breaks.get(entity, [])) if len(piece) > 1]
-                if not strips:
-                    continue
-                self.stream.log(target, rr.LineStrips3D(strips, colors=[colour], radii=[rr.Radius.ui_points(0.75)]), static=True)
+                style = {"colors": [colour], "radii": [rr.Radius.ui_points(0.75)]}
             else:
-                self.stream.log(
-                    target,
-                    rr.LineStrips3D([points], colors=[colour], labels=[label], radii=[rr.Radius.ui_points(1.5)], show_labels=False),
-                    static=True,
-                )
-            self._note(target, "3D")
+                strips, style = [points], {"colors": [colour], "labels": [label], "radii": [rr.Radius.ui_points(1.5)], "show_labels": False}
+            if strips:
+                self.stream.log(target, rr.LineStrips3D(strips, **style), static=True)
+                self._note(target, "3D")
         if self._events:
             moded = [e for e in lifted if e in self._modes and not e.endswith("truth")]
             whole = [e for e in lifted if not is_hypothesis(e)] or list(lifted)
