@@ -13,51 +13,37 @@ from hybridtrack.recording import (
     multiple_model,  # noqa: F401  (registers the MultipleModelRun writer)
     pipeline,  # noqa: F401  (registers the writer of a pipeline run with log_result)
 )
+from hybridtrack.recording.layout import LEGEND_CORNERS, TRAIL_STEPS, VIEW_CLASSES, content_blueprint, map_zoom
 from hybridtrack.recording.recorder import (
     APPLICATION_ID,
-    LEGEND_CORNERS,
-    LEGEND_SERIES,
     MAX_RECORDABLE_SECONDS,
-    SPACETIME_POINTS,
-    TRAIL_STEPS,
-    VIEW_CLASSES,
     NullRecorder,
     Recorder,
     RerunRecorder,
     check_recordable_times,
-    content_blueprint,
     decision_text,
-    default_blueprint,
     ellipse_outlines,
-    finite_runs,
-    is_hypothesis,
     log_estimate,
     log_measurements,
-    map_zoom,
     nis_bounds,
     open_recorder,
-    palette,
     recording_id,
-    series_style,
     short_decision,
-    spatial_style,
 )
+from hybridtrack.recording.style import finite_runs, is_hypothesis, palette, series_style, spatial_style
 
 __all__ = [
     "APPLICATION_ID",
     "LEGEND_CORNERS",
-    "LEGEND_SERIES",
     "MAX_RECORDABLE_SECONDS",
     "NullRecorder",
     "Recorder",
     "RerunRecorder",
-    "SPACETIME_POINTS",
     "TRAIL_STEPS",
     "VIEW_CLASSES",
     "check_recordable_times",
     "content_blueprint",
     "decision_text",
-    "default_blueprint",
     "ellipse_outlines",
     "finite_runs",
     "is_hypothesis",

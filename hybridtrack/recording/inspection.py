@@ -22,8 +22,8 @@ that prefix to a temporary file when the cut falls inside a message) and sets
 
 from __future__ import annotations
 
-import functools
 import json
+import os
 import shutil
 import struct
 import tempfile
@@ -166,15 +166,8 @@ class RecordingFile:
         """Copy the first ``length`` bytes (the whole messages) to a temporary file removed with this object."""
         folder = tempfile.mkdtemp(prefix="hybridtrack-inspect-")
         weakref.finalize(self, shutil.rmtree, folder, True)
-        target = Path(folder) / self.path.name
-        with self.path.open("rb") as source, target.open("wb") as sink:
-            remaining = length
-            while remaining:
-                block = source.read(min(remaining, 1 << 20))
-                if not block:
-                    break
-                sink.write(block)
-                remaining -= len(block)
+        target = Path(shutil.copyfile(self.path, Path(folder) / self.path.name))
+        os.truncate(target, length)
         return target
 
     def _reader(self):
@@ -214,10 +207,8 @@ class RecordingFile:
         for entity, batch in self._chunks():
             names = set(batch.schema.names) - {"rerun.controls.RowId"}
             self._components.setdefault(entity, set()).update(names)
-            if entity == "/__properties/configuration" and "json" in names:
-                values = [v for v in batch.column("json").to_pylist() if v]
-                if values:
-                    configuration = values[-1][0]
+            if entity == "/__properties/configuration" and "json" in names and _last_value(batch, "json"):
+                configuration = _last_value(batch, "json")[0]
             if "step" not in names or batch.num_rows == 0:
                 continue
             steps = batch.column("step")
@@ -333,16 +324,15 @@ class RecordingFile:
             if not path.startswith("/view/"):
                 continue
             view = views.setdefault(path.split("/")[2], {"name": None, "class": None, "origin": "/", "contents": ["$origin/**"]})
-            last = functools.partial(_last_value, batch)
             if path.endswith("/ViewContents") and "ViewContents:query" in names:
-                view["contents"] = last("ViewContents:query") or []
+                view["contents"] = _last_value(batch, "ViewContents:query") or []
             for column, key in (
                 ("ViewBlueprint:class_identifier", "class"),
                 ("ViewBlueprint:display_name", "name"),
                 ("ViewBlueprint:space_origin", "origin"),
             ):
-                if column in names and last(column):
-                    view[key] = last(column)[0]
+                if column in names and _last_value(batch, column):
+                    view[key] = _last_value(batch, column)[0]
         return [v for v in views.values() if v["class"] is not None]
 
     def unviewed_entities(self) -> list[str]:

@@ -143,10 +143,7 @@ def content_blueprint(
         return rrb.EyeControls3D(position=position, look_target=target, eye_up=(0.0, 0.0, 1.0))
 
     spatial, other = [], []
-    roots: dict[tuple[str, str], None] = {}
-    for path, view_class in content.items():
-        if view_class not in ("TimeSeries", "TextLog"):
-            roots.setdefault((path.split("/")[0], view_class), None)
+    roots = dict.fromkeys((path.split("/")[0], c) for path, c in content.items() if c not in ("TimeSeries", "TextLog"))
     for root, view_class in roots:
         if view_class == "3D" and root == "world":
             spatial.insert(

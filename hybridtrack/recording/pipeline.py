@@ -61,9 +61,8 @@ def log_pipeline(
             log_measurements(recorder, network.sensors, network.split(z[rows]), steps, times)
         for j, name in enumerate(names):
             log_estimate(recorder, name, steps, result.means[rows, j], result.covs[rows, j], position, times, line=False)
-            recorder.log_scalars(f"estimator/{name}/nis", steps, result.nis[rows, j], times)
-            recorder.log_scalars(f"estimator/{name}/loglik", steps, result.loglik[rows, j], times)
-            recorder.log_scalars(f"estimator/{name}/innovation", steps, result.innovations[rows, j], times)
+            for key, values in (("nis", result.nis), ("loglik", result.loglik), ("innovation", result.innovations)):
+                recorder.log_scalars(f"estimator/{name}/{key}", steps, values[rows, j], times)
         bounds = nis_bounds(np.isfinite(z[rows]).sum(axis=1))
         recorder.log_scalars("estimator/nis_bounds", steps, bounds, times, names=["χ² 2.5 %", "χ² 97.5 %"])
         if candidates is not None:

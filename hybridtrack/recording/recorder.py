@@ -10,13 +10,8 @@ seconds), so a killed process leaves a file — without its footer — holding
 everything logged up to the last flush.
 
 Series are logged as whole columns (``send_columns``) on the timelines ``step``
-(sequence) and ``time`` (duration in seconds, when times are given).  Spatial
-data is 3-D, east-north-up (``world`` carries ``ViewCoordinates.RIGHT_HAND_Z_UP``).
-The full list of entity paths is in ``docs/recording.md``.  A file closed
-normally carries the blueprint built from what the run logged
-(:func:`hybridtrack.recording.layout.content_blueprint`: a 3-D world view, a space-time view, one time-series
-panel per quantity, the events) and the run's configuration as the recording
-property ``configuration``.
+(sequence) and ``time`` (duration in seconds, when times are given).  The full
+list of entity paths is in ``docs/recording.md``.
 """
 
 from __future__ import annotations
@@ -25,21 +20,14 @@ import hashlib
 import json
 import re
 from collections.abc import Sequence
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from hybridtrack.recording.layout import (  # noqa: F401  (re-exported: the recording's public names)
-    LEGEND_CORNERS,
-    LEGEND_SERIES,
-    TRAIL_STEPS,
-    VIEW_CLASSES,
-    content_blueprint,
-    default_blueprint,
-    map_zoom,
-)
-from hybridtrack.recording.style import finite_runs, is_hypothesis, palette, series_style, spatial_style  # noqa: F401
+from hybridtrack.recording.layout import content_blueprint, default_blueprint, map_zoom
+from hybridtrack.recording.style import finite_runs, is_hypothesis, palette, series_style, spatial_style
 
 APPLICATION_ID = "hybridtrack"
 
@@ -123,7 +111,7 @@ def _ignore(*args, **kwargs) -> None:
     return None
 
 
-class NullRecorder:
+class NullRecorder(AbstractContextManager):
     """Records nothing (recording turned off): every ``log_…`` method of :class:`Recorder` and of its optional
     extensions, ``flush`` and ``close`` accept their arguments and do nothing."""
 
@@ -131,9 +119,6 @@ class NullRecorder:
         if name.startswith("log_") or name in ("flush", "close"):
             return _ignore
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
-    def __enter__(self):
-        return self
 
     def __exit__(self, *exc):
         return False
@@ -170,11 +155,16 @@ def _xyz(points: np.ndarray) -> np.ndarray:
     return np.concatenate([points, np.zeros(points.shape[:-1] + (1,))], axis=-1)
 
 
+def _rows(times, rows):
+    """``times[rows]`` as float64 seconds, or None."""
+    return None if times is None else np.asarray(times, dtype=np.float64)[rows]
+
+
 #: at most this many points per path in the space-time view (longer paths are thinned evenly)
 SPACETIME_POINTS = 4000
 
 
-class RerunRecorder:
+class RerunRecorder(AbstractContextManager):
     """A file recording (.rrd) on its own ``rerun.RecordingStream``.
 
     ``configuration`` (a JSON-able dict, seed included) gives the recording id,
@@ -193,14 +183,14 @@ class RerunRecorder:
     content (:func:`content_blueprint`) as the file's active and default layout.
     """
 
-    def __init__(self, path: str | Path, configuration: dict | None = None, *, recording_id_: str | None = None):
+    def __init__(self, path: str | Path, configuration: dict | None = None):
         import rerun as rr
 
         self._rr = rr
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.configuration = dict(configuration or {})
-        self.recording_id = recording_id_ or recording_id(self.configuration)
+        self.recording_id = recording_id(self.configuration)
         self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
         self.stream.save(str(self.path), default_blueprint=default_blueprint())
         self.stream.send_property("configuration", rr.AnyValues(json=json.dumps(self.configuration, sort_keys=True, default=str)))
@@ -209,30 +199,24 @@ class RerunRecorder:
         self._modes: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, ...]]] = {}
         self._geo: list[np.ndarray] = []  # the corners of every geo path (for the map view's zoom)
         self._breaks: dict[str, np.ndarray] = {}  # a hypothesis's path: where its pieces in play start (rows of its track)
-        self._events: list[tuple[int, float | None, str]] = []
+        self._events: list[tuple[int, str]] = []  # the decisions: (step, text)
         self._time_step: float | None = None
         self._closed = False
 
     # -- helpers
-    def _indexes(self, steps, times):
+    def _indexes(self, steps, times, rows=slice(None)):
+        """The ``step`` (and ``time``) index columns of ``rows`` of a series, noting the time step τ."""
+        steps, times = np.asarray(steps, dtype=np.int64)[rows], _rows(times, rows)
         check_recordable_times(times)
         rr = self._rr
-        steps = np.asarray(steps, dtype=np.int64)
         indexes = [rr.TimeColumn("step", sequence=steps)]
         if times is not None:
-            times = np.asarray(times, dtype=np.float64)
             indexes.append(rr.TimeColumn("time", duration=times))
             if self._time_step is None and times.size > 1:
                 gaps = np.diff(steps) > 0
                 if gaps.any():
                     self._time_step = float(np.median(np.diff(times)[gaps] / np.diff(steps)[gaps]))
         return indexes
-
-    def _set_time(self, step, time):
-        check_recordable_times(time, "time")
-        self.stream.set_time("step", sequence=int(step))
-        if time is not None:
-            self.stream.set_time("time", duration=float(time))
 
     def _note(self, entity: str, view_class: str) -> bool:
         """Note a logged entity (True the first time), declaring east-north-up on its spatial root."""
@@ -255,41 +239,31 @@ class RerunRecorder:
             size = 1.25 if is_hypothesis(entity) else size
             self.stream.log(entity, rr.Points3D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(size)]), static=True)
 
+    def _send_points(self, entity, steps, points, times, keep, radii=None) -> bool:
+        """Send the ``keep`` points ((K,) or (K, L) for several per step) of the steps that have one; False if none."""
+        if not keep.any():
+            return False
+        counts = keep.reshape(keep.shape[0], -1).sum(axis=1)
+        present = counts > 0
+        columns = self._rr.Points3D.columns(positions=points[keep], radii=None if radii is None else radii[keep])
+        self.stream.send_columns(entity, indexes=self._indexes(steps, times, present), columns=columns.partition(counts[present]))
+        return True
+
     # -- Recorder
     def log_points(self, entity, steps, points, times=None):
         points = _xyz(points)
-        keep = np.all(np.isfinite(points), axis=-1)  # (K,) or (K, L) for several points per step
-        if not keep.any():
-            return
-        counts = keep.reshape(keep.shape[0], -1).sum(axis=1)
-        present = counts > 0
-        steps = np.asarray(steps)[present]
-        times = None if times is None else np.asarray(times)[present]
-        self.stream.send_columns(
-            entity,
-            indexes=self._indexes(steps, times),
-            columns=self._rr.Points3D.columns(positions=points[keep]).partition(counts[present].astype(np.int64)),
-        )
-        self._style_points(entity)
+        if self._send_points(entity, steps, points, times, np.all(np.isfinite(points), axis=-1)):
+            self._style_points(entity)
 
     def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
         """Optional extension of the Recorder protocol: points (K, L, 2 or 3) with weights (K, L) ≥ 0 drawn as radii,
         r = max_radius · √(w / max_step w) (area ∝ weight; particle clouds, mixture components).  Rows with NaN skipped."""
         points, weights = _xyz(points), np.asarray(weights, dtype=np.float64)
         keep = np.all(np.isfinite(points), axis=-1) & np.isfinite(weights)
-        if not keep.any():
-            return
-        top = np.max(np.where(keep, weights, 0.0), axis=-1, keepdims=True)
+        top = np.max(np.where(keep, weights, 0.0), axis=-1, keepdims=True, initial=0.0)
         radii = max_radius * np.sqrt(np.clip(weights, 0.0, None) / np.where(top > 0, top, 1.0))
-        counts = keep.sum(axis=1)
-        present = counts > 0
-        times = None if times is None else np.asarray(times)[present]
-        self.stream.send_columns(
-            entity,
-            indexes=self._indexes(np.asarray(steps)[present], times),
-            columns=self._rr.Points3D.columns(positions=points[keep], radii=radii[keep]).partition(counts[present].astype(np.int64)),
-        )
-        self._note(entity, "3D")
+        if self._send_points(entity, steps, points, times, keep, radii):
+            self._note(entity, "3D")
 
     def log_geo_path(self, entity, steps, lat_lon, times=None):
         """Optional extension of the Recorder protocol: WGS-84 positions (K, 2) (latitude°, longitude°) as
@@ -303,11 +277,8 @@ class RerunRecorder:
         if not keep.any():
             return
         self._geo.append(np.stack([lat_lon[keep].min(axis=0), lat_lon[keep].max(axis=0)]))
-        times = None if times is None else np.asarray(times)[keep]
-        colour, label = spatial_style(entity)
-        self.stream.send_columns(
-            entity, indexes=self._indexes(np.asarray(steps)[keep], times), columns=rr.GeoPoints.columns(positions=lat_lon[keep])
-        )
+        colour, _ = spatial_style(entity)
+        self.stream.send_columns(entity, indexes=self._indexes(steps, times, keep), columns=rr.GeoPoints.columns(positions=lat_lon[keep]))
         self.stream.log(entity, rr.GeoPoints.from_fields(colors=[colour], radii=rr.Radius.ui_points(4.0)), static=True)
         self.stream.log(
             f"{entity}/path", rr.GeoLineStrings(lat_lon=[lat_lon[keep]], colors=[colour], radii=rr.Radius.ui_points(1.5)), static=True
@@ -342,11 +313,7 @@ class RerunRecorder:
                 self._breaks[entity.strip("/")] = np.cumsum([len(k) for k in kept])[:-1]
             else:
                 rows = np.flatnonzero(finite)[::stride]
-            self._tracks[entity.strip("/")] = (
-                np.asarray(steps)[rows],
-                positions[rows],
-                None if times is None else np.asarray(times, dtype=np.float64)[rows],
-            )
+            self._tracks[entity.strip("/")] = (np.asarray(steps)[rows], positions[rows], _rows(times, rows))
 
     def log_scalars(self, entity, steps, values, times=None, names=None):
         rr = self._rr
@@ -358,10 +325,13 @@ class RerunRecorder:
             self.stream.log(entity, rr.SeriesLines(names=labels, colors=colours), static=True)
 
     def log_event(self, step, text, time=None, level="INFO"):
-        self._set_time(step, time)
+        check_recordable_times(time, "time")
+        self.stream.set_time("step", sequence=int(step))
+        if time is not None:
+            self.stream.set_time("time", duration=float(time))
         self.stream.log("events/decisions", self._rr.TextLog(text, level=level))
         self._note("events/decisions", "TextLog")
-        self._events.append((int(step), None if time is None else float(time), str(text)))
+        self._events.append((int(step), str(text)))
 
     def log_modes(self, entity, steps, modes, names, times=None):
         steps = np.asarray(steps, dtype=np.int64)
@@ -370,8 +340,8 @@ class RerunRecorder:
             raise ValueError(f"modes: expected one mode index per step, shape {steps.shape}, got {modes.shape}")
         self._modes[entity.strip("/")] = (steps, modes.astype(np.int64), tuple(str(n) for n in names))
 
-    def _log_strips(self, entity, steps, strips, counts, times):
-        """Line strips of P points each: ``strips`` (S, P, 2 or 3), ``counts`` (K,) strips per step (ΣK = S).
+    def _log_strips(self, entity, steps, strips, counts, times, rows=slice(None)):
+        """Line strips of P points each: ``strips`` (S, P, 2 or 3), ``counts`` strips per step of ``rows`` (Σ = S).
 
         The Arrow array is built directly (one buffer) instead of strip by strip: for a bank's
         ellipses that is the difference between a few ms and a few hundred.
@@ -379,14 +349,14 @@ class RerunRecorder:
         import pyarrow as pa
 
         rr = self._rr
-        strip_type = rr.components.LineStrip3DBatch._ARROW_DATATYPE
+        strip_type = rr.components.LineStrip3DBatch(None).as_arrow_array().type  # the component's Arrow type
         strips = np.ascontiguousarray(_xyz(strips), dtype=np.float32)
         S, P = strips.shape[:2]
         points = pa.FixedSizeListArray.from_arrays(pa.array(strips.reshape(-1)), type=strip_type.value_type)
         array = pa.ListArray.from_arrays(pa.array(np.arange(S + 1, dtype=np.int32) * P), points, type=strip_type)
         self.stream.send_columns(
             entity,
-            indexes=self._indexes(steps, times),
+            indexes=self._indexes(steps, times, rows),
             columns=rr.LineStrips3D.columns(strips=array).partition(np.asarray(counts, dtype=np.int64)),
         )
         if self._note(entity, "3D"):
@@ -398,8 +368,7 @@ class RerunRecorder:
         keep = np.all(np.isfinite(centers), axis=-1) & np.all(np.isfinite(covs), axis=(-1, -2))
         if keep.any():
             outlines = ellipse_outlines(centers[keep], covs[keep], sigmas)
-            times = None if times is None else np.asarray(times)[keep]
-            self._log_strips(entity, np.asarray(steps)[keep], outlines, np.ones(len(outlines)), times)
+            self._log_strips(entity, steps, outlines, np.ones(len(outlines)), times, keep)
 
     def log_lines(self, entity, steps, starts, ends, times=None):
         starts, ends = np.asarray(starts, dtype=np.float64), np.asarray(ends, dtype=np.float64)
@@ -445,11 +414,7 @@ class RerunRecorder:
                 strips = [points[a : min(b + 1, len(points))] for a, b in zip(bounds[:-1], bounds[1:])]
                 labels = [names[m] if 0 <= m < len(names) else "undecided" for m in at[bounds[:-1]]]
                 colours = [palette(n) if n != "undecided" else colour for n in labels]
-                self.stream.log(
-                    target,
-                    rr.LineStrips3D(strips, colors=colours, labels=labels, radii=[rr.Radius.ui_points(2.0)], show_labels=False),
-                    static=True,
-                )
+                style = {"colors": colours, "labels": labels, "radii": [rr.Radius.ui_points(2.0)], "show_labels": False}
                 if cuts.size:
                     self.stream.log(
                         f"{target}/changes",
@@ -465,23 +430,19 @@ class RerunRecorder:
                     self._note(f"{target}/changes", "3D")
             elif is_hypothesis(entity):  # pieces in play, unlabelled: the fan out of each switch
                 strips = [piece for piece in np.split(points, self._breaks.get(entity, [])) if len(piece) > 1]
-                if not strips:
-                    continue
-                self.stream.log(target, rr.LineStrips3D(strips, colors=[colour], radii=[rr.Radius.ui_points(0.75)]), static=True)
+                style = {"colors": [colour], "radii": [rr.Radius.ui_points(0.75)]}
             else:
-                self.stream.log(
-                    target,
-                    rr.LineStrips3D([points], colors=[colour], labels=[label], radii=[rr.Radius.ui_points(1.5)], show_labels=False),
-                    static=True,
-                )
-            self._note(target, "3D")
+                strips, style = [points], {"colors": [colour], "labels": [label], "radii": [rr.Radius.ui_points(1.5)], "show_labels": False}
+            if strips:
+                self.stream.log(target, rr.LineStrips3D(strips, **style), static=True)
+                self._note(target, "3D")
         if self._events:
             moded = [e for e in lifted if e in self._modes and not e.endswith("truth")]
             whole = [e for e in lifted if not is_hypothesis(e)] or list(lifted)
             reference = (moded or [e for e in whole if e.endswith("truth")] or whole)[0]
             steps, points = lifted[reference]
             marks: dict[int, list[str]] = {}  # the decisions of one step share one mark and one label
-            for step, _, text in self._events:
+            for step, text in self._events:
                 marks.setdefault(step, []).append(short_decision(text))
             at = np.clip(np.searchsorted(steps, list(marks)), 0, len(steps) - 1)
             self.stream.log(
@@ -529,9 +490,6 @@ class RerunRecorder:
                 self.stream.flush()
                 self.stream.disconnect()
 
-    def __enter__(self):
-        return self
-
     def __exit__(self, *exc):
         self.close()
         return False
@@ -570,8 +528,7 @@ def nis_bounds(dims: np.ndarray, probability: float = 0.95) -> np.ndarray:
     m = np.asarray(dims, dtype=np.float64)
     tails = np.array([(1 - probability) / 2, (1 + probability) / 2])
     with np.errstate(invalid="ignore"):
-        bounds = chi2.ppf(tails[None, :], np.where(m > 0, m, np.nan)[:, None])
-    return bounds
+        return chi2.ppf(tails[None, :], np.where(m > 0, m, np.nan)[:, None])
 
 
 def short_decision(text: str) -> str:

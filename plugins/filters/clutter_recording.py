@@ -86,11 +86,15 @@ def log_filter_states(
         raise ValueError("states: expected states of one estimator")
     position = _position(layout)
     names = list(filter_names)
+    if not isinstance(first, ParticleState | MixtureState | MHTState):
+        return
+    if first.mean.shape[0] != len(names):
+        raise ValueError(f"filter_names: expected {first.mean.shape[0]} names (the bank size), got {len(names)}")
     if isinstance(first, ParticleState):
         _log_particles(recorder, names, steps, states, position, times, max_points, max_radius)
     elif isinstance(first, MixtureState):
         _log_mixtures(recorder, names, steps, states, position, times, max_radius)
-    elif isinstance(first, MHTState):
+    else:
         _log_hypotheses(recorder, names, steps, states, position, times)
 
 
@@ -104,15 +108,8 @@ class RecordsFilterStates:
         log_filter_states(recorder, names, steps, states, layout, times)
 
 
-def _check_bank(states, names):
-    if states[0].mean.shape[0] != len(names):
-        raise ValueError(f"filter_names: expected {states[0].mean.shape[0]} names (the bank size), got {len(names)}")
-
-
 def _log_particles(recorder, names, steps, states, position, times, max_points, max_radius):
-    _check_bank(states, names)
-    N = states[0].particles.shape[1]
-    keep = min(N, max_points)
+    keep = min(states[0].particles.shape[1], max_points)
     for j, name in enumerate(names):
         lw = np.stack([s.log_weights[j] for s in states])  # (K, N)
         order = np.argsort(-lw, axis=1, kind="stable")[:, :keep]  # the heaviest (all when N ≤ max_points)
@@ -125,7 +122,6 @@ def _log_particles(recorder, names, steps, states, position, times, max_points, 
 
 
 def _log_mixtures(recorder, names, steps, states, position, times, max_radius):
-    _check_bank(states, names)
     index = np.ix_(position, position)
     for j, name in enumerate(names):
         w = _pad([np.exp(s.log_weights[j]) for s in states], 0.0)  # (K, C)
@@ -139,7 +135,6 @@ def _log_mixtures(recorder, names, steps, states, position, times, max_radius):
 
 
 def _log_hypotheses(recorder, names, steps, states, position, times):
-    _check_bank(states, names)
     index = np.ix_(position, position)
     for j, name in enumerate(names):
         p = np.stack([s.probabilities[j] for s in states])  # (K, H)
