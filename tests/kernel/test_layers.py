@@ -110,10 +110,141 @@ def test_no_private_name_is_imported_across_packages():
         ("def f():\n    from hybridtrack_plugins.filters._covariance import update", "hybridtrack.engine.pipeline", True),
         ("from hybridtrack_plugins.filters._covariance import update", "hybridtrack_plugins.filters.kalman", False),
         ("from hybridtrack.engine.pipeline import _helper", "hybridtrack.engine.bank", False),
-        ("from hybridtrack.engine.pipeline import _helper", "hybridtrack.algorithms.known_switch", True),
+        ("from hybridtrack.engine.pipeline import _helper", "hybridtrack.algorithms.adaptive", True),
         ("from hybridtrack.engine.pipeline import _helper", None, True),
         ("import numpy._core", None, False),
     ],
 )
 def test_the_private_import_rule_itself(source, module, flagged):
     assert bool(private_imports([("x.py", ast.parse(source), module)])) is flagged
+
+
+# --------------------------------------------------------------------------- layers point downwards
+
+#: rank of each layer of hybridtrack; a module may import its own layer and the ones of lower rank
+#: (recording and io are siblings: neither imports the other)
+LAYERS = {"core": 0, "sdk": 1, "engine": 2, "algorithms": 3, "recording": 4, "io": 4, "apps": 5, "testing": 5, "cli": 6}
+#: what a plugin (built-in or third-party) may import from hybridtrack
+PLUGIN_LAYERS = ("core", "sdk")
+
+
+def _layer(dotted: str) -> str | None:
+    parts = dotted.split(".")
+    return parts[1] if parts[0] == "hybridtrack" and len(parts) > 1 and parts[1] in LAYERS else None
+
+
+def layer_violations(sources) -> list[str]:
+    """Imports of a higher layer, or of a sibling layer, from a module of hybridtrack's layers; imports of
+    anything but core and sdk (or the package root, for hookimpl and the user surface) from a plugin."""
+    bad = []
+    for where, tree, module in sources:
+        if module is None:
+            continue
+        own = _layer(module)
+        plugin = module.split(".")[0] in ("hybridtrack_plugins", "hybridtrack_zigzag")
+        for line, dotted in _imports(tree):
+            target = _layer(dotted)
+            if dotted.split(".")[0] != "hybridtrack" or target is None:
+                continue
+            if plugin and target not in PLUGIN_LAYERS:
+                bad.append(f"{where}:{line}: a plugin imports {dotted}")
+            elif own is not None and target != own and LAYERS[target] >= LAYERS[own]:
+                bad.append(f"{where}:{line}: {own} imports {dotted}")
+    return bad
+
+
+def test_imports_point_downwards():
+    offenders = layer_violations(SOURCES)
+    assert not offenders, "imports against the layers (core ← sdk ← engine ← algorithms ← recording / io ← apps ← cli):\n" + "\n".join(
+        offenders
+    )
+
+
+@pytest.mark.parametrize(
+    ("source", "module", "flagged"),
+    [
+        ("from hybridtrack.recording import RerunRecorder", "hybridtrack.engine.pipeline", True),
+        ("from hybridtrack.sdk.linalg import cholesky", "hybridtrack.engine.pipeline", False),
+        ("def f():\n    from hybridtrack.apps.tracking import track", "hybridtrack.io.track_files", True),
+        ("from hybridtrack.io.track_files import read_tracks", "hybridtrack.recording.recorder", True),
+        ("from hybridtrack.engine.pipeline import Pipeline", "hybridtrack_plugins.filters.kalman", True),
+        ("from hybridtrack.sdk.estimation import BankEstimator", "hybridtrack_zigzag.estimator", False),
+        ("from hybridtrack import hookimpl", "hybridtrack_plugins.filters.kalman", False),
+    ],
+)
+def test_the_layer_rule_itself(source, module, flagged):
+    assert bool(layer_violations([("x.py", ast.parse(source), module)])) is flagged
+
+
+# --------------------------------------------------------------------------- private attributes
+
+#: private-looking names that are documented public API of their library
+PUBLIC_UNDERSCORE = {"_exit"}  # os._exit: the documented way out of a forked child without cleanup
+
+
+def _package(module: str) -> str:
+    """The package a module's private names belong to: its first two dotted parts (hybridtrack.engine, …)."""
+    return ".".join(module.split(".")[:2])
+
+
+def _private_names(tree: ast.AST) -> set[str]:
+    """The ``_names`` a module defines: functions, classes, attributes it assigns, module variables."""
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            names.add(node.attr)
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            names.add(node.id)
+        elif isinstance(node, ast.arg):
+            names.add(node.arg)
+    return {n for n in names if n.startswith("_") and not n.startswith("__")}
+
+
+def private_attribute_uses(sources) -> list[str]:
+    """``x._name`` where no module of the same package defines ``_name``: a private attribute of another
+    package (ours or a library's) used as if it were public."""
+    defined: dict[str, set[str]] = {}
+    for _, tree, module in sources:
+        if module is not None:
+            defined.setdefault(_package(module), set()).update(_private_names(tree))
+    bad = []
+    for where, tree, module in sources:
+        own = defined.get(_package(module), set()) if module is not None else _private_names(tree)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+                if node.attr not in own and node.attr not in PUBLIC_UNDERSCORE:
+                    bad.append(f"{where}:{node.lineno}: .{node.attr}")
+    return bad
+
+
+def test_no_private_attribute_crosses_a_package():
+    offenders = private_attribute_uses(SOURCES)
+    assert not offenders, "private attributes used outside the package that defines them:\n" + "\n".join(offenders)
+
+
+@pytest.mark.parametrize(
+    ("sources", "flagged"),
+    [
+        (
+            [
+                ("a.py", "class A:\n    def __init__(self):\n        self._x = 1", "hybridtrack.sdk.a"),
+                ("b.py", "def f(a): return a._x", "hybridtrack.engine.b"),
+            ],
+            True,
+        ),
+        (
+            [
+                ("a.py", "class A:\n    def __init__(self):\n        self._x = 1", "hybridtrack.sdk.a"),
+                ("b.py", "def f(a): return a._x", "hybridtrack.sdk.b"),
+            ],
+            False,
+        ),
+        ([("b.py", "import rerun\nrerun.components._ARROW", "hybridtrack.recording.b")], True),
+        ([("b.py", "import os\nos._exit(0)", "hybridtrack.apps.b")], False),
+    ],
+)
+def test_the_private_attribute_rule_itself(sources, flagged):
+    parsed = [(where, ast.parse(text), module) for where, text, module in sources]
+    assert bool(private_attribute_uses(parsed)) is flagged
