@@ -1,9 +1,8 @@
 """pluggy hook specifications: one ``register_<kind>s(registry)`` hook per component kind, and ``register_commands``.
 
-A plugin module implements any of them with :data:`hookimpl`.  A kind's hook
-calls ``registry.add(name, factory)`` for each component it provides
-(``factory`` is a class or callable that takes keyword parameters and returns
-the component; the kinds, hooks and interfaces are :data:`hybridtrack.core.kinds.KINDS`):
+A plugin module implements any of them with :data:`hookimpl`; a kind's hook calls ``registry.add(name,
+factory)`` for each component it provides (``factory`` takes keyword parameters and returns the component;
+kinds, hooks and interfaces: :data:`hybridtrack.core.kinds.KINDS`):
 
     from hybridtrack import hookimpl
 

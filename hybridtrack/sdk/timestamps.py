@@ -43,19 +43,15 @@ def check_tau(tau) -> float:
     return check_positive(tau, "tau (the sampling period in seconds)")
 
 
-def step_times(times, tau, steps: int) -> np.ndarray:
-    """The time of each of ``steps`` measurement steps: ``times`` if given (checked), else 0, τ, 2τ, …"""
+def step_intervals(times, tau, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """(times (K,), Δt (K−1,)) of ``steps`` steps: ``times`` if given (checked), else 0, τ, 2τ, … with every Δt
+    exactly τ (not a difference of rounded times)."""
     if times is not None:
-        return check_times(times, steps=steps)
+        t = check_times(times, steps=steps)
+        return t, np.diff(t)
     if tau is None:
         raise ValueError("times: give the measurement times (seconds) or the sampling period tau")
-    t = np.arange(steps) * check_tau(tau)
+    tau = check_tau(tau)
+    t = np.arange(steps) * tau
     t.setflags(write=False)
-    return t
-
-
-def step_intervals(times, tau, steps: int) -> tuple[np.ndarray, np.ndarray]:
-    """(times (K,), Δt (K−1,)) of ``steps`` steps; with ``tau`` every Δt is exactly τ (not a difference of rounded times)."""
-    t = step_times(times, tau, steps)
-    dt = np.diff(t) if times is not None else np.full(max(steps - 1, 0), check_tau(tau))
-    return t, dt
+    return t, np.full(max(steps - 1, 0), tau)
