@@ -39,7 +39,7 @@ looped deep copies by default, vectorized where a class overrides it); a
 single run steps the detectors it was given.  A sampling estimator (particle
 filter) initializes each run's bank with its own copy of the estimator, so run
 r draws what a single run with that estimator draws.  Results equal R single
-runs to rounding (1e-12, tests/kernel/test_batch.py).
+runs to rounding (1e-12, tests/engine/test_batch.py).
 
 Memory: the per-step results live in arrays preallocated for the K steps of the
 measurements (means (R, K, M, n), covariances (R, K, M, n, n), NIS, ℓ, ν, the

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 PYPROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())
 PACKAGES = set(PYPROJECT["tool"]["setuptools"]["packages"])
 PACKAGE_DIR = PYPROJECT["tool"]["setuptools"]["package-dir"]

@@ -29,7 +29,7 @@ from hybridtrack.engine.simulate import simulate, simulate_trajectory
 from hybridtrack.testing import build_example, check_algorithm, check_detector, check_estimator, check_motion_model
 from hybridtrack_plugins.sensors.position import PositionSensor
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "thirdparty_plugin"
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "thirdparty_plugin"
 PROJECT = tomllib.loads((EXAMPLE / "pyproject.toml").read_text())["project"]
 SCRIPT = Path(sys.executable).with_name("hybridtrack")
 WEAVE_ROW = {
@@ -112,7 +112,7 @@ def test_the_example_own_tests_pass_with_the_pytest_fixtures(zigzag):
 
 
 # --------------------------------------------------------------------------- the estimator and detector of the example
-# Example 1 of tests/kernel/test_adaptive.py: 20 steps straight, then a right turn of radius 5 m.
+# Example 1 of tests/algorithms/test_adaptive.py: 20 steps straight, then a right turn of radius 5 m.
 X0 = np.array([0.0, 0.0, 0.0, 2.0])
 NOISE = np.diag([0.01, 0.01])
 MODES = ["straight", ("right_turn", {"radius": 5.0}), ("left_turn", {"radius": 5.0})]

@@ -48,7 +48,7 @@ def not_numeric(index, rng):
 
 DRAWS = Experiment("draws", draws, {"size": 3})
 FLAKY = Experiment("flaky", flaky, {"log": "", "marker": "", "fail_at": -1, "how": "raise", "size": 3})
-EXPERIMENT = FLAKY  # what `hybridtrack run tests/kernel/_toy_experiments.py` runs
+EXPERIMENT = FLAKY  # what `hybridtrack run tests/apps/_toy_experiments.py` runs
 SLOW = Experiment("slow", slow, {"delay": 0.1, "log": "", "size": 3})
 NOT_NUMERIC = Experiment("not_numeric", not_numeric)
 
