@@ -23,7 +23,7 @@ from hybridtrack.apps.experiment.executors import check_scheduler_address
 from hybridtrack.apps.experiment.store import IDENTITY_ARRAY
 from hybridtrack.cli import main
 
-TOY = Path(__file__).parents[1] / "kernel" / "_toy_experiments.py"
+TOY = Path(__file__).parents[1] / "apps" / "_toy_experiments.py"
 DRAWS = f"{TOY}:DRAWS"
 FIRST = "runs-0000000-0000000.npz"
 
