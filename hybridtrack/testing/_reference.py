@@ -5,8 +5,8 @@ or a detector means the same thing whichever plugins are installed:
 
 * :func:`cv_transition` — the straight (constant-velocity) mode of SPEC §1;
 * :class:`LinearPositionSensor` — z = H x + v picking named state components;
-* :func:`kalman_predict` / :func:`kalman_update` — the covariance-form Kalman
-  filter over a bank (SPEC §3), the oracle every exact estimator must match;
+* :func:`kalman_update` — :mod:`hybridtrack.sdk.kalman_reference` fed by a list
+  of sensors whose NaN rows are dropped, the oracle every exact estimator must match;
 * :func:`example_state` — plausible states for a layout, by component name.
 """
 
@@ -17,8 +17,11 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.linalg
 
-from hybridtrack.core.interfaces import Innovation, LinearTransition, Sensor, TransitionBank
+from hybridtrack.core.interfaces import Innovation, LinearTransition, Sensor
 from hybridtrack.core.validation import check_covariance
+from hybridtrack.sdk import kalman_reference
+from hybridtrack.sdk.estimation import empty_innovation
+from hybridtrack.sdk.linalg import gaussian_scores
 
 CV_LAYOUT = ("x", "vx", "y", "vy")
 
@@ -90,17 +93,10 @@ class LinearPositionSensor(Sensor):
         return np.broadcast_to(H, x.shape[:-1] + H.shape).copy()
 
 
-def kalman_predict(mean: np.ndarray, cov: np.ndarray, bank: TransitionBank) -> tuple[np.ndarray, np.ndarray]:
-    """x⁻ = F x + B, P⁻ = F P Fᵀ + G Q Gᵀ for a bank: mean (M, n), cov (M, n, n)."""
-    mean = np.einsum("mij,mj->mi", bank.F, mean) + bank.B
-    cov = bank.F @ cov @ np.swapaxes(bank.F, -1, -2) + bank.Q
-    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
-
-
 def kalman_update(
     mean: np.ndarray, cov: np.ndarray, z: np.ndarray, sensors: Sequence[Sensor], layout: Sequence[str]
 ) -> tuple[np.ndarray, np.ndarray, Innovation]:
-    """Covariance-form update (Joseph form) with the sensors whose rows of ``z`` hold no NaN."""
+    """:func:`hybridtrack.sdk.kalman_reference.update` with the sensors whose rows of ``z`` hold no NaN."""
     z = np.asarray(z, dtype=float)
     rows, H_blocks, R_blocks, start = [], [], [], 0
     for sensor in sensors:
@@ -111,24 +107,11 @@ def kalman_update(
             H_blocks.append(sensor.jacobian(mean, layout))
             R_blocks.append(sensor.noise_cov)
         start += m
-    M, n = mean.shape
     if not rows:
-        empty = Innovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M))
-        return mean, cov, empty
-    z_used = np.concatenate(rows)
+        return mean, cov, empty_innovation(mean.shape[0])
     H = np.concatenate(H_blocks, axis=-2)  # (M, m, n)
-    R = scipy.linalg.block_diag(*R_blocks)
-    m = z_used.shape[0]
-    nu = z_used - np.einsum("mij,mj->mi", H, mean)
-    S = H @ cov @ np.swapaxes(H, -1, -2) + R
-    S = 0.5 * (S + np.swapaxes(S, -1, -2))
-    K = np.swapaxes(np.linalg.solve(S, H @ cov), -1, -2)  # P Hᵀ S⁻¹ (S, P symmetric)
-    mean = mean + np.einsum("mij,mj->mi", K, nu)
-    A = np.eye(n) - K @ H
-    cov = A @ cov @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
-    nis = np.einsum("mi,mi->m", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-    loglik = -0.5 * (m * np.log(2 * np.pi) + np.linalg.slogdet(S)[1] + nis)
-    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2)), Innovation(nu, S, loglik, nis)
+    mean, cov, nu, S, loglik, nis = kalman_reference.update(mean, cov, np.concatenate(rows), H, scipy.linalg.block_diag(*R_blocks))
+    return mean, cov, Innovation(nu, S, loglik, nis)
 
 
 def random_innovations(rng: np.random.Generator, steps: int = 20, bank_size: int = 3, measurement_dim: int = 2) -> list[Innovation]:
@@ -140,7 +123,6 @@ def random_innovations(rng: np.random.Generator, steps: int = 20, bank_size: int
     bias = np.linspace(0.0, 3.0, bank_size)[:, None] * np.ones(measurement_dim)
     for _ in range(steps):
         nu = np.einsum("mij,mj->mi", L, rng.standard_normal((bank_size, measurement_dim))) + bias
-        nis = np.einsum("mi,mi->m", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-        loglik = -0.5 * (measurement_dim * np.log(2 * np.pi) + np.linalg.slogdet(S)[1] + nis)
+        loglik, nis = gaussian_scores(nu, L)
         out.append(Innovation(nu, S.copy(), loglik, nis))
     return out

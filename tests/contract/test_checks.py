@@ -7,6 +7,7 @@ from hybridtrack.core.algorithm import Algorithm
 from hybridtrack.core.interfaces import Detector, DetectorStep, Estimator, MotionModel, Solution, Solver
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_prior
+from hybridtrack.sdk import kalman_reference
 from hybridtrack.testing import (
     LinearPositionSensor,
     build_example,
@@ -20,7 +21,7 @@ from hybridtrack.testing import (
     cv_transition,
     example_parameters,
 )
-from hybridtrack.testing._reference import kalman_predict, kalman_update
+from hybridtrack.testing._reference import kalman_update
 
 # --------------------------------------------------------------------------- toy components
 
@@ -91,7 +92,7 @@ class ToyKalman(Estimator):
         return check_prior(mean, cov)
 
     def predict(self, state, transitions):
-        return kalman_predict(*state, transitions)
+        return kalman_reference.predict(*state, transitions.F, transitions.B, transitions.Q)
 
     def update(self, state, z, sensors, layout):
         mean, cov, innovation = kalman_update(*state, z, sensors, layout)
