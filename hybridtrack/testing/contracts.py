@@ -44,19 +44,6 @@ from hybridtrack.testing._reference import (
     random_innovations,
 )
 
-__all__ = [
-    "build_example",
-    "check_algorithm",
-    "check_component",
-    "check_detector",
-    "check_estimator",
-    "check_motion_model",
-    "check_sensor",
-    "check_solver",
-    "example_parameters",
-]
-
-
 # --------------------------------------------------------------------------- helpers
 
 
@@ -92,6 +79,16 @@ def _label(component, kind: str) -> str:
     name = getattr(component, "name", None)
     registry_name = getattr(component, "kind", None) if kind == "sensor" else name
     return f"{kind} {registry_name!r} ({type(component).__qualname__})"
+
+
+def _interface_label(component, kind: str, interface: type, attributes: Sequence[str] = ("name",), hint: str = "") -> str:
+    """The label of ``component``, once it is an ``interface`` whose ``attributes`` are non-empty strings."""
+    label = _label(component, kind)
+    _require(isinstance(component, interface), label, f"is not a {interface.__module__}.{interface.__qualname__}{hint}")
+    for attribute in attributes:
+        value = getattr(component, attribute, None)
+        _require(isinstance(value, str) and value, label, f"`{attribute}` must be a non-empty string, got {value!r}")
+    return label
 
 
 def _require(condition, label: str, message: str) -> None:
@@ -135,11 +132,6 @@ def _symmetric_psd(matrix: np.ndarray, label: str, what: str, definite: bool) ->
         )
 
 
-def _registry_name(component, label: str, attribute: str = "name") -> None:
-    value = getattr(component, attribute, None)
-    _require(isinstance(value, str) and value, label, f"`{attribute}` must be a non-empty string, got {value!r}")
-
-
 def _numerical_jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
     """Central differences of ``function`` at x (n,) → (out, n)."""
     columns = []
@@ -165,9 +157,7 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
     vectorized over leading axes; ``enter`` round-trips the model's own layout
     and accepts the 4-state layout; fifty noise-free steps stay finite.
     """
-    label = _label(model, "motion_model")
-    _require(isinstance(model, MotionModel), label, "is not a hybridtrack.core.interfaces.MotionModel")
-    _registry_name(model, label)
+    label = _interface_label(model, "motion_model", MotionModel)
     layout = getattr(model, "layout", None)
     _require(isinstance(layout, tuple) and len(layout) > 0, label, f"`layout` must be a non-empty tuple, got {layout!r}")
     _require(all(isinstance(c, str) and c for c in layout), label, f"`layout` entries must be non-empty strings, got {layout!r}")
@@ -190,12 +180,7 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
 
     f_s = _array(model.propagate(x_s.copy(), tau, x_s.copy()), label, "propagate(x_s)", (n,))
     _close(
-        T.F @ x_s + T.B,
-        f_s,
-        label,
-        "F x_s + B (the linearization at x_s must pass through f(x_s))",
-        rtol=1e-9,
-        atol=1e-9 * (1 + np.abs(f_s).max()),
+        T.F @ x_s + T.B, f_s, label, "F x_s + B (the linearization at x_s must pass through f(x_s))", atol=1e-9 * (1 + np.abs(f_s).max())
     )
     jac = _numerical_jacobian(lambda x: model.propagate(x, tau, x_s.copy()), x_s.copy())
     _close(T.F, jac, label, "transition F against finite differences of propagate", rtol=1e-5, atol=1e-6 * (1 + np.abs(T.F).max()))
@@ -231,10 +216,7 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     ``simulate`` is reproducible with a seeded Generator and its noise has
     covariance R (2000 draws, 25 % tolerance).
     """
-    label = _label(sensor, "sensor")
-    _require(isinstance(sensor, Sensor), label, "is not a hybridtrack.core.interfaces.Sensor")
-    _registry_name(sensor, label, "registry_name")
-    _registry_name(sensor, label, "name")
+    label = _interface_label(sensor, "sensor", Sensor, ("registry_name", "name"))
     R = _array(getattr(sensor, "noise_cov", None), label, "noise_cov")
     _require(R.ndim == 2 and R.shape[0] == R.shape[1], label, f"noise_cov must be square (m, m), got {R.shape}")
     m = R.shape[0]
@@ -345,9 +327,7 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
     prior means are drawn around the simulated truth (x₀ − x̂₀ ~ N(0, P₀)),
     so that the measurements are consistent with the prior it samples.
     """
-    label = _label(estimator, "estimator")
-    _require(isinstance(estimator, Estimator), label, "is not a hybridtrack.core.interfaces.Estimator")
-    _registry_name(estimator, label)
+    label = _interface_label(estimator, "estimator", Estimator)
     if exact_kalman is None:
         exact_kalman = bool(getattr(estimator, "exact_kalman", True))
     sampling = bool(getattr(estimator, "sampling", False))
@@ -422,33 +402,26 @@ def _check_bank_operations(estimator: Estimator, label: str, state, bank, sensor
     """``take`` and ``concatenate`` select and join filters in the estimator's own form: the rows read back as
     the same rows of the whole bank, and a bank rebuilt from pieces steps exactly like the whole bank (``sampling``:
     except a freshly initialized filter, which draws new samples)."""
-    x, P = np.asarray(estimator.mean(state)), np.asarray(estimator.covariance(state))
+    mean = lambda state: np.asarray(estimator.mean(state), dtype=float)
+    x, P = mean(state), np.asarray(estimator.covariance(state))
     rows = [2, 0, 0]
     taken = estimator.take(state, rows)
-    _close(np.asarray(estimator.mean(taken)), x[rows], label, "mean after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
-    _close(np.asarray(estimator.covariance(taken)), P[rows], label, "covariance after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
+    _close(estimator.mean(taken), x[rows], label, "mean after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
+    _close(estimator.covariance(taken), P[rows], label, "covariance after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
     joined = estimator.concatenate([estimator.take(state, [0]), estimator.take(state, [1, 2])])
-    _close(np.asarray(estimator.mean(joined)), x, label, "mean after concatenate of take([0]) and take([1, 2])", rtol=1e-12, atol=1e-12)
+    _close(estimator.mean(joined), x, label, "mean after concatenate of take([0]) and take([1, 2])", rtol=1e-12, atol=1e-12)
     fresh = estimator.concatenate([estimator.take(state, [0, 1]), estimator.initialize(x[2:], P[2:])])
     z = np.concatenate([s.simulate(x[0], CV_LAYOUT, rng) for s in sensors])
-    whole, whole_innovation = estimator.update(estimator.predict(state, bank), z.copy(), sensors, CV_LAYOUT)
-    parts, parts_innovation = estimator.update(estimator.predict(joined, bank), z.copy(), sensors, CV_LAYOUT)
-    mixed, _ = estimator.update(estimator.predict(fresh, bank), z.copy(), sensors, CV_LAYOUT)
+    step = lambda state: estimator.update(estimator.predict(state, bank), z.copy(), sensors, CV_LAYOUT)
+    (whole, whole_innovation), (parts, parts_innovation), (mixed, _) = step(state), step(joined), step(fresh)
     kept = slice(0, 2) if sampling else slice(None)  # a sampling estimator's fresh filter 2 has new samples
     for what, other, rows in (
         ("a concatenated bank", parts, slice(None)),
         ("a bank joined with a freshly initialized filter", mixed, kept),
     ):
-        _close(
-            np.asarray(estimator.mean(other))[rows],
-            np.asarray(estimator.mean(whole))[rows],
-            label,
-            f"mean of {what} after a step",
-            rtol=1e-9,
-            atol=1e-9,
-        )
-    again, again_innovation = estimator.update(estimator.predict(state, bank), z.copy(), sensors, CV_LAYOUT)
-    _close(np.asarray(estimator.mean(again)), np.asarray(estimator.mean(whole)), label, "mean of the same step taken twice", rtol=0, atol=0)
+        _close(mean(other)[rows], mean(whole)[rows], label, f"mean of {what} after a step", rtol=1e-9, atol=1e-9)
+    again, again_innovation = step(state)
+    _close(estimator.mean(again), estimator.mean(whole), label, "mean of the same step taken twice", rtol=0, atol=0)
     _close(again_innovation.loglik, whole_innovation.loglik, label, "loglik of the same step taken twice", rtol=0, atol=0)
     _close(parts_innovation.loglik, whole_innovation.loglik, label, "loglik of a concatenated bank after a step", rtol=1e-9, atol=1e-9)
 
@@ -456,18 +429,11 @@ def _check_bank_operations(estimator: Estimator, label: str, state, bank, sensor
 # --------------------------------------------------------------------------- detectors
 
 
-def _comparable(value) -> np.ndarray:
-    return np.asarray(value, dtype=float)
-
-
 def _same_step(a: DetectorStep, b: DetectorStep) -> bool:
-    if set(a.statistics) != set(b.statistics) or set(a.thresholds) != set(b.thresholds):
-        return False
-    for key in a.statistics:
-        if not np.array_equal(_comparable(a.statistics[key]), _comparable(b.statistics[key]), equal_nan=True):
-            return False
-    for key in a.thresholds:
-        if not np.array_equal(_comparable(a.thresholds[key]), _comparable(b.thresholds[key]), equal_nan=True):
+    """Same decision, and the same statistics and thresholds (NaN equal to NaN)."""
+    for x, y in ((a.statistics, b.statistics), (a.thresholds, b.thresholds)):
+        same = (np.array_equal(np.asarray(x[key], dtype=float), np.asarray(y[key], dtype=float), equal_nan=True) for key in x)
+        if set(x) != set(y) or not all(same):
             return False
     return a.decision == b.decision
 
@@ -481,9 +447,7 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
     are numeric with no NaN; after ``reset()`` the same input gives the same
     outputs and decisions.
     """
-    label = _label(detector, "detector")
-    _require(isinstance(detector, Detector), label, "is not a hybridtrack.core.interfaces.Detector")
-    _registry_name(detector, label)
+    label = _interface_label(detector, "detector", Detector)
     if innovations is None:
         provider = getattr(detector, "example_innovations", None)
         innovations = provider(np.random.default_rng(seed)) if provider else random_innovations(np.random.default_rng(seed))
@@ -505,7 +469,7 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
                 for key, value in table.items():
                     _require(isinstance(key, str) and key, label, f"step {k}: {kind} name {key!r} is not a non-empty string")
                     try:
-                        array = _comparable(value)
+                        array = np.asarray(value, dtype=float)
                     except (TypeError, ValueError):
                         raise AssertionError(f"{label}: step {k}: {kind} {key!r} is not numeric: {value!r}") from None
                     _require(not np.isnan(array).any(), label, f"step {k}: {kind} {key!r} is NaN: {value!r}")
@@ -528,9 +492,7 @@ def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
     counts and a bool ``converged``; solving again gives the same θ.  Without a
     problem only the name is checked and ``None`` is returned.
     """
-    label = _label(solver, "solver")
-    _require(isinstance(solver, Solver), label, "is not a hybridtrack.core.interfaces.Solver")
-    _registry_name(solver, label)
+    label = _interface_label(solver, "solver", Solver)
     if problem is None:
         provider = getattr(solver, "example_problem", None)
         if provider is None:
@@ -556,6 +518,19 @@ def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
 # --------------------------------------------------------------------------- algorithms
 
 
+def _algorithm_example(factory: Callable[..., Any], tau: float) -> tuple[Any, dict]:
+    """The algorithm as the checks build it (one position sensor ``contract_xy``, R = 4 I) and its ``example_run`` keywords."""
+    sensor = LinearPositionSensor("contract_xy", ("x", "y"), 4.0 * np.eye(2))
+    return factory(sensors=[sensor], tau=tau, **example_parameters(factory)), dict(getattr(factory, "example_run", None) or {})
+
+
+def _straight_prior(layout: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The straight target at t = 0: x = y = 0 (σ = 5 m), vx = 10, vy = 5 m/s (σ = 2 m/s), any other component 0 (σ = 1)."""
+    start = {"x": 0.0, "y": 0.0, "vx": 10.0, "vy": 5.0}
+    variances = {"x": 25.0, "y": 25.0, "vx": 4.0, "vy": 4.0}
+    return np.array([start.get(c, 0.0) for c in layout]), np.diag([variances.get(c, 1.0) for c in layout])
+
+
 def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float = 1.0, seed: int = 0) -> Any:
     """Check an :class:`~hybridtrack.core.algorithm.Algorithm` factory on a target moving straight; return the result.
 
@@ -572,19 +547,15 @@ def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float 
     instance, give the same result; the estimate follows the target (mean
     position error below 5 σ).
     """
-    instance = factory(sensors=[LinearPositionSensor("contract_xy", ("x", "y"), 4.0 * np.eye(2))], tau=tau, **example_parameters(factory))
-    label = _label(instance, "algorithm")
-    _require(isinstance(instance, Algorithm), label, "is not a hybridtrack.core.algorithm.Algorithm (it needs a `run` method)")
-    _registry_name(instance, label)
+    instance, options = _algorithm_example(factory, tau)
+    label = _interface_label(instance, "algorithm", Algorithm, hint=" (it needs a `run` method)")
     layout = tuple(getattr(instance, "layout", ()) or ())
     _require({"x", "y"} <= set(layout), label, f"`layout` must name the state components, with x and y; got {layout!r}")
     rng = np.random.default_rng(seed)
     t = tau * np.arange(steps + 1)
-    truth = {"x": 10.0 * t, "vx": np.full_like(t, 10.0), "y": 5.0 * t, "vy": np.full_like(t, 5.0)}
-    z = np.column_stack([truth["x"], truth["y"]]) + 2.0 * rng.standard_normal((steps + 1, 2))
-    variances = {"x": 25.0, "y": 25.0, "vx": 4.0, "vy": 4.0}
-    prior = Gaussian(np.array([truth[c][0] if c in truth else 0.0 for c in layout]), np.diag([variances.get(c, 1.0) for c in layout]))
-    options = dict(getattr(factory, "example_run", None) or {})
+    true_xy = np.column_stack([10.0 * t, 5.0 * t])
+    z = true_xy + 2.0 * rng.standard_normal((steps + 1, 2))
+    prior = Gaussian(*_straight_prior(layout))
 
     def run(**times) -> Any:
         try:
@@ -619,8 +590,7 @@ def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float 
         f"decision steps {steps_decided} not in step order within 0 … {steps}",
     )
     for what, other in (("a run given the same times", run(times=t.copy())), ("a second run of the same instance", run())):
-        _close(np.asarray(other.means, dtype=float), means, label, f"means of {what}", rtol=0, atol=0)
-    true_xy = np.column_stack([truth["x"], truth["y"]])
+        _close(other.means, means, label, f"means of {what}", rtol=0, atol=0)
     offset = means[..., [layout.index("x"), layout.index("y")]] - (true_xy[:, None, :] if means.ndim == 3 else true_xy)
     error = float(np.mean(np.linalg.norm(offset, axis=-1)))
     _require(error < 10.0, label, f"the estimate does not follow a straight target: mean position error {error:.3g} m (σ = 2 m)")
@@ -638,7 +608,7 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
     and so do the decisions (step and mode).  Returns the batch's results
     ([] for an algorithm without ``run_batch``).
     """
-    instance = factory(sensors=[LinearPositionSensor("contract_xy", ("x", "y"), 4.0 * np.eye(2))], tau=tau, **example_parameters(factory))
+    instance, options = _algorithm_example(factory, tau)
     if not callable(getattr(instance, "run_batch", None)):
         return []
     label = _label(instance, "algorithm")
@@ -647,13 +617,10 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
     times = np.cumsum(np.concatenate([np.zeros((runs, 1)), tau * rng.uniform(0.5, 1.5, (runs, steps))], axis=1), axis=1)
     z = np.stack([np.column_stack([10.0 * t, 5.0 * t]) for t in times]) + 2.0 * rng.standard_normal((runs, steps + 1, 2))
     z[-1, [3, 11]] = np.nan
-    start = {"x": 0.0, "y": 0.0, "vx": 10.0, "vy": 5.0}
-    means = np.array([[start.get(c, 0.0) for c in layout] for _ in range(runs)])
+    mean, cov = _straight_prior(layout)
+    means = np.tile(mean, (runs, 1))
     means[:, [layout.index("x"), layout.index("y")]] += rng.uniform(-10.0, 10.0, (runs, 2))
-    covs = np.broadcast_to(
-        np.diag([25.0 if c in ("x", "y") else 4.0 if c in ("vx", "vy") else 1.0 for c in layout]), (runs, len(layout), len(layout))
-    )
-    options = dict(getattr(factory, "example_run", None) or {})
+    covs = np.broadcast_to(cov, (runs,) + cov.shape)
     try:
         together = list(instance.run_batch({"contract_xy": z}, (means, covs.copy()), times=times, **options))
     except Exception as error:
@@ -665,14 +632,7 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
             a, b = getattr(batched, field, None), getattr(alone, field, None)
             if a is None and b is None:
                 continue
-            _close(
-                np.asarray(a, dtype=float),
-                np.asarray(b, dtype=float),
-                label,
-                f"run {r}: {field} of the batch vs the run alone",
-                rtol=1e-12,
-                atol=1e-12,
-            )
+            _close(a, b, label, f"run {r}: {field} of the batch vs the run alone", rtol=1e-12, atol=1e-12)
         decided = [(d.step, d.mode) for d in getattr(batched, "decisions", ())]
         _require(
             decided == [(d.step, d.mode) for d in getattr(alone, "decisions", ())],
