@@ -277,20 +277,6 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
 # --------------------------------------------------------------------------- estimators
 
 
-def _estimator_problem(rng: np.random.Generator):
-    """A bank of M = 3 CV filters with different Q, two linear sensors (x, y) and (x)."""
-    M, n = 3, len(CV_LAYOUT)
-    mean = example_state(CV_LAYOUT, rng, (M,))
-    A = rng.normal(size=(M, n, n))
-    cov = A @ np.swapaxes(A, -1, -2) + np.diag([25.0, 4.0, 25.0, 4.0])
-    bank = TransitionBank.stack([cv_transition(1.0, q) for q in (0.01, 0.1, 1.0)])
-    sensors = [
-        LinearPositionSensor("contract_xy", ("x", "y"), [[4.0, 1.0], [1.0, 9.0]]),
-        LinearPositionSensor("contract_x", ("x",), [[2.0]]),
-    ]
-    return mean, cov, bank, sensors
-
-
 def _check_innovation(innovation, label: str, M: int, m: int, gaussian_loglik: bool = True) -> None:
     _require(isinstance(innovation, Innovation), label, f"update returned {type(innovation).__name__} as innovation, expected Innovation")
     nu = _array(innovation.nu, label, "innovation nu", (M, m))
@@ -332,17 +318,20 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
         exact_kalman = bool(getattr(estimator, "exact_kalman", True))
     sampling = bool(getattr(estimator, "sampling", False))
     rng = np.random.default_rng(seed)
-    mean, cov, bank, sensors = _estimator_problem(rng)
-    M, n = mean.shape
-
-    def read(state, when: str) -> tuple[np.ndarray, np.ndarray]:
-        x = _array(estimator.mean(state), label, f"mean {when}", (M, n))
-        P = _array(estimator.covariance(state), label, f"covariance {when}", (M, n, n))
-        _symmetric_psd(P, label, f"covariance {when}", definite=True)
-        return x.copy(), P.copy()
+    M, n = 3, len(CV_LAYOUT)  # a bank of CV filters with different Q, two linear sensors (x, y) and (x)
+    mean = example_state(CV_LAYOUT, rng, (M,))
+    A = rng.normal(size=(M, n, n))
+    cov = A @ np.swapaxes(A, -1, -2) + np.diag([25.0, 4.0, 25.0, 4.0])
+    bank = TransitionBank.stack([cv_transition(1.0, q) for q in (0.01, 0.1, 1.0)])
+    sensors = [
+        LinearPositionSensor("contract_xy", ("x", "y"), [[4.0, 1.0], [1.0, 9.0]]),
+        LinearPositionSensor("contract_x", ("x",), [[2.0]]),
+    ]
 
     def compare(state, ref_mean, ref_cov, when: str) -> tuple[np.ndarray, np.ndarray]:
-        x, P = read(state, when)
+        x = _array(estimator.mean(state), label, f"mean {when}", (M, n)).copy()
+        P = _array(estimator.covariance(state), label, f"covariance {when}", (M, n, n)).copy()
+        _symmetric_psd(P, label, f"covariance {when}", definite=True)
         if exact_kalman:
             _close(x, ref_mean, label, f"mean {when} against the covariance-form KF", rtol=1e-7, atol=1e-7)
             _close(P, ref_cov, label, f"covariance {when} against the covariance-form KF", rtol=1e-7, atol=1e-7)
@@ -371,16 +360,14 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
         m = int(present.sum())
         when = f"after update at step {step} ({case})"
         _check_innovation(innovation, f"{label} {when}", M, m, gaussian_loglik=not sampling)
-        ref_mean, ref_cov, ref_innovation = kalman_update(*ref, z, sensors, CV_LAYOUT)
-        ref = (ref_mean, ref_cov)
+        *ref, ref_innovation = kalman_update(*ref, z, sensors, CV_LAYOUT)
         after = compare(state, *ref, when)
         if m == 0:
-            _close(after[0], before[0], label, f"mean {when} (must equal the prediction)", rtol=1e-12, atol=1e-12)
-            _close(after[1], before[1], label, f"covariance {when} (must equal the prediction)", rtol=1e-12, atol=1e-12)
+            for what, value, predicted in zip(("mean", "covariance"), after, before):
+                _close(value, predicted, label, f"{what} {when} (must equal the prediction)", rtol=1e-12, atol=1e-12)
         elif exact_kalman:
-            _close(innovation.nu, ref_innovation.nu, label, f"innovation nu {when}", rtol=1e-7, atol=1e-7)
-            _close(innovation.S, ref_innovation.S, label, f"innovation S {when}", rtol=1e-7, atol=1e-7)
-            _close(innovation.loglik, ref_innovation.loglik, label, f"loglik {when}", rtol=1e-7, atol=1e-7)
+            for what, field in (("innovation nu", "nu"), ("innovation S", "S"), ("loglik", "loglik")):
+                _close(getattr(innovation, field), getattr(ref_innovation, field), label, f"{what} {when}", rtol=1e-7, atol=1e-7)
 
     _check_bank_operations(estimator, label, state, bank, sensors, rng, sampling)
     bad_priors = (
@@ -644,15 +631,7 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
 
 # --------------------------------------------------------------------------- dispatch
 
-_CHECKS: dict[str, Callable[..., Any]] = {
-    "motion_model": check_motion_model,
-    "sensor": check_sensor,
-    "estimator": check_estimator,
-    "detector": check_detector,
-    "solver": check_solver,
-    "algorithm": check_algorithm,
-}
-assert set(_CHECKS) == set(KINDS)
+_CHECKS: dict[str, Callable[..., Any]] = {kind: globals()[f"check_{kind}"] for kind in KINDS}
 
 
 def check_component(kind: str, component: Any, **options) -> Any:
