@@ -35,6 +35,7 @@ from hybridtrack.core.interfaces import (
 from hybridtrack.core.kinds import KINDS
 from hybridtrack.core.types import Decision, Gaussian
 from hybridtrack.sdk import kalman_reference
+from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack.testing._reference import (
     CV_LAYOUT,
     LinearPositionSensor,
@@ -121,15 +122,10 @@ def _symmetric_psd(matrix: np.ndarray, label: str, what: str, definite: bool) ->
     scale = max(float(np.abs(matrix).max(initial=0.0)), 1e-300)
     asym = float(np.abs(matrix - np.swapaxes(matrix, -1, -2)).max(initial=0.0))
     _require(asym <= 1e-9 * scale, label, f"{what} is not symmetric (max |A − Aᵀ| = {asym:.3g})")
-    eigenvalues = np.linalg.eigvalsh(0.5 * (matrix + np.swapaxes(matrix, -1, -2)))
-    if definite:
-        _require((eigenvalues > 0).all(), label, f"{what} is not positive definite (smallest eigenvalue {eigenvalues.min():.3g})")
-    else:
-        _require(
-            (eigenvalues >= -1e-10 * scale).all(),
-            label,
-            f"{what} is not positive semidefinite (smallest eigenvalue {eigenvalues.min():.3g})",
-        )
+    eigenvalues = np.linalg.eigvalsh(symmetrize(matrix))
+    positive = (eigenvalues > 0) if definite else (eigenvalues >= -1e-10 * scale)
+    kind = "definite" if definite else "semidefinite"
+    _require(positive.all(), label, f"{what} is not positive {kind} (smallest eigenvalue {eigenvalues.min():.3g})")
 
 
 def _numerical_jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
@@ -253,11 +249,8 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     _close(again, first, label, "simulate with the same seed (must be reproducible)", rtol=0, atol=0)
     draws = 2000
     many = sensor.simulate(np.broadcast_to(X[0], (draws, n)).copy(), layout, np.random.default_rng(seed + 2))
-    noise = _array(
-        sensor.residual(_array(many, label, "simulate of a (2000, n) stack", (draws, m)), np.broadcast_to(z[0], (draws, m))),
-        label,
-        "simulated noise",
-    )
+    many = _array(many, label, "simulate of a (2000, n) stack", (draws, m))
+    noise = _array(sensor.residual(many, np.broadcast_to(z[0], (draws, m))), label, "simulated noise")
     sample = np.cov(noise, rowvar=False).reshape(m, m)
     # R that goes with this measurement: noise_cov, or R(z) for pseudo-measurement sensors (Sensor.measurement_noise)
     R = _array(sensor.measurement_noise(z[0]), label, "measurement_noise(z)", (m, m))
@@ -552,14 +545,8 @@ def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float 
 
     result = run()
     K1, n = steps + 1, len(layout)
-    _close(
-        _array(getattr(result, "times", None), label, "result times"),
-        t,
-        label,
-        "result times (default 0, τ, 2τ, …)",
-        rtol=1e-12,
-        atol=1e-12,
-    )
+    times = _array(getattr(result, "times", None), label, "result times")
+    _close(times, t, label, "result times (default 0, τ, 2τ, …)", rtol=1e-12, atol=1e-12)
     means = _array(getattr(result, "means", None), label, "result means")
     _require(
         means.shape in ((K1, n),) or (means.ndim == 3 and means.shape[::2] == (K1, n)),
@@ -617,15 +604,10 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
         alone = instance.run({"contract_xy": z[r]}, Gaussian(means[r], covs[r]), times=times[r], **options)
         for field in ("times", "means", "covs", "mode"):
             a, b = getattr(batched, field, None), getattr(alone, field, None)
-            if a is None and b is None:
-                continue
-            _close(a, b, label, f"run {r}: {field} of the batch vs the run alone", rtol=1e-12, atol=1e-12)
-        decided = [(d.step, d.mode) for d in getattr(batched, "decisions", ())]
-        _require(
-            decided == [(d.step, d.mode) for d in getattr(alone, "decisions", ())],
-            label,
-            f"run {r}: decisions of the batch differ from the run alone",
-        )
+            if a is not None or b is not None:
+                _close(a, b, label, f"run {r}: {field} of the batch vs the run alone", rtol=1e-12, atol=1e-12)
+        decided = [[(d.step, d.mode) for d in getattr(result, "decisions", ())] for result in (batched, alone)]
+        _require(decided[0] == decided[1], label, f"run {r}: decisions of the batch differ from the run alone")
     return together
 
 
