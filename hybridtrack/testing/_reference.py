@@ -1,6 +1,6 @@
 """Small reference objects the contract checks are built on.
 
-They depend on the kernel only (never on plugins), so a check of an estimator
+They depend on the kernel and the sdk only (never on plugins), so a check of an estimator
 or a detector means the same thing whichever plugins are installed:
 
 * :func:`cv_transition` — the straight (constant-velocity) mode of SPEC §1;
@@ -50,11 +50,7 @@ def example_state(layout: Sequence[str], rng: np.random.Generator, shape: tuple[
     """
     state = np.empty(shape + (len(layout),))
     for j, name in enumerate(layout):
-        centre, spread = 0.0, 1.0
-        for prefixes, values in _SCALES:
-            if name == prefixes[0] or any(name.startswith(p) for p in prefixes):
-                centre, spread = values
-                break
+        centre, spread = next((values for prefixes, values in _SCALES if name.startswith(prefixes)), (0.0, 1.0))
         state[..., j] = centre + spread * rng.uniform(-1.0, 1.0, size=shape)
     return state
 
