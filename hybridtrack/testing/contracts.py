@@ -77,8 +77,7 @@ def _qualname(obj) -> str:
 
 
 def _label(component, kind: str) -> str:
-    name = getattr(component, "name", None)
-    registry_name = getattr(component, "kind", None) if kind == "sensor" else name
+    registry_name = getattr(component, "kind" if kind == "sensor" else "name", None)
     return f"{kind} {registry_name!r} ({type(component).__qualname__})"
 
 
@@ -129,14 +128,9 @@ def _symmetric_psd(matrix: np.ndarray, label: str, what: str, definite: bool) ->
 
 
 def _numerical_jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
-    """Central differences of ``function`` at x (n,) → (out, n)."""
-    columns = []
-    for i in range(x.shape[0]):
-        h = 1e-6 * max(1.0, abs(x[i]))
-        up, down = x.copy(), x.copy()
-        up[i] += h
-        down[i] -= h
-        columns.append((np.asarray(function(up)) - np.asarray(function(down))) / (2 * h))
+    """Central differences at x (n,) → (out, n): J[:, i] = (f(x + h_i e_i) − f(x − h_i e_i)) / 2 h_i, h_i = 10⁻⁶ max(1, |x_i|)."""
+    h = 1e-6 * np.maximum(1.0, np.abs(x))
+    columns = [(np.asarray(function(x + step)) - np.asarray(function(x - step))) / (2 * h[i]) for i, step in enumerate(np.diag(h))]
     return np.stack(columns, axis=-1)
 
 
