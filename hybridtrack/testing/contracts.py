@@ -225,14 +225,8 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     _array(sensor.jacobian(np.stack([X, X]), layout), label, "jacobian of a (2, 4, n) stack", (2, 4, m, n))
     for k, row in enumerate(X):
         numeric = _numerical_jacobian(lambda x: sensor.measure(x, layout), row.copy())
-        _close(
-            J[k],
-            numeric,
-            label,
-            f"jacobian at state {k} against finite differences of measure",
-            rtol=1e-5,
-            atol=1e-6 * (1e-3 + np.abs(J[k]).max()),
-        )
+        atol = 1e-6 * (1e-3 + np.abs(J[k]).max())
+        _close(J[k], numeric, label, f"jacobian at state {k} against finite differences of measure", rtol=1e-5, atol=atol)
     if getattr(sensor, "linear", True):
         _close(J, np.broadcast_to(J[0], J.shape), label, "jacobian of a linear sensor (must not depend on x)")
         _close(z, np.einsum("kij,kj->ki", J, X), label, "measure of a linear sensor against H x", atol=1e-9 * (1 + np.abs(z).max()))
@@ -254,11 +248,8 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
         label,
         f"simulated noise covariance\n{sample}\nis far from noise_cov R\n{R}\n(relative error {error:.2f} over {draws} draws)",
     )
-    _require(
-        np.all(np.abs(noise.mean(axis=0)) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12),
-        label,
-        f"simulated noise has mean {noise.mean(axis=0)}, expected 0",
-    )
+    mean = noise.mean(axis=0)
+    _require(np.all(np.abs(mean) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12), label, f"simulated noise has mean {mean}, expected 0")
 
 
 # --------------------------------------------------------------------------- estimators
@@ -542,21 +533,15 @@ def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float 
     times = _array(getattr(result, "times", None), label, "result times")
     _close(times, t, label, "result times (default 0, τ, 2τ, …)", rtol=1e-12, atol=1e-12)
     means = _array(getattr(result, "means", None), label, "result means")
-    _require(
-        means.shape in ((K1, n),) or (means.ndim == 3 and means.shape[::2] == (K1, n)),
-        label,
-        f"means has shape {means.shape}, expected ({K1}, {n})",
-    )
+    shaped = means.shape == (K1, n) or (means.ndim == 3 and means.shape[::2] == (K1, n))  # (K+1, n) or a fixed bank's (K+1, M, n)
+    _require(shaped, label, f"means has shape {means.shape}, expected ({K1}, {n})")
     covs = _array(getattr(result, "covs", None), label, "result covs", means.shape + (n,))
     _symmetric_psd(covs, label, "result covs", definite=False)
     decisions = tuple(getattr(result, "decisions", ()) or ())
     _require(all(isinstance(d, Decision) for d in decisions), label, f"decisions must be Decision objects, got {decisions!r}")
     steps_decided = [d.step for d in decisions]
-    _require(
-        steps_decided == sorted(steps_decided) and all(0 <= k <= steps for k in steps_decided),
-        label,
-        f"decision steps {steps_decided} not in step order within 0 … {steps}",
-    )
+    in_order = steps_decided == sorted(steps_decided) and all(0 <= k <= steps for k in steps_decided)
+    _require(in_order, label, f"decision steps {steps_decided} not in step order within 0 … {steps}")
     for what, other in (("a run given the same times", run(times=t.copy())), ("a second run of the same instance", run())):
         _close(other.means, means, label, f"means of {what}", rtol=0, atol=0)
     offset = means[..., [layout.index("x"), layout.index("y")]] - (true_xy[:, None, :] if means.ndim == 3 else true_xy)
