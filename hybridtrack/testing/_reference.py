@@ -84,29 +84,21 @@ class LinearPositionSensor(Sensor):
         return np.asarray(x, dtype=float) @ self.matrix(layout).T
 
     def jacobian(self, x, layout):
-        x = np.asarray(x, dtype=float)
         H = self.matrix(layout)
-        return np.broadcast_to(H, x.shape[:-1] + H.shape).copy()
+        return np.broadcast_to(H, np.shape(x)[:-1] + H.shape).copy()
 
 
 def kalman_update(
     mean: np.ndarray, cov: np.ndarray, z: np.ndarray, sensors: Sequence[Sensor], layout: Sequence[str]
 ) -> tuple[np.ndarray, np.ndarray, Innovation]:
     """:func:`hybridtrack.sdk.kalman_reference.update` with the sensors whose rows of ``z`` hold no NaN."""
-    z = np.asarray(z, dtype=float)
-    rows, H_blocks, R_blocks, start = [], [], [], 0
-    for sensor in sensors:
-        m = sensor.measurement_dim
-        part = z[start : start + m]
-        if not np.isnan(part).any():
-            rows.append(part)
-            H_blocks.append(sensor.jacobian(mean, layout))
-            R_blocks.append(sensor.noise_cov)
-        start += m
-    if not rows:
+    parts = np.split(np.asarray(z, dtype=float), np.cumsum([sensor.measurement_dim for sensor in sensors]))
+    used = [(part, sensor) for part, sensor in zip(parts, sensors) if not np.isnan(part).any()]
+    if not used:
         return mean, cov, empty_innovation(mean.shape[0])
-    H = np.concatenate(H_blocks, axis=-2)  # (M, m, n)
-    mean, cov, nu, S, loglik, nis = kalman_reference.update(mean, cov, np.concatenate(rows), H, scipy.linalg.block_diag(*R_blocks))
+    H = np.concatenate([sensor.jacobian(mean, layout) for _, sensor in used], axis=-2)  # (M, m, n)
+    R = scipy.linalg.block_diag(*(sensor.noise_cov for _, sensor in used))
+    mean, cov, nu, S, loglik, nis = kalman_reference.update(mean, cov, np.concatenate([part for part, _ in used]), H, R)
     return mean, cov, Innovation(nu, S, loglik, nis)
 
 
