@@ -281,8 +281,8 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
     NaN rows drop that sensor; all-NaN z ⇒ prediction only (state unchanged,
     m = 0); covariance symmetric positive definite throughout; NaN/inf or a
     wrong shape in the prior raises ValueError.  With ``exact_kalman`` (default:
-    the estimator's ``exact_kalman`` attribute, else True) every mean,
-    covariance and innovation is compared with the covariance-form KF.  A
+    the estimator's ``exact_kalman`` attribute, else True) every mean, covariance
+    and innovation is compared with :mod:`hybridtrack.sdk.kalman_reference`.  A
     ``sampling`` estimator (a particle filter) reports its own ℓ (checked
     finite, not against the Gaussian formula of (ν, S)), and after a bank is
     rebuilt from a taken part and a freshly initialized filter only the taken
