@@ -1,12 +1,12 @@
 """Small reference objects the contract checks are built on.
 
-They depend on the kernel only (never on plugins), so a check of an estimator
+They depend on the kernel and the sdk only (never on plugins), so a check of an estimator
 or a detector means the same thing whichever plugins are installed:
 
 * :func:`cv_transition` — the straight (constant-velocity) mode of SPEC §1;
 * :class:`LinearPositionSensor` — z = H x + v picking named state components;
-* :func:`kalman_predict` / :func:`kalman_update` — the covariance-form Kalman
-  filter over a bank (SPEC §3), the oracle every exact estimator must match;
+* :func:`kalman_update` — :mod:`hybridtrack.sdk.kalman_reference` fed by a list
+  of sensors whose NaN rows are dropped, the oracle every exact estimator must match;
 * :func:`example_state` — plausible states for a layout, by component name.
 """
 
@@ -17,8 +17,11 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.linalg
 
-from hybridtrack.core.interfaces import Innovation, LinearTransition, Sensor, TransitionBank
+from hybridtrack.core.interfaces import Innovation, LinearTransition, Sensor
 from hybridtrack.core.validation import check_covariance
+from hybridtrack.sdk import kalman_reference
+from hybridtrack.sdk.estimation import empty_innovation
+from hybridtrack.sdk.linalg import gaussian_scores
 
 CV_LAYOUT = ("x", "vx", "y", "vy")
 
@@ -47,11 +50,7 @@ def example_state(layout: Sequence[str], rng: np.random.Generator, shape: tuple[
     """
     state = np.empty(shape + (len(layout),))
     for j, name in enumerate(layout):
-        centre, spread = 0.0, 1.0
-        for prefixes, values in _SCALES:
-            if name == prefixes[0] or any(name.startswith(p) for p in prefixes):
-                centre, spread = values
-                break
+        centre, spread = next((values for prefixes, values in _SCALES if name.startswith(prefixes)), (0.0, 1.0))
         state[..., j] = centre + spread * rng.uniform(-1.0, 1.0, size=shape)
     return state
 
@@ -85,50 +84,22 @@ class LinearPositionSensor(Sensor):
         return np.asarray(x, dtype=float) @ self.matrix(layout).T
 
     def jacobian(self, x, layout):
-        x = np.asarray(x, dtype=float)
         H = self.matrix(layout)
-        return np.broadcast_to(H, x.shape[:-1] + H.shape).copy()
-
-
-def kalman_predict(mean: np.ndarray, cov: np.ndarray, bank: TransitionBank) -> tuple[np.ndarray, np.ndarray]:
-    """x⁻ = F x + B, P⁻ = F P Fᵀ + G Q Gᵀ for a bank: mean (M, n), cov (M, n, n)."""
-    mean = np.einsum("mij,mj->mi", bank.F, mean) + bank.B
-    cov = bank.F @ cov @ np.swapaxes(bank.F, -1, -2) + bank.Q
-    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+        return np.broadcast_to(H, np.shape(x)[:-1] + H.shape).copy()
 
 
 def kalman_update(
     mean: np.ndarray, cov: np.ndarray, z: np.ndarray, sensors: Sequence[Sensor], layout: Sequence[str]
 ) -> tuple[np.ndarray, np.ndarray, Innovation]:
-    """Covariance-form update (Joseph form) with the sensors whose rows of ``z`` hold no NaN."""
-    z = np.asarray(z, dtype=float)
-    rows, H_blocks, R_blocks, start = [], [], [], 0
-    for sensor in sensors:
-        m = sensor.measurement_dim
-        part = z[start : start + m]
-        if not np.isnan(part).any():
-            rows.append(part)
-            H_blocks.append(sensor.jacobian(mean, layout))
-            R_blocks.append(sensor.noise_cov)
-        start += m
-    M, n = mean.shape
-    if not rows:
-        empty = Innovation(np.zeros((M, 0)), np.zeros((M, 0, 0)), np.zeros(M), np.zeros(M))
-        return mean, cov, empty
-    z_used = np.concatenate(rows)
-    H = np.concatenate(H_blocks, axis=-2)  # (M, m, n)
-    R = scipy.linalg.block_diag(*R_blocks)
-    m = z_used.shape[0]
-    nu = z_used - np.einsum("mij,mj->mi", H, mean)
-    S = H @ cov @ np.swapaxes(H, -1, -2) + R
-    S = 0.5 * (S + np.swapaxes(S, -1, -2))
-    K = np.swapaxes(np.linalg.solve(S, H @ cov), -1, -2)  # P Hᵀ S⁻¹ (S, P symmetric)
-    mean = mean + np.einsum("mij,mj->mi", K, nu)
-    A = np.eye(n) - K @ H
-    cov = A @ cov @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
-    nis = np.einsum("mi,mi->m", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-    loglik = -0.5 * (m * np.log(2 * np.pi) + np.linalg.slogdet(S)[1] + nis)
-    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2)), Innovation(nu, S, loglik, nis)
+    """:func:`hybridtrack.sdk.kalman_reference.update` with the sensors whose rows of ``z`` hold no NaN."""
+    parts = np.split(np.asarray(z, dtype=float), np.cumsum([sensor.measurement_dim for sensor in sensors]))
+    used = [(part, sensor) for part, sensor in zip(parts, sensors) if not np.isnan(part).any()]
+    if not used:
+        return mean, cov, empty_innovation(mean.shape[0])
+    H = np.concatenate([sensor.jacobian(mean, layout) for _, sensor in used], axis=-2)  # (M, m, n)
+    R = scipy.linalg.block_diag(*(sensor.noise_cov for _, sensor in used))
+    mean, cov, nu, S, loglik, nis = kalman_reference.update(mean, cov, np.concatenate([part for part, _ in used]), H, R)
+    return mean, cov, Innovation(nu, S, loglik, nis)
 
 
 def random_innovations(rng: np.random.Generator, steps: int = 20, bank_size: int = 3, measurement_dim: int = 2) -> list[Innovation]:
@@ -140,7 +111,6 @@ def random_innovations(rng: np.random.Generator, steps: int = 20, bank_size: int
     bias = np.linspace(0.0, 3.0, bank_size)[:, None] * np.ones(measurement_dim)
     for _ in range(steps):
         nu = np.einsum("mij,mj->mi", L, rng.standard_normal((bank_size, measurement_dim))) + bias
-        nis = np.einsum("mi,mi->m", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-        loglik = -0.5 * (measurement_dim * np.log(2 * np.pi) + np.linalg.slogdet(S)[1] + nis)
+        loglik, nis = gaussian_scores(nu, L)
         out.append(Innovation(nu, S.copy(), loglik, nis))
     return out

@@ -34,28 +34,16 @@ from hybridtrack.core.interfaces import (
 )
 from hybridtrack.core.kinds import KINDS
 from hybridtrack.core.types import Decision, Gaussian
+from hybridtrack.sdk import kalman_reference
+from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack.testing._reference import (
     CV_LAYOUT,
     LinearPositionSensor,
     cv_transition,
     example_state,
-    kalman_predict,
     kalman_update,
     random_innovations,
 )
-
-__all__ = [
-    "build_example",
-    "check_algorithm",
-    "check_component",
-    "check_detector",
-    "check_estimator",
-    "check_motion_model",
-    "check_sensor",
-    "check_solver",
-    "example_parameters",
-]
-
 
 # --------------------------------------------------------------------------- helpers
 
@@ -89,9 +77,18 @@ def _qualname(obj) -> str:
 
 
 def _label(component, kind: str) -> str:
-    name = getattr(component, "name", None)
-    registry_name = getattr(component, "kind", None) if kind == "sensor" else name
+    registry_name = getattr(component, "kind" if kind == "sensor" else "name", None)
     return f"{kind} {registry_name!r} ({type(component).__qualname__})"
+
+
+def _interface_label(component, kind: str, interface: type, attributes: Sequence[str] = ("name",), hint: str = "") -> str:
+    """The label of ``component``, once it is an ``interface`` whose ``attributes`` are non-empty strings."""
+    label = _label(component, kind)
+    _require(isinstance(component, interface), label, f"is not a {interface.__module__}.{interface.__qualname__}{hint}")
+    for attribute in attributes:
+        value = getattr(component, attribute, None)
+        _require(isinstance(value, str) and value, label, f"`{attribute}` must be a non-empty string, got {value!r}")
+    return label
 
 
 def _require(condition, label: str, message: str) -> None:
@@ -124,31 +121,16 @@ def _symmetric_psd(matrix: np.ndarray, label: str, what: str, definite: bool) ->
     scale = max(float(np.abs(matrix).max(initial=0.0)), 1e-300)
     asym = float(np.abs(matrix - np.swapaxes(matrix, -1, -2)).max(initial=0.0))
     _require(asym <= 1e-9 * scale, label, f"{what} is not symmetric (max |A − Aᵀ| = {asym:.3g})")
-    eigenvalues = np.linalg.eigvalsh(0.5 * (matrix + np.swapaxes(matrix, -1, -2)))
-    if definite:
-        _require((eigenvalues > 0).all(), label, f"{what} is not positive definite (smallest eigenvalue {eigenvalues.min():.3g})")
-    else:
-        _require(
-            (eigenvalues >= -1e-10 * scale).all(),
-            label,
-            f"{what} is not positive semidefinite (smallest eigenvalue {eigenvalues.min():.3g})",
-        )
-
-
-def _registry_name(component, label: str, attribute: str = "name") -> None:
-    value = getattr(component, attribute, None)
-    _require(isinstance(value, str) and value, label, f"`{attribute}` must be a non-empty string, got {value!r}")
+    eigenvalues = np.linalg.eigvalsh(symmetrize(matrix))
+    positive = (eigenvalues > 0) if definite else (eigenvalues >= -1e-10 * scale)
+    kind = "definite" if definite else "semidefinite"
+    _require(positive.all(), label, f"{what} is not positive {kind} (smallest eigenvalue {eigenvalues.min():.3g})")
 
 
 def _numerical_jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
-    """Central differences of ``function`` at x (n,) → (out, n)."""
-    columns = []
-    for i in range(x.shape[0]):
-        h = 1e-6 * max(1.0, abs(x[i]))
-        up, down = x.copy(), x.copy()
-        up[i] += h
-        down[i] -= h
-        columns.append((np.asarray(function(up)) - np.asarray(function(down))) / (2 * h))
+    """Central differences at x (n,) → (out, n): J[:, i] = (f(x + h_i e_i) − f(x − h_i e_i)) / 2 h_i, h_i = 10⁻⁶ max(1, |x_i|)."""
+    h = 1e-6 * np.maximum(1.0, np.abs(x))
+    columns = [(np.asarray(function(x + step)) - np.asarray(function(x - step))) / (2 * h[i]) for i, step in enumerate(np.diag(h))]
     return np.stack(columns, axis=-1)
 
 
@@ -165,9 +147,7 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
     vectorized over leading axes; ``enter`` round-trips the model's own layout
     and accepts the 4-state layout; fifty noise-free steps stay finite.
     """
-    label = _label(model, "motion_model")
-    _require(isinstance(model, MotionModel), label, "is not a hybridtrack.core.interfaces.MotionModel")
-    _registry_name(model, label)
+    label = _interface_label(model, "motion_model", MotionModel)
     layout = getattr(model, "layout", None)
     _require(isinstance(layout, tuple) and len(layout) > 0, label, f"`layout` must be a non-empty tuple, got {layout!r}")
     _require(all(isinstance(c, str) and c for c in layout), label, f"`layout` entries must be non-empty strings, got {layout!r}")
@@ -190,12 +170,7 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
 
     f_s = _array(model.propagate(x_s.copy(), tau, x_s.copy()), label, "propagate(x_s)", (n,))
     _close(
-        T.F @ x_s + T.B,
-        f_s,
-        label,
-        "F x_s + B (the linearization at x_s must pass through f(x_s))",
-        rtol=1e-9,
-        atol=1e-9 * (1 + np.abs(f_s).max()),
+        T.F @ x_s + T.B, f_s, label, "F x_s + B (the linearization at x_s must pass through f(x_s))", atol=1e-9 * (1 + np.abs(f_s).max())
     )
     jac = _numerical_jacobian(lambda x: model.propagate(x, tau, x_s.copy()), x_s.copy())
     _close(T.F, jac, label, "transition F against finite differences of propagate", rtol=1e-5, atol=1e-6 * (1 + np.abs(T.F).max()))
@@ -231,10 +206,7 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     ``simulate`` is reproducible with a seeded Generator and its noise has
     covariance R (2000 draws, 25 % tolerance).
     """
-    label = _label(sensor, "sensor")
-    _require(isinstance(sensor, Sensor), label, "is not a hybridtrack.core.interfaces.Sensor")
-    _registry_name(sensor, label, "registry_name")
-    _registry_name(sensor, label, "name")
+    label = _interface_label(sensor, "sensor", Sensor, ("registry_name", "name"))
     R = _array(getattr(sensor, "noise_cov", None), label, "noise_cov")
     _require(R.ndim == 2 and R.shape[0] == R.shape[1], label, f"noise_cov must be square (m, m), got {R.shape}")
     m = R.shape[0]
@@ -253,14 +225,8 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     _array(sensor.jacobian(np.stack([X, X]), layout), label, "jacobian of a (2, 4, n) stack", (2, 4, m, n))
     for k, row in enumerate(X):
         numeric = _numerical_jacobian(lambda x: sensor.measure(x, layout), row.copy())
-        _close(
-            J[k],
-            numeric,
-            label,
-            f"jacobian at state {k} against finite differences of measure",
-            rtol=1e-5,
-            atol=1e-6 * (1e-3 + np.abs(J[k]).max()),
-        )
+        atol = 1e-6 * (1e-3 + np.abs(J[k]).max())
+        _close(J[k], numeric, label, f"jacobian at state {k} against finite differences of measure", rtol=1e-5, atol=atol)
     if getattr(sensor, "linear", True):
         _close(J, np.broadcast_to(J[0], J.shape), label, "jacobian of a linear sensor (must not depend on x)")
         _close(z, np.einsum("kij,kj->ki", J, X), label, "measure of a linear sensor against H x", atol=1e-9 * (1 + np.abs(z).max()))
@@ -271,11 +237,8 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     _close(again, first, label, "simulate with the same seed (must be reproducible)", rtol=0, atol=0)
     draws = 2000
     many = sensor.simulate(np.broadcast_to(X[0], (draws, n)).copy(), layout, np.random.default_rng(seed + 2))
-    noise = _array(
-        sensor.residual(_array(many, label, "simulate of a (2000, n) stack", (draws, m)), np.broadcast_to(z[0], (draws, m))),
-        label,
-        "simulated noise",
-    )
+    many = _array(many, label, "simulate of a (2000, n) stack", (draws, m))
+    noise = _array(sensor.residual(many, np.broadcast_to(z[0], (draws, m))), label, "simulated noise")
     sample = np.cov(noise, rowvar=False).reshape(m, m)
     # R that goes with this measurement: noise_cov, or R(z) for pseudo-measurement sensors (Sensor.measurement_noise)
     R = _array(sensor.measurement_noise(z[0]), label, "measurement_noise(z)", (m, m))
@@ -285,28 +248,11 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
         label,
         f"simulated noise covariance\n{sample}\nis far from noise_cov R\n{R}\n(relative error {error:.2f} over {draws} draws)",
     )
-    _require(
-        np.all(np.abs(noise.mean(axis=0)) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12),
-        label,
-        f"simulated noise has mean {noise.mean(axis=0)}, expected 0",
-    )
+    mean = noise.mean(axis=0)
+    _require(np.all(np.abs(mean) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12), label, f"simulated noise has mean {mean}, expected 0")
 
 
 # --------------------------------------------------------------------------- estimators
-
-
-def _estimator_problem(rng: np.random.Generator):
-    """A bank of M = 3 CV filters with different Q, two linear sensors (x, y) and (x)."""
-    M, n = 3, len(CV_LAYOUT)
-    mean = example_state(CV_LAYOUT, rng, (M,))
-    A = rng.normal(size=(M, n, n))
-    cov = A @ np.swapaxes(A, -1, -2) + np.diag([25.0, 4.0, 25.0, 4.0])
-    bank = TransitionBank.stack([cv_transition(1.0, q) for q in (0.01, 0.1, 1.0)])
-    sensors = [
-        LinearPositionSensor("contract_xy", ("x", "y"), [[4.0, 1.0], [1.0, 9.0]]),
-        LinearPositionSensor("contract_x", ("x",), [[2.0]]),
-    ]
-    return mean, cov, bank, sensors
 
 
 def _check_innovation(innovation, label: str, M: int, m: int, gaussian_loglik: bool = True) -> None:
@@ -335,8 +281,8 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
     NaN rows drop that sensor; all-NaN z ⇒ prediction only (state unchanged,
     m = 0); covariance symmetric positive definite throughout; NaN/inf or a
     wrong shape in the prior raises ValueError.  With ``exact_kalman`` (default:
-    the estimator's ``exact_kalman`` attribute, else True) every mean,
-    covariance and innovation is compared with the covariance-form KF.  A
+    the estimator's ``exact_kalman`` attribute, else True) every mean, covariance
+    and innovation is compared with :mod:`hybridtrack.sdk.kalman_reference`.  A
     ``sampling`` estimator (a particle filter) reports its own ℓ (checked
     finite, not against the Gaussian formula of (ν, S)), and after a bank is
     rebuilt from a taken part and a freshly initialized filter only the taken
@@ -345,24 +291,25 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
     prior means are drawn around the simulated truth (x₀ − x̂₀ ~ N(0, P₀)),
     so that the measurements are consistent with the prior it samples.
     """
-    label = _label(estimator, "estimator")
-    _require(isinstance(estimator, Estimator), label, "is not a hybridtrack.core.interfaces.Estimator")
-    _registry_name(estimator, label)
+    label = _interface_label(estimator, "estimator", Estimator)
     if exact_kalman is None:
         exact_kalman = bool(getattr(estimator, "exact_kalman", True))
     sampling = bool(getattr(estimator, "sampling", False))
     rng = np.random.default_rng(seed)
-    mean, cov, bank, sensors = _estimator_problem(rng)
-    M, n = mean.shape
-
-    def read(state, when: str) -> tuple[np.ndarray, np.ndarray]:
-        x = _array(estimator.mean(state), label, f"mean {when}", (M, n))
-        P = _array(estimator.covariance(state), label, f"covariance {when}", (M, n, n))
-        _symmetric_psd(P, label, f"covariance {when}", definite=True)
-        return x.copy(), P.copy()
+    M, n = 3, len(CV_LAYOUT)  # a bank of CV filters with different Q, two linear sensors (x, y) and (x)
+    mean = example_state(CV_LAYOUT, rng, (M,))
+    A = rng.normal(size=(M, n, n))
+    cov = A @ np.swapaxes(A, -1, -2) + np.diag([25.0, 4.0, 25.0, 4.0])
+    bank = TransitionBank.stack([cv_transition(1.0, q) for q in (0.01, 0.1, 1.0)])
+    sensors = [
+        LinearPositionSensor("contract_xy", ("x", "y"), [[4.0, 1.0], [1.0, 9.0]]),
+        LinearPositionSensor("contract_x", ("x",), [[2.0]]),
+    ]
 
     def compare(state, ref_mean, ref_cov, when: str) -> tuple[np.ndarray, np.ndarray]:
-        x, P = read(state, when)
+        x = _array(estimator.mean(state), label, f"mean {when}", (M, n)).copy()
+        P = _array(estimator.covariance(state), label, f"covariance {when}", (M, n, n)).copy()
+        _symmetric_psd(P, label, f"covariance {when}", definite=True)
         if exact_kalman:
             _close(x, ref_mean, label, f"mean {when} against the covariance-form KF", rtol=1e-7, atol=1e-7)
             _close(P, ref_cov, label, f"covariance {when} against the covariance-form KF", rtol=1e-7, atol=1e-7)
@@ -382,7 +329,7 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
     )
     for step, (case, present) in enumerate(cases * 2):
         state = estimator.predict(state, bank)
-        ref = kalman_predict(*ref, bank)
+        ref = kalman_reference.predict(*ref, bank.F, bank.B, bank.Q)
         before = compare(state, *ref, f"after predict at step {step}")
         truth = cv_transition().apply(truth)
         z = np.concatenate([s.simulate(truth, CV_LAYOUT, rng) for s in sensors])
@@ -391,16 +338,14 @@ def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, s
         m = int(present.sum())
         when = f"after update at step {step} ({case})"
         _check_innovation(innovation, f"{label} {when}", M, m, gaussian_loglik=not sampling)
-        ref_mean, ref_cov, ref_innovation = kalman_update(*ref, z, sensors, CV_LAYOUT)
-        ref = (ref_mean, ref_cov)
+        *ref, ref_innovation = kalman_update(*ref, z, sensors, CV_LAYOUT)
         after = compare(state, *ref, when)
         if m == 0:
-            _close(after[0], before[0], label, f"mean {when} (must equal the prediction)", rtol=1e-12, atol=1e-12)
-            _close(after[1], before[1], label, f"covariance {when} (must equal the prediction)", rtol=1e-12, atol=1e-12)
+            for what, value, predicted in zip(("mean", "covariance"), after, before):
+                _close(value, predicted, label, f"{what} {when} (must equal the prediction)", rtol=1e-12, atol=1e-12)
         elif exact_kalman:
-            _close(innovation.nu, ref_innovation.nu, label, f"innovation nu {when}", rtol=1e-7, atol=1e-7)
-            _close(innovation.S, ref_innovation.S, label, f"innovation S {when}", rtol=1e-7, atol=1e-7)
-            _close(innovation.loglik, ref_innovation.loglik, label, f"loglik {when}", rtol=1e-7, atol=1e-7)
+            for what, field in (("innovation nu", "nu"), ("innovation S", "S"), ("loglik", "loglik")):
+                _close(getattr(innovation, field), getattr(ref_innovation, field), label, f"{what} {when}", rtol=1e-7, atol=1e-7)
 
     _check_bank_operations(estimator, label, state, bank, sensors, rng, sampling)
     bad_priors = (
@@ -422,33 +367,26 @@ def _check_bank_operations(estimator: Estimator, label: str, state, bank, sensor
     """``take`` and ``concatenate`` select and join filters in the estimator's own form: the rows read back as
     the same rows of the whole bank, and a bank rebuilt from pieces steps exactly like the whole bank (``sampling``:
     except a freshly initialized filter, which draws new samples)."""
-    x, P = np.asarray(estimator.mean(state)), np.asarray(estimator.covariance(state))
+    mean = lambda state: np.asarray(estimator.mean(state), dtype=float)
+    x, P = mean(state), np.asarray(estimator.covariance(state))
     rows = [2, 0, 0]
     taken = estimator.take(state, rows)
-    _close(np.asarray(estimator.mean(taken)), x[rows], label, "mean after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
-    _close(np.asarray(estimator.covariance(taken)), P[rows], label, "covariance after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
+    _close(estimator.mean(taken), x[rows], label, "mean after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
+    _close(estimator.covariance(taken), P[rows], label, "covariance after take([2, 0, 0])", rtol=1e-12, atol=1e-12)
     joined = estimator.concatenate([estimator.take(state, [0]), estimator.take(state, [1, 2])])
-    _close(np.asarray(estimator.mean(joined)), x, label, "mean after concatenate of take([0]) and take([1, 2])", rtol=1e-12, atol=1e-12)
+    _close(estimator.mean(joined), x, label, "mean after concatenate of take([0]) and take([1, 2])", rtol=1e-12, atol=1e-12)
     fresh = estimator.concatenate([estimator.take(state, [0, 1]), estimator.initialize(x[2:], P[2:])])
     z = np.concatenate([s.simulate(x[0], CV_LAYOUT, rng) for s in sensors])
-    whole, whole_innovation = estimator.update(estimator.predict(state, bank), z.copy(), sensors, CV_LAYOUT)
-    parts, parts_innovation = estimator.update(estimator.predict(joined, bank), z.copy(), sensors, CV_LAYOUT)
-    mixed, _ = estimator.update(estimator.predict(fresh, bank), z.copy(), sensors, CV_LAYOUT)
+    step = lambda state: estimator.update(estimator.predict(state, bank), z.copy(), sensors, CV_LAYOUT)
+    (whole, whole_innovation), (parts, parts_innovation), (mixed, _) = step(state), step(joined), step(fresh)
     kept = slice(0, 2) if sampling else slice(None)  # a sampling estimator's fresh filter 2 has new samples
     for what, other, rows in (
         ("a concatenated bank", parts, slice(None)),
         ("a bank joined with a freshly initialized filter", mixed, kept),
     ):
-        _close(
-            np.asarray(estimator.mean(other))[rows],
-            np.asarray(estimator.mean(whole))[rows],
-            label,
-            f"mean of {what} after a step",
-            rtol=1e-9,
-            atol=1e-9,
-        )
-    again, again_innovation = estimator.update(estimator.predict(state, bank), z.copy(), sensors, CV_LAYOUT)
-    _close(np.asarray(estimator.mean(again)), np.asarray(estimator.mean(whole)), label, "mean of the same step taken twice", rtol=0, atol=0)
+        _close(mean(other)[rows], mean(whole)[rows], label, f"mean of {what} after a step", rtol=1e-9, atol=1e-9)
+    again, again_innovation = step(state)
+    _close(estimator.mean(again), estimator.mean(whole), label, "mean of the same step taken twice", rtol=0, atol=0)
     _close(again_innovation.loglik, whole_innovation.loglik, label, "loglik of the same step taken twice", rtol=0, atol=0)
     _close(parts_innovation.loglik, whole_innovation.loglik, label, "loglik of a concatenated bank after a step", rtol=1e-9, atol=1e-9)
 
@@ -456,18 +394,11 @@ def _check_bank_operations(estimator: Estimator, label: str, state, bank, sensor
 # --------------------------------------------------------------------------- detectors
 
 
-def _comparable(value) -> np.ndarray:
-    return np.asarray(value, dtype=float)
-
-
 def _same_step(a: DetectorStep, b: DetectorStep) -> bool:
-    if set(a.statistics) != set(b.statistics) or set(a.thresholds) != set(b.thresholds):
-        return False
-    for key in a.statistics:
-        if not np.array_equal(_comparable(a.statistics[key]), _comparable(b.statistics[key]), equal_nan=True):
-            return False
-    for key in a.thresholds:
-        if not np.array_equal(_comparable(a.thresholds[key]), _comparable(b.thresholds[key]), equal_nan=True):
+    """Same decision, and the same statistics and thresholds (NaN equal to NaN)."""
+    for x, y in ((a.statistics, b.statistics), (a.thresholds, b.thresholds)):
+        same = (np.array_equal(np.asarray(x[key], dtype=float), np.asarray(y[key], dtype=float), equal_nan=True) for key in x)
+        if set(x) != set(y) or not all(same):
             return False
     return a.decision == b.decision
 
@@ -481,9 +412,7 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
     are numeric with no NaN; after ``reset()`` the same input gives the same
     outputs and decisions.
     """
-    label = _label(detector, "detector")
-    _require(isinstance(detector, Detector), label, "is not a hybridtrack.core.interfaces.Detector")
-    _registry_name(detector, label)
+    label = _interface_label(detector, "detector", Detector)
     if innovations is None:
         provider = getattr(detector, "example_innovations", None)
         innovations = provider(np.random.default_rng(seed)) if provider else random_innovations(np.random.default_rng(seed))
@@ -505,7 +434,7 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
                 for key, value in table.items():
                     _require(isinstance(key, str) and key, label, f"step {k}: {kind} name {key!r} is not a non-empty string")
                     try:
-                        array = _comparable(value)
+                        array = np.asarray(value, dtype=float)
                     except (TypeError, ValueError):
                         raise AssertionError(f"{label}: step {k}: {kind} {key!r} is not numeric: {value!r}") from None
                     _require(not np.isnan(array).any(), label, f"step {k}: {kind} {key!r} is NaN: {value!r}")
@@ -528,9 +457,7 @@ def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
     counts and a bool ``converged``; solving again gives the same θ.  Without a
     problem only the name is checked and ``None`` is returned.
     """
-    label = _label(solver, "solver")
-    _require(isinstance(solver, Solver), label, "is not a hybridtrack.core.interfaces.Solver")
-    _registry_name(solver, label)
+    label = _interface_label(solver, "solver", Solver)
     if problem is None:
         provider = getattr(solver, "example_problem", None)
         if provider is None:
@@ -556,6 +483,19 @@ def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
 # --------------------------------------------------------------------------- algorithms
 
 
+def _algorithm_example(factory: Callable[..., Any], tau: float) -> tuple[Any, dict]:
+    """The algorithm as the checks build it (one position sensor ``contract_xy``, R = 4 I) and its ``example_run`` keywords."""
+    sensor = LinearPositionSensor("contract_xy", ("x", "y"), 4.0 * np.eye(2))
+    return factory(sensors=[sensor], tau=tau, **example_parameters(factory)), dict(getattr(factory, "example_run", None) or {})
+
+
+def _straight_prior(layout: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The straight target at t = 0: x = y = 0 (σ = 5 m), vx = 10, vy = 5 m/s (σ = 2 m/s), any other component 0 (σ = 1)."""
+    start = {"x": 0.0, "y": 0.0, "vx": 10.0, "vy": 5.0}
+    variances = {"x": 25.0, "y": 25.0, "vx": 4.0, "vy": 4.0}
+    return np.array([start.get(c, 0.0) for c in layout]), np.diag([variances.get(c, 1.0) for c in layout])
+
+
 def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float = 1.0, seed: int = 0) -> Any:
     """Check an :class:`~hybridtrack.core.algorithm.Algorithm` factory on a target moving straight; return the result.
 
@@ -572,19 +512,15 @@ def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float 
     instance, give the same result; the estimate follows the target (mean
     position error below 5 σ).
     """
-    instance = factory(sensors=[LinearPositionSensor("contract_xy", ("x", "y"), 4.0 * np.eye(2))], tau=tau, **example_parameters(factory))
-    label = _label(instance, "algorithm")
-    _require(isinstance(instance, Algorithm), label, "is not a hybridtrack.core.algorithm.Algorithm (it needs a `run` method)")
-    _registry_name(instance, label)
+    instance, options = _algorithm_example(factory, tau)
+    label = _interface_label(instance, "algorithm", Algorithm, hint=" (it needs a `run` method)")
     layout = tuple(getattr(instance, "layout", ()) or ())
     _require({"x", "y"} <= set(layout), label, f"`layout` must name the state components, with x and y; got {layout!r}")
     rng = np.random.default_rng(seed)
     t = tau * np.arange(steps + 1)
-    truth = {"x": 10.0 * t, "vx": np.full_like(t, 10.0), "y": 5.0 * t, "vy": np.full_like(t, 5.0)}
-    z = np.column_stack([truth["x"], truth["y"]]) + 2.0 * rng.standard_normal((steps + 1, 2))
-    variances = {"x": 25.0, "y": 25.0, "vx": 4.0, "vy": 4.0}
-    prior = Gaussian(np.array([truth[c][0] if c in truth else 0.0 for c in layout]), np.diag([variances.get(c, 1.0) for c in layout]))
-    options = dict(getattr(factory, "example_run", None) or {})
+    true_xy = np.column_stack([10.0 * t, 5.0 * t])
+    z = true_xy + 2.0 * rng.standard_normal((steps + 1, 2))
+    prior = Gaussian(*_straight_prior(layout))
 
     def run(**times) -> Any:
         try:
@@ -594,33 +530,20 @@ def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float 
 
     result = run()
     K1, n = steps + 1, len(layout)
-    _close(
-        _array(getattr(result, "times", None), label, "result times"),
-        t,
-        label,
-        "result times (default 0, τ, 2τ, …)",
-        rtol=1e-12,
-        atol=1e-12,
-    )
+    times = _array(getattr(result, "times", None), label, "result times")
+    _close(times, t, label, "result times (default 0, τ, 2τ, …)", rtol=1e-12, atol=1e-12)
     means = _array(getattr(result, "means", None), label, "result means")
-    _require(
-        means.shape in ((K1, n),) or (means.ndim == 3 and means.shape[::2] == (K1, n)),
-        label,
-        f"means has shape {means.shape}, expected ({K1}, {n})",
-    )
+    shaped = means.shape == (K1, n) or (means.ndim == 3 and means.shape[::2] == (K1, n))  # (K+1, n) or a fixed bank's (K+1, M, n)
+    _require(shaped, label, f"means has shape {means.shape}, expected ({K1}, {n})")
     covs = _array(getattr(result, "covs", None), label, "result covs", means.shape + (n,))
     _symmetric_psd(covs, label, "result covs", definite=False)
     decisions = tuple(getattr(result, "decisions", ()) or ())
     _require(all(isinstance(d, Decision) for d in decisions), label, f"decisions must be Decision objects, got {decisions!r}")
     steps_decided = [d.step for d in decisions]
-    _require(
-        steps_decided == sorted(steps_decided) and all(0 <= k <= steps for k in steps_decided),
-        label,
-        f"decision steps {steps_decided} not in step order within 0 … {steps}",
-    )
+    in_order = steps_decided == sorted(steps_decided) and all(0 <= k <= steps for k in steps_decided)
+    _require(in_order, label, f"decision steps {steps_decided} not in step order within 0 … {steps}")
     for what, other in (("a run given the same times", run(times=t.copy())), ("a second run of the same instance", run())):
-        _close(np.asarray(other.means, dtype=float), means, label, f"means of {what}", rtol=0, atol=0)
-    true_xy = np.column_stack([truth["x"], truth["y"]])
+        _close(other.means, means, label, f"means of {what}", rtol=0, atol=0)
     offset = means[..., [layout.index("x"), layout.index("y")]] - (true_xy[:, None, :] if means.ndim == 3 else true_xy)
     error = float(np.mean(np.linalg.norm(offset, axis=-1)))
     _require(error < 10.0, label, f"the estimate does not follow a straight target: mean position error {error:.3g} m (σ = 2 m)")
@@ -638,7 +561,7 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
     and so do the decisions (step and mode).  Returns the batch's results
     ([] for an algorithm without ``run_batch``).
     """
-    instance = factory(sensors=[LinearPositionSensor("contract_xy", ("x", "y"), 4.0 * np.eye(2))], tau=tau, **example_parameters(factory))
+    instance, options = _algorithm_example(factory, tau)
     if not callable(getattr(instance, "run_batch", None)):
         return []
     label = _label(instance, "algorithm")
@@ -647,13 +570,10 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
     times = np.cumsum(np.concatenate([np.zeros((runs, 1)), tau * rng.uniform(0.5, 1.5, (runs, steps))], axis=1), axis=1)
     z = np.stack([np.column_stack([10.0 * t, 5.0 * t]) for t in times]) + 2.0 * rng.standard_normal((runs, steps + 1, 2))
     z[-1, [3, 11]] = np.nan
-    start = {"x": 0.0, "y": 0.0, "vx": 10.0, "vy": 5.0}
-    means = np.array([[start.get(c, 0.0) for c in layout] for _ in range(runs)])
+    mean, cov = _straight_prior(layout)
+    means = np.tile(mean, (runs, 1))
     means[:, [layout.index("x"), layout.index("y")]] += rng.uniform(-10.0, 10.0, (runs, 2))
-    covs = np.broadcast_to(
-        np.diag([25.0 if c in ("x", "y") else 4.0 if c in ("vx", "vy") else 1.0 for c in layout]), (runs, len(layout), len(layout))
-    )
-    options = dict(getattr(factory, "example_run", None) or {})
+    covs = np.broadcast_to(cov, (runs,) + cov.shape)
     try:
         together = list(instance.run_batch({"contract_xy": z}, (means, covs.copy()), times=times, **options))
     except Exception as error:
@@ -663,36 +583,16 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
         alone = instance.run({"contract_xy": z[r]}, Gaussian(means[r], covs[r]), times=times[r], **options)
         for field in ("times", "means", "covs", "mode"):
             a, b = getattr(batched, field, None), getattr(alone, field, None)
-            if a is None and b is None:
-                continue
-            _close(
-                np.asarray(a, dtype=float),
-                np.asarray(b, dtype=float),
-                label,
-                f"run {r}: {field} of the batch vs the run alone",
-                rtol=1e-12,
-                atol=1e-12,
-            )
-        decided = [(d.step, d.mode) for d in getattr(batched, "decisions", ())]
-        _require(
-            decided == [(d.step, d.mode) for d in getattr(alone, "decisions", ())],
-            label,
-            f"run {r}: decisions of the batch differ from the run alone",
-        )
+            if a is not None or b is not None:
+                _close(a, b, label, f"run {r}: {field} of the batch vs the run alone", rtol=1e-12, atol=1e-12)
+        decided = [[(d.step, d.mode) for d in getattr(result, "decisions", ())] for result in (batched, alone)]
+        _require(decided[0] == decided[1], label, f"run {r}: decisions of the batch differ from the run alone")
     return together
 
 
 # --------------------------------------------------------------------------- dispatch
 
-_CHECKS: dict[str, Callable[..., Any]] = {
-    "motion_model": check_motion_model,
-    "sensor": check_sensor,
-    "estimator": check_estimator,
-    "detector": check_detector,
-    "solver": check_solver,
-    "algorithm": check_algorithm,
-}
-assert set(_CHECKS) == set(KINDS)
+_CHECKS: dict[str, Callable[..., Any]] = {kind: globals()[f"check_{kind}"] for kind in KINDS}
 
 
 def check_component(kind: str, component: Any, **options) -> Any:

@@ -8,15 +8,9 @@ Fixtures, available in any project that has hybridtrack installed:
 * ``hybridtrack_registry`` — the default :class:`~hybridtrack.core.registry.Registry`
   (entry-point plugins, honouring ``HYBRIDTRACK_DISABLE_PLUGINS``).
 
-    def test_weave(hybridtrack_contracts):
-        hybridtrack_contracts.check_motion_model(Weave())
-
-    def test_most_likely(hybridtrack_contracts):
-        hybridtrack_contracts.check_algorithm(MostLikely)  # an algorithm's check builds it
-
-The marker ``hybridtrack_contract`` labels such tests (``pytest -m hybridtrack_contract``).
-hybridtrack is imported only when a fixture is used, so the plugin costs
-nothing to projects that do not use it.
+The marker ``hybridtrack_contract`` labels such tests (``pytest -m hybridtrack_contract``);
+example: docs/plugins.md, section 7.  hybridtrack is imported only when a fixture is used,
+so the plugin costs nothing to projects that do not use it.
 """
 
 import pytest

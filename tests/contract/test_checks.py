@@ -7,6 +7,7 @@ from hybridtrack.core.algorithm import Algorithm
 from hybridtrack.core.interfaces import Detector, DetectorStep, Estimator, MotionModel, Solution, Solver
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_prior
+from hybridtrack.sdk import kalman_reference
 from hybridtrack.testing import (
     LinearPositionSensor,
     build_example,
@@ -20,7 +21,7 @@ from hybridtrack.testing import (
     cv_transition,
     example_parameters,
 )
-from hybridtrack.testing._reference import kalman_predict, kalman_update
+from hybridtrack.testing._reference import kalman_update
 
 # --------------------------------------------------------------------------- toy components
 
@@ -91,7 +92,7 @@ class ToyKalman(Estimator):
         return check_prior(mean, cov)
 
     def predict(self, state, transitions):
-        return kalman_predict(*state, transitions)
+        return kalman_reference.predict(*state, transitions.F, transitions.B, transitions.Q)
 
     def update(self, state, z, sensors, layout):
         mean, cov, innovation = kalman_update(*state, z, sensors, layout)
@@ -315,6 +316,25 @@ def test_an_approximate_estimator_can_opt_out_of_the_kalman_comparison():
         check_estimator(Biased())
     finally:
         Biased.exact_kalman = True
+
+
+def test_the_kits_kalman_update_is_the_reference_step_on_the_sensors_with_a_measurement():
+    """NaN rows drop their sensor: the update is sdk.kalman_reference.update with the other sensors' H and R; all-NaN
+    z is no update (m = 0)."""
+    rng = np.random.default_rng(3)
+    mean, A = rng.normal(size=(2, 4)), rng.normal(size=(2, 4, 4))
+    cov = A @ np.swapaxes(A, -1, -2) + np.eye(4)
+    xy, x = LinearPositionSensor("xy", ("x", "y"), [[4.0, 1.0], [1.0, 9.0]]), LinearPositionSensor("x", ("x",), [[2.0]])
+    z = np.array([1.0, 2.0, np.nan])
+    got_mean, got_cov, innovation = kalman_update(mean, cov, z, [xy, x], ("x", "vx", "y", "vy"))
+    H = np.broadcast_to(xy.matrix(("x", "vx", "y", "vy")), (2, 2, 4))
+    want_mean, want_cov, nu, S, loglik, nis = kalman_reference.update(mean, cov, z[:2], H, xy.noise_cov)
+    np.testing.assert_array_equal(got_mean, want_mean)
+    np.testing.assert_array_equal(got_cov, want_cov)
+    for got, want in zip((innovation.nu, innovation.S, innovation.loglik, innovation.nis), (nu, S, loglik, nis)):
+        np.testing.assert_array_equal(got, want)
+    same_mean, same_cov, nothing = kalman_update(mean, cov, np.full(3, np.nan), [xy, x], ("x", "vx", "y", "vy"))
+    assert same_mean is mean and same_cov is cov and nothing.nu.shape == (2, 0)
 
 
 def test_solver_without_a_problem_is_only_named():
