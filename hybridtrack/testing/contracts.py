@@ -77,7 +77,7 @@ def _qualname(obj) -> str:
 
 
 def _label(component, kind: str) -> str:
-    registry_name = getattr(component, "kind" if kind == "sensor" else "name", None)
+    registry_name = getattr(component, "registry_name" if kind == "sensor" else "name", None)
     return f"{kind} {registry_name!r} ({type(component).__qualname__})"
 
 
