@@ -1,16 +1,11 @@
-"""The inputs of R runs stacked into one bank: measurements, times, priors, per-run values, and the transitions.
+"""The inputs of R runs stacked into one bank: measurements, times, priors, per-run values.
 
 :meth:`hybridtrack.engine.pipeline.Pipeline.batch` (and the algorithms'
 ``run_batch``) take R runs as one bank of R × M filters, row r·M + j being
 filter j of run r.  These helpers check and stack what the runs give:
 measurements sensor name → (R, K+1, m_i) (:func:`batch_measurements`), times
 shared (K+1,) or per run (R, K+1) (:func:`batch_times`), one prior or one per
-run (:func:`batch_priors`), a value per run (:func:`per_run`), and
-:class:`RunTransitions`, the stacked transitions of R runs × M linear models:
-a linear model's transition is fixed at run r's prior mean (the switch state,
-SPEC §1) and rebuilt for run r's Δt_k; runs sharing (Δt, prior mean) share one
-block, and the stacked bank object is reused while nothing changes, so the
-estimator's per-bank caches hit.
+run (:func:`batch_priors`), a value per run (:func:`per_run`).
 """
 
 from __future__ import annotations
@@ -19,7 +14,6 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack.core.types import Gaussian
 from hybridtrack.core.validation import as_float_array
 from hybridtrack.sdk.timestamps import step_intervals
@@ -81,44 +75,3 @@ def per_run(value, runs: int, name: str) -> list:
     if isinstance(value, Sequence) and not isinstance(value, str) and len(value) == runs:
         return list(value)
     raise ValueError(f"{name}: expected a mapping run index → value or a sequence of {runs} (one per run)")
-
-
-class RunTransitions:
-    """The stacked bank of transitions of R runs × M linear models, cached per (Δt, prior mean) block (one run:
-    its block for the last Δt only, rebuilt when Δt changes)."""
-
-    def __init__(self, models, priors: list[Gaussian]):
-        self.models = models
-        self.means = [p.mean for p in priors]
-        shared = all(m is self.means[0] or np.array_equal(m, self.means[0]) for m in self.means)
-        self.prior_keys = np.zeros(len(priors), dtype=np.int64) if shared else np.arange(len(priors))
-        self.blocks: dict[tuple[float, int], TransitionBank] = {}
-        self.last: tuple[bytes | float, TransitionBank] | None = None
-
-    def block(self, dt: float, run: int) -> TransitionBank:
-        key = (dt, int(self.prior_keys[run]))
-        if key not in self.blocks:
-            self.blocks[key] = TransitionBank.stack([m.transition(dt, self.means[run]) for m in self.models])
-        return self.blocks[key]
-
-    def bank(self, dt: np.ndarray) -> TransitionBank:
-        """The transitions of every run's filters over its Δt (R,)."""
-        if len(self.means) == 1:
-            step = float(dt[0])
-            if self.last is None or self.last[0] != step:
-                self.last = (step, TransitionBank.stack([m.transition(step, self.means[0]) for m in self.models]))
-            return self.last[1]
-        key = np.stack([dt, self.prior_keys.astype(float)]).tobytes()
-        if self.last is not None and self.last[0] == key:
-            return self.last[1]
-        blocks = [self.block(float(d), r) for r, d in enumerate(dt)]
-        roots = [b.noise_root for b in blocks]
-        same_roots = all(r is not None for r in roots) and len({r.shape for r in roots}) == 1
-        bank = TransitionBank(
-            np.concatenate([b.F for b in blocks]),
-            np.concatenate([b.B for b in blocks]),
-            np.concatenate([b.Q for b in blocks]),
-            np.concatenate(roots) if same_roots else None,
-        )
-        self.last = (key, bank)
-        return bank
