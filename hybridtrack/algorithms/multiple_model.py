@@ -84,7 +84,7 @@ from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch import batch_measurements, batch_priors, batch_times, per_run
+from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, stacked_measurements
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.mixtures import logsumexp, mixture
@@ -462,12 +462,11 @@ class MultipleModelEstimator:
         the estimate, one ``mode_probability`` series per model, the most
         probable mode, the measurements).
         """
-        arrays, R, steps = batch_measurements(measurements)
+        z = stacked_measurements(self.network, measurements)
+        R, steps = z.shape[:2]
         T, DT = batch_times(times, self.tau, R, steps)
         truths, recorders = per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
-        z = self.network.stack({name: a.reshape(R * steps, a.shape[-1]) for name, a in arrays.items()}).reshape(R, steps, -1)
-        priors = batch_priors(prior, R)
-        mean, cov = np.stack([p.mean for p in priors]), np.stack([p.cov for p in priors])
+        mean, cov = prior_arrays(prior, R)
         states = [self.start(mean, cov, z[:, 0], mode_probabilities, prior_layout)]
         same = bool((DT == DT[:1]).all())
         for k in range(1, steps):

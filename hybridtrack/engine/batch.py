@@ -1,11 +1,14 @@
-"""The inputs of R runs stacked into one bank: measurements, times, priors, per-run values.
+"""The inputs of R runs, checked and stacked for one bank: measurements, times, priors, per-run values.
 
-:meth:`hybridtrack.engine.pipeline.Pipeline.batch` (and the algorithms'
-``run_batch``) take R runs as one bank of R × M filters, row r·M + j being
-filter j of run r.  These helpers check and stack what the runs give:
-measurements sensor name → (R, K+1, m_i) (:func:`batch_measurements`), times
-shared (K+1,) or per run (R, K+1) (:func:`batch_times`), one prior or one per
-run (:func:`batch_priors`), a value per run (:func:`per_run`).
+:meth:`hybridtrack.engine.pipeline.Pipeline.batch` and the algorithms'
+``run_batch`` take R runs as one :class:`~hybridtrack.engine.bank.FilterBank`
+of R × M filters, row r·M + j being filter j of run r.  These helpers check and
+stack what the runs give: measurements sensor name → (R, K+1, m_i)
+(:func:`batch_measurements`), side by side as one z (R, K+1, Σm) in the
+network's order (:func:`stacked_measurements`), times shared (K+1,) or per run
+(R, K+1) (:func:`batch_times`), one prior or one per run (:func:`batch_priors`,
+as arrays :func:`prior_arrays`), a value per run (:func:`per_run`), and the
+runs that can share one bank (:func:`run_groups`).
 """
 
 from __future__ import annotations
@@ -14,8 +17,10 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from hybridtrack.core.interfaces import Estimator
 from hybridtrack.core.types import Gaussian
 from hybridtrack.core.validation import as_float_array
+from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
 
 
@@ -33,6 +38,13 @@ def batch_measurements(measurements: Mapping[str, np.ndarray]) -> tuple[dict[str
     if runs < 1 or steps < 1:
         raise ValueError(f"measurements: expected at least one run and one step, got (runs, K+1) = ({runs}, {steps})")
     return arrays, runs, steps
+
+
+def stacked_measurements(network: SensorNetwork, measurements: Mapping[str, np.ndarray]) -> np.ndarray:
+    """z (R, K+1, Σm): every sensor's (R, K+1, m_i) array side by side in the network's order (names and m checked)."""
+    arrays, runs, steps = batch_measurements(measurements)
+    flat = network.stack({name: value.reshape(runs * steps, *value.shape[2:]) for name, value in arrays.items()})
+    return flat.reshape(runs, steps, -1)
 
 
 def batch_times(times, tau, runs: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
@@ -63,6 +75,19 @@ def batch_priors(prior, runs: int) -> list[Gaussian]:
     return [Gaussian(mean[r], cov[r]) for r in range(runs)]
 
 
+def prior_arrays(prior, runs: int, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per-run prior means (R, n) and covariances (R, n, n) from one Gaussian (or (mean, cov)), or per-run means
+    (R, n) with a shared (n, n) or per-run (R, n, n) covariance; ``n`` the state size expected (None: any)."""
+    if not isinstance(prior, Gaussian) and isinstance(prior, (tuple, list)) and len(prior) == 2:
+        mean, cov = np.asarray(prior[0], dtype=float), np.asarray(prior[1], dtype=float)
+        if mean.ndim == 2 and cov.ndim == 2:
+            prior = (mean, np.broadcast_to(cov, (mean.shape[0],) + cov.shape))
+    priors = batch_priors(prior, runs)
+    if n is not None and priors[0].mean.shape != (n,):
+        raise ValueError(f"prior: expected a mean of the {n} state components, got shape {priors[0].mean.shape}")
+    return np.stack([p.mean for p in priors]), np.stack([p.cov for p in priors])
+
+
 def per_run(value, runs: int, name: str) -> list:
     """``value`` given per run (a sequence of R, or a mapping run → value) as a list of R (None where absent)."""
     if value is None:
@@ -75,3 +100,15 @@ def per_run(value, runs: int, name: str) -> list:
     if isinstance(value, Sequence) and not isinstance(value, str) and len(value) == runs:
         return list(value)
     raise ValueError(f"{name}: expected a mapping run index → value or a sequence of {runs} (one per run)")
+
+
+def batchable(estimator: Estimator) -> bool:
+    """True when runs of ``estimator`` can share one bank: a centralized, non-sampling estimator
+    (a decentralized one's node copies and a particle filter's streams stay per run)."""
+    return not getattr(estimator, "sampling", False) and type(estimator).node_scores is Estimator.node_scores
+
+
+def run_groups(estimator: Estimator, runs: int) -> list[np.ndarray]:
+    """The runs that share one bank: all of them for a :func:`batchable` estimator, else each run alone
+    (the same batched code, on a batch of one)."""
+    return [np.arange(runs)] if batchable(estimator) else [np.array([r]) for r in range(runs)]

@@ -68,7 +68,7 @@ from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Decision, Gaussian
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch import batch_measurements, batch_priors, batch_times, per_run
+from hybridtrack.engine.batch import batch_priors, batch_times, per_run, stacked_measurements
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
@@ -221,16 +221,17 @@ class Pipeline:
         (``models``, ``estimator``, ``sensors``, ``tau``, ``detectors``, …); clutter
         candidates are not batched (run those one by one).
         """
-        arrays, R, steps = batch_measurements(measurements)
-        t, dt = batch_times(times, options.pop("tau", None), R, steps)
-        priors, truths, recorders = batch_priors(prior, R), per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
         if "candidates" in options:
             raise ValueError("candidates: clutter candidates are not batched; run those one by one")
+        tau = options.pop("tau", None)
         streaming = {key: options.pop(key) for key in ("record_measurements", "record_every", "record_seconds") if key in options}
         pipeline = cls.__new__(cls)
         pipeline.compose(**options)
         pipeline.candidates = None
-        z = pipeline.network.stack({name: a.reshape(R * steps, a.shape[-1]) for name, a in arrays.items()}).reshape(R, steps, -1)
+        z = stacked_measurements(pipeline.network, measurements)
+        R, steps = z.shape[:2]
+        t, dt = batch_times(times, tau, R, steps)
+        priors, truths, recorders = batch_priors(prior, R), per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
         pipeline.start(z, t, dt, priors, recorders, truths, **streaming)
         return pipeline
 
