@@ -31,6 +31,7 @@ every step (EKF; MotionModel contract: F x̂ + B = f(x̂)).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -45,31 +46,22 @@ class BankStep:
     ``innovation`` the Innovation when one update covered the whole bank (e.g. the associations of a
     clutter-aware update), else None."""
 
-    def __init__(self, updates, size: int, loglik=None, nis=None, m=None):
-        self.updates: tuple[tuple[np.ndarray, Innovation], ...] = updates
-        self._size, self._loglik, self._nis, self._m = size, loglik, nis, m
+    def __init__(self, updates: tuple[tuple[np.ndarray, Innovation], ...], size: int, **scores):
+        self.updates, self.size = updates, size
+        self.innovation = updates[0][1] if len(updates) == 1 else None
+        self.__dict__.update(scores)  # loglik, nis, m of a grouped update (else read from the innovation on first use)
 
-    @property
-    def innovation(self) -> Innovation | None:
-        return self.updates[0][1] if len(self.updates) == 1 else None
-
-    @property
+    @cached_property
     def loglik(self) -> np.ndarray:
-        if self._loglik is None:
-            self._loglik = np.asarray(self.updates[0][1].loglik, dtype=float)
-        return self._loglik
+        return np.asarray(self.innovation.loglik, dtype=float)
 
-    @property
+    @cached_property
     def nis(self) -> np.ndarray:
-        if self._nis is None:
-            self._nis = np.asarray(self.updates[0][1].nis, dtype=float)
-        return self._nis
+        return np.asarray(self.innovation.nis, dtype=float)
 
-    @property
+    @cached_property
     def m(self) -> np.ndarray:
-        if self._m is None:
-            self._m = np.full(self._size, self.updates[0][1].measurement_dim)
-        return self._m
+        return np.full(self.size, self.innovation.measurement_dim)
 
 
 class FilterBank:
@@ -291,7 +283,7 @@ class FilterBank:
             loglik[rows], nis[rows], m[rows] = innovation.loglik, innovation.nis, innovation.measurement_dim
         self.state = self.estimator.take(self.estimator.concatenate(parts), np.argsort(np.concatenate(order)))
         self._forget_moments()
-        return BankStep(tuple(updates), F, loglik, nis, m)
+        return BankStep(tuple(updates), F, loglik=loglik, nis=nis, m=m)
 
 
 def _fill(root: np.ndarray | None, rows: np.ndarray, new: np.ndarray | None) -> np.ndarray | None:
