@@ -357,6 +357,11 @@ class Pipeline:
         return self.processed >= self.steps
 
     @property
+    def state(self) -> Any:
+        """The bank's estimator state after the last step (every run's filters, run by run)."""
+        return self.bank.state
+
+    @property
     def decisions(self) -> list[Decision]:
         """Run 0's decisions so far (:meth:`result` gives each run's)."""
         return self.run_decisions[0]
