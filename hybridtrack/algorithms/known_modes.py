@@ -20,8 +20,7 @@ from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Gaussian
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch import batch_times
-from hybridtrack.engine.batch_inputs import prior_arrays, run_groups, stacked_measurements
+from hybridtrack.engine.batch import batch_times, prior_arrays, run_groups, stacked_measurements
 from hybridtrack.engine.pipeline import mode_label
 from hybridtrack.engine.results import RunResult
 from hybridtrack.engine.simulate import build_models

@@ -32,8 +32,7 @@ from hybridtrack.core.protocols import HypothesisTest, HypothesisTestBatch
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.validation import check_positive
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch import batch_times, per_run
-from hybridtrack.engine.batch_inputs import prior_arrays, run_groups, stacked_measurements
+from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, run_groups, stacked_measurements
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.engine.schedule import Schedule

@@ -56,9 +56,10 @@ merging are done there, and a mixed estimate is projected back onto model j's
 components (the marginal of a Gaussian: the sub-vector and sub-matrix).
 The outputs (means, covariances, each model's estimate) are in the union layout.
 
-The filters of one layout form one bank of the inner estimator, so a step is
-one ``initialize``/``predict``/``update`` per distinct layout over every
-model and every run (R runs: prior (R, n), measurements (R, K+1, m); one
+The filters of one layout form one :class:`~hybridtrack.engine.bank.FilterBank`
+of the inner estimator (the engine's bank: its transitions, the update grouped
+by missing pattern), so a step is one ``initialize``/``predict``/``update`` per
+distinct layout over every model and every run (R runs: prior (R, n), measurements (R, K+1, m); one
 run is the batch of one).  The inner estimator is re-initialized from the
 mixed (x̂_0j, P_0j) at every step: a mixture of Gaussians has no factor form
 to carry over, so a square-root estimator starts each step from a fresh
@@ -78,11 +79,13 @@ from typing import Any
 import attrs
 import numpy as np
 
-from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor, TransitionBank
+from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor
 from hybridtrack.core.plugins import resolve, resolve_registry
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.validation import as_float_array, check_positive
-from hybridtrack.engine.bank import grouped_transitions
+from hybridtrack.engine.bank import FilterBank
+from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, stacked_measurements
+from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.mixtures import logsumexp, mixture
 from hybridtrack.sdk.network import SensorNetwork
@@ -237,10 +240,7 @@ class MultipleModelEstimator:
         r = len(self.models)
         if r == 0:
             raise ValueError("models: expected at least one motion model, got an empty sequence")
-        from hybridtrack.engine.pipeline import mode_label  # in the call: engine.pipeline still imports the recording layer
-
-        labels = [mode_label(m) for m in self.models]
-        self.modes = tuple(x if labels.count(x) == 1 else f"{x}_{i}" for i, x in enumerate(labels))
+        self.modes = mode_labels(self.models)
         if (transition_matrix is None) == (sojourn is None):
             raise ValueError("transition_matrix, sojourn: give exactly one (Π of shape (r, r), or the mean sojourn time in seconds)")
         with np.errstate(divide="ignore"):
@@ -265,7 +265,7 @@ class MultipleModelEstimator:
             groups.setdefault(tuple(m.layout), []).append(j)
         self._groups = [(layout, np.array(members)) for layout, members in groups.items()]
         self._rows: dict[tuple, np.ndarray] = {}
-        self._banks: dict[tuple, TransitionBank] = {}
+        self._banks = [FilterBank(self.estimator, layout, self.network.sensors) for layout, _ in self._groups]
 
     def _per_component(self, value, name: str, positive: bool) -> np.ndarray:
         n = len(self.layout)
@@ -313,29 +313,12 @@ class MultipleModelEstimator:
     def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
         """Model-conditioned filtering of F filters per run: start (R, F, n) in the union layout, filter f runs
         model ``filter_models[f]``; predict over ``dt`` (seconds, one for all runs or (R,) per run; None: update
-        only) and update with z (R, Σm).  Returns the posteriors (R, F, n), (R, F, n, n) in the union layout
-        and ℓ (R, F).  Runs missing different components (NaN) are filtered in groups of one pattern each
-        (a bank has one pattern)."""
-        missing = np.isnan(z)
-        if (missing == missing[0]).all():
-            return self._filter_runs(start_means, start_covs, filter_models, dt, z)
+        only) and update with z (R, Σm), one :class:`~hybridtrack.engine.bank.FilterBank` per layout re-started
+        at the starts (its transitions built there: a turn's ω and centre from x̂_0j).  Returns the posteriors
+        (R, F, n), (R, F, n, n) in the union layout and ℓ (R, F)."""
         R, F, n = start_means.shape
         means, covs, loglik = np.empty((R, F, n)), np.empty((R, F, n, n)), np.empty((R, F))
-        patterns, which = np.unique(missing, axis=0, return_inverse=True)
-        for g in range(len(patterns)):
-            runs = np.flatnonzero(which.reshape(-1) == g)
-            part_dt = dt if dt is None or np.ndim(dt) == 0 else np.asarray(dt)[runs]
-            means[runs], covs[runs], loglik[runs] = self._filter_runs(start_means[runs], start_covs[runs], filter_models, part_dt, z[runs])
-        return means, covs, loglik
-
-    def _filter_runs(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
-        """:meth:`_filter` for runs that all miss the same components."""
-        R, F, n = start_means.shape
-        means = np.empty((R, F, n))
-        covs = np.empty((R, F, n, n))
-        loglik = np.empty((R, F))
-        sensors = self.network.sensors
-        for g, (layout, members) in enumerate(self._groups):
+        for g, (_, members) in enumerate(self._groups):
             key = (g, filter_models.tobytes())
             if key not in self._rows:
                 self._rows[key] = np.flatnonzero(np.isin(filter_models, members))
@@ -343,32 +326,16 @@ class MultipleModelEstimator:
             if rows.size == 0:
                 continue
             pos = self._positions[members[0]]
-            x0 = start_means[:, rows][..., pos]
-            P0 = start_covs[:, rows][..., pos[:, None], pos[None, :]]
-            x0_flat = x0.reshape(R * rows.size, pos.size)
-            state = self.estimator.initialize(x0_flat, 0.5 * (P0 + np.swapaxes(P0, -1, -2)).reshape(R * rows.size, pos.size, pos.size))
-            if dt is not None:
-                models = [self.models[filter_models[f]] for f in rows] * R
-                steps = float(dt) if np.ndim(dt) == 0 else np.repeat(np.asarray(dt, dtype=float), rows.size)
-                bank = self._same_bank(key, grouped_transitions(models, steps, x0_flat))  # transition_bank per model
-                state = self.estimator.predict(state, bank)
-            measurement = z[0] if R == 1 else np.repeat(z, rows.size, axis=0)
-            state, innovation = self.estimator.update(state, measurement, sensors, layout)
-            x = np.asarray(self.estimator.mean(state), dtype=float).reshape(R, rows.size, pos.size)
-            P = np.asarray(self.estimator.covariance(state), dtype=float).reshape(R, rows.size, pos.size, pos.size)
-            P = 0.5 * (P + np.swapaxes(P, -1, -2))
-            means[:, rows], covs[:, rows] = self.expand(x, P, pos)  # one layout: the same expansion for every member
-            loglik[:, rows] = np.asarray(innovation.loglik, dtype=float).reshape(R, rows.size)
+            x0 = start_means[:, rows][..., pos].reshape(R * rows.size, pos.size)
+            P0 = start_covs[:, rows][..., pos[:, None], pos[None, :]].reshape(R * rows.size, pos.size, pos.size)
+            bank = self._banks[g]
+            models = [self.models[filter_models[f]] for f in rows] * R
+            bank.start(x0, 0.5 * (P0 + np.swapaxes(P0, -1, -2)), models, x0, np.repeat(np.arange(R), rows.size))
+            scores = bank.step(dt, z)
+            shape = (R, rows.size, pos.size)
+            means[:, rows], covs[:, rows] = self.expand(bank.means.reshape(shape), bank.covs.reshape(shape + (pos.size,)), pos)
+            loglik[:, rows] = scores.loglik.reshape(R, rows.size)
         return means, covs, loglik
-
-    def _same_bank(self, key, bank: TransitionBank) -> TransitionBank:
-        """The previous step's bank object when the transitions did not change (models that ignore the switch
-        state), so the estimator's per-bank caches (checks, structure) are reused; else ``bank``."""
-        old = self._banks.get(key)
-        if old is not None and all(np.array_equal(getattr(old, f), getattr(bank, f)) for f in ("F", "B", "Q")):
-            return old
-        self._banks[key] = bank
-        return bank
 
     def _combine(self, model_means, model_covs, log_mu, model_loglik, loglik) -> MultipleModelState:
         mean, cov = mixture(log_mu, model_means, model_covs)
@@ -495,14 +462,11 @@ class MultipleModelEstimator:
         the estimate, one ``mode_probability`` series per model, the most
         probable mode, the measurements).
         """
-        from hybridtrack.engine.batch import batch_measurements, batch_priors, batch_times, per_run  # as mode_label
-
-        arrays, R, steps = batch_measurements(measurements)
+        z = stacked_measurements(self.network, measurements)
+        R, steps = z.shape[:2]
         T, DT = batch_times(times, self.tau, R, steps)
         truths, recorders = per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
-        z = self.network.stack({name: a.reshape(R * steps, a.shape[-1]) for name, a in arrays.items()}).reshape(R, steps, -1)
-        priors = batch_priors(prior, R)
-        mean, cov = np.stack([p.mean for p in priors]), np.stack([p.cov for p in priors])
+        mean, cov = prior_arrays(prior, R)
         states = [self.start(mean, cov, z[:, 0], mode_probabilities, prior_layout)]
         same = bool((DT == DT[:1]).all())
         for k in range(1, steps):

@@ -1,7 +1,9 @@
 """One bank of filters: R runs × M_r filters in one estimator state, whose membership changes between steps.
 
-The storage under every algorithm with a changing bank (known switch,
-unknown change, known modes); a single run is R = 1.  The filters are
+The storage and the step under every bank of filters: the pipeline's fixed
+bank, the changing banks of the adaptive algorithms (known switch, unknown
+change, known modes) and the model-matched filters of the multiple-model
+estimators (re-started at the mixed estimates every step); a single run is R = 1.  The filters are
 ordered run by run; each carries its run index, its motion model and the
 switch state its transition is fixed at (SPEC §1: a turn's ω and centre come
 from the estimate at the hypothesised switch).  The bank holds the
@@ -14,36 +16,52 @@ decentralized filter's nodes keep their own states.
 
 A step predicts every filter over its own run's Δt and updates it with its
 own run's measurement row (the Estimator contract takes ``z`` of shape
-(M, Σm), one row per filter).  Runs
+(M, Σm), one row per filter; a bank of one run is given the run's row (Σm,),
+shared by its filters), or hands every filter the same clutter scans.  Runs
 whose measurements miss different components (NaN) at a step are updated in
 groups of equal missing pattern (the contract needs one pattern per update).
 Transitions are built for each filter's Δt and kept until its Δt, model or
 switch state changes, so regular sampling builds each filter's transition
-once; a run whose bank holds a nonlinear model relinearizes all its filters
-at their means every step (EKF; MotionModel contract: F x̂ + B = f(x̂)).
+once, and a re-started bank whose transitions came out equal keeps the
+previous bank object (the estimator's per-bank caches stay valid); a run whose
+bank holds a nonlinear model relinearizes all its filters at their means
+every step (EKF; MotionModel contract: F x̂ + B = f(x̂)).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import cached_property
 from typing import Any
 
-import attrs
 import numpy as np
 
 from hybridtrack.core.interfaces import Estimator, Innovation, MotionModel, Sensor, TransitionBank
 
 
-@attrs.frozen(eq=False)
 class BankStep:
-    """One step of a bank: ℓ (F,), NIS (F,) and m (F,), the number of components each filter's update measured
-    (0: prediction only); ``innovation`` the estimator's own Innovation when one update covered the whole bank
-    (e.g. the associations of a clutter-aware update), else None."""
+    """One step of a bank: ``updates``, the runs each update covered (ascending) with the estimator's own
+    Innovation of their filters (one update for the whole bank, or one per missing pattern), and per filter
+    (F,) ℓ ``loglik``, ``nis`` and ``m``, the number of components its update measured (0: prediction only);
+    ``innovation`` the Innovation when one update covered the whole bank (e.g. the associations of a
+    clutter-aware update), else None."""
 
-    loglik: np.ndarray
-    nis: np.ndarray
-    m: np.ndarray
-    innovation: Innovation | None = None
+    def __init__(self, updates: tuple[tuple[np.ndarray, Innovation], ...], size: int, **scores):
+        self.updates, self.size = updates, size
+        self.innovation = updates[0][1] if len(updates) == 1 else None
+        self.__dict__.update(scores)  # loglik, nis, m of a grouped update (else read from the innovation on first use)
+
+    @cached_property
+    def loglik(self) -> np.ndarray:
+        return np.asarray(self.innovation.loglik, dtype=float)
+
+    @cached_property
+    def nis(self) -> np.ndarray:
+        return np.asarray(self.innovation.nis, dtype=float)
+
+    @cached_property
+    def m(self) -> np.ndarray:
+        return np.full(self.size, self.innovation.measurement_dim)
 
 
 class FilterBank:
@@ -65,31 +83,42 @@ class FilterBank:
         self.models: list[MotionModel] = []
         self.switch_states = np.zeros((0, len(self.layout)))
         self.run = np.zeros(0, dtype=int)
+        self._runs = np.arange(1)
         self._dt = np.zeros(0)  # Δt each filter's cached transition was built for (NaN: none)
+        self._shared_dt: float | None = None  # the one Δt of every cached transition of a linear bank, if one
         self._F = self._B = self._Q = self._root = None
         self._bank: TransitionBank | None = None  # the same object while nothing changes (estimators cache per bank)
+        self._last: TransitionBank | None = None  # the bank object before the last set (kept if equal)
         self._linear: bool | None = None  # every model linear (None: not known yet)
-        self._moments: tuple | None = None
+        self._forget_moments()  # x, P as the estimator gives them, ½(P + Pᵀ)
 
     def __len__(self) -> int:
         return len(self.models)
 
     # ------------------------------------------------------------------ reading
-    def _read(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._moments is None:
-            covs = np.asarray(self.estimator.covariance(self.state), dtype=float)
-            self._moments = (np.asarray(self.estimator.mean(self.state), dtype=float), 0.5 * (covs + np.swapaxes(covs, -1, -2)))
-        return self._moments
-
     @property
     def means(self) -> np.ndarray:
         """x (F, n) of every filter."""
-        return self._read()[0]
+        if self._mean is None:
+            self._mean = np.asarray(self.estimator.mean(self.state), dtype=float)
+        return self._mean
+
+    @property
+    def raw_covs(self) -> np.ndarray:
+        """P (F, n, n) of every filter as the estimator gives it."""
+        if self._cov is None:
+            self._cov = np.asarray(self.estimator.covariance(self.state), dtype=float)
+        return self._cov
 
     @property
     def covs(self) -> np.ndarray:
         """P (F, n, n) of every filter, symmetrized ½(P + Pᵀ)."""
-        return self._read()[1]
+        if self._sym is None:
+            self._sym = 0.5 * (self.raw_covs + np.swapaxes(self.raw_covs, -1, -2))
+        return self._sym
+
+    def _forget_moments(self) -> None:
+        self._mean = self._cov = self._sym = None
 
     @property
     def sizes(self) -> np.ndarray:
@@ -123,11 +152,12 @@ class FilterBank:
         self.switch_states = np.array(np.broadcast_to(np.asarray(switch_states, dtype=float), (F, len(self.layout))))
         self.run = np.zeros(F, dtype=int) if run is None else np.asarray(run, dtype=int)
         self.runs = int(self.run.max()) + 1 if F else 1
-        self._dt = np.full(F, np.nan)
+        self._runs = np.arange(self.runs)
+        self._dt, self._shared_dt = np.full(F, np.nan), None
         self._F = self._B = self._Q = self._root = None
-        self._bank = None
+        self._last, self._bank = (self._last if self._bank is None else self._bank), None
         self._linear = None
-        self._moments = None
+        self._forget_moments()
 
     def take(self, rows, fresh: np.ndarray | None = None) -> None:
         """Keep the filters ``rows`` in that order (repeats copy a filter's state, in its own form).
@@ -144,13 +174,12 @@ class FilterBank:
         if self._linear is False:  # the nonlinear models may have gone
             self._linear = None
         if fresh is not None:
-            self._dt = np.where(fresh, np.nan, self._dt)
+            self._dt, self._shared_dt = np.where(fresh, np.nan, self._dt), None
         self._bank = None
         if self._F is not None:
             self._F, self._B, self._Q = self._F[rows], self._B[rows], self._Q[rows]
             self._root = None if self._root is None else self._root[rows]
-        if self._moments is not None:
-            self._moments = (self._moments[0][rows], self._moments[1][rows])
+        self._mean, self._cov, self._sym = (None if a is None else a[rows] for a in (self._mean, self._cov, self._sym))
 
     def assign(self, rows, models: Sequence[MotionModel], switch_states) -> None:
         """Give the filters ``rows`` new models and switch states (their transitions are rebuilt at the next step)."""
@@ -158,7 +187,7 @@ class FilterBank:
         for i, model in zip(rows, models):
             self.models[i] = model
         self.switch_states[rows] = switch_states
-        self._dt[rows] = np.nan
+        self._dt[rows], self._shared_dt = np.nan, None
         if self._linear:
             self._linear = all(m.linear for m in models)
 
@@ -181,9 +210,20 @@ class FilterBank:
         """Every filter's transition over its own Δt ((F,) or one for all), each built at its switch state (rebuilt
         where Δt changed or the filter is new); the filters of a run with a nonlinear model are relinearized at
         their current means."""
+        if dt.__class__ is float and dt == self._shared_dt and self._bank is not None:
+            return self._bank  # the common step: nothing changed
+        shared = float(dt) if np.ndim(dt) == 0 else None
         dt = np.broadcast_to(np.asarray(dt, dtype=float), (len(self),))
         if self._linear is None:
             self._linear = all(m.linear for m in {id(m): m for m in self.models}.values())
+        rows = np.zeros(0, dtype=np.intp)
+        if not self._linear:
+            nonlinear = np.zeros(self.runs, dtype=bool)
+            nonlinear[self.run[[not m.linear for m in self.models]]] = True
+            rows = np.flatnonzero(nonlinear[self.run])
+            at = TransitionBank.stack([self.models[i].transition(float(dt[i]), x) for i, x in zip(rows, self.means[rows])])
+            if rows.size == len(self):
+                return at
         stale = np.arange(len(self)) if self._F is None else np.flatnonzero(~(dt == self._dt))
         if stale.size:
             new = grouped_transitions([self.models[i] for i in stale], dt[stale], self.switch_states[stale])
@@ -195,15 +235,14 @@ class FilterBank:
             self._dt = dt.copy()
             self._bank = None
         if self._bank is None:
-            self._bank = TransitionBank(self._F, self._B, self._Q, self._root)
-        if self._linear:
+            last = self._last
+            if last is not None and all(np.array_equal(getattr(last, f), a) for f, a in (("F", self._F), ("B", self._B), ("Q", self._Q))):
+                self._bank = last  # equal transitions: the estimator's caches for this object still hold
+            else:
+                self._bank = TransitionBank(self._F, self._B, self._Q, self._root)
+        if not rows.size:
+            self._shared_dt = shared
             return self._bank
-        nonlinear = np.zeros(self.runs, dtype=bool)
-        nonlinear[self.run[[not m.linear for m in self.models]]] = True
-        rows = np.flatnonzero(nonlinear[self.run])
-        at = TransitionBank.stack([self.models[i].transition(float(dt[i]), x) for i, x in zip(rows, self.means[rows])])
-        if rows.size == len(self):
-            return at
         F, B, Q = self._F.copy(), self._B.copy(), self._Q.copy()
         F[rows], B[rows], Q[rows] = at.F, at.B, at.Q
         return TransitionBank(F, B, Q, _fill(None if self._root is None else self._root.copy(), rows, at.noise_root))
@@ -213,37 +252,38 @@ class FilterBank:
         with its run's row of ``z`` (R, Σm) (any other form, e.g. a clutter scan, is handed to every filter)."""
         state = self.state
         if dt is not None:
-            dt = np.broadcast_to(np.asarray(dt, dtype=float), (self.runs,))
-            state = self.estimator.predict(state, self.transitions(dt[self.run]))
+            if not isinstance(dt, np.ndarray):
+                dt = float(dt)
+            else:
+                dt = dt.take(self.run) if dt.size > 1 else dt.item()
+            state = self.estimator.predict(state, self.transitions(dt))
         if isinstance(z, np.ndarray) and z.ndim == 2:
-            missing = np.isnan(z)
-            if (missing != missing[:1]).any():
-                return self._grouped(state, z, missing)
-            z = z[self.run]
+            if z.shape[0] > 1:
+                missing = np.isnan(z)
+                if (missing != missing[:1]).any():
+                    return self._grouped(state, z, missing)
+            z = z[0] if self.runs == 1 else z.take(self.run, axis=0)  # take: ten times faster than z[run] here
         self.state, innovation = self.estimator.update(state, z, self.sensors, self.layout)
-        self._moments = None
-        m = np.full(len(self), innovation.measurement_dim)
-        return BankStep(np.asarray(innovation.loglik, dtype=float), np.asarray(innovation.nis, dtype=float), m, innovation)
+        self._mean = self._cov = self._sym = None
+        return BankStep(((self._runs, innovation),), len(self.models))
 
     def _grouped(self, state, z: np.ndarray, missing: np.ndarray) -> BankStep:
         """The update of runs with different missing components, one update per missing pattern."""
         _, group = np.unique(missing, axis=0, return_inverse=True)
-        group = group.reshape(-1)[self.run]
+        group = group.reshape(-1)
         F = len(self)
         loglik, nis, m = np.zeros(F), np.zeros(F), np.zeros(F, dtype=int)
-        parts, order = [], []
-        for g in np.unique(group):
-            rows = np.flatnonzero(group == g)
+        parts, order, updates = [], [], []
+        for g in np.unique(group[self.run]):
+            rows = np.flatnonzero(group[self.run] == g)
             part, innovation = self.estimator.update(self.estimator.take(state, rows), z[self.run[rows]], self.sensors, self.layout)
             parts.append(part)
             order.append(rows)
+            updates.append((np.unique(self.run[rows]), innovation))
             loglik[rows], nis[rows], m[rows] = innovation.loglik, innovation.nis, innovation.measurement_dim
-        order = np.concatenate(order)
-        inverse = np.empty_like(order)
-        inverse[order] = np.arange(order.size)
-        self.state = self.estimator.take(self.estimator.concatenate(parts), inverse)
-        self._moments = None
-        return BankStep(loglik, nis, m)
+        self.state = self.estimator.take(self.estimator.concatenate(parts), np.argsort(np.concatenate(order)))
+        self._forget_moments()
+        return BankStep(tuple(updates), F, loglik=loglik, nis=nis, m=m)
 
 
 def _fill(root: np.ndarray | None, rows: np.ndarray, new: np.ndarray | None) -> np.ndarray | None:
@@ -257,39 +297,44 @@ def _fill(root: np.ndarray | None, rows: np.ndarray, new: np.ndarray | None) -> 
 def grouped_transitions(models: Sequence[MotionModel], dts, switch_states: np.ndarray) -> TransitionBank:
     """The transitions of S filters, filter i running ``models[i]`` over ``dts[i]`` (a float for all, or (S,))
     from switch state ``switch_states[i]`` (S, n), all in one layout: one
-    :meth:`~hybridtrack.core.interfaces.MotionModel.transition_bank` call per (model, Δt) group of several
-    filters (one ``TransitionBank.stack`` of the filters alone in theirs), scattered back into filter order.  Equal to ``TransitionBank.stack([models[i].transition(dts[i], switch_states[i]) …])``
-    entry by entry (``transition_bank`` must equal the stacked transitions; the motion tests check), so
-    F_i, B_i, Q_i are seed 000's eq. (3) transitions of each filter's mode.  The noise roots G·chol(Q) are
-    kept when every group has one of the same shape (else ``None``, as ``TransitionBank.stack`` gives for
-    noise inputs of different sizes)."""
+    :meth:`~hybridtrack.core.interfaces.MotionModel.transition_bank` call per (model, Δt) group of filters at
+    different switch states, one ``TransitionBank.stack`` of one filter of every other group (a group at one
+    switch state copies its filter's transition), scattered back into filter order.  Equal to
+    ``TransitionBank.stack([models[i].transition(dts[i], switch_states[i]) …])`` entry by entry
+    (``transition_bank`` must equal the stacked transitions; the motion tests check), so F_i, B_i, Q_i are
+    seed 000's eq. (3) transitions of each filter's mode.  The noise roots G·chol(Q) are kept when every
+    group has one of the same shape (else ``None``, as ``TransitionBank.stack`` gives for noise inputs of
+    different sizes)."""
     switch_states = np.asarray(switch_states, dtype=float)
     S = len(models)
     if switch_states.ndim != 2 or switch_states.shape[0] != S:
         raise ValueError(f"switch_states: expected ({S}, n) for {S} filters, got shape {switch_states.shape}")
     steps = np.broadcast_to(np.asarray(dts, dtype=float), (S,))
     groups: dict = {}
-    for i, (model, d) in enumerate(zip(models, steps)):
-        groups.setdefault((id(model), float(d)), (model, []))[1].append(i)
+    for i, key in enumerate(zip(map(id, models), steps.tolist())):
+        groups.setdefault(key, []).append(i)
+    singles, copies, banks = [], [], []  # one transition for the group's filters: its first, copied to the others
+    for (_, d), members in groups.items():
+        if len(members) == 1 or (switch_states[members] == switch_states[members[0]]).all():
+            singles.append(members[0])
+            if len(members) > 1:
+                copies.append(members)
+        else:
+            banks.append((np.asarray(members), models[members[0]].transition_bank(d, switch_states[members])))
+    if singles:
+        stacked = TransitionBank.stack([models[i].transition(float(steps[i]), switch_states[i]) for i in singles])
+        banks.insert(0, (np.asarray(singles), stacked))
     n = switch_states.shape[1]
     F, B, Q = np.zeros((S, n, n)), np.zeros((S, n)), np.zeros((S, n, n))
-    roots, positions = [], []
-    singles = [members[0] for _, members in groups.values() if len(members) == 1]  # one stack for all of them
-    banks = []
-    if singles:
-        banks.append(
-            (np.asarray(singles), TransitionBank.stack([models[i].transition(float(steps[i]), switch_states[i]) for i in singles]))
-        )
-    for (_, d), (model, members) in groups.items():
-        if len(members) > 1:
-            banks.append((np.asarray(members), model.transition_bank(d, switch_states[members])))
     for members, bank in banks:
         F[members], B[members], Q[members] = bank.F, bank.B, bank.Q
-        roots.append(bank.noise_root)
-        positions.append(members)
+    roots = [bank.noise_root for _, bank in banks]
     root = None
     if all(r is not None for r in roots) and len({r.shape[1:] for r in roots}) == 1:
         root = np.zeros((S,) + roots[0].shape[1:])
-        for members, r in zip(positions, roots):
+        for (members, _), r in zip(banks, roots):
             root[members] = r
+    for members in copies:
+        for a in (F, B, Q) if root is None else (F, B, Q, root):
+            a[members[1:]] = a[members[0]]
     return TransitionBank(F, B, Q, root)

@@ -1,16 +1,14 @@
-"""The inputs of R runs stacked into one bank: measurements, times, priors, per-run values, and the transitions.
+"""The inputs of R runs, checked and stacked for one bank: measurements, times, priors, per-run values.
 
-:meth:`hybridtrack.engine.pipeline.Pipeline.batch` (and the algorithms'
-``run_batch``) take R runs as one bank of R × M filters, row r·M + j being
-filter j of run r.  These helpers check and stack what the runs give:
-measurements sensor name → (R, K+1, m_i) (:func:`batch_measurements`), times
-shared (K+1,) or per run (R, K+1) (:func:`batch_times`), one prior or one per
-run (:func:`batch_priors`), a value per run (:func:`per_run`), and
-:class:`RunTransitions`, the stacked transitions of R runs × M linear models:
-a linear model's transition is fixed at run r's prior mean (the switch state,
-SPEC §1) and rebuilt for run r's Δt_k; runs sharing (Δt, prior mean) share one
-block, and the stacked bank object is reused while nothing changes, so the
-estimator's per-bank caches hit.
+:meth:`hybridtrack.engine.pipeline.Pipeline.batch` and the algorithms'
+``run_batch`` take R runs as one :class:`~hybridtrack.engine.bank.FilterBank`
+of R × M filters, row r·M + j being filter j of run r.  These helpers check and
+stack what the runs give: measurements sensor name → (R, K+1, m_i)
+(:func:`batch_measurements`), side by side as one z (R, K+1, Σm) in the
+network's order (:func:`stacked_measurements`), times shared (K+1,) or per run
+(R, K+1) (:func:`batch_times`), one prior or one per run (:func:`batch_priors`,
+as arrays :func:`prior_arrays`), a value per run (:func:`per_run`), and the
+runs that can share one bank (:func:`run_groups`).
 """
 
 from __future__ import annotations
@@ -19,9 +17,10 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from hybridtrack.core.interfaces import TransitionBank
+from hybridtrack.core.interfaces import Estimator
 from hybridtrack.core.types import Gaussian
 from hybridtrack.core.validation import as_float_array
+from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
 
 
@@ -39,6 +38,13 @@ def batch_measurements(measurements: Mapping[str, np.ndarray]) -> tuple[dict[str
     if runs < 1 or steps < 1:
         raise ValueError(f"measurements: expected at least one run and one step, got (runs, K+1) = ({runs}, {steps})")
     return arrays, runs, steps
+
+
+def stacked_measurements(network: SensorNetwork, measurements: Mapping[str, np.ndarray]) -> np.ndarray:
+    """z (R, K+1, Σm): every sensor's (R, K+1, m_i) array side by side in the network's order (names and m checked)."""
+    arrays, runs, steps = batch_measurements(measurements)
+    flat = network.stack({name: value.reshape(runs * steps, *value.shape[2:]) for name, value in arrays.items()})
+    return flat.reshape(runs, steps, -1)
 
 
 def batch_times(times, tau, runs: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
@@ -69,6 +75,19 @@ def batch_priors(prior, runs: int) -> list[Gaussian]:
     return [Gaussian(mean[r], cov[r]) for r in range(runs)]
 
 
+def prior_arrays(prior, runs: int, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per-run prior means (R, n) and covariances (R, n, n) from one Gaussian (or (mean, cov)), or per-run means
+    (R, n) with a shared (n, n) or per-run (R, n, n) covariance; ``n`` the state size expected (None: any)."""
+    if not isinstance(prior, Gaussian) and isinstance(prior, (tuple, list)) and len(prior) == 2:
+        mean, cov = np.asarray(prior[0], dtype=float), np.asarray(prior[1], dtype=float)
+        if mean.ndim == 2 and cov.ndim == 2:
+            prior = (mean, np.broadcast_to(cov, (mean.shape[0],) + cov.shape))
+    priors = batch_priors(prior, runs)
+    if n is not None and priors[0].mean.shape != (n,):
+        raise ValueError(f"prior: expected a mean of the {n} state components, got shape {priors[0].mean.shape}")
+    return np.stack([p.mean for p in priors]), np.stack([p.cov for p in priors])
+
+
 def per_run(value, runs: int, name: str) -> list:
     """``value`` given per run (a sequence of R, or a mapping run → value) as a list of R (None where absent)."""
     if value is None:
@@ -83,42 +102,13 @@ def per_run(value, runs: int, name: str) -> list:
     raise ValueError(f"{name}: expected a mapping run index → value or a sequence of {runs} (one per run)")
 
 
-class RunTransitions:
-    """The stacked bank of transitions of R runs × M linear models, cached per (Δt, prior mean) block (one run:
-    its block for the last Δt only, rebuilt when Δt changes)."""
+def batchable(estimator: Estimator) -> bool:
+    """True when runs of ``estimator`` can share one bank: a centralized, non-sampling estimator
+    (a decentralized one's node copies and a particle filter's streams stay per run)."""
+    return not getattr(estimator, "sampling", False) and type(estimator).node_scores is Estimator.node_scores
 
-    def __init__(self, models, priors: list[Gaussian]):
-        self.models = models
-        self.means = [p.mean for p in priors]
-        shared = all(m is self.means[0] or np.array_equal(m, self.means[0]) for m in self.means)
-        self.prior_keys = np.zeros(len(priors), dtype=np.int64) if shared else np.arange(len(priors))
-        self.blocks: dict[tuple[float, int], TransitionBank] = {}
-        self.last: tuple[bytes | float, TransitionBank] | None = None
 
-    def block(self, dt: float, run: int) -> TransitionBank:
-        key = (dt, int(self.prior_keys[run]))
-        if key not in self.blocks:
-            self.blocks[key] = TransitionBank.stack([m.transition(dt, self.means[run]) for m in self.models])
-        return self.blocks[key]
-
-    def bank(self, dt: np.ndarray) -> TransitionBank:
-        """The transitions of every run's filters over its Δt (R,)."""
-        if len(self.means) == 1:
-            step = float(dt[0])
-            if self.last is None or self.last[0] != step:
-                self.last = (step, TransitionBank.stack([m.transition(step, self.means[0]) for m in self.models]))
-            return self.last[1]
-        key = np.stack([dt, self.prior_keys.astype(float)]).tobytes()
-        if self.last is not None and self.last[0] == key:
-            return self.last[1]
-        blocks = [self.block(float(d), r) for r, d in enumerate(dt)]
-        roots = [b.noise_root for b in blocks]
-        same_roots = all(r is not None for r in roots) and len({r.shape for r in roots}) == 1
-        bank = TransitionBank(
-            np.concatenate([b.F for b in blocks]),
-            np.concatenate([b.B for b in blocks]),
-            np.concatenate([b.Q for b in blocks]),
-            np.concatenate(roots) if same_roots else None,
-        )
-        self.last = (key, bank)
-        return bank
+def run_groups(estimator: Estimator, runs: int) -> list[np.ndarray]:
+    """The runs that share one bank: all of them for a :func:`batchable` estimator, else each run alone
+    (the same batched code, on a batch of one)."""
+    return [np.arange(runs)] if batchable(estimator) else [np.array([r]) for r in range(runs)]

@@ -28,12 +28,10 @@ is built for its own Δt.
 m_i)), with per-run times, priors, truths and recorders, and runs them as one
 bank of R × M filters (row r·M + j is filter j of run r), each step one
 ``predict`` and one ``update`` of the whole bank, in the same loop as a single
-run.  Transitions come from :class:`~hybridtrack.engine.batch.RunTransitions`.
-When runs miss different components at step k the runs are grouped by NaN
-pattern (a bank's pattern is one for all its filters): each group is cut out
-with the estimator's ``take``, updated, and the groups joined back with
-``concatenate`` and ``take`` (the bank keeps its own form, e.g. square-root
-factors).  Each run has its own copy of every detector through the one
+run: the bank is a :class:`~hybridtrack.engine.bank.FilterBank` (its
+transition cache, each run's Δt, the update grouped by missing pattern when
+runs miss different components, the bank kept in the estimator's own form,
+e.g. square-root factors).  Each run has its own copy of every detector through the one
 batching protocol, ``detector.batch(R)`` (:meth:`~hybridtrack.core.interfaces.Detector.batch`:
 looped deep copies by default, vectorized where a class overrides it); a
 single run steps the detectors it was given.  A sampling estimator (particle
@@ -65,11 +63,12 @@ from typing import Any, overload
 import attrs
 import numpy as np
 
-from hybridtrack.core.interfaces import Detector, DetectorStep, Estimator, Innovation, MotionModel, Sensor, TransitionBank
+from hybridtrack.core.interfaces import Detector, DetectorStep, Estimator, Innovation, MotionModel, Sensor
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Decision, Gaussian
-from hybridtrack.engine.batch import RunTransitions, batch_measurements, batch_priors, batch_times, per_run
+from hybridtrack.engine.bank import FilterBank
+from hybridtrack.engine.batch import batch_priors, batch_times, per_run, stacked_measurements
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
@@ -222,16 +221,17 @@ class Pipeline:
         (``models``, ``estimator``, ``sensors``, ``tau``, ``detectors``, …); clutter
         candidates are not batched (run those one by one).
         """
-        arrays, R, steps = batch_measurements(measurements)
-        t, dt = batch_times(times, options.pop("tau", None), R, steps)
-        priors, truths, recorders = batch_priors(prior, R), per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
         if "candidates" in options:
             raise ValueError("candidates: clutter candidates are not batched; run those one by one")
+        tau = options.pop("tau", None)
         streaming = {key: options.pop(key) for key in ("record_measurements", "record_every", "record_seconds") if key in options}
         pipeline = cls.__new__(cls)
         pipeline.compose(**options)
         pipeline.candidates = None
-        z = pipeline.network.stack({name: a.reshape(R * steps, a.shape[-1]) for name, a in arrays.items()}).reshape(R, steps, -1)
+        z = stacked_measurements(pipeline.network, measurements)
+        R, steps = z.shape[:2]
+        t, dt = batch_times(times, tau, R, steps)
+        priors, truths, recorders = batch_priors(prior, R), per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
         pipeline.start(z, t, dt, priors, recorders, truths, **streaming)
         return pipeline
 
@@ -307,7 +307,7 @@ class Pipeline:
             raise ValueError(f"record_every: expected a whole number of steps ≥ 1, got {record_every!r}")
         if record_seconds is not None and not (isinstance(record_seconds, (int, float)) and record_seconds > 0):
             raise ValueError(f"record_seconds: expected a positive number of seconds or None, got {record_seconds!r}")
-        self.runs, self.every_run = R, np.arange(R)
+        self.runs = R
         self.Z, self.T, self.DT = z, t, dt
         self.z, self.times, self.intervals = (z[0], t[0], dt[0]) if R == 1 else (z, t, dt)
         self.priors = priors
@@ -317,17 +317,14 @@ class Pipeline:
         self.record_measurements = record_measurements
         self.record_every, self.record_seconds = int(record_every), record_seconds
         est = self.estimator
+        self.bank = FilterBank(est, self.layout, self.network.sensors)
+        means, run = np.repeat(np.stack([p.mean for p in priors]), M, 0), np.repeat(np.arange(R), M)
         if est.sampling and R > 1:  # each run initialized as its own pipeline would be: a fresh copy of the estimator
             fresh = copy.deepcopy(est)
-            self.state = est.concatenate(
-                [copy.deepcopy(fresh).initialize(np.tile(p.mean, (M, 1)), np.tile(p.cov, (M, 1, 1))) for p in priors]
-            )
-        else:
-            self.state = est.initialize(
-                np.repeat(np.stack([p.mean for p in priors]), M, 0), np.repeat(np.stack([p.cov for p in priors]), M, 0)
-            )
-        self.linear = all(m.linear for m in self.models)
-        self.run_transitions = RunTransitions(self.models, priors)
+            state = est.concatenate([copy.deepcopy(fresh).initialize(np.tile(p.mean, (M, 1)), np.tile(p.cov, (M, 1, 1))) for p in priors])
+            self.bank.set(state, self.models * R, means, run)
+        else:  # a linear model's transition fixed at its run's prior mean, the switch state
+            self.bank.start(means, np.repeat(np.stack([p.cov for p in priors]), M, 0), self.models * R, means, run)
         self.batches = [d.batch(R) for d in self.detectors] if R > 1 else None
         K, n, m = z.shape[1], len(self.layout), z.shape[2]
         self.processed = 0
@@ -360,23 +357,14 @@ class Pipeline:
         return self.processed >= self.steps
 
     @property
+    def state(self) -> Any:
+        """The bank's estimator state after the last step (every run's filters, run by run)."""
+        return self.bank.state
+
+    @property
     def decisions(self) -> list[Decision]:
         """Run 0's decisions so far (:meth:`result` gives each run's)."""
         return self.run_decisions[0]
-
-    def transitions(self, dt) -> TransitionBank:
-        """The bank's transitions over ``dt`` seconds (one per run, or one for all).
-
-        Linear models: fixed at each run's prior mean (the switch state) and
-        rebuilt only when Δt changes; nonlinear models: relinearized at each
-        filter's current mean every step (EKF).
-        """
-        dt = np.full(self.runs, float(dt)) if np.ndim(dt) == 0 else dt
-        if self.linear:
-            return self.run_transitions.bank(dt)
-        M = len(self.models)
-        means = self.estimator.mean(self.state)
-        return TransitionBank.stack([self.models[i % M].transition(float(dt[i // M]), x) for i, x in enumerate(means)])
 
     # -- the loop
     def step(self) -> StepResult:
@@ -386,36 +374,17 @@ class Pipeline:
         if k >= self.steps:
             raise StopIteration(f"all {self.steps} steps processed")
         R, M = self.runs, len(self.models)
-        est, sensors = self.estimator, self.network.sensors
-        state = self.state
-        if k > 0:
-            state = est.predict(state, self.transitions(self.DT[:, k - 1]))
-        z = self.Z[:, k]
-        if self.candidates is not None:
-            groups = [np.arange(1)]
-            state, innovation = est.update(state, [seq.scan(k) for seq in self.candidates.values()], sensors, self.layout)
-            updates = [innovation]
-        elif R == 1 or (np.isnan(z) == np.isnan(z[0])).all():
-            groups = [self.every_run]
-            state, innovation = est.update(state, z[0] if R == 1 else np.repeat(z, M, axis=0), sensors, self.layout)
-            updates = [innovation]
-        else:
-            patterns, which = np.unique(np.isnan(z), axis=0, return_inverse=True)
-            groups = [np.flatnonzero(which.reshape(-1) == g) for g in range(len(patterns))]
-            parts, updates = [], []
-            for runs in groups:
-                part, innovation = est.update(est.take(state, self.rows(runs)), np.repeat(z[runs], M, axis=0), sensors, self.layout)
-                parts.append(part)
-                updates.append(innovation)
-            state = est.take(est.concatenate(parts), np.argsort(np.concatenate([self.rows(runs) for runs in groups])))
-        self.state = state
+        est = self.estimator
+        z = self.Z[:, k] if self.candidates is None else [seq.scan(k) for seq in self.candidates.values()]
+        updates = self.bank.step(self.DT[:, k - 1] if k else None, z).updates
+        state = self.bank.state
         if self._pending_states is not None:
             for r, pending in self._pending_states.items():
                 pending.append(state if R == 1 else est.take(state, self.rows([r])))
-        mean, cov = est.mean(state), est.covariance(state)
-        self.means[:, k] = np.asarray(mean).reshape(R, M, -1)
-        self.covs[:, k] = np.asarray(cov).reshape(R, M, *self.covs.shape[-2:])
-        for runs, innovation in zip(groups, updates):
+        mean, cov = self.bank.means, self.bank.raw_covs
+        self.means[:, k] = mean.reshape(R, M, -1)
+        self.covs[:, k] = cov.reshape(R, M, *self.covs.shape[-2:])
+        for runs, innovation in updates:
             self.store_scores(k, runs, innovation)
             if R == 1:  # a single run steps the detectors it was given
                 outputs = {d.label: d.step(k, innovation) for d in self.detectors}
@@ -433,7 +402,7 @@ class Pipeline:
         ):
             self.hand_over(lines=False)
         if R == 1:
-            return StepResult(k, float(self.T[0, k]), mean, cov, updates[0], outputs)
+            return StepResult(k, float(self.T[0, k]), mean, cov, updates[0][1], outputs)
         return self.step_result(k)
 
     def rows(self, runs) -> np.ndarray:

@@ -122,6 +122,7 @@ def test_filter_bank_of_two_runs_keeps_each_run_s_filters_together_and_updates_b
     z = np.array([[0.1, np.nan], [0.2, 0.4]])  # run 0 misses y: two updates, one per missing pattern
     scores = bank.step(np.array([0.1, 0.2]), z)
     assert scores.m.tolist() == [1, 1, 1, 2, 2, 2] and scores.innovation is None
+    assert [runs.tolist() for runs, _ in scores.updates] == [[1], [0]]  # one update per pattern, in pattern order
     for r, rows in enumerate(([0, 1, 2], [3, 4, 5])):  # each run alone gives the same filters
         alone = FilterBank(KalmanFilter(), layout, sensors)
         alone.start(X0 + 0.1 * r, np.eye(4), models, X0 + 0.1 * r)
@@ -129,6 +130,22 @@ def test_filter_bank_of_two_runs_keeps_each_run_s_filters_together_and_updates_b
         single = alone.step(0.1 * (r + 1), z[r : r + 1])
         np.testing.assert_allclose(bank.means[rows], alone.means, rtol=0, atol=1e-12)
         np.testing.assert_allclose(scores.loglik[rows], single.loglik, rtol=0, atol=1e-12)
+
+
+def test_a_restarted_filter_bank_keeps_its_equal_transition_object():
+    """The multiple-model estimators re-start their banks every step: equal transitions keep the bank object
+    (the estimator's per-bank caches), a changed switch state of a turn gives a new one."""
+    from hybridtrack_plugins.filters.kalman import KalmanFilter
+    from hybridtrack_plugins.motion.linear_modes import LeftTurn
+
+    bank = FilterBank(KalmanFilter(), ("x", "vx", "y", "vy"), [PositionSensor()])
+    models = [Straight(), LeftTurn(radius=3.0)]
+    bank.start(X0, np.eye(4), models, X0)
+    first = bank.transitions(0.1)
+    bank.start(X0 + 1.0, np.eye(4), models, X0)
+    assert bank.transitions(0.1) is first
+    bank.start(X0, np.eye(4), models, X0 + 1.0)
+    assert bank.transitions(0.1) is not first
 
 
 def test_example1_detects_the_right_turn():

@@ -142,7 +142,7 @@ def test_nearest_neighbour_and_pda_in_the_pipeline_agree_with_direct_updates():
         result = pipeline.run()
         est = pipeline.estimator
         state = est.initialize(np.array([[0.0, 0.0, 0.0, 2.0]]), np.eye(4)[None] * 0.01)
-        bank = pipeline.transitions(0.1)
+        bank = pipeline.bank.transitions(0.1)
         for k in range(scans["pos"].steps):
             if k:
                 state = est.predict(state, bank)
