@@ -20,14 +20,21 @@ from scipy.special import ndtri
 from hybridtrack.sdk.thresholds import check_probability
 
 
+def sorted_sample(values, name: str, what: str) -> np.ndarray:
+    """``values`` flattened, sorted and read-only; at least 10 finite values of ``what`` under H0, else
+    ``ValueError`` naming ``name``."""
+    sample = np.sort(np.asarray(values, dtype=float).reshape(-1))
+    if sample.size < 10 or not np.all(np.isfinite(sample)):
+        raise ValueError(f"{name}: expected at least 10 finite values of {what} under H0, got {sample.size}")
+    sample.setflags(write=False)
+    return sample
+
+
 class EmpiricalNormalizer:
     """ỹ = Φ⁻¹(F̂(y)) with F̂ the empirical CDF of ``reference`` (1-D, at least 10 finite values)."""
 
     def __init__(self, reference):
-        reference = np.asarray(reference, dtype=float).reshape(-1)
-        if reference.size < 10 or not np.all(np.isfinite(reference)):
-            raise ValueError(f"reference: expected at least 10 finite values of the signal under H0, got {reference.size}")
-        self.sorted = np.sort(reference)
+        self.sorted = sorted_sample(reference, "reference", "the signal")
 
     def __call__(self, y):
         y = np.asarray(y, dtype=float)
