@@ -21,12 +21,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Detector, DetectorStep, Innovation
 from hybridtrack.core.registry import registry_or_default
-from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.sdk.thresholds import check_probability
 
@@ -119,13 +119,8 @@ class DynamicThreshold(Detector):
     def _wrap(self, step: int, out: DetectorStep) -> DetectorStep:
         decision = out.decision
         if decision is not None:
-            decision = Decision(
-                decision.step,
-                self.label,
-                decision.mode,
-                decision.statistic,
-                f"{decision.message} [cue {'on' if self.holds else 'off'}, α = {self.detector.alpha:g}]",
-            )
+            cue = f"cue {'on' if self.holds else 'off'}, α = {self.detector.alpha:g}"
+            decision = attrs.evolve(decision, detector=self.label, message=f"{decision.message} [{cue}]")
         return DetectorStep({**out.statistics, "cue": float(self.holds)}, {**out.thresholds, **self.static_thresholds}, decision)
 
     def step(self, step: int, innovation: Innovation) -> DetectorStep:
