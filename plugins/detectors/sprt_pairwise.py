@@ -40,15 +40,9 @@ from hybridtrack.core.types import Decision
 from hybridtrack.sdk.thresholds import WaldThresholds
 
 
-def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """L_i − max_{j ≠ i, j active} L_j for every i (all j when fewer than two are active): one row of :func:`batch_margins`."""
-    return batch_margins(np.asarray(L)[None], np.asarray(active)[None])[0]
-
-
 def batch_margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """:func:`margins` of every row of L (U, H) with its row of ``active`` (U, H), vectorized over the rows.
-
-    The leader's margin is over the runner-up, the others' over the leader;
+    """L_i − max_{j ≠ i, j active} L_j for every i of every row of L (U, H) with its row of ``active`` (U, H)
+    (all j when fewer than two are active).  The leader's margin is over the runner-up, the others' over the leader;
     ties give the same values whichever tied filter is taken as the leader.
     """
     U, H = L.shape
@@ -65,35 +59,12 @@ def batch_margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
     return L - rival
 
 
-def rule_step(L, active, frozen, live, loglik, measured, lower: float, upper: float):
-    """Rule (5) at one step for U tests: L, active, frozen (U, H) as they stand, ``live`` (U,) the undecided ones,
-    ℓ (U, H), ``measured`` (U,).  Returns the new (L, active, frozen), ``chosen`` (U,) the hypothesis accepted
-    this step (−1: none), ``ratio`` (U, H) the margins it was accepted with, and the reported ``log_ratio`` (U, H)."""
-    L = np.where((live & measured)[:, None], L + loglik, L)
-    ratio = batch_margins(L, active)
-    dropped = live[:, None] & active & (ratio <= lower)
-    frozen = np.where(dropped, ratio, frozen)
-    active = active & ~dropped
-    ratio = batch_margins(L, active)
-    winners = live[:, None] & active & (ratio >= upper)
-    count = active.sum(axis=1)
-    deciding = live & ((count == 1) | winners.any(axis=1))
-    chosen = np.where(count == 1, np.argmax(active, axis=1), np.argmax(np.where(winners, ratio, -np.inf), axis=1))
-    chosen = np.where(deciding, chosen, -1)
-    rows = np.flatnonzero(deciding)
-    if rows.size:  # the accepted hypothesis keeps its margin over the best of all the others
-        frozen[rows, chosen[rows]] = batch_margins(L[rows], np.ones((rows.size, L.shape[1]), dtype=bool))[
-            np.arange(rows.size), chosen[rows]
-        ]
-        active[rows] = False
-    return L, active, frozen, chosen, ratio, np.where(active, batch_margins(L, active), frozen)
-
-
 def observe_tests(step, test, state, runs, loglik, measured, label: str):
     """One step of rule (5) for the tests ``runs`` (U,) of ``state`` (the attributes L, active, frozen (R, H) and
     decided (R,), −1 while undecided; filled on first use) with ℓ (U, H) and ``measured`` (U,); ``test`` gives
-    the hypotheses' names and the thresholds.  Returns the reported log_ratio (U, H), active (U, H), decided
-    (U,) and the Decisions."""
+    the hypotheses' names and the thresholds.  Returns the reported log_ratio (U, H) (the margins, frozen for
+    the dropped and the decided), active (U, H), the hypothesis accepted this step (U,) (−1: none) and the
+    Decisions."""
     U, H = loglik.shape
     if state.L is None:
         R = len(state.decided)
@@ -102,10 +73,23 @@ def observe_tests(step, test, state, runs, loglik, measured, label: str):
         raise ValueError(f"loglik: the bank changed from {state.L.shape[1]} to {H} filters; call reset() first")
     if test.hypotheses is not None and len(test.hypotheses) != H:
         raise ValueError(f"hypotheses: {len(test.hypotheses)} names for a bank of {H} filters")
-    live = state.decided[runs] < 0
-    L, active, frozen, chosen, ratio, out = rule_step(
-        state.L[runs], state.active[runs], state.frozen[runs], live, loglik, measured, test.lower, test.upper
-    )
+    live, L, active, frozen = state.decided[runs] < 0, state.L[runs], state.active[runs], state.frozen[runs]
+    L = np.where((live & measured)[:, None], L + loglik, L)
+    ratio = batch_margins(L, active)
+    dropped = live[:, None] & active & (ratio <= test.lower)
+    frozen = np.where(dropped, ratio, frozen)
+    active = active & ~dropped
+    ratio = batch_margins(L, active)
+    winners = live[:, None] & active & (ratio >= test.upper)
+    count = active.sum(axis=1)
+    deciding = live & ((count == 1) | winners.any(axis=1))
+    chosen = np.where(count == 1, np.argmax(active, axis=1), np.argmax(np.where(winners, ratio, -np.inf), axis=1))
+    chosen = np.where(deciding, chosen, -1)
+    rows = np.flatnonzero(deciding)
+    if rows.size:  # the accepted hypothesis keeps its margin over the best of all the others
+        frozen[rows, chosen[rows]] = batch_margins(L[rows], np.ones((rows.size, H), dtype=bool))[np.arange(rows.size), chosen[rows]]
+        active[rows] = False
+    out = np.where(active, batch_margins(L, active), frozen)
     state.L[runs], state.active[runs], state.frozen[runs] = L, active, frozen
     decisions = [None] * U
     for u in np.flatnonzero(chosen >= 0):
