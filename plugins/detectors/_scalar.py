@@ -48,6 +48,7 @@ class ScalarDetector(ScoreDetector):
         self._chi2_normalizers: dict[int, EmpiricalNormalizer] = {}
         self._null = None if null_sample is None else sorted_sample(null_sample, "null_sample", "the statistic")
         self.alpha = alpha
+        self.reset()
 
     def threshold_sample(self) -> np.ndarray:
         """The sorted H0 sample λ(α) is taken from: ``null_sample`` if given, else :meth:`h0_sample`."""
