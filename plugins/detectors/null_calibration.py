@@ -71,13 +71,10 @@ def h0_sample(
     statistic: str, parameter: float, seed: int = 20240601, runs: int = 2000, length: int = 200, burn_in: int = 100
 ) -> np.ndarray:
     """Sorted per-step values of ``statistic`` ("glr" with window, "cusum" with drift) on N(0,1) input (cached)."""
-    y = np.random.default_rng(seed).standard_normal((runs, length))
-    if statistic == "glr":
-        g = glr_statistics(y, int(parameter))
-    elif statistic == "cusum":
-        g = cusum_statistics(y, float(parameter))
-    else:
+    if statistic not in ("glr", "cusum"):
         raise ValueError(f"statistic: expected 'glr' or 'cusum', got {statistic!r}")
+    y = np.random.default_rng(seed).standard_normal((runs, length))
+    g = glr_statistics(y, int(parameter)) if statistic == "glr" else cusum_statistics(y, float(parameter))
     sample = np.sort(g[:, burn_in:].reshape(-1))
     sample.setflags(write=False)
     return sample
