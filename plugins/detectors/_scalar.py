@@ -30,17 +30,9 @@ from hybridtrack.core.protocols import ScoreDetector
 from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.sdk.thresholds import check_probability
-from hybridtrack_plugins.detectors.null_calibration import EmpiricalNormalizer, h0_quantile
+from hybridtrack_plugins.detectors.null_calibration import EmpiricalNormalizer, h0_quantile, sorted_sample
 
 REFERENCE_SIZE = 20000
-
-
-def _sorted_sample(values) -> np.ndarray:
-    sample = np.sort(np.asarray(values, dtype=float).reshape(-1))
-    if sample.size < 10 or not np.all(np.isfinite(sample)):
-        raise ValueError(f"null_sample: expected at least 10 finite values of the statistic under H0, got {sample.size}")
-    sample.setflags(write=False)
-    return sample
 
 
 class ScalarDetector(ScoreDetector):
@@ -54,8 +46,9 @@ class ScalarDetector(ScoreDetector):
         self.seed = int(seed)
         self._normalizer = None if reference is None else EmpiricalNormalizer(reference)
         self._chi2_normalizers: dict[int, EmpiricalNormalizer] = {}
-        self._null = None if null_sample is None else _sorted_sample(null_sample)
+        self._null = None if null_sample is None else sorted_sample(null_sample, "null_sample", "the statistic")
         self.alpha = alpha
+        self.reset()
 
     def threshold_sample(self) -> np.ndarray:
         """The sorted H0 sample λ(α) is taken from: ``null_sample`` if given, else :meth:`h0_sample`."""
@@ -69,7 +62,7 @@ class ScalarDetector(ScoreDetector):
     @alpha.setter
     def alpha(self, value) -> None:
         self._alpha = check_probability(value, "alpha")
-        self.threshold = h0_quantile(self.threshold_sample(), self._alpha)
+        self.threshold = self.threshold_for(self._alpha)
 
     def threshold_for(self, alpha) -> float:
         """λ(α) without changing the detector."""

@@ -3,8 +3,8 @@
     g⁺_n = max(0, g⁺_{n−1} + y_n − κ),  g⁻_n = max(0, g⁻_{n−1} − y_n − κ),  g_n = max(g⁺_n, g⁻_n)
 
 κ (``drift``) is half the smallest mean shift to detect quickly.  Alarm when
-g_n > λ(α), the (1 − α) quantile of g under H_0 from seeded simulation
-(cached); input normalized as for the GLR; restart after an alarm.
+g_n > λ(α) (λ(α) and the input's normalization: see :mod:`._scalar`); restart
+after an alarm.
 """
 
 from __future__ import annotations
@@ -34,7 +34,6 @@ class CUSUM(ScalarDetector):
     ):
         self.drift = check_positive(drift, "drift")
         super().__init__(alpha, watch, reference, normalize, seed, null_sample)
-        self.reset()
 
     def h0_sample(self) -> np.ndarray:
         return h0_sample("cusum", self.drift, self.seed)

@@ -21,12 +21,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Detector, DetectorStep, Innovation
 from hybridtrack.core.registry import registry_or_default
-from hybridtrack.core.types import Decision
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.sdk.thresholds import check_probability
 
@@ -62,17 +62,15 @@ CUES = {SpeedDropCue.name: SpeedDropCue}
 
 
 def _cue(spec):
-    if isinstance(spec, str):
-        if spec not in CUES:
-            raise ValueError(f"cue: unknown cue {spec!r}; known: {sorted(CUES)}")
-        return CUES[spec]()
-    if isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str):
-        if spec[0] not in CUES:
-            raise ValueError(f"cue: unknown cue {spec[0]!r}; known: {sorted(CUES)}")
-        return CUES[spec[0]](**spec[1])
     if hasattr(spec, "update") and hasattr(spec, "reset"):
         return spec
-    raise ValueError(f"cue: expected a cue name, (name, parameters) or an object with update() and reset(), got {spec!r}")
+    if isinstance(spec, str):
+        spec = (spec, {})
+    if not (isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str)):
+        raise ValueError(f"cue: expected a cue name, (name, parameters) or an object with update() and reset(), got {spec!r}")
+    if spec[0] not in CUES:
+        raise ValueError(f"cue: unknown cue {spec[0]!r}; known: {sorted(CUES)}")
+    return CUES[spec[0]](**spec[1])
 
 
 class DynamicThreshold(Detector):
@@ -96,7 +94,6 @@ class DynamicThreshold(Detector):
             raise ValueError(
                 f"likelihood_ratio: α·L_C = {self.alpha_start} × {self.likelihood_ratio} = {self.alpha_ready} is not a probability in (0, 1)"
             )
-        check_probability(self.alpha_ready, "alpha * likelihood_ratio")
         # λ(α), the threshold without the cue, reported beside the current one (recorded as static vs dynamic)
         threshold_for = getattr(self.detector, "threshold_for", None)
         self.static_thresholds = {} if threshold_for is None else {"static_threshold": float(threshold_for(self.alpha_start))}
@@ -122,13 +119,8 @@ class DynamicThreshold(Detector):
     def _wrap(self, step: int, out: DetectorStep) -> DetectorStep:
         decision = out.decision
         if decision is not None:
-            decision = Decision(
-                decision.step,
-                self.label,
-                decision.mode,
-                decision.statistic,
-                f"{decision.message} [cue {'on' if self.holds else 'off'}, α = {self.detector.alpha:g}]",
-            )
+            cue = f"cue {'on' if self.holds else 'off'}, α = {self.detector.alpha:g}"
+            decision = attrs.evolve(decision, detector=self.label, message=f"{decision.message} [{cue}]")
         return DetectorStep({**out.statistics, "cue": float(self.holds)}, {**out.thresholds, **self.static_thresholds}, decision)
 
     def step(self, step: int, innovation: Innovation) -> DetectorStep:

@@ -3,11 +3,8 @@
     g_n = max_{n−W < k ≤ n} (y_k + … + y_n)² / (2(n − k + 1)),   alarm when g_n > λ
 
 — the generalized likelihood ratio for a change of the mean of unknown size
-and sign in the last W steps.  λ = λ(α) is the (1 − α) quantile of g under H_0
-from seeded simulation on independent N(0, 1) input (cached), or of a given
-``null_sample`` of g computed on the actual (autocorrelated) signal under H_0;
-the input is normalized through an empirical CDF (see :mod:`._scalar`).  After
-an alarm the window restarts.
+and sign in the last W steps.  λ = λ(α) and the input's normalization: see
+:mod:`._scalar`.  After an alarm the window restarts.
 """
 
 from __future__ import annotations
@@ -39,7 +36,6 @@ class GLR(ScalarDetector):
     ):
         self.window = check_positive_int(window, "window")
         super().__init__(alpha, watch, reference, normalize, seed, null_sample)
-        self.reset()
 
     def h0_sample(self) -> np.ndarray:
         return h0_sample("glr", self.window, self.seed)

@@ -20,14 +20,21 @@ from scipy.special import ndtri
 from hybridtrack.sdk.thresholds import check_probability
 
 
+def sorted_sample(values, name: str, what: str) -> np.ndarray:
+    """``values`` flattened, sorted and read-only; at least 10 finite values of ``what`` under H0, else
+    ``ValueError`` naming ``name``."""
+    sample = np.sort(np.asarray(values, dtype=float).reshape(-1))
+    if sample.size < 10 or not np.all(np.isfinite(sample)):
+        raise ValueError(f"{name}: expected at least 10 finite values of {what} under H0, got {sample.size}")
+    sample.setflags(write=False)
+    return sample
+
+
 class EmpiricalNormalizer:
     """ỹ = Φ⁻¹(F̂(y)) with F̂ the empirical CDF of ``reference`` (1-D, at least 10 finite values)."""
 
     def __init__(self, reference):
-        reference = np.asarray(reference, dtype=float).reshape(-1)
-        if reference.size < 10 or not np.all(np.isfinite(reference)):
-            raise ValueError(f"reference: expected at least 10 finite values of the signal under H0, got {reference.size}")
-        self.sorted = np.sort(reference)
+        self.sorted = sorted_sample(reference, "reference", "the signal")
 
     def __call__(self, y):
         y = np.asarray(y, dtype=float)
@@ -64,13 +71,10 @@ def h0_sample(
     statistic: str, parameter: float, seed: int = 20240601, runs: int = 2000, length: int = 200, burn_in: int = 100
 ) -> np.ndarray:
     """Sorted per-step values of ``statistic`` ("glr" with window, "cusum" with drift) on N(0,1) input (cached)."""
-    y = np.random.default_rng(seed).standard_normal((runs, length))
-    if statistic == "glr":
-        g = glr_statistics(y, int(parameter))
-    elif statistic == "cusum":
-        g = cusum_statistics(y, float(parameter))
-    else:
+    if statistic not in ("glr", "cusum"):
         raise ValueError(f"statistic: expected 'glr' or 'cusum', got {statistic!r}")
+    y = np.random.default_rng(seed).standard_normal((runs, length))
+    g = glr_statistics(y, int(parameter)) if statistic == "glr" else cusum_statistics(y, float(parameter))
     sample = np.sort(g[:, burn_in:].reshape(-1))
     sample.setflags(write=False)
     return sample

@@ -64,90 +64,69 @@ class SignalFunction(ScoreDetector):
         self._alpha = check_probability(value, "alpha")
 
     def reset(self) -> None:
-        self._sum = None  # Σ NIS per filter (cumulative mode)
+        self._sum = None  # Σ NIS per filter
         self._dof = 0.0
         self._recent: deque = deque()  # (nis (M,), m) of the last `window` measured steps
 
-    def _accumulate(self, nis: np.ndarray, m: int) -> tuple[np.ndarray, float]:
-        if self._sum is None:
-            self._sum = np.zeros_like(nis)
-        if self._sum.shape != nis.shape:
-            raise ValueError(f"nis: the watched bank changed from {self._sum.shape[0]} to {nis.shape[0]} filters; call reset() first")
-        if m > 0:
-            if self.window is None:
-                self._sum = self._sum + nis
-                self._dof += m
-            else:
-                self._recent.append((nis, m))
-                if len(self._recent) > self.window:
-                    self._recent.popleft()
-                self._sum = np.sum([v for v, _ in self._recent], axis=0)
-                self._dof = float(sum(k for _, k in self._recent))
-        return self._sum, self._dof
-
     def observe(self, step, loglik, nis, m) -> DetectorStep:
-        nis = np.atleast_1d(np.asarray(nis, dtype=float))
-        if self.watch >= nis.shape[0]:
-            raise ValueError(f"watch: filter {self.watch} is not in a bank of {nis.shape[0]} filters")
-        total, dof = self._accumulate(nis, int(m))
-        signal = signal_bounds.standardize(total, dof)
-        lower, upper = signal_bounds.bounds(self.alpha, dof, self.calibration)
-        return self._output(step, signal, dof, lower, upper)
-
-    def _output(self, step, signal: np.ndarray, dof: float, lower: float, upper: float) -> DetectorStep:
-        """The step's output from S (M,) and its bounds: a change when D > 0 and the watched S leaves
-        [lower, upper] (then a reset if ``reset_on_alarm``)."""
-        value = float(signal[self.watch])
-        decision = None
-        if dof > 0 and not (lower <= value <= upper):
-            side = "above" if value > upper else "below"
-            decision = Decision(
-                step, self.label, "change", value, f"signal function {value:.2f} {side} the bound ({lower:.2f}, {upper:.2f}), D = {dof:g}"
-            )
-            if self.reset_on_alarm:
-                self.reset()
-        return DetectorStep({"signal": signal.copy(), "dof": dof}, {"upper": upper, "lower": lower}, decision)
+        return observe_copies(step, [self], np.atleast_1d(np.asarray(nis, dtype=float))[None], int(m))[0]
 
     def batch(self, runs: int) -> SignalFunctionBatch:
-        """``runs`` copies of this detector, vectorized over the runs when cumulative (:class:`SignalFunctionBatch`)."""
+        """``runs`` copies of this detector, vectorized over the runs (:class:`SignalFunctionBatch`)."""
         return SignalFunctionBatch(self, runs)
 
 
+def observe_copies(step, detectors: list[SignalFunction], nis: np.ndarray, m: int) -> list[DetectorStep]:
+    """One step of U copies of a :class:`SignalFunction` on NIS (U, M): Σ NIS and D of each, S and the bounds
+    (one quantile per distinct D) of all at once; a change when D > 0 and the watched S leaves [lower, upper]
+    (then a reset if ``reset_on_alarm``)."""
+    first = detectors[0]
+    M = nis.shape[1]
+    if first.watch >= M:
+        raise ValueError(f"watch: filter {first.watch} is not in a bank of {M} filters")
+    for d in detectors:
+        if d._sum is not None and d._sum.shape != (M,):
+            raise ValueError(f"nis: the watched bank changed from {d._sum.shape[0]} to {M} filters; call reset() first")
+    for d, values in zip(detectors, nis):
+        if first.window is not None and m > 0:
+            d._recent.append((values, m))
+            if len(d._recent) > first.window:
+                d._recent.popleft()
+            d._sum = np.sum([v for v, _ in d._recent], axis=0)
+            d._dof = float(sum(k for _, k in d._recent))
+    totals = np.stack([np.zeros(M) if d._sum is None else d._sum for d in detectors])
+    dofs = np.array([d._dof for d in detectors], dtype=float)
+    if first.window is None and m > 0:
+        totals, dofs = totals + nis, dofs + m
+    signals = signal_bounds.standardize(totals, dofs[:, None])
+    if first.calibration == "normal":  # ±Φ⁻¹(1 − α/2) whatever D: one quantile for all runs
+        limits = dict.fromkeys(np.unique(dofs), signal_bounds.bounds(first.alpha, 0.0, "normal"))
+    else:
+        limits = {dof: signal_bounds.bounds(first.alpha, float(dof), first.calibration) for dof in np.unique(dofs)}
+    outputs = []
+    for d, total, signal, dof in zip(detectors, totals, signals, dofs):
+        d._sum, d._dof = total, float(dof)
+        lower, upper = limits[dof]
+        value = float(signal[first.watch])
+        decision = None
+        if dof > 0 and not (lower <= value <= upper):
+            side = "above" if value > upper else "below"
+            message = f"signal function {value:.2f} {side} the bound ({lower:.2f}, {upper:.2f}), D = {dof:g}"
+            decision = Decision(step, d.label, "change", value, message)
+            if d.reset_on_alarm:
+                d.reset()
+        outputs.append(DetectorStep({"signal": signal.copy(), "dof": d._dof}, {"upper": upper, "lower": lower}, decision))
+    return outputs
+
+
 class SignalFunctionBatch(ScoreDetectorBatch):
-    """R copies of a :class:`SignalFunction` fed together: for a cumulative one, Σ NIS, D, S and the bounds (one
-    quantile per distinct D) over the runs at once; a windowed one (or a subclass) steps the copies one by one.
+    """R copies of a :class:`SignalFunction` fed together by :func:`observe_copies` (a subclass: one by one).
     Equal to ``observe`` run by run (the same arithmetic per element)."""
 
     def observe(self, step, runs, loglik, nis, m) -> list[DetectorStep]:
-        first = self.detector
-        if first.window is not None or type(first) is not SignalFunction:
+        if type(self.detector) is not SignalFunction:
             return super().observe(step, runs, loglik, nis, m)
-        detectors = [self.copies[int(r)] for r in runs]
-        nis = np.asarray(nis, dtype=float)
-        R, M = nis.shape
-        if first.watch >= M:
-            raise ValueError(f"watch: filter {first.watch} is not in a bank of {M} filters")
-        for d in detectors:
-            if d._sum is not None and d._sum.shape != (M,):
-                raise ValueError(f"nis: the watched bank changed from {d._sum.shape[0]} to {M} filters; call reset() first")
-        totals = np.stack([np.zeros(M) if d._sum is None else d._sum for d in detectors])
-        dofs = np.array([d._dof for d in detectors], dtype=float)
-        m = int(m)
-        if m > 0:
-            totals = totals + nis
-            dofs = dofs + m
-        signals = signal_bounds.standardize(totals, dofs[:, None])
-        if first.calibration == "normal":  # ±Φ⁻¹(1 − α/2) whatever D: one quantile for all runs
-            common = signal_bounds.bounds(first.alpha, 0.0, "normal")
-            limits = {dof: common for dof in np.unique(dofs)}
-        else:
-            limits = {dof: signal_bounds.bounds(first.alpha, float(dof), first.calibration) for dof in np.unique(dofs)}
-        outputs = []
-        for r, d in enumerate(detectors):
-            d._sum, d._dof = totals[r], float(dofs[r])
-            lower, upper = limits[dofs[r]]
-            outputs.append(d._output(step, signals[r], float(dofs[r]), lower, upper))
-        return outputs
+        return observe_copies(step, [self.copies[int(r)] for r in runs], np.asarray(nis, dtype=float), int(m))
 
 
 @hookimpl

@@ -54,6 +54,53 @@ def _offsets(counts: np.ndarray) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
 
 
+def _check_hypotheses(names) -> tuple[str, ...]:
+    names = tuple(str(h) for h in names)
+    if len(names) < 2:
+        raise ValueError(f"hypotheses: expected the current mode and at least one alternative, got {names!r}")
+    return names
+
+
+def rule(step, label, hypotheses, ratios, run, modes, starts, log_psi, upper, lower):
+    """Rule (24) for R tests at once: ``ratios`` (R, P) ln λ_p, ``hypotheses`` one tuple of names per test, the
+    entries' test ``run``, alternative ``modes``, change steps ``starts`` and ln ψ (flat, test by test).
+
+    Returns ``decided`` (R,) −1 (continue), 0 (no change) or the alternative p of a change, the entry followed
+    after a change (index among its test's entries, −1 otherwise) and its change step, and the Decisions.
+    """
+    R, P = ratios.shape
+    best = ratios.max(axis=1) if P else np.full(R, -np.inf)
+    change = best >= upper
+    stay = ~change & np.isfinite(ratios).all(axis=1) & (best <= lower) & (P > 0)
+    decided, entry, start = np.full(R, -1), np.full(R, -1), np.full(R, -1)
+    decisions = [None] * R
+    offsets = _offsets(np.bincount(run, minlength=R))
+    for r in np.flatnonzero(change):
+        p = int(np.argmax(ratios[r])) + 1
+        rows = np.flatnonzero((run == r) & (modes == p))
+        chosen = int(rows[np.argmax(log_psi[rows])])
+        decided[r], entry[r], start[r] = p, chosen - offsets[r], int(starts[chosen])
+        name, value = hypotheses[r][p], float(ratios[r, p - 1])
+        message = f"change to {name} (most likely at step {start[r]}), ln λ = {value:.2f} ≥ A = {upper:.2f}"
+        decisions[r] = Decision(step, label, name, value, message)
+    for r in np.flatnonzero(stay):
+        decided[r] = 0
+        message = f"no change: every ln λ ≤ B = {lower:.2f}; the test restarts"
+        decisions[r] = Decision(step, label, hypotheses[r][0], float(best[r]), message)
+    return decided, entry, start, decisions
+
+
+def pruned(run, starts, log_psi, bounds, pruning) -> np.ndarray:
+    """The entries kept when each test's entries are bounded to ``bounds`` (R,) (−1: unbounded) by the rule
+    ``pruning`` (ties by order): "oldest" keeps the latest ``starts``, "nearest_lower" the largest ln ψ."""
+    index = np.arange(run.size)
+    order = np.lexsort((index, -starts if pruning == "oldest" else -log_psi, run))
+    rank = np.empty_like(index)
+    rank[order] = index - _offsets(np.bincount(run, minlength=bounds.size))[run[order]]
+    limit = bounds[run]
+    return (limit < 0) | (rank < limit)
+
+
 class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
     """R copies of :class:`ChangeTimeSPRT` as flat arrays over every run's entries (run by run): mode, change
     step and ln ψ per entry, k per run.  ln λ is the same log-sum-exp as scipy's (the largest term taken out:
@@ -82,10 +129,7 @@ class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
     def restart(self, runs, hypotheses) -> None:
         runs = np.asarray(runs, dtype=int)
         for r, names in zip(runs, hypotheses):
-            names = tuple(str(h) for h in names)
-            if len(names) < 2:
-                raise ValueError(f"hypotheses: expected the current mode and at least one alternative, got {names!r}")
-            self.hypotheses[r] = names
+            self.hypotheses[r] = _check_hypotheses(names)
         self._keep(~np.isin(self.run, runs))
         self.k[runs] = 0
 
@@ -128,34 +172,10 @@ class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
         self.k += 1
         self.log_psi = np.where(m[self.run] > 0, self.log_psi + (loglik - loglik0[self.run]), self.log_psi)
         ratios = self._log_ratios(P)
-        best = ratios.max(axis=1) if P else np.full(self.runs, -np.inf)
-        change = best >= self.upper
-        stay = ~change & np.isfinite(ratios).all(axis=1) & (best <= self.lower) & (P > 0)
-        decided, entry, start = np.full(self.runs, -1), np.full(self.runs, -1), np.full(self.runs, -1)
-        decisions = [None] * self.runs
-        offsets = _offsets(self.counts)
-        for r in np.flatnonzero(change):
-            p = int(np.argmax(ratios[r])) + 1
-            rows = np.flatnonzero((self.run == r) & (self.modes == p))
-            chosen = int(rows[np.argmax(self.log_psi[rows])])
-            decided[r], entry[r], start[r] = p, chosen - offsets[r], int(self.starts[chosen])
-            name = self.hypotheses[r][p]
-            decisions[r] = Decision(
-                step,
-                self.detector.label,
-                name,
-                float(ratios[r, p - 1]),
-                f"change to {name} (most likely at step {start[r]}), ln λ = {ratios[r, p - 1]:.2f} ≥ A = {self.upper:.2f}",
-            )
-        for r in np.flatnonzero(stay):
-            decided[r] = 0
-            decisions[r] = Decision(
-                step,
-                self.detector.label,
-                self.hypotheses[r][0],
-                float(best[r]),
-                f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts",
-            )
+        decided, entry, start, decisions = rule(
+            step, self.detector.label, self.hypotheses, ratios, self.run, self.modes, self.starts, self.log_psi, self.upper, self.lower
+        )
+        stay = decided == 0
         if stay.any():  # restart with the same (fixed) bank
             self.log_psi = np.where(stay[self.run], 0.0, self.log_psi)
             self.k[stay] = 0
@@ -163,17 +183,11 @@ class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
 
     def prune(self, runs, caps) -> np.ndarray:
         runs, caps = np.asarray(runs, dtype=int), np.asarray(caps, dtype=int)
-        bound = np.full(self.runs, -1)
-        bound[runs] = np.where(caps < 0, -1 if self.bank_size is None else self.bank_size, caps)
-        if (bound[runs] == 0).any():
+        bounds = np.full(self.runs, -1)
+        bounds[runs] = np.where(caps < 0, -1 if self.bank_size is None else self.bank_size, caps)
+        if (bounds[runs] == 0).any():
             raise ValueError("bank_size: expected a positive integer, got 0")
-        index = np.arange(self.run.size)
-        key = -self.starts if self.pruning == "oldest" else -self.log_psi
-        order = np.lexsort((index, key, self.run))
-        rank = np.empty_like(index)
-        rank[order] = index - _offsets(self.counts)[self.run[order]]
-        limit = bound[self.run]
-        keep = (limit < 0) | (rank < limit)
+        keep = pruned(self.run, self.starts, self.log_psi, bounds, self.pruning)
         self._keep(keep)
         return keep
 
@@ -193,9 +207,7 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         pruning: str = "nearest_lower",
     ):
         self.set_error_probabilities(alpha, beta)
-        self.hypotheses = None if hypotheses is None else tuple(str(h) for h in hypotheses)
-        if self.hypotheses is not None and len(self.hypotheses) < 2:
-            raise ValueError(f"hypotheses: expected the current mode and at least one alternative, got {self.hypotheses!r}")
+        self.hypotheses = None if hypotheses is None else _check_hypotheses(hypotheses)
         if averaging not in AVERAGING:
             raise ValueError(f"averaging: expected one of {AVERAGING}, got {averaging!r}")
         if pruning not in PRUNING_RULES:
@@ -236,23 +248,12 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
     def prune(self, bank_size: int | None = None) -> np.ndarray:
         """Bound the entries to ``bank_size`` (default: the constructor's) by the pruning rule; returns the rows kept."""
         size = self.bank_size if bank_size is None else check_positive_int(bank_size, "bank_size")
-        E = self.log_psi.size
-        if size is None or E <= size:
-            return np.arange(E)
-        if self.pruning == "oldest":
-            order = np.lexsort((np.arange(E), -self.starts))  # newest first, stable
-        else:
-            order = np.lexsort((np.arange(E), -self.log_psi))  # largest ln ψ first: the nearest to B go
-        rows = np.sort(order[:size])
+        run = np.zeros(self.log_psi.size, dtype=int)
+        rows = np.flatnonzero(pruned(run, self.starts, self.log_psi, np.array([-1 if size is None else size]), self.pruning))
         self.keep(rows)
         return rows
 
     # ------------------------------------------------------------------ the test
-    def hypothesis_name(self, p: int) -> str:
-        if self.hypotheses is not None:
-            return self.hypotheses[p]
-        return f"H{p}"
-
     def log_ratios(self) -> np.ndarray:
         """ln λ_p for p = 1 … M−1 (−inf for an alternative with no entry)."""
         P = self.alternatives or (int(self.modes.max()) if self.modes.size else 0)
@@ -277,36 +278,18 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         if m > 0:
             self.log_psi = self.log_psi + (loglik[1:] - loglik[0])
         ratios = self.log_ratios()
-        decision = None
-        finite = ratios[np.isfinite(ratios)]
-        if ratios.size and ratios.max() >= self.upper:
-            p = int(np.argmax(ratios)) + 1
-            rows = np.flatnonzero(self.modes == p)
-            self.chosen_entry = int(rows[np.argmax(self.log_psi[rows])])
-            self.decided = p
-            j = int(self.starts[self.chosen_entry])
-            decision = Decision(
-                step,
-                self.label,
-                self.hypothesis_name(p),
-                float(ratios[p - 1]),
-                f"change to {self.hypothesis_name(p)} (most likely at step {j}), ln λ = {ratios[p - 1]:.2f} ≥ A = {self.upper:.2f}",
-            )
-        elif finite.size == ratios.size and ratios.size and ratios.max() <= self.lower:
-            decision = Decision(
-                step,
-                self.label,
-                self.hypothesis_name(0),
-                float(ratios.max()),
-                f"no change: every ln λ ≤ B = {self.lower:.2f}; the test restarts",
-            )
-            self.decided = 0
-        output = ({"log_ratio": ratios, "bank_size": float(self.modes.size)}, {"upper": self.upper, "lower": self.lower}, decision)
-        if decision is not None and self.decided == 0:
-            self.log_psi = np.zeros_like(self.log_psi)  # restart with the same (fixed) bank
+        names = self.hypotheses or tuple(f"H{p}" for p in range(ratios.size + 1))
+        run = np.zeros(self.modes.size, dtype=int)
+        decided, entry, _, decisions = rule(
+            step, self.label, [names], ratios[None], run, self.modes, self.starts, self.log_psi, self.upper, self.lower
+        )
+        output = ({"log_ratio": ratios, "bank_size": float(self.modes.size)}, {"upper": self.upper, "lower": self.lower}, decisions[0])
+        if decided[0] == 0:  # restart with the same (fixed) bank
+            self.log_psi = np.zeros_like(self.log_psi)
             self.k = 0
-            self.decided = None
         else:
+            if decided[0] > 0:
+                self.decided, self.chosen_entry = int(decided[0]), int(entry[0])
             self._last = (output[0], output[1], None)
         return DetectorStep(*output)
 

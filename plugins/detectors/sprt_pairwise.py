@@ -29,6 +29,7 @@ final margin over the best of the others).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -39,15 +40,9 @@ from hybridtrack.core.types import Decision
 from hybridtrack.sdk.thresholds import WaldThresholds
 
 
-def margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """L_i − max_{j ≠ i, j active} L_j for every i (all j when fewer than two are active): one row of :func:`batch_margins`."""
-    return batch_margins(np.asarray(L)[None], np.asarray(active)[None])[0]
-
-
 def batch_margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """:func:`margins` of every row of L (U, H) with its row of ``active`` (U, H), vectorized over the rows.
-
-    The leader's margin is over the runner-up, the others' over the leader;
+    """L_i − max_{j ≠ i, j active} L_j for every i of every row of L (U, H) with its row of ``active`` (U, H)
+    (all j when fewer than two are active).  The leader's margin is over the runner-up, the others' over the leader;
     ties give the same values whichever tied filter is taken as the leader.
     """
     U, H = L.shape
@@ -64,33 +59,46 @@ def batch_margins(L: np.ndarray, active: np.ndarray) -> np.ndarray:
     return L - rival
 
 
-def rule_step(L, active, frozen, live, loglik, measured, lower: float, upper: float):
-    """Rule (5) at one step for U tests: L, active, frozen (U, H) as they stand, ``live`` (U,) the undecided ones,
-    ℓ (U, H), ``measured`` (U,).  Returns the new (L, active, frozen), ``chosen`` (U,) the hypothesis accepted
-    this step (−1: none), ``ratio`` (U, H) the margins it was accepted with, and the reported ``log_ratio`` (U, H)."""
+def observe_tests(step, test, state, runs, loglik, measured, label: str):
+    """One step of rule (5) for the tests ``runs`` (U,) of ``state`` (the attributes L, active, frozen (R, H) and
+    decided (R,), −1 while undecided; filled on first use) with ℓ (U, H) and ``measured`` (U,); ``test`` gives
+    the hypotheses' names and the thresholds.  Returns the reported log_ratio (U, H) (the margins, frozen for
+    the dropped and the decided), active (U, H), the hypothesis accepted this step (U,) (−1: none) and the
+    Decisions."""
+    U, H = loglik.shape
+    if state.L is None:
+        R = len(state.decided)
+        state.L, state.active, state.frozen = np.zeros((R, H)), np.ones((R, H), dtype=bool), np.zeros((R, H))
+    if state.L.shape[1] != H:
+        raise ValueError(f"loglik: the bank changed from {state.L.shape[1]} to {H} filters; call reset() first")
+    if test.hypotheses is not None and len(test.hypotheses) != H:
+        raise ValueError(f"hypotheses: {len(test.hypotheses)} names for a bank of {H} filters")
+    live, L, active, frozen = state.decided[runs] < 0, state.L[runs], state.active[runs], state.frozen[runs]
     L = np.where((live & measured)[:, None], L + loglik, L)
     ratio = batch_margins(L, active)
-    dropped = live[:, None] & active & (ratio <= lower)
+    dropped = live[:, None] & active & (ratio <= test.lower)
     frozen = np.where(dropped, ratio, frozen)
     active = active & ~dropped
     ratio = batch_margins(L, active)
-    winners = live[:, None] & active & (ratio >= upper)
+    winners = live[:, None] & active & (ratio >= test.upper)
     count = active.sum(axis=1)
     deciding = live & ((count == 1) | winners.any(axis=1))
     chosen = np.where(count == 1, np.argmax(active, axis=1), np.argmax(np.where(winners, ratio, -np.inf), axis=1))
     chosen = np.where(deciding, chosen, -1)
     rows = np.flatnonzero(deciding)
     if rows.size:  # the accepted hypothesis keeps its margin over the best of all the others
-        frozen[rows, chosen[rows]] = batch_margins(L[rows], np.ones((rows.size, L.shape[1]), dtype=bool))[
-            np.arange(rows.size), chosen[rows]
-        ]
+        frozen[rows, chosen[rows]] = batch_margins(L[rows], np.ones((rows.size, H), dtype=bool))[np.arange(rows.size), chosen[rows]]
         active[rows] = False
-    return L, active, frozen, chosen, ratio, np.where(active, batch_margins(L, active), frozen)
-
-
-def acceptance(step: int, detector: str, name: str, margin: float, upper: float) -> Decision:
-    """The decision accepting hypothesis ``name`` with its log-LR margin (rule 5 of seed 001 Algorithm 1)."""
-    return Decision(step, detector, name, margin, f"{name} accepted with margin {margin:.2f} (A = {upper:.2f})")
+    out = np.where(active, batch_margins(L, active), frozen)
+    state.L[runs], state.active[runs], state.frozen[runs] = L, active, frozen
+    decisions = [None] * U
+    for u in np.flatnonzero(chosen >= 0):
+        i = state.decided[runs[u]] = int(chosen[u])
+        name = test.hypotheses[i] if test.hypotheses is not None and i < len(test.hypotheses) else f"H{i}"
+        decisions[u] = Decision(
+            step, label, name, float(ratio[u, i]), f"{name} accepted with margin {ratio[u, i]:.2f} (A = {test.upper:.2f})"
+        )
+    return out, active.astype(float), chosen, decisions
 
 
 class PairwiseSPRTBatch(HypothesisTestBatch):
@@ -109,25 +117,8 @@ class PairwiseSPRTBatch(HypothesisTestBatch):
 
     def observe(self, step, runs, loglik, nis, m) -> BatchStep:
         runs = np.asarray(runs, dtype=int)
-        loglik = np.asarray(loglik, dtype=float)
-        U, H = loglik.shape
-        if self.L is None:
-            self.L, self.active, self.frozen = np.zeros((self.runs, H)), np.ones((self.runs, H), dtype=bool), np.zeros((self.runs, H))
-        if self.L.shape[1] != H:
-            raise ValueError(f"loglik: the bank changed from {self.L.shape[1]} to {H} filters; call reset() first")
-        if self.hypotheses is not None and len(self.hypotheses) != H:
-            raise ValueError(f"hypotheses: {len(self.hypotheses)} names for a bank of {H} filters")
-        L, active, frozen, decided, ratio, out = rule_step(
-            self.L[runs], self.active[runs], self.frozen[runs], self.decided[runs] < 0, loglik, np.asarray(m) > 0, self.lower, self.upper
-        )
-        decisions = [None] * U
-        for u in np.flatnonzero(decided >= 0):
-            i = int(decided[u])
-            self.decided[runs[u]] = i
-            name = self.hypotheses[i] if self.hypotheses is not None and i < len(self.hypotheses) else f"H{i}"
-            decisions[u] = acceptance(step, self.detector.label, name, float(ratio[u, i]), self.upper)
-        self.L[runs], self.active[runs], self.frozen[runs] = L, active, frozen
-        return BatchStep(out, active.astype(float), decided, tuple(decisions))
+        out = observe_tests(step, self, self, runs, np.asarray(loglik, dtype=float), np.asarray(m) > 0, self.detector.label)
+        return BatchStep(out[0], out[1], out[2], tuple(out[3]))
 
 
 class PairwiseSPRT(WaldThresholds, HypothesisTest):
@@ -143,37 +134,18 @@ class PairwiseSPRT(WaldThresholds, HypothesisTest):
         self.reset()
 
     def reset(self) -> None:
-        self.L = None  # cumulative log-likelihood per hypothesis
-        self.active = None
-        self.frozen = None  # log_ratio at the moment each hypothesis was dropped
         self.decided: int | None = None
-
-    def hypothesis_name(self, index: int) -> str:
-        if self.hypotheses is not None and index < len(self.hypotheses):
-            return self.hypotheses[index]
-        return f"H{index}"
+        self._state = SimpleNamespace(L=None, active=None, frozen=None, decided=np.full(1, -1))  # a batch of one
 
     def observe(self, step, loglik, nis, m) -> DetectorStep:
         loglik = np.atleast_1d(np.asarray(loglik, dtype=float))
-        M = loglik.shape[0]
-        if self.L is None:
-            self.L = np.zeros(M)
-            self.active = np.ones(M, dtype=bool)
-            self.frozen = np.zeros(M)
-        if self.L.shape[0] != M:
-            raise ValueError(f"loglik: the bank changed from {self.L.shape[0]} to {M} filters; call reset() first")
-        if self.hypotheses is not None and len(self.hypotheses) != M:
-            raise ValueError(f"hypotheses: {len(self.hypotheses)} names for a bank of {M} filters")
-        state = (self.L[None], self.active[None], self.frozen[None], np.array([self.decided is None]))
-        L, active, frozen, chosen, ratio, out = rule_step(*state, loglik[None], np.array([m > 0]), self.lower, self.upper)
-        self.L, self.active, self.frozen = L[0], active[0], frozen[0]
-        decision = None
-        if chosen[0] >= 0:
-            i = self.decided = int(chosen[0])
-            decision = acceptance(step, self.label, self.hypothesis_name(i), float(ratio[0, i]), self.upper)
-        return DetectorStep(
-            {"log_ratio": out[0], "active": self.active.astype(float)}, {"upper": self.upper, "lower": self.lower}, decision
+        self._state.decided[0] = -1 if self.decided is None else self.decided
+        ratio, active, chosen, decisions = observe_tests(
+            step, self, self._state, np.zeros(1, dtype=int), loglik[None], np.array([m > 0]), self.label
         )
+        if chosen[0] >= 0:
+            self.decided = int(chosen[0])
+        return DetectorStep({"log_ratio": ratio[0], "active": active[0]}, {"upper": self.upper, "lower": self.lower}, decisions[0])
 
     def batch(self, runs: int) -> PairwiseSPRTBatch:
         """``runs`` copies of this test vectorized over the runs (each equal to a copy of this test)."""
