@@ -10,14 +10,9 @@ attrs class whose per-filter arrays are :func:`bank_field` s; ``take`` and
 own form — square-root factors and per-node copies are selected and joined,
 never rebuilt from (x, P).
 
-Every estimator state object of this family exposes, per step and per filter:
-
-* ``mean`` (M, n) and ``covariance`` (M, n, n): the current (updated, or just
-  predicted) estimate, P assembled from the factors for factor forms;
-* ``predicted_mean`` / ``predicted_covariance``: x⁻, P⁻ of the last prediction
-  (equal to the current ones right after ``predict``);
-* ``innovation``: the :class:`~hybridtrack.core.interfaces.Innovation` (ν, S, ℓ,
-  NIS) of the last update, ``None`` right after ``predict`` or ``initialize``.
+Every state of this family exposes per filter ``mean`` (M, n), ``covariance`` (M, n, n) (the current estimate),
+``predicted_mean`` / ``predicted_covariance`` (the last prediction's) and ``innovation`` (ν, S, ℓ, NIS of the last
+update; None after ``predict`` or ``initialize``).
 """
 
 from __future__ import annotations

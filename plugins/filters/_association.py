@@ -31,6 +31,7 @@ outside the gate does not underflow the weights.
 
 from __future__ import annotations
 
+import functools
 from abc import abstractmethod
 from collections.abc import Sequence
 
@@ -60,6 +61,7 @@ def check_gate_probability(value) -> float | None:
     return value
 
 
+@functools.lru_cache(maxsize=64)
 def gate_threshold(gate_probability: float | None, m: int) -> float:
     """γ with P(χ²_m ≤ γ) = P_G; ∞ without a gate."""
     if gate_probability is None:
