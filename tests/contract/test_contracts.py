@@ -28,16 +28,3 @@ def test_component_honours_its_contract(entry):
     result = check_component(entry.kind, component)
     if entry.kind == "solver" and result is None:
         pytest.skip(f"solver {entry.name!r} defines no example_problem(); only its name was checked")
-
-
-ALGORITHMS = [entry for entry in ENTRIES if entry.kind == "algorithm"]
-
-
-@pytest.mark.parametrize("entry", ALGORITHMS, ids=_id)
-def test_algorithm_runs_together_equal_runs_alone(entry):
-    """Every registered algorithm with a ``run_batch``: R runs in one batch equal each run alone to 1e-12
-    (irregular per-run times, per-run priors, missing fixes)."""
-    from hybridtrack.testing import check_algorithm_batch
-
-    if not check_algorithm_batch(entry.factory):
-        pytest.skip(f"algorithm {entry.name!r} has no run_batch")

@@ -1,6 +1,7 @@
-"""Pipeline.run_batch: R runs as one stacked bank equal the per-run Pipeline to 1e-12, for every registered
-estimator and detector the pipeline accepts, with irregular per-run times, per-run priors and NaN components;
-a batched run's recording equals the run's own."""
+"""R runs together equal R runs alone, to 1e-12: one parametrized check over every registered estimator,
+detector (through Pipeline.run_batch) and algorithm (its run_batch), with irregular per-run times, per-run priors
+and NaN components; a batched run's recording equals the run's own.  The algorithms' own variants (follow rules,
+switch estimates, pruning, IMM/GPB × estimators) are in tests/algorithms/test_*_batch.py."""
 
 import copy
 
@@ -15,7 +16,7 @@ from hybridtrack.engine.pipeline import Pipeline
 from hybridtrack.engine.simulate import simulate
 from hybridtrack.recording import RerunRecorder
 from hybridtrack.recording.inspection import RecordingFile
-from hybridtrack.testing import build_example
+from hybridtrack.testing import build_example, check_algorithm_batch
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 RUNS, STEPS = 3, 24
@@ -23,6 +24,7 @@ SENSORS = [PositionSensor(name="a"), PositionSensor(name="b", components="x", no
 MODELS = ["straight", ("left_turn", {"radius": 3.0, "noise_cov": np.diag([1e-3, 1e-3])})]
 ESTIMATORS = [e for e in get_registry().entries() if e.kind == "estimator"]
 DETECTORS = [e for e in get_registry().entries() if e.kind == "detector"]
+ALGORITHMS = [e for e in get_registry().entries() if e.kind == "algorithm"]
 TOL = {"rtol": 1e-12, "atol": 1e-12}
 
 
@@ -67,32 +69,40 @@ def assert_same(batched, single):
         np.testing.assert_allclose(a.statistic, b.statistic, **TOL)
 
 
-@pytest.mark.parametrize("entry", ESTIMATORS, ids=lambda e: e.name)
-def test_batch_equals_per_run_for_every_estimator(entry):
+def pipeline_runs(entry):
+    """(runs together, runs alone) of a Pipeline on :func:`batch_data` with the registered estimator, or the
+    registered detector on a Kalman bank; None when the pipeline does not take the component on this scenario."""
     z, times, prior = batch_data()
-    options = {"models": MODELS, "sensors": SENSORS}
+    if entry.kind == "estimator":
+        options = {"models": MODELS, "sensors": SENSORS, "estimator": build_example(entry.factory)}
+    else:
+        options = {"models": MODELS, "sensors": SENSORS, "estimator": "kalman", "detectors": [build_example(entry.factory)]}
     try:
-        singles = [per_run(z, times, prior, r, estimator=build_example(entry.factory), **options) for r in range(RUNS)]
-    except (ValueError, TypeError) as error:
-        pytest.skip(f"the pipeline does not run {entry.name!r} on this scenario: {error}")
-    batched = Pipeline.run_batch(z, prior, times=times, estimator=build_example(entry.factory), **options)
+        alone = [per_run(z, times, prior, r, **copy.deepcopy(options)) for r in range(RUNS)]
+    except (ValueError, TypeError, AttributeError):
+        return None
+    return Pipeline.run_batch(z, prior, times=times, **options), alone
+
+
+@pytest.mark.parametrize("entry", ESTIMATORS + DETECTORS + ALGORITHMS, ids=lambda e: f"{e.kind}:{e.name}")
+def test_runs_together_equal_runs_alone(entry):
+    """The one batch-equivalence check over every registered estimator, detector and algorithm: R runs in one
+    batch equal each run alone to 1e-12 (per-run irregular times, per-run priors, missing components).
+    Estimators and detectors run through the Pipeline; an algorithm through its own run_batch
+    (:func:`hybridtrack.testing.check_algorithm_batch`, which compares times, means, covs, mode and decisions)."""
+    if entry.kind == "algorithm":
+        if not check_algorithm_batch(entry.factory):
+            pytest.skip(f"algorithm {entry.name!r} has no run_batch")
+        return
+    found = pipeline_runs(entry)
+    if found is None:
+        pytest.skip(f"the pipeline does not run {entry.kind} {entry.name!r} on this scenario")
+    batched, alone = found
     assert len(batched) == RUNS
-    for b, s in zip(batched, singles):
+    for b, s in zip(batched, alone):
         assert_same(b, s)
-
-
-@pytest.mark.parametrize("entry", DETECTORS, ids=lambda e: e.name)
-def test_batch_equals_per_run_for_every_detector(entry):
-    z, times, prior = batch_data()
-    options = {"models": MODELS, "sensors": SENSORS, "estimator": "kalman"}
-    try:
-        singles = [per_run(z, times, prior, r, detectors=[build_example(entry.factory)], **options) for r in range(RUNS)]
-    except (ValueError, TypeError, AttributeError) as error:
-        pytest.skip(f"the pipeline does not run detector {entry.name!r} on a plain bank: {error}")
-    batched = Pipeline.run_batch(z, prior, times=times, detectors=[build_example(entry.factory)], **options)
-    for b, s in zip(batched, singles):
-        assert_same(b, s)
-        assert s.statistics, "the detector reported nothing"
+        if entry.kind == "detector":
+            assert s.statistics, "the detector reported nothing"
 
 
 def test_batch_with_shared_times_prior_and_a_nonlinear_model():
