@@ -52,7 +52,7 @@ from hybridtrack.core.interfaces import TransitionBank
 from hybridtrack.core.plugins import get_registry
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.clutter import ClutterModel, add_clutter, region_around, stack_scans
-from hybridtrack.engine.schedule import Schedule
+from hybridtrack.engine.schedule import SEED001_TABLE1, Schedule
 from hybridtrack.engine.simulate import simulate_measurements, simulate_trajectory
 from hybridtrack_plugins.detectors.signal_function import SignalFunction
 from hybridtrack_plugins.detectors.sprt_change import ChangeTimeSPRT
@@ -64,15 +64,7 @@ LAYOUT = ("x", "vx", "y", "vy")
 X0 = np.array([0.0, 0.0, 0.0, 2.0])
 TAU = 0.1
 
-# Part 1
-TABLE1 = [
-    ("left_turn", 50, 3.0),
-    ("right_turn", 75, 5.0),
-    ("straight", 50),
-    ("left_turn", 75, 3.0),
-    ("straight", 50),
-    ("left_turn", 60, 4.0),
-]
+# Part 1: the seed-001 Table 1 trajectory (SEED001_TABLE1)
 TRACKING_R = 0.1
 TRACKER_Q = 0.1
 GATE = 0.99
@@ -136,7 +128,7 @@ def make_estimator(registry, name: str, detection_probability: float, density: f
 def simulate_run(seed: int, density: float, detection_probability: float):
     """One seeded truth + clutter realisation: (scans of sensor ``pos``, true positions (K+1, 2), λV, the sensor)."""
     trajectory_seed, measurement_seed, clutter_seed = np.random.SeedSequence([seed, 1]).spawn(3)
-    schedule = Schedule.from_rows(TABLE1)
+    schedule = SEED001_TABLE1
     truth = simulate_trajectory(schedule, X0, TAU, seed=np.random.default_rng(trajectory_seed), noise_cov=np.eye(2) * 0.001)
     sensor = PositionSensor("pos", ("x", "y"), np.eye(2) * TRACKING_R)
     clean = simulate_measurements(truth, [sensor], seed=np.random.default_rng(measurement_seed))
