@@ -16,8 +16,8 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.interfaces import Sensor
-from hybridtrack.core.plugins import resolve, resolve_registry
-from hybridtrack.core.registry import Registry
+from hybridtrack.core.plugins import resolve
+from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.types import Gaussian
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, prior_arrays, run_groups, stacked_measurements
@@ -81,7 +81,7 @@ def run_known_modes_batch(
     transition fixed at x̂_s.  Each run equals the run alone to rounding (1e-12);
     runs of a decentralized or sampling estimator each form their own batch of one.
     """
-    registry = resolve_registry(registry)
+    registry = registry_or_default(registry)
     models = build_models(schedule, registry, noise_cov)
     network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
     z = stacked_measurements(network, measurements)

@@ -27,9 +27,9 @@ from hybridtrack.algorithms.mode_sets import resolve_modes, turn_bank
 from hybridtrack.algorithms.switch_state import SwitchAugmented, augmented_layout, augmented_prior
 from hybridtrack.core.components import require
 from hybridtrack.core.interfaces import Estimator, Sensor
-from hybridtrack.core.plugins import resolve, resolve_registry
+from hybridtrack.core.plugins import resolve
 from hybridtrack.core.protocols import HypothesisTest, HypothesisTestBatch
-from hybridtrack.core.registry import Registry
+from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import check_positive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, run_groups, stacked_measurements
@@ -167,7 +167,7 @@ class KnownSwitchAdaptive:
         self.follow = follow
         self.switch_estimate = switch_estimate
         self.switch_inflation = check_positive(switch_inflation, "switch_inflation")
-        registry = resolve_registry(registry)
+        registry = registry_or_default(registry)
         self.models = resolve_modes(modes if modes is not None else turn_bank(r_min, r_max, n, noise_cov), registry)
         self.hypotheses = mode_labels(self.models)
         self.layout = self.models[0].layout

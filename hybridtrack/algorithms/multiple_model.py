@@ -80,8 +80,8 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor
-from hybridtrack.core.plugins import resolve, resolve_registry
-from hybridtrack.core.registry import Registry
+from hybridtrack.core.plugins import resolve
+from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, stacked_measurements
@@ -233,7 +233,7 @@ class MultipleModelEstimator:
         if method not in METHODS:
             raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
         self.method = method
-        registry = resolve_registry(registry)
+        registry = registry_or_default(registry)
         if isinstance(models, (str, MotionModel)) or not isinstance(models, Sequence):
             raise TypeError(f"models: expected a sequence of motion models (objects, names or (name, parameters)), got {models!r}")
         self.models: list[MotionModel] = [resolve("motion_model", m, registry) for m in models]

@@ -15,8 +15,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from hybridtrack.core.hookspecs import hookimpl
-from hybridtrack.core.plugins import resolve_registry
-from hybridtrack.core.registry import Registry
+from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.engine.schedule import Schedule
 
 #: a turn wide enough for the contract check's straight truth (10 m/s, steps of 1 s)
@@ -83,7 +82,7 @@ class KnownModes:
         self.schedule = schedule if isinstance(schedule, Schedule) else Schedule.from_rows(schedule)
         self.sensors, self.estimator, self.tau, self.noise_cov = sensors, estimator, tau, noise_cov
         self.name, self.registry = name, registry
-        self.layout = build_models(self.schedule, resolve_registry(registry), noise_cov)[0].layout
+        self.layout = build_models(self.schedule, registry_or_default(registry), noise_cov)[0].layout
 
     @staticmethod
     def example_parameters() -> dict:

@@ -34,9 +34,9 @@ from hybridtrack.algorithms.algorithm4 import algorithm4_bank_size, wald_pair
 from hybridtrack.algorithms.mode_sets import resolve_modes
 from hybridtrack.core.components import require
 from hybridtrack.core.interfaces import Estimator, Sensor
-from hybridtrack.core.plugins import resolve, resolve_registry
+from hybridtrack.core.plugins import resolve
 from hybridtrack.core.protocols import ChangeTimeTest, ScoreDetector
-from hybridtrack.core.registry import Registry
+from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, run_groups, stacked_measurements
@@ -126,7 +126,7 @@ class UnknownChangeAdaptive:
         name: str = "unknown_change",
         registry: Registry | None = None,
     ):
-        registry = resolve_registry(registry)
+        registry = registry_or_default(registry)
         self.models = resolve_modes(modes, registry)
         if len(self.models) < 2:
             raise ValueError(f"modes: a change needs at least two modes, got {len(self.models)}")

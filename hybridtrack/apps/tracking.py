@@ -200,14 +200,14 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
 
 def _algorithm(est: dict, where: str, registry) -> str:
     """The registry name of ``[estimator] algorithm`` (or of its older spelling ``kind``), checked."""
-    from hybridtrack.core.plugins import resolve_registry
+    from hybridtrack.core.registry import registry_or_default
 
     given = [key for key in ("algorithm", "kind") if key in est]
     if len(given) != 1:
         raise ConfigError(f"{where}: [estimator] algorithm (a registered algorithm name) is required, once (kind is its older spelling)")
     key = given[0]
     name = est.pop(key)
-    known = resolve_registry(registry).names("algorithm")
+    known = registry_or_default(registry).names("algorithm")
     if name not in known:
         raise ConfigError(f"{where}: [estimator] {key} = {name!r}; expected a registered algorithm, one of {known}")
     return name

@@ -222,14 +222,10 @@ def reset() -> None:
     _default.cache_clear()
 
 
-#: ``registry``, or the default one when None
-resolve_registry = registry_or_default
-
-
 def check_component(kind: str, name: str, component, registry: Registry | None = None):
     """``component`` if it implements the interface of ``kind`` (:meth:`Registry.check` on the default registry
     when ``registry`` is None)."""
-    return resolve_registry(registry).check(kind, name, component)
+    return registry_or_default(registry).check(kind, name, component)
 
 
 def resolve(kind: str, spec, registry: Registry | None = None):
@@ -237,4 +233,4 @@ def resolve(kind: str, spec, registry: Registry | None = None):
     (:meth:`Registry.resolve` on the default registry when ``registry`` is None)."""
     if not isinstance(spec, (str, tuple)) and kind in KINDS:
         return require(spec, KINDS[kind].interface, kind)  # an object needs no registry
-    return resolve_registry(registry).resolve(kind, spec)
+    return registry_or_default(registry).resolve(kind, spec)
