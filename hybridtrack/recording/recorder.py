@@ -27,6 +27,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from hybridtrack.recording.layout import content_blueprint, default_blueprint, map_zoom
+from hybridtrack.recording.results import log_result
 from hybridtrack.recording.style import finite_runs, is_hypothesis, palette, series_style, spatial_style
 
 APPLICATION_ID = "hybridtrack"
@@ -464,8 +465,6 @@ class RerunRecorder(AbstractContextManager):
 
     def log_result(self, result, **context):
         """Record a finished run's result (:func:`hybridtrack.recording.results.log_result`)."""
-        from hybridtrack.recording.results import log_result
-
         log_result(result, self, **context)
 
     def blueprint(self):
