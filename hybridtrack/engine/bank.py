@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from hybridtrack.core.interfaces import Estimator, Innovation, MotionModel, Sensor, TransitionBank
+from hybridtrack.engine.layouts import LayoutFill
 
 
 class BankStep:
@@ -64,8 +65,9 @@ class BankStep:
         return np.full(self.size, self.innovation.measurement_dim)
 
 
-class FilterBank:
-    """Filters of R runs in one estimator state, ordered run by run: each filter's run, model and switch state.
+class LayoutBank:
+    """Filters of R runs of one state layout in one estimator state, ordered run by run: each filter's run, model and
+    switch state (a :class:`FilterBank` holds one per layout).
 
     ``run`` (F,) is each filter's run index; :meth:`start` / :meth:`set` create
     the bank, :meth:`take` changes membership (rows in the new order, repeats
@@ -283,6 +285,294 @@ class FilterBank:
             loglik[rows], nis[rows], m[rows] = innovation.loglik, innovation.nis, innovation.measurement_dim
         self.state = self.estimator.take(self.estimator.concatenate(parts), np.argsort(np.concatenate(order)))
         self._forget_moments()
+        return BankStep(tuple(updates), F, loglik=loglik, nis=nis, m=m)
+
+
+class FilterBank:
+    """Filters of R runs in one bank, ordered run by run, their models of any state layouts: one :class:`LayoutBank`
+    per layout, the bank read and written in its ``layout`` (the union of the models' layouts).
+
+    A filter keeps its estimate in its model's layout; :attr:`means` and
+    :attr:`covs` give every filter in the bank's layout, each component its
+    model lacks at ``missing_mean`` with variance ``missing_variance``,
+    uncorrelated (:class:`~hybridtrack.engine.layouts.LayoutFill`), and
+    :meth:`start` gives each filter the marginal of its start on its model's
+    components.  A filter :meth:`assign` gives a model of another layout moves
+    to that layout's group, restarted from its estimate in the bank's layout.
+    A step steps every layout's group (one ``predict``/``update`` per layout) and
+    returns the scores in filter order.  A bank whose filters all run models of
+    its own layout is its one :class:`LayoutBank`: every call is forwarded.
+    """
+
+    def __init__(self, estimator: Estimator, layout: Sequence[str], sensors: Sequence[Sensor], *, missing_mean=0.0, missing_variance=1.0):
+        self.estimator, self.layout, self.sensors = estimator, tuple(layout), sensors
+        self.fill = LayoutFill(self.layout, missing_mean, missing_variance)
+        self.groups: dict[tuple[str, ...], LayoutBank] = {}
+        self.models: list[MotionModel] = []
+        self.run = np.zeros(0, dtype=int)
+        self.runs = 1
+        self._group = np.zeros(0, dtype=np.intp)  # each filter's group: index into self.groups
+        self._only: LayoutBank | None = None  # the one group, when every filter runs a model of the bank's layout
+        self._model_group: dict[int, tuple[MotionModel, int]] = {}  # id → (model, its group)
+        self._positions: dict[tuple[str, ...], np.ndarray] = {}  # a group's components in the bank's layout
+        self._moments: dict = {}
+
+    def __len__(self) -> int:
+        return len(self.models)
+
+    def _index(self, models: Sequence[MotionModel]) -> np.ndarray:
+        """Each model's group (the group of its layout, created on first sight)."""
+        out = np.empty(len(models), dtype=np.intp)
+        for i, model in enumerate(models):
+            known = self._model_group.get(id(model))
+            if known is None:
+                layout = tuple(model.layout)
+                if layout not in self.groups:
+                    self._positions[layout] = self.fill.positions(layout, f"model {model.name!r}")
+                    self.groups[layout] = LayoutBank(self.estimator, layout, self.sensors)
+                known = self._model_group[id(model)] = (model, list(self.groups).index(layout))
+            out[i] = known[1]
+        return out
+
+    def _members(self):
+        """(group, its filters' rows in the bank, its components' positions in the bank's layout) per non-empty group."""
+        for g, (layout, bank) in enumerate(self.groups.items()):
+            rows = np.flatnonzero(self._group == g)
+            if rows.size:
+                yield bank, rows, self._positions[layout]
+
+    def _rank(self) -> np.ndarray:
+        """Each filter's row in its group (a group holds its filters in bank order)."""
+        rank = np.empty(len(self), dtype=np.intp)
+        for _, rows, _ in self._members():
+            rank[rows] = np.arange(rows.size)
+        return rank
+
+    def _changed(self) -> None:
+        self._moments = {}
+        banks = list(self.groups.values())
+        only = banks[self._group[0]] if self._group.size and (self._group == self._group[0]).all() else None
+        self._only = only if only is not None and only.layout == self.layout else None
+        if self._only is not None:
+            self.models, self.run = self._only.models, self._only.run
+
+    def _clear(self, bank: LayoutBank) -> None:
+        bank.set(None, [], np.zeros((0, len(bank.layout))), np.zeros(0, dtype=int))
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def means(self) -> np.ndarray:
+        """x (F, n) of every filter in the bank's layout."""
+        if self._only is not None:
+            return self._only.means
+        if "means" not in self._moments:
+            x = np.broadcast_to(self.fill.mean, (len(self), len(self.layout))).copy()
+            for bank, rows, pos in self._members():
+                x[rows[:, None], pos] = bank.means
+            self._moments["means"] = x
+        return self._moments["means"]
+
+    @property
+    def switch_states(self) -> np.ndarray:
+        """The switch state (F, n) each filter's transition is fixed at, in the bank's layout."""
+        if self._only is not None:
+            return self._only.switch_states
+        out = np.broadcast_to(self.fill.mean, (len(self), len(self.layout))).copy()
+        for bank, rows, pos in self._members():
+            out[rows[:, None], pos] = bank.switch_states
+        return out
+
+    def _expanded_covs(self, which: str) -> np.ndarray:
+        if self._only is not None:
+            return getattr(self._only, which)
+        if which not in self._moments:
+            n = len(self.layout)
+            P = np.empty((len(self), n, n))
+            for bank, rows, pos in self._members():
+                P[rows] = self.fill.expand(bank.means, getattr(bank, which), pos)[1]
+            self._moments[which] = P
+        return self._moments[which]
+
+    @property
+    def raw_covs(self) -> np.ndarray:
+        """P (F, n, n) of every filter as the estimator gives it, in the bank's layout."""
+        return self._expanded_covs("raw_covs")
+
+    @property
+    def covs(self) -> np.ndarray:
+        """P (F, n, n) of every filter, symmetrized ½(P + Pᵀ), in the bank's layout."""
+        return self._expanded_covs("covs")
+
+    @property
+    def state(self):
+        """The estimator's state of a bank of one layout (the bank's own)."""
+        if self._only is None:
+            raise ValueError(
+                f"state: the bank holds filters of layouts {[b.layout for b, _, _ in self._members()]}, not one estimator state"
+            )
+        return self._only.state
+
+    @property
+    def sizes(self) -> np.ndarray:
+        """Filters per run (R,)."""
+        return np.bincount(self.run, minlength=self.runs)
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """The first filter of each run (R,)."""
+        return np.searchsorted(self.run, np.arange(self.runs))
+
+    def node_scores(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(ℓ, NIS) each node computed locally, shape (N, F), for a decentralized estimator; else None."""
+        if self._only is not None:
+            return self._only.node_scores()
+        parts = [(bank.node_scores(), rows) for bank, rows, _ in self._members()]
+        if not parts or any(scores is None for scores, _ in parts):
+            return None
+        out = np.empty((2, parts[0][0][0].shape[0], len(self)))
+        for (loglik, nis), rows in parts:
+            out[0][:, rows], out[1][:, rows] = loglik, nis
+        return out[0], out[1]
+
+    def transitions(self, dt) -> TransitionBank:
+        """Every filter's transition over ``dt`` (:meth:`LayoutBank.transitions`; a bank of one layout)."""
+        if self._only is None:
+            raise ValueError("transitions: the filters of a bank of several layouts have transitions of different sizes")
+        return self._only.transitions(dt)
+
+    # ------------------------------------------------------------------ membership
+    def start(self, means, covs, models: Sequence[MotionModel], switch_states, run=None) -> None:
+        """A new bank of one filter per model starting at N(means, covs) ((F, n), (F, n, n) in the bank's layout; one
+        (n,), (n, n) for all), its transition fixed at ``switch_states`` ((F, n) or (n,)); ``run`` (F,) default all 0."""
+        F = len(models)
+        self.models = list(models)
+        self.run = np.zeros(F, dtype=int) if run is None else np.asarray(run, dtype=int)
+        self.runs = int(self.run.max()) + 1 if F else 1
+        self._group = self._index(self.models)
+        members = list(self._members())
+        if len(members) == 1 and members[0][0].layout == self.layout:
+            members[0][0].start(means, covs, self.models, switch_states, self.run)
+        else:
+            n = len(self.layout)
+            means = np.broadcast_to(np.asarray(means, dtype=float), (F, n))
+            covs = np.broadcast_to(np.asarray(covs, dtype=float), (F, n, n))
+            switch_states = np.broadcast_to(np.asarray(switch_states, dtype=float), (F, n))
+            for bank, rows, pos in members:
+                models = [self.models[i] for i in rows]
+                bank.start(means[rows][:, pos], covs[rows][:, pos[:, None], pos], models, switch_states[rows][:, pos], self.run[rows])
+        for bank in self.groups.values():
+            if not any(bank is b for b, _, _ in members):
+                self._clear(bank)
+        self._changed()
+
+    def set(self, state, models: Sequence[MotionModel], switch_states, run=None) -> None:
+        """Replace the whole bank by the estimator's ``state`` of filters running ``models`` of the bank's layout."""
+        wrong = [m.name for m in models if tuple(m.layout) != self.layout]
+        if wrong:
+            raise ValueError(f"models: {wrong} are not of the bank's layout {self.layout}; one estimator state holds one layout")
+        self._group = self._index(models)
+        for bank in self.groups.values():
+            if bank.layout != self.layout:
+                self._clear(bank)
+        self.groups[self.layout].set(state, models, switch_states, run)
+        self.runs = self.groups[self.layout].runs
+        self._changed()
+
+    def take(self, rows, fresh: np.ndarray | None = None) -> None:
+        """Keep the filters ``rows`` in that order (repeats copy a filter's state, in its own form); ``fresh`` (bool
+        per new row): filters whose model or switch state the caller changes next (:meth:`assign`)."""
+        if self._only is not None:
+            self._only.take(rows, fresh)
+            self._group = np.full(len(self._only), self._group[0], dtype=np.intp)
+            self.models, self.run = self._only.models, self._only.run
+            return self._changed()
+        rows = np.asarray(rows, dtype=np.intp).reshape(-1)
+        group, rank = self._group[rows], self._rank()
+        for g, bank in enumerate(self.groups.values()):
+            kept = np.flatnonzero(group == g)
+            if kept.size:
+                bank.take(rank[rows[kept]], None if fresh is None else np.asarray(fresh)[kept])
+            elif len(bank):
+                self._clear(bank)
+        self._group, self.models, self.run = group, [self.models[i] for i in rows], self.run[rows]
+        self._changed()
+
+    def assign(self, rows, models: Sequence[MotionModel], switch_states) -> None:
+        """Give the filters ``rows`` new models and switch states (in the bank's layout; their transitions are rebuilt
+        at the next step); a filter given a model of another layout restarts there from its estimate."""
+        rows = np.asarray(rows, dtype=np.intp).reshape(-1)
+        states = np.broadcast_to(np.asarray(switch_states, dtype=float), (rows.size, len(self.layout)))
+        group = self._index(models)
+        if self._only is not None and (group == self._group[0]).all():
+            self._only.assign(rows, models, states)
+            return self._changed()
+        moved = group != self._group[rows]
+        self.models = list(self.models)
+        x, P, rank = self.means[rows[moved]], self.covs[rows[moved]], self._rank()
+        for g, (layout, bank) in enumerate(self.groups.items()):
+            pos = self._positions[layout]
+            same = np.flatnonzero(~moved & (group == g))
+            if same.size:
+                bank.assign(rank[rows[same]], [models[i] for i in same], states[same][:, pos])
+        if moved.any():
+            self._move(rows[moved], [m for m, flag in zip(models, moved) if flag], states[moved], x, P, rank)
+        for i, model in zip(rows, models):
+            self.models[i] = model
+        self._changed()
+
+    def _move(self, rows, models, switch_states, x, P, rank) -> None:
+        """Filters ``rows`` to the groups of ``models`` (other layouts), restarted at N(x, P) (bank's layout)."""
+        old = self._group.copy()
+        self._group[rows] = self._index(models)
+        for g in np.unique(np.concatenate([old[rows], self._group[rows]])):
+            layout, bank = list(self.groups.items())[g]
+            pos = self._positions[layout]
+            members = np.flatnonzero(self._group == g)
+            arriving = np.isin(members, rows)
+            kept = members[~arriving]
+            if kept.size:
+                bank.take(rank[kept])
+            if not arriving.any():
+                if not kept.size:
+                    self._clear(bank)
+                continue
+            j = np.array([np.flatnonzero(rows == i)[0] for i in members[arriving]])
+            new = self.estimator.initialize(x[j][:, pos], P[j][:, pos[:, None], pos])
+            state = new if not kept.size else self.estimator.concatenate([bank.state, new])
+            order = np.concatenate([kept, members[arriving]])
+            filter_models = [self.models[i] for i in kept] + [models[i] for i in j]
+            switch = np.concatenate([bank.switch_states[: kept.size], switch_states[j][:, pos]])
+            bank.set(state, filter_models, switch, self.run[order])
+            bank.take(np.argsort(order, kind="stable"))
+
+    def add(self, rows, models: Sequence[MotionModel], switch_states) -> np.ndarray:
+        """Append a copy of each filter ``rows[i]`` running ``models[i]`` from ``switch_states[i]`` (a switch
+        hypothesised there), behind the filters of its run (in the order given); returns the new filters' rows."""
+        rows = np.asarray(rows, dtype=np.intp).reshape(-1)
+        F = len(self)
+        source = np.concatenate([np.arange(F), rows])
+        position = np.argsort(self.run[source], kind="stable")  # the bank is ordered run by run: copies go behind their run
+        self.take(source[position], fresh=position >= F)
+        added = np.flatnonzero(position >= F)
+        which = position[added] - F
+        states = np.broadcast_to(np.asarray(switch_states, dtype=float), (rows.size, len(self.layout)))
+        self.assign(added, [models[i] for i in which], states[which])
+        return added
+
+    # ------------------------------------------------------------------ steps
+    def step(self, dt, z) -> BankStep:
+        """Predict every filter over its run's Δt and update it with its run's row of ``z``
+        (:meth:`LayoutBank.step`), one step per layout; the scores in filter order."""
+        if self._only is not None:
+            return self._only.step(dt, z)
+        F = len(self)
+        loglik, nis, m = np.zeros(F), np.zeros(F), np.zeros(F, dtype=int)
+        updates: list = []
+        for bank, rows, _ in self._members():
+            scores = bank.step(dt, z)
+            loglik[rows], nis[rows], m[rows] = scores.loglik, scores.nis, scores.m
+            updates += scores.updates
+        self._moments = {}
         return BankStep(tuple(updates), F, loglik=loglik, nis=nis, m=m)
 
 
