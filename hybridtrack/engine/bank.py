@@ -71,8 +71,7 @@ class LayoutBank:
 
     ``run`` (F,) is each filter's run index; :meth:`start` / :meth:`set` create
     the bank, :meth:`take` changes membership (rows in the new order, repeats
-    copy a filter), :meth:`add` appends copies behind their runs' filters,
-    :meth:`assign` gives filters new models; :meth:`step` predicts every filter
+    copy a filter), :meth:`assign` gives filters new models; :meth:`step` predicts every filter
     over its run's Δt and updates it with its run's measurement.
     """
 
@@ -121,16 +120,6 @@ class LayoutBank:
 
     def _forget_moments(self) -> None:
         self._mean = self._cov = self._sym = None
-
-    @property
-    def sizes(self) -> np.ndarray:
-        """Filters per run (R,)."""
-        return np.bincount(self.run, minlength=self.runs)
-
-    @property
-    def offsets(self) -> np.ndarray:
-        """The first filter of each run (R,)."""
-        return np.searchsorted(self.run, np.arange(self.runs))
 
     def node_scores(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(ℓ, NIS) each node computed locally, shape (N, F), for a decentralized estimator; else None."""
@@ -192,20 +181,6 @@ class LayoutBank:
         self._dt[rows], self._shared_dt = np.nan, None
         if self._linear:
             self._linear = all(m.linear for m in models)
-
-    def add(self, rows, models: Sequence[MotionModel], switch_states) -> np.ndarray:
-        """Append a copy of each filter ``rows[i]`` running ``models[i]`` from ``switch_states[i]`` (a switch
-        hypothesised there), behind the filters of its run (in the order given); returns the new filters' rows."""
-        rows = np.asarray(rows, dtype=np.intp).reshape(-1)
-        F = len(self)
-        source = np.concatenate([np.arange(F), rows])
-        position = np.argsort(self.run[source], kind="stable")  # the bank is ordered run by run: copies go behind their run
-        self.take(source[position], fresh=position >= F)
-        added = np.flatnonzero(position >= F)
-        which = position[added] - F
-        states = np.broadcast_to(np.asarray(switch_states, dtype=float), (rows.size, len(self.layout)))
-        self.assign(added, [models[i] for i in which], states[which])
-        return added
 
     # ------------------------------------------------------------------ steps
     def transitions(self, dt) -> TransitionBank:
@@ -360,27 +335,26 @@ class FilterBank:
         bank.set(None, [], np.zeros((0, len(bank.layout))), np.zeros(0, dtype=int))
 
     # ------------------------------------------------------------------ reading
+    def _in_layout(self, which: str) -> np.ndarray:
+        """``means`` or ``switch_states`` of every group in the bank's layout (what a model lacks at the missing mean)."""
+        out = np.broadcast_to(self.fill.mean, (len(self), len(self.layout))).copy()
+        for bank, rows, pos in self._members():
+            out[rows[:, None], pos] = getattr(bank, which)
+        return out
+
     @property
     def means(self) -> np.ndarray:
         """x (F, n) of every filter in the bank's layout."""
         if self._only is not None:
             return self._only.means
         if "means" not in self._moments:
-            x = np.broadcast_to(self.fill.mean, (len(self), len(self.layout))).copy()
-            for bank, rows, pos in self._members():
-                x[rows[:, None], pos] = bank.means
-            self._moments["means"] = x
+            self._moments["means"] = self._in_layout("means")
         return self._moments["means"]
 
     @property
     def switch_states(self) -> np.ndarray:
         """The switch state (F, n) each filter's transition is fixed at, in the bank's layout."""
-        if self._only is not None:
-            return self._only.switch_states
-        out = np.broadcast_to(self.fill.mean, (len(self), len(self.layout))).copy()
-        for bank, rows, pos in self._members():
-            out[rows[:, None], pos] = bank.switch_states
-        return out
+        return self._only.switch_states if self._only is not None else self._in_layout("switch_states")
 
     def _expanded_covs(self, which: str) -> np.ndarray:
         if self._only is not None:
