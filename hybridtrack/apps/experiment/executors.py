@@ -256,10 +256,7 @@ class DaskExecutor(contextlib.AbstractContextManager):
 
 def make_executor(name: str, *, workers: int | None = None, scheduler=None, timeout: float = CONNECT_TIMEOUT):
     """The executor called ``name`` (one of :data:`EXECUTORS`); ``timeout``: seconds to reach a Dask scheduler."""
-    if name == "inline":
-        return InlineExecutor()
-    if name == "process":
-        return ProcessExecutor(workers)
-    if name == "dask":
-        return DaskExecutor(scheduler, timeout)
-    raise ValueError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
+    factories = {"inline": InlineExecutor, "process": lambda: ProcessExecutor(workers), "dask": lambda: DaskExecutor(scheduler, timeout)}
+    if name not in factories:
+        raise ValueError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
+    return factories[name]()
