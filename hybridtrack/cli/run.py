@@ -144,12 +144,9 @@ def run(args: argparse.Namespace) -> int:
             summary_path = result.out / "summary.rrd"
             configuration = {"experiment": result.experiment, "n": result.n, "seed": campaign.seed, "parameters": campaign.parameters}
             write_summary_recording(result.arrays, summary_path, configuration)
-    except CampaignInterrupted as interrupt:
-        print(f"hybridtrack run: {interrupt}", file=sys.stderr)
-        return 130
-    except RunFailed as error:
+    except (CampaignInterrupted, RunFailed) as error:
         print(f"hybridtrack run: {error}", file=sys.stderr)
-        return 1
+        return 130 if isinstance(error, CampaignInterrupted) else 1
     except (UnknownExperiment, CampaignLocked, ValueError, TypeError, OSError) as error:
         # CampaignMismatch and CorruptResults are ValueErrors; OSError: --out unusable, scheduler unreachable
         print("hybridtrack run: " + " ".join(str(error).split("\n")), file=sys.stderr)
