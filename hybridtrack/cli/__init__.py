@@ -157,12 +157,7 @@ def build_parser(available: dict[str, Command] | None = None) -> argparse.Argume
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line on ``argv`` (default ``sys.argv[1:]``) and return the exit status.
-
-    User errors (:class:`UsageError`, argparse errors, OSErrors about a named
-    file) give one line on stderr and status 2; a closed output pipe gives
-    status 141 and no output.
-    """
+    """Run the command line on ``argv`` (default ``sys.argv[1:]``) and return the exit status (errors: module docstring)."""
     _tolerate_console_encoding()
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser({} if _asks_version(argv) else None)  # --version: no plugin loaded
