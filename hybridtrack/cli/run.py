@@ -100,10 +100,9 @@ def run(args: argparse.Namespace) -> int:
     )
     from hybridtrack.apps.experiment.store import CampaignLocked
 
-    if args.executor == "dask" and not args.scheduler:
-        print("hybridtrack run: --executor dask needs --scheduler ADDRESS", file=sys.stderr)
-        return 2
     try:
+        if args.executor == "dask" and not args.scheduler:
+            raise ValueError("--executor dask needs --scheduler ADDRESS")
         campaign = Campaign(
             args.experiment,
             args.n,
