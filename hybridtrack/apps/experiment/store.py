@@ -125,10 +125,9 @@ def _chunk_problem(path: Path, arrays: dict[str, np.ndarray]) -> str | None:
         if name == IDENTITY_ARRAY:
             if values.shape != () or values.dtype.kind != "U":
                 return f"{IDENTITY_ARRAY!r} is {values.dtype} with shape {values.shape}, expected JSON text"
-            continue
-        if values.dtype.kind not in "biuf":
+        elif values.dtype.kind not in "biuf":
             return f"result {name!r} has dtype {values.dtype}, expected numbers"
-        if values.shape[:1] != index.shape:
+        elif values.shape[:1] != index.shape:
             return f"result {name!r} has {values.shape[:1]} rows for {index.size} runs"
     return None
 
