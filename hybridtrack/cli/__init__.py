@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import codecs
+import contextlib
 import importlib
 import math
 import os
@@ -95,27 +96,20 @@ def _one_line(message: object) -> str:
 def _tolerate_console_encoding() -> None:
     """Replace characters stdout/stderr cannot encode (e.g. ψ on an ASCII or latin-1 console) instead of raising."""
     for stream in (sys.stdout, sys.stderr):
-        encoding = getattr(stream, "encoding", None) or "utf-8"
         try:
-            utf = codecs.lookup(encoding).name.startswith("utf")
+            utf = codecs.lookup(getattr(stream, "encoding", None) or "utf-8").name.startswith("utf")
         except LookupError:
             utf = False
-        reconfigure = getattr(stream, "reconfigure", None)
-        if not utf and reconfigure is not None and getattr(stream, "errors", "strict") == "strict":
-            try:
-                reconfigure(errors="replace")
-            except (ValueError, OSError):  # a stream that cannot be reconfigured any more
-                pass
+        if not utf and getattr(stream, "errors", "strict") == "strict":
+            with contextlib.suppress(AttributeError, ValueError, OSError):  # no reconfigure, or not any more
+                stream.reconfigure(errors="replace")
 
 
 def _silence_stdout() -> None:
     """After a broken pipe: point stdout at devnull so the interpreter's final flush does not fail again
     (the recipe of the Python docs, "Note on SIGPIPE")."""
-    try:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-    except (OSError, ValueError, AttributeError):  # no real file descriptor (e.g. captured in a test)
-        pass
+    with contextlib.suppress(OSError, ValueError, AttributeError):  # no real file descriptor (e.g. captured in a test)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def builtin_plugins() -> list:
@@ -163,12 +157,7 @@ def build_parser(available: dict[str, Command] | None = None) -> argparse.Argume
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line on ``argv`` (default ``sys.argv[1:]``) and return the exit status.
-
-    User errors (:class:`UsageError`, argparse errors, OSErrors about a named
-    file) give one line on stderr and status 2; a closed output pipe gives
-    status 141 and no output.
-    """
+    """Run the command line on ``argv`` (default ``sys.argv[1:]``) and return the exit status (errors: module docstring)."""
     _tolerate_console_encoding()
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser({} if _asks_version(argv) else None)  # --version: no plugin loaded

@@ -23,10 +23,7 @@ def rows(loaded) -> list[dict]:
     """One dict per component (the JSON keys plus ``summary``), plugins in load order, then kind and name."""
     order = {info.name: i for i, info in enumerate(loaded.plugins)}
     entries = sorted(loaded.registry.entries(), key=lambda e: (order.get(e.plugin, len(order)), e.kind, e.name))
-    return [
-        {"plugin": e.plugin, "distribution": e.distribution, "version": e.version, "kind": e.kind, "name": e.name, "summary": e.summary}
-        for e in entries
-    ]
+    return [{key: getattr(e, key) for key in (*JSON_KEYS, "summary")} for e in entries]
 
 
 def table(loaded) -> str:
@@ -40,7 +37,7 @@ def table(loaded) -> str:
             lines.append(head + ["-", "-", "(no components)"])
         for row in mine:
             lines.append(head + [row["kind"], row["name"], row["summary"]])
-    header = ["plugin", "distribution", "version", "kind", "name", "summary"]
+    header = [*JSON_KEYS, "summary"]
     widths = [max(len(str(line[i])) for line in [header] + lines) for i in range(len(header) - 1)]
 
     def render(line):

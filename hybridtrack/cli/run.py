@@ -100,10 +100,9 @@ def run(args: argparse.Namespace) -> int:
     )
     from hybridtrack.apps.experiment.store import CampaignLocked
 
-    if args.executor == "dask" and not args.scheduler:
-        print("hybridtrack run: --executor dask needs --scheduler ADDRESS", file=sys.stderr)
-        return 2
     try:
+        if args.executor == "dask" and not args.scheduler:
+            raise ValueError("--executor dask needs --scheduler ADDRESS")
         campaign = Campaign(
             args.experiment,
             args.n,
@@ -144,12 +143,9 @@ def run(args: argparse.Namespace) -> int:
             summary_path = result.out / "summary.rrd"
             configuration = {"experiment": result.experiment, "n": result.n, "seed": campaign.seed, "parameters": campaign.parameters}
             write_summary_recording(result.arrays, summary_path, configuration)
-    except CampaignInterrupted as interrupt:
-        print(f"hybridtrack run: {interrupt}", file=sys.stderr)
-        return 130
-    except RunFailed as error:
+    except (CampaignInterrupted, RunFailed) as error:
         print(f"hybridtrack run: {error}", file=sys.stderr)
-        return 1
+        return 130 if isinstance(error, CampaignInterrupted) else 1
     except (UnknownExperiment, CampaignLocked, ValueError, TypeError, OSError) as error:
         # CampaignMismatch and CorruptResults are ValueErrors; OSError: --out unusable, scheduler unreachable
         print("hybridtrack run: " + " ".join(str(error).split("\n")), file=sys.stderr)

@@ -45,8 +45,6 @@ from hybridtrack.testing._reference import (
     random_innovations,
 )
 
-# --------------------------------------------------------------------------- helpers
-
 
 def example_parameters(factory: Callable[..., Any]) -> dict:
     """The keyword arguments ``factory`` declares for building an example (``{}`` if none)."""
@@ -134,9 +132,6 @@ def _numerical_jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndar
     return np.stack(columns, axis=-1)
 
 
-# --------------------------------------------------------------------------- motion models
-
-
 def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -> None:
     """Check a :class:`~hybridtrack.core.interfaces.MotionModel` against its contract.
 
@@ -193,9 +188,6 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
         x = _array(model.propagate(x, tau, x_s.copy()), label, f"noise-free state after {step + 1} steps", (n,))
 
 
-# --------------------------------------------------------------------------- sensors
-
-
 def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: int = 0) -> None:
     """Check a :class:`~hybridtrack.core.interfaces.Sensor` against its contract.
 
@@ -250,9 +242,6 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     )
     mean = noise.mean(axis=0)
     _require(np.all(np.abs(mean) < 5 * np.sqrt(np.diag(R) / draws) + 1e-12), label, f"simulated noise has mean {mean}, expected 0")
-
-
-# --------------------------------------------------------------------------- estimators
 
 
 def _check_innovation(innovation, label: str, M: int, m: int, gaussian_loglik: bool = True) -> None:
@@ -391,9 +380,6 @@ def _check_bank_operations(estimator: Estimator, label: str, state, bank, sensor
     _close(parts_innovation.loglik, whole_innovation.loglik, label, "loglik of a concatenated bank after a step", rtol=1e-9, atol=1e-9)
 
 
-# --------------------------------------------------------------------------- detectors
-
-
 def _same_step(a: DetectorStep, b: DetectorStep) -> bool:
     """Same decision, and the same statistics and thresholds (NaN equal to NaN)."""
     for x, y in ((a.statistics, b.statistics), (a.thresholds, b.thresholds)):
@@ -446,9 +432,6 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
         _require(_same_step(a, b), label, f"step {k} differs after reset() on the same input:\n{a}\n{b}")
 
 
-# --------------------------------------------------------------------------- solvers
-
-
 def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
     """Check a :class:`~hybridtrack.core.interfaces.Solver` on ``problem`` (default: its ``example_problem()``).
 
@@ -478,9 +461,6 @@ def check_solver(solver: Solver, problem: Any = None) -> Solution | None:
     again = solver.solve(problem)
     _close(again.parameters, theta, label, "parameters of a second solve of the same problem", rtol=1e-12, atol=0)
     return solution
-
-
-# --------------------------------------------------------------------------- algorithms
 
 
 def _algorithm_example(factory: Callable[..., Any], tau: float) -> tuple[Any, dict]:
@@ -589,8 +569,6 @@ def check_algorithm_batch(factory: Callable[..., Any], *, runs: int = 3, steps: 
         _require(decided[0] == decided[1], label, f"run {r}: decisions of the batch differ from the run alone")
     return together
 
-
-# --------------------------------------------------------------------------- dispatch
 
 _CHECKS: dict[str, Callable[..., Any]] = {kind: globals()[f"check_{kind}"] for kind in KINDS}
 

@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 
 from hybridtrack.apps.experiment.definition import Experiment
+from hybridtrack.core.plugins import resolve
+from hybridtrack.core.types import Gaussian
 from hybridtrack.engine.schedule import SEED001_TABLE1, Schedule, Segment
 
 X0 = (0.0, 0.0, 0.0, 2.0)
@@ -30,8 +32,6 @@ def scaled_schedule(schedule: Schedule, factor: float) -> Schedule:
 
 def seed001_setup(R: float, steps_scale: float = 1.0):
     """(schedule, sensors) of seed 001: Table 1 scaled by ``steps_scale``, one position sensor with R = r·I₂."""
-    from hybridtrack.core.plugins import resolve
-
     schedule = scaled_schedule(SEED001_TABLE1, steps_scale)
     sensors = [resolve("sensor", ("position", {"name": "sensor", "noise_cov": float(R) * np.eye(2)}))]
     return schedule, sensors
@@ -39,8 +39,6 @@ def seed001_setup(R: float, steps_scale: float = 1.0):
 
 def seed001_prior():
     """The prior N(x0, I₄) every seed-001 estimator starts from."""
-    from hybridtrack.core.types import Gaussian
-
     return Gaussian(np.array(X0), np.eye(4))
 
 
@@ -83,20 +81,17 @@ def squared_errors(means: np.ndarray, truth, layout) -> np.ndarray:
     return np.sum(error**2, axis=0)
 
 
+def _known_modes_options(q: float, tau: float, estimator: str) -> dict[str, Any]:
+    """The settings of seed 001's optimal KF: prior N(x0, I), Q = q·I₂."""
+    return dict(estimator=estimator, prior=seed001_prior(), tau=tau, noise_cov=float(q) * np.eye(2))
+
+
 def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman", recorder=None):
     """The optimal KF of seed 001 (told the modes; prior N(x0, I)) on one run's measurements."""
     from hybridtrack.algorithms.known_modes import run_known_modes
 
-    return run_known_modes(
-        schedule,
-        estimator=estimator,
-        sensors=sensors,
-        measurements=measurements,
-        prior=seed001_prior(),
-        tau=tau,
-        noise_cov=float(q) * np.eye(2),
-        recorder=recorder,
-    )
+    options = _known_modes_options(q, tau, estimator)
+    return run_known_modes(schedule, sensors=sensors, measurements=measurements, recorder=recorder, **options)
 
 
 def known_modes_estimate_batch(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman"):
@@ -104,31 +99,7 @@ def known_modes_estimate_batch(schedule: Schedule, sensors, measurements, *, q: 
     bank (``run_known_modes_batch``): one run result per run, equal to the per-run ones to rounding."""
     from hybridtrack.algorithms.known_modes import run_known_modes_batch
 
-    return run_known_modes_batch(
-        schedule,
-        estimator=estimator,
-        sensors=sensors,
-        measurements=measurements,
-        prior=seed001_prior(),
-        tau=tau,
-        noise_cov=float(q) * np.eye(2),
-    )
-
-
-def known_modes_errors(
-    rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float = 1.0, estimator: str = "kalman", recorder=None
-) -> dict[str, Any]:
-    """Squared errors (steps 1 … K) of the known-modes KF on one simulated seed-001 trajectory (logged to ``recorder``)."""
-    schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale, recorder=recorder)
-    run = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau, estimator=estimator, recorder=recorder)
-    squared = squared_errors(run.means, truth, run.layout)
-    steps = schedule.total_steps
-    return {
-        "squared_error": squared,
-        "steps": steps,
-        "nrmse": float(np.linalg.norm(np.sqrt(squared / steps))),
-        "mean_nis": float(np.mean(run.nis)),
-    }
+    return run_known_modes_batch(schedule, sensors=sensors, measurements=measurements, **_known_modes_options(q, tau, estimator))
 
 
 def pooled_rmse(squared_error: np.ndarray, steps: np.ndarray) -> np.ndarray:
@@ -137,7 +108,17 @@ def pooled_rmse(squared_error: np.ndarray, steps: np.ndarray) -> np.ndarray:
 
 
 def _demo_rmse(index: int, rng: np.random.Generator, *, R: float, q: float, tau: float, steps_scale: float, recorder=None) -> dict:
-    return known_modes_errors(rng, R=R, q=q, tau=tau, steps_scale=steps_scale, recorder=recorder)
+    """Squared errors (steps 1 … K) of the known-modes KF on one simulated seed-001 trajectory (logged to ``recorder``)."""
+    schedule, sensors, truth, measurements = simulate_seed001(rng, R=R, q=q, tau=tau, steps_scale=steps_scale, recorder=recorder)
+    run = known_modes_estimate(schedule, sensors, measurements, q=q, tau=tau, recorder=recorder)
+    squared = squared_errors(run.means, truth, run.layout)
+    steps = schedule.total_steps
+    return {
+        "squared_error": squared,
+        "steps": steps,
+        "nrmse": float(np.linalg.norm(np.sqrt(squared / steps))),
+        "mean_nis": float(np.mean(run.nis)),
+    }
 
 
 DEMO_RMSE = Experiment(

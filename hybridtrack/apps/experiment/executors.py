@@ -97,8 +97,7 @@ def check_scheduler_address(scheduler: Any) -> Any:
 
 
 def _results(finished: Iterable, cancel_pending: Callable[[], None]) -> Iterator[Any]:
-    """The results of the futures ``finished`` as they come; at the first failure cancel the pending tasks,
-    yield the results of those still running, then raise it."""
+    """The results of the futures ``finished`` as they come, a failure handled as the module docstring says."""
     error: BaseException | None = None
     for future in finished:
         if future.cancelled():
@@ -181,7 +180,6 @@ class ProcessExecutor(contextlib.AbstractContextManager):
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
             self._processes = []
-        return False
 
     def map_unordered(self, function: Callable, tasks: Sequence[tuple]) -> Iterator[Any]:
         if not tasks:
@@ -243,7 +241,6 @@ class DaskExecutor(contextlib.AbstractContextManager):
         if self._owns_client and self._client is not None:
             self._client.close()
         self._client = None
-        return False
 
     def map_unordered(self, function: Callable, tasks: Sequence[tuple]) -> Iterator[Any]:
         from distributed import as_completed
@@ -256,10 +253,7 @@ class DaskExecutor(contextlib.AbstractContextManager):
 
 def make_executor(name: str, *, workers: int | None = None, scheduler=None, timeout: float = CONNECT_TIMEOUT):
     """The executor called ``name`` (one of :data:`EXECUTORS`); ``timeout``: seconds to reach a Dask scheduler."""
-    if name == "inline":
-        return InlineExecutor()
-    if name == "process":
-        return ProcessExecutor(workers)
-    if name == "dask":
-        return DaskExecutor(scheduler, timeout)
-    raise ValueError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
+    factories = {"inline": InlineExecutor, "process": lambda: ProcessExecutor(workers), "dask": lambda: DaskExecutor(scheduler, timeout)}
+    if name not in factories:
+        raise ValueError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
+    return factories[name]()

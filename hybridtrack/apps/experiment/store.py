@@ -37,12 +37,9 @@ except ImportError:  # pragma: no cover - Windows
 
 FORMAT = 1
 MANIFEST = "manifest.json"
-LOCK = ".lock"
-SET_ASIDE = "set_aside"
 #: the reserved chunk array holding the campaign identity as JSON text
 IDENTITY_ARRAY = "__campaign__"
-RESERVED = ("index", IDENTITY_ARRAY)
-_IDENTITY = ("experiment", "parameters", "seed")
+_IDENTITY = ("format", "experiment", "parameters", "seed")
 _REMEDY = "run again with --set-aside (Python: set_aside=True) to move it to {folder}/set_aside/ and recompute its runs"
 
 
@@ -82,7 +79,7 @@ def campaign_identity(experiment: str, parameters: Mapping[str, Any], seed: int)
 
 
 def _differences(recorded: Mapping[str, Any], wanted: Mapping[str, Any]) -> str:
-    keys = [key for key in ("format", *_IDENTITY) if recorded.get(key) != wanted.get(key)]
+    keys = [key for key in _IDENTITY if recorded.get(key) != wanted.get(key)]
     return "; ".join(f"{key}: folder has {recorded.get(key)!r}, asked {wanted.get(key)!r}" for key in keys)
 
 
@@ -128,16 +125,16 @@ def _chunk_problem(path: Path, arrays: dict[str, np.ndarray]) -> str | None:
         if name == IDENTITY_ARRAY:
             if values.shape != () or values.dtype.kind != "U":
                 return f"{IDENTITY_ARRAY!r} is {values.dtype} with shape {values.shape}, expected JSON text"
-            continue
-        if values.dtype.kind not in "biuf":
+        elif values.dtype.kind not in "biuf":
             return f"result {name!r} has dtype {values.dtype}, expected numbers"
-        if values.shape[:1] != index.shape:
+        elif values.shape[:1] != index.shape:
             return f"result {name!r} has {values.shape[:1]} rows for {index.size} runs"
     return None
 
 
-def read_chunk(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Every array of one chunk file, checked; :class:`CorruptResults` naming the file and the fault otherwise."""
+def read_chunk(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
+    """The result arrays of one chunk file and the campaign identity it records (``None`` for chunks written
+    before identities were recorded), checked; :class:`CorruptResults` naming the file and the fault otherwise."""
     path = Path(path)
     try:
         size = path.stat().st_size
@@ -161,20 +158,15 @@ def read_chunk(path: str | os.PathLike) -> dict[str, np.ndarray]:
     problem = _chunk_problem(path, arrays)
     if problem is not None:
         raise CorruptResults(f"chunk file {path} {problem}")
-    return arrays
-
-
-def chunk_identity(path: Path, arrays: Mapping[str, np.ndarray]) -> dict[str, Any] | None:
-    """The campaign identity a chunk records (``None`` for chunks written before identities were recorded)."""
     if IDENTITY_ARRAY not in arrays:
-        return None
+        return arrays, None
     try:
-        identity = json.loads(str(arrays[IDENTITY_ARRAY]))
+        identity = json.loads(str(arrays.pop(IDENTITY_ARRAY)))
     except ValueError as error:
         raise CorruptResults(f"chunk file {path}: {IDENTITY_ARRAY!r} is not valid JSON ({error})") from error
-    if not isinstance(identity, dict) or any(key not in identity for key in ("format", *_IDENTITY)):
+    if not isinstance(identity, dict) or any(key not in identity for key in _IDENTITY):
         raise CorruptResults(f"chunk file {path}: {IDENTITY_ARRAY!r} is {identity!r}, expected format, experiment, parameters, seed")
-    return identity
+    return arrays, identity
 
 
 class ResultStore:
@@ -196,7 +188,7 @@ class ResultStore:
     def locked(self) -> Iterator[None]:
         """Hold the folder's exclusive lock (creating the folder); :class:`CampaignLocked` when another campaign holds it."""
         self._make_folder()
-        path = self.folder / LOCK
+        path = self.folder / ".lock"
         descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
             if fcntl is not None:
@@ -268,10 +260,8 @@ class ResultStore:
         identity = campaign_identity(experiment, parameters, seed)
         wanted = {**identity, "locator": locator, "n": int(n)}
         recorded = self.manifest(set_aside)
-        if recorded is not None:
-            details = _differences(recorded, identity)
-            if details:
-                raise CampaignMismatch(f"{self.folder} holds another campaign ({details}); choose another --out folder")
+        if recorded is not None and (details := _differences(recorded, identity)):
+            raise CampaignMismatch(f"{self.folder} holds another campaign ({details}); choose another --out folder")
         self.identity = identity
         self._manifest_present = recorded is not None
         done = self.completed(set_aside=set_aside)
@@ -280,9 +270,9 @@ class ResultStore:
             _atomic_write(self.manifest_path, lambda handle: handle.write(text.encode("utf-8")))
         return done
 
-    def _set_aside(self, path: Path, reason: str) -> Path:
+    def _set_aside(self, path: Path, reason: str) -> None:
         """Move ``path`` into ``set_aside/`` (never overwriting) and note why in ``set_aside/REASONS.txt``."""
-        folder = self.folder / SET_ASIDE
+        folder = self.folder / "set_aside"
         folder.mkdir(exist_ok=True)
         target, copy = folder / path.name, 0
         while target.exists():
@@ -292,7 +282,6 @@ class ResultStore:
         with open(folder / "REASONS.txt", "a", encoding="utf-8") as notes:
             notes.write(f"{target.name}: {reason}\n")
         self.set_aside_files.append((path, target, reason))
-        return target
 
     def _reference_identity(self) -> tuple[dict[str, Any] | None, bool]:
         """The identity chunks must match (this store's, else the manifest's) and whether a manifest vouches for old chunks."""
@@ -301,7 +290,7 @@ class ResultStore:
         recorded = self.manifest() if self.folder.is_dir() else None
         if recorded is None:
             return None, False
-        return {key: recorded[key] for key in ("format", *_IDENTITY)}, True
+        return {key: recorded[key] for key in _IDENTITY}, True
 
     def _chunks(self, set_aside: bool = False) -> Iterator[tuple[Path, dict[str, np.ndarray]]]:
         """Every usable chunk file with its arrays (identity removed), checked one by one and against each other.
@@ -320,23 +309,19 @@ class ResultStore:
         readable: list[tuple[Path, dict[str, np.ndarray], str]] = []
         for path in sorted(self.folder.glob("runs-*.npz")):
             try:
-                arrays = read_chunk(path)
-                identity = chunk_identity(path, arrays)
+                arrays, identity = read_chunk(path)
                 if identity is None and not vouched:
                     raise CorruptResults(
                         f"chunk file {path} records no campaign identity (written by an older version) and "
                         f"{self.manifest_path} is missing, so its seed cannot be checked"
                     )
                 if identity is not None:
-                    if reference is None:
-                        reference = identity
-                    details = _differences(identity, reference)
-                    if details:
+                    reference = reference or identity
+                    if details := _differences(identity, reference):
                         raise CampaignMismatch(f"chunk file {path} belongs to another campaign ({details})")
             except (CorruptResults, CampaignMismatch) as error:
                 reject(path, error)
                 continue
-            arrays.pop(IDENTITY_ARRAY, None)
             layout = "{" + ", ".join(f"{name}: {arrays[name].shape[1:]}" for name in sorted(arrays)) + "}"
             readable.append((path, arrays, layout))
 
@@ -373,7 +358,7 @@ class ResultStore:
         indices = np.asarray(list(indices), dtype=np.int64)
         if indices.size == 0:
             raise ValueError("write_chunk: no runs to store")
-        for reserved in RESERVED:
+        for reserved in ("index", IDENTITY_ARRAY):
             if reserved in results:
                 raise ValueError(f"write_chunk: {reserved!r} is reserved (run indices, campaign identity)")
         arrays = {"index": indices}

@@ -84,22 +84,17 @@ class ChunkOutcome:
 
 def _row(experiment: str, index: int, result: Any, source: str) -> dict[str, np.ndarray]:
     """One run's results (what ``source`` returned for run ``index``) as arrays: a mapping name → numbers, checked."""
+    where = f"experiment {experiment!r}, run {index}"
     if not isinstance(result, Mapping):
-        raise TypeError(
-            f"experiment {experiment!r}, run {index}: {source} returned {type(result).__name__}, expected a mapping name → number or array"
-        )
+        raise TypeError(f"{where}: {source} returned {type(result).__name__}, expected a mapping name → number or array")
     row = {}
     for name, value in result.items():
         if not isinstance(name, str) or not name or name in ("index", "__campaign__"):
-            raise TypeError(
-                f"experiment {experiment!r}, run {index}: result names must be non-empty strings "
-                f"other than 'index' and '__campaign__', got {name!r}"
-            )
+            raise TypeError(f"{where}: result names must be non-empty strings other than 'index' and '__campaign__', got {name!r}")
         row[name] = np.asarray(value)
         if row[name].dtype.kind not in "biuf":
             raise TypeError(
-                f"experiment {experiment!r}, run {index}: result {name!r} is {type(value).__name__} "
-                f"(dtype {row[name].dtype}), expected a number or a numeric array"
+                f"{where}: result {name!r} is {type(value).__name__} (dtype {row[name].dtype}), expected a number or a numeric array"
             )
     return row
 
@@ -122,22 +117,21 @@ def _stack(experiment: str, rows: Mapping[int, Mapping[str, Any]]) -> dict[str, 
 
 def _batch_rows(experiment: Experiment, indices: Sequence[int], result: Any) -> dict[int, dict[str, np.ndarray]]:
     """``run_batch``'s result (one mapping per run, or name → array stacked over the runs) as run index → row."""
-    count = len(indices)
+    count, where = len(indices), f"experiment {experiment.name!r}: run_batch"
     if isinstance(result, Mapping):
         for name, value in result.items():
             if np.shape(value)[:1] != (count,):
                 raise ValueError(
-                    f"experiment {experiment.name!r}: run_batch result {name!r} has shape {np.shape(value)}, "
-                    f"expected ({count}, …) (one row per run of the chunk)"
+                    f"{where} result {name!r} has shape {np.shape(value)}, expected ({count}, …) (one row per run of the chunk)"
                 )
         result = [{name: value[i] for name, value in result.items()} for i in range(count)]
     elif not isinstance(result, Sequence) or isinstance(result, (str, bytes)):
         raise TypeError(
-            f"experiment {experiment.name!r}: run_batch returned {type(result).__name__}, "
+            f"{where} returned {type(result).__name__}, "
             "expected a list of mappings (one per run) or a mapping name → array stacked over the runs"
         )
     if len(result) != count:
-        raise ValueError(f"experiment {experiment.name!r}: run_batch returned {len(result)} results for {count} runs")
+        raise ValueError(f"{where} returned {len(result)} results for {count} runs")
     return {index: _row(experiment.name, index, row, "run_batch") for index, row in zip(indices, result)}
 
 
