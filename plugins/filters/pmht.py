@@ -78,20 +78,21 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.protocols import Association, ClutterInnovation
+from hybridtrack.core.protocols import Association
 from hybridtrack.core.validation import check_positive, check_positive_int
-from hybridtrack.sdk.estimation import CovarianceMoments, bank_field, guarded
+from hybridtrack.sdk.estimation import bank_field, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import ScanEstimator, gate_threshold, innovation_covariance, log_half_det_2pi_s, pad_axis
+from hybridtrack_plugins.filters.kalman import CovarianceState
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
 MIN_WEIGHT = 1e-9
 
 
-@attrs.frozen(eq=False)
-class PMHTState(CovarianceMoments):
+@attrs.frozen(eq=False, kw_only=True)
+class PMHTState(CovarianceState):
     """A bank of M PMHT filters with windows of W = ``window`` scan slots (newest last).
 
     ``x``, ``P`` the current estimate (filtered at the newest scan, or predicted);
@@ -106,10 +107,6 @@ class PMHTState(CovarianceMoments):
     ``smoothed_covariance`` (M, W, n, n) and filtered ``filtered_mean``/``filtered_covariance``.
     """
 
-    x: np.ndarray = bank_field(0)
-    P: np.ndarray = bank_field(0)
-    x_predicted: np.ndarray = bank_field(0)
-    P_predicted: np.ndarray = bank_field(0)
     prior_x: np.ndarray = bank_field(0)
     prior_P: np.ndarray = bank_field(0)
     pending_F: np.ndarray = bank_field(0)
@@ -131,7 +128,6 @@ class PMHTState(CovarianceMoments):
     filtered_covariance: np.ndarray = bank_field(0)
     iterations: np.ndarray = bank_field(0)
     log_posterior: np.ndarray = bank_field(0)
-    innovation: ClutterInnovation | None = None
 
 
 def _widen(state: PMHTState, m: int, L: int) -> PMHTState:
@@ -357,15 +353,14 @@ class PMHTFilter(ScanEstimator):
         q = np.einsum("...i,...i->...", u, u)
         logN = -0.5 * (q + logdet_R[:, :, None])
         a = self.log_pd + logN
-        log_w = a - np.logaddexp(self.log_lambda, a) if self.clutter_density > 0 else np.zeros_like(a)
-        w = np.where(pw, np.exp(log_w), 0.0)
-        terms = np.where(pw, np.logaddexp(self.log_lambda, a) if self.clutter_density > 0 else a, 0.0)
-        return w, terms.sum(axis=(1, 2))
+        total = np.logaddexp(self.log_lambda, a) if self.clutter_density > 0 else a  # ln(λ + P_D N), or ln(P_D N)
+        w = np.where(pw, np.exp(a - total) if self.clutter_density > 0 else 1.0, 0.0)
+        return w, np.where(pw, total, 0.0).sum(axis=(1, 2))
 
     def _em(self, prior_x, prior_P, guess, valid, F, B, Q, H, R, pad, candidates, present):
         """EM over the window's slots from the initial guess X̂⁰ (M, W, n) (module docstring)."""
         Hw, Rw, cw, pw = H, R, candidates, present
-        M, W, n = guess.shape
+        M = guess.shape[0]
         mb = Hw.shape[2]
         LR = cholesky(Rw, "measurement noise R")
         # ln |2π R| of the real components: the padded identity block adds pad · ln 2π
