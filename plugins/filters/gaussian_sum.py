@@ -284,8 +284,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         gamma = gate_threshold(self.gate_probability, m)
         gated = d2 <= gamma
         half = log_half_det_2pi_s(chol_c)  # ln √|2πS_c|
-        with np.errstate(divide="ignore"):
-            log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
+        log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
         child_detect = np.where(gated, log_detect - half[:, None] - 0.5 * d2, -np.inf).reshape(M, C, L)
         any_gated = gated.reshape(M, C * L).any(axis=1) if L else np.zeros(M, dtype=bool)
@@ -437,11 +436,9 @@ def range_parameterised(
         + cross[None, :, None, None] * np.einsum("mi,mj->mij", v, v)[:, None]
     )
     means = np.zeros((M, C, n))
-    means[..., ix], means[..., iy] = pos[..., 0], pos[..., 1]
-    means[..., ivx], means[..., ivy] = velocity[0], velocity[1]
+    means[..., [ix, iy]], means[..., [ivx, ivy]] = pos, velocity
     covs = np.zeros((M, C, n, n))
-    covs[:, :, ix, ix], covs[:, :, ix, iy] = Pxy[..., 0, 0], Pxy[..., 0, 1]
-    covs[:, :, iy, ix], covs[:, :, iy, iy] = Pxy[..., 1, 0], Pxy[..., 1, 1]
+    covs[:, :, [[ix], [iy]], [ix, iy]] = Pxy
     covs[:, :, ivx, ivx] = covs[:, :, ivy, ivy] = float(speed_sigma) ** 2
     weights = np.full((M, C), 1.0 / C)
     return means, covs, weights

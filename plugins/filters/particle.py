@@ -80,6 +80,7 @@ re-initialized from its mean and covariance draws new particles.
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 from collections.abc import Sequence
@@ -395,11 +396,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         """w ∝ w⁻ Λ(x) scan after scan, ℓ = Σ ln Λ̂, then N_eff and resampling as in :meth:`update`."""
         M, N, n = state.particles.shape
         check_layout(layout, n)
-        layout = tuple(layout)
-
-        def step(log_weights, scan, sensor, model):
-            return self._scan_weights(log_weights, state.particles, scan, sensor, model, layout)
-
+        step = functools.partial(self._scan_weights, particles=state.particles, layout=tuple(layout))
         log_weights, used, blocks, records = scan_by_scan(self, state.log_weights, scans, sensors, layout, step, linear=False)
         nu, S, gaussian_loglik, nis = stacked_innovation(M, used, blocks, factored=True)
         loglik = summed_loglik(records, M)
@@ -419,7 +416,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         self.check_finite("update", updated_mean=new.mean)
         return new, innovation
 
-    def _scan_weights(self, log_weights, particles, scan, sensor, model, layout):
+    def _scan_weights(self, log_weights, scan, sensor, model, *, particles, layout):
         """One scan: posterior log-weights (M, N), the combined ν (M, m), S (M, m, m) and the Association (ln Λ̂ (M,)
         its ``loglik``)."""
         M, N, n = particles.shape
@@ -438,8 +435,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         S = symmetrize(np.swapaxes(d * w[..., None], -1, -2) @ d + R)
         chol_S = cholesky(S, "innovation covariance S")
         P_G = 1.0 if self.gate_probability is None else self.gate_probability
-        with np.errstate(divide="ignore"):
-            log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
+        log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
         gamma = gate_threshold(self.gate_probability, m)
         nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
