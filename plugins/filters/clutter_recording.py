@@ -103,9 +103,7 @@ class RecordsFilterStates:
     ``mht``): ``Estimator.record_states`` through it, so a recording ``Pipeline`` logs their insides."""
 
     records_states = True
-
-    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
-        log_filter_states(recorder, names, steps, states, layout, times)
+    record_states = staticmethod(log_filter_states)
 
 
 def _log_particles(recorder, names, steps, states, position, times, max_points, max_radius):
@@ -141,8 +139,7 @@ def _log_hypotheses(recorder, names, steps, states, position, times):
         live = np.stack([np.isfinite(s.scores[j]) for s in states])
         recorder.log_scalars(f"estimator/{name}/hypothesis_probability", steps, p, times, names=[f"h{h}" for h in range(p.shape[1])])
         recorder.log_scalars(f"estimator/{name}/hypotheses", steps, live.sum(axis=1).astype(float), times)
+        centers = np.where(live[..., None], np.stack([s.x[j][:, position] for s in states]), np.nan)  # (K, H, 2)
+        covs = np.stack([s.P[j][:, index[0], index[1]] for s in states])  # (K, H, 2, 2)
         for h in range(p.shape[1]):
-            centers = np.stack([s.x[j, h][position] for s in states])
-            covs = np.stack([s.P[j, h][index] for s in states])
-            centers = np.where(live[:, h, None], centers, np.nan)
-            recorder.log_ellipses(f"world/estimate/{name}/hypothesis/{h}", steps, centers, covs, times)
+            recorder.log_ellipses(f"world/estimate/{name}/hypothesis/{h}", steps, centers[:, h], covs[:, h], times)

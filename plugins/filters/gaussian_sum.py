@@ -73,6 +73,7 @@ from hybridtrack_plugins.filters._association import (
     distances,
     gate_threshold,
     log_half_det_2pi_s,
+    pad_axis,
     scan_by_scan,
     stacked_innovation,
     summed_loglik,
@@ -195,16 +196,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
     def conform(self, states: list) -> list:
         """Pad every state to the widest component count with empty slots (ln w = −∞, copies of component 0)."""
         width = max(s.x.shape[1] for s in states)
-        out = []
-        for s in states:
-            pad = width - s.x.shape[1]
-            if pad:
-                x = np.concatenate([s.x, np.repeat(s.x[:, :1], pad, axis=1)], axis=1)
-                P = np.concatenate([s.P, np.repeat(s.P[:, :1], pad, axis=1)], axis=1)
-                lw = np.concatenate([s.log_weights, np.full((s.x.shape[0], pad), -np.inf)], axis=1)
-                s = attrs.evolve(s, x=x, P=P, log_weights=lw)
-            out.append(s)
-        return out
+
+        def widen(a):
+            return np.concatenate([a, np.repeat(a[:, :1], width - a.shape[1], axis=1)], axis=1)
+
+        return [attrs.evolve(s, x=widen(s.x), P=widen(s.P), log_weights=pad_axis(s.log_weights, 1, width, -np.inf)) for s in states]
 
     @guarded
     def predict(self, state: MixtureState, transitions) -> MixtureState:
