@@ -130,27 +130,25 @@ class PMHTState(CovarianceState):
     log_posterior: np.ndarray = bank_field(0)
 
 
+def _padded(H, R, candidates, present, m: int, L: int):
+    """H (…, m₀, n), R (…, m₀, m₀), candidates (…, L₀, m₀) and present (…, L₀) padded to m measurement components
+    (zero rows of H, an identity block of R) and L candidates (absent)."""
+    m0 = R.shape[-1]
+    R_pad = np.zeros(R.shape[:-2] + (m, m))
+    R_pad[..., :m0, :m0] = R
+    R_pad[..., m0:, m0:] = np.eye(m - m0)
+    return pad_axis(H, -2, m, 0.0), R_pad, pad_axis(pad_axis(candidates, -1, m, 0.0), -2, L, 0.0), pad_axis(present, -1, L, False)
+
+
 def _widen(state: PMHTState, m: int, L: int) -> PMHTState:
     """The slots padded to at least m measurement components and L candidates."""
     mb, Lb = state.H.shape[2], state.candidates.shape[2]
     if m <= mb and L <= Lb:
         return state
     m2, L2 = max(m, mb), max(L, Lb)
-    M, W = state.valid.shape
-    H = pad_axis(state.H, 2, m2, 0.0)
-    R = np.zeros((M, W, m2, m2))
-    R[:, :, :mb, :mb] = state.R
-    R[:, :, mb:, mb:] = np.eye(m2 - mb)
-    cand = pad_axis(pad_axis(state.candidates, 3, m2, 0.0), 2, L2, 0.0)
-    return attrs.evolve(
-        state,
-        H=H,
-        R=R,
-        pad=state.pad + (m2 - mb),
-        candidates=cand,
-        present=pad_axis(state.present, 2, L2, False),
-        weights=pad_axis(state.weights, 2, L2, 0.0),
-    )
+    H, R, candidates, present = _padded(state.H, state.R, state.candidates, state.present, m2, L2)
+    weights = pad_axis(state.weights, 2, L2, 0.0)
+    return attrs.evolve(state, H=H, R=R, pad=state.pad + (m2 - mb), candidates=candidates, present=present, weights=weights)
 
 
 def _no_pending(M: int, n: int) -> dict:
@@ -297,12 +295,7 @@ class PMHTFilter(ScanEstimator):
         kept_present = np.take_along_axis(gated, order, axis=1)
         s = _widen(state, m, Lg)
         mb, Lb = s.H.shape[2], s.candidates.shape[2]
-        Hs = pad_axis(np.broadcast_to(H, (M, m, n)), 1, mb, 0.0)
-        Rs = np.zeros((M, mb, mb))
-        Rs[:, :m, :m] = R
-        Rs[:, m:, m:] = np.eye(mb - m)
-        cs = pad_axis(pad_axis(kept, 2, mb, 0.0), 1, Lb, 0.0)
-        pr = pad_axis(kept_present, 1, Lb, False)
+        Hs, Rs, cs, pr = _padded(np.broadcast_to(H, (M, m, n)), np.broadcast_to(R, (M, m, m)), kept, kept_present, mb, Lb)
 
         def shift(a, new):
             return np.concatenate([a[:, 1:], new[:, None]], axis=1)
