@@ -176,7 +176,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
     def initialize(self, mean, cov) -> MixtureState:
         """One component per filter (weight 1): the EKF's prior."""
         x, P = check_prior(mean, cov)
-        return self._state(x[:, None], P[:, None], np.zeros((x.shape[0], 1)), predicted=None)
+        return self._state(x[:, None], P[:, None], np.zeros((x.shape[0], 1)))
 
     def initialize_mixture(self, means, covs, weights) -> MixtureState:
         """A prior mixture per filter: means (M, C, n), covs (M, C, n, n) positive definite, weights (M, C) ≥ 0
@@ -185,12 +185,13 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         with np.errstate(divide="ignore"):
             log_weights = np.log(weights / total[:, None])
         x, P, log_weights = _compact(means, covs, log_weights)
-        return self._state(x, P, log_weights, predicted=None)
+        return self._state(x, P, log_weights)
 
     @staticmethod
-    def _state(x, P, log_weights, predicted, innovation=None) -> MixtureState:
+    def _state(x, P, log_weights, prior: MixtureState | None = None, innovation=None) -> MixtureState:
+        """The state of the components (x, P, ln w); the prediction is ``prior``'s, or the mixture itself."""
         mean, cov = mixture(log_weights, x, P)
-        pm, pc = (mean, cov) if predicted is None else predicted
+        pm, pc = (mean, cov) if prior is None else (prior.predicted_mean, prior.predicted_covariance)
         return MixtureState(x, P, log_weights, mean, cov, pm, pc, innovation)
 
     def conform(self, states: list) -> list:
@@ -216,7 +217,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         x, P = cov_form.predict(state.x.reshape(M * C, n), state.P.reshape(M * C, n, n), F, B, Q, engine=engine)
         x, P = x.reshape(M, C, n), P.reshape(M, C, n, n)
         self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        return self._state(x, P, state.log_weights, predicted=None)
+        return self._state(x, P, state.log_weights)
 
     @guarded
     def update(self, state: MixtureState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
@@ -228,7 +229,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         z = np.asarray(z, dtype=float)
         z_rows = np.repeat(z, C, axis=0) if z.ndim == 2 else z  # one row per component
         found = self.linearize(state.x.reshape(M * C, n), z_rows, sensors, layout)
-        predicted = (state.predicted_mean, state.predicted_covariance)
         if found is None:
             return self.unmeasured(state, M)
         step, nu, H = found
@@ -248,7 +248,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         innovation = Innovation(nu_mix, S_mix, loglik, nis)
         x, P, log_weights = self.reduce(x, P, log_weights)
         self.check_finite("update", updated_mean=x, updated_covariance=P)
-        return self._state(x, P, log_weights, predicted, innovation), innovation
+        return self._state(x, P, log_weights, state, innovation), innovation
 
     def _update_scans(self, state: MixtureState, scans: list, sensors, layout):
         """Branch every component on each scan (missed + one child per gated candidate), then reduce (module docstring)."""
@@ -259,8 +259,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         nu, S, _, nis = stacked_innovation(M, used, blocks, factored=True)
         innovation = ClutterInnovation(nu, S, summed_loglik(records, M), nis, tuple(records))
         self.check_finite("update", updated_mean=x, updated_covariance=P)
-        predicted = (state.predicted_mean, state.predicted_covariance)
-        return self._state(x, P, log_weights, predicted, innovation), innovation
+        return self._state(x, P, log_weights, state, innovation), innovation
 
     def _branch(self, mixture, scan, sensor, model):
         """One scan: the children x (M, C(1+L), n), P, ln w (normalised) of the mixture (x, P, ln w), reduced;
@@ -288,12 +287,9 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         terms = np.concatenate([np.broadcast_to(miss[:, None, None], (M, C, 1)), child_detect], axis=2)  # (M, C, 1 + L)
         joint = log_weights[:, :, None] + terms
         loglik = logsumexp(joint.reshape(M, -1), axis=-1)
-        informative = np.isfinite(loglik)
-        joint = np.where(informative[:, None, None], joint - np.where(informative, loglik, 0.0)[:, None, None], 0.0)
-        if not informative.all():  # nothing possible under the model (P_D P_G = 1 and nothing gated): keep the prior
-            joint[~informative] = np.concatenate(
-                [log_weights[~informative][:, :, None], np.full((int((~informative).sum()), C, L), -np.inf)], axis=2
-            )
+        informative = np.isfinite(loglik)  # else nothing is possible under the model (P_D P_G = 1, nothing gated): the prior
+        prior = np.concatenate([log_weights[:, :, None], np.full((M, C, L), -np.inf)], axis=2)
+        joint = np.where(informative[:, None, None], joint - np.where(informative, loglik, 0.0)[:, None, None], prior)
         x_children = np.concatenate([flat_x[:, None, :], flat_x[:, None, :] + np.einsum("kij,klj->kli", K, nu)], axis=1)
         P_children = np.concatenate([flat_P[:, None], np.broadcast_to(P_new[:, None], (M * C, L, n, n))], axis=1)
         # association record over the mixture: ẑ = Σ w z_c, S moment-matched, β_r, β_0
