@@ -91,9 +91,8 @@ def nearest_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
     """The nearest neighbour's association (β_i one-hot (M, L), β_0 (M,), selected i* (M,), ℓ (M,)): i* the gated
     candidate with the smallest d² (−1 where none is gated), ℓ = −½(m ln 2π + ln det S + d²_{i*}) (NaN for none)."""
     M = d2.shape[0]
-    selected = np.full(M, -1, dtype=np.int64)
-    if d2.shape[1]:
-        selected = np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1).astype(np.int64)
+    selected = np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1) if d2.shape[1] else np.full(M, -1)
+    selected = selected.astype(np.int64)
     rows = np.flatnonzero(selected >= 0)
     beta = np.zeros(d2.shape)
     beta[rows, selected[rows]] = 1.0

@@ -99,11 +99,6 @@ class MixtureState:
     innovation: Innovation | None = None
 
     @property
-    def weights(self) -> np.ndarray:
-        """w_c (M, C), 0 for empty slots."""
-        return np.exp(self.log_weights)
-
-    @property
     def component_count(self) -> np.ndarray:
         """Number of occupied components per filter (M,)."""
         return np.isfinite(self.log_weights).sum(axis=1)
@@ -158,18 +153,15 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         self.detection_probability = check_detection_probability(detection_probability)
         self.clutter_density = check_clutter_density(clutter_density)
         self.gate_probability = check_gate_probability(gate_probability)
-        if merge_threshold is not None:
-            merge_threshold = float(merge_threshold)
-            if not (math.isfinite(merge_threshold) and merge_threshold >= 0):
-                raise ValueError(f"merge_threshold: expected a finite squared Mahalanobis distance ≥ 0 or None, got {merge_threshold!r}")
-        prune_threshold = float(prune_threshold)
-        if not (0.0 <= prune_threshold < 1.0):
-            raise ValueError(f"prune_threshold: expected a weight in [0, 1), got {prune_threshold!r}")
+        self.merge_threshold = None if merge_threshold is None else float(merge_threshold)
+        if self.merge_threshold is not None and not (math.isfinite(self.merge_threshold) and self.merge_threshold >= 0):
+            raise ValueError(f"merge_threshold: expected a finite squared Mahalanobis distance ≥ 0 or None, got {self.merge_threshold!r}")
+        self.prune_threshold = float(prune_threshold)
+        if not (0.0 <= self.prune_threshold < 1.0):
+            raise ValueError(f"prune_threshold: expected a weight in [0, 1), got {self.prune_threshold!r}")
         self.max_components = check_positive_int(max_components, "max_components")
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
-        self.merge_threshold = merge_threshold
-        self.prune_threshold = prune_threshold
         self.form = form
         self.engine = cov_form.check_engine(engine)
 
