@@ -182,17 +182,14 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         parents, columns = np.divmod(chosen, 1 + L)
         picked = decisions[columns]  # (M, H): −1 missed, i candidate i
         rows = (np.arange(M)[:, None] * H + parents).reshape(-1)  # flat parent index
-        nu_m = nu.reshape(M * H, L, -1)
         take = picked.reshape(-1)
         nu_sel = np.zeros((M * H, S.shape[-1]))
         hit = take >= 0
-        nu_sel[hit] = nu_m[rows[hit], take[hit]]
-        x_par, P_par = x[rows], P[rows]
-        x_new, P_new = x_par.copy(), P_par.copy()
+        nu_sel[hit] = nu[rows[hit], take[hit]]  # ν (M H, L, m)
+        x_new, P_new = x[rows], P[rows]  # the parents (copies)
         if hit.any():
             R_rows = R[rows[hit]] if R.ndim == 3 and R.shape[0] == M * H else R
-            xu, Pu, _, _, _ = cov_form.update(x_par[hit], P_par[hit], nu_sel[hit], Hm, R_rows, selection, self.form)
-            x_new[hit], P_new[hit] = xu, Pu
+            x_new[hit], P_new[hit] = cov_form.update(x_new[hit], P_new[hit], nu_sel[hit], Hm, R_rows, selection, self.form)[:2]
         self.check_finite("update", updated_mean=x_new, updated_covariance=P_new)
         history = np.take_along_axis(flat_history, chosen[:, :, None], axis=1)
         new = MHTState(
