@@ -277,20 +277,16 @@ class PMHTFilter(ScanEstimator):
         # gate at the prediction: d² = νᵀ S⁻¹ ν ≤ γ, S = H P⁻ Hᵀ + R
         S_pred, L_pred, gamma, d2, gated = self.gate(cands - z_pred[:, None, :], state.P, H, R)
         ell = -0.5 * d2 - log_half_det_2pi_s(L_pred)[:, None]  # ln N(ν_r; 0, S) at the prediction
-        with np.errstate(divide="ignore"):
-            if self.clutter_density > 0:
-                terms = np.logaddexp(0.0, self.log_pd + ell - self.log_lambda)  # ln(1 + P_D N / λ)
-            else:
-                terms = self.log_pd + ell
+        # ln(1 + P_D N / λ), or ln(P_D N) for λ = 0
+        terms = np.logaddexp(0.0, self.log_pd + ell - self.log_lambda) if self.clutter_density > 0 else self.log_pd + ell
         assoc_loglik = np.where(gated, terms, 0.0).sum(axis=1)
         # slide: when the oldest slot is occupied it leaves and its filtered estimate becomes the prior
         leaving = state.valid[:, 0]
         prior_x = np.where(leaving[:, None], state.filtered_mean[:, 0], state.prior_x)
         prior_P = np.where(leaving[:, None, None], state.filtered_covariance[:, 0], state.prior_P)
         # keep only the gated candidates, first (a stable sort), padded to the largest count of the bank
-        order = np.argsort(~gated, axis=1, kind="stable")
         Lg = int(gated.sum(axis=1).max(initial=0))
-        order = order[:, :Lg]
+        order = np.argsort(~gated, axis=1, kind="stable")[:, :Lg]
         kept = np.take_along_axis(cands, order[:, :, None], axis=1)
         kept_present = np.take_along_axis(gated, order, axis=1)
         s = _widen(state, m, Lg)
