@@ -103,9 +103,7 @@ class NodeBank(BankEstimator):
         return [s if s.nodes == N else replicate(s, N) for s in states]
 
     def node_scores(self, state):
-        if state.node_loglik is None:
-            return None
-        return state.node_loglik, state.node_nis
+        return None if state.node_loglik is None else (state.node_loglik, state.node_nis)
 
     @guarded
     def update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
