@@ -289,8 +289,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         posterior = np.exp(joint)  # (M, C, 1 + L)
         beta0, beta = posterior[:, :, 0].sum(axis=1), posterior[:, :, 1:].sum(axis=1)
         nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
-        chol_S = cholesky(S, "innovation covariance S")
-        d2_mix = distances(nu_r, chol_S)
+        d2_mix = distances(nu_r, cholesky(S, "innovation covariance S"))
         combined = np.einsum("ml,mli->mi", beta, nu_r)
         selected = np.where(beta.sum(axis=1) > 0, np.argmax(beta, axis=1), -1).astype(np.int64) if L else np.full(M, -1, dtype=np.int64)
         record = Association(
