@@ -274,10 +274,8 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
     @staticmethod
     def _generators(keys: np.ndarray, counters: np.ndarray, stage: int, rows=None):
         """One generator per filter (of ``rows``), seeded by (key, stage, counter): a filter's draws depend on its state only."""
-        rows = range(keys.shape[0]) if rows is None else rows
-        for r in rows:
-            k0, k1 = keys[r]
-            yield np.random.Generator(np.random.PCG64(np.random.SeedSequence([int(k0), int(k1), stage, int(counters[r])])))
+        for r in range(keys.shape[0]) if rows is None else rows:
+            yield np.random.Generator(np.random.PCG64(np.random.SeedSequence([int(keys[r, 0]), int(keys[r, 1]), stage, int(counters[r])])))
 
     def _normals(self, state_keys, counters, stage, shape) -> np.ndarray:
         return np.stack([g.standard_normal(shape) for g in self._generators(state_keys, counters, stage)])
