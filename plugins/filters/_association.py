@@ -91,9 +91,8 @@ def nearest_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
     """The nearest neighbour's association (β_i one-hot (M, L), β_0 (M,), selected i* (M,), ℓ (M,)): i* the gated
     candidate with the smallest d² (−1 where none is gated), ℓ = −½(m ln 2π + ln det S + d²_{i*}) (NaN for none)."""
     M = d2.shape[0]
-    selected = np.full(M, -1, dtype=np.int64)
-    if d2.shape[1]:
-        selected = np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1).astype(np.int64)
+    selected = np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1) if d2.shape[1] else np.full(M, -1)
+    selected = selected.astype(np.int64)
     rows = np.flatnonzero(selected >= 0)
     beta = np.zeros(d2.shape)
     beta[rows, selected[rows]] = 1.0
@@ -185,7 +184,7 @@ class ScanEstimator(BankEstimator):
     #: RowScans (candidates per filter row) accepted
     row_scans = False
 
-    def __init__(self, gate_probability: float | None, form: str = "joseph"):
+    def __init__(self, gate_probability: float | None = 0.99, form: str = "joseph"):
         super().__init__()
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
@@ -322,13 +321,26 @@ class ClutterEstimator(ScanEstimator):
 
 def scan_by_scan(estimator: BankEstimator, state, scans, sensors, layout, step, linear: bool = True):
     """``step(state, scan, sensor, model) → (state, ν used (M, m), S (M, m, m), Association)`` applied to the scans
-    one sensor after the other (sequential multisensor association), each scan's sensor looked up and checked by
-    :func:`scan_sensor_model`: the last state, the ν and S of the scans with candidates (for
-    :func:`stacked_innovation`) and every scan's Association."""
-    by_name = sensors_by_name(sensors)
+    one sensor after the other (sequential multisensor association): the last state, the ν and S of the scans with
+    candidates (for :func:`stacked_innovation`) and every scan's Association.
+
+    Each scan's sensor (by name among ``sensors``, one Sensor or a sequence) and its cached SensorModel are
+    checked: linear (unless ``linear`` is False), with a measurement-independent R, of the scan's dimension, and
+    the candidates within the filter's arithmetic."""
+    by_name = {s.name: s for s in ((sensors,) if isinstance(sensors, Sensor) else sensors)}
     used, blocks, records = [], [], []
     for scan in scans:
-        sensor, model = scan_sensor_model(estimator, scan, by_name, layout, linear)
+        sensor = by_name.get(scan.sensor)
+        if sensor is None:
+            raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
+        model = estimator.assembler.sensor_model(sensor, tuple(layout))
+        if linear and model.H is None:
+            raise ValueError(f"sensors: {estimator.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
+        if type(sensor).measurement_noise is not Sensor.measurement_noise:
+            raise ValueError(f"sensors: {estimator.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
+        if scan.measurement_dim != model.dim:
+            raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
+        check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
         state, nu, S, record = step(state, scan, sensor, model)
         records.append(record)
         if scan.size:
@@ -344,14 +356,6 @@ def summed_loglik(records: Sequence[Association], M: int) -> np.ndarray:
     for record in records:
         loglik = loglik + np.where(np.isfinite(record.loglik), record.loglik, 0.0)
     return loglik
-
-
-def sensors_by_name(sensors: Sensor | Sequence[Sensor]) -> dict:
-    """name → sensor of the sensors given (one :class:`~hybridtrack.core.interfaces.Sensor` or a sequence), for
-    looking up the sensor of each clutter scan."""
-    if isinstance(sensors, Sensor):
-        sensors = (sensors,)
-    return {s.name: s for s in sensors}
 
 
 def predict_measurement(x: np.ndarray, model) -> np.ndarray:
@@ -385,24 +389,6 @@ def stacked_innovation(M: int, used: Sequence[np.ndarray], blocks: Sequence[np.n
     else:
         loglik, nis = gaussian_scores(nu, cholesky(S, "innovation covariance S"))
     return nu, S, loglik, nis
-
-
-def scan_sensor_model(estimator: BankEstimator, scan, by_name: dict, layout: Sequence[str], linear: bool = True):
-    """(sensor, its cached SensorModel) for a clutter scan, checked: the sensor is among those given, linear (unless
-    ``linear`` is False), with a measurement-independent R, of the scan's dimension, and the candidates within the
-    filter's arithmetic."""
-    sensor = by_name.get(scan.sensor)
-    if sensor is None:
-        raise ValueError(f"z: scan of sensor {scan.sensor!r}, which is not among the sensors {sorted(by_name)}")
-    model = estimator.assembler.sensor_model(sensor, tuple(layout))
-    if linear and model.H is None:
-        raise ValueError(f"sensors: {estimator.name!r} takes linear sensors only; {sensor.name!r} is nonlinear")
-    if type(sensor).measurement_noise is not Sensor.measurement_noise:
-        raise ValueError(f"sensors: {estimator.name!r} needs a measurement-independent R; sensor {sensor.name!r} computes R from z")
-    if scan.measurement_dim != model.dim:
-        raise ValueError(f"z: scan of sensor {scan.sensor!r} has dimension {scan.measurement_dim}, the sensor measures {model.dim}")
-    check_magnitude(scan.z, "z", f"measurement (scan of sensor {scan.sensor!r})")
-    return sensor, model
 
 
 def as_scans(z, rows: bool = False):

@@ -33,13 +33,6 @@ from collections.abc import Sequence
 import numpy as np
 
 
-def _position(layout: Sequence[str]) -> list[int]:
-    layout = tuple(layout)
-    if "x" not in layout or "y" not in layout:
-        raise ValueError(f"layout: recording positions needs 'x' and 'y' in the state layout, got {layout}")
-    return [layout.index("x"), layout.index("y")]
-
-
 def _weighted_points(recorder, entity, steps, points, weights, times, max_radius):
     log = getattr(recorder, "log_weighted_points", None)
     if log is not None:
@@ -84,18 +77,16 @@ def log_filter_states(
     first = states[0]
     if any(type(s) is not type(first) for s in states):
         raise ValueError("states: expected states of one estimator")
-    position = _position(layout)
+    layout = tuple(layout)
+    if "x" not in layout or "y" not in layout:
+        raise ValueError(f"layout: recording positions needs 'x' and 'y' in the state layout, got {layout}")
     names = list(filter_names)
-    if not isinstance(first, ParticleState | MixtureState | MHTState):
+    log = {ParticleState: _log_particles, MixtureState: _log_mixtures, MHTState: _log_hypotheses}.get(type(first))
+    if log is None:
         return
     if first.mean.shape[0] != len(names):
         raise ValueError(f"filter_names: expected {first.mean.shape[0]} names (the bank size), got {len(names)}")
-    if isinstance(first, ParticleState):
-        _log_particles(recorder, names, steps, states, position, times, max_points, max_radius)
-    elif isinstance(first, MixtureState):
-        _log_mixtures(recorder, names, steps, states, position, times, max_radius)
-    else:
-        _log_hypotheses(recorder, names, steps, states, position, times)
+    log(recorder, names, steps, states, [layout.index("x"), layout.index("y")], times, max_points, max_radius)
 
 
 class RecordsFilterStates:
@@ -103,9 +94,7 @@ class RecordsFilterStates:
     ``mht``): ``Estimator.record_states`` through it, so a recording ``Pipeline`` logs their insides."""
 
     records_states = True
-
-    def record_states(self, recorder, names, steps, states, layout, times=None) -> None:
-        log_filter_states(recorder, names, steps, states, layout, times)
+    record_states = staticmethod(log_filter_states)
 
 
 def _log_particles(recorder, names, steps, states, position, times, max_points, max_radius):
@@ -121,7 +110,7 @@ def _log_particles(recorder, names, steps, states, position, times, max_points, 
         recorder.log_scalars(f"estimator/{name}/effective_sample_size", steps, ess, times)
 
 
-def _log_mixtures(recorder, names, steps, states, position, times, max_radius):
+def _log_mixtures(recorder, names, steps, states, position, times, max_points, max_radius):
     index = np.ix_(position, position)
     for j, name in enumerate(names):
         w = _pad([np.exp(s.log_weights[j]) for s in states], 0.0)  # (K, C)
@@ -134,15 +123,14 @@ def _log_mixtures(recorder, names, steps, states, position, times, max_radius):
             recorder.log_ellipses(f"world/estimate/{name}/component/{c}", steps, centers[:, c], covs[:, c], times)
 
 
-def _log_hypotheses(recorder, names, steps, states, position, times):
+def _log_hypotheses(recorder, names, steps, states, position, times, max_points, max_radius):
     index = np.ix_(position, position)
     for j, name in enumerate(names):
         p = np.stack([s.probabilities[j] for s in states])  # (K, H)
         live = np.stack([np.isfinite(s.scores[j]) for s in states])
         recorder.log_scalars(f"estimator/{name}/hypothesis_probability", steps, p, times, names=[f"h{h}" for h in range(p.shape[1])])
         recorder.log_scalars(f"estimator/{name}/hypotheses", steps, live.sum(axis=1).astype(float), times)
+        centers = np.where(live[..., None], np.stack([s.x[j][:, position] for s in states]), np.nan)  # (K, H, 2)
+        covs = np.stack([s.P[j][:, index[0], index[1]] for s in states])  # (K, H, 2, 2)
         for h in range(p.shape[1]):
-            centers = np.stack([s.x[j, h][position] for s in states])
-            covs = np.stack([s.P[j, h][index] for s in states])
-            centers = np.where(live[:, h, None], centers, np.nan)
-            recorder.log_ellipses(f"world/estimate/{name}/hypothesis/{h}", steps, centers, covs, times)
+            recorder.log_ellipses(f"world/estimate/{name}/hypothesis/{h}", steps, centers[:, h], covs[:, h], times)

@@ -36,8 +36,25 @@ from hybridtrack_plugins.filters import _information as info
 from hybridtrack_plugins.filters.information import information_predict, stacked_innovation
 
 
+class NodeCopies(NodeMoments):
+    """Mixin of the per-node states: ``node_fields`` the fields with a copy per node (axis 0; the first
+    (N, M, n, n)), ``nodes`` N, the last prediction read at node 0."""
+
+    @property
+    def nodes(self) -> int:
+        return getattr(self, self.node_fields[0]).shape[0]
+
+    @property
+    def predicted_mean(self) -> np.ndarray:
+        return self.x_predicted[0]
+
+    @property
+    def predicted_covariance(self) -> np.ndarray:
+        return self.P_predicted[0]
+
+
 @attrs.frozen(eq=False)
-class DecentralizedState(NodeMoments):
+class DecentralizedState(NodeCopies):
     """Per-node information states: I (N, M, n, n), s (N, M, n); x⁻, P⁻ and the moments (x, P) (N, M, …)."""
 
     Y: np.ndarray = bank_field(1)
@@ -48,20 +65,7 @@ class DecentralizedState(NodeMoments):
     innovation: Innovation | None = None
     node_nis: np.ndarray | None = None
     node_loglik: np.ndarray | None = None
-    #: the fields holding a copy per node (axis 0)
     node_fields = ("Y", "s", "x_predicted", "P_predicted", "moments")
-
-    @property
-    def nodes(self) -> int:
-        return self.Y.shape[0]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted[0]
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted[0]
 
 
 def replicate(state, N: int):
@@ -99,19 +103,25 @@ class NodeBank(BankEstimator):
         return [s if s.nodes == N else replicate(s, N) for s in states]
 
     def node_scores(self, state):
-        if state.node_loglik is None:
-            return None
-        return state.node_loglik, state.node_nis
+        return None if state.node_loglik is None else (state.node_loglik, state.node_nis)
 
-    def per_node(self, state, sensors):
-        """(state, sensors) with one node per sensor: a single node copy is replicated, another count is a ValueError."""
+    @guarded
+    def update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        """Template: one node per sensor (a single node copy is replicated, another count is a ValueError), then
+        :meth:`update_measured` with the step's linear model, or :meth:`unmeasured` when nothing was measured."""
         if isinstance(sensors, Sensor):
             sensors = (sensors,)
         if state.nodes != len(sensors):
             if state.nodes != 1:
                 raise ValueError(f"sensors: expected {state.nodes} sensors (one per node of this decentralized filter), got {len(sensors)}")
             state = replicate(state, len(sensors))
-        return state, sensors
+        M, n = getattr(state, state.node_fields[0]).shape[1:3]
+        step = self.measurement_step(z, sensors, layout, M, n)
+        if step is None:
+            return self.unmeasured(state, M)
+        if step.H is None:
+            raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
+        return self.update_measured(state, step, z, sensors, layout)
 
 
 class DecentralizedFilter(NodeBank):
@@ -134,15 +144,7 @@ class DecentralizedFilter(NodeBank):
         Y, s, x, P = (a.reshape((N, M) + a.shape[1:]) for a in (Y, s, x, P))
         return DecentralizedState(Y, s, x, P, (x, P))
 
-    @guarded
-    def update(self, state: DecentralizedState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        state, sensors = self.per_node(state, sensors)
-        M, n = state.s.shape[1:]
-        step = self.measurement_step(z, sensors, layout, M, n)
-        if step is None:
-            return self.unmeasured(state, M)
-        if step.H is None:
-            raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
+    def update_measured(self, state: DecentralizedState, step, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         # Each node's contribution (eqs. 18–19), formed about the prediction: ν_j = z_j − H_j x⁻.
         # Every node holds the same x⁻ (Algorithm 2 keeps them in step), so node i evaluates the
         # broadcast (ΔI_j, g_j, q_j, ln det R_j) about its own x_i⁻ (N, M, n).

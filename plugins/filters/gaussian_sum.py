@@ -73,6 +73,7 @@ from hybridtrack_plugins.filters._association import (
     distances,
     gate_threshold,
     log_half_det_2pi_s,
+    pad_axis,
     scan_by_scan,
     stacked_innovation,
     summed_loglik,
@@ -96,11 +97,6 @@ class MixtureState:
     predicted_mean: np.ndarray = bank_field(0)
     predicted_covariance: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
-
-    @property
-    def weights(self) -> np.ndarray:
-        """w_c (M, C), 0 for empty slots."""
-        return np.exp(self.log_weights)
 
     @property
     def component_count(self) -> np.ndarray:
@@ -157,25 +153,22 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         self.detection_probability = check_detection_probability(detection_probability)
         self.clutter_density = check_clutter_density(clutter_density)
         self.gate_probability = check_gate_probability(gate_probability)
-        if merge_threshold is not None:
-            merge_threshold = float(merge_threshold)
-            if not (math.isfinite(merge_threshold) and merge_threshold >= 0):
-                raise ValueError(f"merge_threshold: expected a finite squared Mahalanobis distance ≥ 0 or None, got {merge_threshold!r}")
-        prune_threshold = float(prune_threshold)
-        if not (0.0 <= prune_threshold < 1.0):
-            raise ValueError(f"prune_threshold: expected a weight in [0, 1), got {prune_threshold!r}")
+        self.merge_threshold = None if merge_threshold is None else float(merge_threshold)
+        if self.merge_threshold is not None and not (math.isfinite(self.merge_threshold) and self.merge_threshold >= 0):
+            raise ValueError(f"merge_threshold: expected a finite squared Mahalanobis distance ≥ 0 or None, got {self.merge_threshold!r}")
+        self.prune_threshold = float(prune_threshold)
+        if not (0.0 <= self.prune_threshold < 1.0):
+            raise ValueError(f"prune_threshold: expected a weight in [0, 1), got {self.prune_threshold!r}")
         self.max_components = check_positive_int(max_components, "max_components")
         if form not in cov_form.UPDATE_FORMS:
             raise ValueError(f"form: expected one of {cov_form.UPDATE_FORMS}, got {form!r}")
-        self.merge_threshold = merge_threshold
-        self.prune_threshold = prune_threshold
         self.form = form
         self.engine = cov_form.check_engine(engine)
 
     def initialize(self, mean, cov) -> MixtureState:
         """One component per filter (weight 1): the EKF's prior."""
         x, P = check_prior(mean, cov)
-        return self._state(x[:, None], P[:, None], np.zeros((x.shape[0], 1)), predicted=None)
+        return self._state(x[:, None], P[:, None], np.zeros((x.shape[0], 1)))
 
     def initialize_mixture(self, means, covs, weights) -> MixtureState:
         """A prior mixture per filter: means (M, C, n), covs (M, C, n, n) positive definite, weights (M, C) ≥ 0
@@ -184,27 +177,23 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         with np.errstate(divide="ignore"):
             log_weights = np.log(weights / total[:, None])
         x, P, log_weights = _compact(means, covs, log_weights)
-        return self._state(x, P, log_weights, predicted=None)
+        return self._state(x, P, log_weights)
 
     @staticmethod
-    def _state(x, P, log_weights, predicted, innovation=None) -> MixtureState:
+    def _state(x, P, log_weights, prior: MixtureState | None = None, innovation=None) -> MixtureState:
+        """The state of the components (x, P, ln w); the prediction is ``prior``'s, or the mixture itself."""
         mean, cov = mixture(log_weights, x, P)
-        pm, pc = (mean, cov) if predicted is None else predicted
+        pm, pc = (mean, cov) if prior is None else (prior.predicted_mean, prior.predicted_covariance)
         return MixtureState(x, P, log_weights, mean, cov, pm, pc, innovation)
 
     def conform(self, states: list) -> list:
         """Pad every state to the widest component count with empty slots (ln w = −∞, copies of component 0)."""
         width = max(s.x.shape[1] for s in states)
-        out = []
-        for s in states:
-            pad = width - s.x.shape[1]
-            if pad:
-                x = np.concatenate([s.x, np.repeat(s.x[:, :1], pad, axis=1)], axis=1)
-                P = np.concatenate([s.P, np.repeat(s.P[:, :1], pad, axis=1)], axis=1)
-                lw = np.concatenate([s.log_weights, np.full((s.x.shape[0], pad), -np.inf)], axis=1)
-                s = attrs.evolve(s, x=x, P=P, log_weights=lw)
-            out.append(s)
-        return out
+
+        def widen(a):
+            return np.concatenate([a, np.repeat(a[:, :1], width - a.shape[1], axis=1)], axis=1)
+
+        return [attrs.evolve(s, x=widen(s.x), P=widen(s.P), log_weights=pad_axis(s.log_weights, 1, width, -np.inf)) for s in states]
 
     @guarded
     def predict(self, state: MixtureState, transitions) -> MixtureState:
@@ -220,7 +209,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         x, P = cov_form.predict(state.x.reshape(M * C, n), state.P.reshape(M * C, n, n), F, B, Q, engine=engine)
         x, P = x.reshape(M, C, n), P.reshape(M, C, n, n)
         self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        return self._state(x, P, state.log_weights, predicted=None)
+        return self._state(x, P, state.log_weights)
 
     @guarded
     def update(self, state: MixtureState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
@@ -232,7 +221,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         z = np.asarray(z, dtype=float)
         z_rows = np.repeat(z, C, axis=0) if z.ndim == 2 else z  # one row per component
         found = self.linearize(state.x.reshape(M * C, n), z_rows, sensors, layout)
-        predicted = (state.predicted_mean, state.predicted_covariance)
         if found is None:
             return self.unmeasured(state, M)
         step, nu, H = found
@@ -252,7 +240,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         innovation = Innovation(nu_mix, S_mix, loglik, nis)
         x, P, log_weights = self.reduce(x, P, log_weights)
         self.check_finite("update", updated_mean=x, updated_covariance=P)
-        return self._state(x, P, log_weights, predicted, innovation), innovation
+        return self._state(x, P, log_weights, state, innovation), innovation
 
     def _update_scans(self, state: MixtureState, scans: list, sensors, layout):
         """Branch every component on each scan (missed + one child per gated candidate), then reduce (module docstring)."""
@@ -263,8 +251,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         nu, S, _, nis = stacked_innovation(M, used, blocks, factored=True)
         innovation = ClutterInnovation(nu, S, summed_loglik(records, M), nis, tuple(records))
         self.check_finite("update", updated_mean=x, updated_covariance=P)
-        predicted = (state.predicted_mean, state.predicted_covariance)
-        return self._state(x, P, log_weights, predicted, innovation), innovation
+        return self._state(x, P, log_weights, state, innovation), innovation
 
     def _branch(self, mixture, scan, sensor, model):
         """One scan: the children x (M, C(1+L), n), P, ln w (normalised) of the mixture (x, P, ln w), reduced;
@@ -284,8 +271,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         gamma = gate_threshold(self.gate_probability, m)
         gated = d2 <= gamma
         half = log_half_det_2pi_s(chol_c)  # ln √|2πS_c|
-        with np.errstate(divide="ignore"):
-            log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
+        log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
         child_detect = np.where(gated, log_detect - half[:, None] - 0.5 * d2, -np.inf).reshape(M, C, L)
         any_gated = gated.reshape(M, C * L).any(axis=1) if L else np.zeros(M, dtype=bool)
@@ -293,12 +279,9 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         terms = np.concatenate([np.broadcast_to(miss[:, None, None], (M, C, 1)), child_detect], axis=2)  # (M, C, 1 + L)
         joint = log_weights[:, :, None] + terms
         loglik = logsumexp(joint.reshape(M, -1), axis=-1)
-        informative = np.isfinite(loglik)
-        joint = np.where(informative[:, None, None], joint - np.where(informative, loglik, 0.0)[:, None, None], 0.0)
-        if not informative.all():  # nothing possible under the model (P_D P_G = 1 and nothing gated): keep the prior
-            joint[~informative] = np.concatenate(
-                [log_weights[~informative][:, :, None], np.full((int((~informative).sum()), C, L), -np.inf)], axis=2
-            )
+        informative = np.isfinite(loglik)  # else nothing is possible under the model (P_D P_G = 1, nothing gated): the prior
+        prior = np.concatenate([log_weights[:, :, None], np.full((M, C, L), -np.inf)], axis=2)
+        joint = np.where(informative[:, None, None], joint - np.where(informative, loglik, 0.0)[:, None, None], prior)
         x_children = np.concatenate([flat_x[:, None, :], flat_x[:, None, :] + np.einsum("kij,klj->kli", K, nu)], axis=1)
         P_children = np.concatenate([flat_P[:, None], np.broadcast_to(P_new[:, None], (M * C, L, n, n))], axis=1)
         # association record over the mixture: ẑ = Σ w z_c, S moment-matched, β_r, β_0
@@ -306,8 +289,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         posterior = np.exp(joint)  # (M, C, 1 + L)
         beta0, beta = posterior[:, :, 0].sum(axis=1), posterior[:, :, 1:].sum(axis=1)
         nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
-        chol_S = cholesky(S, "innovation covariance S")
-        d2_mix = distances(nu_r, chol_S)
+        d2_mix = distances(nu_r, cholesky(S, "innovation covariance S"))
         combined = np.einsum("ml,mli->mi", beta, nu_r)
         selected = np.where(beta.sum(axis=1) > 0, np.argmax(beta, axis=1), -1).astype(np.int64) if L else np.full(M, -1, dtype=np.int64)
         record = Association(
@@ -437,11 +419,9 @@ def range_parameterised(
         + cross[None, :, None, None] * np.einsum("mi,mj->mij", v, v)[:, None]
     )
     means = np.zeros((M, C, n))
-    means[..., ix], means[..., iy] = pos[..., 0], pos[..., 1]
-    means[..., ivx], means[..., ivy] = velocity[0], velocity[1]
+    means[..., [ix, iy]], means[..., [ivx, ivy]] = pos, velocity
     covs = np.zeros((M, C, n, n))
-    covs[:, :, ix, ix], covs[:, :, ix, iy] = Pxy[..., 0, 0], Pxy[..., 0, 1]
-    covs[:, :, iy, ix], covs[:, :, iy, iy] = Pxy[..., 1, 0], Pxy[..., 1, 1]
+    covs[:, :, [[ix], [iy]], [ix, iy]] = Pxy
     covs[:, :, ivx, ivx] = covs[:, :, ivy, ivy] = float(speed_sigma) ** 2
     weights = np.full((M, C), 1.0 / C)
     return means, covs, weights

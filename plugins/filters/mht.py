@@ -54,15 +54,16 @@ from hybridtrack.sdk.estimation import bank_field
 from hybridtrack.sdk.mixtures import normalized_weights
 from hybridtrack.sdk.scans import check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, stacked_innovation
+from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, pad_axis, stacked_innovation
 from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
+from hybridtrack_plugins.filters.kalman import CovarianceState
 
 #: history entry of a scan not yet seen (the root hypothesis); −1 is "missed", i ≥ 0 candidate i
 _NO_SCAN = -2
 
 
 @attrs.frozen(eq=False)
-class MHTState:
+class MHTState(CovarianceState):
     """Hypotheses of a bank of M filters, H = ``max_hypotheses`` slots each, sorted by score (best first).
 
     x (M, H, n), P (M, H, n, n), their last prediction, ``scores`` Σ (M, H) (−∞:
@@ -71,13 +72,8 @@ class MHTState:
     hypothesis's (slot 0).
     """
 
-    x: np.ndarray = bank_field(0)
-    P: np.ndarray = bank_field(0)
-    x_predicted: np.ndarray = bank_field(0)
-    P_predicted: np.ndarray = bank_field(0)
-    scores: np.ndarray = bank_field(0)
-    history: np.ndarray = bank_field(0)
-    innovation: ClutterInnovation | None = None
+    scores: np.ndarray = bank_field(0, kw_only=True)
+    history: np.ndarray = bank_field(0, kw_only=True)
 
     @property
     def mean(self) -> np.ndarray:
@@ -156,7 +152,7 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         scores = np.full((M, H), -np.inf)
         scores[:, 0] = 0.0
         history = np.full((M, H, N), _NO_SCAN, dtype=np.int64)
-        return MHTState(xs, Ps, xs, Ps, scores, history, None)
+        return MHTState(xs, Ps, xs, Ps, scores=scores, history=history)
 
     def associate_scan(self, state: MHTState, nu, Hm, R, selection, sensor_name, candidates, z_pred):
         """One scan: every hypothesis branches (missed, each gated candidate), scored, N-scan rule, cap.
@@ -186,27 +182,24 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         parents, columns = np.divmod(chosen, 1 + L)
         picked = decisions[columns]  # (M, H): −1 missed, i candidate i
         rows = (np.arange(M)[:, None] * H + parents).reshape(-1)  # flat parent index
-        nu_m = nu.reshape(M * H, L, -1)
         take = picked.reshape(-1)
         nu_sel = np.zeros((M * H, S.shape[-1]))
         hit = take >= 0
-        nu_sel[hit] = nu_m[rows[hit], take[hit]]
-        x_par, P_par = x[rows], P[rows]
-        x_new, P_new = x_par.copy(), P_par.copy()
+        nu_sel[hit] = nu[rows[hit], take[hit]]  # ν (M H, L, m)
+        x_new, P_new = x[rows], P[rows]  # the parents (copies)
         if hit.any():
             R_rows = R[rows[hit]] if R.ndim == 3 and R.shape[0] == M * H else R
-            xu, Pu, _, _, _ = cov_form.update(x_par[hit], P_par[hit], nu_sel[hit], Hm, R_rows, selection, self.form)
-            x_new[hit], P_new[hit] = xu, Pu
+            x_new[hit], P_new[hit] = cov_form.update(x_new[hit], P_new[hit], nu_sel[hit], Hm, R_rows, selection, self.form)[:2]
         self.check_finite("update", updated_mean=x_new, updated_covariance=P_new)
         history = np.take_along_axis(flat_history, chosen[:, :, None], axis=1)
-        new = MHTState(x_new.reshape(M, H, n), P_new.reshape(M, H, n, n), state.x_predicted, state.P_predicted, kept_scores, history, None)
+        new = MHTState(
+            x_new.reshape(M, H, n), P_new.reshape(M, H, n, n), state.x_predicted, state.P_predicted, scores=kept_scores, history=history
+        )
         # the record: the best hypothesis's parent (gate, d², ẑ, S) and its choice; β marginal over hypotheses
         best = rows.reshape(M, H)[:, 0]
         probabilities = normalized_weights(kept_scores)
-        weights = np.zeros((M, L))
-        for column in range(1, 1 + L):
-            weights[:, column - 1] = np.where(picked == column - 1, probabilities, 0.0).sum(axis=1)
-        missed = np.where(picked == -1, probabilities, 0.0).sum(axis=1)
+        marginal = np.where(decisions[:, None, None] == picked, probabilities, 0.0).sum(axis=2)  # (1 + L, M)
+        missed, weights = marginal[0], marginal[1:].T
         selected = picked[:, 0].astype(np.int64)
         loglik = np.full(M, np.nan)
         chose = selected >= 0
@@ -236,8 +229,7 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         keep[filters[first_seen], positions[first_seen]] = True
         rank = np.where(keep, np.arange(C), C + np.arange(C))
         first = np.argsort(rank, axis=1, kind="stable")[:, :H]
-        if first.shape[1] < H:  # fewer children than slots (L = 0 and H > 1 parents already fill this)
-            first = np.concatenate([first, np.zeros((M, H - first.shape[1]), dtype=first.dtype)], axis=1)
+        first = pad_axis(first, 1, H, 0)  # fewer children than slots (L = 0 and H > 1 parents already fill this)
         valid = np.take_along_axis(keep, first, axis=1)
         first = np.where(valid, first, 0)  # empty slots copy the best child
         chosen = np.take_along_axis(order, first, axis=1)

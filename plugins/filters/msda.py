@@ -49,31 +49,27 @@ import numpy as np
 import pywt
 
 from hybridtrack import hookimpl
-from hybridtrack.core.protocols import Association, ClutterInnovation
+from hybridtrack.core.protocols import Association
 from hybridtrack.core.validation import check_positive_int
-from hybridtrack.sdk.estimation import CovarianceMoments, bank_field
+from hybridtrack.sdk.estimation import bank_field
 from hybridtrack.sdk.linalg import symmetrize
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import ScanEstimator, nearest_weights, pad_axis
+from hybridtrack_plugins.filters.kalman import CovarianceState
 
 #: the extension mode of the transform: length-preserving and orthogonal
 MODE = "periodization"
 
 
-@attrs.frozen(eq=False)
-class MSDAState(CovarianceMoments):
+@attrs.frozen(eq=False, kw_only=True)
+class MSDAState(CovarianceState):
     """A covariance-form bank plus, per filter, the window's N slots (newest last): the chosen residuals
     ``residuals`` (M, N, m̄), the H they were taken with ``H`` (M, N, m̄, n) (zero-padded to the widest m̄) and
     ``dims`` (M, N) their dimension (0: nothing gated, or no scan yet)."""
 
-    x: np.ndarray = bank_field(0)
-    P: np.ndarray = bank_field(0)
-    x_predicted: np.ndarray = bank_field(0)
-    P_predicted: np.ndarray = bank_field(0)
     residuals: np.ndarray = bank_field(0)
     H: np.ndarray = bank_field(0)
     dims: np.ndarray = bank_field(0)
-    innovation: ClutterInnovation | None = None
 
 
 def _widen(state: MSDAState, m: int) -> MSDAState:
@@ -110,7 +106,8 @@ class MSDAFilter(ScanEstimator):
         x, P = self.check_prior(mean, cov)
         M, n = x.shape
         N = self.window
-        return MSDAState(x, P, x, P, np.zeros((M, N, 0)), np.zeros((M, N, 0, n)), np.zeros((M, N), dtype=np.int64))
+        empty = {"residuals": np.zeros((M, N, 0)), "H": np.zeros((M, N, 0, n)), "dims": np.zeros((M, N), dtype=np.int64)}
+        return MSDAState(x, P, x, P, **empty)
 
     def conform(self, states: list) -> list:
         """Pad the residual slots of every state to the widest m̄ of the group, so that they concatenate."""

@@ -33,9 +33,6 @@ class NearestNeighbourFilter(ClutterEstimator):
     name = "nearest_neighbour"
     example_parameters = {"gate_probability": 0.99}
 
-    def __init__(self, gate_probability: float | None = 0.99, form: str = "joseph"):
-        super().__init__(gate_probability, form)
-
     @property
     def exact_kalman(self) -> bool:
         """Without a gate and with one candidate per step (a plain z) NN is the Kalman filter."""

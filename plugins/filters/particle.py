@@ -80,6 +80,7 @@ re-initialized from its mean and covariance draws new particles.
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 from collections.abc import Sequence
@@ -273,10 +274,8 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
     @staticmethod
     def _generators(keys: np.ndarray, counters: np.ndarray, stage: int, rows=None):
         """One generator per filter (of ``rows``), seeded by (key, stage, counter): a filter's draws depend on its state only."""
-        rows = range(keys.shape[0]) if rows is None else rows
-        for r in rows:
-            k0, k1 = keys[r]
-            yield np.random.Generator(np.random.PCG64(np.random.SeedSequence([int(k0), int(k1), stage, int(counters[r])])))
+        for r in range(keys.shape[0]) if rows is None else rows:
+            yield np.random.Generator(np.random.PCG64(np.random.SeedSequence([int(keys[r, 0]), int(keys[r, 1]), stage, int(counters[r])])))
 
     def _normals(self, state_keys, counters, stage, shape) -> np.ndarray:
         return np.stack([g.standard_normal(shape) for g in self._generators(state_keys, counters, stage)])
@@ -395,11 +394,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         """w ∝ w⁻ Λ(x) scan after scan, ℓ = Σ ln Λ̂, then N_eff and resampling as in :meth:`update`."""
         M, N, n = state.particles.shape
         check_layout(layout, n)
-        layout = tuple(layout)
-
-        def step(log_weights, scan, sensor, model):
-            return self._scan_weights(log_weights, state.particles, scan, sensor, model, layout)
-
+        step = functools.partial(self._scan_weights, particles=state.particles, layout=tuple(layout))
         log_weights, used, blocks, records = scan_by_scan(self, state.log_weights, scans, sensors, layout, step, linear=False)
         nu, S, gaussian_loglik, nis = stacked_innovation(M, used, blocks, factored=True)
         loglik = summed_loglik(records, M)
@@ -419,7 +414,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         self.check_finite("update", updated_mean=new.mean)
         return new, innovation
 
-    def _scan_weights(self, log_weights, particles, scan, sensor, model, layout):
+    def _scan_weights(self, log_weights, scan, sensor, model, *, particles, layout):
         """One scan: posterior log-weights (M, N), the combined ν (M, m), S (M, m, m) and the Association (ln Λ̂ (M,)
         its ``loglik``)."""
         M, N, n = particles.shape
@@ -438,8 +433,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         S = symmetrize(np.swapaxes(d * w[..., None], -1, -2) @ d + R)
         chol_S = cholesky(S, "innovation covariance S")
         P_G = 1.0 if self.gate_probability is None else self.gate_probability
-        with np.errstate(divide="ignore"):
-            log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
+        log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
         log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
         gamma = gate_threshold(self.gate_probability, m)
         nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
@@ -450,8 +444,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         miss_term = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
         beta = np.zeros((M, L))
         if cols.size:
-            Lg = cols.size
-            nu_i = np.asarray(candidate_residuals(h.reshape(M * N, m), scan.z[cols], sensor, model)).reshape(M, N, Lg, m)
+            nu_i = np.asarray(candidate_residuals(h.reshape(M * N, m), scan.z[cols], sensor, model)).reshape(M, N, cols.size, m)
             log_n, _ = CholeskyFactor(R, "measurement noise R").scores(nu_i)  # (M, N, Lg)
             log_detected = np.where(gated[:, None, cols], log_detect + log_n, -np.inf)
             terms = np.concatenate([np.broadcast_to(miss_term[:, None, None], (M, N, 1)), log_detected], axis=2)

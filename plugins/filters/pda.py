@@ -51,10 +51,8 @@ class PDAFilter(ClutterEstimator):
 
     def associate(self, d2, gated, L):
         beta, beta0, loglik = pda_weights(d2, gated, L, self.detection_probability, self.clutter_density, self.gate_probability)
-        selected = np.full(beta.shape[0], -1, dtype=np.int64)
-        if beta.shape[1]:
-            selected = np.where(gated.any(axis=1), np.argmax(beta, axis=1), -1).astype(np.int64)
-        return beta, beta0, selected, loglik
+        selected = np.where(gated.any(axis=1), np.argmax(beta, axis=1), -1) if beta.shape[1] else np.full(beta.shape[0], -1)
+        return beta, beta0, selected.astype(np.int64), loglik
 
 
 @hookimpl

@@ -78,20 +78,21 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.protocols import Association, ClutterInnovation
+from hybridtrack.core.protocols import Association
 from hybridtrack.core.validation import check_positive, check_positive_int
-from hybridtrack.sdk.estimation import CovarianceMoments, bank_field, guarded
+from hybridtrack.sdk.estimation import bank_field, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import ScanEstimator, gate_threshold, innovation_covariance, log_half_det_2pi_s, pad_axis
+from hybridtrack_plugins.filters.kalman import CovarianceState
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
 MIN_WEIGHT = 1e-9
 
 
-@attrs.frozen(eq=False)
-class PMHTState(CovarianceMoments):
+@attrs.frozen(eq=False, kw_only=True)
+class PMHTState(CovarianceState):
     """A bank of M PMHT filters with windows of W = ``window`` scan slots (newest last).
 
     ``x``, ``P`` the current estimate (filtered at the newest scan, or predicted);
@@ -106,10 +107,6 @@ class PMHTState(CovarianceMoments):
     ``smoothed_covariance`` (M, W, n, n) and filtered ``filtered_mean``/``filtered_covariance``.
     """
 
-    x: np.ndarray = bank_field(0)
-    P: np.ndarray = bank_field(0)
-    x_predicted: np.ndarray = bank_field(0)
-    P_predicted: np.ndarray = bank_field(0)
     prior_x: np.ndarray = bank_field(0)
     prior_P: np.ndarray = bank_field(0)
     pending_F: np.ndarray = bank_field(0)
@@ -131,7 +128,16 @@ class PMHTState(CovarianceMoments):
     filtered_covariance: np.ndarray = bank_field(0)
     iterations: np.ndarray = bank_field(0)
     log_posterior: np.ndarray = bank_field(0)
-    innovation: ClutterInnovation | None = None
+
+
+def _padded(H, R, candidates, present, m: int, L: int):
+    """H (…, m₀, n), R (…, m₀, m₀), candidates (…, L₀, m₀) and present (…, L₀) padded to m measurement components
+    (zero rows of H, an identity block of R) and L candidates (absent)."""
+    m0 = R.shape[-1]
+    R_pad = np.zeros(R.shape[:-2] + (m, m))
+    R_pad[..., :m0, :m0] = R
+    R_pad[..., m0:, m0:] = np.eye(m - m0)
+    return pad_axis(H, -2, m, 0.0), R_pad, pad_axis(pad_axis(candidates, -1, m, 0.0), -2, L, 0.0), pad_axis(present, -1, L, False)
 
 
 def _widen(state: PMHTState, m: int, L: int) -> PMHTState:
@@ -140,21 +146,9 @@ def _widen(state: PMHTState, m: int, L: int) -> PMHTState:
     if m <= mb and L <= Lb:
         return state
     m2, L2 = max(m, mb), max(L, Lb)
-    M, W = state.valid.shape
-    H = pad_axis(state.H, 2, m2, 0.0)
-    R = np.zeros((M, W, m2, m2))
-    R[:, :, :mb, :mb] = state.R
-    R[:, :, mb:, mb:] = np.eye(m2 - mb)
-    cand = pad_axis(pad_axis(state.candidates, 3, m2, 0.0), 2, L2, 0.0)
-    return attrs.evolve(
-        state,
-        H=H,
-        R=R,
-        pad=state.pad + (m2 - mb),
-        candidates=cand,
-        present=pad_axis(state.present, 2, L2, False),
-        weights=pad_axis(state.weights, 2, L2, 0.0),
-    )
+    H, R, candidates, present = _padded(state.H, state.R, state.candidates, state.present, m2, L2)
+    weights = pad_axis(state.weights, 2, L2, 0.0)
+    return attrs.evolve(state, H=H, R=R, pad=state.pad + (m2 - mb), candidates=candidates, present=present, weights=weights)
 
 
 def _no_pending(M: int, n: int) -> dict:
@@ -283,30 +277,21 @@ class PMHTFilter(ScanEstimator):
         # gate at the prediction: d² = νᵀ S⁻¹ ν ≤ γ, S = H P⁻ Hᵀ + R
         S_pred, L_pred, gamma, d2, gated = self.gate(cands - z_pred[:, None, :], state.P, H, R)
         ell = -0.5 * d2 - log_half_det_2pi_s(L_pred)[:, None]  # ln N(ν_r; 0, S) at the prediction
-        with np.errstate(divide="ignore"):
-            if self.clutter_density > 0:
-                terms = np.logaddexp(0.0, self.log_pd + ell - self.log_lambda)  # ln(1 + P_D N / λ)
-            else:
-                terms = self.log_pd + ell
+        # ln(1 + P_D N / λ), or ln(P_D N) for λ = 0
+        terms = np.logaddexp(0.0, self.log_pd + ell - self.log_lambda) if self.clutter_density > 0 else self.log_pd + ell
         assoc_loglik = np.where(gated, terms, 0.0).sum(axis=1)
         # slide: when the oldest slot is occupied it leaves and its filtered estimate becomes the prior
         leaving = state.valid[:, 0]
         prior_x = np.where(leaving[:, None], state.filtered_mean[:, 0], state.prior_x)
         prior_P = np.where(leaving[:, None, None], state.filtered_covariance[:, 0], state.prior_P)
         # keep only the gated candidates, first (a stable sort), padded to the largest count of the bank
-        order = np.argsort(~gated, axis=1, kind="stable")
         Lg = int(gated.sum(axis=1).max(initial=0))
-        order = order[:, :Lg]
+        order = np.argsort(~gated, axis=1, kind="stable")[:, :Lg]
         kept = np.take_along_axis(cands, order[:, :, None], axis=1)
         kept_present = np.take_along_axis(gated, order, axis=1)
         s = _widen(state, m, Lg)
         mb, Lb = s.H.shape[2], s.candidates.shape[2]
-        Hs = pad_axis(np.broadcast_to(H, (M, m, n)), 1, mb, 0.0)
-        Rs = np.zeros((M, mb, mb))
-        Rs[:, :m, :m] = R
-        Rs[:, m:, m:] = np.eye(mb - m)
-        cs = pad_axis(pad_axis(kept, 2, mb, 0.0), 1, Lb, 0.0)
-        pr = pad_axis(kept_present, 1, Lb, False)
+        Hs, Rs, cs, pr = _padded(np.broadcast_to(H, (M, m, n)), np.broadcast_to(R, (M, m, m)), kept, kept_present, mb, Lb)
 
         def shift(a, new):
             return np.concatenate([a[:, 1:], new[:, None]], axis=1)
@@ -357,15 +342,14 @@ class PMHTFilter(ScanEstimator):
         q = np.einsum("...i,...i->...", u, u)
         logN = -0.5 * (q + logdet_R[:, :, None])
         a = self.log_pd + logN
-        log_w = a - np.logaddexp(self.log_lambda, a) if self.clutter_density > 0 else np.zeros_like(a)
-        w = np.where(pw, np.exp(log_w), 0.0)
-        terms = np.where(pw, np.logaddexp(self.log_lambda, a) if self.clutter_density > 0 else a, 0.0)
-        return w, terms.sum(axis=(1, 2))
+        total = np.logaddexp(self.log_lambda, a) if self.clutter_density > 0 else a  # ln(λ + P_D N), or ln(P_D N)
+        w = np.where(pw, np.exp(a - total) if self.clutter_density > 0 else 1.0, 0.0)
+        return w, np.where(pw, total, 0.0).sum(axis=(1, 2))
 
     def _em(self, prior_x, prior_P, guess, valid, F, B, Q, H, R, pad, candidates, present):
         """EM over the window's slots from the initial guess X̂⁰ (M, W, n) (module docstring)."""
         Hw, Rw, cw, pw = H, R, candidates, present
-        M, W, n = guess.shape
+        M = guess.shape[0]
         mb = Hw.shape[2]
         LR = cholesky(Rw, "measurement noise R")
         # ln |2π R| of the real components: the padded identity block adds pad · ln 2π

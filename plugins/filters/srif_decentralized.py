@@ -18,32 +18,19 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor
-from hybridtrack.sdk.estimation import NodeMoments, guarded
+from hybridtrack.sdk.estimation import guarded
 from hybridtrack_plugins.filters import _sqrt
-from hybridtrack_plugins.filters.decentralized import NodeBank, node_rows, replicate
+from hybridtrack_plugins.filters.decentralized import NodeBank, NodeCopies, node_rows, replicate
 from hybridtrack_plugins.filters.srif import SRIFState, srif_innovation
 
 
 @attrs.frozen(eq=False, slots=False)
-class DecentralizedSRIFState(NodeMoments, SRIFState):
+class DecentralizedSRIFState(NodeCopies, SRIFState):
     """Node arrays R (N, M, n, n), ζ (N, M, n); ``mean``/``covariance`` read node 0."""
 
     node_nis: np.ndarray | None = None
     node_loglik: np.ndarray | None = None
-    #: the fields holding a copy per node (axis 0)
     node_fields = ("R", "zeta", "R_predicted", "zeta_predicted")
-
-    @property
-    def nodes(self) -> int:
-        return self.R.shape[0]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted[0]
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted[0]
 
 
 class DecentralizedSRIF(NodeBank):
@@ -66,15 +53,7 @@ class DecentralizedSRIF(NodeBank):
         R, zeta = R.reshape(N, M, n, n), zeta.reshape(N, M, n)
         return DecentralizedSRIFState(R, zeta, R, zeta)
 
-    @guarded
-    def update(self, state: DecentralizedSRIFState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
-        state, sensors = self.per_node(state, sensors)
-        M, n = state.zeta.shape[1:]
-        step = self.measurement_step(z, sensors, layout, M, n)
-        if step is None:
-            return self.unmeasured(state, M)
-        if step.H is None:
-            raise ValueError(f"sensors: {self.name!r} takes linear sensors only")
+    def update_measured(self, state: DecentralizedSRIFState, step, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         # each measuring node whitens its own data into rows and broadcasts them
         rows, log_det_R = [], 0.0
         for model, block in zip(step.models, step.blocks):
