@@ -31,7 +31,7 @@ from __future__ import annotations
 import copy
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any, overload
+from typing import Any
 
 import attrs
 import numpy as np
@@ -42,6 +42,7 @@ from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Decision, Gaussian
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_priors, batch_times, per_run, stacked_measurements
+from hybridtrack.engine.clutter import ScanSequence
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
@@ -99,13 +100,9 @@ class PipelineResult(RunResult):
 class StepResults(Sequence):
     """The steps processed so far, ``pipeline.results``: ``len``, ``results[k]`` (negative k and slices too), iteration.
 
-    Each :class:`StepResult` (of run 0) is rebuilt from the pipeline's
-    preallocated arrays (copies, so changing one does not change the pipeline).
-    The innovation of a step with every measurement component is an
-    :class:`Innovation` of the stored ν, S, ℓ and NIS; other steps of a single
-    run (missing components, clutter associations) keep the estimator's own
-    object.  Detector outputs hold every series the detector has reported so
-    far (NaN at steps where it did not report one).
+    Each :class:`StepResult` (of run 0) is a copy rebuilt from the stored arrays: an :class:`Innovation` of the
+    stored ν, S, ℓ and NIS (a single run's steps with missing components or clutter associations keep the
+    estimator's own object), the detectors' series (NaN where a detector did not report one).
     """
 
     def __init__(self, pipeline: Pipeline):
@@ -114,11 +111,7 @@ class StepResults(Sequence):
     def __len__(self) -> int:
         return self.pipeline.processed
 
-    @overload
-    def __getitem__(self, k: int) -> StepResult: ...
-    @overload
-    def __getitem__(self, k: slice) -> list[StepResult]: ...
-    def __getitem__(self, k):
+    def __getitem__(self, k: int | slice) -> StepResult | list[StepResult]:
         if isinstance(k, slice):
             return [self.pipeline.step_result(i) for i in range(*k.indices(len(self)))]
         if not isinstance(k, (int, np.integer)) or isinstance(k, bool):
@@ -252,8 +245,6 @@ class Pipeline:
         """Validate ``candidates`` (one ScanSequence per network sensor) against the estimator."""
         if candidates is None:
             return None
-        from hybridtrack.engine.clutter import ScanSequence
-
         if measurements is not None:
             raise ValueError("candidates: give either measurements or candidates, not both")
         if not self.estimator.accepts_scans:
