@@ -166,19 +166,15 @@ def simulate_trajectory(
     models: Sequence[MotionModel] | None = None,
     recorder=None,
 ) -> Trajectory:
-    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``,
-    or at ``times`` (seconds, strictly increasing, any spacing, one per state: ``schedule.total_steps + 1``).
-
-    With ``times`` each step's transition (and its noise) is built for its own
-    Δt; ``tau`` and ``times`` exclude each other.  ``models`` overrides the
-    registry lookup (one model per schedule row); with a ``recorder`` the true
-    path is logged under ``world/truth``.
+    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``, or at ``times``
+    (one per state: ``schedule.total_steps + 1``; module docstring).  ``models`` overrides the registry lookup
+    (one model per schedule row); with a ``recorder`` the true path is logged under ``world/truth``.
     """
     tau, times = _sampling(tau, times, schedule.total_steps)
     models, layout = _schedule_models(schedule, models, registry, noise_cov)
     x = as_float_array(x0, "x0", (models[0].state_dim,))
     rng = np.random.default_rng(seed)
-    intervals = None if times is None else np.diff(times)
+    intervals = np.full(schedule.total_steps, tau) if times is None else np.diff(times)
 
     states = [convert_layout(x, models[0].layout, layout)]
     segment_index = [0]
@@ -186,15 +182,11 @@ def simulate_trajectory(
     for i, (segment, model) in enumerate(zip(schedule.segments, models)):
         x = model.enter(x, current_layout, {"acceleration": segment.acceleration})
         current_layout = model.layout
-        switch_state = x.copy()
-        if intervals is None:
-            transition = model.transition(tau, switch_state)
-            L = psd_square_root(transition.Q)
+        switch_state, built = x.copy(), None
         for _ in range(segment.steps):
-            dt = tau
-            if intervals is not None:
-                dt = float(intervals[len(states) - 1])
-                transition = model.transition(dt, switch_state)
+            dt = float(intervals[len(states) - 1])
+            if dt != built:  # regular sampling: one transition per segment; given times: one per step
+                transition, built = model.transition(dt, switch_state), dt
                 L = psd_square_root(transition.Q)
             x = transition.apply(x) if model.linear else model.propagate(x, dt, switch_state)
             if process_noise:
