@@ -104,17 +104,13 @@ class Recorder(Protocol):
         """Flush and close; idempotent."""
 
 
-def _ignore(*args, **kwargs) -> None:
-    return None
-
-
 class NullRecorder(AbstractContextManager):
     """Records nothing (recording turned off): every ``log_…`` method of :class:`Recorder` and of its optional
     extensions, ``flush`` and ``close`` accept their arguments and do nothing."""
 
     def __getattr__(self, name: str):
         if name.startswith("log_") or name in ("flush", "close"):
-            return _ignore
+            return lambda *args, **kwargs: None
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def __exit__(self, *exc):
