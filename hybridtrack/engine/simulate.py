@@ -61,9 +61,7 @@ class Trajectory:
 
     @property
     def times(self) -> np.ndarray:
-        if self.sample_times is not None:
-            return self.sample_times
-        return self.steps * self.tau
+        return self.steps * self.tau if self.sample_times is None else self.sample_times
 
     @property
     def modes(self) -> list[str]:

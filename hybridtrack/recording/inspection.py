@@ -119,13 +119,11 @@ def scan_frames(path: Path) -> tuple[bool, int, str | None]:
             end = position + _MESSAGE_HEADER.size + length
             if end > size:
                 return False, position, f"cut inside a message at byte {position} ({length} bytes announced, {size - position} present)"
+            f.seek(end)
             if kind == 0:  # end of stream: what follows is the footer
-                f.seek(end)
-                tail = f.read()
-                if _FOOTER_MAGIC in tail[-16:]:
+                if _FOOTER_MAGIC in f.read()[-16:]:
                     return True, size, None
                 return False, end, f"end-of-stream message at byte {position} without a complete footer"
-            f.seek(end)
             position = end
 
 
