@@ -125,22 +125,15 @@ class StepResults(Sequence):
 class Pipeline:
     """A bank of filters (one per motion model) on a network's measurements, with detectors and a recorder.
 
-    Parameters: ``models`` (motion models, names or (name, parameters)); ``estimator``;
-    ``sensors`` (a :class:`SensorNetwork` or a list of sensors); ``measurements``
-    (sensor name → (steps, m_i)); ``prior`` (a :class:`Gaussian` or (mean, cov),
-    in the models' layout); ``times`` (seconds, one per measurement step) or
-    ``tau`` (regular sampling); ``detectors`` (labels must be unique); ``recorder``
-    (None: nothing recorded); ``truth`` (an optional trajectory to record beside
-    the estimates); ``filter_names`` to label the bank; ``record_measurements``
-    (False when another pipeline on the same recorder already logs them);
-    ``candidates`` (sensor name → :class:`~hybridtrack.engine.clutter.ScanSequence`, one
-    per sensor) in place of ``measurements`` when tracking in clutter: each step
-    passes the sensors' :class:`~hybridtrack.sdk.scans.Scan` list to an estimator
-    with ``accepts_scans``; clutter, gates and association weights are recorded;
-    ``record_every`` (steps, default 10,000) and ``record_seconds`` (wall-clock
-    seconds, default 2.0; None: by steps only, so that two runs with the same seed
-    always give the same chunks) bound how much work a killed recorded run loses.
-    R runs at once: :meth:`batch`, :meth:`run_batch`.
+    Parameters: ``models`` (motion models, names or (name, parameters)); ``estimator``; ``sensors`` (a
+    :class:`SensorNetwork` or a list); ``measurements`` (sensor name → (steps, m_i)); ``prior`` (a
+    :class:`Gaussian` or (mean, cov), in the models' layout); ``times`` (seconds, one per step) or ``tau``;
+    ``detectors`` (unique labels); ``recorder`` (None: nothing recorded); ``truth`` (a trajectory recorded beside
+    the estimates); ``filter_names``; ``record_measurements`` (False when another pipeline on the recorder logs
+    them); ``candidates`` (sensor name → :class:`~hybridtrack.engine.clutter.ScanSequence`) in place of
+    ``measurements`` in clutter, for an estimator with ``accepts_scans``; ``record_every`` (steps, default 10,000)
+    and ``record_seconds`` (wall-clock seconds, default 2.0; None: by steps only, the same chunks every run)
+    bound how much work a killed recorded run loses.  R runs at once: :meth:`batch`, :meth:`run_batch`.
     """
 
     def __init__(
@@ -178,14 +171,10 @@ class Pipeline:
     def batch(cls, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None, **options) -> Pipeline:
         """R runs as one pipeline over a bank of R × M filters (module docstring), ready to :meth:`run`.
 
-        ``measurements``: sensor name → (R, K+1, m_i) (NaN: not measured); ``prior``:
-        one Gaussian (or (mean, cov)) for all runs, or per-run means (R, n) and
-        covariances (R, n, n); ``times``: (K+1,) shared or (R, K+1) per run, or
-        ``tau``; ``truth``: per-run trajectories (sequence of R or mapping run →
-        trajectory), recorded beside the estimates; ``recorders``: run index →
-        recorder for the runs to record.  ``options`` as for the constructor
-        (``models``, ``estimator``, ``sensors``, ``tau``, ``detectors``, …); clutter
-        candidates are not batched (run those one by one).
+        ``measurements``: sensor name → (R, K+1, m_i) (NaN: not measured); ``prior``: one Gaussian (or (mean,
+        cov)), or per-run means (R, n) and covariances (R, n, n); ``times``: (K+1,) shared or (R, K+1), or
+        ``tau``; ``truth``: per-run trajectories (sequence of R or mapping run → trajectory); ``recorders``: run
+        index → recorder.  ``options`` as for the constructor; clutter candidates are not batched.
         """
         if "candidates" in options:
             raise ValueError("candidates: clutter candidates are not batched; run those one by one")
