@@ -2,13 +2,7 @@
 
 :meth:`hybridtrack.engine.pipeline.Pipeline.batch` and the algorithms'
 ``run_batch`` take R runs as one :class:`~hybridtrack.engine.bank.FilterBank`
-of R × M filters, row r·M + j being filter j of run r.  These helpers check and
-stack what the runs give: measurements sensor name → (R, K+1, m_i)
-(:func:`batch_measurements`), side by side as one z (R, K+1, Σm) in the
-network's order (:func:`stacked_measurements`), times shared (K+1,) or per run
-(R, K+1) (:func:`batch_times`), one prior or one per run (:func:`batch_priors`,
-as arrays :func:`prior_arrays`), a value per run (:func:`per_run`), and the
-runs that can share one bank (:func:`run_groups`).
+of R × M filters, row r·M + j being filter j of run r.
 """
 
 from __future__ import annotations
@@ -102,13 +96,9 @@ def per_run(value, runs: int, name: str) -> list:
     raise ValueError(f"{name}: expected a mapping run index → value or a sequence of {runs} (one per run)")
 
 
-def batchable(estimator: Estimator) -> bool:
-    """True when runs of ``estimator`` can share one bank: a centralized, non-sampling estimator
-    (a decentralized one's node copies and a particle filter's streams stay per run)."""
-    return not getattr(estimator, "sampling", False) and type(estimator).node_scores is Estimator.node_scores
-
-
 def run_groups(estimator: Estimator, runs: int) -> list[np.ndarray]:
-    """The runs that share one bank: all of them for a :func:`batchable` estimator, else each run alone
-    (the same batched code, on a batch of one)."""
-    return [np.arange(runs)] if batchable(estimator) else [np.array([r]) for r in range(runs)]
+    """The runs that share one bank: all of them for a centralized, non-sampling estimator, else each run alone
+    (a decentralized one's node copies and a particle filter's streams stay per run, on a batch of one)."""
+    if not getattr(estimator, "sampling", False) and type(estimator).node_scores is Estimator.node_scores:
+        return [np.arange(runs)]
+    return [np.array([r]) for r in range(runs)]

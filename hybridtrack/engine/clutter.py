@@ -20,6 +20,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.validation import as_float_array
+from hybridtrack.engine.simulate import simulate_measurements
 from hybridtrack.sdk.scans import RowScan, Scan, candidate_array, check_clutter_density, check_detection_probability
 
 
@@ -97,6 +98,8 @@ class ScanSequence:
 
 
 def _region(value) -> np.ndarray:
+    if value is None:
+        raise ValueError("region: the surveillance region (low, high) is required")
     array = as_float_array(value, "region", (2, None), readonly=True)
     if not np.all(array[1] > array[0]):
         raise ValueError(f"region: expected (low, high) with high > low in every coordinate, got {array.tolist()}")
@@ -114,12 +117,7 @@ class ClutterModel:
 
     density: float = attrs.field(converter=check_clutter_density)
     detection_probability: float = attrs.field(default=1.0, converter=check_detection_probability)
-    region: np.ndarray = attrs.field(default=None)
-
-    def __attrs_post_init__(self):
-        if self.region is None:
-            raise ValueError("region: the surveillance region (low, high) is required")
-        object.__setattr__(self, "region", _region(self.region))
+    region: np.ndarray = attrs.field(default=None, converter=_region)
 
     @property
     def measurement_dim(self) -> int:
@@ -166,7 +164,7 @@ def add_clutter(
     target's row is kept with probability P_D and Poisson clutter is added;
     the candidates are shuffled so their order says nothing about the origin.
     """
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    rng = np.random.default_rng(seed)
     out = {}
     for name, z in measurements.items():
         z = as_float_array(z, f"measurements[{name!r}]", (None, None), allow_nan=True)
@@ -193,13 +191,6 @@ def add_clutter(
 
 def simulate_scans(trajectory, sensors, clutter, *, seed=None) -> dict[str, ScanSequence]:
     """Clean measurements of ``trajectory`` by ``sensors`` and then clutter, from one seed (independent streams)."""
-    from hybridtrack.engine.simulate import simulate_measurements
-
     measurement_seed, clutter_seed = np.random.SeedSequence(seed).spawn(2)
     clean = simulate_measurements(trajectory, sensors, seed=np.random.default_rng(measurement_seed))
     return add_clutter(clean, clutter, seed=np.random.default_rng(clutter_seed))
-
-
-def scans_at(sequences: Sequence[ScanSequence], k: int) -> list[Scan]:
-    """The scans of step k of several sensors (the input of one clutter-aware update)."""
-    return [s.scan(k) for s in sequences]

@@ -10,47 +10,20 @@ on the stacked measurements of a sensor network:
 A linear model's transition is fixed from the prior mean, the state at the
 switching moment (SPEC §1: a turn's ω and centre are fixed at the switch); a
 nonlinear model is relinearized at each filter's own estimate every step
-(EKF).  Measurements are a mapping sensor name → array (steps, m_i), row k
-holding step k, NaN rows meaning no measurement; see
-:mod:`hybridtrack.io.measurement_files` for the CSV/NPZ layouts.  In clutter they
-are instead ``candidates``, sensor name → :class:`~hybridtrack.engine.clutter.ScanSequence`
-(a variable number of candidate measurements per step), for an estimator that
-associates them (``nearest_neighbour``, ``pda``: ``accepts_scans = True``).
+(EKF).  Each step's transition is built for its own Δt (``times`` or ``tau``).
 
-Components are given as objects or by registered name (``"kalman"``,
-``("left_turn", {"radius": 3.0})``, ``("signal_function", {"window": 10}, "sf10")``
-with a label).  Measurement times are ``times`` (seconds, strictly increasing,
-any spacing: real data) or ``tau`` (regular sampling); each step's transition
-is built for its own Δt.
+**R runs, one loop.**  A run is a batch of one: :meth:`Pipeline.batch` runs R
+measurement sequences as one :class:`~hybridtrack.engine.bank.FilterBank` of
+R × M filters (row r·M + j is filter j of run r), each run with its own copy of
+every detector (``detector.batch(R)``) and, for a sampling estimator, of the
+estimator; the results equal R single runs to 1e-12 (tests/engine/test_batch.py).
 
-**R runs, one loop.**  A run is a batch of one: :meth:`Pipeline.batch` (and
-:meth:`Pipeline.run_batch`) takes R measurement sequences (sensor → (R, K+1,
-m_i)), with per-run times, priors, truths and recorders, and runs them as one
-bank of R × M filters (row r·M + j is filter j of run r), each step one
-``predict`` and one ``update`` of the whole bank, in the same loop as a single
-run: the bank is a :class:`~hybridtrack.engine.bank.FilterBank` (its
-transition cache, each run's Δt, the update grouped by missing pattern when
-runs miss different components, the bank kept in the estimator's own form,
-e.g. square-root factors).  Each run has its own copy of every detector through the one
-batching protocol, ``detector.batch(R)`` (:meth:`~hybridtrack.core.interfaces.Detector.batch`:
-looped deep copies by default, vectorized where a class overrides it); a
-single run steps the detectors it was given.  A sampling estimator (particle
-filter) initializes each run's bank with its own copy of the estimator, so run
-r draws what a single run with that estimator draws.  Results equal R single
-runs to rounding (1e-12, tests/engine/test_batch.py).
-
-Memory: the per-step results live in arrays preallocated for the K steps of the
-measurements (means (R, K, M, n), covariances (R, K, M, n, n), NIS, ℓ, ν, the
-detectors' series), not in one object per step; :meth:`Pipeline.result` returns
-read-only views of them and ``pipeline.results[k]`` rebuilds the
-:class:`StepResult` of step k (run 0) from them.
-
-Recording is not done here: a run given a recorder hands it the finished
-steps, ``recorder.log_result(result, start=…, lines=…, …)`` (the writer is
-:func:`hybridtrack.recording.pipeline.log_pipeline`), every ``record_every``
-steps or ``record_seconds`` seconds of wall time, whichever comes first, and
-flushes it, so a killed run loses at most that much work; :meth:`Pipeline.record`
-hands over the rest and the static path lines at the end.
+The per-step results live in arrays preallocated for the K steps:
+:meth:`Pipeline.result` returns read-only views of them, ``pipeline.results[k]``
+rebuilds step k's :class:`StepResult`.  Recording is not done here: the
+recorders get the finished steps, ``recorder.log_result(result, start=…, …)``
+(:func:`hybridtrack.recording.pipeline.log_pipeline`), every ``record_every``
+steps or ``record_seconds`` seconds, each chunk flushed.
 """
 
 from __future__ import annotations
@@ -58,7 +31,7 @@ from __future__ import annotations
 import copy
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any, overload
+from typing import Any
 
 import attrs
 import numpy as np
@@ -69,6 +42,7 @@ from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Decision, Gaussian
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_priors, batch_times, per_run, stacked_measurements
+from hybridtrack.engine.clutter import ScanSequence
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
@@ -126,13 +100,9 @@ class PipelineResult(RunResult):
 class StepResults(Sequence):
     """The steps processed so far, ``pipeline.results``: ``len``, ``results[k]`` (negative k and slices too), iteration.
 
-    Each :class:`StepResult` (of run 0) is rebuilt from the pipeline's
-    preallocated arrays (copies, so changing one does not change the pipeline).
-    The innovation of a step with every measurement component is an
-    :class:`Innovation` of the stored ν, S, ℓ and NIS; other steps of a single
-    run (missing components, clutter associations) keep the estimator's own
-    object.  Detector outputs hold every series the detector has reported so
-    far (NaN at steps where it did not report one).
+    Each :class:`StepResult` (of run 0) is a copy rebuilt from the stored arrays: an :class:`Innovation` of the
+    stored ν, S, ℓ and NIS (a single run's steps with missing components or clutter associations keep the
+    estimator's own object), the detectors' series (NaN where a detector did not report one).
     """
 
     def __init__(self, pipeline: Pipeline):
@@ -141,11 +111,7 @@ class StepResults(Sequence):
     def __len__(self) -> int:
         return self.pipeline.processed
 
-    @overload
-    def __getitem__(self, k: int) -> StepResult: ...
-    @overload
-    def __getitem__(self, k: slice) -> list[StepResult]: ...
-    def __getitem__(self, k):
+    def __getitem__(self, k: int | slice) -> StepResult | list[StepResult]:
         if isinstance(k, slice):
             return [self.pipeline.step_result(i) for i in range(*k.indices(len(self)))]
         if not isinstance(k, (int, np.integer)) or isinstance(k, bool):
@@ -159,22 +125,15 @@ class StepResults(Sequence):
 class Pipeline:
     """A bank of filters (one per motion model) on a network's measurements, with detectors and a recorder.
 
-    Parameters: ``models`` (motion models, names or (name, parameters)); ``estimator``;
-    ``sensors`` (a :class:`SensorNetwork` or a list of sensors); ``measurements``
-    (sensor name → (steps, m_i)); ``prior`` (a :class:`Gaussian` or (mean, cov),
-    in the models' layout); ``times`` (seconds, one per measurement step) or
-    ``tau`` (regular sampling); ``detectors`` (labels must be unique); ``recorder``
-    (None: nothing recorded); ``truth`` (an optional trajectory to record beside
-    the estimates); ``filter_names`` to label the bank; ``record_measurements``
-    (False when another pipeline on the same recorder already logs them);
-    ``candidates`` (sensor name → :class:`~hybridtrack.engine.clutter.ScanSequence`, one
-    per sensor) in place of ``measurements`` when tracking in clutter: each step
-    passes the sensors' :class:`~hybridtrack.sdk.scans.Scan` list to an estimator
-    with ``accepts_scans``; clutter, gates and association weights are recorded;
-    ``record_every`` (steps, default 10,000) and ``record_seconds`` (wall-clock
-    seconds, default 2.0; None: by steps only, so that two runs with the same seed
-    always give the same chunks) bound how much work a killed recorded run loses.
-    R runs at once: :meth:`batch`, :meth:`run_batch`.
+    Parameters: ``models`` (motion models, names or (name, parameters)); ``estimator``; ``sensors`` (a
+    :class:`SensorNetwork` or a list); ``measurements`` (sensor name → (steps, m_i)); ``prior`` (a
+    :class:`Gaussian` or (mean, cov), in the models' layout); ``times`` (seconds, one per step) or ``tau``;
+    ``detectors`` (unique labels); ``recorder`` (None: nothing recorded); ``truth`` (a trajectory recorded beside
+    the estimates); ``filter_names``; ``record_measurements`` (False when another pipeline on the recorder logs
+    them); ``candidates`` (sensor name → :class:`~hybridtrack.engine.clutter.ScanSequence`) in place of
+    ``measurements`` in clutter, for an estimator with ``accepts_scans``; ``record_every`` (steps, default 10,000)
+    and ``record_seconds`` (wall-clock seconds, default 2.0; None: by steps only, the same chunks every run)
+    bound how much work a killed recorded run loses.  R runs at once: :meth:`batch`, :meth:`run_batch`.
     """
 
     def __init__(
@@ -212,14 +171,10 @@ class Pipeline:
     def batch(cls, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None, **options) -> Pipeline:
         """R runs as one pipeline over a bank of R × M filters (module docstring), ready to :meth:`run`.
 
-        ``measurements``: sensor name → (R, K+1, m_i) (NaN: not measured); ``prior``:
-        one Gaussian (or (mean, cov)) for all runs, or per-run means (R, n) and
-        covariances (R, n, n); ``times``: (K+1,) shared or (R, K+1) per run, or
-        ``tau``; ``truth``: per-run trajectories (sequence of R or mapping run →
-        trajectory), recorded beside the estimates; ``recorders``: run index →
-        recorder for the runs to record.  ``options`` as for the constructor
-        (``models``, ``estimator``, ``sensors``, ``tau``, ``detectors``, …); clutter
-        candidates are not batched (run those one by one).
+        ``measurements``: sensor name → (R, K+1, m_i) (NaN: not measured); ``prior``: one Gaussian (or (mean,
+        cov)), or per-run means (R, n) and covariances (R, n, n); ``times``: (K+1,) shared or (R, K+1), or
+        ``tau``; ``truth``: per-run trajectories (sequence of R or mapping run → trajectory); ``recorders``: run
+        index → recorder.  ``options`` as for the constructor; clutter candidates are not batched.
         """
         if "candidates" in options:
             raise ValueError("candidates: clutter candidates are not batched; run those one by one")
@@ -279,8 +234,6 @@ class Pipeline:
         """Validate ``candidates`` (one ScanSequence per network sensor) against the estimator."""
         if candidates is None:
             return None
-        from hybridtrack.engine.clutter import ScanSequence
-
         if measurements is not None:
             raise ValueError("candidates: give either measurements or candidates, not both")
         if not self.estimator.accepts_scans:
@@ -309,11 +262,7 @@ class Pipeline:
             raise ValueError(f"record_seconds: expected a positive number of seconds or None, got {record_seconds!r}")
         self.runs = R
         self.Z, self.T, self.DT = z, t, dt
-        self.z, self.times, self.intervals = (z[0], t[0], dt[0]) if R == 1 else (z, t, dt)
-        self.priors = priors
-        self.prior = priors[0]
         self.recorders, self.truths = list(recorders), list(truths)
-        self.recorder, self.truth = self.recorders[0], self.truths[0]
         self.record_measurements = record_measurements
         self.record_every, self.record_seconds = int(record_every), record_seconds
         est = self.estimator
@@ -361,11 +310,6 @@ class Pipeline:
         """The bank's estimator state after the last step (every run's filters, run by run)."""
         return self.bank.state
 
-    @property
-    def decisions(self) -> list[Decision]:
-        """Run 0's decisions so far (:meth:`result` gives each run's)."""
-        return self.run_decisions[0]
-
     # -- the loop
     def step(self) -> StepResult:
         """Process the next step of every run, store it, hand the recorders their steps when due, and return the
@@ -380,7 +324,7 @@ class Pipeline:
         state = self.bank.state
         if self._pending_states is not None:
             for r, pending in self._pending_states.items():
-                pending.append(state if R == 1 else est.take(state, self.rows([r])))
+                pending.append(state if R == 1 else est.take(state, np.arange(r * M, (r + 1) * M)))
         mean, cov = self.bank.means, self.bank.raw_covs
         self.means[:, k] = mean.reshape(R, M, -1)
         self.covs[:, k] = cov.reshape(R, M, *self.covs.shape[-2:])
@@ -404,11 +348,6 @@ class Pipeline:
         if R == 1:
             return StepResult(k, float(self.T[0, k]), mean, cov, updates[0][1], outputs)
         return self.step_result(k)
-
-    def rows(self, runs) -> np.ndarray:
-        """The bank rows of the runs ``runs`` (r·M + j, run by run)."""
-        M = len(self.models)
-        return (np.asarray(runs)[:, None] * M + np.arange(M)).reshape(-1)
 
     def store_scores(self, k: int, runs: np.ndarray, innovation: Innovation) -> None:
         """Write step k's ℓ, NIS and ν of the runs ``runs`` (NaN: nothing measured / a component missing)."""

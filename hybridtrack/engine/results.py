@@ -38,8 +38,3 @@ class RunResult:
     def steps(self) -> int:
         """K + 1, the number of measurement steps."""
         return len(self.times)
-
-    @property
-    def mode_names(self) -> tuple[str, ...] | None:
-        """The name of the followed mode per step (None for a fixed bank)."""
-        return None if self.mode is None else tuple(self.modes[i] for i in np.asarray(self.mode, dtype=int))

@@ -55,10 +55,7 @@ class Segment:
 class Schedule:
     """A hybrid trajectory's schedule: a sequence of :class:`Segment` rows."""
 
-    segments: tuple[Segment, ...] = attrs.field(
-        converter=tuple,
-        validator=attrs.validators.min_len(1),
-    )
+    segments: tuple[Segment, ...] = attrs.field(converter=tuple, validator=attrs.validators.min_len(1))
 
     @segments.validator
     def _check_segments(self, attribute, value):

@@ -21,6 +21,7 @@ trajectory and the measurements from one seed.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -28,16 +29,12 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.interfaces import MotionModel, Sensor, convert_layout
-from hybridtrack.core.registry import Registry
+from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import as_float_array, check_covariance
 from hybridtrack.engine.schedule import Schedule
 from hybridtrack.sdk.linalg import psd_square_root
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import check_tau, check_times
-
-
-def _rng(seed) -> np.random.Generator:
-    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
 
 
 @attrs.frozen(eq=False)
@@ -64,9 +61,7 @@ class Trajectory:
 
     @property
     def times(self) -> np.ndarray:
-        if self.sample_times is not None:
-            return self.sample_times
-        return self.steps * self.tau
+        return self.steps * self.tau if self.sample_times is None else self.sample_times
 
     @property
     def modes(self) -> list[str]:
@@ -102,8 +97,6 @@ class Trajectory:
 
 def takes_keyword(factory, name: str) -> bool:
     """Whether ``factory`` accepts the keyword argument ``name`` (True when its signature is unknown)."""
-    import inspect
-
     try:
         parameters = inspect.signature(factory).parameters.values()
     except (TypeError, ValueError):
@@ -123,10 +116,7 @@ def build_models(
     A factory returning something that is not a MotionModel is a TypeError
     naming the plugin that registered it.
     """
-    from hybridtrack.core.plugins import check_component, get_registry
-
-    if registry is None:
-        registry = get_registry()
+    registry = registry_or_default(registry)
     models = []
     for i, segment in enumerate(schedule.segments):
         parameters = segment.parameters()
@@ -136,8 +126,18 @@ def build_models(
             model = registry.create("motion_model", segment.mode, **parameters)
         except (TypeError, ValueError) as error:
             raise ValueError(f"schedule row {i} ({segment.mode}): {error}") from error
-        models.append(check_component("motion_model", segment.mode, model, registry))
+        models.append(registry.check("motion_model", segment.mode, model))
     return models
+
+
+def _schedule_models(schedule: Schedule, models, registry, noise_cov) -> tuple[list[MotionModel], tuple[str, ...]]:
+    """The models of the schedule's rows (``models``, or built from the registry) and the union of their layouts."""
+    if noise_cov is not None:
+        noise_cov = check_covariance(noise_cov, "noise_cov")
+    models = list(models) if models is not None else build_models(schedule, registry, noise_cov)
+    if len(models) != len(schedule.segments):
+        raise ValueError(f"models: expected {len(schedule.segments)} models (one per schedule row), got {len(models)}")
+    return models, tuple(dict.fromkeys(name for model in models for name in model.layout))
 
 
 def _sampling(tau, times, steps: int) -> tuple[float | None, np.ndarray | None]:
@@ -164,26 +164,15 @@ def simulate_trajectory(
     models: Sequence[MotionModel] | None = None,
     recorder=None,
 ) -> Trajectory:
-    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``,
-    or at ``times`` (seconds, strictly increasing, any spacing, one per state: ``schedule.total_steps + 1``).
-
-    With ``times`` each step's transition (and its noise) is built for its own
-    Δt; ``tau`` and ``times`` exclude each other.  ``models`` overrides the
-    registry lookup (one model per schedule row); with a ``recorder`` the true
-    path is logged under ``world/truth``.
+    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``, or at ``times``
+    (one per state: ``schedule.total_steps + 1``; module docstring).  ``models`` overrides the registry lookup
+    (one model per schedule row); with a ``recorder`` the true path is logged under ``world/truth``.
     """
     tau, times = _sampling(tau, times, schedule.total_steps)
-    if noise_cov is not None:
-        noise_cov = check_covariance(noise_cov, "noise_cov")
-    models = list(models) if models is not None else build_models(schedule, registry, noise_cov)
-    if len(models) != len(schedule.segments):
-        raise ValueError(f"models: expected {len(schedule.segments)} models (one per schedule row), got {len(models)}")
-    layout: list[str] = []
-    for model in models:
-        layout += [name for name in model.layout if name not in layout]
+    models, layout = _schedule_models(schedule, models, registry, noise_cov)
     x = as_float_array(x0, "x0", (models[0].state_dim,))
-    rng = _rng(seed)
-    intervals = None if times is None else np.diff(times)
+    rng = np.random.default_rng(seed)
+    intervals = np.full(schedule.total_steps, tau) if times is None else np.diff(times)
 
     states = [convert_layout(x, models[0].layout, layout)]
     segment_index = [0]
@@ -191,15 +180,11 @@ def simulate_trajectory(
     for i, (segment, model) in enumerate(zip(schedule.segments, models)):
         x = model.enter(x, current_layout, {"acceleration": segment.acceleration})
         current_layout = model.layout
-        switch_state = x.copy()
-        if intervals is None:
-            transition = model.transition(tau, switch_state)
-            L = psd_square_root(transition.Q)
+        switch_state, built = x.copy(), None
         for _ in range(segment.steps):
-            dt = tau
-            if intervals is not None:
-                dt = float(intervals[len(states) - 1])
-                transition = model.transition(dt, switch_state)
+            dt = float(intervals[len(states) - 1])
+            if dt != built:  # regular sampling: one transition per segment; given times: one per step
+                transition, built = model.transition(dt, switch_state), dt
                 L = psd_square_root(transition.Q)
             x = transition.apply(x) if model.linear else model.propagate(x, dt, switch_state)
             if process_noise:
@@ -208,7 +193,7 @@ def simulate_trajectory(
                 raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
             states.append(convert_layout(x, current_layout, layout))
             segment_index.append(i)
-    trajectory = Trajectory(schedule, tau, tuple(layout), np.array(states), np.array(segment_index), times)
+    trajectory = Trajectory(schedule, tau, layout, np.array(states), np.array(segment_index), times)
     if recorder is not None:
         recorder.log_path("world/truth", trajectory.steps, trajectory.positions, trajectory.times)
         labels = [s.mode if s.radius is None else f"{s.mode}_r{s.radius:g}" for s in schedule.segments]
@@ -219,7 +204,7 @@ def simulate_trajectory(
 def simulate_measurements(trajectory: Trajectory, sensors: Sequence[Sensor] | SensorNetwork, *, seed=None) -> dict[str, np.ndarray]:
     """Noisy measurements of every state (steps 0..K) by each sensor: name → (K+1, m)."""
     network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
-    rng = _rng(seed)
+    rng = np.random.default_rng(seed)
     return {sensor.name: sensor.simulate(trajectory.states, trajectory.layout, rng) for sensor in network.sensors}
 
 
@@ -265,19 +250,12 @@ def simulate_trajectories(
     or irregular times: use :func:`simulate_trajectory` run by run.
     """
     tau = check_tau(tau)
-    if noise_cov is not None:
-        noise_cov = check_covariance(noise_cov, "noise_cov")
-    models = list(models) if models is not None else build_models(schedule, registry, noise_cov)
-    if len(models) != len(schedule.segments):
-        raise ValueError(f"models: expected {len(schedule.segments)} models (one per schedule row), got {len(models)}")
+    models, layout = _schedule_models(schedule, models, registry, noise_cov)
     if not all(m.linear for m in models):
         raise ValueError("models: simulate_trajectories propagates linear modes only; use simulate_trajectory per run")
-    rngs = [_rng(seed) for seed in seeds]
+    rngs = [np.random.default_rng(seed) for seed in seeds]
     if not rngs:
         raise ValueError("seeds: expected one seed per run, got none")
-    layout: list[str] = []
-    for model in models:
-        layout += [name for name in model.layout if name not in layout]
     R = len(rngs)
     x = np.repeat(as_float_array(x0, "x0", (models[0].state_dim,))[None], R, axis=0)
     states = np.zeros((R, schedule.total_steps + 1, len(layout)))
@@ -301,4 +279,4 @@ def simulate_trajectories(
         states[:, k + 1 : k + segment.steps + 1] = convert_layout(block, current_layout, layout)
         segment_index[k + 1 : k + segment.steps + 1] = i
         k += segment.steps
-    return [Trajectory(schedule, tau, tuple(layout), states[r], segment_index.copy(), None) for r in range(R)]
+    return [Trajectory(schedule, tau, layout, states[r], segment_index.copy(), None) for r in range(R)]

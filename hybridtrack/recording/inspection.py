@@ -119,13 +119,11 @@ def scan_frames(path: Path) -> tuple[bool, int, str | None]:
             end = position + _MESSAGE_HEADER.size + length
             if end > size:
                 return False, position, f"cut inside a message at byte {position} ({length} bytes announced, {size - position} present)"
+            f.seek(end)
             if kind == 0:  # end of stream: what follows is the footer
-                f.seek(end)
-                tail = f.read()
-                if _FOOTER_MAGIC in tail[-16:]:
+                if _FOOTER_MAGIC in f.read()[-16:]:
                     return True, size, None
                 return False, end, f"end-of-stream message at byte {position} without a complete footer"
-            f.seek(end)
             position = end
 
 
@@ -183,17 +181,12 @@ class RecordingFile:
         stream = self._reader().stream()
         if entity is not None:
             stream = stream.filter(content=entity)
-        iterator = iter(stream)
-        while True:
-            try:
-                chunk = next(iterator)
-            except StopIteration:
-                return
-            except Exception as error:  # noqa: BLE001 - rerun raises its own types for corrupt chunks
-                self.truncated = True
-                self.problem = f"a chunk failed to decode ({error}); what came before it was read"
-                return
-            yield chunk.entity_path, chunk.to_record_batch()
+        try:
+            for chunk in stream:
+                yield chunk.entity_path, chunk.to_record_batch()
+        except Exception as error:  # noqa: BLE001 - rerun raises its own types for corrupt chunks
+            self.truncated = True
+            self.problem = f"a chunk failed to decode ({error}); what came before it was read"
 
     def _scan(self, reader) -> None:
         """One pass over the chunks keeping only the summary."""
@@ -257,20 +250,16 @@ class RecordingFile:
             raise KeyError(f"{self.path}: entity {entity!r} has no {component} column (has {sorted(columns)})")
         if "step" not in columns:
             raise KeyError(f"{self.path}: entity {entity!r} is not on the 'step' timeline")
-        steps: list[int] = []
-        values: list = []
+        pairs: list[tuple[int, object]] = []
         for name, batch in self._chunks(entity):
             if name != entity or "step" not in batch.schema.names or component not in batch.schema.names:
                 continue
             column = batch.column(component)
             if pa.types.is_temporal(column.type):  # time indexes and timestamps as integer nanoseconds
                 column = column.cast(pa.int64())
-            for s, v in zip(batch.column("step").to_pylist(), column.to_pylist()):
-                if s is not None and v is not None:
-                    steps.append(s)
-                    values.append(v)
-        order = sorted(range(len(steps)), key=steps.__getitem__)
-        return np.array([steps[i] for i in order], dtype=np.int64), [values[i] for i in order]
+            pairs += [(s, v) for s, v in zip(batch.column("step").to_pylist(), column.to_pylist()) if s is not None and v is not None]
+        pairs.sort(key=lambda pair: pair[0])  # stable: the values of one step stay in the file's order
+        return np.array([s for s, _ in pairs], dtype=np.int64), [v for _, v in pairs]
 
     def times(self, entity: str) -> tuple[np.ndarray, np.ndarray]:
         """The ``time`` timeline of an entity: steps (K,) and times in seconds (K,) (stored as whole nanoseconds)."""

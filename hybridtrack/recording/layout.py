@@ -56,7 +56,7 @@ _ESTIMATOR_PANELS = {
     "gated": ("gated", "Candidates in the gate"),
     "association_loglik": ("association_loglik", "Association ln Λ"),
 }
-_PANEL_ORDER = ["bank_size", "mode", "mode_probability", "nis", "innovation", "loglik", "beta", "gated", "association_loglik"]
+_PANEL_ORDER = list(dict.fromkeys(panel for panel, _ in _ESTIMATOR_PANELS.values()))
 
 
 def _panel(entity: str, content: Mapping[str, str]) -> tuple[tuple, str, str]:
@@ -69,13 +69,11 @@ def _panel(entity: str, content: Mapping[str, str]) -> tuple[tuple, str, str]:
         if any(p.startswith(f"detector/{parts[1]}/log_ratio") for p in content):
             return (0, parts[1]), f"ln λ per hypothesis with A and B ({parts[1]})", rule
         return (0, parts[1]), f"Detector {parts[1]}: statistics and thresholds", rule
-    if parts[0] == "estimator" and len(parts) == 2 and parts[1] in _ESTIMATOR_PANELS:  # estimator/nis_bounds
-        key, title = _ESTIMATOR_PANELS[parts[1]]
-        return (1, _PANEL_ORDER.index(key), key), title, f"+ /{entity}/**"
-    if parts[0] == "estimator" and len(parts) >= 3:
-        key, title = _ESTIMATOR_PANELS.get(parts[2], (parts[2], parts[2].replace("_", " ")))
+    if parts[0] == "estimator" and (len(parts) >= 3 or (len(parts) == 2 and parts[1] in _ESTIMATOR_PANELS)):
+        quantity = parts[min(2, len(parts) - 1)]  # estimator/<filter>/<quantity>[/…], or estimator/nis_bounds
+        key, title = _ESTIMATOR_PANELS.get(quantity, (quantity, quantity.replace("_", " ")))
         order = _PANEL_ORDER.index(key) if key in _PANEL_ORDER else len(_PANEL_ORDER)
-        return (1, order, key), title, f"+ /estimator/{parts[1]}/{parts[2]}/**"
+        return (1, order, key), title, "+ /" + "/".join(parts[:3]) + "/**"
     if parts[0] == "solver" and len(parts) >= 3:
         title = "Bearing residuals (degrees)" if parts[-1] == "residual" else parts[-1].replace("_", " ")
         return (2, parts[-1]), title, f"+ /{entity}/**"

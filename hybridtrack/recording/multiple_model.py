@@ -1,9 +1,7 @@
 """Recording of a :class:`~hybridtrack.algorithms.multiple_model.MultipleModelRun` (``recorder.log_result(run, …)``).
 
-Entities (``<name>`` the estimator's name): ``world/truth`` (when given), the
-measurements, ``world/estimate/<name>`` (the combined estimate x̂ = Σ_j μ_j x̂_j
-with its ellipses, coloured by the most probable model), one
-``estimator/<name>/mode_probability/<mode>`` series μ_j per model and
+Entities: ``world/truth`` (when given), the measurements, ``world/estimate/<name>`` (x̂ = Σ_j μ_j x̂_j with its
+ellipses, coloured by the most probable model), ``estimator/<name>/mode_probability/<mode>`` (μ_j) and
 ``estimator/<name>/mode`` (argmax_j μ_j).
 """
 

@@ -1,17 +1,13 @@
-"""The recorder seam: every run logs through a recorder object passed in.
+"""The recorder seam: every run logs through a recorder object passed in (entity paths in ``docs/recording.md``).
 
 Components never touch rerun's global stream.  :class:`RerunRecorder` owns one
 ``rerun.RecordingStream`` (application id ``hybridtrack``) with a file sink;
-:class:`NullRecorder` records nothing (Monte Carlo).  Both are context managers;
-leaving the context (normally or by an exception) flushes and closes the file so
-it is always complete; :meth:`RerunRecorder.flush` pushes what was logged so far
-to the file during a run (the pipeline streams its rows and flushes every few
-seconds), so a killed process leaves a file — without its footer — holding
-everything logged up to the last flush.
-
-Series are logged as whole columns (``send_columns``) on the timelines ``step``
-(sequence) and ``time`` (duration in seconds, when times are given).  The full
-list of entity paths is in ``docs/recording.md``.
+:class:`NullRecorder` records nothing.  Both are context managers; leaving the
+context (normally or by an exception) flushes and closes the file so it is
+always complete; :meth:`RerunRecorder.flush` during a run leaves a killed
+process a file, without its footer, of everything logged up to then.  Series
+are logged as whole columns (``send_columns``) on the timelines ``step`` and
+``time`` (duration in seconds, when times are given).
 """
 
 from __future__ import annotations
@@ -108,17 +104,13 @@ class Recorder(Protocol):
         """Flush and close; idempotent."""
 
 
-def _ignore(*args, **kwargs) -> None:
-    return None
-
-
 class NullRecorder(AbstractContextManager):
     """Records nothing (recording turned off): every ``log_…`` method of :class:`Recorder` and of its optional
     extensions, ``flush`` and ``close`` accept their arguments and do nothing."""
 
     def __getattr__(self, name: str):
         if name.startswith("log_") or name in ("flush", "close"):
-            return _ignore
+            return lambda *args, **kwargs: None
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def __exit__(self, *exc):
@@ -166,22 +158,14 @@ SPACETIME_POINTS = 4000
 
 
 class RerunRecorder(AbstractContextManager):
-    """A file recording (.rrd) on its own ``rerun.RecordingStream``.
+    """A file recording (.rrd) on its own ``rerun.RecordingStream``; ``configuration`` (a JSON-able dict, seed
+    included) gives the recording id (the same run twice, the same id) and is stored as the property ``configuration``.
 
-    ``configuration`` (a JSON-able dict, seed included) gives the recording id,
-    so the same run twice gives the same id, and is stored as the recording
-    property ``configuration``.
-
-    Everything spatial is 3-D in east-north-up coordinates: the ``world`` (and
-    ``spacetime``) entity carries ``ViewCoordinates.RIGHT_HAND_Z_UP``; 2-D
-    positions get z = 0, (K, 3) positions keep their altitude.  Each entity is
-    styled once from its path (:func:`spatial_style`, :func:`series_style`:
-    colours from :func:`palette`, legend names).  The recorder notes every
-    entity it logs; :meth:`close` adds the space-time view (``spacetime/…``:
-    every whole path as (x, y, s·t), s = the largest horizontal extent over the
-    time span, coloured by mode where :meth:`log_modes` gave one, with the mode
-    changes and the decisions marked) and embeds the blueprint built from that
-    content (:func:`content_blueprint`) as the file's active and default layout.
+    Everything spatial is 3-D east-north-up (``ViewCoordinates.RIGHT_HAND_Z_UP``; 2-D positions get z = 0).  Each
+    entity is styled once from its path (:func:`spatial_style`, :func:`series_style`).  :meth:`close` adds the
+    space-time view (``spacetime/…``: every whole path as (x, y, s·t), s = the largest horizontal extent over the
+    time span, coloured by mode, mode changes and decisions marked) and embeds the blueprint built from what was
+    logged (:func:`content_blueprint`) as the file's active and default layout.
     """
 
     def __init__(self, path: str | Path, configuration: dict | None = None):
@@ -231,15 +215,6 @@ class RerunRecorder(AbstractContextManager):
         self.content[entity] = view_class
         return True
 
-    def _style_points(self, entity: str) -> None:
-        rr = self._rr
-        if self._note(entity, "3D"):
-            colour, _ = spatial_style(entity)
-            role = entity.strip("/").split("/")[1:2]
-            size = {"measurements": 3.0, "clutter": 2.0, "truth": 2.5}.get(role[0] if role else "", 2.0)
-            size = 1.25 if is_hypothesis(entity) else size
-            self.stream.log(entity, rr.Points3D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(size)]), static=True)
-
     def _send_points(self, entity, steps, points, times, keep, radii=None) -> bool:
         """Send the ``keep`` points ((K,) or (K, L) for several per step) of the steps that have one; False if none."""
         if not keep.any():
@@ -253,8 +228,11 @@ class RerunRecorder(AbstractContextManager):
     # -- Recorder
     def log_points(self, entity, steps, points, times=None):
         points = _xyz(points)
-        if self._send_points(entity, steps, points, times, np.all(np.isfinite(points), axis=-1)):
-            self._style_points(entity)
+        if self._send_points(entity, steps, points, times, np.all(np.isfinite(points), axis=-1)) and self._note(entity, "3D"):
+            colour, _ = spatial_style(entity)
+            role = entity.strip("/").split("/")[1:2]
+            size = 1.25 if is_hypothesis(entity) else {"measurements": 3.0, "clutter": 2.0, "truth": 2.5}.get(role[0] if role else "", 2.0)
+            self.stream.log(entity, self._rr.Points3D.from_fields(colors=[colour], radii=[self._rr.Radius.ui_points(size)]), static=True)
 
     def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
         """Optional extension of the Recorder protocol: points (K, L, 2 or 3) with weights (K, L) ≥ 0 drawn as radii,
@@ -380,13 +358,6 @@ class RerunRecorder(AbstractContextManager):
         self._log_strips(entity, steps, segments[finite], finite.sum(axis=1), times)
 
     # -- the space-time view and the blueprint, when the run ends
-    def _extent(self) -> tuple[np.ndarray, float]:
-        """Centre (x, y) and largest horizontal extent (≥ 1 m) of the whole paths."""
-        own = [xyz[:, :2] for e, (_, xyz, _) in self._tracks.items() if not is_hypothesis(e)]
-        points = np.concatenate(own or [xyz[:, :2] for _, xyz, _ in self._tracks.values()])
-        low, high = points.min(axis=0), points.max(axis=0)
-        return (low + high) / 2, float(max(np.max(high - low), 1.0))
-
     def _log_spacetime(self) -> dict[str, tuple]:
         """The space-time view: each whole path as (x, y, s (t − t₀)), mode changes and decisions marked.
 
@@ -399,7 +370,10 @@ class RerunRecorder(AbstractContextManager):
         clock = {e: (t if use_times else s.astype(np.float64)) for e, (s, _, t) in self._tracks.items()}
         t0 = min(float(c.min()) for c in clock.values())
         span = max(float(c.max()) for c in clock.values()) - t0
-        centre, extent = self._extent()
+        own = [xyz[:, :2] for e, (_, xyz, _) in self._tracks.items() if not is_hypothesis(e)]  # the bank's fans aside
+        plane = np.concatenate(own or [xyz[:, :2] for _, xyz, _ in self._tracks.values()])
+        low, high = plane.min(axis=0), plane.max(axis=0)
+        centre, extent = (low + high) / 2, float(max(np.max(high - low), 1.0))  # largest horizontal extent, ≥ 1 m
         scale = extent / span if span > 0 else 1.0
         lifted = {}
         for entity, (steps, xyz, _) in self._tracks.items():

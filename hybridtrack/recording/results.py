@@ -1,12 +1,7 @@
-"""One entry that records any algorithm's result: :func:`log_result` (``recorder.log_result(result, …)``).
+"""One entry that records any algorithm's result: :func:`log_result`, where ``recorder.log_result(result, **context)``
+(:class:`~hybridtrack.recording.recorder.Recorder`) lands; the engine and the algorithms never import recording.
 
-The engine and the algorithms never import the recording layer: a run hands
-its finished result to ``recorder.log_result(result, **context)`` (a method of
-the :class:`~hybridtrack.recording.recorder.Recorder` protocol), which lands
-here and dispatches on the result's type.  Each result type registers its
-writer (entity paths in ``docs/recording.md``) with ``@log_result.register``
-in the recording module of its algorithm; a third party's result type
-registers its own the same way.
+Each result type, a third party's too, registers its writer with ``@log_result.register`` in a recording module.
 """
 
 from __future__ import annotations
