@@ -167,8 +167,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
             f"{where}: [estimator] parameters = {parameters!r}; expected a table of further keyword arguments (not {sorted(_RESERVED)})"
         )
     est["process_noise"] = _positive("estimator", "process_noise", est.get("process_noise", 0.1), where)
-    est["modes"] = _modes(est.get("modes", ["straight", "left_turn", "right_turn"]), est.get("radii"), where)
-    est.pop("radii", None)
+    est["modes"] = _modes(est.get("modes", ["straight", "left_turn", "right_turn"]), est.pop("radii", None), where)
     est.setdefault("filter", "kalman")
     if not isinstance(est["filter"], str):
         raise ConfigError(f"{where}: [estimator] filter = {est['filter']!r}; expected a registered estimator name")
@@ -189,8 +188,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         est["initial_mode"] = names.index(first)
     elif family == "imm":
         sojourn = est.get("sojourn", 60.0)
-        values = sojourn if isinstance(sojourn, list) else [sojourn]
-        for v in values:
+        for v in sojourn if isinstance(sojourn, list) else [sojourn]:
             _positive("estimator", "sojourn", v, where)
         if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
             raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
@@ -340,14 +338,14 @@ def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_m
     if not isinstance(recorder, RerunRecorder):  # a NullRecorder: nothing to draw
         return
     steps = np.arange(len(times), dtype=np.int64)
-    if measured is not None:
-        recorder.log_path("world/measurements/altitude", steps, measured, times)
-    if estimated is not None:
-        recorder.log_path(f"world/estimate/{name}/altitude", steps, estimated, times)
-    if lat_lon_measured is not None:
-        recorder.log_geo_path("map/measurements", steps, lat_lon_measured, times)
-    if lat_lon_estimated is not None:
-        recorder.log_geo_path(f"map/estimate/{name}", steps, lat_lon_estimated, times)
+    for log, entity, points in (
+        (recorder.log_path, "world/measurements/altitude", measured),
+        (recorder.log_path, f"world/estimate/{name}/altitude", estimated),
+        (recorder.log_geo_path, "map/measurements", lat_lon_measured),
+        (recorder.log_geo_path, f"map/estimate/{name}", lat_lon_estimated),
+    ):
+        if points is not None:
+            log(entity, steps, points, times)
 
 
 def _summary_mode(model) -> tuple[str, float | None]:
@@ -420,9 +418,7 @@ def track_one(
     finally:
         if recorder is not None:
             recorder.close()
-    per_step = [_summary_mode(models[int(i)]) for i in run.mode]  # the followed mode, or the most probable model
-    modes = [m for m, _ in per_step]
-    radii = [r for _, r in per_step]
+    modes, radii = zip(*(_summary_mode(models[int(i)]) for i in run.mode))  # the followed mode, or the most probable model
     if getattr(estimator, "detector", None) is not None:
         by_label = dict(zip(run.modes, models))
         decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]
