@@ -579,9 +579,8 @@ def read_tracks(
             rows.append(_Row(line, key, stamp, values, *extra))
 
     epoch = min((r.time for r in rows), default=None) if iso else None
-    for r in rows:
-        if iso:
-            r.time = (r.time - epoch).total_seconds()
+    for r in rows if iso else ():
+        r.time = (r.time - epoch).total_seconds()
 
     groups: dict[str, list[_Row]] = {}
     for r in rows:
@@ -633,7 +632,6 @@ def read_tracks(
             else:
                 v = np.array([r.values for r in kept])
                 origin = (float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if alt else 0.0)
-        origin = None if origin is None else tuple(float(v) for v in origin)
 
     def by_place(problem):  # file order: line, then column
         return problem.line, header.index(problem.column) if problem.column in header else -1
@@ -641,21 +639,18 @@ def read_tracks(
     tracks = {}
     for key, group in kept_groups.items():
         mine = tuple(p for p in problems if p.id == key)
-        missing = {}
-        for name, attr in ((course, "course"), (speed, "speed")):
-            if name is None:
-                continue
-            lines = [r.line for r in group if getattr(r, attr) == "n/a"]
+        missing = []
+        for name, attr, code in ((course, "course", course_not_available), (speed, "speed", speed_not_available)):
+            lines = [r.line for r in group if getattr(r, attr) == "n/a"]  # none without the column (all None)
             if lines:
-                code = course_not_available if attr == "course" else speed_not_available
                 shown = ", ".join(map(str, lines[:5])) + (", …" if len(lines) > 5 else "")
-                missing[attr] = Problem(
+                missing.append(Problem(
                     lines[0], name, "not_available", "set_nan",
                     f"{path}:{lines[0]}: id {key!r}: column {name!r} holds {code} (not available) in {len(lines)} rows (lines {shown}); set to NaN",
                     key,
-                )  # fmt: skip
-        mine = tuple(sorted(mine + tuple(missing.values()), key=by_place))
-        problems += list(missing.values())
+                ))  # fmt: skip
+        mine = tuple(sorted(mine + tuple(missing), key=by_place))
+        problems += missing
         tracks[key] = Track(
             id=key,
             times=np.array([r.time for r in group], dtype=np.float64),
