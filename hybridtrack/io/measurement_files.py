@@ -92,7 +92,7 @@ def _csv_times(path, body) -> list[float]:
     """The ``time`` column, finite and strictly increasing; errors name the file line, the index and the value."""
     times: list[float] = []
     for index, (line, row) in enumerate(body):
-        cell = row[0].strip()
+        cell = row[0]
         try:
             if not NUMBER.fullmatch(cell) and cell.lower().lstrip("+-") not in _NON_FINITE:
                 raise ValueError
@@ -167,7 +167,7 @@ def _steps(path: Path, body) -> list[int]:
     steps: list[int] = []
     lines: dict[int, int] = {}
     for line, row in body:
-        cell = row[0].strip()
+        cell = row[0]
         if not _INTEGER.fullmatch(cell):
             raise ValueError(f"{path}:{line}: step {cell!r} is not an integer")
         if cell.startswith("-") and cell.strip("-0"):
@@ -184,11 +184,10 @@ def _steps(path: Path, body) -> list[int]:
 
 def _read_csv(path: Path) -> MeasurementFile:
     text = decode_csv_text(path, path.read_bytes(), _CSV_HINT)
-    rows = csv_records(path, text)
+    rows = csv_records(path, text, strip=True)
     if not rows:
         raise ValueError(f"{path}: empty file; {_CSV_HINT}")
     header_line, header = rows[0]
-    header = [h.strip() for h in header]
     first, sensors = _header(path, header_line, header)
     body = rows[1:]
     if not body:
@@ -212,7 +211,7 @@ def _read_csv(path: Path) -> MeasurementFile:
     values = {name: np.full((count, len(cols)), np.nan) for name, cols in sensors.items()}
     for step, (line, row) in zip(steps, body):
         for name, cols in sensors.items():
-            cells = [_cell(path, line, header[c], row[c].strip()) for c in cols]
+            cells = [_cell(path, line, header[c], row[c]) for c in cols]
             if np.all(np.isfinite(cells)):
                 values[name][step] = cells
     if times is not None:
