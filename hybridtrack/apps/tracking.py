@@ -49,6 +49,8 @@ from typing import Any
 
 import numpy as np
 
+from hybridtrack.core.plugins import resolve
+from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.validation import check_positive
 from hybridtrack.io.track_files import SOLENT_AIS, Track, read_tracks, unproject
 
@@ -198,8 +200,6 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
 
 def _algorithm(est: dict, where: str, registry) -> str:
     """The registry name of ``[estimator] algorithm`` (or of its older spelling ``kind``), checked."""
-    from hybridtrack.core.registry import registry_or_default
-
     given = [key for key in ("algorithm", "kind") if key in est]
     if len(given) != 1:
         raise ConfigError(f"{where}: [estimator] algorithm (a registered algorithm name) is required, once (kind is its older spelling)")
@@ -248,8 +248,6 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 
 def _build(config: dict, registry=None):
     """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
-    from hybridtrack.core.plugins import resolve
-
     sigma = config["measurement"]["sigma"]
     sensor = resolve("sensor", ("position", {"noise_cov": sigma**2 * np.eye(2)}), registry)
     est = config["estimator"]
@@ -332,11 +330,8 @@ def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_m
     """What ``hybridtrack track`` adds to the estimator's own logging (``docs/real_data.md``, *What the recording
     shows*): ``measured``, ``estimated`` (K, 3) east, north, altitude (m) as ``world/measurements/altitude`` and
     ``world/estimate/<name>/altitude``; ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees under
-    ``map/measurements`` and ``map/estimate/<name>`` (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`)."""
-    from hybridtrack.recording import RerunRecorder
-
-    if not isinstance(recorder, RerunRecorder):  # a NullRecorder: nothing to draw
-        return
+    ``map/measurements`` and ``map/estimate/<name>`` (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`);
+    a NullRecorder ignores them."""
     steps = np.arange(len(times), dtype=np.int64)
     for log, entity, points in (
         (recorder.log_path, "world/measurements/altitude", measured),
