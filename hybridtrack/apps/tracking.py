@@ -38,6 +38,7 @@ a :class:`ConfigError` (a ValueError) naming the key.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -396,7 +397,7 @@ def track_one(
             heights = unproject(track.positions, origin=origin, projection=projection)[:, 2] - (list(origin) + [0.0])[2]
     altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}) if out is not None else None
-    try:
+    with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
         run = estimator.run({sensor.name: xy}, prior, times=track.times, recorder=recorder)
         if recorder is not None:
             est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
@@ -410,9 +411,6 @@ def track_one(
                     estimated_enu = np.column_stack([est_xy, altitude[0][:, 0] + track.positions[:, 2] - heights])
                 geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (track.positions, estimated_enu))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
-    finally:
-        if recorder is not None:
-            recorder.close()
     modes, radii = zip(*(_summary_mode(models[int(i)]) for i in run.mode))  # the followed mode, or the most probable model
     if getattr(estimator, "detector", None) is not None:
         by_label = dict(zip(run.modes, models))
