@@ -355,13 +355,11 @@ def _read_npz(path: Path) -> MeasurementFile:
 def write_npz(path: str | Path, measurements: Mapping[str, np.ndarray], *, times=None) -> None:
     """Write the NPZ layout; ``times`` (seconds, one per step, strictly increasing) is stored as the array ``time``."""
     arrays = _check(measurements)
-    if times is None:
-        np.savez(path, **arrays)
-        return
-    if "time" in arrays:
-        raise ValueError("measurements: a sensor named 'time' cannot be written with times (the NPZ array 'time' holds them)")
-    steps = next(iter(arrays.values())).shape[0]
-    np.savez(path, time=check_times(times, "times", steps), **arrays)
+    if times is not None:
+        if "time" in arrays:
+            raise ValueError("measurements: a sensor named 'time' cannot be written with times (the NPZ array 'time' holds them)")
+        arrays = {"time": check_times(times, "times", next(iter(arrays.values())).shape[0]), **arrays}
+    np.savez(path, **arrays)
 
 
 def read_measurement_file(path: str | Path) -> MeasurementFile:
