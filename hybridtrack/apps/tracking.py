@@ -124,10 +124,9 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         out[section] = dict(table)
     reader = out["reader"]
     preset = reader.pop("preset", None)
-    if preset is not None:
-        if preset not in PRESETS:
-            raise ConfigError(f"{where}: [reader] preset = {preset!r}; expected one of {sorted(PRESETS)}")
-        reader = {**PRESETS[preset], **reader}
+    if preset is not None and preset not in PRESETS:
+        raise ConfigError(f"{where}: [reader] preset = {preset!r}; expected one of {sorted(PRESETS)}")
+    reader = {**PRESETS.get(preset, {}), **reader}
     min_reports = reader.pop("min_reports", 3)
     if isinstance(min_reports, bool) or not isinstance(min_reports, int) or min_reports < 2:
         raise ConfigError(f"{where}: [reader] min_reports = {min_reports!r}; expected an integer ≥ 2")

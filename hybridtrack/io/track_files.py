@@ -533,16 +533,10 @@ def read_tracks(
             continue
         values = []
         for name in position_columns:
-            value = finite_number(row[columns[name]])
+            cell = row[columns[name]]
+            value = finite_number(cell)
             if value is None:
-                report(
-                    line,
-                    name,
-                    "not_a_number",
-                    "dropped",
-                    f"column {name!r} holds {row[columns[name]]!r}, not a finite number; row dropped",
-                    key,
-                )
+                report(line, name, "not_a_number", "dropped", f"column {name!r} holds {cell!r}, not a finite number; row dropped", key)
                 break
             values.append(value)
         else:
@@ -564,15 +558,8 @@ def read_tracks(
                 if value is not None and code is not None and value == code:
                     extra.append("n/a")
                 elif value is None or not low <= value <= high:
-                    why = "not a finite number" if value is None else f"outside [{low}, {high}]"
-                    report(
-                        line,
-                        name,
-                        "not_a_number" if value is None else "out_of_range",
-                        "set_nan",
-                        f"column {name!r} holds {cell!r}, {why}; set to NaN",
-                        key,
-                    )
+                    kind, why = ("not_a_number", "not a finite number") if value is None else ("out_of_range", f"outside [{low}, {high}]")
+                    report(line, name, kind, "set_nan", f"column {name!r} holds {cell!r}, {why}; set to NaN", key)
                     extra.append(math.nan)
                 else:
                     extra.append(value * factor)
@@ -608,14 +595,8 @@ def read_tracks(
             if r.time == unique[-1].time:
                 same = r.values == unique[-1].values and r.course == unique[-1].course and r.speed == unique[-1].speed
                 what = "identical to" if same else "with different values from"
-                report(
-                    r.line,
-                    time,
-                    "duplicate_time",
-                    "dropped",
-                    f"id {key!r}: time {r.time!r} repeats line {unique[-1].line} ({what} it); row dropped",
-                    key,
-                )
+                message = f"id {key!r}: time {r.time!r} repeats line {unique[-1].line} ({what} it); row dropped"
+                report(r.line, time, "duplicate_time", "dropped", message, key)
                 continue
             unique.append(r)
         if max_speed is not None and len(unique) > 1:
@@ -700,24 +681,17 @@ def _speed_check(group, positions, max_speed, tolerance, key, report, column):
         back = next((m for m in range(i + 1, min(i + 1 + MAX_OUTLIER_BURST, len(group))) if ok(k, m)), None)
         where = f"id {key!r}: reaching this fix from line {group[k].line} ({gap(k, i):.1f} m in {times[i] - times[k]:.3g} s) takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}"
         if back is not None:
+            burst = f"id {key!r}: part of the same burst"
             for m in range(i, back):
-                report(
-                    group[m].line,
-                    column,
-                    "speed_jump",
-                    "dropped",
-                    f"{where if m == i else f'id {key!r}: part of the same burst'}; row dropped",
-                    key,
-                )
+                report(group[m].line, column, "speed_jump", "dropped", f"{where if m == i else burst}; row dropped", key)
             i = back
             continue
         if len(kept) == 1 and i + 1 < len(group) and ok(i, i + 1):
             report(group[k].line, column, "speed_jump", "dropped",
                    f"id {key!r}: the next fixes (lines {group[i].line}, {group[i + 1].line}) agree with each other but leaving this first fix takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}; row dropped", key)  # fmt: skip
             kept = [i]
-            i += 1
-            continue
-        report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
-        kept.append(i)
+        else:
+            report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
+            kept.append(i)
         i += 1
     return [group[i] for i in kept]
