@@ -277,9 +277,7 @@ def _prior(track: Track, config: dict, layout: Sequence[str]):
     v = (z[1] - z[0]) / (track.times[1] - track.times[0]) if p["velocity"] == "two_fixes" else np.zeros(2)
     values = {"x": z[0, 0], "y": z[0, 1], "vx": v[0], "vy": v[1]}
     variances = dict.fromkeys(("x", "y"), p["position_sigma"] ** 2) | dict.fromkeys(("vx", "vy"), p["velocity_sigma"] ** 2)
-    mean = np.array([values.get(c, 0.0) for c in layout])
-    cov = np.diag([variances.get(c, 1.0) for c in layout])
-    return mean, cov
+    return np.array([values.get(c, 0.0) for c in layout]), np.diag([variances.get(c, 1.0) for c in layout])
 
 
 def filter_altitude(times, heights, *, sigma: float, acceleration_density: float, velocity_sigma: float) -> tuple[np.ndarray, np.ndarray]:

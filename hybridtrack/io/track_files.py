@@ -75,6 +75,7 @@ from collections import Counter
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
+from types import SimpleNamespace
 
 import attrs
 import numpy as np
@@ -429,13 +430,6 @@ def _timestamp(cell: str) -> datetime | None:
     return stamp.replace(tzinfo=UTC) if stamp.tzinfo is None else stamp.astimezone(UTC)
 
 
-class _Row:
-    __slots__ = ("line", "id", "time", "values", "course", "speed")
-
-    def __init__(self, line, id, time, values, course, speed):
-        self.line, self.id, self.time, self.values, self.course, self.speed = line, id, time, values, course, speed
-
-
 def read_tracks(
     path: str | os.PathLike,
     *,
@@ -515,7 +509,7 @@ def read_tracks(
     # numeric seconds or ISO-8601: decided by the first non-empty time cell
     first_time = next((row[columns[time]] for _, row in body if len(row) > columns[time] and row[columns[time]]), "")
     iso = finite_number(first_time) is None and _timestamp(first_time) is not None
-    rows: list[_Row] = []
+    rows: list[SimpleNamespace] = []  # the rows used: line, id, time, values (the position cells), course, speed
     scale = SPEED_UNITS[speed_unit]
     for line, row in body:
         if len(row) != len(header):
@@ -563,13 +557,13 @@ def read_tracks(
                     extra.append(math.nan)
                 else:
                     extra.append(value * factor)
-            rows.append(_Row(line, key, stamp, values, *extra))
+            rows.append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1]))
 
     epoch = min((r.time for r in rows), default=None) if iso else None
     for r in rows if iso else ():
         r.time = (r.time - epoch).total_seconds()
 
-    groups: dict[str, list[_Row]] = {}
+    groups: dict[str, list[SimpleNamespace]] = {}
     for r in rows:
         groups.setdefault(r.id, []).append(r)
 
@@ -583,7 +577,7 @@ def read_tracks(
         return r.values[0], r.values[1], r.values[2] if alt else 0.0
 
     check_origin = origin if not isinstance(origin, str) else (fix(rows[0]) if rows else None)
-    kept_groups: dict[str, list[_Row]] = {}
+    kept_groups: dict[str, list[SimpleNamespace]] = {}
     for key, group in groups.items():
         order = sorted(range(len(group)), key=lambda i: group[i].time)
         if order != list(range(len(group))):
@@ -604,15 +598,14 @@ def read_tracks(
         kept_groups[key] = unique
 
     kept = [r for g in kept_groups.values() for r in g]
-    if geographic:
-        if isinstance(origin, str):
-            if not kept:
-                origin = None
-            elif origin == "first":
-                origin = fix(min(kept, key=lambda r: r.line))
-            else:
-                v = np.array([r.values for r in kept])
-                origin = (float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if alt else 0.0)
+    if geographic and isinstance(origin, str):
+        if not kept:
+            origin = None
+        elif origin == "first":
+            origin = fix(min(kept, key=lambda r: r.line))
+        else:
+            v = np.array([r.values for r in kept])
+            origin = (float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if alt else 0.0)
 
     def by_place(problem):  # file order: line, then column
         return problem.line, header.index(problem.column) if problem.column in header else -1
