@@ -88,8 +88,8 @@ def _check(measurements: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return arrays
 
 
-def _csv_times(path, body) -> list[float]:
-    """The ``time`` column, finite and strictly increasing; errors name the file line, the index and the value."""
+def _csv_times(path, body) -> np.ndarray:
+    """The ``time`` column (read-only), finite and strictly increasing; errors name the file line, the index and the value."""
     times: list[float] = []
     for index, (line, row) in enumerate(body):
         cell = row[0]
@@ -108,7 +108,7 @@ def _csv_times(path, body) -> list[float]:
                 " times must be strictly increasing"
             )
         times.append(t)
-    return times
+    return as_float_array(times, f"{path}: time", readonly=True)
 
 
 #: the largest step number a ``step`` CSV may hold (its rows are stored densely, steps 0 … max)
@@ -195,12 +195,8 @@ def _read_csv(path: Path) -> MeasurementFile:
     for line, row in body:
         if len(row) != len(header):
             raise ValueError(f"{path}:{line}: expected {len(header)} cells (as in the header), got {len(row)}")
-    times = None
-    if first == "time":
-        times = np.array(_csv_times(path, body), dtype=np.float64)
-        steps = list(range(len(body)))
-    else:
-        steps = _steps(path, body)
+    times = _csv_times(path, body) if first == "time" else None
+    steps = _steps(path, body) if times is None else range(len(body))
     count = max(steps) + 1
     size = count * (len(header) - 1) * 8
     if size > MAX_BYTES:
@@ -214,8 +210,6 @@ def _read_csv(path: Path) -> MeasurementFile:
             cells = [_cell(path, line, header[c], row[c]) for c in cols]
             if np.all(np.isfinite(cells)):
                 values[name][step] = cells
-    if times is not None:
-        times.setflags(write=False)
     return MeasurementFile(_check(values), times)
 
 
