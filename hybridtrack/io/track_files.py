@@ -48,21 +48,17 @@ WGS-84 ellipsoid, :func:`geodesic_inverse`) is measured by
 an origin at 50.8° N, ``enu`` is within 4.12 m (the chord-versus-arc shrinkage
 ≈ d³/(6R²)), ``equirectangular`` off by up to 1.09 km.
 
-What is refused and what is reported (``docs/real_data.md`` has the table).
-Structural faults are a ValueError (or FileNotFoundError / IsADirectoryError /
-TypeError) naming the file: an empty file, a header without data rows, a
-configured column missing from the header (the error lists the columns
-present), a used column named twice.  Faults of single rows are *reported, not
-used*: each becomes a :class:`Problem` (file line, column, kind, action,
-message) in the track's ``problems`` (and in :attr:`TrackFile.problems`, with the
-rows that belong to no track), and one warning summarises them (``warn=False``
-to silence it).  Rows are dropped for a bad time, position or id cell, a wrong
-cell count, a repeated time of one object (the first row is kept) and for
-bursts of at most :data:`MAX_OUTLIER_BURST` fixes not reachable from the last
-good fix (fix j is reachable from fix i when |p_j − p_i| ≤ ``max_speed``
-(t_j − t_i) + ``jump_tolerance``; the tolerance absorbs AIS receive-time
-jitter); a lasting jump is flagged and kept; bad or "not available" course and
-speed cells are set to NaN; rows of one object out of time order are sorted.
+What is refused and what is reported: the table of ``docs/real_data.md``.
+Structural faults (an empty file, a header without data rows, a configured
+column missing — the error lists the columns present — or named twice) are a
+ValueError (or FileNotFoundError / IsADirectoryError / TypeError) naming the
+file.  Faults of single rows are *reported, not used*: each becomes a
+:class:`Problem` in the track's ``problems`` (and in :attr:`TrackFile.problems`,
+with the rows that belong to no track), summarised by one warning
+(``warn=False`` silences it).  Fix j is reachable from fix i when |p_j − p_i| ≤
+``max_speed`` (t_j − t_i) + ``jump_tolerance`` (the tolerance absorbs AIS
+receive-time jitter): bursts of at most :data:`MAX_OUTLIER_BURST` fixes not
+reachable from the last good fix are dropped, a lasting jump is flagged and kept.
 """
 
 from __future__ import annotations
@@ -457,12 +453,13 @@ def read_tracks(
     ``lat`` and ``lon`` selects geographic positions, projected with ``projection`` to the tangent plane at
     ``origin``: ``"first"`` — the first valid fix of the file, ``"mean"`` — the mean latitude/longitude/height of
     the fixes kept after the speed check, or an explicit (lat°, lon°[, h m])).  ``max_speed`` (m/s, None = no check)
-    is the speed limit of the jump check and ``jump_tolerance`` (m) the allowance for position noise and time-stamp
-    jitter: fix j is reachable from fix i when |p_j − p_i| ≤ max_speed (t_j − t_i) + jump_tolerance.  ``course_not_available``/``speed_not_available`` the codes meaning "no
-    value" (``speed_not_available`` in ``speed_unit``).  The speed check of geographic files runs in the plane of
-    the file's first valid fix (or of the explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the
-    arithmetic mean of the degrees, so it is wrong for tracks that cross the ±180° meridian (give the origin there).  :data:`SOLENT_AIS` holds the settings of the Solent AIS file.
-    What is refused, dropped, flagged or set to NaN: the module docstring.
+    and ``jump_tolerance`` (m, the allowance for position noise and time-stamp jitter) define which fix is reachable
+    (module docstring, which also says what is refused, dropped, flagged or set to NaN).
+    ``course_not_available``/``speed_not_available`` are the codes meaning "no value" (``speed_not_available`` in
+    ``speed_unit``).  The speed check of geographic files runs in the plane of the file's first valid fix (or of the
+    explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the arithmetic mean of the degrees, so it
+    is wrong for tracks that cross the ±180° meridian (give the origin there).  :data:`SOLENT_AIS` holds the
+    settings of the Solent AIS file.
     """
     path = checked_path(path)
     if (lat is None) != (lon is None):
