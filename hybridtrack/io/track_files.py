@@ -507,7 +507,6 @@ def read_tracks(
     first_time = next((row[columns[time]] for _, row in body if len(row) > columns[time] and row[columns[time]]), "")
     iso = finite_number(first_time) is None and _timestamp(first_time) is not None
     rows: list[SimpleNamespace] = []  # the rows used: line, id, time, values (the position cells), course, speed
-    scale = SPEED_UNITS[speed_unit]
     for line, row in body:
         if len(row) != len(header):
             report(line, None, "bad_row", "dropped", f"{len(row)} cells, the header has {len(header)}; row dropped")
@@ -532,14 +531,13 @@ def read_tracks(
             values.append(value)
         else:
             if geographic and not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
-                bad, value = (lat, values[0]) if not -90.0 <= values[0] <= 90.0 else (lon, values[1])
-                limits = "[-90, 90]" if bad == lat else "[-180, 180]"
+                bad, value, limits = (lat, values[0], "[-90, 90]") if not -90.0 <= values[0] <= 90.0 else (lon, values[1], "[-180, 180]")
                 report(line, bad, "out_of_range", "dropped", f"column {bad!r} holds {value}, outside {limits} degrees; row dropped", key)
                 continue
             extra = []
             for name, low, high, code, factor in (
                 (course, 0.0, 360.0, course_not_available, 1.0),
-                (speed, 0.0, math.inf, speed_not_available, scale),
+                (speed, 0.0, math.inf, speed_not_available, SPEED_UNITS[speed_unit]),
             ):
                 if name is None:
                     extra.append(None)
