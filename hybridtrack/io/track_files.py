@@ -472,11 +472,9 @@ def read_tracks(
     if not (isinstance(jump_tolerance, (int, float)) and math.isfinite(jump_tolerance) and jump_tolerance >= 0):
         raise ValueError(f"jump_tolerance: expected a finite number of metres ≥ 0, got {jump_tolerance!r}")
     geographic = lat is not None
-    if isinstance(origin, str):
-        if origin not in ("first", "mean"):
-            raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
-    else:
-        origin = _origin(origin)
+    if isinstance(origin, str) and origin not in ("first", "mean"):
+        raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
+    origin = origin if isinstance(origin, str) else _origin(origin)
 
     records = csv_records(path, _text(path), strip=True)
     if not records:
