@@ -230,10 +230,9 @@ def write_csv(
     times = None if times is None else check_times(times, "times", steps)
     if times is None and steps - 1 > MAX_STEP:
         raise ValueError(f"measurements: {steps} steps, above the step CSV limit {MAX_STEP} + 1 (measurements_io.MAX_STEP); write an NPZ")
-    components = components or {}
     header = ["step" if times is None else "time"]
     for name, z in arrays.items():
-        labels = [str(label) for label in components.get(name) or range(z.shape[1])]
+        labels = [str(label) for label in (components or {}).get(name) or range(z.shape[1])]
         if len(labels) != z.shape[1] or len(set(labels)) != len(labels) or not all(labels) or any("." in x for x in labels):
             raise ValueError(
                 f"components[{name!r}]: {labels!r}; expected {z.shape[1]} distinct non-empty labels without '.'"
