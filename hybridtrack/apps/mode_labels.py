@@ -183,14 +183,11 @@ def _states(omega, v, p) -> list[str]:
     out = []
     for w, s in zip(omega, v):
         stopped = not s >= p["v_go"] if stopped else s < p["v_stop"]  # a NaN speed keeps the state
-        if stopped:
-            out.append("stop")
-            continue
-        if not np.isnan(w):  # a turn is entered above omega_on and left below omega_off
+        if not stopped and not np.isnan(w):  # a turn is entered above omega_on and left below omega_off
             left = p["omega_off"] if state == "left_turn" else p["omega_on"]
             right = p["omega_off"] if state == "right_turn" else p["omega_on"]
             state = "left_turn" if w > left else ("right_turn" if w < -right else "straight")
-        out.append(state)
+        out.append("stop" if stopped else state)
     return out
 
 
