@@ -398,14 +398,12 @@ def track_one(
         run = estimator.run({sensor.name: xy}, prior, times=track.times, recorder=recorder)
         if recorder is not None:
             est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
-            in_3d = (None, None)
-            if heights is not None:
-                in_3d = (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
+            in_3d = (None, None) if heights is None else (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
             geo = (None, None)
-            if origin is not None:
-                estimated_enu = est_xy
-                if heights is not None:  # the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
-                    estimated_enu = np.column_stack([est_xy, altitude[0][:, 0] + track.positions[:, 2] - heights])
+            if origin is not None:  # with heights, the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
+                estimated_enu = (
+                    est_xy if heights is None else np.column_stack([est_xy, altitude[0][:, 0] + track.positions[:, 2] - heights])
+                )
                 geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (track.positions, estimated_enu))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
     modes, radii = zip(*(_summary_mode(models[int(i)]) for i in run.mode))  # the followed mode, or the most probable model
