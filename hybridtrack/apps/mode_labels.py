@@ -88,7 +88,8 @@ def _unwrapped(c: np.ndarray) -> np.ndarray:
 
 def _window_sums(times: np.ndarray, valid: np.ndarray, window: float):
     """(t − t₀, window_sum, n): ``window_sum(a)`` sums a over the valid reports within ±window/2 of each report
-    (prefix sums, so the cost is O(K) for any window), n counts them."""
+    (prefix sums, so the cost is O(K) for any window), n counts them; ``window`` (s) is checked here."""
+    window = check_positive(window, "window (s)")
     t = times - times[0]
     lo = np.searchsorted(t, t - window / 2.0, side="left")
     hi = np.searchsorted(t, t + window / 2.0, side="right")
@@ -125,7 +126,6 @@ def turn_rate(times, course, window: float = DEFAULTS["window"]) -> np.ndarray:
     (module docstring, step 1); NaN where fewer than two valid reports fall in the window.
     """
     t, c = _checked(times, course=course)
-    window = check_positive(window, "window (s)")
     valid = np.isfinite(c)
     u0 = np.zeros_like(c)  # the unwrapped course u minus its first value, 0 where the course is missing
     if valid.any():
@@ -144,7 +144,6 @@ def turn_rate(times, course, window: float = DEFAULTS["window"]) -> np.ndarray:
 def smoothed_speed(times, speed, window: float = DEFAULTS["window"]) -> np.ndarray:
     """Mean speed (K,) over the valid reports within ±window/2 of each report; NaN where there is none."""
     t, v = _checked(times, speed=speed)
-    window = check_positive(window, "window (s)")
     valid = np.isfinite(v)
     _, window_sum, n = _window_sums(t, valid, window)
     with np.errstate(invalid="ignore", divide="ignore"):
