@@ -287,13 +287,11 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
         return ecef_to_geodetic(base + np.stack([e, n, up], axis=-1) @ rotation)
 
     if positions.shape[1] == 3:
-        lat, lon, h = geodetic(positions[:, 2])
-        return np.stack([lat, lon, h], axis=-1)
+        return np.stack(geodetic(positions[:, 2]), axis=-1)
     up = np.zeros_like(e)
     for _ in range(3):
         up = up - (geodetic(up)[2] - h0)
-    lat, lon, _ = geodetic(up)
-    return np.stack([lat, lon], axis=-1)
+    return np.stack(geodetic(up)[:2], axis=-1)
 
 
 def _check_projection(projection) -> None:
