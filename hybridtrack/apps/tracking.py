@@ -183,7 +183,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         if bank != "algorithm4" and (isinstance(bank, bool) or not isinstance(bank, int) or bank < 1):
             raise ConfigError(f"{where}: [estimator] bank_size = {bank!r}; expected a positive integer or 'algorithm4'")
         est["bank_size"] = bank
-        names = [_label(name, params) for name, params in est["modes"]]
+        names = [name if "radius" not in params else f"{name}_r{params['radius']:g}" for name, params in est["modes"]]
         first = est.get("initial_mode", names[0])
         if first not in names:
             raise ConfigError(f"{where}: [estimator] initial_mode = {first!r}; expected one of {names}")
@@ -209,10 +209,6 @@ def _algorithm(est: dict, where: str, registry) -> str:
     if name not in known:
         raise ConfigError(f"{where}: [estimator] {key} = {name!r}; expected a registered algorithm, one of {known}")
     return name
-
-
-def _label(name: str, params: Mapping) -> str:
-    return name if "radius" not in params else f"{name}_r{params['radius']:g}"
 
 
 def _modes(modes, radii, where) -> list[tuple[str, dict]]:
