@@ -88,7 +88,8 @@ def _unwrapped(c: np.ndarray) -> np.ndarray:
 
 def _window_sums(times: np.ndarray, valid: np.ndarray, window: float):
     """(t − t₀, window_sum, n): ``window_sum(a)`` sums a over the valid reports within ±window/2 of each report
-    (prefix sums, so the cost is O(K) for any window), n counts them."""
+    (prefix sums, so the cost is O(K) for any window), n counts them; ``window`` (s) is checked here."""
+    window = check_positive(window, "window (s)")
     t = times - times[0]
     lo = np.searchsorted(t, t - window / 2.0, side="left")
     hi = np.searchsorted(t, t + window / 2.0, side="right")
@@ -100,21 +101,22 @@ def _window_sums(times: np.ndarray, valid: np.ndarray, window: float):
     return t, window_sum, window_sum(np.ones_like(t))
 
 
-def _checked(times, course, speed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _checked(times, **columns) -> list[np.ndarray]:
+    """[times, *columns] as float arrays: times finite and strictly increasing, each column one value per time."""
     t = np.asarray(times, dtype=np.float64)
     if t.ndim != 1 or t.size == 0:
         raise ValueError(f"times: expected shape (K,) with K ≥ 1, got {t.shape}")
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise ValueError("times: expected finite, strictly increasing seconds")
-    arrays = []
-    for name, a in (("course", course), ("speed", speed)):
+    arrays = [t]
+    for name, a in columns.items():
         a = np.asarray(a, dtype=np.float64)
         if a.shape != t.shape:
             raise ValueError(f"{name}: expected shape {t.shape} (one per time), got {a.shape}")
         if np.any(np.isinf(a)):
             raise ValueError(f"{name}: contains inf (NaN marks a missing value)")
         arrays.append(a)
-    return t, arrays[0], arrays[1]
+    return arrays
 
 
 def turn_rate(times, course, window: float = DEFAULTS["window"]) -> np.ndarray:
@@ -123,15 +125,13 @@ def turn_rate(times, course, window: float = DEFAULTS["window"]) -> np.ndarray:
     ω_k = −(π/180) × least-squares slope of the unwrapped course over the reports within ±window/2 of t_k
     (module docstring, step 1); NaN where fewer than two valid reports fall in the window.
     """
-    t, c, _ = _checked(times, course, np.zeros_like(np.asarray(times, dtype=np.float64)))
-    window = check_positive(window, "window (s)")
+    t, c = _checked(times, course=course)
     valid = np.isfinite(c)
-    u = np.full_like(c, np.nan)
+    u0 = np.zeros_like(c)  # the unwrapped course u minus its first value, 0 where the course is missing
     if valid.any():
         cv = c[valid]
-        u[valid] = cv[0] + _unwrapped(cv)
+        u0[valid] = (cv[0] + _unwrapped(cv)) - cv[0]
     t0, window_sum, n = _window_sums(t, valid, window)
-    u0 = np.where(valid, u - (u[valid][0] if valid.any() else 0.0), 0.0)
     st, su = window_sum(t0), window_sum(u0)
     stt, stu = window_sum(t0 * t0), window_sum(t0 * u0)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -143,8 +143,7 @@ def turn_rate(times, course, window: float = DEFAULTS["window"]) -> np.ndarray:
 
 def smoothed_speed(times, speed, window: float = DEFAULTS["window"]) -> np.ndarray:
     """Mean speed (K,) over the valid reports within ±window/2 of each report; NaN where there is none."""
-    t, _, v = _checked(times, np.zeros_like(np.asarray(times, dtype=np.float64)), speed)
-    window = check_positive(window, "window (s)")
+    t, v = _checked(times, speed=speed)
     valid = np.isfinite(v)
     _, window_sum, n = _window_sums(t, valid, window)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -182,21 +181,12 @@ def _states(omega, v, p) -> list[str]:
     stopped = False
     out = []
     for w, s in zip(omega, v):
-        if stopped:
-            stopped = not (s >= p["v_go"])
-        elif s < p["v_stop"]:
-            stopped = True
-        if stopped:
-            out.append("stop")
-            continue
-        if not np.isnan(w):
-            if state == "left_turn":
-                state = "right_turn" if w < -p["omega_on"] else ("left_turn" if w > p["omega_off"] else "straight")
-            elif state == "right_turn":
-                state = "left_turn" if w > p["omega_on"] else ("right_turn" if w < -p["omega_off"] else "straight")
-            else:
-                state = "left_turn" if w > p["omega_on"] else ("right_turn" if w < -p["omega_on"] else "straight")
-        out.append(state)
+        stopped = not s >= p["v_go"] if stopped else s < p["v_stop"]  # a NaN speed keeps the state
+        if not stopped and not np.isnan(w):  # a turn is entered above omega_on and left below omega_off
+            left = p["omega_off"] if state == "left_turn" else p["omega_on"]
+            right = p["omega_off"] if state == "right_turn" else p["omega_on"]
+            state = "left_turn" if w > left else ("right_turn" if w < -right else "straight")
+        out.append("stop" if stopped else state)
     return out
 
 
@@ -250,7 +240,7 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
         raise ValueError(f"omega_off ({p['omega_off']}) must not exceed omega_on ({p['omega_on']}) (hysteresis: leave below, enter above)")
     if p["v_go"] < p["v_stop"]:
         raise ValueError(f"v_go ({p['v_go']}) must not be below v_stop ({p['v_stop']})")
-    t, c, v = _checked(times, course, speed)
+    t, c, v = _checked(times, course=course, speed=speed)
     omega = turn_rate(t, c, p["window"])
     vbar = smoothed_speed(t, v, p["window"])
     runs = _merge_short(_joined([[m, k, k] for k, m in enumerate(_states(omega, vbar, p))]), t, p["min_duration"])
@@ -262,15 +252,13 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
         s = v[first : last + 1]
         w_med = _segment_rate(t, c, raw, first, last, p["window"]) + 0.0  # + 0.0: no -0.0 in the output
         s_med = float(np.median(s[np.isfinite(s)])) if np.isfinite(s).any() else math.nan
-        radius = None
-        if mode in ("left_turn", "right_turn") and math.isfinite(w_med) and w_med != 0 and math.isfinite(s_med):
-            radius = s_med / abs(w_med)
+        turn = mode in ("left_turn", "right_turn") and math.isfinite(w_med) and w_med != 0 and math.isfinite(s_med)
         segments.append(
             {
                 "start": float(t[first]),
                 "end": float(end),
                 "mode": mode,
-                "radius": radius,
+                "radius": s_med / abs(w_med) if turn else None,
                 "turn_rate": None if math.isnan(w_med) else w_med,
                 "speed": None if math.isnan(s_med) else s_med,
                 "first": int(first),

@@ -93,10 +93,9 @@ def write_report(
     ``notes`` (markdown) follows the table, e.g. the seed's figures or what is pending.
     """
     rows = [plain(dict(row)) for row in rows]
-    report = {"rows": rows, "protocol": plain(dict(protocol))}
     json_path = Path(json_path)
     markdown_path = Path(markdown_path) if markdown_path is not None else json_path.with_suffix(".md")
-    text = json.dumps(report, indent=2, allow_nan=False) + "\n"
+    text = json.dumps({"rows": rows, "protocol": plain(dict(protocol))}, indent=2, allow_nan=False) + "\n"
     table = f"### {title}\n\n" + markdown_table(rows, columns) + (f"\n{notes.strip()}\n" if notes.strip() else "")
     _atomic_text(json_path, text)
     _atomic_text(markdown_path, table)

@@ -38,6 +38,7 @@ a :class:`ConfigError` (a ValueError) naming the key.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -49,6 +50,8 @@ from typing import Any
 
 import numpy as np
 
+from hybridtrack.core.plugins import resolve
+from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.validation import check_positive
 from hybridtrack.io.track_files import SOLENT_AIS, Track, read_tracks, unproject
 
@@ -121,10 +124,9 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         out[section] = dict(table)
     reader = out["reader"]
     preset = reader.pop("preset", None)
-    if preset is not None:
-        if preset not in PRESETS:
-            raise ConfigError(f"{where}: [reader] preset = {preset!r}; expected one of {sorted(PRESETS)}")
-        reader = {**PRESETS[preset], **reader}
+    if preset is not None and preset not in PRESETS:
+        raise ConfigError(f"{where}: [reader] preset = {preset!r}; expected one of {sorted(PRESETS)}")
+    reader = {**PRESETS.get(preset, {}), **reader}
     min_reports = reader.pop("min_reports", 3)
     if isinstance(min_reports, bool) or not isinstance(min_reports, int) or min_reports < 2:
         raise ConfigError(f"{where}: [reader] min_reports = {min_reports!r}; expected an integer ≥ 2")
@@ -167,8 +169,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
             f"{where}: [estimator] parameters = {parameters!r}; expected a table of further keyword arguments (not {sorted(_RESERVED)})"
         )
     est["process_noise"] = _positive("estimator", "process_noise", est.get("process_noise", 0.1), where)
-    est["modes"] = _modes(est.get("modes", ["straight", "left_turn", "right_turn"]), est.get("radii"), where)
-    est.pop("radii", None)
+    est["modes"] = _modes(est.get("modes", ["straight", "left_turn", "right_turn"]), est.pop("radii", None), where)
     est.setdefault("filter", "kalman")
     if not isinstance(est["filter"], str):
         raise ConfigError(f"{where}: [estimator] filter = {est['filter']!r}; expected a registered estimator name")
@@ -182,15 +183,14 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         if bank != "algorithm4" and (isinstance(bank, bool) or not isinstance(bank, int) or bank < 1):
             raise ConfigError(f"{where}: [estimator] bank_size = {bank!r}; expected a positive integer or 'algorithm4'")
         est["bank_size"] = bank
-        names = [_label(name, params) for name, params in est["modes"]]
+        names = [name if "radius" not in params else f"{name}_r{params['radius']:g}" for name, params in est["modes"]]
         first = est.get("initial_mode", names[0])
         if first not in names:
             raise ConfigError(f"{where}: [estimator] initial_mode = {first!r}; expected one of {names}")
         est["initial_mode"] = names.index(first)
     elif family == "imm":
         sojourn = est.get("sojourn", 60.0)
-        values = sojourn if isinstance(sojourn, list) else [sojourn]
-        for v in values:
+        for v in sojourn if isinstance(sojourn, list) else [sojourn]:
             _positive("estimator", "sojourn", v, where)
         if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
             raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
@@ -200,8 +200,6 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
 
 def _algorithm(est: dict, where: str, registry) -> str:
     """The registry name of ``[estimator] algorithm`` (or of its older spelling ``kind``), checked."""
-    from hybridtrack.core.registry import registry_or_default
-
     given = [key for key in ("algorithm", "kind") if key in est]
     if len(given) != 1:
         raise ConfigError(f"{where}: [estimator] algorithm (a registered algorithm name) is required, once (kind is its older spelling)")
@@ -211,10 +209,6 @@ def _algorithm(est: dict, where: str, registry) -> str:
     if name not in known:
         raise ConfigError(f"{where}: [estimator] {key} = {name!r}; expected a registered algorithm, one of {known}")
     return name
-
-
-def _label(name: str, params: Mapping) -> str:
-    return name if "radius" not in params else f"{name}_r{params['radius']:g}"
 
 
 def _modes(modes, radii, where) -> list[tuple[str, dict]]:
@@ -250,8 +244,6 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 
 def _build(config: dict, registry=None):
     """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
-    from hybridtrack.core.plugins import resolve
-
     sigma = config["measurement"]["sigma"]
     sensor = resolve("sensor", ("position", {"noise_cov": sigma**2 * np.eye(2)}), registry)
     est = config["estimator"]
@@ -281,9 +273,7 @@ def _prior(track: Track, config: dict, layout: Sequence[str]):
     v = (z[1] - z[0]) / (track.times[1] - track.times[0]) if p["velocity"] == "two_fixes" else np.zeros(2)
     values = {"x": z[0, 0], "y": z[0, 1], "vx": v[0], "vy": v[1]}
     variances = dict.fromkeys(("x", "y"), p["position_sigma"] ** 2) | dict.fromkeys(("vx", "vy"), p["velocity_sigma"] ** 2)
-    mean = np.array([values.get(c, 0.0) for c in layout])
-    cov = np.diag([variances.get(c, 1.0) for c in layout])
-    return mean, cov
+    return np.array([values.get(c, 0.0) for c in layout]), np.diag([variances.get(c, 1.0) for c in layout])
 
 
 def filter_altitude(times, heights, *, sigma: float, acceleration_density: float, velocity_sigma: float) -> tuple[np.ndarray, np.ndarray]:
@@ -334,20 +324,17 @@ def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_m
     """What ``hybridtrack track`` adds to the estimator's own logging (``docs/real_data.md``, *What the recording
     shows*): ``measured``, ``estimated`` (K, 3) east, north, altitude (m) as ``world/measurements/altitude`` and
     ``world/estimate/<name>/altitude``; ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees under
-    ``map/measurements`` and ``map/estimate/<name>`` (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`)."""
-    from hybridtrack.recording import RerunRecorder
-
-    if not isinstance(recorder, RerunRecorder):  # a NullRecorder: nothing to draw
-        return
+    ``map/measurements`` and ``map/estimate/<name>`` (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`);
+    a NullRecorder ignores them."""
     steps = np.arange(len(times), dtype=np.int64)
-    if measured is not None:
-        recorder.log_path("world/measurements/altitude", steps, measured, times)
-    if estimated is not None:
-        recorder.log_path(f"world/estimate/{name}/altitude", steps, estimated, times)
-    if lat_lon_measured is not None:
-        recorder.log_geo_path("map/measurements", steps, lat_lon_measured, times)
-    if lat_lon_estimated is not None:
-        recorder.log_geo_path(f"map/estimate/{name}", steps, lat_lon_estimated, times)
+    for log, entity, points in (
+        (recorder.log_path, "world/measurements/altitude", measured),
+        (recorder.log_path, f"world/estimate/{name}/altitude", estimated),
+        (recorder.log_geo_path, "map/measurements", lat_lon_measured),
+        (recorder.log_geo_path, f"map/estimate/{name}", lat_lon_estimated),
+    ):
+        if points is not None:
+            log(entity, steps, points, times)
 
 
 def _summary_mode(model) -> tuple[str, float | None]:
@@ -403,26 +390,19 @@ def track_one(
             heights = unproject(track.positions, origin=origin, projection=projection)[:, 2] - (list(origin) + [0.0])[2]
     altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}) if out is not None else None
-    try:
+    with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
         run = estimator.run({sensor.name: xy}, prior, times=track.times, recorder=recorder)
         if recorder is not None:
             est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
-            in_3d = (None, None)
-            if heights is not None:
-                in_3d = (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
+            in_3d = (None, None) if heights is None else (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
             geo = (None, None)
-            if origin is not None:
-                estimated_enu = est_xy
-                if heights is not None:  # the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
-                    estimated_enu = np.column_stack([est_xy, altitude[0][:, 0] + track.positions[:, 2] - heights])
+            if origin is not None:  # with heights, the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
+                estimated_enu = (
+                    est_xy if heights is None else np.column_stack([est_xy, altitude[0][:, 0] + track.positions[:, 2] - heights])
+                )
                 geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (track.positions, estimated_enu))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
-    finally:
-        if recorder is not None:
-            recorder.close()
-    per_step = [_summary_mode(models[int(i)]) for i in run.mode]  # the followed mode, or the most probable model
-    modes = [m for m, _ in per_step]
-    radii = [r for _, r in per_step]
+    modes, radii = zip(*(_summary_mode(models[int(i)]) for i in run.mode))  # the followed mode, or the most probable model
     if getattr(estimator, "detector", None) is not None:
         by_label = dict(zip(run.modes, models))
         decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]

@@ -88,17 +88,14 @@ def _check(measurements: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return arrays
 
 
-def _csv_times(path, body) -> list[float]:
-    """The ``time`` column, finite and strictly increasing; errors name the file line, the index and the value."""
+def _csv_times(path, body) -> np.ndarray:
+    """The ``time`` column (read-only), finite and strictly increasing; errors name the file line, the index and the value."""
     times: list[float] = []
     for index, (line, row) in enumerate(body):
-        cell = row[0].strip()
-        try:
-            if not NUMBER.fullmatch(cell) and cell.lower().lstrip("+-") not in _NON_FINITE:
-                raise ValueError
-            t = float(cell)
-        except ValueError:
-            raise ValueError(f"{path}:{line}: time at index {index} is {cell!r}, not a number of seconds") from None
+        cell = row[0]
+        if not NUMBER.fullmatch(cell) and not _NON_FINITE.fullmatch(cell):
+            raise ValueError(f"{path}:{line}: time at index {index} is {cell!r}, not a number of seconds")
+        t = float(cell)
         if not np.isfinite(t):
             raise ValueError(f"{path}:{line}: time at index {index} is {cell!r} (expected finite seconds)")
         if times and t <= times[-1]:
@@ -108,7 +105,7 @@ def _csv_times(path, body) -> list[float]:
                 " times must be strictly increasing"
             )
         times.append(t)
-    return times
+    return as_float_array(times, f"{path}: time", readonly=True)
 
 
 #: the largest step number a ``step`` CSV may hold (its rows are stored densely, steps 0 … max)
@@ -117,7 +114,7 @@ MAX_STEP = 10_000_000
 MAX_BYTES = 2**30
 
 _INTEGER = re.compile(r"[+-]?\d+", re.ASCII)
-_NON_FINITE = {"inf", "infinity", "nan"}
+_NON_FINITE = re.compile(r"[+-]?(?:inf|infinity|nan)", re.ASCII | re.IGNORECASE)  # the words float() reads
 _CSV_HINT = "expected a UTF-8 text CSV: a header 'step,<sensor>.<component>,…' (or 'time,…') and one row per step"
 
 
@@ -156,10 +153,8 @@ def _cell(path: Path, line: int, column: str, cell: str) -> float:
             raise ValueError(f"{path}:{line}: column {column!r} holds {cell!r}; expected a finite number (an empty cell for no value)")
         hint = " (a decimal comma? use a decimal point)" if re.fullmatch(r"[+-]?\d+,\d+", cell) else ""
         raise ValueError(f"{path}:{line}: column {column!r} holds {cell!r}, not a number{hint}")
-    value = float(cell)
-    if not np.isfinite(value):
-        raise ValueError(f"{path}:{line}: column {column!r} holds {cell!r}, beyond the float range (expected a finite number)")
-    return value
+    # a plain decimal number the fast path did not return is not finite as a float (1e400)
+    raise ValueError(f"{path}:{line}: column {column!r} holds {cell!r}, beyond the float range (expected a finite number)")
 
 
 def _steps(path: Path, body) -> list[int]:
@@ -167,7 +162,7 @@ def _steps(path: Path, body) -> list[int]:
     steps: list[int] = []
     lines: dict[int, int] = {}
     for line, row in body:
-        cell = row[0].strip()
+        cell = row[0]
         if not _INTEGER.fullmatch(cell):
             raise ValueError(f"{path}:{line}: step {cell!r} is not an integer")
         if cell.startswith("-") and cell.strip("-0"):
@@ -184,11 +179,10 @@ def _steps(path: Path, body) -> list[int]:
 
 def _read_csv(path: Path) -> MeasurementFile:
     text = decode_csv_text(path, path.read_bytes(), _CSV_HINT)
-    rows = csv_records(path, text)
+    rows = csv_records(path, text, strip=True)
     if not rows:
         raise ValueError(f"{path}: empty file; {_CSV_HINT}")
     header_line, header = rows[0]
-    header = [h.strip() for h in header]
     first, sensors = _header(path, header_line, header)
     body = rows[1:]
     if not body:
@@ -196,12 +190,8 @@ def _read_csv(path: Path) -> MeasurementFile:
     for line, row in body:
         if len(row) != len(header):
             raise ValueError(f"{path}:{line}: expected {len(header)} cells (as in the header), got {len(row)}")
-    times = None
-    if first == "time":
-        times = np.array(_csv_times(path, body), dtype=np.float64)
-        steps = list(range(len(body)))
-    else:
-        steps = _steps(path, body)
+    times = _csv_times(path, body) if first == "time" else None
+    steps = _steps(path, body) if times is None else range(len(body))
     count = max(steps) + 1
     size = count * (len(header) - 1) * 8
     if size > MAX_BYTES:
@@ -212,11 +202,9 @@ def _read_csv(path: Path) -> MeasurementFile:
     values = {name: np.full((count, len(cols)), np.nan) for name, cols in sensors.items()}
     for step, (line, row) in zip(steps, body):
         for name, cols in sensors.items():
-            cells = [_cell(path, line, header[c], row[c].strip()) for c in cols]
+            cells = [_cell(path, line, header[c], row[c]) for c in cols]
             if np.all(np.isfinite(cells)):
                 values[name][step] = cells
-    if times is not None:
-        times.setflags(write=False)
     return MeasurementFile(_check(values), times)
 
 
@@ -237,10 +225,9 @@ def write_csv(
     times = None if times is None else check_times(times, "times", steps)
     if times is None and steps - 1 > MAX_STEP:
         raise ValueError(f"measurements: {steps} steps, above the step CSV limit {MAX_STEP} + 1 (measurements_io.MAX_STEP); write an NPZ")
-    components = components or {}
     header = ["step" if times is None else "time"]
     for name, z in arrays.items():
-        labels = [str(label) for label in components.get(name) or range(z.shape[1])]
+        labels = [str(label) for label in (components or {}).get(name) or range(z.shape[1])]
         if len(labels) != z.shape[1] or len(set(labels)) != len(labels) or not all(labels) or any("." in x for x in labels):
             raise ValueError(
                 f"components[{name!r}]: {labels!r}; expected {z.shape[1]} distinct non-empty labels without '.'"
@@ -356,13 +343,11 @@ def _read_npz(path: Path) -> MeasurementFile:
 def write_npz(path: str | Path, measurements: Mapping[str, np.ndarray], *, times=None) -> None:
     """Write the NPZ layout; ``times`` (seconds, one per step, strictly increasing) is stored as the array ``time``."""
     arrays = _check(measurements)
-    if times is None:
-        np.savez(path, **arrays)
-        return
-    if "time" in arrays:
-        raise ValueError("measurements: a sensor named 'time' cannot be written with times (the NPZ array 'time' holds them)")
-    steps = next(iter(arrays.values())).shape[0]
-    np.savez(path, time=check_times(times, "times", steps), **arrays)
+    if times is not None:
+        if "time" in arrays:
+            raise ValueError("measurements: a sensor named 'time' cannot be written with times (the NPZ array 'time' holds them)")
+        arrays = {"time": check_times(times, "times", next(iter(arrays.values())).shape[0]), **arrays}
+    np.savez(path, **arrays)
 
 
 def read_measurement_file(path: str | Path) -> MeasurementFile:

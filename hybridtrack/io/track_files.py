@@ -48,21 +48,17 @@ WGS-84 ellipsoid, :func:`geodesic_inverse`) is measured by
 an origin at 50.8° N, ``enu`` is within 4.12 m (the chord-versus-arc shrinkage
 ≈ d³/(6R²)), ``equirectangular`` off by up to 1.09 km.
 
-What is refused and what is reported (``docs/real_data.md`` has the table).
-Structural faults are a ValueError (or FileNotFoundError / IsADirectoryError /
-TypeError) naming the file: an empty file, a header without data rows, a
-configured column missing from the header (the error lists the columns
-present), a used column named twice.  Faults of single rows are *reported, not
-used*: each becomes a :class:`Problem` (file line, column, kind, action,
-message) in the track's ``problems`` (and in :attr:`TrackFile.problems`, with the
-rows that belong to no track), and one warning summarises them (``warn=False``
-to silence it).  Rows are dropped for a bad time, position or id cell, a wrong
-cell count, a repeated time of one object (the first row is kept) and for
-bursts of at most :data:`MAX_OUTLIER_BURST` fixes not reachable from the last
-good fix (fix j is reachable from fix i when |p_j − p_i| ≤ ``max_speed``
-(t_j − t_i) + ``jump_tolerance``; the tolerance absorbs AIS receive-time
-jitter); a lasting jump is flagged and kept; bad or "not available" course and
-speed cells are set to NaN; rows of one object out of time order are sorted.
+What is refused and what is reported: the table of ``docs/real_data.md``.
+Structural faults (an empty file, a header without data rows, a configured
+column missing — the error lists the columns present — or named twice) are a
+ValueError (or FileNotFoundError / IsADirectoryError / TypeError) naming the
+file.  Faults of single rows are *reported, not used*: each becomes a
+:class:`Problem` in the track's ``problems`` (and in :attr:`TrackFile.problems`,
+with the rows that belong to no track), summarised by one warning
+(``warn=False`` silences it).  Fix j is reachable from fix i when |p_j − p_i| ≤
+``max_speed`` (t_j − t_i) + ``jump_tolerance`` (the tolerance absorbs AIS
+receive-time jitter): bursts of at most :data:`MAX_OUTLIER_BURST` fixes not
+reachable from the last good fix are dropped, a lasting jump is flagged and kept.
 """
 
 from __future__ import annotations
@@ -75,6 +71,7 @@ from collections import Counter
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
+from types import SimpleNamespace
 
 import attrs
 import numpy as np
@@ -290,13 +287,11 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
         return ecef_to_geodetic(base + np.stack([e, n, up], axis=-1) @ rotation)
 
     if positions.shape[1] == 3:
-        lat, lon, h = geodetic(positions[:, 2])
-        return np.stack([lat, lon, h], axis=-1)
+        return np.stack(geodetic(positions[:, 2]), axis=-1)
     up = np.zeros_like(e)
     for _ in range(3):
         up = up - (geodetic(up)[2] - h0)
-    lat, lon, _ = geodetic(up)
-    return np.stack([lat, lon], axis=-1)
+    return np.stack(geodetic(up)[:2], axis=-1)
 
 
 def _check_projection(projection) -> None:
@@ -429,13 +424,6 @@ def _timestamp(cell: str) -> datetime | None:
     return stamp.replace(tzinfo=UTC) if stamp.tzinfo is None else stamp.astimezone(UTC)
 
 
-class _Row:
-    __slots__ = ("line", "id", "time", "values", "course", "speed")
-
-    def __init__(self, line, id, time, values, course, speed):
-        self.line, self.id, self.time, self.values, self.course, self.speed = line, id, time, values, course, speed
-
-
 def read_tracks(
     path: str | os.PathLike,
     *,
@@ -463,12 +451,13 @@ def read_tracks(
     ``lat`` and ``lon`` selects geographic positions, projected with ``projection`` to the tangent plane at
     ``origin``: ``"first"`` — the first valid fix of the file, ``"mean"`` — the mean latitude/longitude/height of
     the fixes kept after the speed check, or an explicit (lat°, lon°[, h m])).  ``max_speed`` (m/s, None = no check)
-    is the speed limit of the jump check and ``jump_tolerance`` (m) the allowance for position noise and time-stamp
-    jitter: fix j is reachable from fix i when |p_j − p_i| ≤ max_speed (t_j − t_i) + jump_tolerance.  ``course_not_available``/``speed_not_available`` the codes meaning "no
-    value" (``speed_not_available`` in ``speed_unit``).  The speed check of geographic files runs in the plane of
-    the file's first valid fix (or of the explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the
-    arithmetic mean of the degrees, so it is wrong for tracks that cross the ±180° meridian (give the origin there).  :data:`SOLENT_AIS` holds the settings of the Solent AIS file.
-    What is refused, dropped, flagged or set to NaN: the module docstring.
+    and ``jump_tolerance`` (m, the allowance for position noise and time-stamp jitter) define which fix is reachable
+    (module docstring, which also says what is refused, dropped, flagged or set to NaN).
+    ``course_not_available``/``speed_not_available`` are the codes meaning "no value" (``speed_not_available`` in
+    ``speed_unit``).  The speed check of geographic files runs in the plane of the file's first valid fix (or of the
+    explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the arithmetic mean of the degrees, so it
+    is wrong for tracks that cross the ±180° meridian (give the origin there).  :data:`SOLENT_AIS` holds the
+    settings of the Solent AIS file.
     """
     path = checked_path(path)
     if (lat is None) != (lon is None):
@@ -481,11 +470,9 @@ def read_tracks(
     if not (isinstance(jump_tolerance, (int, float)) and math.isfinite(jump_tolerance) and jump_tolerance >= 0):
         raise ValueError(f"jump_tolerance: expected a finite number of metres ≥ 0, got {jump_tolerance!r}")
     geographic = lat is not None
-    if isinstance(origin, str):
-        if origin not in ("first", "mean"):
-            raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
-    else:
-        origin = _origin(origin)
+    if isinstance(origin, str) and origin not in ("first", "mean"):
+        raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
+    origin = origin if isinstance(origin, str) else _origin(origin)
 
     records = csv_records(path, _text(path), strip=True)
     if not records:
@@ -515,8 +502,7 @@ def read_tracks(
     # numeric seconds or ISO-8601: decided by the first non-empty time cell
     first_time = next((row[columns[time]] for _, row in body if len(row) > columns[time] and row[columns[time]]), "")
     iso = finite_number(first_time) is None and _timestamp(first_time) is not None
-    rows: list[_Row] = []
-    scale = SPEED_UNITS[speed_unit]
+    rows: list[SimpleNamespace] = []  # the rows used: line, id, time, values (the position cells), course, speed
     for line, row in body:
         if len(row) != len(header):
             report(line, None, "bad_row", "dropped", f"{len(row)} cells, the header has {len(header)}; row dropped")
@@ -533,28 +519,21 @@ def read_tracks(
             continue
         values = []
         for name in position_columns:
-            value = finite_number(row[columns[name]])
+            cell = row[columns[name]]
+            value = finite_number(cell)
             if value is None:
-                report(
-                    line,
-                    name,
-                    "not_a_number",
-                    "dropped",
-                    f"column {name!r} holds {row[columns[name]]!r}, not a finite number; row dropped",
-                    key,
-                )
+                report(line, name, "not_a_number", "dropped", f"column {name!r} holds {cell!r}, not a finite number; row dropped", key)
                 break
             values.append(value)
         else:
             if geographic and not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
-                bad, value = (lat, values[0]) if not -90.0 <= values[0] <= 90.0 else (lon, values[1])
-                limits = "[-90, 90]" if bad == lat else "[-180, 180]"
+                bad, value, limits = (lat, values[0], "[-90, 90]") if not -90.0 <= values[0] <= 90.0 else (lon, values[1], "[-180, 180]")
                 report(line, bad, "out_of_range", "dropped", f"column {bad!r} holds {value}, outside {limits} degrees; row dropped", key)
                 continue
             extra = []
             for name, low, high, code, factor in (
                 (course, 0.0, 360.0, course_not_available, 1.0),
-                (speed, 0.0, math.inf, speed_not_available, scale),
+                (speed, 0.0, math.inf, speed_not_available, SPEED_UNITS[speed_unit]),
             ):
                 if name is None:
                     extra.append(None)
@@ -564,26 +543,18 @@ def read_tracks(
                 if value is not None and code is not None and value == code:
                     extra.append("n/a")
                 elif value is None or not low <= value <= high:
-                    why = "not a finite number" if value is None else f"outside [{low}, {high}]"
-                    report(
-                        line,
-                        name,
-                        "not_a_number" if value is None else "out_of_range",
-                        "set_nan",
-                        f"column {name!r} holds {cell!r}, {why}; set to NaN",
-                        key,
-                    )
+                    kind, why = ("not_a_number", "not a finite number") if value is None else ("out_of_range", f"outside [{low}, {high}]")
+                    report(line, name, kind, "set_nan", f"column {name!r} holds {cell!r}, {why}; set to NaN", key)
                     extra.append(math.nan)
                 else:
                     extra.append(value * factor)
-            rows.append(_Row(line, key, stamp, values, *extra))
+            rows.append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1]))
 
     epoch = min((r.time for r in rows), default=None) if iso else None
-    for r in rows:
-        if iso:
-            r.time = (r.time - epoch).total_seconds()
+    for r in rows if iso else ():
+        r.time = (r.time - epoch).total_seconds()
 
-    groups: dict[str, list[_Row]] = {}
+    groups: dict[str, list[SimpleNamespace]] = {}
     for r in rows:
         groups.setdefault(r.id, []).append(r)
 
@@ -597,7 +568,7 @@ def read_tracks(
         return r.values[0], r.values[1], r.values[2] if alt else 0.0
 
     check_origin = origin if not isinstance(origin, str) else (fix(rows[0]) if rows else None)
-    kept_groups: dict[str, list[_Row]] = {}
+    kept_groups: dict[str, list[SimpleNamespace]] = {}
     for key, group in groups.items():
         order = sorted(range(len(group)), key=lambda i: group[i].time)
         if order != list(range(len(group))):
@@ -609,14 +580,8 @@ def read_tracks(
             if r.time == unique[-1].time:
                 same = r.values == unique[-1].values and r.course == unique[-1].course and r.speed == unique[-1].speed
                 what = "identical to" if same else "with different values from"
-                report(
-                    r.line,
-                    time,
-                    "duplicate_time",
-                    "dropped",
-                    f"id {key!r}: time {r.time!r} repeats line {unique[-1].line} ({what} it); row dropped",
-                    key,
-                )
+                message = f"id {key!r}: time {r.time!r} repeats line {unique[-1].line} ({what} it); row dropped"
+                report(r.line, time, "duplicate_time", "dropped", message, key)
                 continue
             unique.append(r)
         if max_speed is not None and len(unique) > 1:
@@ -624,16 +589,14 @@ def read_tracks(
         kept_groups[key] = unique
 
     kept = [r for g in kept_groups.values() for r in g]
-    if geographic:
-        if isinstance(origin, str):
-            if not kept:
-                origin = None
-            elif origin == "first":
-                origin = fix(min(kept, key=lambda r: r.line))
-            else:
-                v = np.array([r.values for r in kept])
-                origin = (float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if alt else 0.0)
-        origin = None if origin is None else tuple(float(v) for v in origin)
+    if geographic and isinstance(origin, str):
+        if not kept:
+            origin = None
+        elif origin == "first":
+            origin = fix(min(kept, key=lambda r: r.line))
+        else:
+            v = np.array([r.values for r in kept])
+            origin = (float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if alt else 0.0)
 
     def by_place(problem):  # file order: line, then column
         return problem.line, header.index(problem.column) if problem.column in header else -1
@@ -641,21 +604,18 @@ def read_tracks(
     tracks = {}
     for key, group in kept_groups.items():
         mine = tuple(p for p in problems if p.id == key)
-        missing = {}
-        for name, attr in ((course, "course"), (speed, "speed")):
-            if name is None:
-                continue
-            lines = [r.line for r in group if getattr(r, attr) == "n/a"]
+        missing = []
+        for name, attr, code in ((course, "course", course_not_available), (speed, "speed", speed_not_available)):
+            lines = [r.line for r in group if getattr(r, attr) == "n/a"]  # none without the column (all None)
             if lines:
-                code = course_not_available if attr == "course" else speed_not_available
                 shown = ", ".join(map(str, lines[:5])) + (", …" if len(lines) > 5 else "")
-                missing[attr] = Problem(
+                missing.append(Problem(
                     lines[0], name, "not_available", "set_nan",
                     f"{path}:{lines[0]}: id {key!r}: column {name!r} holds {code} (not available) in {len(lines)} rows (lines {shown}); set to NaN",
                     key,
-                )  # fmt: skip
-        mine = tuple(sorted(mine + tuple(missing.values()), key=by_place))
-        problems += list(missing.values())
+                ))  # fmt: skip
+        mine = tuple(sorted(mine + tuple(missing), key=by_place))
+        problems += missing
         tracks[key] = Track(
             id=key,
             times=np.array([r.time for r in group], dtype=np.float64),
@@ -705,24 +665,17 @@ def _speed_check(group, positions, max_speed, tolerance, key, report, column):
         back = next((m for m in range(i + 1, min(i + 1 + MAX_OUTLIER_BURST, len(group))) if ok(k, m)), None)
         where = f"id {key!r}: reaching this fix from line {group[k].line} ({gap(k, i):.1f} m in {times[i] - times[k]:.3g} s) takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}"
         if back is not None:
+            burst = f"id {key!r}: part of the same burst"
             for m in range(i, back):
-                report(
-                    group[m].line,
-                    column,
-                    "speed_jump",
-                    "dropped",
-                    f"{where if m == i else f'id {key!r}: part of the same burst'}; row dropped",
-                    key,
-                )
+                report(group[m].line, column, "speed_jump", "dropped", f"{where if m == i else burst}; row dropped", key)
             i = back
             continue
         if len(kept) == 1 and i + 1 < len(group) and ok(i, i + 1):
             report(group[k].line, column, "speed_jump", "dropped",
                    f"id {key!r}: the next fixes (lines {group[i].line}, {group[i + 1].line}) agree with each other but leaving this first fix takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}; row dropped", key)  # fmt: skip
             kept = [i]
-            i += 1
-            continue
-        report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
-        kept.append(i)
+        else:
+            report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
+            kept.append(i)
         i += 1
     return [group[i] for i in kept]
