@@ -34,7 +34,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank, convert_layout
-from hybridtrack.core.validation import as_float_array, check_covariance
+from hybridtrack.core.validation import as_float_array, check_covariance, check_positive
 
 LAYOUT_4 = ("x", "vx", "y", "vy")
 LAYOUT_6 = ("x", "vx", "ax", "y", "vy", "ay")
@@ -132,16 +132,13 @@ class ConstantAcceleration(_FixedMatrixMode):
         return convert_layout(state, layout, self.layout, fill)
 
 
-def _positive_radius(instance, attribute, value):
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"radius: expected a positive turn radius in metres, got {value!r}")
-
-
 @attrs.frozen
 class _Turn(MotionModel):
     """Uniform circular motion of radius r (seed 000, modes 2–3); ``direction`` +1 left, −1 right."""
 
-    radius: float = attrs.field(default=5.0, converter=float, validator=_positive_radius)
+    radius: float = attrs.field(
+        default=5.0, converter=float, validator=lambda i, a, v: check_positive(v, "radius", "turn radius in metres")
+    )
     noise_cov: np.ndarray = attrs.field(default=DEFAULT_NOISE, converter=_noise_cov, eq=attrs.cmp_using(eq=np.array_equal))
 
     layout: ClassVar[tuple[str, ...]] = LAYOUT_4

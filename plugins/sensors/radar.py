@@ -24,7 +24,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Sensor
-from hybridtrack.core.validation import as_float_array
+from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.sdk.linalg import wrap_angle
 
 
@@ -37,9 +37,7 @@ def _positions(x, layout: Sequence[str]):
     return x[..., layout.index("x")], x[..., layout.index("y")]
 
 
-def _positive(instance, attribute, value):
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{attribute.name}: expected a finite number > 0, got {value!r}")
+_positive = lambda instance, attribute, value: check_positive(value, attribute.name)
 
 
 @attrs.frozen
