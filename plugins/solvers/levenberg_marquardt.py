@@ -51,7 +51,7 @@ from hybridtrack_plugins.solvers.tma_model import (
     check_start,
     conclude,
     normal_equations,
-    require_maneuver,
+    require_problem,
     solve_observable_rows,
     solve_one,
     time_powers,
@@ -95,12 +95,6 @@ class LMSettings:
             raise ValueError(f"lam_up: expected > 1, got {self.lam_up}")
         if not self.lam_down < 1:
             raise ValueError(f"lam_down: expected < 1, got {self.lam_down}")
-
-
-def _initial_guess(problem, name):
-    if problem.initial is not None:
-        return np.asarray(problem.initial, dtype=float)
-    raise ValueError(f"{name}: problem.initial is None; give a starting guess θ (e.g. the N-bearings answer or a prior)")
 
 
 def minimize(scaled: ScaledProblem, s: np.ndarray, settings: LMSettings):
@@ -149,10 +143,7 @@ class LevenbergMarquardt(Solver):
     settings: LMSettings = attrs.field(factory=LMSettings)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
-        if not isinstance(problem, BearingsProblem):
-            raise ValueError(f"problem: expected a BearingsProblem, got {type(problem).__name__}")
-        require_maneuver(problem.times, problem.observer)
-        _initial_guess(problem, self.name)
+        require_problem(problem, BearingsProblem, self.name, start=True)
         return solve_one(problem, lambda scaled, s0: minimize(scaled, s0, self.settings), self.name)
 
 
@@ -319,22 +310,16 @@ class BatchLevenbergMarquardt(Solver):
         return self.engine == "numba" or (self.engine == "auto" and NUMBA_AVAILABLE)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
-        if not isinstance(problem, BearingsProblem):
-            raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
-        _initial_guess(problem, self.name)
-        return self.solve_batch(problem.batch()).solution(0)
+        return self.solve_batch(require_problem(problem, BearingsProblem, self.name, start=True).batch()).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
-        if not isinstance(batch, BearingsBatch):
-            raise ValueError(f"batch: expected a BearingsBatch, got {type(batch).__name__}")
-        require_maneuver(batch.times, batch.observer)
-        _initial_guess(batch, self.name)
+        require_problem(batch, BearingsBatch, self.name, start=True)
         return solve_observable_rows(batch, self._solve_rows, self.name)
 
     def _solve_rows(self, batch: BearingsBatch, numbers: np.ndarray) -> BatchTMASolution:
         """Solve every problem of ``batch`` (problem ``numbers`` of the caller's batch, for error messages)."""
         B = len(batch)
-        theta0 = np.broadcast_to(_initial_guess(batch, self.name), (B, N_PARAMETERS))
+        theta0 = np.broadcast_to(batch.initial, (B, N_PARAMETERS))
         scaling = Scaling.build(batch.times, batch.observer, theta0, batch.reference_time)
         s0 = scaling.to_scaled(theta0)
         tau = scaling.tau(batch.times)

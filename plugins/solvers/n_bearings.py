@@ -45,7 +45,7 @@ from hybridtrack_plugins.solvers.tma_model import (
     answers,
     fit_statistics,
     flag_constant_fits,
-    require_maneuver,
+    require_problem,
     solve_observable_rows,
     warn_unobservable,
 )
@@ -119,16 +119,12 @@ class NBearings(Solver):
     example_problem = staticmethod(example_problem)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
-        if not isinstance(problem, BearingsProblem):
-            raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
-        require_maneuver(problem.times, problem.observer)
+        require_problem(problem, BearingsProblem, self.name)
         rows = lambda batch, numbers: self._solve_rows(batch, numbers, lstsq=True)
         return solve_observable_rows(problem.batch(), rows, self.name, LONE).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
-        if not isinstance(batch, BearingsBatch):
-            raise ValueError(f"batch: expected a BearingsBatch, got {type(batch).__name__}")
-        require_maneuver(batch.times, batch.observer)
+        require_problem(batch, BearingsBatch, self.name)
         return solve_observable_rows(batch, self._solve_rows, self.name)
 
     def _solve_rows(self, batch: BearingsBatch, numbers, lstsq: bool = False) -> BatchTMASolution:
