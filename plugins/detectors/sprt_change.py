@@ -153,18 +153,13 @@ class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
 
     def add(self, start: int) -> None:
         P = len(self.hypotheses[0]) - 1
-        counts = self.counts
-        old = _offsets(counts)
-        new = _offsets(counts + P)
-        E = counts.sum() + P * self.runs
-        position = new[self.run] + (np.arange(self.run.size) - old[self.run])
-        added = (new + counts)[:, None] + np.arange(P)
-        run, modes, starts, psi = np.zeros(E, dtype=int), np.zeros(E, dtype=int), np.zeros(E, dtype=int), np.zeros(E)
-        run[position], modes[position], starts[position], psi[position] = self.run, self.modes, self.starts, self.log_psi
-        run[added] = np.arange(self.runs)[:, None]
-        modes[added] = np.arange(1, P + 1)
-        starts[added] = int(start)
-        self.run, self.modes, self.starts, self.log_psi = run, modes, starts, psi
+        new = np.repeat(np.arange(self.runs), P)  # P entries per run, after the run's own (a stable sort by run)
+        run = np.concatenate([self.run, new])
+        order = np.argsort(run, kind="stable")
+        self.run = run[order]
+        self.modes = np.concatenate([self.modes, np.tile(np.arange(1, P + 1), self.runs)])[order]
+        self.starts = np.concatenate([self.starts, np.full(new.size, int(start))])[order]
+        self.log_psi = np.concatenate([self.log_psi, np.zeros(new.size)])[order]
 
     def observe(self, step, loglik0, loglik, nis0, nis, m) -> ChangeTimeStep:
         P = len(self.hypotheses[0]) - 1
