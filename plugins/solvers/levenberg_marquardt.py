@@ -21,8 +21,8 @@ works in the scaled parameters of :mod:`.tma_model`; Marquardt's diag(H) makes
 the steps themselves invariant to that scaling, which only conditions the
 Cholesky factorization.
 
-:class:`LevenbergMarquardt` runs one problem (:func:`minimize`, ``scipy.linalg.cho_factor``);
-:class:`BatchLevenbergMarquardt` runs the same steps for B problems, on the engines its docstring describes.
+:class:`BatchLevenbergMarquardt` runs them for B problems (:func:`minimize_batch`, or the compiled kernel);
+:class:`LevenbergMarquardt` is the same solver under the one-problem name (a batch of one).
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ from typing import ClassVar
 
 import attrs
 import numpy as np
-from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
@@ -41,6 +40,7 @@ from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
 from hybridtrack_plugins.solvers.observer import example_problem
 from hybridtrack_plugins.solvers.tma_model import (
+    LONE,
     N_PARAMETERS,
     BatchTMASolution,
     BearingsBatch,
@@ -53,7 +53,6 @@ from hybridtrack_plugins.solvers.tma_model import (
     normal_equations,
     require_problem,
     solve_observable_rows,
-    solve_one,
     time_powers,
 )
 
@@ -95,59 +94,6 @@ class LMSettings:
             raise ValueError(f"lam_up: expected > 1, got {self.lam_up}")
         if not self.lam_down < 1:
             raise ValueError(f"lam_down: expected < 1, got {self.lam_down}")
-
-
-def minimize(scaled: ScaledProblem, s: np.ndarray, settings: LMSettings):
-    """Seed 002 §4.3 steps 1–9 for one problem from s (4,).
-
-    Returns (s, F, H at s, iterations, evaluations, converged, message).
-    """
-    F, r = scaled.cost(s)
-    evaluations, iterations, dF = 1, 0, np.inf
-    lam = settings.lam0
-    while True:
-        J = scaled.jacobian(s)  # step 2
-        H, g = J.T @ J, J.T @ r
-        if dF < settings.F_tol:  # step 9 (dF of the step accepted last)
-            return s, F, H, iterations, evaluations, True, STOP_CONVERGED
-        if iterations >= settings.max_iterations:
-            return s, F, H, iterations, evaluations, False, STOP_ITERATIONS
-        while True:
-            A = H + lam * np.diag(np.diag(H))  # step 3
-            try:
-                factor = cho_factor(A)  # step 4
-            except (LinAlgError, ValueError):
-                factor = None
-            if factor is not None:
-                s_new = s + cho_solve(factor, g)  # steps 5–6
-                F_new, r_new = scaled.cost(s_new)
-                evaluations += 1
-                dF = F - F_new
-                if np.isfinite(F_new) and dF >= -ROUNDING_RTOL * F:
-                    break
-            lam *= settings.lam_up  # steps 4 and 7
-            if lam > settings.lam_max:
-                return s, F, H, iterations, evaluations, False, STOP_LAMBDA
-        s, F, r = s_new, F_new, r_new  # step 8
-        lam *= settings.lam_down
-        iterations += 1
-
-
-@attrs.frozen
-class LevenbergMarquardt(Solver):
-    """Maximum likelihood θ by the seed's Levenberg–Marquardt (one problem; see the module doc)."""
-
-    name: ClassVar[str] = "levenberg_marquardt"
-    example_problem = staticmethod(example_problem)  # a 60-bearing seed 002 problem (contract checks)
-
-    settings: LMSettings = attrs.field(factory=LMSettings)
-
-    def solve(self, problem: BearingsProblem) -> TMASolution:
-        require_problem(problem, BearingsProblem, self.name, start=True)
-        return solve_one(problem, lambda scaled, s0: minimize(scaled, s0, self.settings), self.name)
-
-
-# --------------------------------------------------------------------------- batch
 
 
 class _Chunk:
@@ -310,7 +256,8 @@ class BatchLevenbergMarquardt(Solver):
         return self.engine == "numba" or (self.engine == "auto" and NUMBA_AVAILABLE)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
-        return self.solve_batch(require_problem(problem, BearingsProblem, self.name, start=True).batch()).solution(0)
+        require_problem(problem, BearingsProblem, self.name, start=True)
+        return solve_observable_rows(problem.batch(), self._solve_rows, self.name, LONE).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
         require_problem(batch, BearingsBatch, self.name, start=True)
@@ -350,9 +297,18 @@ class BatchLevenbergMarquardt(Solver):
                 one = ScaledProblem.build(
                     batch.times, batch.bearings[i], batch.observer_of(i), theta0[i], batch.reference_time, batch.convention
                 )
-                check_start(one.scaling.to_scaled(theta0[i]), one.tau, one.ox, one.oy, batch.times, int(numbers[i]))
+                number = None if numbers[i] < 0 else int(numbers[i])  # a lone problem is not numbered
+                check_start(one.scaling.to_scaled(theta0[i]), one.tau, one.ox, one.oy, batch.times, number)
         messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
         return conclude(batch, scaling, s, F, H, it, nf, status == 0, messages, numbers, self.name)
+
+
+@attrs.frozen
+class LevenbergMarquardt(BatchLevenbergMarquardt):
+    """Maximum likelihood θ of one problem by the seed's Levenberg–Marquardt (see the module doc): the batched
+    solver under its one-problem name, ``solve(problem)`` a batch of one."""
+
+    name: ClassVar[str] = "levenberg_marquardt"
 
 
 @hookimpl
