@@ -49,10 +49,7 @@ def _noise_cov(value) -> np.ndarray:
 
 
 def _check_tau(tau: float) -> float:
-    tau = float(tau)
-    if not (np.isfinite(tau) and tau > 0):
-        raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
-    return tau
+    return check_positive(tau, "tau", "the sampling period")
 
 
 def _blockdiag(axis: np.ndarray) -> np.ndarray:
