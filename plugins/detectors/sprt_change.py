@@ -259,7 +259,7 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
 
     def observe(self, step, loglik, nis, m) -> DetectorStep:
         loglik = np.atleast_1d(np.asarray(loglik, dtype=float))
-        if self.decided is not None and self._last is not None:
+        if self.decided is not None:  # decided: the final values, no further decision until reset()
             return DetectorStep(*self._last)
         if self.k == 0 and self.modes.size == 0 and loglik.size > 1:
             self.add(np.arange(1, loglik.size), step)  # a fixed bank: every alternative from the first step
@@ -280,9 +280,8 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         if decided[0] == 0:  # restart with the same (fixed) bank
             self.log_psi = np.zeros_like(self.log_psi)
             self.k = 0
-        else:
-            if decided[0] > 0:
-                self.decided, self.chosen_entry = int(decided[0]), int(entry[0])
+        elif decided[0] > 0:
+            self.decided, self.chosen_entry = int(decided[0]), int(entry[0])
             self._last = (output[0], output[1], None)
         return DetectorStep(*output)
 
