@@ -586,10 +586,10 @@ class BatchTMASolution:
 
 
 def propagate(theta, dt):
-    """Position of θ = (x0, y0, vx, vy) moved by dt: (x0 + vx dt, y0 + vy dt, vx, vy)."""
+    """Position of θ = (x0, y0, vx, vy) moved by dt: (x0 + vx dt, y0 + vy dt, vx, vy), θ and dt broadcast."""
     theta = np.asarray(theta, dtype=float)
-    dt = np.asarray(dt, dtype=float)[..., None]
-    return np.concatenate([theta[..., :2] + theta[..., 2:] * dt, theta[..., 2:]], axis=-1)
+    position = theta[..., :2] + theta[..., 2:] * np.asarray(dt, dtype=float)[..., None]
+    return np.concatenate([position, np.broadcast_to(theta[..., 2:], position.shape)], axis=-1)
 
 
 def summarize(scaling, s, F, H, n, sigma, alpha=0.01):
