@@ -198,7 +198,7 @@ def _add(acc, a, b, w, r, t):
 
 @_njit(fastmath=_FAST, inline="always")
 def _geometry(s, t, ox, oy, sx, cx):
-    """a = Δx, b = Δy at τ = t and S = sx b − cx a, C = cx b + sx a (module doc)."""
+    """a = Δx, b = Δy at τ = t for s = (s_0, s_1, s_2, s_3) (a tuple), S = sx b − cx a, C = cx b + sx a (module doc)."""
     a = s[0] + s[2] * t - ox
     b = s[1] + s[3] * t - oy
     return a, b, sx * b - cx * a, cx * b + sx * a
@@ -214,10 +214,11 @@ def pass_small(s, tau, ox, oy, sx, cx, out):
     (then :func:`pass_general` is used).
     ``out`` = (F, Σp², Σp²τ, Σp²τ², Σpq, Σpqτ, Σpqτ², Σq², Σq²τ, Σq²τ², Σpr, Σprτ, Σqr, Σqrτ).
     """
+    point = (s[0], s[1], s[2], s[3])  # loaded once, outside the loop
     acc = (0.0,) * 14
     bad = 0
     for k in range(tau.shape[0]):
-        a, b, S, C = _geometry(s, tau[k], ox[k], oy[k], sx[k], cx[k])
+        a, b, S, C = _geometry(point, tau[k], ox[k], oy[k], sx[k], cx[k])
         rho2 = a * a + b * b
         bad += 0 if abs(S) <= TAN_PI_8 * C else 1
         inverse = 1.0 / (C * rho2)
@@ -232,10 +233,11 @@ def pass_general(s, tau, ox, oy, sx, cx, out):
 
     Returns the count of bearings with |S| > tan(π/8) C all the same (the hint for the next pass).
     """
+    point = (s[0], s[1], s[2], s[3])  # loaded once, outside the loop
     acc = (0.0,) * 14
     bad = 0
     for k in range(tau.shape[0]):
-        a, b, S, C = _geometry(s, tau[k], ox[k], oy[k], sx[k], cx[k])
+        a, b, S, C = _geometry(point, tau[k], ox[k], oy[k], sx[k], cx[k])
         bad += 0 if abs(S) <= TAN_PI_8 * C else 1
         acc = _add(acc, a, b, 1.0 / (a * a + b * b), atan2(S, C), tau[k])
     out[:] = acc
