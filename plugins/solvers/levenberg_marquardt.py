@@ -278,13 +278,10 @@ class BatchLevenbergMarquardt(Solver):
         for start in range(0, B, self.chunk_size):
             rows = slice(start, min(start + self.chunk_size, B))
             if not shared:
-                part = Scaling(
-                    scaling.origin if batch.observer.ndim == 2 else scaling.origin[rows],
-                    np.broadcast_to(scaling.length, (B,))[rows],
-                    scaling.duration,
-                    scaling.reference_time,
-                )
-                o = part.observer(batch.observer if batch.observer.ndim == 2 else batch.observer[rows])
+                own = batch.observer.ndim == 3  # one observer path per problem
+                origin = scaling.origin[rows] if own else scaling.origin
+                part = attrs.evolve(scaling, origin=origin, length=np.broadcast_to(scaling.length, (B,))[rows])
+                o = part.observer(batch.observer[rows] if own else batch.observer)
             if self.compiled:
                 out = minimize_compiled(tau, o[..., 0], o[..., 1], batch.bearings[rows], batch.convention, s0[rows], self.settings)
             else:
