@@ -130,13 +130,10 @@ class _Chunk:
                 np.matmul(Sx[a:b], self._basis_x, out=dx)
                 np.matmul(Sy[a:b], self._basis_y, out=dy)
             else:
-                sb = s[a:b]
-                np.multiply(sb[:, 2, None], self.tau, out=dx)
-                dx += sb[:, 0, None]
-                dx -= self.ox[a:b]
-                np.multiply(sb[:, 3, None], self.tau, out=dy)
-                dy += sb[:, 1, None]
-                dy -= self.oy[a:b]
+                for d, i, o in ((dx, 0, self.ox), (dy, 1, self.oy)):  # Δ = s_i + s_{i+2} τ − õ
+                    np.multiply(s[a:b, i + 2, None], self.tau, out=d)
+                    d += s[a:b, i, None]
+                    d -= o[a:b]
             bearing(dx, dy, self.convention, out=phi)
             r = angle_difference(self.X[a:b], phi, out=phi)
             F[a:b] = np.einsum("mk,mk->m", r, r)
