@@ -30,9 +30,8 @@ from hybridtrack.sdk.linalg import wrap_angle
 
 def _positions(x, layout: Sequence[str]):
     layout = tuple(layout)
-    for c in ("x", "y"):
-        if c not in layout:
-            raise ValueError(f"layout: radar needs components 'x' and 'y', got {layout}")
+    if "x" not in layout or "y" not in layout:
+        raise ValueError(f"layout: radar needs components 'x' and 'y', got {layout}")
     x = np.asarray(x, dtype=float)
     return x[..., layout.index("x")], x[..., layout.index("y")]
 
