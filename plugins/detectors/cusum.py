@@ -22,18 +22,10 @@ class CUSUM(ScalarDetector):
 
     name = "cusum"
 
-    def __init__(
-        self,
-        drift: float = 0.5,
-        alpha: float = 0.001,
-        watch: int = 0,
-        reference=None,
-        normalize: bool = True,
-        seed: int = 20240601,
-        null_sample=None,
-    ):
+    def __init__(self, drift: float = 0.5, **options):
+        """``options``: alpha, watch, reference, normalize, seed, null_sample of :class:`ScalarDetector`."""
         self.drift = check_positive(drift, "drift")
-        super().__init__(alpha, watch, reference, normalize, seed, null_sample)
+        super().__init__(**options)
 
     def h0_sample(self) -> np.ndarray:
         return h0_sample("cusum", self.drift, self.seed)

@@ -24,18 +24,10 @@ class GLR(ScalarDetector):
 
     name = "glr"
 
-    def __init__(
-        self,
-        window: int = 10,
-        alpha: float = 0.001,
-        watch: int = 0,
-        reference=None,
-        normalize: bool = True,
-        seed: int = 20240601,
-        null_sample=None,
-    ):
+    def __init__(self, window: int = 10, **options):
+        """``options``: alpha, watch, reference, normalize, seed, null_sample of :class:`ScalarDetector`."""
         self.window = check_positive_int(window, "window")
-        super().__init__(alpha, watch, reference, normalize, seed, null_sample)
+        super().__init__(**options)
 
     def h0_sample(self) -> np.ndarray:
         return h0_sample("glr", self.window, self.seed)

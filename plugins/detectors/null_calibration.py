@@ -75,9 +75,7 @@ def h0_sample(
         raise ValueError(f"statistic: expected 'glr' or 'cusum', got {statistic!r}")
     y = np.random.default_rng(seed).standard_normal((runs, length))
     g = glr_statistics(y, int(parameter)) if statistic == "glr" else cusum_statistics(y, float(parameter))
-    sample = np.sort(g[:, burn_in:].reshape(-1))
-    sample.setflags(write=False)
-    return sample
+    return sorted_sample(g[:, burn_in:], "runs", "the statistic")
 
 
 def h0_quantile(sample: np.ndarray, alpha) -> float:

@@ -33,11 +33,9 @@ modes 1 … M−1 started at the first step.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.special import logsumexp
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import DetectorStep
@@ -90,6 +88,27 @@ def rule(step, label, hypotheses, ratios, run, modes, starts, log_psi, upper, lo
     return decided, entry, start, decisions
 
 
+def change_log_ratios(run, modes, log_psi, k, P: int, uniform: bool) -> np.ndarray:
+    """ln λ_p (R, P) of R tests from their entries' ``run``, alternative ``modes`` and ln ψ, and k (R,) (−inf for
+    an alternative with no entry): scipy's log-sum-exp with the largest term taken out, ln λ = a + ln c +
+    log1p(Σ_{others} e^{ψ−a} / c), a the largest ln ψ of the group, c how many reach it; minus ln k if ``uniform``."""
+    R = k.size
+    group = run * P + (modes - 1)
+    top = np.full(R * P, -np.inf)
+    np.maximum.at(top, group, log_psi)
+    at_top = log_psi == top[group]
+    count = np.bincount(group, weights=at_top, minlength=R * P)
+    rest = np.bincount(group, weights=np.where(at_top, 0.0, np.exp(log_psi - top[group])), minlength=R * P)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(
+            count > 0, np.log1p(np.where(count > 0, rest / np.maximum(count, 1), 0.0)) + np.log(np.maximum(count, 1)) + top, -np.inf
+        )
+    out = out.reshape(R, P)
+    if uniform:
+        out = out - np.where(k > 0, np.log(np.maximum(k, 1)), 0.0)[:, None]
+    return out
+
+
 def pruned(run, starts, log_psi, bounds, pruning) -> np.ndarray:
     """The entries kept when each test's entries are bounded to ``bounds`` (R,) (−1: unbounded) by the rule
     ``pruning`` (ties by order): "oldest" keeps the latest ``starts``, "nearest_lower" the largest ln ψ."""
@@ -103,8 +122,7 @@ def pruned(run, starts, log_psi, bounds, pruning) -> np.ndarray:
 
 class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
     """R copies of :class:`ChangeTimeSPRT` as flat arrays over every run's entries (run by run): mode, change
-    step and ln ψ per entry, k per run.  ln λ is the same log-sum-exp as scipy's (the largest term taken out:
-    ln λ = a + ln c + log1p(Σ_{others} e^{ψ−a} / c), a the largest ln ψ of the group, c how many reach it)."""
+    step and ln ψ per entry, k per run."""
 
     def __init__(self, detector: ChangeTimeSPRT, runs: int):
         self.detector = detector
@@ -135,34 +153,13 @@ class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
 
     def add(self, start: int) -> None:
         P = len(self.hypotheses[0]) - 1
-        counts = self.counts
-        old = _offsets(counts)
-        new = _offsets(counts + P)
-        E = counts.sum() + P * self.runs
-        position = new[self.run] + (np.arange(self.run.size) - old[self.run])
-        added = (new + counts)[:, None] + np.arange(P)
-        run, modes, starts, psi = np.zeros(E, dtype=int), np.zeros(E, dtype=int), np.zeros(E, dtype=int), np.zeros(E)
-        run[position], modes[position], starts[position], psi[position] = self.run, self.modes, self.starts, self.log_psi
-        run[added] = np.arange(self.runs)[:, None]
-        modes[added] = np.arange(1, P + 1)
-        starts[added] = int(start)
-        self.run, self.modes, self.starts, self.log_psi = run, modes, starts, psi
-
-    def _log_ratios(self, P: int) -> np.ndarray:
-        group = self.run * P + (self.modes - 1)
-        top = np.full(self.runs * P, -np.inf)
-        np.maximum.at(top, group, self.log_psi)
-        at_top = self.log_psi == top[group]
-        count = np.bincount(group, weights=at_top, minlength=self.runs * P)
-        rest = np.bincount(group, weights=np.where(at_top, 0.0, np.exp(self.log_psi - top[group])), minlength=self.runs * P)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out = np.where(
-                count > 0, np.log1p(np.where(count > 0, rest / np.maximum(count, 1), 0.0)) + np.log(np.maximum(count, 1)) + top, -np.inf
-            )
-        out = out.reshape(self.runs, P)
-        if self.uniform:
-            out = out - np.where(self.k > 0, np.log(np.maximum(self.k, 1)), 0.0)[:, None]
-        return out
+        new = np.repeat(np.arange(self.runs), P)  # P entries per run, after the run's own (a stable sort by run)
+        run = np.concatenate([self.run, new])
+        order = np.argsort(run, kind="stable")
+        self.run = run[order]
+        self.modes = np.concatenate([self.modes, np.tile(np.arange(1, P + 1), self.runs)])[order]
+        self.starts = np.concatenate([self.starts, np.full(new.size, int(start))])[order]
+        self.log_psi = np.concatenate([self.log_psi, np.zeros(new.size)])[order]
 
     def observe(self, step, loglik0, loglik, nis0, nis, m) -> ChangeTimeStep:
         P = len(self.hypotheses[0]) - 1
@@ -171,7 +168,7 @@ class ChangeTimeSPRTBatch(ChangeTimeTestBatch):
             raise ValueError(f"loglik: expected {self.run.size} entries, got {loglik.size}")
         self.k += 1
         self.log_psi = np.where(m[self.run] > 0, self.log_psi + (loglik - loglik0[self.run]), self.log_psi)
-        ratios = self._log_ratios(P)
+        ratios = change_log_ratios(self.run, self.modes, self.log_psi, self.k, P, self.uniform)
         decided, entry, start, decisions = rule(
             step, self.detector.label, self.hypotheses, ratios, self.run, self.modes, self.starts, self.log_psi, self.upper, self.lower
         )
@@ -257,16 +254,12 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
     def log_ratios(self) -> np.ndarray:
         """ln λ_p for p = 1 … M−1 (−inf for an alternative with no entry)."""
         P = self.alternatives or (int(self.modes.max()) if self.modes.size else 0)
-        out = np.full(P, -np.inf)
-        for p in range(1, P + 1):
-            values = self.log_psi[self.modes == p]
-            if values.size:
-                out[p - 1] = logsumexp(values) - (math.log(self.k) if self.averaging == "uniform" and self.k > 0 else 0.0)
-        return out
+        run = np.zeros(self.modes.size, dtype=int)
+        return change_log_ratios(run, self.modes, self.log_psi, np.array([self.k]), P, self.averaging == "uniform")[0]
 
     def observe(self, step, loglik, nis, m) -> DetectorStep:
         loglik = np.atleast_1d(np.asarray(loglik, dtype=float))
-        if self.decided is not None and self._last is not None:
+        if self.decided is not None:  # decided: the final values, no further decision until reset()
             return DetectorStep(*self._last)
         if self.k == 0 and self.modes.size == 0 and loglik.size > 1:
             self.add(np.arange(1, loglik.size), step)  # a fixed bank: every alternative from the first step
@@ -287,9 +280,8 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
         if decided[0] == 0:  # restart with the same (fixed) bank
             self.log_psi = np.zeros_like(self.log_psi)
             self.k = 0
-        else:
-            if decided[0] > 0:
-                self.decided, self.chosen_entry = int(decided[0]), int(entry[0])
+        elif decided[0] > 0:
+            self.decided, self.chosen_entry = int(decided[0]), int(entry[0])
             self._last = (output[0], output[1], None)
         return DetectorStep(*output)
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank, convert_layout
-from hybridtrack.core.validation import as_float_array, check_covariance
+from hybridtrack.core.validation import as_float_array, check_covariance, check_positive
 
 LAYOUT_4 = ("x", "vx", "y", "vy")
 LAYOUT_6 = ("x", "vx", "ax", "y", "vy", "ay")
@@ -49,10 +49,7 @@ def _noise_cov(value) -> np.ndarray:
 
 
 def _check_tau(tau: float) -> float:
-    tau = float(tau)
-    if not (np.isfinite(tau) and tau > 0):
-        raise ValueError(f"tau: expected a positive sampling period, got {tau!r}")
-    return tau
+    return check_positive(tau, "tau", "the sampling period")
 
 
 def _blockdiag(axis: np.ndarray) -> np.ndarray:
@@ -132,16 +129,13 @@ class ConstantAcceleration(_FixedMatrixMode):
         return convert_layout(state, layout, self.layout, fill)
 
 
-def _positive_radius(instance, attribute, value):
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"radius: expected a positive turn radius in metres, got {value!r}")
-
-
 @attrs.frozen
 class _Turn(MotionModel):
     """Uniform circular motion of radius r (seed 000, modes 2–3); ``direction`` +1 left, −1 right."""
 
-    radius: float = attrs.field(default=5.0, converter=float, validator=_positive_radius)
+    radius: float = attrs.field(
+        default=5.0, converter=float, validator=lambda i, a, v: check_positive(v, "radius", "turn radius in metres")
+    )
     noise_cov: np.ndarray = attrs.field(default=DEFAULT_NOISE, converter=_noise_cov, eq=attrs.cmp_using(eq=np.array_equal))
 
     layout: ClassVar[tuple[str, ...]] = LAYOUT_4

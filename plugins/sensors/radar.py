@@ -24,22 +24,19 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Sensor
-from hybridtrack.core.validation import as_float_array
+from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.sdk.linalg import wrap_angle
 
 
 def _positions(x, layout: Sequence[str]):
     layout = tuple(layout)
-    for c in ("x", "y"):
-        if c not in layout:
-            raise ValueError(f"layout: radar needs components 'x' and 'y', got {layout}")
+    if "x" not in layout or "y" not in layout:
+        raise ValueError(f"layout: radar needs components 'x' and 'y', got {layout}")
     x = np.asarray(x, dtype=float)
     return x[..., layout.index("x")], x[..., layout.index("y")]
 
 
-def _positive(instance, attribute, value):
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{attribute.name}: expected a finite number > 0, got {value!r}")
+_positive = lambda instance, attribute, value: check_positive(value, attribute.name)
 
 
 @attrs.frozen

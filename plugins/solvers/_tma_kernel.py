@@ -196,6 +196,14 @@ def _add(acc, a, b, w, r, t):
     )
 
 
+@_njit(fastmath=_FAST, inline="always")
+def _geometry(s, t, ox, oy, sx, cx):
+    """a = Δx, b = Δy at τ = t for s = (s_0, s_1, s_2, s_3) (a tuple), S = sx b − cx a, C = cx b + sx a (module doc)."""
+    a = s[0] + s[2] * t - ox
+    b = s[1] + s[3] * t - oy
+    return a, b, sx * b - cx * a, cx * b + sx * a
+
+
 @_njit(fastmath=_FAST)
 def pass_small(s, tau, ox, oy, sx, cx, out):
     """One pass over the bearings assuming small residuals; ``out`` (14,) ← F and the 13 sums; returns the violations.
@@ -206,21 +214,16 @@ def pass_small(s, tau, ox, oy, sx, cx, out):
     (then :func:`pass_general` is used).
     ``out`` = (F, Σp², Σp²τ, Σp²τ², Σpq, Σpqτ, Σpqτ², Σq², Σq²τ, Σq²τ², Σpr, Σprτ, Σqr, Σqrτ).
     """
-    s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+    point = (s[0], s[1], s[2], s[3])  # loaded once, outside the loop
     acc = (0.0,) * 14
     bad = 0
     for k in range(tau.shape[0]):
-        t = tau[k]
-        a = s0 + s2 * t - ox[k]
-        b = s1 + s3 * t - oy[k]
-        S = sx[k] * b - cx[k] * a
-        C = cx[k] * b + sx[k] * a
+        a, b, S, C = _geometry(point, tau[k], ox[k], oy[k], sx[k], cx[k])
         rho2 = a * a + b * b
         bad += 0 if abs(S) <= TAN_PI_8 * C else 1
         inverse = 1.0 / (C * rho2)
-        acc = _add(acc, a, b, C * inverse, atan_small(S * rho2 * inverse), t)
-    for j in range(14):
-        out[j] = acc[j]
+        acc = _add(acc, a, b, C * inverse, atan_small(S * rho2 * inverse), tau[k])
+    out[:] = acc
     return bad
 
 
@@ -230,19 +233,14 @@ def pass_general(s, tau, ox, oy, sx, cx, out):
 
     Returns the count of bearings with |S| > tan(π/8) C all the same (the hint for the next pass).
     """
-    s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+    point = (s[0], s[1], s[2], s[3])  # loaded once, outside the loop
     acc = (0.0,) * 14
     bad = 0
     for k in range(tau.shape[0]):
-        t = tau[k]
-        a = s0 + s2 * t - ox[k]
-        b = s1 + s3 * t - oy[k]
-        S = sx[k] * b - cx[k] * a
-        C = cx[k] * b + sx[k] * a
+        a, b, S, C = _geometry(point, tau[k], ox[k], oy[k], sx[k], cx[k])
         bad += 0 if abs(S) <= TAN_PI_8 * C else 1
-        acc = _add(acc, a, b, 1.0 / (a * a + b * b), atan2(S, C), t)
-    for j in range(14):
-        out[j] = acc[j]
+        acc = _add(acc, a, b, 1.0 / (a * a + b * b), atan2(S, C), tau[k])
+    out[:] = acc
     return bad
 
 

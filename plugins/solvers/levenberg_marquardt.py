@@ -21,8 +21,8 @@ works in the scaled parameters of :mod:`.tma_model`; Marquardt's diag(H) makes
 the steps themselves invariant to that scaling, which only conditions the
 Cholesky factorization.
 
-:class:`LevenbergMarquardt` runs one problem (:func:`minimize`, ``scipy.linalg.cho_factor``);
-:class:`BatchLevenbergMarquardt` runs the same steps for B problems, on the engines its docstring describes.
+:class:`BatchLevenbergMarquardt` runs them for B problems (:func:`minimize_batch`, or the compiled kernel);
+:class:`LevenbergMarquardt` is the same solver under the one-problem name (a batch of one).
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ from typing import ClassVar
 
 import attrs
 import numpy as np
-from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
@@ -41,6 +40,7 @@ from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
 from hybridtrack_plugins.solvers.observer import example_problem
 from hybridtrack_plugins.solvers.tma_model import (
+    LONE,
     N_PARAMETERS,
     BatchTMASolution,
     BearingsBatch,
@@ -51,9 +51,8 @@ from hybridtrack_plugins.solvers.tma_model import (
     check_start,
     conclude,
     normal_equations,
-    require_maneuver,
+    require_problem,
     solve_observable_rows,
-    solve_one,
     time_powers,
 )
 
@@ -97,68 +96,6 @@ class LMSettings:
             raise ValueError(f"lam_down: expected < 1, got {self.lam_down}")
 
 
-def _initial_guess(problem, name):
-    if problem.initial is not None:
-        return np.asarray(problem.initial, dtype=float)
-    raise ValueError(f"{name}: problem.initial is None; give a starting guess θ (e.g. the N-bearings answer or a prior)")
-
-
-def minimize(scaled: ScaledProblem, s: np.ndarray, settings: LMSettings):
-    """Seed 002 §4.3 steps 1–9 for one problem from s (4,).
-
-    Returns (s, F, H at s, iterations, evaluations, converged, message).
-    """
-    F, r = scaled.cost(s)
-    evaluations, iterations, dF = 1, 0, np.inf
-    lam = settings.lam0
-    while True:
-        J = scaled.jacobian(s)  # step 2
-        H, g = J.T @ J, J.T @ r
-        if dF < settings.F_tol:  # step 9 (dF of the step accepted last)
-            return s, F, H, iterations, evaluations, True, STOP_CONVERGED
-        if iterations >= settings.max_iterations:
-            return s, F, H, iterations, evaluations, False, STOP_ITERATIONS
-        while True:
-            A = H + lam * np.diag(np.diag(H))  # step 3
-            try:
-                factor = cho_factor(A)  # step 4
-            except (LinAlgError, ValueError):
-                factor = None
-            if factor is not None:
-                s_new = s + cho_solve(factor, g)  # steps 5–6
-                F_new, r_new = scaled.cost(s_new)
-                evaluations += 1
-                dF = F - F_new
-                if np.isfinite(F_new) and dF >= -ROUNDING_RTOL * F:
-                    break
-            lam *= settings.lam_up  # steps 4 and 7
-            if lam > settings.lam_max:
-                return s, F, H, iterations, evaluations, False, STOP_LAMBDA
-        s, F, r = s_new, F_new, r_new  # step 8
-        lam *= settings.lam_down
-        iterations += 1
-
-
-@attrs.frozen
-class LevenbergMarquardt(Solver):
-    """Maximum likelihood θ by the seed's Levenberg–Marquardt (one problem; see the module doc)."""
-
-    name: ClassVar[str] = "levenberg_marquardt"
-    example_problem = staticmethod(example_problem)  # a 60-bearing seed 002 problem (contract checks)
-
-    settings: LMSettings = attrs.field(factory=LMSettings)
-
-    def solve(self, problem: BearingsProblem) -> TMASolution:
-        if not isinstance(problem, BearingsProblem):
-            raise ValueError(f"problem: expected a BearingsProblem, got {type(problem).__name__}")
-        require_maneuver(problem.times, problem.observer)
-        _initial_guess(problem, self.name)
-        return solve_one(problem, lambda scaled, s0: minimize(scaled, s0, self.settings), self.name)
-
-
-# --------------------------------------------------------------------------- batch
-
-
 class _Chunk:
     """Scaled data of one chunk of problems, compacted to the active ones as they stop.
 
@@ -193,13 +130,10 @@ class _Chunk:
                 np.matmul(Sx[a:b], self._basis_x, out=dx)
                 np.matmul(Sy[a:b], self._basis_y, out=dy)
             else:
-                sb = s[a:b]
-                np.multiply(sb[:, 2, None], self.tau, out=dx)
-                dx += sb[:, 0, None]
-                dx -= self.ox[a:b]
-                np.multiply(sb[:, 3, None], self.tau, out=dy)
-                dy += sb[:, 1, None]
-                dy -= self.oy[a:b]
+                for d, i, o in ((dx, 0, self.ox), (dy, 1, self.oy)):  # Δ = s_i + s_{i+2} τ − õ
+                    np.multiply(s[a:b, i + 2, None], self.tau, out=d)
+                    d += s[a:b, i, None]
+                    d -= o[a:b]
             bearing(dx, dy, self.convention, out=phi)
             r = angle_difference(self.X[a:b], phi, out=phi)
             F[a:b] = np.einsum("mk,mk->m", r, r)
@@ -319,22 +253,17 @@ class BatchLevenbergMarquardt(Solver):
         return self.engine == "numba" or (self.engine == "auto" and NUMBA_AVAILABLE)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
-        if not isinstance(problem, BearingsProblem):
-            raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
-        _initial_guess(problem, self.name)
-        return self.solve_batch(problem.batch()).solution(0)
+        require_problem(problem, BearingsProblem, self.name, start=True)
+        return solve_observable_rows(problem.batch(), self._solve_rows, self.name, LONE).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
-        if not isinstance(batch, BearingsBatch):
-            raise ValueError(f"batch: expected a BearingsBatch, got {type(batch).__name__}")
-        require_maneuver(batch.times, batch.observer)
-        _initial_guess(batch, self.name)
+        require_problem(batch, BearingsBatch, self.name, start=True)
         return solve_observable_rows(batch, self._solve_rows, self.name)
 
     def _solve_rows(self, batch: BearingsBatch, numbers: np.ndarray) -> BatchTMASolution:
         """Solve every problem of ``batch`` (problem ``numbers`` of the caller's batch, for error messages)."""
         B = len(batch)
-        theta0 = np.broadcast_to(_initial_guess(batch, self.name), (B, N_PARAMETERS))
+        theta0 = np.broadcast_to(batch.initial, (B, N_PARAMETERS))
         scaling = Scaling.build(batch.times, batch.observer, theta0, batch.reference_time)
         s0 = scaling.to_scaled(theta0)
         tau = scaling.tau(batch.times)
@@ -346,13 +275,10 @@ class BatchLevenbergMarquardt(Solver):
         for start in range(0, B, self.chunk_size):
             rows = slice(start, min(start + self.chunk_size, B))
             if not shared:
-                part = Scaling(
-                    scaling.origin if batch.observer.ndim == 2 else scaling.origin[rows],
-                    np.broadcast_to(scaling.length, (B,))[rows],
-                    scaling.duration,
-                    scaling.reference_time,
-                )
-                o = part.observer(batch.observer if batch.observer.ndim == 2 else batch.observer[rows])
+                own = batch.observer.ndim == 3  # one observer path per problem
+                origin = scaling.origin[rows] if own else scaling.origin
+                part = attrs.evolve(scaling, origin=origin, length=np.broadcast_to(scaling.length, (B,))[rows])
+                o = part.observer(batch.observer[rows] if own else batch.observer)
             if self.compiled:
                 out = minimize_compiled(tau, o[..., 0], o[..., 1], batch.bearings[rows], batch.convention, s0[rows], self.settings)
             else:
@@ -365,9 +291,18 @@ class BatchLevenbergMarquardt(Solver):
                 one = ScaledProblem.build(
                     batch.times, batch.bearings[i], batch.observer_of(i), theta0[i], batch.reference_time, batch.convention
                 )
-                check_start(one.scaling.to_scaled(theta0[i]), one.tau, one.ox, one.oy, batch.times, int(numbers[i]))
+                number = None if numbers[i] < 0 else int(numbers[i])  # a lone problem is not numbered
+                check_start(one.scaling.to_scaled(theta0[i]), one.tau, one.ox, one.oy, batch.times, number)
         messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
         return conclude(batch, scaling, s, F, H, it, nf, status == 0, messages, numbers, self.name)
+
+
+@attrs.frozen
+class LevenbergMarquardt(BatchLevenbergMarquardt):
+    """Maximum likelihood θ of one problem by the seed's Levenberg–Marquardt (see the module doc): the batched
+    solver under its one-problem name, ``solve(problem)`` a batch of one."""
+
+    name: ClassVar[str] = "levenberg_marquardt"
 
 
 @hookimpl

@@ -45,7 +45,7 @@ from hybridtrack_plugins.solvers.tma_model import (
     answers,
     fit_statistics,
     flag_constant_fits,
-    require_maneuver,
+    require_problem,
     solve_observable_rows,
     warn_unobservable,
 )
@@ -58,15 +58,6 @@ def pseudo_linear_system(tau, bearings, ox, oy, convention):
     H = np.stack(np.broadcast_arrays(ux * u0y - uy * u0x, -uy * tau, ux * tau), axis=-1)
     b = ux * oy - uy * ox
     return H, b
-
-
-def solve_lstsq(H, b):
-    """One regression H (1, n, 3), b (1, n) by ``np.linalg.lstsq`` (SVD): x (1, 3), (HᵀH)⁻¹ and whether H has full rank."""
-    x, _, rank, singular = np.linalg.lstsq(H[0], b[0], rcond=None)
-    if rank < 3:
-        return np.full((1, 3), np.nan), np.full((1, 3, 3), np.nan), np.array([False])
-    V = np.linalg.svd(H[0], full_matrices=False)[2]
-    return x[None], ((V.T / singular**2) @ V)[None], np.array([True])
 
 
 def solve_normal(H, b):
@@ -110,34 +101,29 @@ def assemble(x, HtH_inv, residual_ss, n, X0, variance_phi0, scaling_t0, referenc
 class NBearings(Solver):
     """N-bearings pseudo-linear least squares (seed 002 §4.4); closed form, biased by the first bearing's error.
 
-    ``solve(problem)`` takes a :class:`BearingsProblem` (``np.linalg.lstsq``);
-    ``solve_batch(batch)`` a :class:`BearingsBatch` (scaled normal equations,
-    Cholesky).  The observer must maneuver (else :class:`UnobservableError`).
+    ``solve_batch(batch)`` takes a :class:`BearingsBatch` (scaled normal equations, Cholesky),
+    ``solve(problem)`` a :class:`BearingsProblem` (a batch of one).  The observer must maneuver
+    (else :class:`UnobservableError`).
     """
 
     name: ClassVar[str] = "n_bearings"
     example_problem = staticmethod(example_problem)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
-        if not isinstance(problem, BearingsProblem):
-            raise ValueError(f"problem: expected a BearingsProblem (use solve_batch for a batch), got {type(problem).__name__}")
-        require_maneuver(problem.times, problem.observer)
-        rows = lambda batch, numbers: self._solve_rows(batch, numbers, lstsq=True)
-        return solve_observable_rows(problem.batch(), rows, self.name, LONE).solution(0)
+        require_problem(problem, BearingsProblem, self.name)
+        return solve_observable_rows(problem.batch(), self._solve_rows, self.name, LONE).solution(0)
 
     def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
-        if not isinstance(batch, BearingsBatch):
-            raise ValueError(f"batch: expected a BearingsBatch, got {type(batch).__name__}")
-        require_maneuver(batch.times, batch.observer)
+        require_problem(batch, BearingsBatch, self.name)
         return solve_observable_rows(batch, self._solve_rows, self.name)
 
-    def _solve_rows(self, batch: BearingsBatch, numbers, lstsq: bool = False) -> BatchTMASolution:
-        """The regression of every problem of ``batch``: by :func:`solve_lstsq` (``lstsq``, one problem) or :func:`solve_normal`."""
+    def _solve_rows(self, batch: BearingsBatch, numbers) -> BatchTMASolution:
+        """The regression of every problem of ``batch`` (:func:`solve_normal`)."""
         n, conv = batch.size, batch.convention
         X = wrap_angle(batch.bearings)
         scaled = ScaledProblem.build(batch.times, X, batch.observer, None, batch.times[0], conv)
         H, b = pseudo_linear_system(scaled.tau, X, scaled.ox, scaled.oy, conv)
-        x, HtH_inv, ok = solve_lstsq(H, b) if lstsq else solve_normal(H, b)
+        x, HtH_inv, ok = solve_normal(H, b)
         residual = b - np.einsum("...ki,...i->...k", H, x)
         residual_ss = np.einsum("...k,...k->...", residual, residual)
         if not np.all(ok):
@@ -153,8 +139,8 @@ class NBearings(Solver):
         r0 = x[..., 0]
         fit = flag_constant_fits(batch, F, ok, numbers, self.name)
         converged = ok & (r0 > 0) & ~fit
-        singular = "unobservable: the N-bearings system is " + ("rank deficient" if lstsq else "singular")
-        behind = "range r_0 ≤ 0" + (": the bearings do not fit a target ahead of the observer" if lstsq else "")
+        singular = "unobservable: the N-bearings system is singular"
+        behind = "range r_0 ≤ 0: the bearings do not fit a target ahead of the observer"
         messages = (CONSTANT_FIT_MESSAGE if f else "closed form" if c else behind if o else singular for c, o, f in zip(converged, ok, fit))
         cov = np.where(fit[:, None, None], np.nan, cov)
         zeros = np.zeros(len(F), int)

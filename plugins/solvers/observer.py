@@ -96,15 +96,12 @@ class ObserverPath:
                     raise ValueError(f"segments[{i}]: turn rate must be positive, got {seg.rate}")
                 delta = float(wrap_angle(np.deg2rad(seg.course) - course))  # (−π, π]
                 way = tie if seg.direction == "shortest" and abs(delta) >= np.pi - 1e-12 else seg.direction
-                if way == "right":  # increasing course (clockwise in the north convention)
-                    angle = delta if delta >= 0 else delta + 2 * np.pi
-                elif way == "left":
-                    angle = delta if delta <= 0 else delta - 2 * np.pi
-                else:
-                    angle = delta
-                sign = 1.0 if angle >= 0 else -1.0
+                if way == "right" and delta < 0:  # increasing course (clockwise in the north convention)
+                    delta += 2 * np.pi
+                elif way == "left" and delta > 0:
+                    delta -= 2 * np.pi
                 omega = np.deg2rad(seg.rate)
-                piece = _Piece(t, abs(angle) / omega, position, course, sign * omega)
+                piece = _Piece(t, abs(delta) / omega, position, course, omega if delta >= 0 else -omega)
             else:
                 raise ValueError(f"segments[{i}]: expected Leg or Turn, got {type(seg).__name__}")
             pieces.append(piece)
@@ -151,11 +148,8 @@ def _advance(piece: _Piece, times: np.ndarray, speed: float, convention: str) ->
     # ∫ sin c dt = −(cos c − cos c0)/ω̇, ∫ cos c dt = (sin c − sin c0)/ω̇
     int_sin = -(np.cos(c) - np.cos(c0)) / piece.rate
     int_cos = (np.sin(c) - np.sin(c0)) / piece.rate
-    if convention == "north":
-        step = np.stack([int_sin, int_cos], axis=-1)
-    else:
-        step = np.stack([int_cos, int_sin], axis=-1)
-    return piece.position + speed * step
+    pair = (int_sin, int_cos) if convention == "north" else (int_cos, int_sin)
+    return piece.position + speed * np.stack(pair, axis=-1)
 
 
 def simulate_bearings(

@@ -17,13 +17,11 @@ from scipy.optimize import least_squares
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Solver
+from hybridtrack.core.validation import check_positive
 from hybridtrack_plugins.solvers.observer import example_problem
-from hybridtrack_plugins.solvers.tma_model import BearingsProblem, ScaledProblem, TMASolution, require_maneuver, solve_one
+from hybridtrack_plugins.solvers.tma_model import BearingsProblem, ScaledProblem, TMASolution, require_problem, solve_one
 
-
-def _tolerance(instance, attribute, value):
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{attribute.name}: expected a positive tolerance, got {value!r}")
+_tolerance = lambda instance, attribute, value: check_positive(value, attribute.name, "a tolerance")
 
 
 @attrs.frozen
@@ -43,11 +41,7 @@ class ScipyLeastSquares(Solver):
         return scaled.residuals, lambda s: -scaled.jacobian(s)
 
     def solve(self, problem: BearingsProblem) -> TMASolution:
-        if not isinstance(problem, BearingsProblem):
-            raise ValueError(f"problem: expected a BearingsProblem, got {type(problem).__name__}")
-        require_maneuver(problem.times, problem.observer)
-        if problem.initial is None:
-            raise ValueError(f"{self.name}: problem.initial is None; give a starting guess θ")
+        require_problem(problem, BearingsProblem, self.name, start=True)
         return solve_one(problem, self.least_squares, self.name)
 
     def least_squares(self, scaled: ScaledProblem, s0: np.ndarray):

@@ -244,15 +244,23 @@ def maneuver_deviation(times: np.ndarray, observer: np.ndarray) -> np.ndarray:
     return deviation / np.maximum(extent, 1.0)
 
 
-def require_maneuver(times, observer) -> None:
-    """Raise :class:`UnobservableError` when the observer path (n, 2) or (B, n, 2) never maneuvers."""
-    bad = np.atleast_1d(maneuver_deviation(times, observer) <= MANEUVER_RTOL)
+def require_problem(problem, kind, name: str, start: bool = False):
+    """``problem`` if it is a ``kind`` (:class:`BearingsProblem` or :class:`BearingsBatch`) whose observer path
+    maneuvers and, with ``start``, has an ``initial`` guess; else ``ValueError``, :class:`UnobservableError` when
+    the observer never maneuvers."""
+    argument = "problem" if kind is BearingsProblem else "batch"
+    if not isinstance(problem, kind):
+        raise ValueError(f"{argument}: expected a {kind.__name__}, got {type(problem).__name__}")
+    bad = np.atleast_1d(maneuver_deviation(problem.times, problem.observer) <= MANEUVER_RTOL)
     if bad.any():
-        which = "" if observer.ndim == 2 else f" (problems {np.flatnonzero(bad)[:10].tolist()}…)"
+        which = "" if problem.observer.ndim == 2 else f" (problems {np.flatnonzero(bad)[:10].tolist()}…)"
         raise UnobservableError(
             "observer never maneuvers (constant velocity): the range is unobservable from bearings alone"
             f"{which}; add a course or speed change"
         )
+    if start and problem.initial is None:
+        raise ValueError(f"{name}: {argument}.initial is None; give a starting guess θ (e.g. the N-bearings answer or a prior)")
+    return problem
 
 
 def _line_deviations(X):
@@ -358,28 +366,20 @@ def solve_observable_rows(batch: BearingsBatch, solve, method: str, numbers=None
         return solve(batch, numbers)
     warn_constant_bearing(numbers[constant], method)
     rows = np.flatnonzero(~constant)
-    part = solve(batch.subset(rows), numbers[rows]) if rows.size else None
     B, n = batch.bearings.shape
-    nan = float("nan")
-    fills = dict(parameters=nan, covariance=nan, cost=nan, iterations=0, evaluations=0, converged=False, sqrt_ka=nan)
-    fills.update(chi2_statistic=nan, chi2_pvalue=nan)
-    if batch.sigma is not None and batch.sigma > 0 and n > N_PARAMETERS:
-        fills["consistent"] = False  # the χ² test is defined
-    shapes = {"parameters": (N_PARAMETERS,), "covariance": (N_PARAMETERS, N_PARAMETERS)}
-    fields = {name: np.full((B,) + shapes.get(name, ()), fill) for name, fill in fills.items()}  # dtype of fill
+    nan, zeros = np.full(B, np.nan), np.zeros(B, int)
+    theta, cov = np.full((B, N_PARAMETERS), np.nan), np.full((B, N_PARAMETERS, N_PARAMETERS), np.nan)
     messages = np.full(B, CONSTANT_BEARING_MESSAGE, dtype=object)
-    if part is not None:
-        for name, values in fields.items():
-            values[rows] = getattr(part, name)
-        messages[rows] = part.messages
-    fields.setdefault("consistent", None)
-    return BatchTMASolution(
-        **fields,
-        chi2_dof=n - N_PARAMETERS,
-        reference_time=batch.reference_time,
-        messages=tuple(messages),
-        method=method,
-    )
+    whole = answers(batch, theta, cov, nan, fit_statistics(nan, n, batch.sigma), zeros, zeros.copy(), zeros > 0, messages, method)
+    if not rows.size:
+        return whole
+    part = solve(batch.subset(rows), numbers[rows])
+    for name in ("parameters", "covariance", "cost", "iterations", "evaluations", "converged", "sqrt_ka", "chi2_statistic", "chi2_pvalue"):
+        getattr(whole, name)[rows] = getattr(part, name)
+    if whole.consistent is not None:  # the χ² test is defined (False for the constant ones)
+        whole.consistent[rows] = part.consistent
+    messages[rows] = part.messages
+    return attrs.evolve(whole, messages=tuple(messages))
 
 
 def check_start(s, tau, ox, oy, times, problem: int | None = None) -> None:
@@ -572,29 +572,24 @@ class BatchTMASolution:
         return np.rad2deg(self.sqrt_ka)
 
     def solution(self, i: int) -> TMASolution:
+        scalars = ("cost", "iterations", "evaluations", "converged", "sqrt_ka", "chi2_statistic", "chi2_pvalue")
         return TMASolution(
             parameters=self.parameters[i],
             covariance=self.covariance[i],
-            cost=float(self.cost[i]),
-            iterations=int(self.iterations[i]),
-            evaluations=int(self.evaluations[i]),
-            converged=bool(self.converged[i]),
             message=self.messages[i],
             reference_time=self.reference_time,
-            sqrt_ka=float(self.sqrt_ka[i]),
-            chi2_statistic=float(self.chi2_statistic[i]),
             chi2_dof=self.chi2_dof,
-            chi2_pvalue=float(self.chi2_pvalue[i]),
             consistent=None if self.consistent is None else bool(self.consistent[i]),
             method=self.method,
+            **{name: getattr(self, name)[i].item() for name in scalars},
         )
 
 
 def propagate(theta, dt):
-    """Position of θ = (x0, y0, vx, vy) moved by dt: (x0 + vx dt, y0 + vy dt, vx, vy)."""
+    """Position of θ = (x0, y0, vx, vy) moved by dt: (x0 + vx dt, y0 + vy dt, vx, vy), θ and dt broadcast."""
     theta = np.asarray(theta, dtype=float)
-    dt = np.asarray(dt, dtype=float)[..., None]
-    return np.concatenate([theta[..., :2] + theta[..., 2:] * dt, theta[..., 2:]], axis=-1)
+    position = theta[..., :2] + theta[..., 2:] * np.asarray(dt, dtype=float)[..., None]
+    return np.concatenate([position, np.broadcast_to(theta[..., 2:], position.shape)], axis=-1)
 
 
 def summarize(scaling, s, F, H, n, sigma, alpha=0.01):

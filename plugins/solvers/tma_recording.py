@@ -34,11 +34,6 @@ def track_covariances(covariance: np.ndarray, dt: np.ndarray) -> np.ndarray:
     return Phi @ covariance @ np.swapaxes(Phi, -1, -2)
 
 
-def track(theta, dt: np.ndarray) -> np.ndarray:
-    """(x, y, vx, vy) of θ at every offset dt (K,) → (K, 4)."""
-    return propagate(np.broadcast_to(np.asarray(theta, dtype=float), dt.shape + (4,)), dt)
-
-
 def record_tma(recorder, problem: BearingsProblem, solutions: Mapping[str, TMASolution], truth=None) -> None:
     """Log the observer, the bearings, the solutions (tracks, ellipses, residuals) and the truth θ (if given)."""
     steps = np.arange(problem.size)
@@ -46,8 +41,8 @@ def record_tma(recorder, problem: BearingsProblem, solutions: Mapping[str, TMASo
     dt = times - problem.reference_time
     recorder.log_path("world/observer", steps, problem.observer, times)
     if truth is not None:
-        recorder.log_path("world/truth", steps, track(truth, dt)[:, :2], times)
-    tracks = {name: track(solution.parameters, dt) for name, solution in solutions.items()}
+        recorder.log_path("world/truth", steps, propagate(truth, dt)[:, :2], times)
+    tracks = {name: propagate(solution.parameters, dt) for name, solution in solutions.items()}
     if tracks:
         first = next(iter(tracks.values()))
         length = np.hypot(*(first[:, :2] - problem.observer).T)
