@@ -203,23 +203,19 @@ def _load_order(point) -> tuple[bool, str]:
 
 
 @functools.cache
-def _default() -> LoadedPlugins:
-    return load_plugins()
-
-
 def default_plugins() -> LoadedPlugins:
     """The plugins from entry points, loaded once per process (see :func:`reset`)."""
-    return _default()
+    return load_plugins()
 
 
 def get_registry() -> Registry:
     """The default registry (entry-point plugins, honouring ``HYBRIDTRACK_DISABLE_PLUGINS``)."""
-    return _default().registry
+    return default_plugins().registry
 
 
 def reset() -> None:
     """Forget the cached default plugins (after installing a plugin or changing the environment)."""
-    _default.cache_clear()
+    default_plugins.cache_clear()
 
 
 def check_component(kind: str, name: str, component, registry: Registry | None = None):
