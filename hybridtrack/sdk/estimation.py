@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
+from operator import attrgetter
 from typing import Any, ClassVar
 
 import attrs
@@ -31,26 +32,14 @@ from hybridtrack.sdk.measurements import MeasurementAssembler
 
 
 class NodeMoments:
-    """Mixin for decentralized states: ``moments`` = (x (N, M, n), P (N, M, n, n)) over the N nodes;
-    ``mean``/``covariance`` read node 0 (every node holds the same estimate up to rounding)."""
+    """Mixin for decentralized states: ``moments`` = (x (N, M, n), P (N, M, n, n)) over the N nodes, read as
+    ``node_means``/``node_covariances``; ``mean``/``covariance`` read node 0 (every node holds the same estimate
+    up to rounding)."""
 
-    @property
-    def node_means(self) -> np.ndarray:
-        """Every node's x (N, M, n)."""
-        return self.moments[0]
-
-    @property
-    def node_covariances(self) -> np.ndarray:
-        """Every node's P (N, M, n, n)."""
-        return self.moments[1]
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.moments[0][0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.moments[1][0]
+    node_means = property(lambda self: self.moments[0])
+    node_covariances = property(lambda self: self.moments[1])
+    mean = property(lambda self: self.moments[0][0])
+    covariance = property(lambda self: self.moments[1][0])
 
 
 class PredictedMoments:
@@ -58,14 +47,8 @@ class PredictedMoments:
     ``P_predicted`` (M, n, n) of the last prediction."""
 
     __slots__ = ()
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
+    predicted_mean = property(attrgetter("x_predicted"))
+    predicted_covariance = property(attrgetter("P_predicted"))
 
 
 class CovarianceMoments(PredictedMoments):
@@ -73,14 +56,8 @@ class CovarianceMoments(PredictedMoments):
     ``P`` (M, n, n) (and the prediction's, :class:`PredictedMoments`)."""
 
     __slots__ = ()
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P
+    mean = property(attrgetter("x"))
+    covariance = property(attrgetter("P"))
 
 
 class DerivedMoments(PredictedMoments):
@@ -89,14 +66,8 @@ class DerivedMoments(PredictedMoments):
     (and the prediction's, :class:`PredictedMoments`)."""
 
     __slots__ = ()
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.moments[0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.moments[1]
+    mean = property(lambda self: self.moments[0])
+    covariance = property(lambda self: self.moments[1])
 
 
 def bank_field(axis: int = 0, **kwargs):
