@@ -161,13 +161,7 @@ class CholeskyFactor:
     @property
     def L(self) -> np.ndarray:
         if self._L is None:
-            m = self.shape[-1]
-            entries = self._closed_entries() if self.kind == "closed" else self.entries
-            L = np.zeros(self.shape)
-            for i in range(m):
-                for j in range(i + 1):
-                    L[..., i, j] = entries[i][j]
-            self._L = L
+            self._L = _assemble(self._closed_entries() if self.kind == "closed" else self.entries, self.shape)
         return self._L
 
     def _closed_entries(self):
