@@ -173,9 +173,7 @@ class MeasurementAssembler:
             rows = [np.flatnonzero(row) for row in H]
             if all(len(r) == 1 and H[i, r[0]] == 1.0 for i, r in enumerate(rows)):
                 selection = tuple(int(r[0]) for r in rows)
-        plain = type(sensor).residual is Sensor.residual
-        model = SensorModel(sensor, dim, H, selection, plain)
-        self._cache[key] = model
+        model = self._cache[key] = SensorModel(sensor, dim, H, selection, type(sensor).residual is Sensor.residual)
         return model
 
     def assemble(self, z, sensors: Sequence[Sensor], layout: Sequence[str], bank_size: int) -> MeasurementStep | None:
@@ -202,7 +200,7 @@ class MeasurementAssembler:
             and z_array is not None
             and len(step.models) == len(sensors)
             and all(m.rows is None for m in step.models)
-            and all(_constant_noise(m.sensor) for m in step.models)
+            and all(type(m.sensor).measurement_noise is Sensor.measurement_noise for m in step.models)  # R independent of z
         ):
             self._template = ((tuple(map(id, sensors)), layout, bank_size, z_array.shape), step)
         return step
@@ -256,26 +254,15 @@ class MeasurementAssembler:
         """``model`` reduced to the present components ``rows`` (cached like the full model)."""
         key = (id(model.sensor), layout, rows)
         hit = self._cache.get(key)
-        if hit is not None and hit.sensor is model.sensor:
-            return hit
-        restricted = model.restricted(rows)
-        self._cache[key] = restricted
-        return restricted
-
-
-def _constant_noise(sensor: Sensor) -> bool:
-    """R does not depend on z (the sensor keeps the default ``measurement_noise``)."""
-    return type(sensor).measurement_noise is Sensor.measurement_noise
+        if hit is None or hit.sensor is not model.sensor:
+            hit = self._cache[key] = model.restricted(rows)
+        return hit
 
 
 def _model_noise(model: SensorModel, z: np.ndarray) -> np.ndarray:
-    """R of the present components: the sensor's R(z) for a complete row, else the rows/columns ``rows`` of ``noise_cov``."""
+    """R of the present components: the sensor's R(z) for a complete row z ((m,) or (M, m); pseudo-measurement
+    sensors depend on z), else the rows/columns ``rows`` of ``noise_cov``."""
     if model.rows is None:
-        return _noise(model.sensor, z)
+        return np.asarray(model.sensor.measurement_noise(z), dtype=float)
     rows = list(model.rows)
     return np.asarray(model.sensor.noise_cov, dtype=float)[np.ix_(rows, rows)]
-
-
-def _noise(sensor: Sensor, z: np.ndarray) -> np.ndarray:
-    """R of ``sensor`` for the measurement z ((m,) or (M, m)); pseudo-measurement sensors depend on z."""
-    return np.asarray(sensor.measurement_noise(z), dtype=float)
