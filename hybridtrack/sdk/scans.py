@@ -48,7 +48,7 @@ def candidate_array(value) -> np.ndarray:
     return array
 
 
-@attrs.frozen(eq=False)
+@attrs.frozen
 class Scan:
     """The candidate measurements of sensor ``sensor`` at one step: z (L, m), L ≥ 0.
 
@@ -57,7 +57,7 @@ class Scan:
     """
 
     sensor: str
-    z: np.ndarray = attrs.field(converter=candidate_array)
+    z: np.ndarray = attrs.field(converter=candidate_array, eq=attrs.cmp_using(eq=np.array_equal))
 
     @property
     def size(self) -> int:
@@ -67,13 +67,6 @@ class Scan:
     @property
     def measurement_dim(self) -> int:
         return self.z.shape[1]
-
-    def __eq__(self, other):
-        if not isinstance(other, Scan):
-            return NotImplemented
-        return self.sensor == other.sensor and np.array_equal(self.z, other.z)
-
-    __hash__ = None
 
 
 def _row_candidates(value) -> np.ndarray:
