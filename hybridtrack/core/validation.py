@@ -22,12 +22,7 @@ def _shape_text(shape: Sequence[int | None]) -> str:
 
 
 def as_float_array(
-    value,
-    name: str,
-    shape: Sequence[int | None] | None = None,
-    *,
-    allow_nan: bool = False,
-    readonly: bool = False,
+    value, name: str, shape: Sequence[int | None] | None = None, *, allow_nan: bool = False, readonly: bool = False
 ) -> np.ndarray:
     """Return ``value`` as a float64 array, checking shape and finiteness.
 
@@ -111,12 +106,7 @@ def readonly_array_field(shape: Sequence[int | None] | None = None, *, covarianc
             return _checked_covariance(value, field.name)
         return as_float_array(value, field.name, shape, allow_nan=allow_nan, readonly=True)
 
-    return attrs.field(
-        converter=attrs.Converter(convert, takes_field=True),
-        eq=attrs.cmp_using(eq=np.array_equal),
-        hash=False,
-        **kwargs,
-    )
+    return attrs.field(converter=attrs.Converter(convert, takes_field=True), eq=attrs.cmp_using(eq=np.array_equal), hash=False, **kwargs)
 
 
 def check_positive_int(value, name: str, minimum: int = 1, what: str | None = None) -> int:
