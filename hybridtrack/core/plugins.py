@@ -112,18 +112,6 @@ def load_plugins(
             raise PluginError(message)
         warnings.warn(message, PluginWarning, stacklevel=3)
 
-    def _unknown_blocked(points) -> None:
-        known = {point.name for point in points} | {_family(point.name) for point in points}
-        known |= {point.dist.name for point in points if getattr(point, "dist", None)}
-        known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
-        unknown = sorted(blocked - known)
-        if unknown:
-            report(
-                f"{DISABLE_ENV if disabled is None else 'disabled'}: no installed plugin or distribution is named"
-                f" {', '.join(map(repr, unknown))}; known: {', '.join(sorted(known)) or 'none'}",
-                False,
-            )
-
     def register(obj: object, info: PluginInfo, from_code: bool) -> None:
         where = f"plugin {info.name!r} (distribution {info.distribution or 'none'})"
         try:
@@ -142,8 +130,15 @@ def load_plugins(
         register(obj, info, from_code=True)
     extra = list(extra)
     points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order)
-    if blocked:
-        _unknown_blocked(points)
+    known = {point.name for point in points} | {_family(point.name) for point in points}
+    known |= {point.dist.name for point in points if getattr(point, "dist", None)}
+    known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
+    if blocked - known:
+        report(
+            f"{DISABLE_ENV if disabled is None else 'disabled'}: no installed plugin or distribution is named"
+            f" {', '.join(map(repr, sorted(blocked - known)))}; known: {', '.join(sorted(known)) or 'none'}",
+            False,
+        )
     if entrypoints:
         for point in points:
             dist = getattr(point, "dist", None)
