@@ -1,29 +1,15 @@
 """Plugin loading on pluggy.
 
-Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions,
-found through the ``hybridtrack`` entry-point group.  The built-ins — each
-module of ``hybridtrack_plugins`` and the algorithms'
-:mod:`hybridtrack.algorithms.registration` — are declared there by this
-project's own ``pyproject.toml``, exactly like a third-party package would.
-Every kind of :data:`hybridtrack.core.kinds.KINDS` is registered through its
-hook; sub-commands of the command line through ``register_commands``.
-
-Loading isolates faults: a plugin that fails to import (any exception,
-``SystemExit`` and other ``BaseException`` subclasses included), implements a
-misspelt hook (pluggy's ``check_pending``), raises in its hook, registers a
-component name that is taken or registers a class that does not implement its
-kind's interface gives a :class:`PluginWarning` naming the plugin and its
-distribution, and the other plugins still load.  ``KeyboardInterrupt`` is the
-one exception let through: a plugin raising it at import cannot be told apart
-from the user pressing Ctrl-C, and a Ctrl-C must interrupt.  This project's
-own plugins load first, so a component name taken by a built-in stays the
-built-in's.  ``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks plugins by
-entry-point name, by family (``filters`` blocks ``filters.kalman``, …: the
-part of an entry-point name before its first dot) or by distribution name; a
-name that matches no installed plugin gives a warning listing the known
-names.  A factory (not a class) returning the wrong type is caught at first
-use (:func:`resolve`, :func:`check_component`) by a TypeError naming the
-plugin and distribution.
+Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions, found through the ``hybridtrack``
+entry-point group; the built-ins (each module of ``hybridtrack_plugins``, :mod:`hybridtrack.algorithms.registration`)
+are declared there by this project's own ``pyproject.toml``, exactly like a third-party package, and load first, so
+a name taken by a built-in stays the built-in's.  Every kind of :data:`hybridtrack.core.kinds.KINDS` registers
+through its hook, sub-commands through ``register_commands``.  Loading isolates faults (import errors of any
+``BaseException`` but ``KeyboardInterrupt``, misspelt hooks, failing hooks, taken names, classes not implementing
+their kind's interface: a :class:`PluginWarning` naming the plugin and its distribution, the others still load), and
+``HYBRIDTRACK_DISABLE_PLUGINS`` blocks plugins by entry-point name, family or distribution: ``docs/plugins.md`` §3
+and §6.  A factory (not a class) returning the wrong type is caught at first use (:func:`resolve`,
+:func:`check_component`) by a TypeError naming the plugin and distribution.
 """
 
 from __future__ import annotations
