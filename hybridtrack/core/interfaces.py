@@ -192,11 +192,9 @@ class Sensor(ABC):
         return z - z_pred
 
     def measurement_noise(self, z: np.ndarray) -> np.ndarray:
-        """R to use with the measurement z ((m,) → (m, m), or (..., m) → (..., m, m)).
+        """R to use with the measurement z ((m,) → (m, m), or (..., m) → (..., m, m)); estimators take R from here.
 
-        ``noise_cov`` for ordinary sensors; pseudo-measurement sensors whose R
-        depends on the measurement (radar converted to Cartesian coordinates)
-        override it.  Estimators take R from here.
+        ``noise_cov``; sensors whose R depends on z (radar converted to Cartesian coordinates) override it.
         """
         return self.noise_cov
 

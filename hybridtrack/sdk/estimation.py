@@ -215,9 +215,8 @@ class BankEstimator(Estimator):
     def check_transitions(self, transitions, bank_size: int, n: int, x: np.ndarray | None = None) -> TransitionBank:
         """F (M, n, n), B (M, n), Q (M, n, n) finite; a bank already checked (same object) is not re-checked.
 
-        Extended filters also take a callable ``transitions(x) -> TransitionBank``
-        that linearizes the motion at the current estimate x (M, n):
-        F = ∂f/∂x(x), B = f(x) − F x, so that F x + B = f(x) (MotionModel contract).
+        Extended filters also take a callable linearizing the motion at the current estimate x (M, n)
+        (:data:`~hybridtrack.core.interfaces.Transitions`).
         """
         if callable(transitions) and not isinstance(transitions, TransitionBank):
             if not self.accepts_nonlinear:

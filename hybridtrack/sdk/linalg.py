@@ -77,9 +77,7 @@ def masked_cholesky(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros_like(A), np.ones(A.shape[:-2], dtype=bool)
     entries, ok = _cholesky_entries(A)
     L = _assemble(entries, A.shape)
-    bad = ~ok
-    if bad.any():
-        L[bad] = np.eye(k)
+    L[~ok] = np.eye(k)
     return L, ok
 
 
