@@ -99,14 +99,13 @@ def load_plugins(
         warnings.warn(message, PluginWarning, stacklevel=3)
 
     def register(obj: object, info: PluginInfo, from_code: bool) -> None:
-        where = f"plugin {info.name!r} (distribution {info.distribution or 'none'})"
         try:
             manager.register(obj, name=info.name)
             manager.check_pending()
         except Exception as error:  # noqa: BLE001 - any fault of a plugin is reported, not fatal
             if manager.is_registered(obj):
                 manager.unregister(obj)
-            report(f"{where} was not loaded: {error}", from_code)
+            report(f"plugin {info.name!r} (distribution {info.distribution or 'none'}) was not loaded: {error}", from_code)
             return
         infos[info.name] = info
 
@@ -146,9 +145,8 @@ def load_plugins(
 
     for obj in extra:
         name = getattr(obj, "__name__", None) or type(obj).__name__
-        if name in blocked:
-            continue
-        register(obj, PluginInfo(name), from_code=True)
+        if name not in blocked:
+            register(obj, PluginInfo(name), from_code=True)
 
     def call(hook_name: str, argument) -> None:
         """Each plugin's implementation of ``hook_name`` with ``argument`` (a registrar, or one made per plugin)."""
