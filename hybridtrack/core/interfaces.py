@@ -411,12 +411,8 @@ class Detector(Labelled, ABC):
     def batch(self, runs: int) -> DetectorBatch:
         """``runs`` independent copies of this detector fed together (Monte Carlo runs stacked in one bank).
 
-        The one batching protocol: ``Pipeline.run_batch`` steps the batch with
-        :meth:`DetectorBatch.step`, the adaptive estimators use the
-        specialisations of :class:`~hybridtrack.core.protocols.HypothesisTest`
-        and :class:`~hybridtrack.core.protocols.ChangeTimeTest`.  Optional: the
-        default steps deep copies one by one, so a detector needs nothing; a
-        class may return a vectorized batch whose outputs equal the copies'.
+        The one batching protocol (its specialisations and callers: ``docs/plugins.md`` §1).  Optional: the
+        default steps deep copies one by one; a class may return a vectorized batch whose outputs equal the copies'.
         """
         return DetectorBatch(self, runs)
 
