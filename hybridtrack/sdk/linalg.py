@@ -241,7 +241,11 @@ def forward_substitute(L: np.ndarray, b: np.ndarray) -> np.ndarray:
     y_i = (b_i − Σ_{j<i} L_ij y_j) / L_ii, row by row over the stack (m ≤ ``SMALL_SOLVE``).
     """
     m = L.shape[-1]
-    if b.ndim == L.ndim - 1 and m <= SMALL_SOLVE:  # a vector: each step is a 1-D operation over the stack
+    vector = b.ndim == L.ndim - 1
+    if m > SMALL_SOLVE:
+        y = np.linalg.solve(L, b[..., None] if vector else b)
+        return y[..., 0] if vector else y
+    if vector:  # each step is a 1-D operation over the stack
         y = np.empty(np.broadcast_shapes(L.shape[:-2], b.shape[:-1]) + (m,))
         for i in range(m):
             s = b[..., i]
@@ -249,19 +253,13 @@ def forward_substitute(L: np.ndarray, b: np.ndarray) -> np.ndarray:
                 s = s - L[..., i, j] * y[..., j]
             y[..., i] = s / L[..., i, i]
         return y
-    vector = b.ndim == L.ndim - 1
-    if vector:
-        b = b[..., None]
-    if m > SMALL_SOLVE:
-        y = np.linalg.solve(L, b)
-        return y[..., 0] if vector else y
     y = np.empty(np.broadcast_shapes(L.shape[:-2], b.shape[:-2]) + b.shape[-2:])
     for i in range(m):
         s = b[..., i, :]
         for j in range(i):
             s = s - L[..., i, j, None] * y[..., j, :]
         y[..., i, :] = s / L[..., i, i, None]
-    return y[..., 0] if vector else y
+    return y
 
 
 def cholesky_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
