@@ -1,29 +1,12 @@
 """Assemble one step's stacked measurement model for a bank (SPEC §2).
 
-``update(state, z, sensors, layout)`` receives the stacked measurement of N
-sensors, z = [z_1; …; z_N] of shape (Σ m_i,) (the same data for every filter)
-or (M, Σ m_i) (one row per filter, e.g. Monte Carlo runs stacked as a bank).
-Missing data is marked per component by NaN.  A NaN in one component of a
-sensor drops only that component: the update uses the remaining rows of H (of
-h(x) and its Jacobian for a nonlinear sensor) and the sub-block of R on the
-present components (rows and columns).  A sensor with every component NaN has
-no measurement at this step and is skipped; all sensors skipped means
-prediction only.  The missing pattern must be the same for every filter of the
-bank.  A finite component with |value| > ``FILTER_MAGNITUDE_LIMIT`` (1e150)
-raises a ValueError naming ``z``: its square overflows float64 in the filters.
-The present rows form the centralized model H = [H_1; …; H_N],
-R = blockdiag(R_1, …, R_N).
-
-R of a sensor whose R depends on z (``measurement_noise(z)``, e.g. radar
-pseudo-measurements) is computed from its z row only when the whole row is
-finite; for a partially missing row it is the sub-block of ``noise_cov``
-(R(z) needs the full z).  Angle wrapping stays per component: ``residual``
-is called on full-width arrays (the missing entries of z and ẑ both 0) and
-the present columns are kept.
-
-Linear sensors whose H only picks state components ("selection" H, e.g. the
-position sensor) are detected once and then handled by indexing instead of
-matrix products.
+``update(state, z, sensors, layout)`` receives the stacked measurement z = [z_1; …; z_N] of N sensors, shape
+(Σ m_i,) or (M, Σ m_i); the present rows form the centralized model H = [H_1; …; H_N], R = blockdiag(R_1, …, R_N).
+Missing components (NaN, one pattern for the whole bank), the R(z) of pseudo-measurement sensors and the magnitude
+limit ``FILTER_MAGNITUDE_LIMIT`` behave as ``docs/estimators.md`` ("Measurements", "Numerics") states.  Angle
+wrapping stays per component: ``residual`` is called on full-width arrays (the missing entries of z and ẑ both 0)
+and the present columns are kept.  Linear sensors whose H only picks state components ("selection" H, e.g. the
+position sensor) are detected once and then handled by indexing instead of matrix products.
 """
 
 from __future__ import annotations
