@@ -12,18 +12,10 @@ with λ the clutter spatial density (false measurements per unit volume of the
 measurement space, per step) and V the volume of the surveillance region, a
 box [low, high] in measurement coordinates.
 
-Value types:
-
-* :class:`Scan` — the candidates of one sensor at one step, z of shape (L, m);
-  what the clutter-aware estimators (``nearest_neighbour``, ``pda``) accept in
-  place of the stacked z of :meth:`Estimator.update`.
-* :class:`RowScan` — one sensor's candidates per filter row at one step,
-  z of shape (M, L, m) NaN-padded (stacked runs: row j is run j's scan,
-  :func:`stack_scans`); ``nearest_neighbour`` and ``pda`` accept it.
-
-Sequences of scans over steps (:class:`~hybridtrack.engine.clutter.ScanSequence`)
-and the clutter simulator are :mod:`hybridtrack.engine.clutter`; the recording of
-scans and associations :mod:`hybridtrack.recording.clutter`.
+The clutter-aware estimators (``nearest_neighbour``, ``pda``) accept a :class:`Scan` (or, stacked runs, a
+:class:`RowScan`) per sensor in place of the stacked z of :meth:`Estimator.update`.  Sequences of scans over steps
+and the clutter simulator are :mod:`hybridtrack.engine.clutter`; the recording of scans and associations
+:mod:`hybridtrack.recording.clutter`.
 """
 
 from __future__ import annotations
