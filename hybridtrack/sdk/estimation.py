@@ -96,21 +96,16 @@ def _reset_fields(state) -> dict:
     }
 
 
-def _map(value, function):
-    if value is None:
-        return None
-    if isinstance(value, tuple):
-        return tuple(function(v) for v in value)
-    return function(value)
-
-
 def take_rows(state, rows: Sequence[int]):
     """The state of the filters ``rows`` (in that order, repeats copy a filter) of a bank state with bank_field()s."""
     rows = np.asarray(rows, dtype=np.intp).reshape(-1)
-    changes = {
-        f.name: _map(getattr(state, f.name), lambda a, axis=f.metadata["bank_axis"]: np.take(a, rows, axis=axis))
-        for f in _bank_fields(state)
-    }
+    changes = {}
+    for f in _bank_fields(state):
+        value, axis = getattr(state, f.name), f.metadata["bank_axis"]
+        if isinstance(value, tuple):
+            changes[f.name] = tuple(np.take(v, rows, axis=axis) for v in value)
+        elif value is not None:
+            changes[f.name] = np.take(value, rows, axis=axis)
     return attrs.evolve(state, **changes, **_reset_fields(state))
 
 
@@ -120,8 +115,7 @@ def concatenate_states(states: Sequence):
     if not states:
         raise ValueError("states: expected at least one bank state")
     first = states[0]
-    kind = type(first)
-    if any(type(s) is not kind for s in states):
+    if any(type(s) is not type(first) for s in states):
         raise TypeError(f"states: expected states of one class, got {sorted({type(s).__name__ for s in states})}")
     changes = {}
     for f in _bank_fields(first):
