@@ -25,8 +25,6 @@ import numpy as np
 
 from hybridtrack.core.validation import as_float_array
 
-# --------------------------------------------------------------------------- value types
-
 
 def candidate_array(value) -> np.ndarray:
     """Candidates z (L, m) as a read-only float64 copy (one candidate (m,) becomes (1, m)); an empty scan keeps its m."""
@@ -116,9 +114,6 @@ class RowScan:
     def row(self, j: int) -> Scan:
         """Row j's candidates as a :class:`Scan`."""
         return Scan(self.sensor, self.z[j][self.present[j]])
-
-
-# --------------------------------------------------------------------------- parameter checks
 
 
 def check_detection_probability(value) -> float:
