@@ -2,9 +2,9 @@
 
 Layers, imports pointing downwards (``docs/architecture.md``): core ← sdk ←
 engine ← algorithms ← recording / io ← apps ← cli.  The user surface is
-importable from here: the contract names at once, the rest (pipeline,
-simulator, recorder, readers, algorithms) on first use (PEP 562), so a plugin
-importing :mod:`hybridtrack.core` loads nothing above it.
+importable from here: ``hookimpl`` at once, every other name on first use
+(PEP 562), so a plugin importing :mod:`hybridtrack.core` loads nothing above
+it.
 """
 
 import importlib
@@ -12,22 +12,22 @@ from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _version
 
 from hybridtrack.core.hookspecs import hookimpl
-from hybridtrack.core.interfaces import (
-    Detector,
-    DetectorStep,
-    Estimator,
-    Innovation,
-    LinearTransition,
-    MotionModel,
-    Sensor,
-    Solution,
-    Solver,
-    TransitionBank,
-)
-from hybridtrack.core.types import Decision, Gaussian, Measurement
 
 #: name → module of the names imported on first use (PEP 562)
 LAZY = {
+    "Detector": "hybridtrack.core.interfaces",
+    "DetectorStep": "hybridtrack.core.interfaces",
+    "Estimator": "hybridtrack.core.interfaces",
+    "Innovation": "hybridtrack.core.interfaces",
+    "LinearTransition": "hybridtrack.core.interfaces",
+    "MotionModel": "hybridtrack.core.interfaces",
+    "Sensor": "hybridtrack.core.interfaces",
+    "Solution": "hybridtrack.core.interfaces",
+    "Solver": "hybridtrack.core.interfaces",
+    "TransitionBank": "hybridtrack.core.interfaces",
+    "Decision": "hybridtrack.core.types",
+    "Gaussian": "hybridtrack.core.types",
+    "Measurement": "hybridtrack.core.types",
     "SEED001_TABLE1": "hybridtrack.engine.schedule",
     "Schedule": "hybridtrack.engine.schedule",
     "Segment": "hybridtrack.engine.schedule",
@@ -66,21 +66,4 @@ try:
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0"
 
-__all__ = [  # noqa: F822  (the LAZY names resolve through __getattr__)
-    *LAZY,
-    "Decision",
-    "Detector",
-    "DetectorStep",
-    "Estimator",
-    "Gaussian",
-    "Innovation",
-    "LinearTransition",
-    "Measurement",
-    "MotionModel",
-    "Sensor",
-    "Solution",
-    "Solver",
-    "TransitionBank",
-    "__version__",
-    "hookimpl",
-]
+__all__ = [*LAZY, "__version__", "hookimpl"]  # noqa: F822  (the LAZY names resolve through __getattr__)

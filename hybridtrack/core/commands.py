@@ -1,15 +1,9 @@
-"""Sub-commands of the ``hybridtrack`` command line, added by plugins through ``register_commands(commands)``.
+"""Sub-commands of the ``hybridtrack`` command line, added by plugins through ``register_commands(commands)``
+(an example: ``docs/plugins.md`` §5).
 
-    from hybridtrack import hookimpl
-
-    @hookimpl
-    def register_commands(commands):
-        commands.add("hello", "say hello", configure=lambda parser: parser.add_argument("who"), run=lambda args: print(args.who))
-
-``configure(parser)`` adds the command's arguments to its argparse sub-parser;
-``run(args)`` does the work and returns the exit status (None is 0).  Heavy
-imports belong inside ``run``, so that ``hybridtrack --version`` stays fast.
-A user error is raised as :class:`UsageError`: one line on stderr, status 2.
+``configure(parser)`` adds the command's arguments to its argparse sub-parser; ``run(args)`` does the work and
+returns the exit status (None is 0).  Heavy imports belong inside ``run``, so that ``hybridtrack --version`` stays
+fast.  A user error is raised as :class:`UsageError`: one line on stderr, status 2.
 """
 
 from __future__ import annotations

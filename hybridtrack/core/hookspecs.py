@@ -1,17 +1,9 @@
 """pluggy hook specifications: one ``register_<kind>s(registry)`` hook per component kind, and ``register_commands``.
 
-A plugin module implements any of them with :data:`hookimpl`; a kind's hook calls ``registry.add(name,
-factory)`` for each component it provides (``factory`` takes keyword parameters and returns the component;
-kinds, hooks and interfaces: :data:`hybridtrack.core.kinds.KINDS`):
-
-    from hybridtrack import hookimpl
-
-    @hookimpl
-    def register_motion_models(registry):
-        registry.add("zigzag", ZigZag)
-
-``register_commands(commands)`` adds sub-commands to the ``hybridtrack``
-command line (:class:`hybridtrack.core.commands.Commands`).
+A plugin module implements any of them with :data:`hookimpl` (``docs/plugins.md`` §2); a kind's hook calls
+``registry.add(name, factory)`` for each component it provides (``factory`` takes keyword parameters and returns
+the component; kinds, hooks and interfaces: :data:`hybridtrack.core.kinds.KINDS`).  ``register_commands(commands)``
+adds sub-commands to the ``hybridtrack`` command line (:class:`hybridtrack.core.commands.Commands`).
 """
 
 import pluggy

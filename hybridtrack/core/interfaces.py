@@ -192,11 +192,9 @@ class Sensor(ABC):
         return z - z_pred
 
     def measurement_noise(self, z: np.ndarray) -> np.ndarray:
-        """R to use with the measurement z ((m,) → (m, m), or (..., m) → (..., m, m)).
+        """R to use with the measurement z ((m,) → (m, m), or (..., m) → (..., m, m)); estimators take R from here.
 
-        ``noise_cov`` for ordinary sensors; pseudo-measurement sensors whose R
-        depends on the measurement (radar converted to Cartesian coordinates)
-        override it.  Estimators take R from here.
+        ``noise_cov``; sensors whose R depends on z (radar converted to Cartesian coordinates) override it.
         """
         return self.noise_cov
 
@@ -413,12 +411,8 @@ class Detector(Labelled, ABC):
     def batch(self, runs: int) -> DetectorBatch:
         """``runs`` independent copies of this detector fed together (Monte Carlo runs stacked in one bank).
 
-        The one batching protocol: ``Pipeline.run_batch`` steps the batch with
-        :meth:`DetectorBatch.step`, the adaptive estimators use the
-        specialisations of :class:`~hybridtrack.core.protocols.HypothesisTest`
-        and :class:`~hybridtrack.core.protocols.ChangeTimeTest`.  Optional: the
-        default steps deep copies one by one, so a detector needs nothing; a
-        class may return a vectorized batch whose outputs equal the copies'.
+        The one batching protocol (its specialisations and callers: ``docs/plugins.md`` §1).  Optional: the
+        default steps deep copies one by one; a class may return a vectorized batch whose outputs equal the copies'.
         """
         return DetectorBatch(self, runs)
 

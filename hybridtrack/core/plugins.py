@@ -1,29 +1,15 @@
 """Plugin loading on pluggy.
 
-Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions,
-found through the ``hybridtrack`` entry-point group.  The built-ins — each
-module of ``hybridtrack_plugins`` and the algorithms'
-:mod:`hybridtrack.algorithms.registration` — are declared there by this
-project's own ``pyproject.toml``, exactly like a third-party package would.
-Every kind of :data:`hybridtrack.core.kinds.KINDS` is registered through its
-hook; sub-commands of the command line through ``register_commands``.
-
-Loading isolates faults: a plugin that fails to import (any exception,
-``SystemExit`` and other ``BaseException`` subclasses included), implements a
-misspelt hook (pluggy's ``check_pending``), raises in its hook, registers a
-component name that is taken or registers a class that does not implement its
-kind's interface gives a :class:`PluginWarning` naming the plugin and its
-distribution, and the other plugins still load.  ``KeyboardInterrupt`` is the
-one exception let through: a plugin raising it at import cannot be told apart
-from the user pressing Ctrl-C, and a Ctrl-C must interrupt.  This project's
-own plugins load first, so a component name taken by a built-in stays the
-built-in's.  ``HYBRIDTRACK_DISABLE_PLUGINS=name,name`` blocks plugins by
-entry-point name, by family (``filters`` blocks ``filters.kalman``, …: the
-part of an entry-point name before its first dot) or by distribution name; a
-name that matches no installed plugin gives a warning listing the known
-names.  A factory (not a class) returning the wrong type is caught at first
-use (:func:`resolve`, :func:`check_component`) by a TypeError naming the
-plugin and distribution.
+Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions, found through the ``hybridtrack``
+entry-point group; the built-ins (each module of ``hybridtrack_plugins``, :mod:`hybridtrack.algorithms.registration`)
+are declared there by this project's own ``pyproject.toml``, exactly like a third-party package, and load first, so
+a name taken by a built-in stays the built-in's.  Every kind of :data:`hybridtrack.core.kinds.KINDS` registers
+through its hook, sub-commands through ``register_commands``.  Loading isolates faults (import errors of any
+``BaseException`` but ``KeyboardInterrupt``, misspelt hooks, failing hooks, taken names, classes not implementing
+their kind's interface: a :class:`PluginWarning` naming the plugin and its distribution, the others still load), and
+``HYBRIDTRACK_DISABLE_PLUGINS`` blocks plugins by entry-point name, family or distribution: ``docs/plugins.md`` §3
+and §6.  A factory (not a class) returning the wrong type is caught at first use (:func:`resolve`,
+:func:`check_component`) by a TypeError naming the plugin and distribution.
 """
 
 from __future__ import annotations
@@ -112,27 +98,14 @@ def load_plugins(
             raise PluginError(message)
         warnings.warn(message, PluginWarning, stacklevel=3)
 
-    def _unknown_blocked(points) -> None:
-        known = {point.name for point in points} | {_family(point.name) for point in points}
-        known |= {point.dist.name for point in points if getattr(point, "dist", None)}
-        known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
-        unknown = sorted(blocked - known)
-        if unknown:
-            report(
-                f"{DISABLE_ENV if disabled is None else 'disabled'}: no installed plugin or distribution is named"
-                f" {', '.join(map(repr, unknown))}; known: {', '.join(sorted(known)) or 'none'}",
-                False,
-            )
-
     def register(obj: object, info: PluginInfo, from_code: bool) -> None:
-        where = f"plugin {info.name!r} (distribution {info.distribution or 'none'})"
         try:
             manager.register(obj, name=info.name)
             manager.check_pending()
         except Exception as error:  # noqa: BLE001 - any fault of a plugin is reported, not fatal
             if manager.is_registered(obj):
                 manager.unregister(obj)
-            report(f"{where} was not loaded: {error}", from_code)
+            report(f"plugin {info.name!r} (distribution {info.distribution or 'none'}) was not loaded: {error}", from_code)
             return
         infos[info.name] = info
 
@@ -142,8 +115,15 @@ def load_plugins(
         register(obj, info, from_code=True)
     extra = list(extra)
     points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order)
-    if blocked:
-        _unknown_blocked(points)
+    known = {point.name for point in points} | {_family(point.name) for point in points}
+    known |= {point.dist.name for point in points if getattr(point, "dist", None)}
+    known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
+    if blocked - known:
+        report(
+            f"{DISABLE_ENV if disabled is None else 'disabled'}: no installed plugin or distribution is named"
+            f" {', '.join(map(repr, sorted(blocked - known)))}; known: {', '.join(sorted(known)) or 'none'}",
+            False,
+        )
     if entrypoints:
         for point in points:
             dist = getattr(point, "dist", None)
@@ -165,9 +145,8 @@ def load_plugins(
 
     for obj in extra:
         name = getattr(obj, "__name__", None) or type(obj).__name__
-        if name in blocked:
-            continue
-        register(obj, PluginInfo(name), from_code=True)
+        if name not in blocked:
+            register(obj, PluginInfo(name), from_code=True)
 
     def call(hook_name: str, argument) -> None:
         """Each plugin's implementation of ``hook_name`` with ``argument`` (a registrar, or one made per plugin)."""
@@ -203,23 +182,19 @@ def _load_order(point) -> tuple[bool, str]:
 
 
 @functools.cache
-def _default() -> LoadedPlugins:
-    return load_plugins()
-
-
 def default_plugins() -> LoadedPlugins:
     """The plugins from entry points, loaded once per process (see :func:`reset`)."""
-    return _default()
+    return load_plugins()
 
 
 def get_registry() -> Registry:
     """The default registry (entry-point plugins, honouring ``HYBRIDTRACK_DISABLE_PLUGINS``)."""
-    return _default().registry
+    return default_plugins().registry
 
 
 def reset() -> None:
     """Forget the cached default plugins (after installing a plugin or changing the environment)."""
-    _default.cache_clear()
+    default_plugins.cache_clear()
 
 
 def check_component(kind: str, name: str, component, registry: Registry | None = None):

@@ -17,7 +17,6 @@ implements one of these.
 
 from __future__ import annotations
 
-import copy
 from abc import abstractmethod
 from collections.abc import Sequence
 from typing import ClassVar
@@ -152,12 +151,8 @@ class HypothesisTest(ScoreDetector):
     lower: float
 
     def batch(self, runs: int) -> HypothesisTestBatch:
-        """``runs`` independent copies of this test fed together (Monte Carlo runs stacked in one bank).
-
-        Optional: the default loops over deep copies (:class:`HypothesisTestBatch`),
-        so a third-party test needs nothing; a test overrides it with a
-        vectorized version whose outputs equal the copies' (``sprt_pairwise``).
-        """
+        """``runs`` copies of this test fed together (:meth:`Detector.batch`): looped deep copies,
+        :class:`HypothesisTestBatch`, unless a test vectorizes it (``sprt_pairwise``)."""
         return HypothesisTestBatch(self, runs)
 
 
@@ -185,10 +180,8 @@ class HypothesisTestBatch(DetectorBatch):
     """
 
     def __init__(self, detector: HypothesisTest, runs: int):
-        self.detector = detector
-        self.runs = int(runs)
+        super().__init__(detector, runs)
         self.upper, self.lower = detector.upper, detector.lower
-        self.copies = [copy.deepcopy(detector) for _ in range(self.runs)]
 
     def reset(self, hypotheses: tuple[str, ...] | None) -> None:
         for c in self.copies:
@@ -254,8 +247,7 @@ class ChangeTimeTest(HypothesisTest):
         """ln λ_p for each alternative p = 1 … M−1."""
 
     def batch(self, runs: int) -> ChangeTimeTestBatch:
-        """``runs`` independent copies of this test fed together (optional; default: looped deep copies,
-        :class:`ChangeTimeTestBatch`; ``sprt_unknown_change`` vectorizes it)."""
+        """As :meth:`HypothesisTest.batch`: :class:`ChangeTimeTestBatch`, vectorized by ``sprt_unknown_change``."""
         return ChangeTimeTestBatch(self, runs)
 
 
@@ -290,10 +282,8 @@ class ChangeTimeTestBatch(DetectorBatch):
     """
 
     def __init__(self, detector: ChangeTimeTest, runs: int):
-        self.detector = detector
-        self.runs = int(runs)
+        super().__init__(detector, runs)
         self.upper, self.lower, self.pruning = detector.upper, detector.lower, detector.pruning
-        self.copies = [copy.deepcopy(detector) for _ in range(self.runs)]
 
     @property
     def counts(self) -> np.ndarray:

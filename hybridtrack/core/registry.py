@@ -114,27 +114,23 @@ class Registry:
         registered component, its plugin and distribution (:meth:`check`).  A label (third item, or a
         ``"label"`` key in the parameters) names the instance in a run (estimators and detectors).
         """
-        if kind not in KINDS:
-            raise ValueError(f"unknown component kind {kind!r}; kinds are {', '.join(KINDS)}")
+        self._check_kind(kind)
         base = KINDS[kind].interface
-        label = None
         if not isinstance(spec, (str, tuple)):
             return require(spec, base, kind)
         if isinstance(spec, str):
-            name, parameters = spec, {}
-        elif (
+            spec = (spec, {})
+        if not (
             len(spec) in (2, 3)
             and isinstance(spec[0], str)
             and isinstance(spec[1], Mapping)
             and (len(spec) == 2 or isinstance(spec[2], str))
         ):
-            name, parameters = spec[0], dict(spec[1])
-            label = spec[2] if len(spec) == 3 else None
-        else:
             raise TypeError(
                 f"{kind}: expected a {base.__name__}, a registered name, (name, parameters) or (name, parameters, label), got {spec!r}"
             )
-        label = parameters.pop("label", None) if label is None else label
+        name, parameters = spec[0], dict(spec[1])
+        label = spec[2] if len(spec) == 3 else parameters.pop("label", None)
         component = self.check(kind, name, self.create(kind, name, **parameters))
         if label is not None:
             if not isinstance(component, Labelled):

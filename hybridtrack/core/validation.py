@@ -22,12 +22,7 @@ def _shape_text(shape: Sequence[int | None]) -> str:
 
 
 def as_float_array(
-    value,
-    name: str,
-    shape: Sequence[int | None] | None = None,
-    *,
-    allow_nan: bool = False,
-    readonly: bool = False,
+    value, name: str, shape: Sequence[int | None] | None = None, *, allow_nan: bool = False, readonly: bool = False
 ) -> np.ndarray:
     """Return ``value`` as a float64 array, checking shape and finiteness.
 
@@ -81,22 +76,17 @@ def check_covariance(value, name: str, dim: int | None = None, *, definite: bool
 _CHECKED_COVARIANCES: dict[int, weakref.ref] = {}
 
 
-def _immutable(value) -> bool:
-    return isinstance(value, np.ndarray) and value.dtype == np.float64 and not value.flags.writeable and value.base is None
-
-
 def _checked_covariance(value, name: str) -> np.ndarray:
     """check_covariance(value, readonly=True), once per immutable array: a model passing its own (immutable)
     Q to every transition it builds is checked the first time only; any other value is copied and checked."""
-    if _immutable(value):
-        ref = _CHECKED_COVARIANCES.get(id(value))
-        if ref is not None and ref() is value:
-            return value
+    if not (isinstance(value, np.ndarray) and value.dtype == np.float64 and not value.flags.writeable and value.base is None):
+        return check_covariance(value, name, readonly=True)
+    key = id(value)
+    ref = _CHECKED_COVARIANCES.get(key)
+    if ref is None or ref() is not value:
         check_covariance(value, name)
-        key = id(value)
         _CHECKED_COVARIANCES[key] = weakref.ref(value, lambda _, key=key: _CHECKED_COVARIANCES.pop(key, None))
-        return value
-    return check_covariance(value, name, readonly=True)
+    return value
 
 
 def readonly_array_field(shape: Sequence[int | None] | None = None, *, covariance: bool = False, allow_nan: bool = False, **kwargs):
@@ -111,12 +101,7 @@ def readonly_array_field(shape: Sequence[int | None] | None = None, *, covarianc
             return _checked_covariance(value, field.name)
         return as_float_array(value, field.name, shape, allow_nan=allow_nan, readonly=True)
 
-    return attrs.field(
-        converter=attrs.Converter(convert, takes_field=True),
-        eq=attrs.cmp_using(eq=np.array_equal),
-        hash=False,
-        **kwargs,
-    )
+    return attrs.field(converter=attrs.Converter(convert, takes_field=True), eq=attrs.cmp_using(eq=np.array_equal), hash=False, **kwargs)
 
 
 def check_positive_int(value, name: str, minimum: int = 1, what: str | None = None) -> int:

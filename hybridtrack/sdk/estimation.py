@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
+from operator import attrgetter
 from typing import Any, ClassVar
 
 import attrs
@@ -31,26 +32,14 @@ from hybridtrack.sdk.measurements import MeasurementAssembler
 
 
 class NodeMoments:
-    """Mixin for decentralized states: ``moments`` = (x (N, M, n), P (N, M, n, n)) over the N nodes;
-    ``mean``/``covariance`` read node 0 (every node holds the same estimate up to rounding)."""
+    """Mixin for decentralized states: ``moments`` = (x (N, M, n), P (N, M, n, n)) over the N nodes, read as
+    ``node_means``/``node_covariances``; ``mean``/``covariance`` read node 0 (every node holds the same estimate
+    up to rounding)."""
 
-    @property
-    def node_means(self) -> np.ndarray:
-        """Every node's x (N, M, n)."""
-        return self.moments[0]
-
-    @property
-    def node_covariances(self) -> np.ndarray:
-        """Every node's P (N, M, n, n)."""
-        return self.moments[1]
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.moments[0][0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.moments[1][0]
+    node_means = property(lambda self: self.moments[0])
+    node_covariances = property(lambda self: self.moments[1])
+    mean = property(lambda self: self.moments[0][0])
+    covariance = property(lambda self: self.moments[1][0])
 
 
 class PredictedMoments:
@@ -58,14 +47,8 @@ class PredictedMoments:
     ``P_predicted`` (M, n, n) of the last prediction."""
 
     __slots__ = ()
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted
+    predicted_mean = property(attrgetter("x_predicted"))
+    predicted_covariance = property(attrgetter("P_predicted"))
 
 
 class CovarianceMoments(PredictedMoments):
@@ -73,14 +56,8 @@ class CovarianceMoments(PredictedMoments):
     ``P`` (M, n, n) (and the prediction's, :class:`PredictedMoments`)."""
 
     __slots__ = ()
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P
+    mean = property(attrgetter("x"))
+    covariance = property(attrgetter("P"))
 
 
 class DerivedMoments(PredictedMoments):
@@ -89,14 +66,8 @@ class DerivedMoments(PredictedMoments):
     (and the prediction's, :class:`PredictedMoments`)."""
 
     __slots__ = ()
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.moments[0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.moments[1]
+    mean = property(lambda self: self.moments[0])
+    covariance = property(lambda self: self.moments[1])
 
 
 def bank_field(axis: int = 0, **kwargs):
@@ -125,21 +96,16 @@ def _reset_fields(state) -> dict:
     }
 
 
-def _map(value, function):
-    if value is None:
-        return None
-    if isinstance(value, tuple):
-        return tuple(function(v) for v in value)
-    return function(value)
-
-
 def take_rows(state, rows: Sequence[int]):
     """The state of the filters ``rows`` (in that order, repeats copy a filter) of a bank state with bank_field()s."""
     rows = np.asarray(rows, dtype=np.intp).reshape(-1)
-    changes = {
-        f.name: _map(getattr(state, f.name), lambda a, axis=f.metadata["bank_axis"]: np.take(a, rows, axis=axis))
-        for f in _bank_fields(state)
-    }
+    changes = {}
+    for f in _bank_fields(state):
+        value, axis = getattr(state, f.name), f.metadata["bank_axis"]
+        if isinstance(value, tuple):
+            changes[f.name] = tuple(np.take(v, rows, axis=axis) for v in value)
+        elif value is not None:
+            changes[f.name] = np.take(value, rows, axis=axis)
     return attrs.evolve(state, **changes, **_reset_fields(state))
 
 
@@ -149,8 +115,7 @@ def concatenate_states(states: Sequence):
     if not states:
         raise ValueError("states: expected at least one bank state")
     first = states[0]
-    kind = type(first)
-    if any(type(s) is not kind for s in states):
+    if any(type(s) is not type(first) for s in states):
         raise TypeError(f"states: expected states of one class, got {sorted({type(s).__name__ for s in states})}")
     changes = {}
     for f in _bank_fields(first):
@@ -244,9 +209,8 @@ class BankEstimator(Estimator):
     def check_transitions(self, transitions, bank_size: int, n: int, x: np.ndarray | None = None) -> TransitionBank:
         """F (M, n, n), B (M, n), Q (M, n, n) finite; a bank already checked (same object) is not re-checked.
 
-        Extended filters also take a callable ``transitions(x) -> TransitionBank``
-        that linearizes the motion at the current estimate x (M, n):
-        F = ∂f/∂x(x), B = f(x) − F x, so that F x + B = f(x) (MotionModel contract).
+        Extended filters also take a callable linearizing the motion at the current estimate x (M, n)
+        (:data:`~hybridtrack.core.interfaces.Transitions`).
         """
         if callable(transitions) and not isinstance(transitions, TransitionBank):
             if not self.accepts_nonlinear:

@@ -77,9 +77,7 @@ def masked_cholesky(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros_like(A), np.ones(A.shape[:-2], dtype=bool)
     entries, ok = _cholesky_entries(A)
     L = _assemble(entries, A.shape)
-    bad = ~ok
-    if bad.any():
-        L[bad] = np.eye(k)
+    L[~ok] = np.eye(k)
     return L, ok
 
 
@@ -161,13 +159,7 @@ class CholeskyFactor:
     @property
     def L(self) -> np.ndarray:
         if self._L is None:
-            m = self.shape[-1]
-            entries = self._closed_entries() if self.kind == "closed" else self.entries
-            L = np.zeros(self.shape)
-            for i in range(m):
-                for j in range(i + 1):
-                    L[..., i, j] = entries[i][j]
-            self._L = L
+            self._L = _assemble(self._closed_entries() if self.kind == "closed" else self.entries, self.shape)
         return self._L
 
     def _closed_entries(self):
@@ -249,7 +241,11 @@ def forward_substitute(L: np.ndarray, b: np.ndarray) -> np.ndarray:
     y_i = (b_i − Σ_{j<i} L_ij y_j) / L_ii, row by row over the stack (m ≤ ``SMALL_SOLVE``).
     """
     m = L.shape[-1]
-    if b.ndim == L.ndim - 1 and m <= SMALL_SOLVE:  # a vector: each step is a 1-D operation over the stack
+    vector = b.ndim == L.ndim - 1
+    if m > SMALL_SOLVE:
+        y = np.linalg.solve(L, b[..., None] if vector else b)
+        return y[..., 0] if vector else y
+    if vector:  # each step is a 1-D operation over the stack
         y = np.empty(np.broadcast_shapes(L.shape[:-2], b.shape[:-1]) + (m,))
         for i in range(m):
             s = b[..., i]
@@ -257,19 +253,13 @@ def forward_substitute(L: np.ndarray, b: np.ndarray) -> np.ndarray:
                 s = s - L[..., i, j] * y[..., j]
             y[..., i] = s / L[..., i, i]
         return y
-    vector = b.ndim == L.ndim - 1
-    if vector:
-        b = b[..., None]
-    if m > SMALL_SOLVE:
-        y = np.linalg.solve(L, b)
-        return y[..., 0] if vector else y
     y = np.empty(np.broadcast_shapes(L.shape[:-2], b.shape[:-2]) + b.shape[-2:])
     for i in range(m):
         s = b[..., i, :]
         for j in range(i):
             s = s - L[..., i, j, None] * y[..., j, :]
         y[..., i, :] = s / L[..., i, i, None]
-    return y[..., 0] if vector else y
+    return y
 
 
 def cholesky_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -1,29 +1,12 @@
 """Assemble one step's stacked measurement model for a bank (SPEC §2).
 
-``update(state, z, sensors, layout)`` receives the stacked measurement of N
-sensors, z = [z_1; …; z_N] of shape (Σ m_i,) (the same data for every filter)
-or (M, Σ m_i) (one row per filter, e.g. Monte Carlo runs stacked as a bank).
-Missing data is marked per component by NaN.  A NaN in one component of a
-sensor drops only that component: the update uses the remaining rows of H (of
-h(x) and its Jacobian for a nonlinear sensor) and the sub-block of R on the
-present components (rows and columns).  A sensor with every component NaN has
-no measurement at this step and is skipped; all sensors skipped means
-prediction only.  The missing pattern must be the same for every filter of the
-bank.  A finite component with |value| > ``FILTER_MAGNITUDE_LIMIT`` (1e150)
-raises a ValueError naming ``z``: its square overflows float64 in the filters.
-The present rows form the centralized model H = [H_1; …; H_N],
-R = blockdiag(R_1, …, R_N).
-
-R of a sensor whose R depends on z (``measurement_noise(z)``, e.g. radar
-pseudo-measurements) is computed from its z row only when the whole row is
-finite; for a partially missing row it is the sub-block of ``noise_cov``
-(R(z) needs the full z).  Angle wrapping stays per component: ``residual``
-is called on full-width arrays (the missing entries of z and ẑ both 0) and
-the present columns are kept.
-
-Linear sensors whose H only picks state components ("selection" H, e.g. the
-position sensor) are detected once and then handled by indexing instead of
-matrix products.
+``update(state, z, sensors, layout)`` receives the stacked measurement z = [z_1; …; z_N] of N sensors, shape
+(Σ m_i,) or (M, Σ m_i); the present rows form the centralized model H = [H_1; …; H_N], R = blockdiag(R_1, …, R_N).
+Missing components (NaN, one pattern for the whole bank), the R(z) of pseudo-measurement sensors and the magnitude
+limit ``FILTER_MAGNITUDE_LIMIT`` behave as ``docs/estimators.md`` ("Measurements", "Numerics") states.  Angle
+wrapping stays per component: ``residual`` is called on full-width arrays (the missing entries of z and ẑ both 0)
+and the present columns are kept.  Linear sensors whose H only picks state components ("selection" H, e.g. the
+position sensor) are detected once and then handled by indexing instead of matrix products.
 """
 
 from __future__ import annotations
@@ -173,9 +156,7 @@ class MeasurementAssembler:
             rows = [np.flatnonzero(row) for row in H]
             if all(len(r) == 1 and H[i, r[0]] == 1.0 for i, r in enumerate(rows)):
                 selection = tuple(int(r[0]) for r in rows)
-        plain = type(sensor).residual is Sensor.residual
-        model = SensorModel(sensor, dim, H, selection, plain)
-        self._cache[key] = model
+        model = self._cache[key] = SensorModel(sensor, dim, H, selection, type(sensor).residual is Sensor.residual)
         return model
 
     def assemble(self, z, sensors: Sequence[Sensor], layout: Sequence[str], bank_size: int) -> MeasurementStep | None:
@@ -202,7 +183,7 @@ class MeasurementAssembler:
             and z_array is not None
             and len(step.models) == len(sensors)
             and all(m.rows is None for m in step.models)
-            and all(_constant_noise(m.sensor) for m in step.models)
+            and all(type(m.sensor).measurement_noise is Sensor.measurement_noise for m in step.models)  # R independent of z
         ):
             self._template = ((tuple(map(id, sensors)), layout, bank_size, z_array.shape), step)
         return step
@@ -256,26 +237,15 @@ class MeasurementAssembler:
         """``model`` reduced to the present components ``rows`` (cached like the full model)."""
         key = (id(model.sensor), layout, rows)
         hit = self._cache.get(key)
-        if hit is not None and hit.sensor is model.sensor:
-            return hit
-        restricted = model.restricted(rows)
-        self._cache[key] = restricted
-        return restricted
-
-
-def _constant_noise(sensor: Sensor) -> bool:
-    """R does not depend on z (the sensor keeps the default ``measurement_noise``)."""
-    return type(sensor).measurement_noise is Sensor.measurement_noise
+        if hit is None or hit.sensor is not model.sensor:
+            hit = self._cache[key] = model.restricted(rows)
+        return hit
 
 
 def _model_noise(model: SensorModel, z: np.ndarray) -> np.ndarray:
-    """R of the present components: the sensor's R(z) for a complete row, else the rows/columns ``rows`` of ``noise_cov``."""
+    """R of the present components: the sensor's R(z) for a complete row z ((m,) or (M, m); pseudo-measurement
+    sensors depend on z), else the rows/columns ``rows`` of ``noise_cov``."""
     if model.rows is None:
-        return _noise(model.sensor, z)
+        return np.asarray(model.sensor.measurement_noise(z), dtype=float)
     rows = list(model.rows)
     return np.asarray(model.sensor.noise_cov, dtype=float)[np.ix_(rows, rows)]
-
-
-def _noise(sensor: Sensor, z: np.ndarray) -> np.ndarray:
-    """R of ``sensor`` for the measurement z ((m,) or (M, m)); pseudo-measurement sensors depend on z."""
-    return np.asarray(sensor.measurement_noise(z), dtype=float)

@@ -12,18 +12,10 @@ with λ the clutter spatial density (false measurements per unit volume of the
 measurement space, per step) and V the volume of the surveillance region, a
 box [low, high] in measurement coordinates.
 
-Value types:
-
-* :class:`Scan` — the candidates of one sensor at one step, z of shape (L, m);
-  what the clutter-aware estimators (``nearest_neighbour``, ``pda``) accept in
-  place of the stacked z of :meth:`Estimator.update`.
-* :class:`RowScan` — one sensor's candidates per filter row at one step,
-  z of shape (M, L, m) NaN-padded (stacked runs: row j is run j's scan,
-  :func:`stack_scans`); ``nearest_neighbour`` and ``pda`` accept it.
-
-Sequences of scans over steps (:class:`~hybridtrack.engine.clutter.ScanSequence`)
-and the clutter simulator are :mod:`hybridtrack.engine.clutter`; the recording of
-scans and associations :mod:`hybridtrack.recording.clutter`.
+The clutter-aware estimators (``nearest_neighbour``, ``pda``) accept a :class:`Scan` (or, stacked runs, a
+:class:`RowScan`) per sensor in place of the stacked z of :meth:`Estimator.update`.  Sequences of scans over steps
+and the clutter simulator are :mod:`hybridtrack.engine.clutter`; the recording of scans and associations
+:mod:`hybridtrack.recording.clutter`.
 """
 
 from __future__ import annotations
@@ -32,8 +24,6 @@ import attrs
 import numpy as np
 
 from hybridtrack.core.validation import as_float_array
-
-# --------------------------------------------------------------------------- value types
 
 
 def candidate_array(value) -> np.ndarray:
@@ -48,7 +38,7 @@ def candidate_array(value) -> np.ndarray:
     return array
 
 
-@attrs.frozen(eq=False)
+@attrs.frozen
 class Scan:
     """The candidate measurements of sensor ``sensor`` at one step: z (L, m), L ≥ 0.
 
@@ -57,7 +47,7 @@ class Scan:
     """
 
     sensor: str
-    z: np.ndarray = attrs.field(converter=candidate_array)
+    z: np.ndarray = attrs.field(converter=candidate_array, eq=attrs.cmp_using(eq=np.array_equal))
 
     @property
     def size(self) -> int:
@@ -67,13 +57,6 @@ class Scan:
     @property
     def measurement_dim(self) -> int:
         return self.z.shape[1]
-
-    def __eq__(self, other):
-        if not isinstance(other, Scan):
-            return NotImplemented
-        return self.sensor == other.sensor and np.array_equal(self.z, other.z)
-
-    __hash__ = None
 
 
 def _row_candidates(value) -> np.ndarray:
@@ -131,9 +114,6 @@ class RowScan:
     def row(self, j: int) -> Scan:
         """Row j's candidates as a :class:`Scan`."""
         return Scan(self.sensor, self.z[j][self.present[j]])
-
-
-# --------------------------------------------------------------------------- parameter checks
 
 
 def check_detection_probability(value) -> float:

@@ -42,10 +42,8 @@ def sprt_thresholds(alpha, beta) -> tuple[float, float]:
 
 
 class WaldThresholds:
-    """Mixin: error probabilities α, β and the thresholds ``upper`` = A, ``lower`` = B they give.
-
-    Setting ``alpha`` or ``beta`` moves A and B (the dynamic-threshold wrapper relies on it).
-    """
+    """Mixin: error probabilities α, β and the thresholds ``upper`` = A, ``lower`` = B they give; setting ``alpha``
+    or ``beta`` moves A and B (the dynamic-threshold wrapper relies on it)."""
 
     def set_error_probabilities(self, alpha, beta) -> None:
         self._alpha, self._beta = check_error_probabilities(alpha, beta)
