@@ -117,7 +117,6 @@ class KalmanFilter(BankEstimator):
         self._plan_cache: dict = {}
         self._predict_lanes: dict = {}  # id(bank) -> (bank, state form, shape, kernel, operands), the last few banks
         self._lane: _UpdateLane | None = None  # the measurement model of the last update, for the update lane
-        self._compiled = None  # the kernel module, imported on the first compiled step
 
     def dense_engine(self, n: int, m: int = 0) -> str:
         """ "numba" or "numpy": what runs a dense step of state size n and measurement size m under ``engine``."""
@@ -141,11 +140,6 @@ class KalmanFilter(BankEstimator):
         split = sep.split_bank(bank.F, bank.B, bank.Q)
         self._split_cache = (bank, split)
         return split
-
-    def _kernel(self):
-        if self._compiled is None:
-            self._compiled = cov_form.kernel_module()
-        return self._compiled
 
     def predict(self, state, transitions: TransitionBank):
         """x⁻ = F x⁺ + B, P⁻ = F P⁺ Fᵀ + Q (eqs. 4–5): the compiled lane when the bank and the state's form and
@@ -179,7 +173,7 @@ class KalmanFilter(BankEstimator):
             return
         if len(lanes) >= PREDICT_LANES:
             lanes.pop(next(iter(lanes)))  # the oldest
-        kernel = self._kernel()
+        kernel = cov_form.kernel_module()
         if type(result) is AxisState:
             split = self._split_cache[1]
             d = result.xa.shape[0]
@@ -310,7 +304,7 @@ class KalmanFilter(BankEstimator):
         ):
             return
         m = step.dim
-        kernel = self._kernel()
+        kernel = cov_form.kernel_module()
         if isinstance(state, AxisState):
             if plan is None:
                 return
