@@ -192,27 +192,23 @@ class KalmanFilter(BankEstimator):
         bank = self.check_transitions(
             transitions, M, n, state.mean if callable(transitions) and not isinstance(transitions, TransitionBank) else None
         )
-        if self.structure:
-            split = self._split(bank)
-            if split is not None:
-                if isinstance(state, AxisState) and state.axes == split.axes:
-                    xa, Pa = state.xa, state.Pa
-                elif sep.is_block_diagonal(state.P, split.axes):
-                    xa, Pa = sep.to_blocks(state.x, state.P, split.axes)
-                else:
-                    xa = None
-                if xa is not None:
-                    xa, Pa = sep.predict(xa, Pa, split)
-                    self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
-                    result = AxisState(split.axes, n, xa, Pa, xa, Pa, None)
-                    if bank is transitions:  # not a bank linearized for this step (EKF)
-                        self._learn_predict_lane(bank, result)
-                    return result
-        engine = self.dense_engine(n)
-        Ft = self._transposed(bank) if engine == "numpy" else None
-        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, Ft, engine=engine)
-        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        result = CovarianceState(x, P, x, P, None)
+        split = self._split(bank) if self.structure else None
+        if split is not None and isinstance(state, AxisState) and state.axes == split.axes:
+            blocks = state.xa, state.Pa
+        elif split is not None and sep.is_block_diagonal(state.P, split.axes):
+            blocks = sep.to_blocks(state.x, state.P, split.axes)
+        else:
+            blocks = None
+        if blocks is not None:
+            xa, Pa = sep.predict(*blocks, split)
+            self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
+            result = AxisState(split.axes, n, xa, Pa, xa, Pa, None)
+        else:
+            engine = self.dense_engine(n)
+            Ft = self._transposed(bank) if engine == "numpy" else None
+            x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, Ft, engine=engine)
+            self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
+            result = CovarianceState(x, P, x, P, None)
         if bank is transitions:  # not a bank linearized for this step (EKF)
             self._learn_predict_lane(bank, result)
         return result
@@ -244,15 +240,13 @@ class KalmanFilter(BankEstimator):
         if len({a for a, _ in rows}) == len(rows) and len({c for _, c in rows}) == 1:
             order = np.argsort([a for a, _ in rows])  # rows sorted by axis
             measured = np.array(sorted(a for a, _ in rows))
-            all_axes = len(rows) == len(axes)
-            plan = (rows[0][1], None if all_axes else measured, order)
+            plan = (rows[0][1], None if len(rows) == len(axes) else measured, order)
         self._plan_cache[key] = plan
         return plan
 
     def _update_axes(self, state: AxisState, step, plan):
         c, measured, order = plan
-        M = state.bank_size
-        m = step.dim
+        M, m = state.bank_size, step.dim
         z = step.z[:, order].T  # (A_m, 1 or M)
         r = np.diagonal(step.R, axis1=-2, axis2=-1)[..., order]
         r = r[:, None] if r.ndim == 1 else r.T
@@ -260,8 +254,7 @@ class KalmanFilter(BankEstimator):
         nu = np.empty((M, m))
         nu[:, order] = nu_a.T
         S = np.zeros((M, m, m))
-        diag = np.arange(m)
-        S[:, diag[order], diag[order]] = s_a.T
+        S[:, order, order] = s_a.T
         innovation = Innovation(nu, S, loglik, nis)
         return AxisState(state.axes, state.n, xa, Pa, state.xa_predicted, state.Pa_predicted, innovation), innovation
 
@@ -339,24 +332,18 @@ class KalmanFilter(BankEstimator):
     def _update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         """The reference update (dense or axis-separable).  Overflow: :func:`guarded` checks ℓ and NIS, which are
         non-finite whenever S or ν is (x⁺ = x⁻ + K ν is finite for a finite x⁻, ν and positive definite S)."""
-        M = state.bank_size
-        n = state.n if isinstance(state, AxisState) else state.x.shape[1]
+        M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
+        step = self.measurement_step(z, sensors, layout, M, n)
+        if step is None:
+            return self.unmeasured(state, M)
         if isinstance(state, AxisState):
-            step = self.measurement_step(z, sensors, layout, M, n)
-            if step is None:
-                return self.unmeasured(state, M)
             plan = self._axis_plan(step, state.axes) if step.H is not None else None
             if plan is not None:
                 result = self._update_axes(state, step, plan)
                 self._learn_lane(state, z, sensors, layout, step, plan)
                 return result
             state = CovarianceState(state.x, state.P, state.x_predicted, state.P_predicted, state.innovation)
-            found = self.linearize(state.x, z, sensors, layout, step)  # the step assembled above, not again
-        else:
-            found = self.linearize(state.x, z, sensors, layout)
-        if found is None:
-            return self.unmeasured(state, M)
-        step, nu, H = found
+        step, nu, H = self.linearize(state.x, z, sensors, layout, step)
         engine = self.dense_engine(n, nu.shape[-1])
         x, P, S, loglik, nis = cov_form.update_scored(state.x, state.P, nu, H, step.R, step.selection, self.form, engine)
         innovation = Innovation(nu, S, loglik, nis)
