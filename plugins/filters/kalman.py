@@ -50,7 +50,7 @@ class CovarianceState(CovarianceMoments):
 
 
 @attrs.frozen(eq=False, slots=False)
-class AxisState:
+class AxisState(CovarianceMoments):
     """A bank in axis-separable covariance form: x (d, A, M), P blocks (d, d, A, M) over ``axes``.
 
     Reads back like :class:`CovarianceState` (``x``, ``P``, ``mean``,
@@ -79,10 +79,6 @@ class AxisState:
     P = property(lambda self: self._dense[1])
     x_predicted = property(lambda self: self._dense_predicted[0])
     P_predicted = property(lambda self: self._dense_predicted[1])
-    mean = x
-    covariance = P
-    predicted_mean = x_predicted
-    predicted_covariance = P_predicted
 
     @property
     def bank_size(self) -> int:
