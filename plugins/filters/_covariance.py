@@ -118,13 +118,10 @@ def update(x, P, nu, H, R, selection=None, form: str = "joseph"):
     * ``conventional``: P⁺ = (I − K H) P⁻ as printed, no symmetrisation (kept
       to show how it breaks on ill-conditioned problems, docs/estimators.md).
 
-    S⁻¹ comes from :class:`~hybridtrack.sdk.linalg.CholeskyFactor`
-    (closed forms for m ≤ 2: positive definiteness from a > 0 and det S > 0,
-    S⁻¹ by the adjugate; the Cholesky recurrence for larger m), so K is one
-    stacked matmul.  H is (m, n) or (M, m, n), R (m, m) or (M, m, m); a shared
-    H or R multiplies the whole bank in one BLAS call.  With ``selection`` (the
-    state indices H picks) the products with H become indexing and S is built
-    entry by entry.  Returns x⁺, P⁺, S, L = chol(S), K.
+    S⁻¹ from :class:`~hybridtrack.sdk.linalg.CholeskyFactor` (its closed forms for m ≤ 2), so K is one stacked
+    matmul.  H is (m, n) or (M, m, n), R (m, m) or (M, m, m); a shared H or R multiplies the whole bank in one BLAS
+    call.  With ``selection`` (the state indices H picks) the products with H become indexing and S is built entry
+    by entry.  Returns x⁺, P⁺, S, L = chol(S), K.
     """
     x_new, P_new, S, factor, K = _update(x, P, nu, H, R, selection, form)
     return x_new, P_new, S, factor.L, K
