@@ -309,18 +309,13 @@ class KalmanFilter(BankEstimator):
             M, n = state.x.shape
             if self.dense_engine(n, m) != "numba":
                 return
-            form = kernel.FORMS[self.form]
-            # m ≤ 2: the kernel blocked across filters (vectorized); m = 3: the filter-by-filter one (Cholesky)
-            blocked = m <= 2
-            run = kernel.update_bank_blocked if blocked else kernel.update_bank_selected
-            payload = (
-                np.array(step.selection, dtype=np.intp),
-                np.ascontiguousarray(step.R, dtype=float).reshape(-1),
-                (0,) * n,
-                (0,) * m,
-                (0,) * (form + 1) if blocked else None,
-                (0,) * kernel.LANE_WIDTH if blocked else None,
-            )
+            form, sizes = kernel.FORMS[self.form], ((0,) * n, (0,) * m)
+            operands = (np.array(step.selection, dtype=np.intp), np.ascontiguousarray(step.R, dtype=float).reshape(-1))
+            if m <= 2:  # the kernel blocked across filters (vectorized), the form in a tuple's length
+                run, tail = kernel.update_bank_blocked, (*sizes, (0,) * (form + 1), (0,) * kernel.LANE_WIDTH)
+                payload = ((*operands, FILTER_MAGNITUDE_LIMIT), tail)
+            else:  # m = 3: the filter-by-filter one (Cholesky)
+                run, payload = kernel.update_bank_selected, ((*operands, form, FILTER_MAGNITUDE_LIMIT), sizes)
             shape = (M, n)
         self._lane = _UpdateLane(type(state), tuple(sensors), tuple(layout), z.shape, shape, m, run, kernel.FORMS[self.form], payload)
 
@@ -351,8 +346,9 @@ class _UpdateLane:
     """The measurement model of an update, kept for the next ones: the sensors (by identity), the layout, z's
     shape, the bank's shape and state form, the kernel, the update form's code and the kernel's operands —
     separable: the measured component c, the axis of each z row, the variances r (for the state's axes);
-    dense: the selected state indices, R flattened, the size tuples and, for the blocked kernel (m ≤ 2), the form
-    and block-width tuples (None for the filter-by-filter kernel)."""
+    dense: the operands before the outputs (the selected state indices, R flattened, the form for the
+    filter-by-filter kernel, the magnitude limit) and after them (the size tuples and, for the blocked kernel
+    (m ≤ 2), the form and block-width tuples)."""
 
     __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "run", "form", "payload")
 
@@ -380,16 +376,11 @@ class _UpdateLane:
         if x.shape != self.shape:
             return None
         M, n = self.shape
-        sel, R, n_tuple, m_tuple, f_tuple, w_tuple = self.payload
+        head, tail = self.payload
         x_out, P_out = np.empty((M, n)), np.empty((M, n, n))
         nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
-        P_in = state.P.reshape(M, n * n)
         outputs = (x_out, P_out.reshape(M, n * n), nu, S.reshape(M, m * m), loglik, nis)
-        if w_tuple is not None:  # update_bank_blocked: the form in f_tuple's length
-            bad = self.run(x, P_in, z2, sel, R, FILTER_MAGNITUDE_LIMIT, *outputs, n_tuple, m_tuple, f_tuple, w_tuple)
-        else:
-            bad = self.run(x, P_in, z2, sel, R, self.form, FILTER_MAGNITUDE_LIMIT, *outputs, n_tuple, m_tuple)
-        if bad:
+        if self.run(x, state.P.reshape(M, n * n), z2, *head, *outputs, *tail):
             return None
         innovation = Innovation(nu, S, loglik, nis)
         return CovarianceState(x_out, P_out, state.x_predicted, state.P_predicted, innovation), innovation
