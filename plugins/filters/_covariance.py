@@ -55,9 +55,6 @@ def kernel_module():
     return _kalman_kernel
 
 
-_kernel = kernel_module
-
-
 def _flat(A: np.ndarray, shape: tuple) -> np.ndarray:
     """A as a C-contiguous float array of the given shape (a view when it already is one)."""
     return np.ascontiguousarray(A, dtype=float).reshape(shape)
@@ -88,7 +85,7 @@ def predict(
         M, n = x.shape
         x, P, F, Q = (_flat(A, (M, -1)) for A in (x, P, F, Q))
         x_pred, P_pred = np.empty((M, n)), np.empty((M, n, n))
-        _kernel().predict_bank(x, P, F, _flat(B, (M, n)), Q, x_pred, P_pred.reshape(M, n * n), (0,) * n)
+        kernel_module().predict_bank(x, P, F, _flat(B, (M, n)), Q, x_pred, P_pred.reshape(M, n * n), (0,) * n)
         return x_pred, P_pred
     x_pred = np.einsum("mij,mj->mi", F, x)
     x_pred += B
@@ -121,13 +118,10 @@ def update(x, P, nu, H, R, selection=None, form: str = "joseph"):
     * ``conventional``: P⁺ = (I − K H) P⁻ as printed, no symmetrisation (kept
       to show how it breaks on ill-conditioned problems, docs/estimators.md).
 
-    S⁻¹ comes from :class:`~hybridtrack.sdk.linalg.CholeskyFactor`
-    (closed forms for m ≤ 2: positive definiteness from a > 0 and det S > 0,
-    S⁻¹ by the adjugate; the Cholesky recurrence for larger m), so K is one
-    stacked matmul.  H is (m, n) or (M, m, n), R (m, m) or (M, m, m); a shared
-    H or R multiplies the whole bank in one BLAS call.  With ``selection`` (the
-    state indices H picks) the products with H become indexing and S is built
-    entry by entry.  Returns x⁺, P⁺, S, L = chol(S), K.
+    S⁻¹ from :class:`~hybridtrack.sdk.linalg.CholeskyFactor` (its closed forms for m ≤ 2), so K is one stacked
+    matmul.  H is (m, n) or (M, m, n), R (m, m) or (M, m, m); a shared H or R multiplies the whole bank in one BLAS
+    call.  With ``selection`` (the state indices H picks) the products with H become indexing and S is built entry
+    by entry.  Returns x⁺, P⁺, S, L = chol(S), K.
     """
     x_new, P_new, S, factor, K = _update(x, P, nu, H, R, selection, form)
     return x_new, P_new, S, factor.L, K
@@ -141,35 +135,18 @@ def update_scored(x, P, nu, H, R, selection=None, form: str = "joseph", engine: 
     over the filters; H is used as given, so a selection H multiplies by its
     zeros and ones, which is exact).
     """
-    if engine == "numba":
-        return _update_scored_compiled(x, P, nu, H, R, form)
-    x_new, P_new, S, factor, _ = _update(x, P, nu, H, R, selection, form)
-    loglik, nis = factor.scores(nu)
-    return x_new, P_new, S, loglik, nis
-
-
-def _update_scored_compiled(x, P, nu, H, R, form):
+    if engine != "numba":
+        x_new, P_new, S, factor, _ = _update(x, P, nu, H, R, selection, form)
+        return x_new, P_new, S, *factor.scores(nu)
     if form not in UPDATE_FORMS:
         raise ValueError(f"form: expected one of {UPDATE_FORMS}, got {form!r}")
     (M, n), m = x.shape, nu.shape[-1]
     x_new, P_new, S = np.empty((M, n)), np.empty((M, n, n)), np.empty((M, m, m))
     loglik, nis = np.empty(M), np.empty(M)
-    kernel = _kernel()
-    bad = kernel.update_bank(
-        _flat(x, (M, n)),
-        _flat(P, (M, n * n)),
-        _flat(nu, (M, m)),
-        _stack_flat(H),
-        _stack_flat(R),
-        kernel.FORMS[form],
-        x_new,
-        P_new.reshape(M, n * n),
-        S.reshape(M, m * m),
-        loglik,
-        nis,
-        (0,) * n,
-        (0,) * m,
-    )
+    kernel = kernel_module()
+    inputs = (_flat(x, (M, n)), _flat(P, (M, n * n)), _flat(nu, (M, m)), _stack_flat(H), _stack_flat(R))
+    outputs = (x_new, P_new.reshape(M, n * n), S.reshape(M, m * m), loglik, nis)
+    bad = kernel.update_bank(*inputs, kernel.FORMS[form], *outputs, (0,) * n, (0,) * m)
     if bad >= 0:
         raise np.linalg.LinAlgError(f"innovation covariance S is not positive definite (stack index ({bad},))")
     return x_new, P_new, S, loglik, nis

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridtrack.sdk.linalg import cholesky, cholesky_solve, forward_substitute, log_det_from_cholesky, symmetrize
+from hybridtrack.sdk.linalg import cholesky, cholesky_solve, symmetrize
+from hybridtrack_plugins.filters._sqrt import whiten
 
 
 def spd_inverse(A: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
@@ -32,17 +33,13 @@ def innovation_information(H: np.ndarray, R: np.ndarray, nu: np.ndarray):
     and ln det R.  (g, q) carry the same information as (Δs, zᵀR⁻¹z) of eq. 19,
     Δs = g + ΔI x⁻, but at the scale of the innovation instead of that of the
     coordinates, so nothing downstream subtracts large, nearly equal terms.
-    H is (m, n) or (…, m, n), R (m, m) or (…, m, m), ν (…, m); the leading axes broadcast.
+    H is (m, n) or (…, m, n), R (m, m) or (…, m, m), ν (…, m); the leading axes broadcast (:func:`._sqrt.whiten`).
     """
-    L_R = cholesky(R, "measurement noise R")
-    if H.ndim < L_R.ndim:  # shared H with one R per filter: broadcast (a bare (m, n) would read as a stack of vectors)
-        H = np.broadcast_to(H, L_R.shape[:-2] + H.shape[-2:])
-    W = forward_substitute(L_R, H)
-    w = forward_substitute(L_R, nu[..., None])[..., 0]
+    W, w, log_det_R = whiten(H, nu, R)
     dY = np.swapaxes(W, -1, -2) @ W
     g = np.einsum("...ji,...j->...i", W, w)
     q = np.einsum("...i,...i->...", w, w)
-    return dY, g, q, log_det_from_cholesky(L_R)
+    return dY, g, q, log_det_R
 
 
 def assimilate(x_prior: np.ndarray, Y_prior: np.ndarray, dY: np.ndarray, g: np.ndarray):

@@ -56,8 +56,81 @@ LOG_2PI = float(np.log(2.0 * np.pi))
 FORMS = {"joseph": 0, "symmetric": 1, "conventional": 2}
 
 
-def _njit(function):
-    return numba.njit(cache=True, error_model="numpy", nogil=True)(function) if AVAILABLE else function
+def _njit(function, inline="never"):
+    return numba.njit(cache=True, error_model="numpy", nogil=True, inline=inline)(function) if AVAILABLE else function
+
+
+def _njit_inline(function):
+    return _njit(function, "always")
+
+
+@_njit_inline
+def _inverse_and_scores(S, nu, Si, L, Li, w, m_tuple):  # pragma: no cover - compiled
+    """S⁻¹ (into ``Si``), ln det S and NIS = νᵀS⁻¹ν of one filter by the closed forms for m ≤ 2 and the Cholesky
+    recurrence for m ≥ 3 (the formulas in the module docstring); S (m²,) symmetric, ν (m,), L, Li (m², zeroed), w
+    (m,) scratch, m = ``len(m_tuple)``.  Returns (True, ln det S, NIS), or (False, 0, 0) when S is not positive
+    definite (or NaN).  Inlined into :func:`update_bank` and :func:`update_bank_selected` (one copy of the code)."""
+    Mm = len(m_tuple)
+    if Mm <= 2:
+        sa = S[0]
+        if Mm == 1:
+            det = sa
+            if not sa > 0.0:  # also catches NaN
+                return False, 0.0, 0.0
+            Si[0] = 1.0 / sa
+        else:
+            sb, sc = S[2], S[3]
+            det = sa * sc - sb * sb
+            if not (sa > 0.0 and det > 0.0):  # also catches NaN
+                return False, 0.0, 0.0
+            rd = 1.0 / det
+            Si[0] = sc * rd
+            Si[3] = sa * rd
+            Si[1] = Si[2] = -(sb * rd)
+        t = nu[0] / sa
+        s_nis = nu[0] * t
+        if Mm == 2:
+            res = nu[1] - S[2] * t
+            s_nis += sa * (res * res) / det
+        log_det = math.log(det)
+    else:
+        for j in range(Mm):
+            d = S[j * Mm + j]
+            for k in range(j):
+                d = d - L[j * Mm + k] * L[j * Mm + k]
+            if not d > 0.0:
+                return False, 0.0, 0.0
+            L[j * Mm + j] = math.sqrt(d)
+            for a in range(j + 1, Mm):
+                s = S[a * Mm + j]
+                for k in range(j):
+                    s = s - L[a * Mm + k] * L[j * Mm + k]
+                L[a * Mm + j] = s / L[j * Mm + j]
+        for a in range(Mm):  # L⁻¹, row by row
+            Li[a * Mm + a] = 1.0 / L[a * Mm + a]
+            for j in range(a - 1, -1, -1):
+                acc = L[a * Mm + j] * Li[j * Mm + j]
+                for k in range(j + 1, a):
+                    acc = acc + L[a * Mm + k] * Li[k * Mm + j]
+                Li[a * Mm + j] = -acc / L[a * Mm + a]
+        for a in range(Mm):  # S⁻¹ = L⁻ᵀ L⁻¹
+            for j in range(a, Mm):
+                acc = Li[j * Mm + a] * Li[j * Mm + j]
+                for k in range(j + 1, Mm):
+                    acc = acc + Li[k * Mm + a] * Li[k * Mm + j]
+                Si[a * Mm + j] = Si[j * Mm + a] = acc
+        log_det = math.log(L[0])
+        for a in range(1, Mm):
+            log_det += math.log(L[a * Mm + a])
+        log_det *= 2.0
+        s_nis = 0.0
+        for a in range(Mm):  # w = L⁻¹ ν
+            acc = nu[a]
+            for j in range(a):
+                acc = acc - L[a * Mm + j] * w[j]
+            w[a] = acc / L[a * Mm + a]
+            s_nis = s_nis + w[a] * w[a]
+    return True, log_det, s_nis
 
 
 @_njit
@@ -133,65 +206,9 @@ def update_bank(x, P, nu, H, R, form, x_out, P_out, S_out, loglik, nis, n_tuple,
             for b in range(a + 1, Mm):
                 S[a * Mm + b] = S[b * Mm + a] = 0.5 * (S[a * Mm + b] + S[b * Mm + a])
         # S⁻¹ and the scores
-        if Mm <= 2:
-            sa = S[0]
-            if Mm == 1:
-                det = sa
-                if not sa > 0.0:  # also catches NaN
-                    return i
-                Si[0] = 1.0 / sa
-            else:
-                sb, sc = S[2], S[3]
-                det = sa * sc - sb * sb
-                if not (sa > 0.0 and det > 0.0):  # also catches NaN
-                    return i
-                rd = 1.0 / det
-                Si[0] = sc * rd
-                Si[3] = sa * rd
-                Si[1] = Si[2] = -(sb * rd)
-            t = nui[0] / sa
-            s_nis = nui[0] * t
-            if Mm == 2:
-                res = nui[1] - S[2] * t
-                s_nis += sa * (res * res) / det
-            log_det = math.log(det)
-        else:
-            for j in range(Mm):
-                d = S[j * Mm + j]
-                for k in range(j):
-                    d = d - L[j * Mm + k] * L[j * Mm + k]
-                if not d > 0.0:
-                    return i
-                L[j * Mm + j] = math.sqrt(d)
-                for a in range(j + 1, Mm):
-                    s = S[a * Mm + j]
-                    for k in range(j):
-                        s = s - L[a * Mm + k] * L[j * Mm + k]
-                    L[a * Mm + j] = s / L[j * Mm + j]
-            for a in range(Mm):  # L⁻¹, row by row
-                Li[a * Mm + a] = 1.0 / L[a * Mm + a]
-                for j in range(a - 1, -1, -1):
-                    acc = L[a * Mm + j] * Li[j * Mm + j]
-                    for k in range(j + 1, a):
-                        acc = acc + L[a * Mm + k] * Li[k * Mm + j]
-                    Li[a * Mm + j] = -acc / L[a * Mm + a]
-            for a in range(Mm):  # S⁻¹ = L⁻ᵀ L⁻¹
-                for j in range(a, Mm):
-                    acc = Li[j * Mm + a] * Li[j * Mm + j]
-                    for k in range(j + 1, Mm):
-                        acc = acc + Li[k * Mm + a] * Li[k * Mm + j]
-                    Si[a * Mm + j] = Si[j * Mm + a] = acc
-            log_det = math.log(L[0])
-            for a in range(1, Mm):
-                log_det += math.log(L[a * Mm + a])
-            log_det *= 2.0
-            s_nis = 0.0
-            for a in range(Mm):  # w = L⁻¹ ν
-                acc = nui[a]
-                for j in range(a):
-                    acc = acc - L[a * Mm + j] * w[j]
-                w[a] = acc / L[a * Mm + a]
-                s_nis = s_nis + w[a] * w[a]
+        ok, log_det, s_nis = _inverse_and_scores(S, nui, Si, L, Li, w, m_tuple)
+        if not ok:
+            return i
         nis[i] = s_nis
         loglik[i] = -0.5 * (Mm * LOG_2PI + log_det + s_nis)
         So = S_out[i]
@@ -542,65 +559,9 @@ def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_o
                 S[a * Mm + b] = S[b * Mm + a] = 0.5 * (
                     (Pi[sel[a] * N + sel[b]] + R[a * Mm + b]) + (Pi[sel[b] * N + sel[a]] + R[b * Mm + a])
                 )
-        if Mm <= 2:
-            sa = S[0]
-            if Mm == 1:
-                det = sa
-                if not sa > 0.0:
-                    return 1
-                Si[0] = 1.0 / sa
-            else:
-                sb, sc = S[2], S[3]
-                det = sa * sc - sb * sb
-                if not (sa > 0.0 and det > 0.0):
-                    return 1
-                rd = 1.0 / det
-                Si[0] = sc * rd
-                Si[3] = sa * rd
-                Si[1] = Si[2] = -(sb * rd)
-            t = nui[0] / sa
-            s_nis = nui[0] * t
-            if Mm == 2:
-                res = nui[1] - S[2] * t
-                s_nis += sa * (res * res) / det
-            log_det = math.log(det)
-        else:
-            for j in range(Mm):
-                d = S[j * Mm + j]
-                for k in range(j):
-                    d = d - L[j * Mm + k] * L[j * Mm + k]
-                if not d > 0.0:
-                    return 1
-                L[j * Mm + j] = math.sqrt(d)
-                for a in range(j + 1, Mm):
-                    s = S[a * Mm + j]
-                    for k in range(j):
-                        s = s - L[a * Mm + k] * L[j * Mm + k]
-                    L[a * Mm + j] = s / L[j * Mm + j]
-            for a in range(Mm):
-                Li[a * Mm + a] = 1.0 / L[a * Mm + a]
-                for j in range(a - 1, -1, -1):
-                    acc = L[a * Mm + j] * Li[j * Mm + j]
-                    for k in range(j + 1, a):
-                        acc = acc + L[a * Mm + k] * Li[k * Mm + j]
-                    Li[a * Mm + j] = -acc / L[a * Mm + a]
-            for a in range(Mm):
-                for j in range(a, Mm):
-                    acc = Li[j * Mm + a] * Li[j * Mm + j]
-                    for k in range(j + 1, Mm):
-                        acc = acc + Li[k * Mm + a] * Li[k * Mm + j]
-                    Si[a * Mm + j] = Si[j * Mm + a] = acc
-            log_det = math.log(L[0])
-            for a in range(1, Mm):
-                log_det += math.log(L[a * Mm + a])
-            log_det *= 2.0
-            s_nis = 0.0
-            for a in range(Mm):
-                acc = nui[a]
-                for j in range(a):
-                    acc = acc - L[a * Mm + j] * w[j]
-                w[a] = acc / L[a * Mm + a]
-                s_nis = s_nis + w[a] * w[a]
+        ok, log_det, s_nis = _inverse_and_scores(S, nui, Si, L, Li, w, m_tuple)
+        if not ok:
+            return 1
         nis[i] = s_nis
         ll = -0.5 * (Mm * LOG_2PI + log_det + s_nis)
         loglik[i] = ll

@@ -38,11 +38,6 @@ class InformationState(DerivedMoments):
     innovation: Innovation | None = None
     nis_information: np.ndarray | None = None
 
-    @property
-    def information(self) -> np.ndarray:
-        """I = P⁻¹."""
-        return self.Y
-
 
 def information_predict(x, P, F, B, Q, check):
     """(I⁻, s⁻, x⁻, P⁻) from the moments (x⁺, P⁺) of (I⁺, s⁺) through the covariance prediction (seed 000 eqs. 16–17).

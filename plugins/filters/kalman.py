@@ -50,7 +50,7 @@ class CovarianceState(CovarianceMoments):
 
 
 @attrs.frozen(eq=False, slots=False)
-class AxisState:
+class AxisState(CovarianceMoments):
     """A bank in axis-separable covariance form: x (d, A, M), P blocks (d, d, A, M) over ``axes``.
 
     Reads back like :class:`CovarianceState` (``x``, ``P``, ``mean``,
@@ -79,10 +79,6 @@ class AxisState:
     P = property(lambda self: self._dense[1])
     x_predicted = property(lambda self: self._dense_predicted[0])
     P_predicted = property(lambda self: self._dense_predicted[1])
-    mean = x
-    covariance = P
-    predicted_mean = x_predicted
-    predicted_covariance = P_predicted
 
     @property
     def bank_size(self) -> int:
@@ -117,7 +113,6 @@ class KalmanFilter(BankEstimator):
         self._plan_cache: dict = {}
         self._predict_lanes: dict = {}  # id(bank) -> (bank, state form, shape, kernel, operands), the last few banks
         self._lane: _UpdateLane | None = None  # the measurement model of the last update, for the update lane
-        self._compiled = None  # the kernel module, imported on the first compiled step
 
     def dense_engine(self, n: int, m: int = 0) -> str:
         """ "numba" or "numpy": what runs a dense step of state size n and measurement size m under ``engine``."""
@@ -141,11 +136,6 @@ class KalmanFilter(BankEstimator):
         split = sep.split_bank(bank.F, bank.B, bank.Q)
         self._split_cache = (bank, split)
         return split
-
-    def _kernel(self):
-        if self._compiled is None:
-            self._compiled = cov_form.kernel_module()
-        return self._compiled
 
     def predict(self, state, transitions: TransitionBank):
         """x⁻ = F x⁺ + B, P⁻ = F P⁺ Fᵀ + Q (eqs. 4–5): the compiled lane when the bank and the state's form and
@@ -179,7 +169,7 @@ class KalmanFilter(BankEstimator):
             return
         if len(lanes) >= PREDICT_LANES:
             lanes.pop(next(iter(lanes)))  # the oldest
-        kernel = self._kernel()
+        kernel = cov_form.kernel_module()
         if type(result) is AxisState:
             split = self._split_cache[1]
             d = result.xa.shape[0]
@@ -198,27 +188,23 @@ class KalmanFilter(BankEstimator):
         bank = self.check_transitions(
             transitions, M, n, state.mean if callable(transitions) and not isinstance(transitions, TransitionBank) else None
         )
-        if self.structure:
-            split = self._split(bank)
-            if split is not None:
-                if isinstance(state, AxisState) and state.axes == split.axes:
-                    xa, Pa = state.xa, state.Pa
-                elif sep.is_block_diagonal(state.P, split.axes):
-                    xa, Pa = sep.to_blocks(state.x, state.P, split.axes)
-                else:
-                    xa = None
-                if xa is not None:
-                    xa, Pa = sep.predict(xa, Pa, split)
-                    self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
-                    result = AxisState(split.axes, n, xa, Pa, xa, Pa, None)
-                    if bank is transitions:  # not a bank linearized for this step (EKF)
-                        self._learn_predict_lane(bank, result)
-                    return result
-        engine = self.dense_engine(n)
-        Ft = self._transposed(bank) if engine == "numpy" else None
-        x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, Ft, engine=engine)
-        self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
-        result = CovarianceState(x, P, x, P, None)
+        split = self._split(bank) if self.structure else None
+        if split is not None and isinstance(state, AxisState) and state.axes == split.axes:
+            blocks = state.xa, state.Pa
+        elif split is not None and sep.is_block_diagonal(state.P, split.axes):
+            blocks = sep.to_blocks(state.x, state.P, split.axes)
+        else:
+            blocks = None
+        if blocks is not None:
+            xa, Pa = sep.predict(*blocks, split)
+            self.check_finite("predict", predicted_mean=xa, predicted_covariance=Pa)
+            result = AxisState(split.axes, n, xa, Pa, xa, Pa, None)
+        else:
+            engine = self.dense_engine(n)
+            Ft = self._transposed(bank) if engine == "numpy" else None
+            x, P = cov_form.predict(state.x, state.P, bank.F, bank.B, bank.Q, Ft, engine=engine)
+            self.check_finite("predict", predicted_mean=x, predicted_covariance=P)
+            result = CovarianceState(x, P, x, P, None)
         if bank is transitions:  # not a bank linearized for this step (EKF)
             self._learn_predict_lane(bank, result)
         return result
@@ -250,15 +236,13 @@ class KalmanFilter(BankEstimator):
         if len({a for a, _ in rows}) == len(rows) and len({c for _, c in rows}) == 1:
             order = np.argsort([a for a, _ in rows])  # rows sorted by axis
             measured = np.array(sorted(a for a, _ in rows))
-            all_axes = len(rows) == len(axes)
-            plan = (rows[0][1], None if all_axes else measured, order)
+            plan = (rows[0][1], None if len(rows) == len(axes) else measured, order)
         self._plan_cache[key] = plan
         return plan
 
     def _update_axes(self, state: AxisState, step, plan):
         c, measured, order = plan
-        M = state.bank_size
-        m = step.dim
+        M, m = state.bank_size, step.dim
         z = step.z[:, order].T  # (A_m, 1 or M)
         r = np.diagonal(step.R, axis1=-2, axis2=-1)[..., order]
         r = r[:, None] if r.ndim == 1 else r.T
@@ -266,8 +250,7 @@ class KalmanFilter(BankEstimator):
         nu = np.empty((M, m))
         nu[:, order] = nu_a.T
         S = np.zeros((M, m, m))
-        diag = np.arange(m)
-        S[:, diag[order], diag[order]] = s_a.T
+        S[:, order, order] = s_a.T
         innovation = Innovation(nu, S, loglik, nis)
         return AxisState(state.axes, state.n, xa, Pa, state.xa_predicted, state.Pa_predicted, innovation), innovation
 
@@ -310,7 +293,7 @@ class KalmanFilter(BankEstimator):
         ):
             return
         m = step.dim
-        kernel = self._kernel()
+        kernel = cov_form.kernel_module()
         if isinstance(state, AxisState):
             if plan is None:
                 return
@@ -326,18 +309,13 @@ class KalmanFilter(BankEstimator):
             M, n = state.x.shape
             if self.dense_engine(n, m) != "numba":
                 return
-            form = kernel.FORMS[self.form]
-            # m ≤ 2: the kernel blocked across filters (vectorized); m = 3: the filter-by-filter one (Cholesky)
-            blocked = m <= 2
-            run = kernel.update_bank_blocked if blocked else kernel.update_bank_selected
-            payload = (
-                np.array(step.selection, dtype=np.intp),
-                np.ascontiguousarray(step.R, dtype=float).reshape(-1),
-                (0,) * n,
-                (0,) * m,
-                (0,) * (form + 1) if blocked else None,
-                (0,) * kernel.LANE_WIDTH if blocked else None,
-            )
+            form, sizes = kernel.FORMS[self.form], ((0,) * n, (0,) * m)
+            operands = (np.array(step.selection, dtype=np.intp), np.ascontiguousarray(step.R, dtype=float).reshape(-1))
+            if m <= 2:  # the kernel blocked across filters (vectorized), the form in a tuple's length
+                run, tail = kernel.update_bank_blocked, (*sizes, (0,) * (form + 1), (0,) * kernel.LANE_WIDTH)
+                payload = ((*operands, FILTER_MAGNITUDE_LIMIT), tail)
+            else:  # m = 3: the filter-by-filter one (Cholesky)
+                run, payload = kernel.update_bank_selected, ((*operands, form, FILTER_MAGNITUDE_LIMIT), sizes)
             shape = (M, n)
         self._lane = _UpdateLane(type(state), tuple(sensors), tuple(layout), z.shape, shape, m, run, kernel.FORMS[self.form], payload)
 
@@ -345,24 +323,18 @@ class KalmanFilter(BankEstimator):
     def _update(self, state, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         """The reference update (dense or axis-separable).  Overflow: :func:`guarded` checks ℓ and NIS, which are
         non-finite whenever S or ν is (x⁺ = x⁻ + K ν is finite for a finite x⁻, ν and positive definite S)."""
-        M = state.bank_size
-        n = state.n if isinstance(state, AxisState) else state.x.shape[1]
+        M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
+        step = self.measurement_step(z, sensors, layout, M, n)
+        if step is None:
+            return self.unmeasured(state, M)
         if isinstance(state, AxisState):
-            step = self.measurement_step(z, sensors, layout, M, n)
-            if step is None:
-                return self.unmeasured(state, M)
             plan = self._axis_plan(step, state.axes) if step.H is not None else None
             if plan is not None:
                 result = self._update_axes(state, step, plan)
                 self._learn_lane(state, z, sensors, layout, step, plan)
                 return result
             state = CovarianceState(state.x, state.P, state.x_predicted, state.P_predicted, state.innovation)
-            found = self.linearize(state.x, z, sensors, layout, step)  # the step assembled above, not again
-        else:
-            found = self.linearize(state.x, z, sensors, layout)
-        if found is None:
-            return self.unmeasured(state, M)
-        step, nu, H = found
+        step, nu, H = self.linearize(state.x, z, sensors, layout, step)
         engine = self.dense_engine(n, nu.shape[-1])
         x, P, S, loglik, nis = cov_form.update_scored(state.x, state.P, nu, H, step.R, step.selection, self.form, engine)
         innovation = Innovation(nu, S, loglik, nis)
@@ -374,8 +346,9 @@ class _UpdateLane:
     """The measurement model of an update, kept for the next ones: the sensors (by identity), the layout, z's
     shape, the bank's shape and state form, the kernel, the update form's code and the kernel's operands —
     separable: the measured component c, the axis of each z row, the variances r (for the state's axes);
-    dense: the selected state indices, R flattened, the size tuples and, for the blocked kernel (m ≤ 2), the form
-    and block-width tuples (None for the filter-by-filter kernel)."""
+    dense: the operands before the outputs (the selected state indices, R flattened, the form for the
+    filter-by-filter kernel, the magnitude limit) and after them (the size tuples and, for the blocked kernel
+    (m ≤ 2), the form and block-width tuples)."""
 
     __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "run", "form", "payload")
 
@@ -403,16 +376,11 @@ class _UpdateLane:
         if x.shape != self.shape:
             return None
         M, n = self.shape
-        sel, R, n_tuple, m_tuple, f_tuple, w_tuple = self.payload
+        head, tail = self.payload
         x_out, P_out = np.empty((M, n)), np.empty((M, n, n))
         nu, S, loglik, nis = np.empty((M, m)), np.empty((M, m, m)), np.empty(M), np.empty(M)
-        P_in = state.P.reshape(M, n * n)
         outputs = (x_out, P_out.reshape(M, n * n), nu, S.reshape(M, m * m), loglik, nis)
-        if w_tuple is not None:  # update_bank_blocked: the form in f_tuple's length
-            bad = self.run(x, P_in, z2, sel, R, FILTER_MAGNITUDE_LIMIT, *outputs, n_tuple, m_tuple, f_tuple, w_tuple)
-        else:
-            bad = self.run(x, P_in, z2, sel, R, self.form, FILTER_MAGNITUDE_LIMIT, *outputs, n_tuple, m_tuple)
-        if bad:
+        if self.run(x, state.P.reshape(M, n * n), z2, *head, *outputs, *tail):
             return None
         innovation = Innovation(nu, S, loglik, nis)
         return CovarianceState(x_out, P_out, state.x_predicted, state.P_predicted, innovation), innovation

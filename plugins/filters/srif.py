@@ -49,11 +49,6 @@ class SRIFState(DerivedMoments):
     def P_predicted(self) -> np.ndarray:
         return self.predicted_moments[1]
 
-    @property
-    def information(self) -> np.ndarray:
-        """I = Rᵀ R."""
-        return np.swapaxes(self.R, -1, -2) @ self.R
-
 
 def srif_innovation(nu, H, Rinfo, R_meas):
     """S = (H R⁻¹)(H R⁻¹)ᵀ + R_meas with H R⁻¹ from a solve with Rᵀ."""
