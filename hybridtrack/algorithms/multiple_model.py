@@ -79,6 +79,7 @@ from typing import Any
 import attrs
 import numpy as np
 
+from hybridtrack.algorithms.bank_runs import run_alone
 from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry, registry_or_default
@@ -168,11 +169,6 @@ class MultipleModelState:
     cov: np.ndarray
     model_loglik: np.ndarray
     loglik: np.ndarray
-
-    @property
-    def mode_probabilities(self) -> np.ndarray:
-        """μ_j (R, r)."""
-        return np.exp(self.log_mode_probabilities)
 
 
 @attrs.frozen(eq=False, kw_only=True)
@@ -337,9 +333,13 @@ class MultipleModelEstimator:
             loglik[:, rows] = scores.loglik.reshape(R, rows.size)
         return means, covs, loglik
 
-    def _combine(self, model_means, model_covs, log_mu, model_loglik, loglik) -> MultipleModelState:
+    def _merge(self, model_means, model_covs, joint, model_loglik) -> MultipleModelState:
+        """Merging: ln μ_j = joint_j − ln Σ_l exp(joint_l) (joint_j = ln Λ_j c̄_j), the output x̂, P mixed by μ_j,
+        ln p(z_k | Z_{k−1}) = ln Σ_l exp(joint_l)."""
+        total = logsumexp(joint, axis=-1)
+        log_mu = joint - total[:, None]
         mean, cov = mixture(log_mu, model_means, model_covs)
-        return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, loglik)
+        return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, total)
 
     # ------------------------------------------------------------------ steps
     def start(self, prior_mean, prior_cov, z0, mode_probabilities=None, prior_layout: Sequence[str] | None = None) -> MultipleModelState:
@@ -361,9 +361,7 @@ class MultipleModelEstimator:
         starts_x = np.broadcast_to(x[:, None], (R, r, x.shape[-1]))
         starts_P = np.broadcast_to(P[:, None], (R, r) + P.shape[-2:])
         means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), None, z0)
-        joint = ell + log_mu0
-        total = logsumexp(joint, axis=-1)
-        return self._combine(means, covs, joint - total[:, None], ell, total)
+        return self._merge(means, covs, ell + log_mu0, ell)
 
     def step(self, state: MultipleModelState, z: np.ndarray, dt) -> MultipleModelState:
         """One step k ≥ 1 over Δt = ``dt`` (seconds, one for all runs or (R,) per run) with measurements z (R, Σm)
@@ -385,10 +383,7 @@ class MultipleModelEstimator:
             means, covs = mixture(
                 np.swapaxes(joint, 1, 2), np.swapaxes(x.reshape(R, r, r, n), 1, 2), np.swapaxes(P.reshape(R, r, r, n, n), 1, 2)
             )
-            model_ell = log_mu_j - log_cbar
-            model_ell = np.where(np.isfinite(log_cbar), model_ell, 0.0)
-            total = logsumexp(log_mu_j, axis=-1)
-            return self._combine(means, covs, log_mu_j - total[:, None], model_ell, total)
+            return self._merge(means, covs, log_mu_j, np.where(np.isfinite(log_cbar), log_mu_j - log_cbar, 0.0))
         if self.method == "imm":
             # model j starts from the mixture of the models i with μ_{i|j} ∝ π_ij μ_i
             starts_x, starts_P = mixture(np.swapaxes(joint_prior, 1, 2), state.model_means[:, None], state.model_covs[:, None])
@@ -397,9 +392,7 @@ class MultipleModelEstimator:
             starts_x = np.broadcast_to(state.mean[:, None], (R, r) + state.mean.shape[-1:])
             starts_P = np.broadcast_to(state.cov[:, None], (R, r) + state.cov.shape[-2:])
         means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), dt, z)
-        joint = ell + log_cbar
-        total = logsumexp(joint, axis=-1)
-        return self._combine(means, covs, joint - total[:, None], ell, total)
+        return self._merge(means, covs, ell + log_cbar, ell)
 
     def _prior_layout(self, n: int, prior_layout) -> tuple[str, ...]:
         if prior_layout is not None:
@@ -431,11 +424,8 @@ class MultipleModelEstimator:
     ) -> MultipleModelRun:
         """One run: :meth:`run_batch` of one, ``measurements`` sensor name → (K+1, m) at ``times`` (K+1,)
         (seconds; default 0, τ, 2τ, …); ``recorder`` gets the finished run (``recorder.log_result``)."""
-        one = {name: np.asarray(value, dtype=float)[None] for name, value in measurements.items()}
-        recorders = None if recorder is None else [recorder]
-        return self.run_batch(
-            one, prior, times=times, truth=[truth], recorders=recorders, mode_probabilities=mode_probabilities, prior_layout=prior_layout
-        )[0]
+        options = dict(times=times, recorder=recorder, truth=truth, mode_probabilities=mode_probabilities, prior_layout=prior_layout)
+        return run_alone(self, measurements, prior, **options)
 
     def run_batch(
         self,
@@ -473,23 +463,21 @@ class MultipleModelEstimator:
             states.append(self.step(states[-1], z[:, k], float(DT[0, k - 1]) if same else np.array(DT[:, k - 1])))
         field = {name: np.stack([getattr(s, name) for s in states], axis=1) for name in attrs.fields_dict(MultipleModelState)}
         own = ("log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik")
-        runs = []
-        for r in range(R):
-            t = np.array(T[r])
-            t.setflags(write=False)
-            mode = np.argmax(field["log_mode_probabilities"][r], axis=-1)
-            run = MultipleModelRun(
+        runs = [
+            MultipleModelRun(
                 layout=self.layout,
                 modes=self.modes,
-                times=t,
+                times=T[r],
                 means=field["mean"][r],
                 covs=field["cov"][r],
-                mode=mode,
+                mode=np.argmax(field["log_mode_probabilities"][r], axis=-1),
                 method=self.method,
                 **{name: field[name][r] for name in own},
             )
-            runs.append(run)
-            if recorders[r] is not None:
+            for r in range(R)
+        ]
+        for r, recorder in enumerate(recorders):
+            if recorder is not None:
                 measured = self.network.split(z[r])
-                recorders[r].log_result(run, name=self.name, sensors=self.network.sensors, measurements=measured, truth=truths[r])
+                recorder.log_result(runs[r], name=self.name, sensors=self.network.sensors, measurements=measured, truth=truths[r])
         return runs
