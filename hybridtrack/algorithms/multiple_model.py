@@ -256,23 +256,19 @@ class MultipleModelEstimator:
         self._positions = [np.array([self.layout.index(c) for c in m.layout]) for m in self.models]
         self._missing_mean = self._per_component(missing_mean, "missing_mean", positive=False)
         self._missing_var = self._per_component(missing_variance, "missing_variance", positive=True)
-        groups: dict[tuple[str, ...], list[int]] = {}
-        for j, m in enumerate(self.models):
-            groups.setdefault(tuple(m.layout), []).append(j)
-        self._groups = [(layout, np.array(members)) for layout, members in groups.items()]
+        layouts = dict.fromkeys(tuple(m.layout) for m in self.models)  # the distinct layouts, in order of appearance
+        self._groups = [(layout, np.flatnonzero([tuple(m.layout) == layout for m in self.models])) for layout in layouts]
         self._rows: dict[tuple, np.ndarray] = {}
         self._banks = [FilterBank(self.estimator, layout, self.network.sensors) for layout, _ in self._groups]
 
     def _per_component(self, value, name: str, positive: bool) -> np.ndarray:
-        n = len(self.layout)
         if isinstance(value, Mapping):
             unknown = sorted(set(value) - set(self.layout))
             if unknown:
                 raise ValueError(f"{name}: components {unknown} are not in the union layout {self.layout}")
-            default = 1.0 if positive else 0.0
-            out = np.array([float(value.get(c, default)) for c in self.layout])
+            out = np.array([float(value.get(c, 1.0 if positive else 0.0)) for c in self.layout])
         else:
-            out = np.full(n, float(value))
+            out = np.full(len(self.layout), float(value))
         if not np.all(np.isfinite(out)) or (positive and np.any(out <= 0)):
             raise ValueError(f"{name}: expected {'positive ' if positive else ''}finite values, got {value!r}")
         return out
