@@ -360,17 +360,15 @@ class KnownSwitchAdaptive:
         every = np.repeat(np.arange(R), H)
         copied = np.flatnonzero(row >= 0) if inflation == 1 and estimate is test else np.zeros(0, dtype=int)
         started = np.setdiff1d(np.arange(R), copied)
-        parts, order = [], []
+        parts = []
         if copied.size:
             parts.append(self.estimator.take(test.state, np.repeat(test.offsets[copied] + row[copied], H)))
-            order.append(copied)
         if started.size:
             parts.append(self.estimator.initialize(np.repeat(x[started], H, axis=0), np.repeat(inflation * P[started], H, axis=0)))
-            order.append(started)
         state = parts[0]
-        if len(parts) > 1:
+        if len(parts) > 1:  # the copied runs, then the started ones: back to run order
             position = np.empty(R, dtype=int)
-            position[np.concatenate(order)] = np.arange(R)
+            position[np.concatenate([copied, started])] = np.arange(R)
             state = self.estimator.take(self.estimator.concatenate(parts), (position[:, None] * H + np.arange(H)).reshape(-1))
         test.set(state, self.models * R, np.repeat(x, H, axis=0), every)
         if estimate is not test:
