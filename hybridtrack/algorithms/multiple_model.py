@@ -45,16 +45,11 @@ nonlinear model is linearized there (F x̂_0j + B = f(x̂_0j), the EKF predictio
 
 **Models of different state sizes** (the 6-state ``constant_acceleration``
 ("x", "vx", "ax", "y", "vy", "ay") with the 4-state ("x", "vx", "y", "vy"))
-are mixed in the *union layout*: the largest model layout when it contains
-every other, otherwise the ordered union of the layouts.  A model's estimate
-is expanded to it by component name (:func:`~hybridtrack.core.interfaces.convert_layout`)
-with mean ``missing_mean`` (default 0) and variance ``missing_variance``
-(default 1, in that component's units², e.g. (m/s²)² for an acceleration) for
-each component the model lacks, uncorrelated with the rest — what a model
-without an acceleration says about it: "zero, give or take σ"; mixing and
-merging are done there, and a mixed estimate is projected back onto model j's
-components (the marginal of a Gaussian: the sub-vector and sub-matrix).
-The outputs (means, covariances, each model's estimate) are in the union layout.
+are mixed and merged in the *union layout* of :mod:`hybridtrack.engine.layouts`
+(each component a model lacks at ``missing_mean``, ``missing_variance``), and a
+mixed estimate is projected back onto model j's components (the marginal of a
+Gaussian: the sub-vector and sub-matrix).  The outputs (means, covariances,
+each model's estimate) are in the union layout.
 
 The filters of one layout form one :class:`~hybridtrack.engine.bank.FilterBank`
 of the inner estimator (the engine's bank: its transitions, the update grouped
@@ -86,6 +81,7 @@ from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, stacked_measurements
+from hybridtrack.engine.layouts import LayoutFill, union_layout
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.mixtures import logsumexp, mixture
@@ -95,19 +91,7 @@ from hybridtrack.sdk.timestamps import check_tau
 METHODS = ("imm", "gpb1", "gpb2")
 
 
-# --------------------------------------------------------------------------- Markov chain and layouts
-
-
-def union_layout(layouts: Sequence[Sequence[str]]) -> tuple[str, ...]:
-    """The largest layout if it contains every other one, else the ordered union (first appearance)."""
-    layouts = [tuple(layout) for layout in layouts]
-    largest = max(layouts, key=len)
-    if all(set(layout) <= set(largest) for layout in layouts):
-        return largest
-    union: list[str] = []
-    for layout in layouts:
-        union += [name for name in layout if name not in union]
-    return tuple(union)
+# --------------------------------------------------------------------------- Markov chain
 
 
 def markov_matrix(transition_matrix, modes: int) -> np.ndarray:
@@ -254,24 +238,11 @@ class MultipleModelEstimator:
         self.name = name or method
         self.layout = union_layout([m.layout for m in self.models])
         self._positions = [np.array([self.layout.index(c) for c in m.layout]) for m in self.models]
-        self._missing_mean = self._per_component(missing_mean, "missing_mean", positive=False)
-        self._missing_var = self._per_component(missing_variance, "missing_variance", positive=True)
+        self._fill = LayoutFill(self.layout, missing_mean, missing_variance)
         layouts = dict.fromkeys(tuple(m.layout) for m in self.models)  # the distinct layouts, in order of appearance
         self._groups = [(layout, np.flatnonzero([tuple(m.layout) == layout for m in self.models])) for layout in layouts]
         self._rows: dict[tuple, np.ndarray] = {}
         self._banks = [FilterBank(self.estimator, layout, self.network.sensors) for layout, _ in self._groups]
-
-    def _per_component(self, value, name: str, positive: bool) -> np.ndarray:
-        if isinstance(value, Mapping):
-            unknown = sorted(set(value) - set(self.layout))
-            if unknown:
-                raise ValueError(f"{name}: components {unknown} are not in the union layout {self.layout}")
-            out = np.array([float(value.get(c, 1.0 if positive else 0.0)) for c in self.layout])
-        else:
-            out = np.full(len(self.layout), float(value))
-        if not np.all(np.isfinite(out)) or (positive and np.any(out <= 0)):
-            raise ValueError(f"{name}: expected {'positive ' if positive else ''}finite values, got {value!r}")
-        return out
 
     # ------------------------------------------------------------------ Markov chain
     def log_transition_matrix(self, dt) -> np.ndarray:
@@ -287,19 +258,6 @@ class MultipleModelEstimator:
                 self._log_matrices.update(zip(new, np.log(sojourn_matrix(self._sojourn, np.array(new)))))
         r = len(self.models)
         return np.stack([self._log_matrices[key] for key in keys]).reshape(steps.shape + (r, r))
-
-    # ------------------------------------------------------------------ layouts
-    def expand(self, means: np.ndarray, covs: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(…, n_j) means and covariances of the union-layout components at ``positions`` in the union layout; each
-        component they lack at ``missing_mean`` with variance ``missing_variance``, uncorrelated with the rest."""
-        n = len(self.layout)
-        lacking = np.setdiff1d(np.arange(n), positions)
-        x = np.broadcast_to(self._missing_mean, means.shape[:-1] + (n,)).copy()
-        x[..., positions] = means
-        P = np.zeros(covs.shape[:-2] + (n, n))
-        P[..., lacking, lacking] = self._missing_var[lacking]
-        P[..., positions[:, None], positions[None, :]] = covs
-        return x, P
 
     # ------------------------------------------------------------------ the parts
     def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
@@ -325,7 +283,7 @@ class MultipleModelEstimator:
             bank.start(x0, 0.5 * (P0 + np.swapaxes(P0, -1, -2)), models, x0, np.repeat(np.arange(R), rows.size))
             scores = bank.step(dt, z)
             shape = (R, rows.size, pos.size)
-            means[:, rows], covs[:, rows] = self.expand(bank.means.reshape(shape), bank.covs.reshape(shape + (pos.size,)), pos)
+            means[:, rows], covs[:, rows] = self._fill.expand(bank.means.reshape(shape), bank.covs.reshape(shape + (pos.size,)), pos)
             loglik[:, rows] = scores.loglik.reshape(R, rows.size)
         return means, covs, loglik
 
@@ -345,7 +303,7 @@ class MultipleModelEstimator:
         cov = np.asarray(prior_cov, dtype=float)
         R = mean.shape[0]
         layout = self._prior_layout(mean.shape[-1], prior_layout)
-        x, P = self.expand(mean, cov, np.array([self.layout.index(c) for c in layout]))
+        x, P = self._fill.expand(mean, cov, np.array([self.layout.index(c) for c in layout]))
         if mode_probabilities is None:
             log_mu0 = np.full(r, -np.log(r))
         else:
