@@ -207,7 +207,7 @@ def run_batch(
     switch_inflation: float = 4.0,
 ) -> list[dict]:
     """:func:`run_one` of the runs ``indices`` (with their generators ``rngs``) as one batch: the trajectories are
-    drawn run by run as there, both estimators run as stacked banks (``run_known_modes_batch``,
+    drawn run by run as there, both estimators run as stacked banks (``KnownModes.run_batch``,
     ``KnownSwitchAdaptive.run_batch``); equal to the per-run results to rounding."""
     schedule, sensors, truths, z = simulate_seed001_batch(rngs, R=R, q=q, tau=tau, steps_scale=steps_scale)
     prior = seed001_prior()

@@ -177,7 +177,7 @@ def run_batch(
     steps_scale: float,
 ) -> list[dict]:
     """:func:`run_one` of the runs ``indices`` (generators ``rngs``) as one batch: trajectories drawn run by run,
-    the three estimators as stacked banks (``run_known_modes_batch``, ``run_batch``); equal to the per-run results
+    the three estimators as stacked banks (``KnownModes.run_batch``, ``run_batch``); equal to the per-run results
     to rounding."""
     schedule, sensors, truths, z = simulate_seed001_batch(rngs, R=R, q=q, tau=tau, steps_scale=steps_scale)
     known, unknown = _estimators(sensors, q=q, tau=tau, alpha=alpha, beta=beta, known_alpha=known_alpha, modes=modes, bank_size=bank_size)

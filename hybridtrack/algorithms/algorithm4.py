@@ -41,6 +41,7 @@ import attrs
 import numpy as np
 import scipy.linalg
 
+from hybridtrack.sdk.linalg import log_det_from_cholesky
 from hybridtrack.sdk.thresholds import check_error_probabilities, sprt_thresholds
 
 
@@ -71,10 +72,6 @@ def steady_error_covariance(F, H, Q, R, K) -> np.ndarray:
     E = F(I−KH) E (F(I−KH))ᵀ + F K R Kᵀ Fᵀ + Q; equals the DARE solution when K is the steady Kalman gain."""
     A = F @ (np.eye(F.shape[0]) - K @ H)
     return scipy.linalg.solve_discrete_lyapunov(A, F @ K @ R @ K.T @ F.T + Q)
-
-
-def _log_det(S: np.ndarray) -> float:
-    return float(2.0 * np.log(np.diag(np.linalg.cholesky(S))).sum())
 
 
 def innovation_moments(true, filters, H, R, switch_state, P0, steps: int, gains: str = "steady"):
@@ -126,12 +123,10 @@ def innovation_moments(true, filters, H, R, switch_state, P0, steps: int, gains:
 
 def expected_increments(own_0, own_p, actual_0, actual_p) -> np.ndarray:
     """μ(k) = E[ℓ_p − ℓ_0] = ½ ln|Σ_0| − ½ ln|Σ_p| + ½ tr(Σ_0⁻¹ Σ̄_0) − ½ tr(Σ_p⁻¹ Σ̄_p) per step (step 6)."""
-    out = np.zeros(own_0.shape[0])
-    for k in range(out.size):
-        t0 = np.trace(np.linalg.solve(own_0[k], actual_0[k]))
-        tp = np.trace(np.linalg.solve(own_p[k], actual_p[k]))
-        out[k] = 0.5 * (_log_det(own_0[k]) - _log_det(own_p[k]) + t0 - tp)
-    return out
+    t0 = np.trace(np.linalg.solve(own_0, actual_0), axis1=-2, axis2=-1)
+    tp = np.trace(np.linalg.solve(own_p, actual_p), axis1=-2, axis2=-1)
+    log_det_0, log_det_p = (log_det_from_cholesky(np.linalg.cholesky(S)) for S in (own_0, own_p))
+    return 0.5 * (log_det_0 - log_det_p + t0 - tp)
 
 
 def wald_boundary_terms(alpha, beta) -> tuple[float, float]:

@@ -18,11 +18,13 @@ predicts over Δt_k = t_k − t_{k−1} and updates.  The recording of a run is
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from functools import partial
 from typing import Any
 
 import attrs
 import numpy as np
 
+from hybridtrack.algorithms.bank_runs import run_alone, run_banks
 from hybridtrack.algorithms.mode_sets import resolve_modes, turn_bank
 from hybridtrack.algorithms.switch_state import SwitchAugmented, augmented_layout, augmented_prior
 from hybridtrack.core.components import require
@@ -32,7 +34,6 @@ from hybridtrack.core.protocols import HypothesisTest, HypothesisTestBatch
 from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import check_positive
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, run_groups, stacked_measurements
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.engine.schedule import Schedule
@@ -178,8 +179,8 @@ class KnownSwitchAdaptive:
         self.tau = None if tau is None else check_tau(tau)
         self.estimator: Estimator = resolve("estimator", estimator, registry)
         spec = detector if detector is not None else ("sprt_pairwise", {"alpha": alpha, "beta": beta})
-        self.detector = resolve("detector", spec, registry)
-        require(self.detector, HypothesisTest, "detector (Algorithm 1 needs a test over a fixed bank, e.g. 'sprt_pairwise')")
+        needs = "detector (Algorithm 1 needs a test over a fixed bank, e.g. 'sprt_pairwise')"
+        self.detector = require(resolve("detector", spec, registry), HypothesisTest, needs)
         self.name = name
 
     def run(
@@ -194,9 +195,7 @@ class KnownSwitchAdaptive:
     ) -> KnownSwitchRun:
         """Algorithm 1 over ``segments`` (step counts, or a Schedule) on measurements of steps 0 … K: the
         :meth:`run_batch` of one run.  ``times``: the K+1 measurement times in seconds (default 0, τ, 2τ, …)."""
-        z = self.network.stack(measurements)
-        recorders = None if recorder is None else {0: recorder}
-        return self.run_batch(self.network.split(z[None]), prior, segments, times=times, truth=[truth], recorders=recorders)[0]
+        return run_alone(self, measurements, prior, segments, times=times, recorder=recorder, truth=truth)
 
     def run_batch(
         self,
@@ -208,46 +207,22 @@ class KnownSwitchAdaptive:
         truth=None,
         recorders=None,
     ) -> list[KnownSwitchRun]:
-        """Algorithm 1 on R runs at once; each run's result is what it gives alone (to rounding, 1e-12).
+        """Algorithm 1 on R runs at once, ``segments`` shared by the runs (the inputs and the recording as
+        :func:`~hybridtrack.algorithms.bank_runs.run_banks` takes them).
 
-        ``measurements``: sensor name → (R, K+1, m); ``times`` (K+1,) shared or
-        (R, K+1) per run (default 0, τ, 2τ, …); ``prior`` one Gaussian or
-        per-run (means (R, n), covs (n, n) or (R, n, n)); ``segments`` shared by
-        the runs; ``truth`` one per run (recordings only); ``recorders`` run
-        index → Recorder for the runs to record.  The R banks are one
-        :class:`~hybridtrack.engine.bank.FilterBank`: the switch re-creates every
-        run's bank, a run's decision keeps its chosen filter (index arrays
-        through the estimator's ``take``), the detector runs as
-        ``detector.batch(R)`` (vectorized for ``sprt_pairwise``).  Runs of a
-        decentralized or sampling estimator each form their own batch of one.
+        The R banks are one :class:`~hybridtrack.engine.bank.FilterBank`: the
+        switch re-creates every run's bank, a run's decision keeps its chosen
+        filter (index arrays through the estimator's ``take``), the detector
+        runs as ``detector.batch(R)`` (vectorized for ``sprt_pairwise``).
         """
-        lengths = segment_lengths(segments)
-        z = stacked_measurements(self.network, measurements)
+        return run_banks(self, partial(self._runs, segment_lengths(segments)), measurements, prior, times, truth, recorders)
+
+    def _runs(self, lengths: list[int], z, t, dt, x0, P0, recorded: list[int]) -> list[KnownSwitchRun]:
+        """Algorithm 1 over segments of ``lengths`` steps on the R runs of one bank (the rest as ``runs_of`` of
+        :func:`~hybridtrack.algorithms.bank_runs.run_banks`)."""
         R, K = z.shape[0], sum(lengths)
         if z.shape[1] != K + 1:
             raise ValueError(f"measurements: expected {K + 1} steps (0 … {K}) for segments totalling {K}, got {z.shape[1]}")
-        t, dt = batch_times(times, self.tau, R, K + 1)
-        x0, P0 = prior_arrays(prior, R, len(self.layout))
-        truths = per_run(truth, R, "truth")
-        recorders = {r: x for r, x in enumerate(per_run(recorders, R, "recorders")) if x is not None}
-        runs = []
-        for g in run_groups(self.estimator, R):
-            runs += self._runs(z[g], t[g], dt[g], x0[g], P0[g], lengths, [i for i, r in enumerate(g) if r in recorders])
-        for r, recorder in sorted(recorders.items()):
-            recorder.log_result(
-                runs[r],
-                measurements=self.network.split(z[r]),
-                sensors=self.network.sensors,
-                truth=truths[r],
-                name=self.name,
-                detector=self.detector.label,
-            )
-        return runs
-
-    def _runs(self, z, t, dt, x0, P0, lengths: list[int], recorded: list[int]) -> list[KnownSwitchRun]:
-        """Algorithm 1 on the R runs of one bank: z (R, K+1, Σm), t (R, K+1), Δt (R, K), priors (R, n), (R, n, n);
-        ``recorded`` the runs that keep their hypotheses' positions."""
-        R, K = z.shape[0], sum(lengths)
         H, n = len(self.models), len(self.layout)
         joint = self.switch_estimate == "joint"
         means, covs = np.zeros((R, K + 1, n)), np.zeros((R, K + 1, n, n))
@@ -385,17 +360,15 @@ class KnownSwitchAdaptive:
         every = np.repeat(np.arange(R), H)
         copied = np.flatnonzero(row >= 0) if inflation == 1 and estimate is test else np.zeros(0, dtype=int)
         started = np.setdiff1d(np.arange(R), copied)
-        parts, order = [], []
+        parts = []
         if copied.size:
             parts.append(self.estimator.take(test.state, np.repeat(test.offsets[copied] + row[copied], H)))
-            order.append(copied)
         if started.size:
             parts.append(self.estimator.initialize(np.repeat(x[started], H, axis=0), np.repeat(inflation * P[started], H, axis=0)))
-            order.append(started)
         state = parts[0]
-        if len(parts) > 1:
+        if len(parts) > 1:  # the copied runs, then the started ones: back to run order
             position = np.empty(R, dtype=int)
-            position[np.concatenate(order)] = np.arange(R)
+            position[np.concatenate([copied, started])] = np.arange(R)
             state = self.estimator.take(self.estimator.concatenate(parts), (position[:, None] * H + np.arange(H)).reshape(-1))
         test.set(state, self.models * R, np.repeat(x, H, axis=0), every)
         if estimate is not test:

@@ -9,7 +9,7 @@ import numpy as np
 from hybridtrack.core.interfaces import MotionModel
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry
-from hybridtrack.core.validation import check_positive_int
+from hybridtrack.core.validation import check_positive, check_positive_int
 
 
 def turn_bank(r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=None) -> list[tuple[str, dict]]:
@@ -18,9 +18,7 @@ def turn_bank(r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=No
     Radii r_i = r_min + (i − 1)(r_max − r_min)/(n − 1) (n = 1: r_min alone, which must equal r_max).
     """
     n = check_positive_int(n, "n")
-    r_min, r_max = float(r_min), float(r_max)
-    if not (np.isfinite(r_min) and r_min > 0):
-        raise ValueError(f"r_min: expected a positive radius, got {r_min!r}")
+    r_min, r_max = check_positive(r_min, "r_min", "a radius"), float(r_max)
     if not np.isfinite(r_max) or r_min > r_max:
         raise ValueError(f"r_min, r_max: expected 0 < r_min ≤ r_max, got r_min = {r_min}, r_max = {r_max}")
     if n == 1 and r_min != r_max:

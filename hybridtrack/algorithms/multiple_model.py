@@ -45,16 +45,11 @@ nonlinear model is linearized there (F x̂_0j + B = f(x̂_0j), the EKF predictio
 
 **Models of different state sizes** (the 6-state ``constant_acceleration``
 ("x", "vx", "ax", "y", "vy", "ay") with the 4-state ("x", "vx", "y", "vy"))
-are mixed in the *union layout*: the largest model layout when it contains
-every other, otherwise the ordered union of the layouts.  A model's estimate
-is expanded to it by component name (:func:`~hybridtrack.core.interfaces.convert_layout`)
-with mean ``missing_mean`` (default 0) and variance ``missing_variance``
-(default 1, in that component's units², e.g. (m/s²)² for an acceleration) for
-each component the model lacks, uncorrelated with the rest — what a model
-without an acceleration says about it: "zero, give or take σ"; mixing and
-merging are done there, and a mixed estimate is projected back onto model j's
-components (the marginal of a Gaussian: the sub-vector and sub-matrix).
-The outputs (means, covariances, each model's estimate) are in the union layout.
+are mixed and merged in the *union layout* of :mod:`hybridtrack.engine.layouts`
+(each component a model lacks at ``missing_mean``, ``missing_variance``), and a
+mixed estimate is projected back onto model j's components (the marginal of a
+Gaussian: the sub-vector and sub-matrix).  The outputs (means, covariances,
+each model's estimate) are in the union layout.
 
 The filters of one layout form one :class:`~hybridtrack.engine.bank.FilterBank`
 of the inner estimator (the engine's bank: its transitions, the update grouped
@@ -79,12 +74,14 @@ from typing import Any
 import attrs
 import numpy as np
 
+from hybridtrack.algorithms.bank_runs import run_alone
 from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, stacked_measurements
+from hybridtrack.engine.layouts import LayoutFill, union_layout
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.mixtures import logsumexp, mixture
@@ -94,19 +91,7 @@ from hybridtrack.sdk.timestamps import check_tau
 METHODS = ("imm", "gpb1", "gpb2")
 
 
-# --------------------------------------------------------------------------- Markov chain and layouts
-
-
-def union_layout(layouts: Sequence[Sequence[str]]) -> tuple[str, ...]:
-    """The largest layout if it contains every other one, else the ordered union (first appearance)."""
-    layouts = [tuple(layout) for layout in layouts]
-    largest = max(layouts, key=len)
-    if all(set(layout) <= set(largest) for layout in layouts):
-        return largest
-    union: list[str] = []
-    for layout in layouts:
-        union += [name for name in layout if name not in union]
-    return tuple(union)
+# --------------------------------------------------------------------------- Markov chain
 
 
 def markov_matrix(transition_matrix, modes: int) -> np.ndarray:
@@ -168,11 +153,6 @@ class MultipleModelState:
     cov: np.ndarray
     model_loglik: np.ndarray
     loglik: np.ndarray
-
-    @property
-    def mode_probabilities(self) -> np.ndarray:
-        """μ_j (R, r)."""
-        return np.exp(self.log_mode_probabilities)
 
 
 @attrs.frozen(eq=False, kw_only=True)
@@ -258,28 +238,11 @@ class MultipleModelEstimator:
         self.name = name or method
         self.layout = union_layout([m.layout for m in self.models])
         self._positions = [np.array([self.layout.index(c) for c in m.layout]) for m in self.models]
-        self._missing_mean = self._per_component(missing_mean, "missing_mean", positive=False)
-        self._missing_var = self._per_component(missing_variance, "missing_variance", positive=True)
-        groups: dict[tuple[str, ...], list[int]] = {}
-        for j, m in enumerate(self.models):
-            groups.setdefault(tuple(m.layout), []).append(j)
-        self._groups = [(layout, np.array(members)) for layout, members in groups.items()]
+        self._fill = LayoutFill(self.layout, missing_mean, missing_variance)
+        layouts = dict.fromkeys(tuple(m.layout) for m in self.models)  # the distinct layouts, in order of appearance
+        self._groups = [(layout, np.flatnonzero([tuple(m.layout) == layout for m in self.models])) for layout in layouts]
         self._rows: dict[tuple, np.ndarray] = {}
         self._banks = [FilterBank(self.estimator, layout, self.network.sensors) for layout, _ in self._groups]
-
-    def _per_component(self, value, name: str, positive: bool) -> np.ndarray:
-        n = len(self.layout)
-        if isinstance(value, Mapping):
-            unknown = sorted(set(value) - set(self.layout))
-            if unknown:
-                raise ValueError(f"{name}: components {unknown} are not in the union layout {self.layout}")
-            default = 1.0 if positive else 0.0
-            out = np.array([float(value.get(c, default)) for c in self.layout])
-        else:
-            out = np.full(n, float(value))
-        if not np.all(np.isfinite(out)) or (positive and np.any(out <= 0)):
-            raise ValueError(f"{name}: expected {'positive ' if positive else ''}finite values, got {value!r}")
-        return out
 
     # ------------------------------------------------------------------ Markov chain
     def log_transition_matrix(self, dt) -> np.ndarray:
@@ -295,19 +258,6 @@ class MultipleModelEstimator:
                 self._log_matrices.update(zip(new, np.log(sojourn_matrix(self._sojourn, np.array(new)))))
         r = len(self.models)
         return np.stack([self._log_matrices[key] for key in keys]).reshape(steps.shape + (r, r))
-
-    # ------------------------------------------------------------------ layouts
-    def expand(self, means: np.ndarray, covs: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(…, n_j) means and covariances of the union-layout components at ``positions`` in the union layout; each
-        component they lack at ``missing_mean`` with variance ``missing_variance``, uncorrelated with the rest."""
-        n = len(self.layout)
-        lacking = np.setdiff1d(np.arange(n), positions)
-        x = np.broadcast_to(self._missing_mean, means.shape[:-1] + (n,)).copy()
-        x[..., positions] = means
-        P = np.zeros(covs.shape[:-2] + (n, n))
-        P[..., lacking, lacking] = self._missing_var[lacking]
-        P[..., positions[:, None], positions[None, :]] = covs
-        return x, P
 
     # ------------------------------------------------------------------ the parts
     def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
@@ -333,13 +283,17 @@ class MultipleModelEstimator:
             bank.start(x0, 0.5 * (P0 + np.swapaxes(P0, -1, -2)), models, x0, np.repeat(np.arange(R), rows.size))
             scores = bank.step(dt, z)
             shape = (R, rows.size, pos.size)
-            means[:, rows], covs[:, rows] = self.expand(bank.means.reshape(shape), bank.covs.reshape(shape + (pos.size,)), pos)
+            means[:, rows], covs[:, rows] = self._fill.expand(bank.means.reshape(shape), bank.covs.reshape(shape + (pos.size,)), pos)
             loglik[:, rows] = scores.loglik.reshape(R, rows.size)
         return means, covs, loglik
 
-    def _combine(self, model_means, model_covs, log_mu, model_loglik, loglik) -> MultipleModelState:
+    def _merge(self, model_means, model_covs, joint, model_loglik) -> MultipleModelState:
+        """Merging: ln μ_j = joint_j − ln Σ_l exp(joint_l) (joint_j = ln Λ_j c̄_j), the output x̂, P mixed by μ_j,
+        ln p(z_k | Z_{k−1}) = ln Σ_l exp(joint_l)."""
+        total = logsumexp(joint, axis=-1)
+        log_mu = joint - total[:, None]
         mean, cov = mixture(log_mu, model_means, model_covs)
-        return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, loglik)
+        return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, total)
 
     # ------------------------------------------------------------------ steps
     def start(self, prior_mean, prior_cov, z0, mode_probabilities=None, prior_layout: Sequence[str] | None = None) -> MultipleModelState:
@@ -349,7 +303,7 @@ class MultipleModelEstimator:
         cov = np.asarray(prior_cov, dtype=float)
         R = mean.shape[0]
         layout = self._prior_layout(mean.shape[-1], prior_layout)
-        x, P = self.expand(mean, cov, np.array([self.layout.index(c) for c in layout]))
+        x, P = self._fill.expand(mean, cov, np.array([self.layout.index(c) for c in layout]))
         if mode_probabilities is None:
             log_mu0 = np.full(r, -np.log(r))
         else:
@@ -361,9 +315,7 @@ class MultipleModelEstimator:
         starts_x = np.broadcast_to(x[:, None], (R, r, x.shape[-1]))
         starts_P = np.broadcast_to(P[:, None], (R, r) + P.shape[-2:])
         means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), None, z0)
-        joint = ell + log_mu0
-        total = logsumexp(joint, axis=-1)
-        return self._combine(means, covs, joint - total[:, None], ell, total)
+        return self._merge(means, covs, ell + log_mu0, ell)
 
     def step(self, state: MultipleModelState, z: np.ndarray, dt) -> MultipleModelState:
         """One step k ≥ 1 over Δt = ``dt`` (seconds, one for all runs or (R,) per run) with measurements z (R, Σm)
@@ -385,10 +337,7 @@ class MultipleModelEstimator:
             means, covs = mixture(
                 np.swapaxes(joint, 1, 2), np.swapaxes(x.reshape(R, r, r, n), 1, 2), np.swapaxes(P.reshape(R, r, r, n, n), 1, 2)
             )
-            model_ell = log_mu_j - log_cbar
-            model_ell = np.where(np.isfinite(log_cbar), model_ell, 0.0)
-            total = logsumexp(log_mu_j, axis=-1)
-            return self._combine(means, covs, log_mu_j - total[:, None], model_ell, total)
+            return self._merge(means, covs, log_mu_j, np.where(np.isfinite(log_cbar), log_mu_j - log_cbar, 0.0))
         if self.method == "imm":
             # model j starts from the mixture of the models i with μ_{i|j} ∝ π_ij μ_i
             starts_x, starts_P = mixture(np.swapaxes(joint_prior, 1, 2), state.model_means[:, None], state.model_covs[:, None])
@@ -397,9 +346,7 @@ class MultipleModelEstimator:
             starts_x = np.broadcast_to(state.mean[:, None], (R, r) + state.mean.shape[-1:])
             starts_P = np.broadcast_to(state.cov[:, None], (R, r) + state.cov.shape[-2:])
         means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), dt, z)
-        joint = ell + log_cbar
-        total = logsumexp(joint, axis=-1)
-        return self._combine(means, covs, joint - total[:, None], ell, total)
+        return self._merge(means, covs, ell + log_cbar, ell)
 
     def _prior_layout(self, n: int, prior_layout) -> tuple[str, ...]:
         if prior_layout is not None:
@@ -431,11 +378,8 @@ class MultipleModelEstimator:
     ) -> MultipleModelRun:
         """One run: :meth:`run_batch` of one, ``measurements`` sensor name → (K+1, m) at ``times`` (K+1,)
         (seconds; default 0, τ, 2τ, …); ``recorder`` gets the finished run (``recorder.log_result``)."""
-        one = {name: np.asarray(value, dtype=float)[None] for name, value in measurements.items()}
-        recorders = None if recorder is None else [recorder]
-        return self.run_batch(
-            one, prior, times=times, truth=[truth], recorders=recorders, mode_probabilities=mode_probabilities, prior_layout=prior_layout
-        )[0]
+        options = dict(times=times, recorder=recorder, truth=truth, mode_probabilities=mode_probabilities, prior_layout=prior_layout)
+        return run_alone(self, measurements, prior, **options)
 
     def run_batch(
         self,
@@ -473,23 +417,21 @@ class MultipleModelEstimator:
             states.append(self.step(states[-1], z[:, k], float(DT[0, k - 1]) if same else np.array(DT[:, k - 1])))
         field = {name: np.stack([getattr(s, name) for s in states], axis=1) for name in attrs.fields_dict(MultipleModelState)}
         own = ("log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik")
-        runs = []
-        for r in range(R):
-            t = np.array(T[r])
-            t.setflags(write=False)
-            mode = np.argmax(field["log_mode_probabilities"][r], axis=-1)
-            run = MultipleModelRun(
+        runs = [
+            MultipleModelRun(
                 layout=self.layout,
                 modes=self.modes,
-                times=t,
+                times=T[r],
                 means=field["mean"][r],
                 covs=field["cov"][r],
-                mode=mode,
+                mode=np.argmax(field["log_mode_probabilities"][r], axis=-1),
                 method=self.method,
                 **{name: field[name][r] for name in own},
             )
-            runs.append(run)
-            if recorders[r] is not None:
+            for r in range(R)
+        ]
+        for r, recorder in enumerate(recorders):
+            if recorder is not None:
                 measured = self.network.split(z[r])
-                recorders[r].log_result(run, name=self.name, sensors=self.network.sensors, measurements=measured, truth=truths[r])
+                recorder.log_result(runs[r], name=self.name, sensors=self.network.sensors, measurements=measured, truth=truths[r])
         return runs

@@ -31,6 +31,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.algorithms.algorithm4 import algorithm4_bank_size, wald_pair
+from hybridtrack.algorithms.bank_runs import run_alone, run_banks
 from hybridtrack.algorithms.mode_sets import resolve_modes
 from hybridtrack.core.components import require
 from hybridtrack.core.interfaces import Estimator, Sensor
@@ -39,7 +40,6 @@ from hybridtrack.core.protocols import ChangeTimeTest, ScoreDetector
 from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, run_groups, stacked_measurements
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
@@ -139,8 +139,8 @@ class UnknownChangeAdaptive:
         self.tau = None if tau is None else check_tau(tau)
         self.estimator: Estimator = resolve("estimator", estimator, registry)
         spec = detector if detector is not None else ("sprt_unknown_change", {"alpha": alpha, "beta": beta})
-        self.detector = resolve("detector", spec, registry)
-        require(self.detector, ChangeTimeTest, "detector (Algorithm 3 needs a change-time test, e.g. 'sprt_unknown_change')")
+        needs = "detector (Algorithm 3 needs a change-time test, e.g. 'sprt_unknown_change')"
+        self.detector = require(resolve("detector", spec, registry), ChangeTimeTest, needs)
         if pruning is not None:
             if pruning not in ChangeTimeTest.PRUNING_RULES:
                 raise ValueError(f"pruning: expected one of {ChangeTimeTest.PRUNING_RULES}, got {pruning!r}")
@@ -165,26 +165,11 @@ class UnknownChangeAdaptive:
         """
         dt = check_tau(self.tau if dt is None else dt)
         x_s = np.asarray(switch_state, dtype=float)
-        H = self.network.jacobian(x_s, self.layout)
-        R = self.network.noise_cov()
-        base = self.models[self.initial_mode].transition(dt, x_s)
-        pairs = []
-        for p, model in enumerate(self.models):
-            if p == self.initial_mode:
-                continue
-            t = model.transition(dt, x_s)
-            pairs.append(
-                wald_pair(
-                    (base.F, base.B, base.process_noise),
-                    (t.F, t.B, t.process_noise),
-                    H,
-                    R,
-                    x_s,
-                    self.detector.alpha,
-                    self.detector.beta,
-                    horizon=horizon,
-                )
-            )
+        H, R = self.network.jacobian(x_s, self.layout), self.network.noise_cov()
+        alpha, beta = self.detector.alpha, self.detector.beta
+        fixed = [(t.F, t.B, t.process_noise) for t in (model.transition(dt, x_s) for model in self.models)]
+        base = fixed[self.initial_mode]
+        pairs = [wald_pair(base, f, H, R, x_s, alpha, beta, horizon=horizon) for p, f in enumerate(fixed) if p != self.initial_mode]
         return algorithm4_bank_size(pairs) * (len(self.models) - 1)
 
     def _algorithm4_cached(self, switch_state, dt) -> int:
@@ -198,48 +183,25 @@ class UnknownChangeAdaptive:
     def run(self, measurements: Mapping[str, np.ndarray], prior, *, times=None, recorder=None, truth=None) -> UnknownChangeRun:
         """Algorithm 3, repeated, on measurements of steps 0 … K at ``times`` (seconds; default 0, τ, 2τ, …):
         the :meth:`run_batch` of one run."""
-        z = self.network.stack(measurements)
-        recorders = None if recorder is None else {0: recorder}
-        return self.run_batch(self.network.split(z[None]), prior, times=times, truth=[truth], recorders=recorders)[0]
+        return run_alone(self, measurements, prior, times=times, recorder=recorder, truth=truth)
 
     def run_batch(self, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None) -> list[UnknownChangeRun]:
-        """Algorithm 3, repeated, on R runs at once; each run's result is what it gives alone (to rounding, 1e-12).
+        """Algorithm 3, repeated, on R runs at once (the inputs and the recording as
+        :func:`~hybridtrack.algorithms.bank_runs.run_banks` takes them).
 
-        ``measurements``: sensor name → (R, K+1, m); ``times`` (K+1,) shared or
-        (R, K+1) per run; ``prior`` one Gaussian or per-run (means (R, n), covs
-        (n, n) or (R, n, n)); ``truth`` one per run; ``recorders`` run index →
-        Recorder.  Every run's growing bank lives in one
+        Every run's growing bank lives in one
         :class:`~hybridtrack.engine.bank.FilterBank` (run by run): the new
         filters of all runs are added, and decisions and pruning applied, by
         one index array per step through the estimator's ``take``.  The
         change-time test runs as ``detector.batch(R)``; the signal function and
-        a decentralized estimator's node copies keep one copy per run.  Runs of
-        a decentralized or sampling estimator each form their own batch of one.
+        a decentralized estimator's node copies keep one copy per run.
         """
-        z = stacked_measurements(self.network, measurements)
-        R, K = z.shape[0], z.shape[1] - 1
-        t, dt = batch_times(times, self.tau, R, K + 1)
-        x0, P0 = prior_arrays(prior, R, len(self.layout))
-        truths = per_run(truth, R, "truth")
-        recorders = {r: x for r, x in enumerate(per_run(recorders, R, "recorders")) if x is not None}
-        runs = []
-        for g in run_groups(self.estimator, R):
-            runs += self._runs(z[g], t[g], dt[g], x0[g], P0[g], [i for i, r in enumerate(g) if r in recorders])
-        for r, recorder in sorted(recorders.items()):
-            recorder.log_result(
-                runs[r],
-                measurements=self.network.split(z[r]),
-                sensors=self.network.sensors,
-                truth=truths[r],
-                name=self.name,
-                detector=self.detector.label,
-                signal=None if self.signal is None else self.signal.label,
-            )
-        return runs
+        signal = None if self.signal is None else self.signal.label
+        return run_banks(self, self._runs, measurements, prior, times, truth, recorders, signal=signal)
 
     def _runs(self, z, t, dt, x0, P0, recorded: list[int]) -> list[UnknownChangeRun]:
-        """Algorithm 3, repeated, on the R runs of one bank: z (R, K+1, Σm), t (R, K+1), Δt (R, K), priors
-        (R, n), (R, n, n); ``recorded`` the runs that keep their hypotheses' positions."""
+        """Algorithm 3, repeated, on the R runs of one bank (``runs_of`` of
+        :func:`~hybridtrack.algorithms.bank_runs.run_banks`)."""
         R, K = z.shape[0], z.shape[1] - 1
         n, M = len(self.layout), len(self.models)
         runs = np.arange(R)
@@ -248,7 +210,7 @@ class UnknownChangeAdaptive:
             for r in runs
         ]
         test = self.detector.batch(R)  # Algorithm 3's test of every run (vectorized for sprt_unknown_change)
-        signals = [None if self.signal is None else copy.deepcopy(self.signal) for _ in runs]
+        signals = [] if self.signal is None else [copy.deepcopy(self.signal) for _ in runs]
         capped = np.zeros(R, dtype=bool)
         means, covs = np.zeros((R, K + 1, n)), np.zeros((R, K + 1, n, n))
         mode = np.zeros((R, K + 1), dtype=int)
@@ -263,16 +225,13 @@ class UnknownChangeAdaptive:
         others = np.array([[i for i in range(M) if i != c] for c in range(M)])  # the alternatives of each current mode
         names = [(self.labels[c],) + tuple(self.labels[i] for i in others[c]) for c in range(M)]
         test.restart(runs, [names[self.initial_mode]] * R)
-        for s_ in signals:
-            if s_ is not None:
-                s_.reset()
         bank = FilterBank(self.estimator, self.layout, self.network.sensors)
         bank.start(x0, P0, [self.models[self.initial_mode]] * R, x0, runs)
         scores = bank.step(None, z[:, 0])
-        for r, s_ in enumerate(signals):
-            if s_ is not None:
-                out = s_.observe(0, scores.loglik[r : r + 1], scores.nis[r : r + 1], int(scores.m[r]))
-                signal_values[r, 0], bounds[r, 0] = out.statistics["signal"][0], (out.thresholds["lower"], out.thresholds["upper"])
+        for r, signal in enumerate(signals):
+            signal.reset()
+            out = signal.observe(0, scores.loglik[r : r + 1], scores.nis[r : r + 1], int(scores.m[r]))
+            signal_values[r, 0], bounds[r, 0] = out.statistics["signal"][0], (out.thresholds["lower"], out.thresholds["upper"])
         means[:, 0], covs[:, 0], mode[:, 0], bank_sizes[:, 0] = bank.means, bank.covs, current, 1
         nodes = self._start_nodes(bank, names[self.initial_mode], K, scores.m)
         for k in range(1, K + 1):
@@ -305,9 +264,8 @@ class UnknownChangeAdaptive:
                     if rows.size:
                         fan[k, mode_index] = bank.means[offsets[r] + 1 + rows[np.argmax(log_psi[rows])], position]
             for r, signal in enumerate(signals):
-                if signal is not None:
-                    s = signal.observe(k, loglik[offsets[r] : offsets[r] + 1], nis[offsets[r] : offsets[r] + 1], int(m[offsets[r]]))
-                    signal_values[r, k], bounds[r, k] = s.statistics["signal"][0], (s.thresholds["lower"], s.thresholds["upper"])
+                s = signal.observe(k, loglik[offsets[r] : offsets[r] + 1], nis[offsets[r] : offsets[r] + 1], int(m[offsets[r]]))
+                signal_values[r, k], bounds[r, k] = s.statistics["signal"][0], (s.thresholds["lower"], s.thresholds["upper"])
             if nodes is not None:
                 self._observe_nodes(nodes, bank, k, alternatives, m)
             # 3. act on the decisions, or bound the banks
@@ -344,10 +302,8 @@ class UnknownChangeAdaptive:
                     current[r] = alternatives[r, out.decided[r] - 1]
                     changes[r].append(ChangeEvent(k, self.labels[current[r]], int(out.chosen_start[r])))
                     keep[offsets[r] + 1 + out.chosen_entry[r]] = True
-                    restarted = [signals[r]] + ([] if nodes is None else nodes[1][r])
-                    for s_ in restarted:
-                        if s_ is not None:
-                            s_.reset()
+                    for signal in signals[r : r + 1] + ([] if nodes is None else nodes[1][r]):
+                        signal.reset()
                 else:  # H_0 accepted: the test restarts with filter 0 alone
                     keep[offsets[r]] = True
                 if nodes is not None:

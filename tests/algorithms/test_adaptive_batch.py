@@ -262,12 +262,13 @@ def test_batch_input_errors():
 
 @pytest.mark.parametrize("estimator", ["kalman", "bierman", "srif", "decentralized", "particle"])
 def test_known_modes_batch_equals_the_runs(estimator):
-    from hybridtrack.algorithms.known_modes import run_known_modes, run_known_modes_batch
+    from hybridtrack.algorithms.known_modes import KnownModes, run_known_modes
 
     schedule = Schedule.from_rows([("straight", 10), ("left_turn", 12, 3.0), ("straight", 8)])
     sensor, z, times = batch_data(schedule)
     kwargs = dict(sensors=[sensor], prior=Gaussian(X0, np.eye(4)), tau=0.1, noise_cov=NOISE)
-    batched = run_known_modes_batch(schedule, estimator=_per_run_estimator(estimator), measurements={sensor.name: z}, times=times, **kwargs)
+    known = KnownModes(schedule=schedule, estimator=_per_run_estimator(estimator), sensors=[sensor], tau=0.1, noise_cov=NOISE)
+    batched = known.run_batch({sensor.name: z}, Gaussian(X0, np.eye(4)), times=times)
     single_estimator = _per_run_estimator(estimator)
     for r, b in enumerate(batched):
         s = run_known_modes(schedule, estimator=single_estimator, measurements={sensor.name: z[r]}, times=times[r], **kwargs)

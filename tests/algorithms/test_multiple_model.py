@@ -7,7 +7,8 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from hybridtrack import Gaussian, Schedule
-from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, sojourn_matrix, union_layout
+from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, sojourn_matrix
+from hybridtrack.engine.layouts import union_layout
 from hybridtrack.engine.simulate import simulate
 from hybridtrack_plugins.motion.linear_modes import LAYOUT_4, LAYOUT_6, ConstantAcceleration, LeftTurn, RightTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor

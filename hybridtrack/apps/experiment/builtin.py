@@ -96,10 +96,12 @@ def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float,
 
 def known_modes_estimate_batch(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman"):
     """:func:`known_modes_estimate` of many runs at once (``measurements`` name → (runs, K+1, m)) as one stacked
-    bank (``run_known_modes_batch``): one run result per run, equal to the per-run ones to rounding."""
-    from hybridtrack.algorithms.known_modes import run_known_modes_batch
+    bank (``KnownModes.run_batch``): one run result per run, equal to the per-run ones to rounding."""
+    from hybridtrack.algorithms.known_modes import KnownModes
 
-    return run_known_modes_batch(schedule, sensors=sensors, measurements=measurements, **_known_modes_options(q, tau, estimator))
+    options = _known_modes_options(q, tau, estimator)
+    prior = options.pop("prior")
+    return KnownModes(schedule=schedule, sensors=sensors, **options).run_batch(measurements, prior)
 
 
 def pooled_rmse(squared_error: np.ndarray, steps: np.ndarray) -> np.ndarray:
