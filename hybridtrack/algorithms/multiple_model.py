@@ -51,9 +51,9 @@ mixed estimate is projected back onto model j's components (the marginal of a
 Gaussian: the sub-vector and sub-matrix).  The outputs (means, covariances,
 each model's estimate) are in the union layout.
 
-The filters of one layout form one :class:`~hybridtrack.engine.bank.FilterBank`
-of the inner estimator (the engine's bank: its transitions, the update grouped
-by missing pattern), so a step is one ``initialize``/``predict``/``update`` per
+The filters form one :class:`~hybridtrack.engine.bank.FilterBank` of the inner
+estimator, grouped by layout (the engine's bank: its transitions, the update
+grouped by missing pattern), so a step is one ``initialize``/``predict``/``update`` per
 distinct layout over every model and every run (R runs: prior (R, n), measurements (R, K+1, m); one
 run is the batch of one).  The inner estimator is re-initialized from the
 mixed (x̂_0j, P_0j) at every step: a mixture of Gaussians has no factor form
@@ -81,7 +81,7 @@ from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, stacked_measurements
-from hybridtrack.engine.layouts import LayoutFill, union_layout
+from hybridtrack.engine.layouts import union_layout
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.mixtures import logsumexp, mixture
@@ -237,12 +237,9 @@ class MultipleModelEstimator:
         self.estimator: Estimator = resolve("estimator", estimator, registry)
         self.name = name or method
         self.layout = union_layout([m.layout for m in self.models])
-        self._positions = [np.array([self.layout.index(c) for c in m.layout]) for m in self.models]
-        self._fill = LayoutFill(self.layout, missing_mean, missing_variance)
-        layouts = dict.fromkeys(tuple(m.layout) for m in self.models)  # the distinct layouts, in order of appearance
-        self._groups = [(layout, np.flatnonzero([tuple(m.layout) == layout for m in self.models])) for layout in layouts]
-        self._rows: dict[tuple, np.ndarray] = {}
-        self._banks = [FilterBank(self.estimator, layout, self.network.sensors) for layout, _ in self._groups]
+        self.bank = FilterBank(
+            self.estimator, self.layout, self.network.sensors, missing_mean=missing_mean, missing_variance=missing_variance
+        )
 
     # ------------------------------------------------------------------ Markov chain
     def log_transition_matrix(self, dt) -> np.ndarray:
@@ -263,29 +260,15 @@ class MultipleModelEstimator:
     def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
         """Model-conditioned filtering of F filters per run: start (R, F, n) in the union layout, filter f runs
         model ``filter_models[f]``; predict over ``dt`` (seconds, one for all runs or (R,) per run; None: update
-        only) and update with z (R, Σm), one :class:`~hybridtrack.engine.bank.FilterBank` per layout re-started
-        at the starts (its transitions built there: a turn's ω and centre from x̂_0j).  Returns the posteriors
-        (R, F, n), (R, F, n, n) in the union layout and ℓ (R, F)."""
+        only) and update with z (R, Σm), the engine's :class:`~hybridtrack.engine.bank.FilterBank` (grouped by
+        layout) re-started at the starts (its transitions built there: a turn's ω and centre from x̂_0j).  Returns
+        the posteriors (R, F, n), (R, F, n, n) in the union layout and ℓ (R, F)."""
         R, F, n = start_means.shape
-        means, covs, loglik = np.empty((R, F, n)), np.empty((R, F, n, n)), np.empty((R, F))
-        for g, (_, members) in enumerate(self._groups):
-            key = (g, filter_models.tobytes())
-            if key not in self._rows:
-                self._rows[key] = np.flatnonzero(np.isin(filter_models, members))
-            rows = self._rows[key]
-            if rows.size == 0:
-                continue
-            pos = self._positions[members[0]]
-            x0 = start_means[:, rows][..., pos].reshape(R * rows.size, pos.size)
-            P0 = start_covs[:, rows][..., pos[:, None], pos[None, :]].reshape(R * rows.size, pos.size, pos.size)
-            bank = self._banks[g]
-            models = [self.models[filter_models[f]] for f in rows] * R
-            bank.start(x0, 0.5 * (P0 + np.swapaxes(P0, -1, -2)), models, x0, np.repeat(np.arange(R), rows.size))
-            scores = bank.step(dt, z)
-            shape = (R, rows.size, pos.size)
-            means[:, rows], covs[:, rows] = self._fill.expand(bank.means.reshape(shape), bank.covs.reshape(shape + (pos.size,)), pos)
-            loglik[:, rows] = scores.loglik.reshape(R, rows.size)
-        return means, covs, loglik
+        x0, P0 = start_means.reshape(R * F, n), start_covs.reshape(R * F, n, n)
+        models = [self.models[f] for f in filter_models] * R
+        self.bank.start(x0, 0.5 * (P0 + np.swapaxes(P0, -1, -2)), models, x0, np.repeat(np.arange(R), F))
+        loglik = self.bank.step(dt, z).loglik.reshape(R, F)
+        return np.array(self.bank.means).reshape(R, F, n), self.bank.covs.reshape(R, F, n, n), loglik
 
     def _merge(self, model_means, model_covs, joint, model_loglik) -> MultipleModelState:
         """Merging: ln μ_j = joint_j − ln Σ_l exp(joint_l) (joint_j = ln Λ_j c̄_j), the output x̂, P mixed by μ_j,
@@ -303,7 +286,7 @@ class MultipleModelEstimator:
         cov = np.asarray(prior_cov, dtype=float)
         R = mean.shape[0]
         layout = self._prior_layout(mean.shape[-1], prior_layout)
-        x, P = self._fill.expand(mean, cov, np.array([self.layout.index(c) for c in layout]))
+        x, P = self.bank.fill.expand(mean, cov, self.bank.fill.positions(layout))
         if mode_probabilities is None:
             log_mu0 = np.full(r, -np.log(r))
         else:

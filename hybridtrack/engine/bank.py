@@ -296,18 +296,20 @@ class FilterBank:
         return len(self.models)
 
     def _index(self, models: Sequence[MotionModel]) -> np.ndarray:
-        """Each model's group (the group of its layout, created on first sight)."""
-        out = np.empty(len(models), dtype=np.intp)
-        for i, model in enumerate(models):
-            known = self._model_group.get(id(model))
+        """Each model's group (the group of its layout, created on first sight), looked up once per distinct model."""
+        ids = np.fromiter(map(id, models), dtype=np.int64, count=len(models))
+        distinct, first, inverse = np.unique(ids, return_index=True, return_inverse=True)
+        groups = np.empty(distinct.size, dtype=np.intp)
+        for u, i in enumerate(first):
+            known = self._model_group.get(int(distinct[u]))
             if known is None:
-                layout = tuple(model.layout)
+                model, layout = models[i], tuple(models[i].layout)
                 if layout not in self.groups:
                     self._positions[layout] = self.fill.positions(layout, f"model {model.name!r}")
                     self.groups[layout] = LayoutBank(self.estimator, layout, self.sensors)
                 known = self._model_group[id(model)] = (model, list(self.groups).index(layout))
-            out[i] = known[1]
-        return out
+            groups[u] = known[1]
+        return groups[inverse.reshape(-1)]
 
     def _members(self):
         """(group, its filters' rows in the bank, its components' positions in the bank's layout) per non-empty group."""
