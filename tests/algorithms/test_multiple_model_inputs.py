@@ -1,13 +1,11 @@
-"""MultipleModelEstimator.run_batch (IMM, GPB1, GPB2): runs × models vectorized, equal to ``run`` of each run to 1e-12,
-with irregular per-run times, per-run priors, NaN components differing between runs and a sojourn-time chain."""
+"""MultipleModelEstimator.run_batch's inputs named in errors (its equivalence with the runs alone is
+tests/engine/test_batch.py), the sojourn-time matrices against scipy's expm, and the grouped transitions of its banks."""
 
 import numpy as np
 import pytest
 
-from hybridtrack import Gaussian
 from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, sojourn_matrix
-from hybridtrack.recording import RerunRecorder
-from hybridtrack_plugins.motion.linear_modes import ConstantAcceleration, LeftTurn, Straight
+from hybridtrack_plugins.motion.linear_modes import LeftTurn, Straight
 from hybridtrack_plugins.sensors.position import PositionSensor
 
 RUNS, STEPS = 4, 16
@@ -31,40 +29,6 @@ def data(seed=3):
     means = np.stack([[0.0, 1.0 + 0.2 * r, 0.0, 0.5] for r in range(RUNS)])
     covs = np.stack([np.diag([1.0, 0.5, 1.0, 0.5]) * (1 + r) for r in range(RUNS)])
     return z, times, (means, covs)
-
-
-@pytest.mark.parametrize(
-    ("method", "estimator"), [("imm", "kalman"), ("gpb1", "kalman"), ("gpb2", "kalman"), ("imm", "potter"), ("gpb2", "information")]
-)
-def test_batch_equals_each_run(method, estimator):
-    z, times, prior = data()
-    models = [Straight(noise_cov=np.eye(2) * 0.01), LeftTurn(radius=20.0, noise_cov=np.eye(2) * 0.1), ConstantAcceleration()]
-    mm = MultipleModelEstimator(models, sensors=SENSORS, sojourn=[10.0, 5.0, 8.0], method=method, estimator=estimator)
-    batched = mm.run_batch(z, prior, times=times)
-    assert len(batched) == RUNS
-    for r in range(RUNS):
-        single = mm.run({n: a[r] for n, a in z.items()}, Gaussian(prior[0][r], prior[1][r]), times=times[r])
-        np.testing.assert_array_equal(batched[r].times, single.times)
-        np.testing.assert_array_equal(batched[r].mode, single.mode)
-        for name in ("means", "covs", "log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik"):
-            np.testing.assert_allclose(getattr(batched[r], name), getattr(single, name), **TOL, err_msg=f"run {r} {name}")
-
-
-def test_batch_with_shared_times_matrix_and_recording(tmp_path):
-    z, _, _ = data(5)
-    prior = Gaussian(np.array([0.0, 1.0, 0.0, 0.5]), np.eye(4))
-    mm = MultipleModelEstimator(
-        [Straight(noise_cov=np.eye(2) * 0.01), Straight(noise_cov=np.eye(2) * 4.0)], [[0.95, 0.05], [0.1, 0.9]], sensors=SENSORS, tau=1.0
-    )
-    path = tmp_path / "run2.rrd"
-    recorder = RerunRecorder(path)
-    batched = mm.run_batch(z, prior, recorders={2: recorder})
-    recorder.close()
-    assert path.stat().st_size > 0
-    for r in range(RUNS):
-        single = mm.run({n: a[r] for n, a in z.items()}, prior)
-        np.testing.assert_allclose(batched[r].log_mode_probabilities, single.log_mode_probabilities, **TOL)
-        np.testing.assert_allclose(batched[r].covs, single.covs, **TOL)
 
 
 def test_batch_input_errors_name_the_argument():
