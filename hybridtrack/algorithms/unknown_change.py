@@ -210,7 +210,7 @@ class UnknownChangeAdaptive:
             for r in runs
         ]
         test = self.detector.batch(R)  # Algorithm 3's test of every run (vectorized for sprt_unknown_change)
-        signals = [] if self.signal is None else [copy.deepcopy(self.signal) for _ in runs]
+        signals = None if self.signal is None else self.signal.batch(R)  # the signal function of every run
         capped = np.zeros(R, dtype=bool)
         means, covs = np.zeros((R, K + 1, n)), np.zeros((R, K + 1, n, n))
         mode = np.zeros((R, K + 1), dtype=int)
@@ -228,10 +228,18 @@ class UnknownChangeAdaptive:
         bank = FilterBank(self.estimator, self.layout, self.network.sensors)
         bank.start(x0, P0, [self.models[self.initial_mode]] * R, x0, runs)
         scores = bank.step(None, z[:, 0])
-        for r, signal in enumerate(signals):
-            signal.reset()
-            out = signal.observe(0, scores.loglik[r : r + 1], scores.nis[r : r + 1], int(scores.m[r]))
-            signal_values[r, 0], bounds[r, 0] = out.statistics["signal"][0], (out.thresholds["lower"], out.thresholds["upper"])
+
+        def observe_signals(k, loglik, nis, m):
+            """The signal function of every run on its current filter's scores (R,), the runs grouped by m."""
+            for dim in np.unique(m):
+                group = np.flatnonzero(m == dim)
+                for r, s in zip(group, signals.observe(k, group, loglik[group, None], nis[group, None], int(dim))):
+                    signal_values[r, k], bounds[r, k] = s.statistics["signal"][0], (s.thresholds["lower"], s.thresholds["upper"])
+
+        if signals is not None:
+            for signal in signals.copies:
+                signal.reset()
+            observe_signals(0, scores.loglik, scores.nis, scores.m)
         means[:, 0], covs[:, 0], mode[:, 0], bank_sizes[:, 0] = bank.means, bank.covs, current, 1
         nodes = self._start_nodes(bank, names[self.initial_mode], K, scores.m)
         for k in range(1, K + 1):
@@ -263,9 +271,8 @@ class UnknownChangeAdaptive:
                     rows = np.flatnonzero(entry_modes == p)
                     if rows.size:
                         fan[k, mode_index] = bank.means[offsets[r] + 1 + rows[np.argmax(log_psi[rows])], position]
-            for r, signal in enumerate(signals):
-                s = signal.observe(k, loglik[offsets[r] : offsets[r] + 1], nis[offsets[r] : offsets[r] + 1], int(m[offsets[r]]))
-                signal_values[r, k], bounds[r, k] = s.statistics["signal"][0], (s.thresholds["lower"], s.thresholds["upper"])
+            if signals is not None:
+                observe_signals(k, loglik[offsets], nis[offsets], m[offsets])
             if nodes is not None:
                 self._observe_nodes(nodes, bank, k, alternatives, m)
             # 3. act on the decisions, or bound the banks
@@ -302,7 +309,7 @@ class UnknownChangeAdaptive:
                     current[r] = alternatives[r, out.decided[r] - 1]
                     changes[r].append(ChangeEvent(k, self.labels[current[r]], int(out.chosen_start[r])))
                     keep[offsets[r] + 1 + out.chosen_entry[r]] = True
-                    for signal in signals[r : r + 1] + ([] if nodes is None else nodes[1][r]):
+                    for signal in ([] if signals is None else [signals.copies[r]]) + ([] if nodes is None else nodes[1][r]):
                         signal.reset()
                 else:  # H_0 accepted: the test restarts with filter 0 alone
                     keep[offsets[r]] = True
