@@ -164,36 +164,10 @@ def simulate_trajectory(
     models: Sequence[MotionModel] | None = None,
     recorder=None,
 ) -> Trajectory:
-    """Simulate ``schedule`` from ``x0`` (in the first mode's layout) with sampling period ``tau``, or at ``times``
-    (one per state: ``schedule.total_steps + 1``; module docstring).  ``models`` overrides the registry lookup
-    (one model per schedule row); with a ``recorder`` the true path is logged under ``world/truth``.
-    """
-    tau, times = _sampling(tau, times, schedule.total_steps)
-    models, layout = _schedule_models(schedule, models, registry, noise_cov)
-    x = as_float_array(x0, "x0", (models[0].state_dim,))
-    rng = np.random.default_rng(seed)
-    intervals = np.full(schedule.total_steps, tau) if times is None else np.diff(times)
-
-    states = [convert_layout(x, models[0].layout, layout)]
-    segment_index = [0]
-    current_layout = models[0].layout
-    for i, (segment, model) in enumerate(zip(schedule.segments, models)):
-        x = model.enter(x, current_layout, {"acceleration": segment.acceleration})
-        current_layout = model.layout
-        switch_state, built = x.copy(), None
-        for _ in range(segment.steps):
-            dt = float(intervals[len(states) - 1])
-            if dt != built:  # regular sampling: one transition per segment; given times: one per step
-                transition, built = model.transition(dt, switch_state), dt
-                L = psd_square_root(transition.Q)
-            x = transition.apply(x) if model.linear else model.propagate(x, dt, switch_state)
-            if process_noise:
-                x = x + transition.G @ (L @ rng.standard_normal(L.shape[1]))
-            if not np.all(np.isfinite(x)):
-                raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
-            states.append(convert_layout(x, current_layout, layout))
-            segment_index.append(i)
-    trajectory = Trajectory(schedule, tau, layout, np.array(states), np.array(segment_index), times)
+    """:func:`simulate_trajectories` of one run, drawn from ``seed``; with a ``recorder`` the true path is logged
+    under ``world/truth``."""
+    options = dict(times=times, process_noise=process_noise, noise_cov=noise_cov, registry=registry, models=models)
+    (trajectory,) = simulate_trajectories(schedule, x0, tau, seeds=[seed], **options)
     if recorder is not None:
         recorder.log_path("world/truth", trajectory.steps, trajectory.positions, trajectory.times)
         labels = [s.mode if s.radius is None else f"{s.mode}_r{s.radius:g}" for s in schedule.segments]
@@ -232,51 +206,57 @@ def simulate(
 def simulate_trajectories(
     schedule: Schedule,
     x0,
-    tau: float,
+    tau: float | None = None,
     *,
     seeds: Sequence,
+    times=None,
+    process_noise: bool = True,
     noise_cov=None,
     registry: Registry | None = None,
     models: Sequence[MotionModel] | None = None,
 ) -> list[Trajectory]:
-    """:func:`simulate_trajectory` for R runs at once (regular sampling ``tau``, linear modes), one seed per run.
+    """R runs of ``schedule`` from ``x0`` (in the first mode's layout), one seed per run, with sampling period
+    ``tau`` or at ``times`` (one per state: ``schedule.total_steps + 1``; module docstring).  ``models``
+    overrides the registry lookup (one model per schedule row).
 
-    Run r draws exactly what ``simulate_trajectory(schedule, x0, tau,
-    seed=seeds[r], …)`` draws — each segment's process noise w comes from the
-    run's own stream in the same order, as one (steps, q) block — and the
-    states are propagated for all runs together, x_k = F_r x_{k−1} + B_r +
-    G L w_k (each run's transition fixed at its own switch state, SPEC §1),
-    so the trajectories equal the per-run ones to rounding.  A nonlinear mode
-    or irregular times: use :func:`simulate_trajectory` run by run.
+    Each run draws each segment's process noise w from its own stream, as one
+    (steps, q) block, and the states of all runs are propagated together,
+    x_k = F_r x_{k−1} + B_r + G_r L_r w_k (each run's transition fixed at its
+    own switch state, SPEC §1; a nonlinear mode propagates each run's state by
+    its own f), so a run's trajectory does not depend on the others.
     """
-    tau = check_tau(tau)
+    tau, times = _sampling(tau, times, schedule.total_steps)
     models, layout = _schedule_models(schedule, models, registry, noise_cov)
-    if not all(m.linear for m in models):
-        raise ValueError("models: simulate_trajectories propagates linear modes only; use simulate_trajectory per run")
     rngs = [np.random.default_rng(seed) for seed in seeds]
     if not rngs:
         raise ValueError("seeds: expected one seed per run, got none")
-    R = len(rngs)
+    R, K = len(rngs), schedule.total_steps
+    intervals = np.full(K, tau) if times is None else np.diff(times)
     x = np.repeat(as_float_array(x0, "x0", (models[0].state_dim,))[None], R, axis=0)
-    states = np.zeros((R, schedule.total_steps + 1, len(layout)))
+    states = np.zeros((R, K + 1, len(layout)))
     states[:, 0] = convert_layout(x, models[0].layout, layout)
-    segment_index = np.zeros(schedule.total_steps + 1, dtype=int)
+    segment_index = np.zeros(K + 1, dtype=int)
     current_layout, k = models[0].layout, 0
     for i, (segment, model) in enumerate(zip(schedule.segments, models)):
         x = np.stack([model.enter(row, current_layout, {"acceleration": segment.acceleration}) for row in x])
-        current_layout = model.layout
-        transitions = [model.transition(tau, row.copy()) for row in x]
-        F = np.stack([t.F for t in transitions])
-        B = np.stack([t.B for t in transitions])
-        GL = np.stack([t.G @ psd_square_root(t.Q) for t in transitions])
-        noise = np.stack([rng.standard_normal((segment.steps, GL.shape[2])) for rng in rngs])  # (R, steps, q)
-        block = np.zeros((R, segment.steps, model.state_dim))
+        current_layout, switch_states, built = model.layout, x.copy(), None
         for j in range(segment.steps):
-            x = np.einsum("rij,rj->ri", F, x) + B + np.einsum("rij,rj->ri", GL, noise[:, j])
-            block[:, j] = x
-        if not np.all(np.isfinite(block)):
-            raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
-        states[:, k + 1 : k + segment.steps + 1] = convert_layout(block, current_layout, layout)
-        segment_index[k + 1 : k + segment.steps + 1] = i
-        k += segment.steps
-    return [Trajectory(schedule, tau, layout, states[r], segment_index.copy(), None) for r in range(R)]
+            dt = float(intervals[k])
+            if dt != built:  # regular sampling: one transition per segment; given times: one per step
+                transitions, built = [model.transition(dt, row) for row in switch_states], dt
+                F, B = np.stack([t.F for t in transitions]), np.stack([t.B for t in transitions])
+                GL = np.stack([t.G @ psd_square_root(t.Q) for t in transitions])
+            if process_noise and j == 0:  # the segment's noise, each run from its own stream
+                noise = np.stack([rng.standard_normal((segment.steps, GL.shape[2])) for rng in rngs])  # (R, steps, q)
+            if model.linear:
+                x = np.einsum("rij,rj->ri", F, x) + B
+            else:
+                x = np.stack([model.propagate(row, dt, s) for row, s in zip(x, switch_states)])
+            if process_noise:
+                x = x + np.einsum("rij,rj->ri", GL, noise[:, j])
+            if not np.all(np.isfinite(x)):
+                raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
+            k += 1
+            states[:, k] = convert_layout(x, current_layout, layout)
+            segment_index[k] = i
+    return [Trajectory(schedule, tau, layout, states[r], segment_index.copy(), times) for r in range(R)]
