@@ -55,28 +55,21 @@ def batch_times(times, tau, runs: int, steps: int) -> tuple[np.ndarray, np.ndarr
     return out_t, out_dt
 
 
-def batch_priors(prior, runs: int) -> list[Gaussian]:
-    """One Gaussian per run from a shared prior (Gaussian or (mean (n,), cov (n, n))) or per-run (mean (R, n), cov (R, n, n))."""
-    if isinstance(prior, Gaussian):
-        return [prior] * runs
-    if not isinstance(prior, (tuple, list)) or len(prior) != 2:
-        raise ValueError("prior: expected a Gaussian, (mean (n,), cov (n, n)) or per-run (mean (runs, n), cov (runs, n, n))")
-    mean = np.asarray(prior[0], dtype=float)
-    if mean.ndim == 1:
-        return [Gaussian(*prior)] * runs
-    mean = as_float_array(mean, "prior mean", (runs, None))
-    cov = as_float_array(prior[1], "prior cov", (runs, mean.shape[1], mean.shape[1]))
-    return [Gaussian(mean[r], cov[r]) for r in range(runs)]
-
-
 def prior_arrays(prior, runs: int, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per-run prior means (R, n) and covariances (R, n, n) from one Gaussian (or (mean, cov)), or per-run means
-    (R, n) with a shared (n, n) or per-run (R, n, n) covariance; ``n`` the state size expected (None: any)."""
-    if not isinstance(prior, Gaussian) and isinstance(prior, (tuple, list)) and len(prior) == 2:
-        mean, cov = np.asarray(prior[0], dtype=float), np.asarray(prior[1], dtype=float)
-        if mean.ndim == 2 and cov.ndim == 2:
-            prior = (mean, np.broadcast_to(cov, (mean.shape[0],) + cov.shape))
-    priors = batch_priors(prior, runs)
+    """Per-run prior means (R, n) and covariances (R, n, n) from one Gaussian (or (mean (n,), cov (n, n))), or
+    per-run means (R, n) with a shared (n, n) or per-run (R, n, n) covariance; ``n`` the state size expected
+    (None: any).  Each run's prior is checked as a :class:`~hybridtrack.core.types.Gaussian`."""
+    if isinstance(prior, Gaussian):
+        priors = [prior] * runs
+    elif not isinstance(prior, (tuple, list)) or len(prior) != 2:
+        raise ValueError("prior: expected a Gaussian, (mean (n,), cov (n, n)) or per-run (mean (runs, n), cov (runs, n, n))")
+    elif np.ndim(prior[0]) == 1:
+        priors = [Gaussian(*prior)] * runs
+    else:
+        mean = as_float_array(prior[0], "prior mean", (runs, None))
+        cov = np.broadcast_to(prior[1], (runs,) + np.shape(prior[1])) if np.ndim(prior[1]) == 2 else prior[1]
+        cov = as_float_array(cov, "prior cov", (runs, mean.shape[1], mean.shape[1]))
+        priors = [Gaussian(mean[r], cov[r]) for r in range(runs)]
     if n is not None and priors[0].mean.shape != (n,):
         raise ValueError(f"prior: expected a mean of the {n} state components, got shape {priors[0].mean.shape}")
     return np.stack([p.mean for p in priors]), np.stack([p.cov for p in priors])

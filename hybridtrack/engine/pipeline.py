@@ -41,7 +41,7 @@ from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry
 from hybridtrack.core.types import Decision, Gaussian
 from hybridtrack.engine.bank import FilterBank
-from hybridtrack.engine.batch import batch_priors, batch_times, per_run, stacked_measurements
+from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, stacked_measurements
 from hybridtrack.engine.clutter import ScanSequence
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
@@ -164,8 +164,9 @@ class Pipeline:
             raise ValueError("measurements: required (sensor name → (steps, m_i)) unless candidates are given")
         z = self.network.stack(measurements)
         t, dt = step_intervals(times, tau, z.shape[0])
-        prior = prior if isinstance(prior, Gaussian) else Gaussian(*prior)
-        self.start(z[None], t[None], dt[None], [prior], [recorder], [truth], record_measurements, record_every, record_seconds)
+        self.start(
+            z[None], t[None], dt[None], prior_arrays(prior, 1), [recorder], [truth], record_measurements, record_every, record_seconds
+        )
 
     @classmethod
     def batch(cls, measurements: Mapping[str, np.ndarray], prior, *, times=None, truth=None, recorders=None, **options) -> Pipeline:
@@ -186,7 +187,7 @@ class Pipeline:
         z = stacked_measurements(pipeline.network, measurements)
         R, steps = z.shape[:2]
         t, dt = batch_times(times, tau, R, steps)
-        priors, truths, recorders = batch_priors(prior, R), per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
+        priors, truths, recorders = prior_arrays(prior, R), per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
         pipeline.start(z, t, dt, priors, recorders, truths, **streaming)
         return pipeline
 
@@ -249,13 +250,12 @@ class Pipeline:
         return {name: candidates[name] for name in self.network.names}
 
     def start(self, z, t, dt, priors, recorders, truths, record_measurements=True, record_every=10_000, record_seconds=2.0) -> None:
-        """Initialize the bank of R runs: measurements z (R, K, Σm), times t (R, K), Δt (R, K−1), one prior,
-        recorder and truth per run; preallocate the per-step arrays."""
-        R, M = len(priors), len(self.models)
-        for r, p in enumerate(priors):
-            if p.dim != len(self.layout):
-                where = "" if R == 1 else f" (run {r})"
-                raise ValueError(f"prior{where}: expected a state of the layout {self.layout}, got dimension {p.dim}")
+        """Initialize the bank of R runs: measurements z (R, K, Σm), times t (R, K), Δt (R, K−1), the priors
+        (means (R, n), covs (R, n, n)), one recorder and truth per run; preallocate the per-step arrays."""
+        (x0, P0), M = priors, len(self.models)
+        R = x0.shape[0]
+        if x0.shape[1] != len(self.layout):
+            raise ValueError(f"prior: expected a state of the layout {self.layout}, got dimension {x0.shape[1]}")
         if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
             raise ValueError(f"record_every: expected a whole number of steps ≥ 1, got {record_every!r}")
         if record_seconds is not None and not (isinstance(record_seconds, (int, float)) and record_seconds > 0):
@@ -267,13 +267,13 @@ class Pipeline:
         self.record_every, self.record_seconds = int(record_every), record_seconds
         est = self.estimator
         self.bank = FilterBank(est, self.layout, self.network.sensors)
-        means, run = np.repeat(np.stack([p.mean for p in priors]), M, 0), np.repeat(np.arange(R), M)
+        means, run = np.repeat(x0, M, 0), np.repeat(np.arange(R), M)
         if est.sampling and R > 1:  # each run initialized as its own pipeline would be: a fresh copy of the estimator
             fresh = copy.deepcopy(est)
-            state = est.concatenate([copy.deepcopy(fresh).initialize(np.tile(p.mean, (M, 1)), np.tile(p.cov, (M, 1, 1))) for p in priors])
+            state = est.concatenate([copy.deepcopy(fresh).initialize(np.tile(x, (M, 1)), np.tile(P, (M, 1, 1))) for x, P in zip(x0, P0)])
             self.bank.set(state, self.models * R, means, run)
         else:  # a linear model's transition fixed at its run's prior mean, the switch state
-            self.bank.start(means, np.repeat(np.stack([p.cov for p in priors]), M, 0), self.models * R, means, run)
+            self.bank.start(means, np.repeat(P0, M, 0), self.models * R, means, run)
         self.batches = [d.batch(R) for d in self.detectors] if R > 1 else None
         K, n, m = z.shape[1], len(self.layout), z.shape[2]
         self.processed = 0
