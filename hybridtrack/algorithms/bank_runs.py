@@ -1,5 +1,10 @@
 """What the bank algorithms share: the run that is the batch of one, and the R runs of an SPRT bank
-(:mod:`.known_switch`, :mod:`.unknown_change`) checked, grouped into banks and handed to their recorders."""
+(:mod:`.known_switch`, :mod:`.unknown_change`) checked, grouped into banks and handed to their recorders.
+
+The banks' step convention (as the Pipeline): step 0 updates the prior with z_0; step k ≥ 1 predicts over
+Δt_k = t_k − t_{k−1} and updates.  The recording of a run is :mod:`hybridtrack.recording.adaptive`
+(``recorder.log_result``).
+"""
 
 from __future__ import annotations
 

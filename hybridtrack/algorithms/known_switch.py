@@ -8,11 +8,8 @@ each turn's ω and centre fixed from x̂ (SPEC §7); the detector (default
 estimate follows the ``follow`` rule; after the decision only the chosen
 filter runs to the end of the segment (lines 14–16).
 
-One implementation over R runs on one :class:`~hybridtrack.engine.bank.FilterBank`
-(run by run); :meth:`KnownSwitchAdaptive.run` is the batch of one.  Step
-convention (as the Pipeline): step 0 updates the prior with z_0; step k ≥ 1
-predicts over Δt_k = t_k − t_{k−1} and updates.  The recording of a run is
-:mod:`hybridtrack.recording.adaptive` (``recorder.log_result``).
+One implementation over R runs on one :class:`~hybridtrack.engine.bank.FilterBank`;
+:meth:`KnownSwitchAdaptive.run` is the batch of one (step convention and recording: :mod:`.bank_runs`).
 """
 
 from __future__ import annotations

@@ -375,19 +375,12 @@ class MultipleModelEstimator:
         mode_probabilities=None,
         prior_layout: Sequence[str] | None = None,
     ) -> list[MultipleModelRun]:
-        """R runs vectorized over runs × models, one :class:`MultipleModelRun` per run.
+        """R runs vectorized over runs × models, one :class:`MultipleModelRun` per run (the inputs as
+        :func:`~hybridtrack.algorithms.bank_runs.run_banks` takes them; all runs in one bank, each recorded run
+        handed to ``recorder.log_result``).
 
-        ``measurements``: sensor name → (R, K+1, m) (NaN: not measured; runs may
-        miss different components); ``times``: (K+1,) shared or (R, K+1) per run
-        (irregular), default ``tau``; ``prior``: a Gaussian or (mean, cov) shared,
-        or per-run means (R, n) and covariances (R, n, n), in the union layout or
-        a model's layout (``prior_layout`` names it when ambiguous);
-        ``mode_probabilities``: μ_0 (r,), default uniform; ``truth``: per-run
-        trajectories (a sequence of R or run → trajectory) recorded beside the
-        estimates; ``recorders``: run index → recorder (or a sequence of R) for
-        the runs to record, each handed its finished run (``recorder.log_result``:
-        the estimate, one ``mode_probability`` series per model, the most
-        probable mode, the measurements).
+        ``prior`` is in the union layout or a model's layout (``prior_layout``
+        names it when ambiguous); ``mode_probabilities``: μ_0 (r,), default uniform.
         """
         z = stacked_measurements(self.network, measurements)
         R, steps = z.shape[:2]

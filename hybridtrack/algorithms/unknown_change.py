@@ -13,11 +13,8 @@ estimator every node's locally computed ℓ and NIS (seed 000 eq. 22) feed node
 copies of the detector and of the signal function, kept beside the
 centralized values.
 
-One implementation over R runs on one :class:`~hybridtrack.engine.bank.FilterBank`
-(run by run); :meth:`UnknownChangeAdaptive.run` is the batch of one.  Step
-convention (as the Pipeline): step 0 updates the prior with z_0; step k ≥ 1
-predicts over Δt_k = t_k − t_{k−1} and updates.  The recording of a run is
-:mod:`hybridtrack.recording.adaptive` (``recorder.log_result``).
+One implementation over R runs on one :class:`~hybridtrack.engine.bank.FilterBank`;
+:meth:`UnknownChangeAdaptive.run` is the batch of one (step convention and recording: :mod:`.bank_runs`).
 """
 
 from __future__ import annotations
