@@ -258,13 +258,16 @@ class MultipleModelEstimator:
 
     # ------------------------------------------------------------------ the parts
     def _filter(self, start_means, start_covs, filter_models: np.ndarray, dt, z: np.ndarray):
-        """Model-conditioned filtering of F filters per run: start (R, F, n) in the union layout, filter f runs
-        model ``filter_models[f]``; predict over ``dt`` (seconds, one for all runs or (R,) per run; None: update
+        """Model-conditioned filtering of F filters per run: start (R, F, n) in the union layout (or (R, n), one
+        start for all F), filter f runs model ``filter_models[f]``; predict over ``dt`` (seconds, one for all runs or (R,) per run; None: update
         only) and update with z (R, Σm), the engine's :class:`~hybridtrack.engine.bank.FilterBank` (grouped by
         layout) re-started at the starts (its transitions built there: a turn's ω and centre from x̂_0j).  Returns
         the posteriors (R, F, n), (R, F, n, n) in the union layout and ℓ (R, F)."""
-        R, F, n = start_means.shape
-        x0, P0 = start_means.reshape(R * F, n), start_covs.reshape(R * F, n, n)
+        (R, n), F = (start_means.shape[0], start_means.shape[-1]), len(filter_models)
+        if start_means.ndim == 2:
+            start_means, start_covs = start_means[:, None], start_covs[:, None]
+        x0 = np.broadcast_to(start_means, (R, F, n)).reshape(R * F, n)
+        P0 = np.broadcast_to(start_covs, (R, F, n, n)).reshape(R * F, n, n)
         models = [self.models[f] for f in filter_models] * R
         self.bank.start(x0, 0.5 * (P0 + np.swapaxes(P0, -1, -2)), models, x0, np.repeat(np.arange(R), F))
         loglik = self.bank.step(dt, z).loglik.reshape(R, F)
@@ -284,7 +287,6 @@ class MultipleModelEstimator:
         r = len(self.models)
         mean = np.asarray(prior_mean, dtype=float)
         cov = np.asarray(prior_cov, dtype=float)
-        R = mean.shape[0]
         layout = self._prior_layout(mean.shape[-1], prior_layout)
         x, P = self.bank.fill.expand(mean, cov, self.bank.fill.positions(layout))
         if mode_probabilities is None:
@@ -295,9 +297,7 @@ class MultipleModelEstimator:
                 raise ValueError(f"mode_probabilities: expected {r} non-negative probabilities summing to 1, got {mu0.tolist()}")
             with np.errstate(divide="ignore"):
                 log_mu0 = np.log(mu0 / mu0.sum())
-        starts_x = np.broadcast_to(x[:, None], (R, r, x.shape[-1]))
-        starts_P = np.broadcast_to(P[:, None], (R, r) + P.shape[-2:])
-        means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), None, z0)
+        means, covs, ell = self._filter(x, P, np.arange(r), None, z0)
         return self._merge(means, covs, ell + log_mu0, ell)
 
     def step(self, state: MultipleModelState, z: np.ndarray, dt) -> MultipleModelState:
@@ -325,9 +325,7 @@ class MultipleModelEstimator:
             # model j starts from the mixture of the models i with μ_{i|j} ∝ π_ij μ_i
             starts_x, starts_P = mixture(np.swapaxes(joint_prior, 1, 2), state.model_means[:, None], state.model_covs[:, None])
         else:  # gpb1: every filter starts from the merged estimate
-            R = log_mu.shape[0]
-            starts_x = np.broadcast_to(state.mean[:, None], (R, r) + state.mean.shape[-1:])
-            starts_P = np.broadcast_to(state.cov[:, None], (R, r) + state.cov.shape[-2:])
+            starts_x, starts_P = state.mean, state.cov
         means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), dt, z)
         return self._merge(means, covs, ell + log_cbar, ell)
 
