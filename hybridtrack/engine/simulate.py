@@ -189,7 +189,7 @@ def simulate(
     with independent streams for the two (``spawn``).
 
     Sampling is ``tau`` (regular) or ``times`` (seconds, one per state, any
-    spacing; see :func:`simulate_trajectory`).  With a ``recorder`` the truth
+    spacing; see :func:`simulate_trajectories`).  With a ``recorder`` the truth
     is logged; the measurements are logged by what consumes them (the
     pipeline), or by :func:`hybridtrack.recording.log_measurements`.
     """
