@@ -681,10 +681,6 @@ def warn_unobservable(count: int, method: str) -> None:
     )
 
 
-def _note(message: str, note: str) -> str:
-    return f"{message}; {note}" if message else note
-
-
 def flag_constant_fits(batch: BearingsBatch, F, candidates, numbers, method: str) -> np.ndarray:
     """The ``candidates`` (B,) that a constant bearing fits as well (:func:`constant_fits_as_well`, σ unknown only); warns."""
     if batch.sigma is not None:  # σ known: the pre-check (constant_bearing) has decided
@@ -707,7 +703,7 @@ def conclude(batch, scaling, s, F, H, iterations, evaluations, converged, messag
         warn_unobservable(int((~observable).sum()), method)
     fit = flag_constant_fits(batch, F, observable, numbers, method)
     notes = ("unobservable: JᵀJ singular" if not o else CONSTANT_FIT_MESSAGE if f else "" for o, f in zip(observable, fit))
-    messages = [_note(m, note) if note else m for m, note in zip(messages, notes)]
+    messages = ["; ".join(filter(None, (m, note))) for m, note in zip(messages, notes)]
     cov = np.where(fit[:, None, None], np.nan, cov)
     converged = np.asarray(converged) & observable & ~fit
     return answers(batch, theta, cov, F, statistics, iterations, evaluations, converged, messages, method)
