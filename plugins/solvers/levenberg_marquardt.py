@@ -224,14 +224,10 @@ def minimize_compiled(tau, ox, oy, X, convention, s, settings: LMSettings):
 class BatchLevenbergMarquardt(BearingsSolver):
     """The seed's Levenberg–Marquardt vectorized over many independent problems (one per Monte Carlo target).
 
-    ``solve_batch(batch)`` → :class:`BatchTMASolution`; ``solve(problem)`` runs a
-    batch of one.  Problems are processed ``chunk_size`` at a time (bounding
-    memory); the answers do not depend on it.  ``engine``: "numba" runs each
-    problem's iterations in the compiled kernel of :mod:`._tma_kernel` (one fused
-    pass over the bearings per trial), "numpy" runs all problems' iterations
-    together in numpy (:func:`minimize_batch`, trials in cache-sized blocks of
-    rows), "auto" (default) the kernel when numba is installed.  The two give the
-    same iterations and answers to ~10⁻¹⁴ relative.
+    Problems are processed ``chunk_size`` at a time (bounding memory); the answers
+    do not depend on it.  ``engine``: "numba" the compiled kernel of
+    :mod:`._tma_kernel`, "numpy" :func:`minimize_batch`, "auto" (default) the
+    kernel when numba is installed (the two agree to ~10⁻¹⁴ relative).
     """
 
     name: ClassVar[str] = "levenberg_marquardt_batch"

@@ -96,8 +96,7 @@ def assemble(x, HtH_inv, residual_ss, n, X0, variance_phi0, scaling_t0, referenc
 class NBearings(BearingsSolver):
     """N-bearings pseudo-linear least squares (seed 002 §4.4); closed form, biased by the first bearing's error.
 
-    ``solve_batch(batch)`` takes a :class:`BearingsBatch` (scaled normal equations, Cholesky),
-    ``solve(problem)`` a :class:`BearingsProblem` (a batch of one).  The observer must maneuver
+    A batch by scaled normal equations and Cholesky (:func:`solve_normal`).  The observer must maneuver
     (else :class:`UnobservableError`).
     """
 
