@@ -297,13 +297,9 @@ def constant_fits_as_well(bearings, F, alpha: float = CONSTANT_BEARING_ALPHA) ->
 def constant_bearing(bearings, sigma, alpha: float = CONSTANT_BEARING_ALPHA) -> np.ndarray:
     """True for each problem (bearings (..., n)) whose bearings are all equal modulo π within the noise.
 
-    A constant bearing puts the target on one line of sight at every time: the
-    range (and the radial speed) are not determined by the bearings, whatever the
-    bearing's value — a collision course, a target dead ahead or astern, or a
-    maneuver along the line of sight (seed 002 §6: observability needs the
-    bearing to change).  The line is estimated on doubled angles (so that φ and
-    φ + π are the same line): φ̄ = arg(Σ e^{2iX_k})/2, refined once by the mean
-    deviation; d_k = wrap(2(X_k − φ̄))/2 and F_c = Σ d_k² (the least-squares
+    Then the range and the radial speed are not determined (seed 002 §6; cases: docs/tma.md, "The constant-bearing test").
+    The line is estimated on doubled angles (so that φ and φ + π are the same line):
+    φ̄ = arg(Σ e^{2iX_k})/2, refined once by the mean deviation; d_k = wrap(2(X_k − φ̄))/2 and F_c = Σ d_k² (the least-squares
     cost of a constant bearing).  Constant when every |d_k| ≤
     :data:`CONSTANT_BEARING_ATOL`, or, σ > 0 known, when the χ²(n − 1) test does
     not reject a constant bearing: P(χ²(n−1) ≥ F_c/σ²) ≥ ``alpha``.
