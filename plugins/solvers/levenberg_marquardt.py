@@ -17,9 +17,7 @@ Iterations count accepted steps (8), evaluations count F evaluations (the
 start and every trial of 6) — the seed's "Iter" and "Nf".  Two guards the seed
 does not state: at most ``max_iterations`` accepted steps, and λ > ``lam_max``
 stops (no step decreases F); both end with ``converged=False``.  The solver
-works in the scaled parameters of :mod:`.tma_model`; Marquardt's diag(H) makes
-the steps themselves invariant to that scaling, which only conditions the
-Cholesky factorization.
+works in the scaled parameters of :mod:`.tma_model` (docs/tma.md, "Parameter scaling").
 
 :class:`BatchLevenbergMarquardt` runs them for B problems (:func:`minimize_batch`, or the compiled kernel);
 :class:`LevenbergMarquardt` is the same solver under the one-problem name (a batch of one).
