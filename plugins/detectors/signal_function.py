@@ -11,10 +11,9 @@ compared with bounds for a two-sided per-step false-alarm probability
 A value of filter ``watch`` outside the bounds is an alarm ("change"); with
 ``reset_on_alarm`` the accumulation restarts after it.
 
-Decentralized use: node i of the decentralized information filter computes
-NIS from its own (x⁻, I⁻, x⁺, I⁺) and the broadcast Σ_j z_jᵀR_j⁻¹z_j (seed 000
-eq. 22); feeding those values to :meth:`observe` gives node i's signal
-function, equal to the centralized one (tests/plugins/test_detectors_signal.py).
+Decentralized use: node i's NIS from its own (x⁻, I⁻, x⁺, I⁺) and the broadcast Σ_j z_jᵀR_j⁻¹z_j
+(seed 000 eq. 22; docs/detectors.md) fed to :meth:`observe` give its signal function, equal to the
+centralized one (tests/plugins/test_detectors_signal.py).
 """
 
 from __future__ import annotations
