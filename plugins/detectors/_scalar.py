@@ -9,13 +9,10 @@ the correct model.  The threshold is λ(α), the (1 − α) quantile of the
 statistic under H_0 from seeded simulation (:mod:`.null_calibration`); setting ``alpha``
 moves it (dynamic thresholds).
 
-The seeded simulation feeds the statistic independent N(0, 1) values (seed 003
-does so).  A normalized *filtered* signal — e.g. the EKF's angular-rate
-estimate — is N(0, 1) at each step but strongly autocorrelated, so its window
-sums are far wider than under independence and λ(α) from independent input
-gives many more false alarms than α.  ``null_sample`` replaces the simulated
-sample by values of the statistic computed on the actual signal under H_0
-(e.g. :func:`.null_calibration.glr_statistics` on normalized estimates of simulated
+The seeded simulation feeds the statistic independent N(0, 1) values (seed 003);
+for an autocorrelated input (why: docs/detectors.md, "GLR / CUSUM") ``null_sample``
+replaces it by values of the statistic on the actual signal under H_0 (e.g.
+:func:`.null_calibration.glr_statistics` on normalized estimates of simulated
 straight runs); λ(α) is then its (1 − α) quantile.
 """
 

@@ -11,10 +11,9 @@ compared with bounds for a two-sided per-step false-alarm probability
 A value of filter ``watch`` outside the bounds is an alarm ("change"); with
 ``reset_on_alarm`` the accumulation restarts after it.
 
-Decentralized use: node i of the decentralized information filter computes
-NIS from its own (x⁻, I⁻, x⁺, I⁺) and the broadcast Σ_j z_jᵀR_j⁻¹z_j (seed 000
-eq. 22); feeding those values to :meth:`observe` gives node i's signal
-function, equal to the centralized one (tests/plugins/test_detectors_signal.py).
+Decentralized use: node i's NIS from its own (x⁻, I⁻, x⁺, I⁺) and the broadcast Σ_j z_jᵀR_j⁻¹z_j
+(seed 000 eq. 22; docs/detectors.md) fed to :meth:`observe` give its signal function, equal to the
+centralized one (tests/plugins/test_detectors_signal.py).
 """
 
 from __future__ import annotations
@@ -66,7 +65,7 @@ class SignalFunction(ScoreDetector):
     def reset(self) -> None:
         self._sum = None  # Σ NIS per filter
         self._dof = 0.0
-        self._recent: deque = deque()  # (nis (M,), m) of the last `window` measured steps
+        self._recent: deque = deque(maxlen=self.window)  # (nis (M,), m) of the last `window` measured steps
 
     def observe(self, step, loglik, nis, m) -> DetectorStep:
         return observe_copies(step, [self], np.atleast_1d(np.asarray(nis, dtype=float))[None], int(m))[0]
@@ -90,8 +89,6 @@ def observe_copies(step, detectors: list[SignalFunction], nis: np.ndarray, m: in
     for d, values in zip(detectors, nis):
         if first.window is not None and m > 0:
             d._recent.append((values, m))
-            if len(d._recent) > first.window:
-                d._recent.popleft()
             d._sum = np.sum([v for v, _ in d._recent], axis=0)
             d._dof = float(sum(k for _, k in d._recent))
     totals = np.stack([np.zeros(M) if d._sum is None else d._sum for d in detectors])

@@ -85,8 +85,7 @@ class _FixedMatrixMode(MotionModel):
 
 def _repeat(bank: TransitionBank, S: int) -> TransitionBank:
     """A one-filter bank repeated S times."""
-    root = None if bank.noise_root is None else np.repeat(bank.noise_root, S, axis=0)
-    return TransitionBank(np.repeat(bank.F, S, axis=0), np.repeat(bank.B, S, axis=0), np.repeat(bank.Q, S, axis=0), root)
+    return TransitionBank(*(None if a is None else np.repeat(a, S, axis=0) for a in attrs.astuple(bank, recurse=False)))
 
 
 @attrs.frozen

@@ -24,9 +24,7 @@ division 1/(C_k ρ_k²).  :func:`pass_general` takes any S, C (:func:`atan2`).
 :func:`evaluate` tries the small pass unless the previous evaluation of the
 problem broke the bound, and redoes a pass that breaks it in general form.
 
-**atan2, sin, cos.**  numba calls the C library's scalar ``atan2`` (≈ 40 ns a
-call here, against ≈ 3 ns for numpy's SIMD loop) and llvmlite's wheels carry
-no SVML, so these are written out in arithmetic the compiler vectorizes.
+**atan2, sin, cos** in arithmetic the compiler vectorizes (why: docs/tma.md, "Benchmark").
 atan2(y, x): with A = |y|, B = |x|, m = min(A, B), M = max(A, B),
 
     z = m/M                      if m ≤ tan(π/8) M,
@@ -52,9 +50,7 @@ Python zero-division checks (they would stop the vectorization).
 ``cache=True``: the first call in a fresh checkout compiles (≈ 5 s) and caches
 the machine code next to this file (``__pycache__``).
 
-``AVAILABLE`` is False when numba is not installed; the batched solver then
-uses the numpy path and does not import this module (nor, when numba is
-installed, before its first compiled solve: loading the plugins stays free of numba).
+``AVAILABLE`` is False when numba is not installed (the batched solver then uses the numpy path).
 """
 
 from __future__ import annotations
@@ -206,13 +202,9 @@ def _geometry(s, t, ox, oy, sx, cx):
 
 @_njit(fastmath=_FAST)
 def pass_small(s, tau, ox, oy, sx, cx, out):
-    """One pass over the bearings assuming small residuals; ``out`` (14,) ← F and the 13 sums; returns the violations.
-
-    a, b, S = sx b − cx a, C = cx b + sx a, p, q as in the module doc ("north", (sx, cx) = (sin X, cos X)).
-    Here |S| ≤ tan(π/8) C is assumed, r = atan_small(S/C), and S/C and 1/ρ² come from one
-    division 1/(C ρ²); the count of bearings where the assumption fails is returned
-    (then :func:`pass_general` is used).
-    ``out`` = (F, Σp², Σp²τ, Σp²τ², Σpq, Σpqτ, Σpqτ², Σq², Σq²τ, Σq²τ², Σpr, Σprτ, Σqr, Σqrτ).
+    """One pass over the bearings assuming |S| ≤ tan(π/8) C (module doc, "Two passes"): r = atan_small(S/C), S/C and
+    1/ρ² from one division 1/(C ρ²).  ``out`` (14,) ← (F, Σp², Σp²τ, Σp²τ², Σpq, Σpqτ, Σpqτ², Σq², Σq²τ, Σq²τ², Σpr,
+    Σprτ, Σqr, Σqrτ); returns the count of bearings where the assumption fails (then :func:`pass_general` is used).
     """
     point = (s[0], s[1], s[2], s[3])  # loaded once, outside the loop
     acc = (0.0,) * 14
@@ -248,10 +240,8 @@ def pass_general(s, tau, ox, oy, sx, cx, out):
 def evaluate(s, tau, ox, oy, sx, cx, out, small):
     """``out`` (14,) ← F(s) and the 13 sums; returns (F, whether the residuals at s were all small).
 
-    ``small`` (the previous evaluation's answer) picks the first try: :func:`pass_small`,
-    redone by :func:`pass_general` if a bearing violates its assumption or F is not
-    finite; or :func:`pass_general` straight away.  Either way the sums are those of
-    the same formulas, to rounding.
+    ``small`` (the previous evaluation's answer) picks the first try (module doc, "Two passes"); a small
+    pass whose F is not finite is also redone in general form.
     """
     if small:
         if pass_small(s, tau, ox, oy, sx, cx, out) == 0 and math.isfinite(out[0]):
@@ -308,15 +298,10 @@ def damped_step(H, g, lam, L, delta):
 
 @_njit()
 def minimize_problems(s0, tau, ox, oy, X, settings):
-    """Seed 002 §4.3 steps 1–9 for each row of s0 (m, 4) with bearings X (m, n), any finite radians ("north"
-    convention); õx, õy (1, n) shared or (m, n); ``settings`` = (λ_0, λ_up, λ_down, F_tol, max_iterations,
-    λ_max, rounding_rtol).
-
-    Per problem: F, H, g at s; A = H + λ diag(H); not positive definite → λ ← λ λ_up;
-    else s_new = s + A⁻¹g, one evaluation; accepted when F(s_new) is finite and
-    F − F(s_new) ≥ −rounding_rtol·F (then λ ← λ λ_down, and H, g come from the same pass),
-    else λ ← λ λ_up.  Stops: ΔF < F_tol (status 0), ``max_iterations`` accepted steps (1),
-    λ > λ_max (2).  Returns s (m, 4), F (m,), H (m, 4, 4), iterations, evaluations, status (m,).
+    """Seed 002 §4.3 steps 1–9 (:mod:`.levenberg_marquardt`) for each row of s0 (m, 4) with bearings X (m, n),
+    any finite radians ("north" convention); õx, õy (1, n) shared or (m, n); ``settings`` = (λ_0, λ_up, λ_down,
+    F_tol, max_iterations, λ_max, rounding_rtol).  An accepted trial's H, g come from its own pass.  Returns
+    s (m, 4), F (m,), H (m, 4, 4), iterations, evaluations, status (m,) (0 ΔF < F_tol, 1 max_iterations, 2 λ > λ_max).
     """
     lam0, lam_up, lam_down, F_tol, max_iterations, lam_max, rounding_rtol = settings
     m = s0.shape[0]

@@ -17,9 +17,7 @@ Iterations count accepted steps (8), evaluations count F evaluations (the
 start and every trial of 6) — the seed's "Iter" and "Nf".  Two guards the seed
 does not state: at most ``max_iterations`` accepted steps, and λ > ``lam_max``
 stops (no step decreases F); both end with ``converged=False``.  The solver
-works in the scaled parameters of :mod:`.tma_model`; Marquardt's diag(H) makes
-the steps themselves invariant to that scaling, which only conditions the
-Cholesky factorization.
+works in the scaled parameters of :mod:`.tma_model` (docs/tma.md, "Parameter scaling").
 
 :class:`BatchLevenbergMarquardt` runs them for B problems (:func:`minimize_batch`, or the compiled kernel);
 :class:`LevenbergMarquardt` is the same solver under the one-problem name (a batch of one).
@@ -34,25 +32,19 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Solver
 from hybridtrack.core.validation import check_positive
 from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient
 from hybridtrack_plugins.solvers.observer import example_problem
 from hybridtrack_plugins.solvers.tma_model import (
-    LONE,
     N_PARAMETERS,
     BatchTMASolution,
     BearingsBatch,
-    BearingsProblem,
-    ScaledProblem,
+    BearingsSolver,
     Scaling,
-    TMASolution,
-    check_start,
     conclude,
     normal_equations,
-    require_problem,
-    solve_observable_rows,
+    scaled_start,
     time_powers,
 )
 
@@ -227,17 +219,13 @@ def minimize_compiled(tau, ox, oy, X, convention, s, settings: LMSettings):
 
 
 @attrs.frozen
-class BatchLevenbergMarquardt(Solver):
+class BatchLevenbergMarquardt(BearingsSolver):
     """The seed's Levenberg–Marquardt vectorized over many independent problems (one per Monte Carlo target).
 
-    ``solve_batch(batch)`` → :class:`BatchTMASolution`; ``solve(problem)`` runs a
-    batch of one.  Problems are processed ``chunk_size`` at a time (bounding
-    memory); the answers do not depend on it.  ``engine``: "numba" runs each
-    problem's iterations in the compiled kernel of :mod:`._tma_kernel` (one fused
-    pass over the bearings per trial), "numpy" runs all problems' iterations
-    together in numpy (:func:`minimize_batch`, trials in cache-sized blocks of
-    rows), "auto" (default) the kernel when numba is installed.  The two give the
-    same iterations and answers to ~10⁻¹⁴ relative.
+    Problems are processed ``chunk_size`` at a time (bounding memory); the answers
+    do not depend on it.  ``engine``: "numba" the compiled kernel of
+    :mod:`._tma_kernel`, "numpy" :func:`minimize_batch`, "auto" (default) the
+    kernel when numba is installed (the two agree to ~10⁻¹⁴ relative).
     """
 
     name: ClassVar[str] = "levenberg_marquardt_batch"
@@ -252,16 +240,7 @@ class BatchLevenbergMarquardt(Solver):
         """True when the numba kernel (:mod:`._tma_kernel`) runs the iterations, False for the numpy path."""
         return self.engine == "numba" or (self.engine == "auto" and NUMBA_AVAILABLE)
 
-    def solve(self, problem: BearingsProblem) -> TMASolution:
-        require_problem(problem, BearingsProblem, self.name, start=True)
-        return solve_observable_rows(problem.batch(), self._solve_rows, self.name, LONE).solution(0)
-
-    def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
-        require_problem(batch, BearingsBatch, self.name, start=True)
-        return solve_observable_rows(batch, self._solve_rows, self.name)
-
-    def _solve_rows(self, batch: BearingsBatch, numbers: np.ndarray) -> BatchTMASolution:
-        """Solve every problem of ``batch`` (problem ``numbers`` of the caller's batch, for error messages)."""
+    def solve_rows(self, batch: BearingsBatch, numbers: np.ndarray) -> BatchTMASolution:
         B = len(batch)
         theta0 = np.broadcast_to(batch.initial, (B, N_PARAMETERS))
         scaling = Scaling.build(batch.times, batch.observer, theta0, batch.reference_time)
@@ -288,11 +267,7 @@ class BatchLevenbergMarquardt(Solver):
             s[rows], F[rows], H[rows], it[rows], nf[rows], status[rows] = out
             # a start on the observer gives a NaN F or H that no step can leave: name the problem
             for i in rows.start + np.flatnonzero(~(np.isfinite(F[rows]) & np.isfinite(H[rows]).all(axis=(1, 2)))):
-                one = ScaledProblem.build(
-                    batch.times, batch.bearings[i], batch.observer_of(i), theta0[i], batch.reference_time, batch.convention
-                )
-                number = None if numbers[i] < 0 else int(numbers[i])  # a lone problem is not numbered
-                check_start(one.scaling.to_scaled(theta0[i]), one.tau, one.ox, one.oy, batch.times, number)
+                scaled_start(batch, i, theta0[i], numbers[i])
         messages = np.array([STOP_CONVERGED, STOP_ITERATIONS, STOP_LAMBDA], dtype=object)[status]
         return conclude(batch, scaling, s, F, H, it, nf, status == 0, messages, numbers, self.name)
 

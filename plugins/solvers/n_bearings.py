@@ -30,23 +30,18 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Solver
 from hybridtrack.sdk.linalg import cholesky_solve, masked_cholesky, wrap_angle
 from hybridtrack_plugins.sensors.bearing import direction
 from hybridtrack_plugins.solvers.observer import example_problem
 from hybridtrack_plugins.solvers.tma_model import (
     CONSTANT_FIT_MESSAGE,
-    LONE,
     BatchTMASolution,
     BearingsBatch,
-    BearingsProblem,
+    BearingsSolver,
     ScaledProblem,
-    TMASolution,
     answers,
     fit_statistics,
     flag_constant_fits,
-    require_problem,
-    solve_observable_rows,
     warn_unobservable,
 )
 
@@ -98,26 +93,18 @@ def assemble(x, HtH_inv, residual_ss, n, X0, variance_phi0, scaling_t0, referenc
 
 
 @attrs.frozen
-class NBearings(Solver):
+class NBearings(BearingsSolver):
     """N-bearings pseudo-linear least squares (seed 002 §4.4); closed form, biased by the first bearing's error.
 
-    ``solve_batch(batch)`` takes a :class:`BearingsBatch` (scaled normal equations, Cholesky),
-    ``solve(problem)`` a :class:`BearingsProblem` (a batch of one).  The observer must maneuver
+    A batch by scaled normal equations and Cholesky (:func:`solve_normal`).  The observer must maneuver
     (else :class:`UnobservableError`).
     """
 
     name: ClassVar[str] = "n_bearings"
+    needs_start: ClassVar[bool] = False
     example_problem = staticmethod(example_problem)
 
-    def solve(self, problem: BearingsProblem) -> TMASolution:
-        require_problem(problem, BearingsProblem, self.name)
-        return solve_observable_rows(problem.batch(), self._solve_rows, self.name, LONE).solution(0)
-
-    def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
-        require_problem(batch, BearingsBatch, self.name)
-        return solve_observable_rows(batch, self._solve_rows, self.name)
-
-    def _solve_rows(self, batch: BearingsBatch, numbers) -> BatchTMASolution:
+    def solve_rows(self, batch: BearingsBatch, numbers) -> BatchTMASolution:
         """The regression of every problem of ``batch`` (:func:`solve_normal`)."""
         n, conv = batch.size, batch.convention
         X = wrap_angle(batch.bearings)

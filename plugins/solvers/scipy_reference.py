@@ -16,16 +16,15 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Solver
 from hybridtrack.core.validation import check_positive
 from hybridtrack_plugins.solvers.observer import example_problem
-from hybridtrack_plugins.solvers.tma_model import BearingsProblem, ScaledProblem, TMASolution, require_problem, solve_one
+from hybridtrack_plugins.solvers.tma_model import N_PARAMETERS, BearingsSolver, ScaledProblem, Scaling, conclude, scaled_start
 
 _tolerance = lambda instance, attribute, value: check_positive(value, attribute.name, "a tolerance")
 
 
 @attrs.frozen
-class ScipyLeastSquares(Solver):
+class ScipyLeastSquares(BearingsSolver):
     """ML θ by ``scipy.optimize.least_squares`` with the analytic Jacobian (reference variant)."""
 
     name: ClassVar[str] = "scipy_least_squares"
@@ -40,9 +39,13 @@ class ScipyLeastSquares(Solver):
         """(fun, jac) of s for ``least_squares``: r(s) = wrap(X − f(s)) and ∂r/∂s = −J(s)."""
         return scaled.residuals, lambda s: -scaled.jacobian(s)
 
-    def solve(self, problem: BearingsProblem) -> TMASolution:
-        require_problem(problem, BearingsProblem, self.name, start=True)
-        return solve_one(problem, self.least_squares, self.name)
+    def solve_rows(self, batch, numbers):
+        """:meth:`least_squares` problem by problem from its ``initial`` guess; the answers by :func:`.tma_model.conclude`."""
+        theta0 = np.broadcast_to(batch.initial, (len(batch), N_PARAMETERS))
+        answers = [self.least_squares(*scaled_start(batch, i, theta0[i], numbers[i])) for i in range(len(batch))]
+        s, F, H, *rest = zip(*answers)
+        scaling = Scaling.build(batch.times, batch.observer, theta0, batch.reference_time)
+        return conclude(batch, scaling, np.array(s), np.array(F), np.array(H), *rest, numbers, self.name)
 
     def least_squares(self, scaled: ScaledProblem, s0: np.ndarray):
         """``least_squares`` from s0: (s, F, JᵀJ, iterations = njev, evaluations = nfev, converged, message)."""

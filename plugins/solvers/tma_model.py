@@ -29,12 +29,14 @@ sums Σ w τ^j of w ∈ {p², pq, q², pr, qr} (:func:`normal_equations`).
 from __future__ import annotations
 
 import warnings
+from abc import abstractmethod
+from typing import ClassVar
 
 import attrs
 import numpy as np
 from scipy import stats
 
-from hybridtrack.core.interfaces import Solution
+from hybridtrack.core.interfaces import Solution, Solver
 from hybridtrack.core.validation import as_float_array
 from hybridtrack.sdk.linalg import wrap_angle
 from hybridtrack.sdk.timestamps import check_times
@@ -295,13 +297,9 @@ def constant_fits_as_well(bearings, F, alpha: float = CONSTANT_BEARING_ALPHA) ->
 def constant_bearing(bearings, sigma, alpha: float = CONSTANT_BEARING_ALPHA) -> np.ndarray:
     """True for each problem (bearings (..., n)) whose bearings are all equal modulo π within the noise.
 
-    A constant bearing puts the target on one line of sight at every time: the
-    range (and the radial speed) are not determined by the bearings, whatever the
-    bearing's value — a collision course, a target dead ahead or astern, or a
-    maneuver along the line of sight (seed 002 §6: observability needs the
-    bearing to change).  The line is estimated on doubled angles (so that φ and
-    φ + π are the same line): φ̄ = arg(Σ e^{2iX_k})/2, refined once by the mean
-    deviation; d_k = wrap(2(X_k − φ̄))/2 and F_c = Σ d_k² (the least-squares
+    Then the range and the radial speed are not determined (seed 002 §6; cases: docs/tma.md, "The constant-bearing test").
+    The line is estimated on doubled angles (so that φ and φ + π are the same line):
+    φ̄ = arg(Σ e^{2iX_k})/2, refined once by the mean deviation; d_k = wrap(2(X_k − φ̄))/2 and F_c = Σ d_k² (the least-squares
     cost of a constant bearing).  Constant when every |d_k| ≤
     :data:`CONSTANT_BEARING_ATOL`, or, σ > 0 known, when the χ²(n − 1) test does
     not reject a constant bearing: P(χ²(n−1) ≥ F_c/σ²) ≥ ``alpha``.
@@ -382,22 +380,50 @@ def solve_observable_rows(batch: BearingsBatch, solve, method: str, numbers=None
     return attrs.evolve(whole, messages=tuple(messages))
 
 
-def check_start(s, tau, ox, oy, times, problem: int | None = None) -> None:
-    """Refuse a starting guess s (4,) (scaled) whose track meets the observer at a bearing time.
+def scaled_start(batch: BearingsBatch, i: int, theta0, number) -> tuple[ScaledProblem, np.ndarray]:
+    """Problem ``i`` of ``batch`` in scaled units and its start s0 (the guess θ0 (4,) scaled).
 
-    There the bearing and its gradient (1/ρ²) are undefined, F or JᵀJ is NaN and
-    the LM cannot take a step.  ``problem`` is the problem's number in a batch.
+    Refuses a start whose track meets the observer at a bearing time: there the
+    bearing and its gradient (1/ρ²) are undefined, F or JᵀJ is NaN and the LM
+    cannot take a step.  ``number`` is the problem's number in the caller's
+    batch (< 0: a lone problem, not numbered).
     """
-    dx, dy = relative(s, tau, ox, oy)
+    scaled = ScaledProblem.build(batch.times, batch.bearings[i], batch.observer_of(i), theta0, batch.reference_time, batch.convention)
+    s = scaled.scaling.to_scaled(theta0)
+    dx, dy = relative(s, scaled.tau, scaled.ox, scaled.oy)
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         bad = np.flatnonzero(~np.isfinite(1.0 / (dx * dx + dy * dy)))
     if bad.size:
-        which = "" if problem is None else f" of problem {problem}"
+        which = "" if number < 0 else f" of problem {int(number)}"
         raise ValueError(
             f"initial: the starting guess{which} puts the target on the observer at bearing {int(bad[0])}"
-            f" (t = {float(times[bad[0]])!r} s), where the bearing is undefined;"
+            f" (t = {float(batch.times[bad[0]])!r} s), where the bearing is undefined;"
             " start at a positive range (e.g. a prior along the first bearing)"
         )
+    return scaled, s
+
+
+class BearingsSolver(Solver):
+    """A TMA solver written once over a :class:`BearingsBatch`: ``solve(problem)`` is a batch of one.
+
+    Subclasses give :meth:`solve_rows`; ``needs_start``: the problems must carry
+    an ``initial`` guess (:func:`require_problem`).  Constant-bearing problems are
+    not solved (:func:`solve_observable_rows`).
+    """
+
+    needs_start: ClassVar[bool] = True
+
+    def solve(self, problem: BearingsProblem) -> TMASolution:
+        require_problem(problem, BearingsProblem, self.name, start=self.needs_start)
+        return solve_observable_rows(problem.batch(), self.solve_rows, self.name, LONE).solution(0)
+
+    def solve_batch(self, batch: BearingsBatch) -> BatchTMASolution:
+        require_problem(batch, BearingsBatch, self.name, start=self.needs_start)
+        return solve_observable_rows(batch, self.solve_rows, self.name)
+
+    @abstractmethod
+    def solve_rows(self, batch: BearingsBatch, numbers: np.ndarray) -> BatchTMASolution:
+        """Solve every problem of ``batch`` (problem ``numbers`` of the caller's batch, for warnings and errors)."""
 
 
 # --------------------------------------------------------------------------- scaling
@@ -651,10 +677,6 @@ def warn_unobservable(count: int, method: str) -> None:
     )
 
 
-def _note(message: str, note: str) -> str:
-    return f"{message}; {note}" if message else note
-
-
 def flag_constant_fits(batch: BearingsBatch, F, candidates, numbers, method: str) -> np.ndarray:
     """The ``candidates`` (B,) that a constant bearing fits as well (:func:`constant_fits_as_well`, σ unknown only); warns."""
     if batch.sigma is not None:  # σ known: the pre-check (constant_bearing) has decided
@@ -677,7 +699,7 @@ def conclude(batch, scaling, s, F, H, iterations, evaluations, converged, messag
         warn_unobservable(int((~observable).sum()), method)
     fit = flag_constant_fits(batch, F, observable, numbers, method)
     notes = ("unobservable: JᵀJ singular" if not o else CONSTANT_FIT_MESSAGE if f else "" for o, f in zip(observable, fit))
-    messages = [_note(m, note) if note else m for m, note in zip(messages, notes)]
+    messages = ["; ".join(filter(None, (m, note))) for m, note in zip(messages, notes)]
     cov = np.where(fit[:, None, None], np.nan, cov)
     converged = np.asarray(converged) & observable & ~fit
     return answers(batch, theta, cov, F, statistics, iterations, evaluations, converged, messages, method)
@@ -703,26 +725,6 @@ def answers(batch, theta, cov, F, statistics, iterations, evaluations, converged
         messages=tuple(messages),
         method=method,
     )
-
-
-def solve_one(problem: BearingsProblem, minimize, method: str) -> TMASolution:
-    """One problem by ``minimize(scaled, s0)`` → (s, F, H = JᵀJ, iterations, evaluations, converged, message).
-
-    The problem in scaled units (:class:`ScaledProblem`) from its ``initial``
-    guess (refused by :func:`check_start` on the observer); a constant bearing
-    is not solved (:func:`solve_observable_rows`); the answer by :func:`conclude`.
-    """
-
-    def solve(batch, numbers):
-        scaled = ScaledProblem.build(
-            problem.times, problem.bearings, problem.observer, problem.initial, problem.reference_time, problem.convention
-        )
-        s0 = scaled.scaling.to_scaled(problem.initial)
-        check_start(s0, scaled.tau, scaled.ox, scaled.oy, problem.times)
-        s, F, H, it, nf, converged, message = minimize(scaled, s0)
-        return conclude(batch, scaled.scaling, s[None], np.array([F]), H[None], [it], [nf], [converged], [message], numbers, method)
-
-    return solve_observable_rows(problem.batch(), solve, method, LONE).solution(0)
 
 
 # --------------------------------------------------------------------------- kinematics

@@ -1,17 +1,11 @@
-"""Recording a bearings-only TMA run through the recorder seam (docs/recording.md).
+"""Recording a bearings-only TMA run through the recorder seam (entity paths: docs/recording.md).
 
-Entity paths (timeline ``step`` = bearing index k, ``time`` = t_k seconds):
-
-* ``world/observer`` — the observer's track (points per bearing + the path);
-* ``world/truth`` — the target's true track, when known;
-* ``world/bearings`` — one line per bearing from the observer along the
-  measured bearing X_k, as long as the range to the first solution's track at
-  t_k (so the lines fan in on it);
-* ``world/estimate/<method>`` — each solution's track x(t_k) = x0 + v (t_k − t_r),
-  with ``…/ellipse`` its 2σ position ellipse, P(t) = Φ(t) P_θ Φ(t)ᵀ,
-  Φ(t) = [[I, (t − t_r) I], [0, I]] (seed 002 §4: uniform motion);
-* ``solver/<method>/residual`` — wrapped bearing residuals X_k − f_k(θ̂) in degrees;
-* ``events/decisions`` — one line per solution (θ̂, √Ka, χ² test, iterations).
+Timeline ``step`` = bearing index k, ``time`` = t_k seconds.  The bearing lines
+run along X_k as far as the first solution's track at t_k (so they fan in on
+it); a solution's track is x(t_k) = x0 + v (t_k − t_r), its 2σ position ellipse
+P(t) = Φ(t) P_θ Φ(t)ᵀ, Φ(t) = [[I, (t − t_r) I], [0, I]] (seed 002 §4: uniform
+motion); residuals X_k − f_k(θ̂) wrapped, in degrees; ``events/decisions`` one
+line per solution (θ̂, √Ka, χ² test, iterations).
 
 No hook: a helper of the solver family, not a plugin.
 """
