@@ -24,7 +24,7 @@ import numpy as np
 from hybridtrack.algorithms.known_modes import ScheduleRun
 from hybridtrack.algorithms.known_switch import KnownSwitchRun
 from hybridtrack.algorithms.unknown_change import UnknownChangeRun
-from hybridtrack.recording.recorder import decision_text, log_estimate, log_measurements
+from hybridtrack.recording.recorder import decision_text, log_mode, log_run
 from hybridtrack.recording.results import log_result
 
 
@@ -39,13 +39,8 @@ def _log_columns(recorder, entity: str, steps, values: np.ndarray, names: Sequen
 
 def _log_run(run, recorder, *, measurements, sensors, truth, name: str, detector: str) -> np.ndarray:
     """What every adaptive run records (module docstring); returns the steps."""
-    steps = np.arange(run.means.shape[0])
+    steps = log_run(recorder, run, name, sensors=sensors, measurements=measurements, truth=truth)
     times = run.times
-    if truth is not None:
-        recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
-    log_measurements(recorder, sensors, {key: value[: steps.size] for key, value in measurements.items()}, steps, times)
-    position = [run.layout.index("x"), run.layout.index("y")]
-    log_estimate(recorder, name, steps, run.means, run.covs, position, times)
     if run.hypothesis_positions is not None:  # the bank's hypotheses fanning out of each switch, each in its colour
         for j, hypothesis in enumerate(run.modes):
             path = run.hypothesis_positions[:, j]
@@ -64,8 +59,7 @@ def _log_run(run, recorder, *, measurements, sensors, truth, name: str, detector
 def log_known_switch_run(run: KnownSwitchRun, recorder, *, name: str = "known_switch", truth=None, **context) -> None:
     """Algorithm 1's run (module docstring) with the hypothesis followed and the filters running per step."""
     steps = _log_run(run, recorder, name=name, truth=truth, **context)
-    recorder.log_scalars(f"estimator/{name}/followed", steps, run.mode.astype(float), run.times)
-    recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, run.times)
+    log_mode(recorder, name, steps, run, "followed")
     # filters running per step: the hypotheses still in play, one after the decision
     bank_size = np.maximum(1, np.isfinite(run.log_ratios).sum(axis=1))
     recorder.log_scalars(f"estimator/{name}/bank_size", steps, bank_size.astype(float), run.times)
@@ -81,14 +75,11 @@ def log_unknown_change_run(run: UnknownChangeRun, recorder, *, name: str = "unkn
         recorder.log_scalars(f"detector/{signal}/lower", steps, run.signal_bounds[:, 0], times)
         recorder.log_scalars(f"detector/{signal}/upper", steps, run.signal_bounds[:, 1], times)
     recorder.log_scalars(f"estimator/{name}/bank_size", steps, run.bank_sizes.astype(float), times)
-    recorder.log_scalars(f"estimator/{name}/mode", steps, run.mode.astype(float), times)
-    recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, times)
+    log_mode(recorder, name, steps, run)
 
 
 @log_result.register
 def log_schedule_run(run: ScheduleRun, recorder, *, name: str = "known_modes", **context) -> None:
     """The told filter's estimate ``world/estimate/<name>`` (2σ ellipses) and its NIS ``estimator/<name>/nis``."""
-    steps = np.arange(run.means.shape[0])
-    position = [run.layout.index("x"), run.layout.index("y")]
-    log_estimate(recorder, name, steps, run.means, run.covs, position, run.times)
+    steps = log_run(recorder, run, name)
     recorder.log_scalars(f"estimator/{name}/nis", steps, run.nis, run.times)

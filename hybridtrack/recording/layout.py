@@ -90,30 +90,14 @@ def content_blueprint(
     eyes: Mapping[str, tuple] | None = None,
     map_zoom: float | None = None,
 ):
-    """The layout embedded in a file, built from what the run logged.
+    """The layout embedded in a file, built from what the run logged (the views: docs/recording.md, "Views").
 
-    ``content`` maps every logged entity path to the view class that shows it
-    (:data:`VIEW_CLASSES`: ``3D``, ``TimeSeries``, ``TextLog``, …).  Views:
-
-    * **World (east, north, up)** — a 3-D view of ``/world`` (right-handed, z up:
-      a left turn is anticlockwise seen from above), points of the last
-      :data:`TRAIL_STEPS` steps (``time_step`` s each on the ``time`` timeline) and the
-      whole paths;
-    * **Space-time** — a 3-D view of ``/spacetime`` (x, y, scaled time);
-    * one **time-series panel per quantity**: each detector (ln λ with A and B, or the
-      signal function with its bounds), then bank size, mode / followed hypothesis,
-      mode probabilities, NIS with its χ² bounds, innovations, log-likelihood,
-      association weights, gated candidates, bearing residuals, scalar measurements
-      — each listing the logged entities explicitly, so each fits its own range;
-    * **Events** — the text log;
-    * a view of the right class for any other root, so every entity is in some view.
-
-    ``eyes`` (origin → (position, look_target)) places the 3-D cameras; ``map_zoom`` the map view's
-    zoom level (:func:`map_zoom`: the whole geo paths in view).
-
-    Legends (:data:`LEGEND_CORNERS`): a panel of at most :data:`LEGEND_SERIES` series shows its legend
-    in the corner where its quantity seldom has data; a panel of more series hides it (each series
-    names itself on hover).
+    ``content`` maps every logged entity path to the view class that shows it (:data:`VIEW_CLASSES`); a 3-D
+    view of ``/world`` (points of the last :data:`TRAIL_STEPS` steps, ``time_step`` s each on the ``time``
+    timeline), of ``/spacetime``, one time-series panel per quantity (each listing its entities, so each fits
+    its own range; legend: :data:`LEGEND_CORNERS`, shown for at most :data:`LEGEND_SERIES` series), the events,
+    and a view of the right class for any other root.  ``eyes`` (origin → (position, look_target)) places the
+    3-D cameras; ``map_zoom`` the map view's zoom level (:func:`map_zoom`).
     """
     import rerun.blueprint as rrb
 

@@ -490,6 +490,24 @@ def log_estimate(recorder, name, steps, means, covs, position, times=None, *, li
     recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, index[0], index[1]], times)
 
 
+def log_run(recorder, run, name: str, *, sensors=(), measurements=None, truth=None) -> np.ndarray:
+    """The truth ``world/truth`` (a trajectory, when given), each sensor's ``measurements`` (sensor name →
+    (K+1, m)) and the estimate of a finished ``run`` (:func:`log_estimate`); returns its steps 0 … K."""
+    steps, times = np.arange(run.steps), run.times
+    if truth is not None:
+        recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
+    log_measurements(recorder, sensors, {key: value[: steps.size] for key, value in (measurements or {}).items()}, steps, times)
+    log_estimate(recorder, name, steps, run.means, run.covs, [run.layout.index("x"), run.layout.index("y")], times)
+    return steps
+
+
+def log_mode(recorder, name: str, steps, run, series: str = "mode") -> None:
+    """A run's mode per step (indices into ``run.modes``): the series ``estimator/<name>/<series>`` and the mode
+    colouring of ``world/estimate/<name>`` (:meth:`Recorder.log_modes`)."""
+    recorder.log_scalars(f"estimator/{name}/{series}", steps, run.mode.astype(float), run.times)
+    recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, run.times)
+
+
 def nis_bounds(dims: np.ndarray, probability: float = 0.95) -> np.ndarray:
     """The two-sided χ² interval of the NIS per step: (K, 2) = F⁻¹_{χ²(m_k)}((1 ∓ p)/2), NaN where m_k = 0.
 
