@@ -103,20 +103,11 @@ def content_blueprint(
 
     content = {p.strip("/"): c for p, c in (content or {"world": "3D", "events/decisions": "TextLog"}).items()}
     eyes = eyes or {}
-    trail = [
-        rrb.VisibleTimeRange(
-            "step", start=rrb.TimeRangeBoundary.cursor_relative(seq=-TRAIL_STEPS), end=rrb.TimeRangeBoundary.cursor_relative(seq=0)
-        )
-    ]
+    behind = {"step": ("seq", TRAIL_STEPS)}  # timeline → (unit, the trail's length)
     if time_step is not None and np.isfinite(time_step) and time_step > 0:
-        seconds = TRAIL_STEPS * float(time_step)
-        trail.append(
-            rrb.VisibleTimeRange(
-                "time",
-                start=rrb.TimeRangeBoundary.cursor_relative(seconds=-seconds),
-                end=rrb.TimeRangeBoundary.cursor_relative(seconds=0.0),
-            )
-        )
+        behind["time"] = ("seconds", TRAIL_STEPS * float(time_step))
+    cursor = rrb.TimeRangeBoundary.cursor_relative
+    trail = [rrb.VisibleTimeRange(line, start=cursor(**{unit: -n}), end=cursor(**{unit: 0 * n})) for line, (unit, n) in behind.items()]
 
     def eye(origin):
         if origin not in eyes:
@@ -142,22 +133,17 @@ def content_blueprint(
         else:
             other.append(rrb.View(class_identifier=view_class, origin=f"/{root}", name=root))
 
-    panels: dict[tuple, tuple[str, list[str]]] = {}
-    counts: dict[tuple, int] = {}
-    for path, view_class in content.items():
-        if view_class == "TimeSeries":
-            key, title, rule = _panel(path, content)
-            rules = panels.setdefault(key, (title, []))[1]
-            counts[key] = counts.get(key, 0) + 1
-            if rule not in rules:
-                rules.append(rule)
+    panels: dict[tuple, tuple[str, list[str]]] = {}  # key → (title, the rule of each of its entities)
+    for path in (path for path, view_class in content.items() if view_class == "TimeSeries"):
+        key, title, rule = _panel(path, content)
+        panels.setdefault(key, (title, []))[1].append(rule)
 
-    def legend(key):  # a legend only where it does not hide the plot; the names show on hover everywhere
+    def legend(key, entities):  # a legend only where it does not hide the plot; the names show on hover everywhere
         corner = LEGEND_CORNERS.get(str(key[-1]), "RightTop")
-        return rrb.PlotLegend(corner=getattr(rrb.Corner2D, corner), visible=counts[key] <= LEGEND_SERIES)
+        return rrb.PlotLegend(corner=getattr(rrb.Corner2D, corner), visible=entities <= LEGEND_SERIES)
 
     series = [
-        rrb.TimeSeriesView(origin="/", contents=rules, name=title, plot_legend=legend(key))
+        rrb.TimeSeriesView(origin="/", contents=list(dict.fromkeys(rules)), name=title, plot_legend=legend(key, len(rules)))
         for key, (title, rules) in sorted(panels.items(), key=lambda item: tuple(str(k) for k in item[0]))
     ]
     texts = sorted({path.split("/")[0] for path, c in content.items() if c == "TextLog"})

@@ -1,13 +1,8 @@
-"""The recorder seam: every run logs through a recorder object passed in (entity paths in ``docs/recording.md``).
+"""The recorder seam: every run logs through a recorder object passed in (docs/recording.md, "The recorder").
 
-Components never touch rerun's global stream.  :class:`RerunRecorder` owns one
-``rerun.RecordingStream`` (application id ``hybridtrack``) with a file sink;
-:class:`NullRecorder` records nothing.  Both are context managers; leaving the
-context (normally or by an exception) flushes and closes the file so it is
-always complete; :meth:`RerunRecorder.flush` during a run leaves a killed
-process a file, without its footer, of everything logged up to then.  Series
-are logged as whole columns (``send_columns``) on the timelines ``step`` and
-``time`` (duration in seconds, when times are given).
+:class:`RerunRecorder` owns one ``rerun.RecordingStream`` with a file sink, :class:`NullRecorder` records
+nothing; leaving either context flushes and closes the file.  Series are logged as whole columns
+(``send_columns``) on the timelines ``step`` and ``time`` (duration in seconds, when times are given).
 """
 
 from __future__ import annotations
@@ -161,11 +156,9 @@ class RerunRecorder(AbstractContextManager):
     """A file recording (.rrd) on its own ``rerun.RecordingStream``; ``configuration`` (a JSON-able dict, seed
     included) gives the recording id (the same run twice, the same id) and is stored as the property ``configuration``.
 
-    Everything spatial is 3-D east-north-up (``ViewCoordinates.RIGHT_HAND_Z_UP``; 2-D positions get z = 0).  Each
-    entity is styled once from its path (:func:`spatial_style`, :func:`series_style`).  :meth:`close` adds the
-    space-time view (``spacetime/…``: every whole path as (x, y, s·t), s = the largest horizontal extent over the
-    time span, coloured by mode, mode changes and decisions marked) and embeds the blueprint built from what was
-    logged (:func:`content_blueprint`) as the file's active and default layout.
+    Everything spatial is 3-D east-north-up (2-D positions get z = 0); each entity is styled once from its path
+    (:func:`spatial_style`, :func:`series_style`).  :meth:`close` adds the space-time view and embeds the blueprint
+    of what was logged (:func:`content_blueprint`) as the file's active and default layout.
     """
 
     def __init__(self, path: str | Path, configuration: dict | None = None):
