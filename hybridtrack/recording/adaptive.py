@@ -1,14 +1,6 @@
-"""The recording of the adaptive algorithms' results (``recorder.log_result(run, …)``; entity paths in docs/recording.md).
-
-* :class:`~hybridtrack.algorithms.known_switch.KnownSwitchRun` and
-  :class:`~hybridtrack.algorithms.unknown_change.UnknownChangeRun`: the truth (if
-  given), the measurements, the followed estimate ``world/estimate/<name>`` with
-  its 2σ ellipses, the bank's hypotheses ``world/estimate/<name>/hypotheses/<h>``
-  while in play (each from its switch), ``detector/<detector>/log_ratio/<mode>``
-  with ``…/upper`` (A) and ``…/lower`` (B), the decisions as events, and the
-  followed mode and bank size under ``estimator/<name>/…``; Algorithm 3 adds the
-  signal function ``detector/<signal>/signal`` with its bounds.
-* :class:`~hybridtrack.algorithms.known_modes.ScheduleRun`: the estimate and its NIS.
+"""The recording of the adaptive algorithms' results (``recorder.log_result(run, …)``; the entity paths of
+:class:`~hybridtrack.algorithms.known_switch.KnownSwitchRun`, :class:`~hybridtrack.algorithms.unknown_change.UnknownChangeRun`
+and :class:`~hybridtrack.algorithms.known_modes.ScheduleRun` (its estimate and NIS): docs/recording.md).
 
 Context keywords: ``measurements`` (sensor name → (K+1, m)), ``sensors``,
 ``truth`` (a Trajectory or None), ``name`` (the estimator's entity name),

@@ -1,8 +1,5 @@
-"""Recording of a :class:`~hybridtrack.algorithms.multiple_model.MultipleModelRun` (``recorder.log_result(run, …)``).
-
-Entities: ``world/truth`` (when given), the measurements, ``world/estimate/<name>`` (x̂ = Σ_j μ_j x̂_j with its
-ellipses, coloured by the most probable model), ``estimator/<name>/mode_probability/<mode>`` (μ_j) and
-``estimator/<name>/mode`` (argmax_j μ_j).
+"""Recording of a :class:`~hybridtrack.algorithms.multiple_model.MultipleModelRun` (``recorder.log_result(run, …)``):
+its estimate x̂ = Σ_j μ_j x̂_j coloured by the most probable model, μ_j and argmax_j μ_j (entity paths: docs/recording.md).
 """
 
 from __future__ import annotations
