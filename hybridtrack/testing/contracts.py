@@ -401,11 +401,8 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
         for k, innovation in enumerate(innovations):
             out = detector.step(k, innovation)
             _require(isinstance(out, DetectorStep), label, f"step {k} returned {type(out).__name__}, expected DetectorStep")
-            _require(
-                isinstance(out.statistics, dict) and out.statistics,
-                label,
-                f"step {k}: statistics must be a non-empty dict, got {out.statistics!r}",
-            )
+            named = isinstance(out.statistics, dict) and out.statistics
+            _require(named, label, f"step {k}: statistics must be a non-empty dict, got {out.statistics!r}")
             for kind, table in (("statistic", out.statistics), ("threshold", out.thresholds)):
                 for key, value in table.items():
                     _require(isinstance(key, str) and key, label, f"step {k}: {kind} name {key!r} is not a non-empty string")
