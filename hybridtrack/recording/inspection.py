@@ -33,6 +33,8 @@ def _entity(path: str) -> str:
 #: position and strip columns, 3-D (east, north, up) first
 _POSITIONS = ("Points3D:positions", "Points2D:positions")
 _STRIPS = ("LineStrips3D:strips", "LineStrips2D:strips")
+#: the blueprint column of each field of a view in :meth:`RecordingFile.blueprint_views`
+_VIEW_FIELDS = {"ViewBlueprint:class_identifier": "class", "ViewBlueprint:display_name": "name", "ViewBlueprint:space_origin": "origin"}
 
 
 def _coordinates(points: np.ndarray, dims: int) -> np.ndarray:
@@ -302,11 +304,7 @@ class RecordingFile:
             view = views.setdefault(path.split("/")[2], {"name": None, "class": None, "origin": "/", "contents": ["$origin/**"]})
             if path.endswith("/ViewContents") and "ViewContents:query" in names:
                 view["contents"] = _last_value(batch, "ViewContents:query") or []
-            for column, key in (
-                ("ViewBlueprint:class_identifier", "class"),
-                ("ViewBlueprint:display_name", "name"),
-                ("ViewBlueprint:space_origin", "origin"),
-            ):
+            for column, key in _VIEW_FIELDS.items():
                 if column in names and _last_value(batch, column):
                     view[key] = _last_value(batch, column)[0]
         return [v for v in views.values() if v["class"] is not None]

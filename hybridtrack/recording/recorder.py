@@ -478,9 +478,8 @@ def log_estimate(recorder, name, steps, means, covs, position, times=None, *, li
     ``means`` (K, n), ``covs`` (K, n, n); ``position`` the indices of x and y in the layout;
     ``line=False`` leaves out the static path line (a streamed chunk of a longer run).
     """
-    index = np.ix_(position, position)
     recorder.log_path(f"world/estimate/{name}", steps, means[:, position], times, line=line)
-    recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, index[0], index[1]], times)
+    recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, position][:, :, position], times)
 
 
 def log_run(recorder, run, name: str, *, sensors=(), measurements=None, truth=None) -> np.ndarray:
