@@ -63,9 +63,8 @@ def log_unknown_change_run(run: UnknownChangeRun, recorder, *, name: str = "unkn
     steps = _log_run(run, recorder, name=name, truth=truth, **context)
     times = run.times
     if signal is not None:
-        recorder.log_scalars(f"detector/{signal}/signal", steps, run.signal, times)
-        recorder.log_scalars(f"detector/{signal}/lower", steps, run.signal_bounds[:, 0], times)
-        recorder.log_scalars(f"detector/{signal}/upper", steps, run.signal_bounds[:, 1], times)
+        for key, values in (("signal", run.signal), ("lower", run.signal_bounds[:, 0]), ("upper", run.signal_bounds[:, 1])):
+            recorder.log_scalars(f"detector/{signal}/{key}", steps, values, times)
     recorder.log_scalars(f"estimator/{name}/bank_size", steps, run.bank_sizes.astype(float), times)
     log_mode(recorder, name, steps, run)
 

@@ -102,18 +102,15 @@ def content_blueprint(
     import rerun.blueprint as rrb
 
     content = {p.strip("/"): c for p, c in (content or {"world": "3D", "events/decisions": "TextLog"}).items()}
-    eyes = eyes or {}
     behind = {"step": ("seq", TRAIL_STEPS)}  # timeline → (unit, the trail's length)
     if time_step is not None and np.isfinite(time_step) and time_step > 0:
         behind["time"] = ("seconds", TRAIL_STEPS * float(time_step))
     cursor = rrb.TimeRangeBoundary.cursor_relative
     trail = [rrb.VisibleTimeRange(line, start=cursor(**{unit: -n}), end=cursor(**{unit: 0 * n})) for line, (unit, n) in behind.items()]
 
-    def eye(origin):
-        if origin not in eyes:
-            return None
-        position, target = eyes[origin]
-        return rrb.EyeControls3D(position=position, look_target=target, eye_up=(0.0, 0.0, 1.0))
+    eye = {  # origin → its camera
+        origin: rrb.EyeControls3D(position=at, look_target=target, eye_up=(0.0, 0.0, 1.0)) for origin, (at, target) in (eyes or {}).items()
+    }.get
 
     spatial, other = [], []
     roots = dict.fromkeys((path.split("/")[0], c) for path, c in content.items() if c not in ("TimeSeries", "TextLog"))
