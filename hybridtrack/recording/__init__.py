@@ -1,11 +1,5 @@
-"""Recording: Rerun recorders, logging of results, the viewer layout and style, offline inspection.
-
-Reads results; never called from inside a step.  Modules: :mod:`.recorder`
-(the recorders and the log helpers), :mod:`.results` (``log_result``, by result type),
-:mod:`.adaptive` (the adaptive algorithms' results), :mod:`.layout` (the blueprint built from
-the content), :mod:`.style` (palette, legend names), :mod:`.clutter` (scans and
-associations), :mod:`.pipeline` (a pipeline's run), :mod:`.multiple_model` (the
-IMM/GPB result writer), :mod:`.inspection` (reading a recording back).
+"""Recording: Rerun recorders, logging of results (one writer module per result family), the viewer layout and
+style, offline inspection.  Reads results; never called from inside a step.
 """
 
 from hybridtrack.recording import (

@@ -1,14 +1,6 @@
-"""The recording of the adaptive algorithms' results (``recorder.log_result(run, …)``; entity paths in docs/recording.md).
-
-* :class:`~hybridtrack.algorithms.known_switch.KnownSwitchRun` and
-  :class:`~hybridtrack.algorithms.unknown_change.UnknownChangeRun`: the truth (if
-  given), the measurements, the followed estimate ``world/estimate/<name>`` with
-  its 2σ ellipses, the bank's hypotheses ``world/estimate/<name>/hypotheses/<h>``
-  while in play (each from its switch), ``detector/<detector>/log_ratio/<mode>``
-  with ``…/upper`` (A) and ``…/lower`` (B), the decisions as events, and the
-  followed mode and bank size under ``estimator/<name>/…``; Algorithm 3 adds the
-  signal function ``detector/<signal>/signal`` with its bounds.
-* :class:`~hybridtrack.algorithms.known_modes.ScheduleRun`: the estimate and its NIS.
+"""The recording of the adaptive algorithms' results (``recorder.log_result(run, …)``; the entity paths of
+:class:`~hybridtrack.algorithms.known_switch.KnownSwitchRun`, :class:`~hybridtrack.algorithms.unknown_change.UnknownChangeRun`
+and :class:`~hybridtrack.algorithms.known_modes.ScheduleRun` (its estimate and NIS): docs/recording.md).
 
 Context keywords: ``measurements`` (sensor name → (K+1, m)), ``sensors``,
 ``truth`` (a Trajectory or None), ``name`` (the estimator's entity name),
@@ -24,7 +16,7 @@ import numpy as np
 from hybridtrack.algorithms.known_modes import ScheduleRun
 from hybridtrack.algorithms.known_switch import KnownSwitchRun
 from hybridtrack.algorithms.unknown_change import UnknownChangeRun
-from hybridtrack.recording.recorder import decision_text, log_estimate, log_measurements
+from hybridtrack.recording.recorder import decision_text, log_mode, log_run
 from hybridtrack.recording.results import log_result
 
 
@@ -39,13 +31,8 @@ def _log_columns(recorder, entity: str, steps, values: np.ndarray, names: Sequen
 
 def _log_run(run, recorder, *, measurements, sensors, truth, name: str, detector: str) -> np.ndarray:
     """What every adaptive run records (module docstring); returns the steps."""
-    steps = np.arange(run.means.shape[0])
+    steps = log_run(recorder, run, name, sensors=sensors, measurements=measurements, truth=truth)
     times = run.times
-    if truth is not None:
-        recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
-    log_measurements(recorder, sensors, {key: value[: steps.size] for key, value in measurements.items()}, steps, times)
-    position = [run.layout.index("x"), run.layout.index("y")]
-    log_estimate(recorder, name, steps, run.means, run.covs, position, times)
     if run.hypothesis_positions is not None:  # the bank's hypotheses fanning out of each switch, each in its colour
         for j, hypothesis in enumerate(run.modes):
             path = run.hypothesis_positions[:, j]
@@ -64,8 +51,7 @@ def _log_run(run, recorder, *, measurements, sensors, truth, name: str, detector
 def log_known_switch_run(run: KnownSwitchRun, recorder, *, name: str = "known_switch", truth=None, **context) -> None:
     """Algorithm 1's run (module docstring) with the hypothesis followed and the filters running per step."""
     steps = _log_run(run, recorder, name=name, truth=truth, **context)
-    recorder.log_scalars(f"estimator/{name}/followed", steps, run.mode.astype(float), run.times)
-    recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, run.times)
+    log_mode(recorder, name, steps, run, "followed")
     # filters running per step: the hypotheses still in play, one after the decision
     bank_size = np.maximum(1, np.isfinite(run.log_ratios).sum(axis=1))
     recorder.log_scalars(f"estimator/{name}/bank_size", steps, bank_size.astype(float), run.times)
@@ -77,18 +63,14 @@ def log_unknown_change_run(run: UnknownChangeRun, recorder, *, name: str = "unkn
     steps = _log_run(run, recorder, name=name, truth=truth, **context)
     times = run.times
     if signal is not None:
-        recorder.log_scalars(f"detector/{signal}/signal", steps, run.signal, times)
-        recorder.log_scalars(f"detector/{signal}/lower", steps, run.signal_bounds[:, 0], times)
-        recorder.log_scalars(f"detector/{signal}/upper", steps, run.signal_bounds[:, 1], times)
+        for key, values in (("signal", run.signal), ("lower", run.signal_bounds[:, 0]), ("upper", run.signal_bounds[:, 1])):
+            recorder.log_scalars(f"detector/{signal}/{key}", steps, values, times)
     recorder.log_scalars(f"estimator/{name}/bank_size", steps, run.bank_sizes.astype(float), times)
-    recorder.log_scalars(f"estimator/{name}/mode", steps, run.mode.astype(float), times)
-    recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, times)
+    log_mode(recorder, name, steps, run)
 
 
 @log_result.register
 def log_schedule_run(run: ScheduleRun, recorder, *, name: str = "known_modes", **context) -> None:
     """The told filter's estimate ``world/estimate/<name>`` (2σ ellipses) and its NIS ``estimator/<name>/nis``."""
-    steps = np.arange(run.means.shape[0])
-    position = [run.layout.index("x"), run.layout.index("y")]
-    log_estimate(recorder, name, steps, run.means, run.covs, position, run.times)
+    steps = log_run(recorder, run, name)
     recorder.log_scalars(f"estimator/{name}/nis", steps, run.nis, run.times)

@@ -26,18 +26,10 @@ def log_scans(recorder, sequences: Sequence[ScanSequence], steps: np.ndarray, ti
 def log_associations(
     recorder, filter_names: Sequence[str], steps: np.ndarray, innovations: Sequence, times: np.ndarray | None = None
 ) -> None:
-    """Gates, association weights and association likelihoods of clutter-aware updates.
+    """Per filter and sensor, the gate {z : (z − ẑ)ᵀS⁻¹(z − ẑ) ≤ γ} (2-D sensors, finite γ), β_0 and the largest β_i,
+    the candidates in the gate and ln Λ of each scan of clutter-aware updates (entity paths: docs/recording.md).
 
-    ``innovations`` holds one :class:`~hybridtrack.core.protocols.ClutterInnovation`
-    (or plain Innovation, skipped) per step.  Per filter j and sensor s:
-
-    * ``world/estimate/<filter>/gate`` — the gate {z : (z − ẑ)ᵀS⁻¹(z − ẑ) ≤ γ}
-      as an ellipse (2-D sensors, finite γ; with several sensors the path is
-      ``…/gate/<sensor>``);
-    * ``estimator/<filter>/beta`` — β_0 (no candidate is the target) and the
-      largest β_i;
-    * ``estimator/<filter>/gated`` — number of candidates inside the gate;
-    * ``estimator/<filter>/association_loglik`` — ln Λ of the scan.
+    ``innovations`` holds one :class:`~hybridtrack.core.protocols.ClutterInnovation` (or plain Innovation, skipped) per step.
     """
     steps = np.asarray(steps)
     by_sensor: dict[str, list] = {}

@@ -1,23 +1,10 @@
-"""Reading .rrd recordings back offline, without a viewer, as a stream.
+"""Reading .rrd recordings back offline, without a viewer, as a stream (docs/recording.md, "Reading a file back").
 
-:class:`RecordingFile` reads a file chunk by chunk (``rerun.chunk.RrdReader``)
-and keeps only the summary — entity paths, step range, decision events, last
-estimates, configuration — so its memory does not grow with the file.  The
-accessors read the file again, keeping only the chunks of the entity asked for,
-and give the values back as numpy arrays sorted by step:
-
-    rec = RecordingFile("demo.rrd")
-    steps, nis = rec.series("/estimator/nis")        # (K,), (K, c) float64
-    steps, points = rec.points("/world/truth")       # (K,), (K, 2) float32 → float64
-    rec.events()                                     # [(step, level, text), …]
-    rec.summary()                                    # what ``hybridtrack inspect`` prints
-    rec.truncated                                    # True: no end-of-stream footer (a killed run)
-
-A complete file ends with rerun's end-of-stream message and footer.  A file
-without them (the process was killed, the disk filled up) is *truncated*:
-:class:`RecordingFile` then reads every whole message before the cut (copying
-that prefix to a temporary file when the cut falls inside a message) and sets
-:attr:`RecordingFile.truncated` and :attr:`RecordingFile.problem`.
+:class:`RecordingFile` keeps only the summary (entity paths, step range, decision
+events, last estimates, configuration); its accessors read the file again for one
+entity and give numpy arrays sorted by step.  A file without rerun's end-of-stream
+message and footer (a killed run) is *truncated*: every whole message before the
+cut is read, and :attr:`RecordingFile.truncated` and :attr:`RecordingFile.problem` are set.
 """
 
 from __future__ import annotations
@@ -46,6 +33,8 @@ def _entity(path: str) -> str:
 #: position and strip columns, 3-D (east, north, up) first
 _POSITIONS = ("Points3D:positions", "Points2D:positions")
 _STRIPS = ("LineStrips3D:strips", "LineStrips2D:strips")
+#: the blueprint column of each field of a view in :meth:`RecordingFile.blueprint_views`
+_VIEW_FIELDS = {"ViewBlueprint:class_identifier": "class", "ViewBlueprint:display_name": "name", "ViewBlueprint:space_origin": "origin"}
 
 
 def _coordinates(points: np.ndarray, dims: int) -> np.ndarray:
@@ -272,24 +261,24 @@ class RecordingFile:
         array = np.array(values, dtype=np.float64)
         return steps, array[:, 0] if array.ndim == 2 and array.shape[1] == 1 else array
 
-    def _column(self, entity: str, candidates: tuple[str, ...]) -> str:
-        """The first of ``candidates`` (3-D before 2-D) the entity has (the first one if none, for the error)."""
+    def _first(self, entity: str, candidates: tuple[str, ...]) -> tuple[np.ndarray, list]:
+        """:meth:`_table` of the first of ``candidates`` (3-D before 2-D) the entity has (the first one if none, for the error)."""
         columns = self._components.get(_entity(entity), set())
-        return next((c for c in candidates if c in columns), candidates[0])
+        return self._table(entity, next((c for c in candidates if c in columns), candidates[0]))
 
     def points(self, entity: str, dims: int = 2) -> tuple[np.ndarray, np.ndarray]:
         """One point per step: steps (K,), positions (K, dims) (stored as float32): dims = 2 east-north, 3 with up."""
-        steps, values = self._table(entity, self._column(entity, _POSITIONS))
+        steps, values = self._first(entity, _POSITIONS)
         return steps, _coordinates(np.array([v[0] for v in values], dtype=np.float64), dims)
 
     def point_sets(self, entity: str, dims: int = 2) -> tuple[np.ndarray, list[np.ndarray]]:
         """Any number of points per step (e.g. clutter): steps (K,) and, per step, an (L, dims) array."""
-        steps, values = self._table(entity, self._column(entity, _POSITIONS))
+        steps, values = self._first(entity, _POSITIONS)
         return steps, [_coordinates(np.array(list(v), dtype=np.float64), dims) for v in values]
 
     def strips(self, entity: str, dims: int = 2) -> tuple[np.ndarray, list[list[np.ndarray]]]:
         """Line strips per step (ellipses, bearing lines): steps and, per step, a list of (P, dims) arrays."""
-        steps, values = self._table(entity, self._column(entity, _STRIPS))
+        steps, values = self._first(entity, _STRIPS)
         return steps, [[_coordinates(np.array(strip, dtype=np.float64), dims) for strip in step] for step in values]
 
     def blueprint_views(self) -> list[dict]:
@@ -315,11 +304,7 @@ class RecordingFile:
             view = views.setdefault(path.split("/")[2], {"name": None, "class": None, "origin": "/", "contents": ["$origin/**"]})
             if path.endswith("/ViewContents") and "ViewContents:query" in names:
                 view["contents"] = _last_value(batch, "ViewContents:query") or []
-            for column, key in (
-                ("ViewBlueprint:class_identifier", "class"),
-                ("ViewBlueprint:display_name", "name"),
-                ("ViewBlueprint:space_origin", "origin"),
-            ):
+            for column, key in _VIEW_FIELDS.items():
                 if column in names and _last_value(batch, column):
                     view[key] = _last_value(batch, column)[0]
         return [v for v in views.values() if v["class"] is not None]

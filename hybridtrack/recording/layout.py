@@ -90,55 +90,27 @@ def content_blueprint(
     eyes: Mapping[str, tuple] | None = None,
     map_zoom: float | None = None,
 ):
-    """The layout embedded in a file, built from what the run logged.
+    """The layout embedded in a file, built from what the run logged (the views: docs/recording.md, "Views").
 
-    ``content`` maps every logged entity path to the view class that shows it
-    (:data:`VIEW_CLASSES`: ``3D``, ``TimeSeries``, ``TextLog``, …).  Views:
-
-    * **World (east, north, up)** — a 3-D view of ``/world`` (right-handed, z up:
-      a left turn is anticlockwise seen from above), points of the last
-      :data:`TRAIL_STEPS` steps (``time_step`` s each on the ``time`` timeline) and the
-      whole paths;
-    * **Space-time** — a 3-D view of ``/spacetime`` (x, y, scaled time);
-    * one **time-series panel per quantity**: each detector (ln λ with A and B, or the
-      signal function with its bounds), then bank size, mode / followed hypothesis,
-      mode probabilities, NIS with its χ² bounds, innovations, log-likelihood,
-      association weights, gated candidates, bearing residuals, scalar measurements
-      — each listing the logged entities explicitly, so each fits its own range;
-    * **Events** — the text log;
-    * a view of the right class for any other root, so every entity is in some view.
-
-    ``eyes`` (origin → (position, look_target)) places the 3-D cameras; ``map_zoom`` the map view's
-    zoom level (:func:`map_zoom`: the whole geo paths in view).
-
-    Legends (:data:`LEGEND_CORNERS`): a panel of at most :data:`LEGEND_SERIES` series shows its legend
-    in the corner where its quantity seldom has data; a panel of more series hides it (each series
-    names itself on hover).
+    ``content`` maps every logged entity path to the view class that shows it (:data:`VIEW_CLASSES`); a 3-D
+    view of ``/world`` (points of the last :data:`TRAIL_STEPS` steps, ``time_step`` s each on the ``time``
+    timeline), of ``/spacetime``, one time-series panel per quantity (each listing its entities, so each fits
+    its own range; legend: :data:`LEGEND_CORNERS`, shown for at most :data:`LEGEND_SERIES` series), the events,
+    and a view of the right class for any other root.  ``eyes`` (origin → (position, look_target)) places the
+    3-D cameras; ``map_zoom`` the map view's zoom level (:func:`map_zoom`).
     """
     import rerun.blueprint as rrb
 
     content = {p.strip("/"): c for p, c in (content or {"world": "3D", "events/decisions": "TextLog"}).items()}
-    eyes = eyes or {}
-    trail = [
-        rrb.VisibleTimeRange(
-            "step", start=rrb.TimeRangeBoundary.cursor_relative(seq=-TRAIL_STEPS), end=rrb.TimeRangeBoundary.cursor_relative(seq=0)
-        )
-    ]
+    behind = {"step": ("seq", TRAIL_STEPS)}  # timeline → (unit, the trail's length)
     if time_step is not None and np.isfinite(time_step) and time_step > 0:
-        seconds = TRAIL_STEPS * float(time_step)
-        trail.append(
-            rrb.VisibleTimeRange(
-                "time",
-                start=rrb.TimeRangeBoundary.cursor_relative(seconds=-seconds),
-                end=rrb.TimeRangeBoundary.cursor_relative(seconds=0.0),
-            )
-        )
+        behind["time"] = ("seconds", TRAIL_STEPS * float(time_step))
+    cursor = rrb.TimeRangeBoundary.cursor_relative
+    trail = [rrb.VisibleTimeRange(line, start=cursor(**{unit: -n}), end=cursor(**{unit: 0 * n})) for line, (unit, n) in behind.items()]
 
-    def eye(origin):
-        if origin not in eyes:
-            return None
-        position, target = eyes[origin]
-        return rrb.EyeControls3D(position=position, look_target=target, eye_up=(0.0, 0.0, 1.0))
+    eye = {  # origin → its camera
+        origin: rrb.EyeControls3D(position=at, look_target=target, eye_up=(0.0, 0.0, 1.0)) for origin, (at, target) in (eyes or {}).items()
+    }.get
 
     spatial, other = [], []
     roots = dict.fromkeys((path.split("/")[0], c) for path, c in content.items() if c not in ("TimeSeries", "TextLog"))
@@ -158,22 +130,17 @@ def content_blueprint(
         else:
             other.append(rrb.View(class_identifier=view_class, origin=f"/{root}", name=root))
 
-    panels: dict[tuple, tuple[str, list[str]]] = {}
-    counts: dict[tuple, int] = {}
-    for path, view_class in content.items():
-        if view_class == "TimeSeries":
-            key, title, rule = _panel(path, content)
-            rules = panels.setdefault(key, (title, []))[1]
-            counts[key] = counts.get(key, 0) + 1
-            if rule not in rules:
-                rules.append(rule)
+    panels: dict[tuple, tuple[str, list[str]]] = {}  # key → (title, the rule of each of its entities)
+    for path in (path for path, view_class in content.items() if view_class == "TimeSeries"):
+        key, title, rule = _panel(path, content)
+        panels.setdefault(key, (title, []))[1].append(rule)
 
-    def legend(key):  # a legend only where it does not hide the plot; the names show on hover everywhere
+    def legend(key, entities):  # a legend only where it does not hide the plot; the names show on hover everywhere
         corner = LEGEND_CORNERS.get(str(key[-1]), "RightTop")
-        return rrb.PlotLegend(corner=getattr(rrb.Corner2D, corner), visible=counts[key] <= LEGEND_SERIES)
+        return rrb.PlotLegend(corner=getattr(rrb.Corner2D, corner), visible=entities <= LEGEND_SERIES)
 
     series = [
-        rrb.TimeSeriesView(origin="/", contents=rules, name=title, plot_legend=legend(key))
+        rrb.TimeSeriesView(origin="/", contents=list(dict.fromkeys(rules)), name=title, plot_legend=legend(key, len(rules)))
         for key, (title, rules) in sorted(panels.items(), key=lambda item: tuple(str(k) for k in item[0]))
     ]
     texts = sorted({path.split("/")[0] for path, c in content.items() if c == "TextLog"})

@@ -38,12 +38,7 @@ def log_pipeline(
     ``record_measurements`` False when another run on the recorder logs them; ``hypotheses`` detector label →
     the names of its series' columns (default the filters); ``innovations`` step → the estimator's innovation
     (clutter associations); ``estimator`` and ``states`` (one bank state per step of the chunk) for an estimator
-    that records its states.
-
-    Per step: ``world/truth``, ``world/measurements/<sensor>`` (and ``world/clutter/<sensor>``),
-    ``world/estimate/<filter>`` with its 2σ ``…/ellipse``, ``estimator/<filter>/{nis, loglik, innovation}``,
-    ``estimator/nis_bounds``, the associations (:func:`~hybridtrack.recording.clutter.log_associations`),
-    ``detector/<label>/<series>`` and the decisions as events.
+    that records its states.  The entity paths: docs/recording.md.
     """
     z = network.stack(measurements) if isinstance(measurements, Mapping) else np.asarray(measurements)
     K = result.steps

@@ -1,13 +1,8 @@
-"""The recorder seam: every run logs through a recorder object passed in (entity paths in ``docs/recording.md``).
+"""The recorder seam: every run logs through a recorder object passed in (docs/recording.md, "The recorder").
 
-Components never touch rerun's global stream.  :class:`RerunRecorder` owns one
-``rerun.RecordingStream`` (application id ``hybridtrack``) with a file sink;
-:class:`NullRecorder` records nothing.  Both are context managers; leaving the
-context (normally or by an exception) flushes and closes the file so it is
-always complete; :meth:`RerunRecorder.flush` during a run leaves a killed
-process a file, without its footer, of everything logged up to then.  Series
-are logged as whole columns (``send_columns``) on the timelines ``step`` and
-``time`` (duration in seconds, when times are given).
+:class:`RerunRecorder` owns one ``rerun.RecordingStream`` with a file sink, :class:`NullRecorder` records
+nothing; leaving either context flushes and closes the file.  Series are logged as whole columns
+(``send_columns``) on the timelines ``step`` and ``time`` (duration in seconds, when times are given).
 """
 
 from __future__ import annotations
@@ -161,11 +156,9 @@ class RerunRecorder(AbstractContextManager):
     """A file recording (.rrd) on its own ``rerun.RecordingStream``; ``configuration`` (a JSON-able dict, seed
     included) gives the recording id (the same run twice, the same id) and is stored as the property ``configuration``.
 
-    Everything spatial is 3-D east-north-up (``ViewCoordinates.RIGHT_HAND_Z_UP``; 2-D positions get z = 0).  Each
-    entity is styled once from its path (:func:`spatial_style`, :func:`series_style`).  :meth:`close` adds the
-    space-time view (``spacetime/…``: every whole path as (x, y, s·t), s = the largest horizontal extent over the
-    time span, coloured by mode, mode changes and decisions marked) and embeds the blueprint built from what was
-    logged (:func:`content_blueprint`) as the file's active and default layout.
+    Everything spatial is 3-D east-north-up (2-D positions get z = 0); each entity is styled once from its path
+    (:func:`spatial_style`, :func:`series_style`).  :meth:`close` adds the space-time view and embeds the blueprint
+    of what was logged (:func:`content_blueprint`) as the file's active and default layout.
     """
 
     def __init__(self, path: str | Path, configuration: dict | None = None):
@@ -485,9 +478,26 @@ def log_estimate(recorder, name, steps, means, covs, position, times=None, *, li
     ``means`` (K, n), ``covs`` (K, n, n); ``position`` the indices of x and y in the layout;
     ``line=False`` leaves out the static path line (a streamed chunk of a longer run).
     """
-    index = np.ix_(position, position)
     recorder.log_path(f"world/estimate/{name}", steps, means[:, position], times, line=line)
-    recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, index[0], index[1]], times)
+    recorder.log_ellipses(f"world/estimate/{name}/ellipse", steps, means[:, position], covs[:, position][:, :, position], times)
+
+
+def log_run(recorder, run, name: str, *, sensors=(), measurements=None, truth=None) -> np.ndarray:
+    """The truth ``world/truth`` (a trajectory, when given), each sensor's ``measurements`` (sensor name →
+    (K+1, m)) and the estimate of a finished ``run`` (:func:`log_estimate`); returns its steps 0 … K."""
+    steps, times = np.arange(run.steps), run.times
+    if truth is not None:
+        recorder.log_path("world/truth", steps, truth.positions[: steps.size], times)
+    log_measurements(recorder, sensors, {key: value[: steps.size] for key, value in (measurements or {}).items()}, steps, times)
+    log_estimate(recorder, name, steps, run.means, run.covs, [run.layout.index("x"), run.layout.index("y")], times)
+    return steps
+
+
+def log_mode(recorder, name: str, steps, run, series: str = "mode") -> None:
+    """A run's mode per step (indices into ``run.modes``): the series ``estimator/<name>/<series>`` and the mode
+    colouring of ``world/estimate/<name>`` (:meth:`Recorder.log_modes`)."""
+    recorder.log_scalars(f"estimator/{name}/{series}", steps, run.mode.astype(float), run.times)
+    recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, run.times)
 
 
 def nis_bounds(dims: np.ndarray, probability: float = 0.95) -> np.ndarray:

@@ -1,7 +1,5 @@
 """Colours and names of what a recording shows: one palette for every hypothesis, filter, mode and role,
 and the legend names of each series (docs/recording.md).
-
-Used by :mod:`hybridtrack.recording` (the recorder) and :mod:`hybridtrack.recording.layout` (the views).
 """
 
 from __future__ import annotations

@@ -1,13 +1,8 @@
-"""Small reference objects the contract checks are built on.
+"""Small reference objects the contract checks are built on (the straight mode of SPEC §1, a linear position
+sensor, the Kalman oracle every exact estimator must match, example states and innovations).
 
-They depend on the kernel and the sdk only (never on plugins), so a check of an estimator
-or a detector means the same thing whichever plugins are installed:
-
-* :func:`cv_transition` — the straight (constant-velocity) mode of SPEC §1;
-* :class:`LinearPositionSensor` — z = H x + v picking named state components;
-* :func:`kalman_update` — :mod:`hybridtrack.sdk.kalman_reference` fed by a list
-  of sensors whose NaN rows are dropped, the oracle every exact estimator must match;
-* :func:`example_state` — plausible states for a layout, by component name.
+They depend on the kernel and the sdk only (never on plugins), so a check of an estimator or a detector means
+the same thing whichever plugins are installed.
 """
 
 from __future__ import annotations

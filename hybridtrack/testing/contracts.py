@@ -263,22 +263,12 @@ def _check_innovation(innovation, label: str, M: int, m: int, gaussian_loglik: b
 
 
 def check_estimator(estimator: Estimator, *, exact_kalman: bool | None = None, seed: int = 0) -> None:
-    """Check an :class:`~hybridtrack.core.interfaces.Estimator` on a bank of M = 3 CV filters.
+    """Check an :class:`~hybridtrack.core.interfaces.Estimator` on a bank of M = 3 CV filters (the rules, and what
+    ``exact_kalman`` and ``sampling`` change: docs/plugins.md, section 7).
 
-    The prior reads back unchanged; shapes of every :class:`Innovation` field
-    (ν (M, m), S (M, m, m), ℓ and NIS (M,)) and their consistency; a sensor's
-    NaN rows drop that sensor; all-NaN z ⇒ prediction only (state unchanged,
-    m = 0); covariance symmetric positive definite throughout; NaN/inf or a
-    wrong shape in the prior raises ValueError.  With ``exact_kalman`` (default:
-    the estimator's ``exact_kalman`` attribute, else True) every mean, covariance
-    and innovation is compared with :mod:`hybridtrack.sdk.kalman_reference`.  A
-    ``sampling`` estimator (a particle filter) reports its own ℓ (checked
-    finite, not against the Gaussian formula of (ν, S)), and after a bank is
-    rebuilt from a taken part and a freshly initialized filter only the taken
-    filters must step exactly as in the whole bank (the fresh one has new
-    samples); stepping the same state twice must give the same result; its
-    prior means are drawn around the simulated truth (x₀ − x̂₀ ~ N(0, P₀)),
-    so that the measurements are consistent with the prior it samples.
+    :class:`Innovation` fields ν (M, m), S (M, m, m), ℓ and NIS (M,); all-NaN z ⇒ prediction only (m = 0); NaN/inf
+    or a wrong shape in the prior raises ValueError.  With ``exact_kalman`` (default: the estimator's attribute, else
+    True) every mean, covariance and innovation is compared with :mod:`hybridtrack.sdk.kalman_reference`.
     """
     label = _interface_label(estimator, "estimator", Estimator)
     if exact_kalman is None:
@@ -411,11 +401,8 @@ def check_detector(detector: Detector, innovations: Sequence[Innovation] | None 
         for k, innovation in enumerate(innovations):
             out = detector.step(k, innovation)
             _require(isinstance(out, DetectorStep), label, f"step {k} returned {type(out).__name__}, expected DetectorStep")
-            _require(
-                isinstance(out.statistics, dict) and out.statistics,
-                label,
-                f"step {k}: statistics must be a non-empty dict, got {out.statistics!r}",
-            )
+            named = isinstance(out.statistics, dict) and out.statistics
+            _require(named, label, f"step {k}: statistics must be a non-empty dict, got {out.statistics!r}")
             for kind, table in (("statistic", out.statistics), ("threshold", out.thresholds)):
                 for key, value in table.items():
                     _require(isinstance(key, str) and key, label, f"step {k}: {kind} name {key!r} is not a non-empty string")
@@ -479,18 +466,11 @@ def _straight_prior(layout: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
 def check_algorithm(factory: Callable[..., Any], *, steps: int = 20, tau: float = 1.0, seed: int = 0) -> Any:
     """Check an :class:`~hybridtrack.core.algorithm.Algorithm` factory on a target moving straight; return the result.
 
-    An algorithm is configured with the sensors it reads, so the check builds
-    it: ``factory(sensors=[LinearPositionSensor("contract_xy")], tau=τ,
-    **example_parameters(factory))``, R = 4 I (σ = 2 m), and runs it on K+1 =
-    ``steps`` + 1 fixes of a constant-velocity target (10 m/s east, 5 m/s
-    north) with the factory's ``example_run`` keywords.  It must be an
-    Algorithm with a string ``name`` and a ``layout`` holding x and y; the
-    result has ``times`` 0, τ, … (K+1,), finite ``means`` (K+1, n) and
-    symmetric PSD ``covs`` (K+1, n, n) (a fixed bank: (K+1, M, n), (K+1, M, n, n)),
-    ``decisions`` (when it has them) :class:`~hybridtrack.core.types.Decision` s in step order;
-    the same ``times`` given explicitly, and a second run of the same
-    instance, give the same result; the estimate follows the target (mean
-    position error below 5 σ).
+    Built as ``factory(sensors=[LinearPositionSensor("contract_xy")], tau=τ, **example_parameters(factory))``,
+    R = 4 I (σ = 2 m), run with the factory's ``example_run`` keywords on K+1 = ``steps`` + 1 fixes of a
+    constant-velocity target (10 m/s east, 5 m/s north); rules: docs/plugins.md, section 7.  Shapes: ``times``
+    (K+1,), ``means`` (K+1, n), ``covs`` (K+1, n, n) (a fixed bank: (K+1, M, n), (K+1, M, n, n)); ``decisions``
+    :class:`~hybridtrack.core.types.Decision` s; the estimate's mean position error below 5 σ.
     """
     instance, options = _algorithm_example(factory, tau)
     label = _interface_label(instance, "algorithm", Algorithm, hint=" (it needs a `run` method)")

@@ -1,16 +1,8 @@
-"""pytest plugin (entry point ``pytest11``) exposing hybridtrack's contract checks.
+"""pytest plugin (entry point ``pytest11``) exposing hybridtrack's contract checks (docs/plugins.md, section 7).
 
-Fixtures, available in any project that has hybridtrack installed:
-
-* ``hybridtrack_contracts`` — the module :mod:`hybridtrack.testing.contracts`
-  (``check_motion_model``, ``check_sensor``, …, ``check_algorithm``,
-  ``check_component``, ``build_example``);
-* ``hybridtrack_registry`` — the default :class:`~hybridtrack.core.registry.Registry`
-  (entry-point plugins, honouring ``HYBRIDTRACK_DISABLE_PLUGINS``).
-
-The marker ``hybridtrack_contract`` labels such tests (``pytest -m hybridtrack_contract``);
-example: docs/plugins.md, section 7.  hybridtrack is imported only when a fixture is used,
-so the plugin costs nothing to projects that do not use it.
+Fixtures ``hybridtrack_contracts`` (the module :mod:`hybridtrack.testing.contracts`) and ``hybridtrack_registry``
+(the default registry); the marker ``hybridtrack_contract`` labels such tests.  hybridtrack is imported only when
+a fixture is used, so the plugin costs nothing to projects that do not use it.
 """
 
 import pytest
