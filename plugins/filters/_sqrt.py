@@ -41,10 +41,6 @@ def whiten(H: np.ndarray, nu: np.ndarray, R: np.ndarray):
     return forward_substitute(L_R, H), forward_substitute(L_R, nu[..., None])[..., 0], log_det_from_cholesky(L_R)
 
 
-def _scalar_scores(nu_i, a_i):
-    return -0.5 * (LOG_2PI + np.log(a_i) + nu_i * nu_i / a_i), nu_i * nu_i / a_i
-
-
 def potter_predict(x, S, F, B, W):
     """x⁻ = F x + B; S⁻ lower triangular with S⁻S⁻ᵀ = F S Sᵀ Fᵀ + W Wᵀ, from QR of [(F S)ᵀ; Wᵀ]."""
     x_pred = np.einsum("mij,mj->mi", F, x) + B
@@ -75,8 +71,8 @@ def potter_update(x, S, H, nu, R):
         alpha = 1.0 / a
         gamma = alpha / (1.0 + np.sqrt(alpha))
         S = S - gamma[..., None, None] * Sphi[..., :, None] * phi[..., None, :]
-        li, ni = _scalar_scores(nu_i, a)
-        loglik = loglik + li
+        ni = nu_i * nu_i / a
+        loglik = loglik - 0.5 * (LOG_2PI + np.log(a) + ni)
         nis = nis + ni
     return x, S, loglik, nis
 
@@ -163,8 +159,8 @@ def bierman_update(x, U, d, H, nu, R):
                 b[..., :j] += v[..., j, None] * col
             b[..., j] += v[..., j]
         x = x + b * (nu_i / alpha)[..., None]
-        li, ni = _scalar_scores(nu_i, alpha)
-        loglik = loglik + li
+        ni = nu_i * nu_i / alpha
+        loglik = loglik - 0.5 * (LOG_2PI + np.log(alpha) + ni)
         nis = nis + ni
     return x, U, d, loglik, nis
 

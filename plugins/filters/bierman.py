@@ -33,13 +33,8 @@ class UDState(CovarianceMoments):
     d_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
 
-    @property
-    def P(self) -> np.ndarray:
-        return _sqrt.ud_covariance(self.U, self.d)
-
-    @property
-    def P_predicted(self) -> np.ndarray:
-        return _sqrt.ud_covariance(self.U_predicted, self.d_predicted)
+    P = property(lambda self: _sqrt.ud_covariance(self.U, self.d))
+    P_predicted = property(lambda self: _sqrt.ud_covariance(self.U_predicted, self.d_predicted))
 
 
 class BiermanFilter(BankEstimator):

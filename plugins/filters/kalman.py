@@ -43,10 +43,7 @@ class CovarianceState(CovarianceMoments):
     x_predicted: np.ndarray = bank_field(0)
     P_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
-
-    @property
-    def bank_size(self) -> int:
-        return self.x.shape[0]
+    bank_size = property(lambda self: self.x.shape[0])
 
 
 @attrs.frozen(eq=False, slots=False)
@@ -79,10 +76,7 @@ class AxisState(CovarianceMoments):
     P = property(lambda self: self._dense[1])
     x_predicted = property(lambda self: self._dense_predicted[0])
     P_predicted = property(lambda self: self._dense_predicted[1])
-
-    @property
-    def bank_size(self) -> int:
-        return self.xa.shape[-1]
+    bank_size = property(lambda self: self.xa.shape[-1])
 
 
 class KalmanFilter(BankEstimator):

@@ -31,14 +31,8 @@ class SquareRootState(CovarianceMoments):
     S_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
 
-    @property
-    def P(self) -> np.ndarray:
-        """P = S Sᵀ."""
-        return self.S @ np.swapaxes(self.S, -1, -2)
-
-    @property
-    def P_predicted(self) -> np.ndarray:
-        return self.S_predicted @ np.swapaxes(self.S_predicted, -1, -2)
+    P = property(lambda self: self.S @ np.swapaxes(self.S, -1, -2))
+    P_predicted = property(lambda self: self.S_predicted @ np.swapaxes(self.S_predicted, -1, -2))
 
 
 class PotterFilter(BankEstimator):

@@ -41,13 +41,8 @@ class SRIFState(DerivedMoments):
     def predicted_moments(self):
         return _sqrt.srif_moments(self.R_predicted, self.zeta_predicted)
 
-    @property
-    def x_predicted(self) -> np.ndarray:
-        return self.predicted_moments[0]
-
-    @property
-    def P_predicted(self) -> np.ndarray:
-        return self.predicted_moments[1]
+    x_predicted = property(lambda self: self.predicted_moments[0])
+    P_predicted = property(lambda self: self.predicted_moments[1])
 
 
 def srif_innovation(nu, H, Rinfo, R_meas):
