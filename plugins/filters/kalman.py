@@ -272,10 +272,8 @@ class KalmanFilter(BankEstimator):
             c, measured, order = plan
             axis_row = np.empty(m, dtype=np.intp)
             axis_row[order] = np.arange(len(state.axes)) if measured is None else measured
-            run, payload = (
-                kernel.axis_update,
-                (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)), (0,) * state.xa.shape[0], state.axes),
-            )
+            run = kernel.axis_update
+            payload = (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)), (0,) * state.xa.shape[0], state.axes)
             shape = (state.n, state.bank_size)
         else:
             M, n = state.x.shape

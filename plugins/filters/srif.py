@@ -1,10 +1,8 @@
 """Square-root information filter bank (SPEC §3; Bierman 1977; seed 000 ref. 16).
 
-State R and ζ with I = P⁻¹ = Rᵀ R and ζ = R x.  Measurement update: QR of the
-stacked rows [[R⁻, ζ⁻], [L_R⁻¹H, L_R⁻¹z]] = [[R⁺, ζ⁺], [0, e]], NIS = e² and
-ln det S = ln det R_meas + 2 ln|det R⁺| − 2 ln|det R⁻|.  Time update:
-Dyer–McReynolds (F⁻¹ only through solves), or through the covariance square
-root when some F of the bank is singular (the stop mode).
+State R and ζ with I = P⁻¹ = Rᵀ R and ζ = R x.  Measurement update by QR of the stacked whitened rows
+(:func:`._sqrt.srif_update`, ℓ by :func:`._sqrt.srif_scores`); time update Dyer–McReynolds, or through the
+covariance square root when some F of the bank is singular (the stop mode) (:func:`._sqrt.srif_predict`).
 """
 
 from __future__ import annotations
