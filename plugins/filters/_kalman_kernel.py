@@ -37,7 +37,7 @@ numpy, so an overflow leaves inf/NaN for the estimator's finiteness checks.
 and caches the machine code next to this file (``__pycache__``).
 
 Imported only on first use by :mod:`._covariance` (loading the plugins does
-not import numba); ``AVAILABLE`` is False without numba.
+not import numba).
 """
 
 from __future__ import annotations
@@ -52,13 +52,12 @@ try:
 except ImportError:  # pragma: no cover - exercised only without numba
     numba = None
 
-AVAILABLE = numba is not None
 LOG_2PI = float(np.log(2.0 * np.pi))
 FORMS = {"joseph": 0, "symmetric": 1, "conventional": 2}
 
 
 def _njit(function, inline="never"):
-    return numba.njit(cache=True, error_model="numpy", nogil=True, inline=inline)(function) if AVAILABLE else function
+    return numba.njit(cache=True, error_model="numpy", nogil=True, inline=inline)(function) if numba is not None else function
 
 
 @functools.partial(_njit, inline="always")
@@ -132,11 +131,7 @@ def _inverse_and_scores(S, nu, Si, L, Li, w, m_tuple):  # pragma: no cover - com
 
 @_njit
 def predict_bank(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no cover - compiled
-    """x⁻ = F x⁺ + B, P⁻ = ½(C + Cᵀ), C = (F P⁺) Fᵀ + Q, for each filter (outputs written in place).
-
-    Matrices flattened row-major to (M, n²); ``n_tuple`` any tuple of length n
-    (its type fixes n at compile time, so the loops are unrolled and vectorized).
-    """
+    """The prediction of each filter (module docstring; outputs written in place); ``n_tuple`` any tuple of length n."""
     N = len(n_tuple)
     M = x.shape[0]
     FP = np.empty(N * N)

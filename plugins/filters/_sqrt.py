@@ -23,8 +23,7 @@ from hybridtrack.sdk.linalg import LOG_2PI, cholesky, forward_substitute, log_de
 
 def noise_root(bank) -> np.ndarray:
     """W (M, n, r) with W Wᵀ = G Q Gᵀ: the bank's own ``noise_root`` or an eigen square root of Q."""
-    root = getattr(bank, "noise_root", None)
-    return root if root is not None else psd_square_root(bank.Q)
+    return bank.noise_root if bank.noise_root is not None else psd_square_root(bank.Q)
 
 
 def whiten(H: np.ndarray, nu: np.ndarray, R: np.ndarray):

@@ -49,8 +49,7 @@ class BiermanFilter(BankEstimator):
 
     @guarded
     def predict(self, state: UDState, transitions) -> UDState:
-        M, n = state.x.shape
-        bank = self.check_transitions(transitions, M, n, state.x)
+        bank = self.check_transitions(transitions, *state.x.shape, state.x)
         x, U, d = _sqrt.thornton_predict(state.x, state.U, state.d, bank.F, bank.B, _sqrt.noise_root(bank))
         self.check_finite("predict", predicted_mean=x, predicted_variances_d=d, predicted_covariance_factor_U=U)
         return UDState(x, U, d, x, U, d)

@@ -73,8 +73,7 @@ class InformationFilter(BankEstimator):
 
     @guarded
     def predict(self, state: InformationState, transitions: TransitionBank) -> InformationState:
-        M, n = state.s.shape
-        bank = self.check_transitions(transitions, M, n)
+        bank = self.check_transitions(transitions, *state.s.shape)
         Y, s, x, P = information_predict(*state.moments, bank.F, bank.B, bank.Q, self.check_finite)
         return InformationState(Y, s, x, P, (x, P))
 

@@ -47,8 +47,7 @@ class PotterFilter(BankEstimator):
 
     @guarded
     def predict(self, state: SquareRootState, transitions) -> SquareRootState:
-        M, n = state.x.shape
-        bank = self.check_transitions(transitions, M, n, state.x)
+        bank = self.check_transitions(transitions, *state.x.shape, state.x)
         x, S = _sqrt.potter_predict(state.x, state.S, bank.F, bank.B, _sqrt.noise_root(bank))
         self.check_finite("predict", predicted_mean=x, predicted_covariance_factor=S)
         return SquareRootState(x, S, x, S)

@@ -61,8 +61,7 @@ class SquareRootInformationFilter(BankEstimator):
 
     @guarded
     def predict(self, state: SRIFState, transitions) -> SRIFState:
-        M, n = state.zeta.shape
-        bank = self.check_transitions(transitions, M, n, state.mean if callable(transitions) else None)
+        bank = self.check_transitions(transitions, *state.zeta.shape, state.mean if callable(transitions) else None)
         R, zeta = _sqrt.srif_predict(state.R, state.zeta, bank.F, bank.B, _sqrt.noise_root(bank))
         self.check_finite("predict", predicted_information_factor=R, predicted_information_state=zeta)
         return SRIFState(R, zeta, R, zeta)
