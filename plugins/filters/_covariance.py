@@ -130,11 +130,9 @@ def update_scored(x, P, nu, H, R, selection=None, form: str = "joseph", engine: 
     over the filters; H is used as given, so a selection H multiplies by its
     zeros and ones, which is exact).
     """
-    if engine != "numba":
+    if engine != "numba" or form not in UPDATE_FORMS:  # (the numpy path raises for an unknown form)
         x_new, P_new, S, factor, _ = _update(x, P, nu, H, R, selection, form)
         return x_new, P_new, S, *factor.scores(nu)
-    if form not in UPDATE_FORMS:
-        raise ValueError(f"form: expected one of {UPDATE_FORMS}, got {form!r}")
     (M, n), m = x.shape, nu.shape[-1]
     x_new, P_new, S = np.empty((M, n)), np.empty((M, n, n)), np.empty((M, m, m))
     loglik, nis = np.empty(M), np.empty(M)

@@ -28,9 +28,8 @@ or per filter):
 
 The results equal the numpy path to rounding (tests/plugins/test_kalman_kernel.py:
 ≤ 1e-12 relative over random SPD systems, n = 2 … 6, m = 1 … 3).  A filter
-whose S is not positive definite (or NaN) stops the pass: :func:`update_bank`
-returns its index (−1 when all are) and the caller raises the same
-``LinAlgError`` as the numpy path.  No ``fastmath``: IEEE semantics as in
+whose S is not positive definite (or NaN) stops the pass and the caller raises
+the same ``LinAlgError`` as the numpy path.  No ``fastmath``: IEEE semantics as in
 numpy, so an overflow leaves inf/NaN for the estimator's finiteness checks.
 ``error_model="numpy"``: a division by zero gives inf/NaN, not an exception.
 ``cache=True``: the first call in a fresh checkout compiles (a few seconds)

@@ -73,12 +73,10 @@ def split_bank(F: np.ndarray, B: np.ndarray, Q: np.ndarray) -> SeparableBank | N
 
 def is_block_diagonal(P: np.ndarray, axes) -> bool:
     """True when P (M, n, n) has no entries coupling different axes."""
-    n = P.shape[-1]
-    label = np.empty(n, dtype=int)
-    for a, block in enumerate(axes):
-        label[list(block)] = a
-    cross = label[:, None] != label[None, :]
-    return not P[:, cross].any()
+    idx = np.array(axes)
+    inside = np.zeros(P.shape[-2:], dtype=bool)
+    inside[idx[:, :, None], idx[:, None, :]] = True
+    return not P[:, ~inside].any()
 
 
 def to_blocks(x: np.ndarray, P: np.ndarray, axes) -> tuple[np.ndarray, np.ndarray]:

@@ -1,10 +1,8 @@
 """Bierman UD filter bank (SPEC §3; seed 003, "Bierman style"; Bierman 1977, Thornton 1976).
 
-P = U D Uᵀ with U unit upper triangular and D = diag(d).  Time update by
-Thornton's modified weighted Gram–Schmidt on [F U, W] with weights diag(d, 1)
-(W Wᵀ = G Q Gᵀ); measurement update by Bierman's scalar algorithm after
-whitening by the Cholesky factor of R (``_sqrt.thornton_predict``,
-``_sqrt.bierman_update``).
+P = U D Uᵀ with U unit upper triangular and D = diag(d); time update by Thornton's modified weighted Gram–Schmidt
+(``_sqrt.thornton_predict``), measurement update by Bierman's scalar algorithm after whitening
+(``_sqrt.bierman_update``).
 """
 
 from __future__ import annotations

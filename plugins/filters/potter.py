@@ -1,10 +1,8 @@
 """Potter square-root filter bank (SPEC §3; seed 003, "Potter style"; Potter 1963, Bierman 1977).
 
-State x and a square root S of P = S Sᵀ.  Time update: S⁻ from the QR
-factorization of [(F S)ᵀ; Wᵀ] (W Wᵀ = G Q Gᵀ), so S⁻S⁻ᵀ = F P Fᵀ + G Q Gᵀ.
-Measurement update: whiten by the Cholesky factor of R, then one scalar Potter
-step per component (``_sqrt.potter_update``).  P is never formed in the
-filter; ``covariance`` assembles it for reading.
+State x and a square root S of P = S Sᵀ; time update by QR (``_sqrt.potter_predict``), measurement update by
+whitening and one scalar Potter step per component (``_sqrt.potter_update``).  P is never formed in the filter;
+``covariance`` assembles it for reading.
 """
 
 from __future__ import annotations
