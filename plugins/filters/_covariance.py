@@ -168,9 +168,7 @@ def _update(x, P, nu, H, R, selection, form):
         T += D @ np.ascontiguousarray(np.swapaxes(K, -1, -2))
         return x_new, symmetrize(T), S, factor, K
     T = P - K @ np.ascontiguousarray(np.swapaxes(PHt, -1, -2))  # P⁻ − K S Kᵀ = P⁻ − K (P⁻ Hᵀ)ᵀ
-    if form == "symmetric":
-        return x_new, symmetrize(T), S, factor, K
-    return x_new, T, S, factor, K
+    return x_new, T if form == "conventional" else symmetrize(T), S, factor, K
 
 
 def _symmetrize_small(S: np.ndarray) -> np.ndarray:

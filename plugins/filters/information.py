@@ -48,8 +48,7 @@ def information_predict(x, P, F, B, Q, check):
     """
     x_pred, P_pred = cov_form.predict(x, P, F, B, Q)
     check("predict", predicted_mean=x_pred, predicted_covariance=P_pred)
-    Y_pred, s_pred = info.to_information(x_pred, P_pred)
-    return Y_pred, s_pred, x_pred, P_pred
+    return (*info.to_information(x_pred, P_pred), x_pred, P_pred)
 
 
 def stacked_innovation(step, x_pred, P_pred, layout):
@@ -88,8 +87,7 @@ class InformationFilter(BankEstimator):
         Y, s, x_post, P_post, delta = info.assimilate(x_prior, state.Y, dY, g)
         self.check_finite("update", updated_mean=x_post)
         _, nis_local = info.local_scores(state.Y, Y, g, delta, q, log_det_R, step.dim)
-        new = InformationState(Y, s, state.x_predicted, state.P_predicted, (x_post, P_post), innovation, nis_local)
-        return new, innovation
+        return InformationState(Y, s, state.x_predicted, state.P_predicted, (x_post, P_post), innovation, nis_local), innovation
 
 
 @hookimpl
