@@ -60,11 +60,6 @@ def _flat(A: np.ndarray, shape: tuple) -> np.ndarray:
     return np.ascontiguousarray(A, dtype=float).reshape(shape)
 
 
-def _stack_flat(A: np.ndarray) -> np.ndarray:
-    """A (r, c) shared by the bank as (1, r c), or a per-filter (M, r, c) stack as (M, r c), C-contiguous float."""
-    return _flat(A, (1 if A.ndim == 2 else A.shape[0], -1))
-
-
 def predict(
     x: np.ndarray,
     P: np.ndarray,
@@ -135,16 +130,15 @@ def update_scored(x, P, nu, H, R, selection=None, form: str = "joseph", engine: 
     over the filters; H is used as given, so a selection H multiplies by its
     zeros and ones, which is exact).
     """
-    if engine != "numba":
+    if engine != "numba" or form not in UPDATE_FORMS:  # (the numpy path raises for an unknown form)
         x_new, P_new, S, factor, _ = _update(x, P, nu, H, R, selection, form)
         return x_new, P_new, S, *factor.scores(nu)
-    if form not in UPDATE_FORMS:
-        raise ValueError(f"form: expected one of {UPDATE_FORMS}, got {form!r}")
     (M, n), m = x.shape, nu.shape[-1]
     x_new, P_new, S = np.empty((M, n)), np.empty((M, n, n)), np.empty((M, m, m))
     loglik, nis = np.empty(M), np.empty(M)
     kernel = kernel_module()
-    inputs = (_flat(x, (M, n)), _flat(P, (M, n * n)), _flat(nu, (M, m)), _stack_flat(H), _stack_flat(R))
+    H, R = (_flat(A, (1 if A.ndim == 2 else M, -1)) for A in (H, R))  # shared (1, ·) or per filter (M, ·)
+    inputs = (_flat(x, (M, n)), _flat(P, (M, n * n)), _flat(nu, (M, m)), H, R)
     outputs = (x_new, P_new.reshape(M, n * n), S.reshape(M, m * m), loglik, nis)
     bad = kernel.update_bank(*inputs, kernel.FORMS[form], *outputs, (0,) * n, (0,) * m)
     if bad >= 0:
@@ -155,16 +149,15 @@ def update_scored(x, P, nu, H, R, selection=None, form: str = "joseph", engine: 
 def _update(x, P, nu, H, R, selection, form):
     if form not in UPDATE_FORMS:
         raise ValueError(f"form: expected one of {UPDATE_FORMS}, got {form!r}")
-    M, n = x.shape
     if selection is not None:
-        selection = tuple(selection)
         idx = selection_index(selection)
         PHt = P[:, :, idx]  # P Hᵀ (M, n, m)
-        S = _selected_innovation_covariance(P, selection, R)
+        HPHt = PHt[:, idx, :]  # P[sel][:, sel]
     else:
         Ht = np.ascontiguousarray(np.swapaxes(H, -1, -2))
         PHt = _times_matrix(P, Ht)
-        S = _symmetrize_small(H @ PHt + R)
+        HPHt = H @ PHt
+    S = _symmetrize_small(HPHt + R)
     factor = CholeskyFactor(S, "innovation covariance S")
     K = PHt @ factor.inverse()  # (M, n, m)
     x_new = x + np.einsum("mij,mj->mi", K, nu)
@@ -175,23 +168,7 @@ def _update(x, P, nu, H, R, selection, form):
         T += D @ np.ascontiguousarray(np.swapaxes(K, -1, -2))
         return x_new, symmetrize(T), S, factor, K
     T = P - K @ np.ascontiguousarray(np.swapaxes(PHt, -1, -2))  # P⁻ − K S Kᵀ = P⁻ − K (P⁻ Hᵀ)ᵀ
-    if form == "symmetric":
-        return x_new, symmetrize(T), S, factor, K
-    return x_new, T, S, factor, K
-
-
-def _selected_innovation_covariance(P: np.ndarray, selection: tuple[int, ...], R: np.ndarray) -> np.ndarray:
-    """S = ½(C + Cᵀ), C = H P Hᵀ + R for a selection H: C_ij = P[s_i, s_j] + R_ij, entry by entry over the bank."""
-    M, m = P.shape[0], len(selection)
-    if m > 3:
-        return symmetrize(P[:, :, list(selection)][:, list(selection), :] + R)
-    S = np.empty((M, m, m))
-    for i, a in enumerate(selection):
-        S[:, i, i] = P[:, a, a] + R[..., i, i]
-        for j in range(i + 1, m):
-            b = selection[j]
-            S[:, i, j] = S[:, j, i] = 0.5 * ((P[:, a, b] + R[..., i, j]) + (P[:, b, a] + R[..., j, i]))
-    return S
+    return x_new, T if form == "conventional" else symmetrize(T), S, factor, K
 
 
 def _symmetrize_small(S: np.ndarray) -> np.ndarray:

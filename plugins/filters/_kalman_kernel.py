@@ -28,20 +28,20 @@ or per filter):
 
 The results equal the numpy path to rounding (tests/plugins/test_kalman_kernel.py:
 ≤ 1e-12 relative over random SPD systems, n = 2 … 6, m = 1 … 3).  A filter
-whose S is not positive definite (or NaN) stops the pass: :func:`update_bank`
-returns its index (−1 when all are) and the caller raises the same
-``LinAlgError`` as the numpy path.  No ``fastmath``: IEEE semantics as in
+whose S is not positive definite (or NaN) stops the pass and the caller raises
+the same ``LinAlgError`` as the numpy path.  No ``fastmath``: IEEE semantics as in
 numpy, so an overflow leaves inf/NaN for the estimator's finiteness checks.
 ``error_model="numpy"``: a division by zero gives inf/NaN, not an exception.
 ``cache=True``: the first call in a fresh checkout compiles (a few seconds)
 and caches the machine code next to this file (``__pycache__``).
 
 Imported only on first use by :mod:`._covariance` (loading the plugins does
-not import numba); ``AVAILABLE`` is False without numba.
+not import numba).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -51,20 +51,15 @@ try:
 except ImportError:  # pragma: no cover - exercised only without numba
     numba = None
 
-AVAILABLE = numba is not None
 LOG_2PI = float(np.log(2.0 * np.pi))
 FORMS = {"joseph": 0, "symmetric": 1, "conventional": 2}
 
 
 def _njit(function, inline="never"):
-    return numba.njit(cache=True, error_model="numpy", nogil=True, inline=inline)(function) if AVAILABLE else function
+    return numba.njit(cache=True, error_model="numpy", nogil=True, inline=inline)(function) if numba is not None else function
 
 
-def _njit_inline(function):
-    return _njit(function, "always")
-
-
-@_njit_inline
+@functools.partial(_njit, inline="always")
 def _inverse_and_scores(S, nu, Si, L, Li, w, m_tuple):  # pragma: no cover - compiled
     """S⁻¹ (into ``Si``), ln det S and NIS = νᵀS⁻¹ν of one filter by the closed forms for m ≤ 2 and the Cholesky
     recurrence for m ≥ 3 (the formulas in the module docstring); S (m²,) symmetric, ν (m,), L, Li (m², zeroed), w
@@ -135,11 +130,7 @@ def _inverse_and_scores(S, nu, Si, L, Li, w, m_tuple):  # pragma: no cover - com
 
 @_njit
 def predict_bank(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no cover - compiled
-    """x⁻ = F x⁺ + B, P⁻ = ½(C + Cᵀ), C = (F P⁺) Fᵀ + Q, for each filter (outputs written in place).
-
-    Matrices flattened row-major to (M, n²); ``n_tuple`` any tuple of length n
-    (its type fixes n at compile time, so the loops are unrolled and vectorized).
-    """
+    """The prediction of each filter (module docstring; outputs written in place); ``n_tuple`` any tuple of length n."""
     N = len(n_tuple)
     M = x.shape[0]
     FP = np.empty(N * N)
@@ -368,14 +359,11 @@ def update_bank_blocked(
     """:func:`update_bank_selected` for m ≤ 2 (``len(m_tuple)``), blocked across filters like
     :func:`predict_bank_checked`: per block of W = ``len(w_tuple)`` filters, x, ν = z − x⁻[sel], P⁻, P⁻[:, sel],
     P⁻[sel, :] and P⁻[sel][:, sel] are copied into a scratch with the filter index innermost; one loop over the lanes
-    with compile-time offsets only (vectorized by LLVM) forms S = ½(C + Cᵀ), C = P⁻[sel][:, sel] + R, det S, S⁻¹ and
-    NIS by the closed forms (m = 1: S⁻¹ = 1/s; m = 2: S⁻¹ = [[c, −b], [−b, a]] / det S, NIS = ν₀²/a + a r²/det S,
-    r = ν₁ − (b/a) ν₀), K = P⁻[:, sel] S⁻¹, x⁺ = x⁻ + K ν and P⁺ by the form ``len(f_tuple) − 1`` (0 Joseph
-    U = T + (K R − T[:, sel]) Kᵀ, T = P⁻ − K P⁻[sel, :], upper triangle mirrored, with T[:, sel] =
-    P⁻[:, sel] − K P⁻[sel][:, sel]; 1 symmetric ½(T + Tᵀ), T = P⁻ − K P⁻[:, sel]ᵀ; 2 conventional T); the copy out
-    takes ℓ = −½(m ln 2π + ln det S + NIS) (the logarithm per filter: no vector logarithm without SVML).  The same
-    operations in the same order per filter as :func:`update_bank_selected`: bitwise its results.  Returns 0, or 1
-    when z has an entry that is NaN or beyond ``limit``, S is not positive definite or an output is not finite."""
+    with compile-time offsets only (vectorized by LLVM) takes the step (S⁻¹ and NIS by the closed forms of the module
+    docstring, P⁺ by the form ``len(f_tuple) − 1``, the Joseph T[:, sel] as P⁻[:, sel] − K P⁻[sel][:, sel]); the copy
+    out takes ℓ (the logarithm per filter: no vector logarithm without SVML).  The same operations in the same order
+    per filter as :func:`update_bank_selected`: bitwise its results.  Returns 0, or 1 when z has an entry that is NaN
+    or beyond ``limit``, S is not positive definite or an output is not finite."""
     N, Mm, form, W = len(n_tuple), len(m_tuple), len(f_tuple) - 1, len(w_tuple)
     NN = N * N
     OX = 0
@@ -529,10 +517,10 @@ def update_bank_blocked(
 def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_out, loglik, nis, n_tuple, m_tuple):  # pragma: no cover
     """The update of each filter for a selection H (H = rows e_sel[b]ᵀ, the position sensors) with ν = z − x⁻[sel]
     computed here: P Hᵀ = P[:, sel], H P = P[sel, :], S = ½(C + Cᵀ), C = P[sel][:, sel] + R, T Hᵀ = T[:, sel];
-    otherwise the arithmetic of :func:`update_bank` (S⁻¹ and the scores by the closed forms for m ≤ 2, the Cholesky
-    recurrence above; Joseph P⁺ = U, U = T + (K R − T Hᵀ) Kᵀ, T = P⁻ − K (H P⁻), U symmetric in exact arithmetic:
-    its upper triangle formed and mirrored (the reference's ½(U + Uᵀ) differs by rounding only); symmetric P⁺ = ½(T + Tᵀ), T = P⁻ − K (P⁻ Hᵀ)ᵀ).  z (1 or M, m), R (m²,).  Returns 0, or 1 when z has
-    an entry that is NaN or beyond ``limit``, S is not positive definite or an output is not finite."""
+    otherwise the arithmetic of :func:`update_bank`, except that the Joseph U = T + (K R − T Hᵀ) Kᵀ, symmetric in
+    exact arithmetic, has its upper triangle formed and mirrored (the reference's ½(U + Uᵀ) differs by rounding
+    only).  z (1 or M, m), R (m²,).  Returns 0, or 1 when z has an entry that is NaN or beyond ``limit``, S is not
+    positive definite or an output is not finite."""
     N, Mm = len(n_tuple), len(m_tuple)
     M = x.shape[0]
     per_z = z.shape[0] > 1
@@ -670,9 +658,8 @@ def axis_predict(xa, Pa, F, B, Q, x_out, P_out, d_tuple):  # pragma: no cover - 
 @_njit
 def axis_update(xa, Pa, z, axis_row, c, r, form, limit, x_out, P_out, nu, S, loglik, nis, d_tuple):  # pragma: no cover
     """The scalar updates of :func:`._separable.update`: measurement row b (column b of z (1 or M, m)) measures
-    component c of axis ``axis_row[b]`` with variance r[b]; per filter and measured axis s = P_cc + r, k = P_:c / s,
-    ν = z − x_c, x⁺ = x + k ν, Joseph P⁺ = P − k P_c:ᵀ − P_:c kᵀ + s k kᵀ or symmetric P⁺ = P − s k kᵀ;
-    ℓ = −½(m ln 2π + ln Π_rows s + Σ_rows ν²/s) (one logarithm per filter), NIS = Σ ν²/s; ν (M, m) and
+    component c of axis ``axis_row[b]`` with variance r[b]; per filter and measured axis the scalar update of
+    :mod:`._separable`; ℓ = −½(m ln 2π + ln Π_rows s + Σ_rows ν²/s) (one logarithm per filter), NIS = Σ ν²/s; ν (M, m) and
     S = diag(s) (M, m, m, zero elsewhere) in the rows' order; the axes no row measures are copied.  ``d_tuple``
     any tuple of length d.  Returns 0, or 1 when z has an entry that is NaN or beyond ``limit``, some s ≤ 0 or an
     output is not finite (also when Π s over- or underflows: the reference then takes the step)."""

@@ -31,21 +31,12 @@ from hybridtrack.sdk.linalg import LOG_2PI
 
 
 def partition(pattern: np.ndarray) -> tuple[tuple[int, ...], ...] | None:
-    """Connected components of a symmetric (n, n) boolean pattern, or None unless all have the same size ≥ 1 and there are ≥ 2."""
-    n = pattern.shape[0]
-    seen, blocks = set(), []
-    for start in range(n):
-        if start in seen:
-            continue
-        stack, block = [start], set()
-        while stack:
-            i = stack.pop()
-            if i in block:
-                continue
-            block.add(i)
-            stack.extend(int(j) for j in np.flatnonzero(pattern[i]) if j not in block)
-        seen |= block
-        blocks.append(tuple(sorted(block)))
+    """Connected components of a symmetric (n, n) boolean pattern with a true diagonal (the rows of its transitive
+    closure, by repeated squaring), or None unless all have the same size ≥ 1 and there are ≥ 2."""
+    reach = pattern
+    for _ in range(pattern.shape[0].bit_length()):  # k squarings: every path of length ≤ 2^k > n
+        reach = reach @ reach
+    blocks = sorted({tuple(np.flatnonzero(row).tolist()) for row in reach})
     if len(blocks) < 2 or len({len(b) for b in blocks}) != 1:
         return None
     return tuple(blocks)
@@ -82,12 +73,10 @@ def split_bank(F: np.ndarray, B: np.ndarray, Q: np.ndarray) -> SeparableBank | N
 
 def is_block_diagonal(P: np.ndarray, axes) -> bool:
     """True when P (M, n, n) has no entries coupling different axes."""
-    n = P.shape[-1]
-    label = np.empty(n, dtype=int)
-    for a, block in enumerate(axes):
-        label[list(block)] = a
-    cross = label[:, None] != label[None, :]
-    return not P[:, cross].any()
+    idx = np.array(axes)
+    inside = np.zeros(P.shape[-2:], dtype=bool)
+    inside[idx[:, :, None], idx[:, None, :]] = True
+    return not P[:, ~inside].any()
 
 
 def to_blocks(x: np.ndarray, P: np.ndarray, axes) -> tuple[np.ndarray, np.ndarray]:
@@ -120,11 +109,8 @@ def predict(xa, Pa, bank: SeparableBank):
 
 
 def update(xa, Pa, c: int, axes_measured, z, r, form: str):
-    """Scalar update of component c on the measured axes (index array into A; None: all), z and r (A_m, 1 or M).
-
-    Joseph: P⁺ = P − k P_c:ᵀ − P_:c kᵀ + s k kᵀ;  symmetric: P⁺ = P − s k kᵀ
-    (both exactly symmetric as computed).  Returns x⁺, P⁺, ν (A_m, M), s (A_m, M), ℓ (M,), NIS (M,).
-    """
+    """The scalar update of the module docstring, of component c on the measured axes (index array into A; None:
+    all), z and r (A_m, 1 or M).  Returns x⁺, P⁺, ν (A_m, M), s (A_m, M), ℓ (M,), NIS (M,)."""
     full = axes_measured is None
     xs = xa if full else xa[:, axes_measured]
     Ps = Pa if full else Pa[:, :, axes_measured]

@@ -23,8 +23,7 @@ from hybridtrack.sdk.linalg import LOG_2PI, cholesky, forward_substitute, log_de
 
 def noise_root(bank) -> np.ndarray:
     """W (M, n, r) with W Wᵀ = G Q Gᵀ: the bank's own ``noise_root`` or an eigen square root of Q."""
-    root = getattr(bank, "noise_root", None)
-    return root if root is not None else psd_square_root(bank.Q)
+    return bank.noise_root if bank.noise_root is not None else psd_square_root(bank.Q)
 
 
 def whiten(H: np.ndarray, nu: np.ndarray, R: np.ndarray):
@@ -39,10 +38,6 @@ def whiten(H: np.ndarray, nu: np.ndarray, R: np.ndarray):
     if H.ndim < L_R.ndim:
         H = np.broadcast_to(H, L_R.shape[:-2] + H.shape[-2:])
     return forward_substitute(L_R, H), forward_substitute(L_R, nu[..., None])[..., 0], log_det_from_cholesky(L_R)
-
-
-def _scalar_scores(nu_i, a_i):
-    return -0.5 * (LOG_2PI + np.log(a_i) + nu_i * nu_i / a_i), nu_i * nu_i / a_i
 
 
 def potter_predict(x, S, F, B, W):
@@ -75,8 +70,8 @@ def potter_update(x, S, H, nu, R):
         alpha = 1.0 / a
         gamma = alpha / (1.0 + np.sqrt(alpha))
         S = S - gamma[..., None, None] * Sphi[..., :, None] * phi[..., None, :]
-        li, ni = _scalar_scores(nu_i, a)
-        loglik = loglik + li
+        ni = nu_i * nu_i / a
+        loglik = loglik - 0.5 * (LOG_2PI + np.log(a) + ni)
         nis = nis + ni
     return x, S, loglik, nis
 
@@ -163,8 +158,8 @@ def bierman_update(x, U, d, H, nu, R):
                 b[..., :j] += v[..., j, None] * col
             b[..., j] += v[..., j]
         x = x + b * (nu_i / alpha)[..., None]
-        li, ni = _scalar_scores(nu_i, alpha)
-        loglik = loglik + li
+        ni = nu_i * nu_i / alpha
+        loglik = loglik - 0.5 * (LOG_2PI + np.log(alpha) + ni)
         nis = nis + ni
     return x, U, d, loglik, nis
 

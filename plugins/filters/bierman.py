@@ -1,10 +1,8 @@
 """Bierman UD filter bank (SPEC §3; seed 003, "Bierman style"; Bierman 1977, Thornton 1976).
 
-P = U D Uᵀ with U unit upper triangular and D = diag(d).  Time update by
-Thornton's modified weighted Gram–Schmidt on [F U, W] with weights diag(d, 1)
-(W Wᵀ = G Q Gᵀ); measurement update by Bierman's scalar algorithm after
-whitening by the Cholesky factor of R (``_sqrt.thornton_predict``,
-``_sqrt.bierman_update``).
+P = U D Uᵀ with U unit upper triangular and D = diag(d); time update by Thornton's modified weighted Gram–Schmidt
+(``_sqrt.thornton_predict``), measurement update by Bierman's scalar algorithm after whitening
+(``_sqrt.bierman_update``).
 """
 
 from __future__ import annotations
@@ -33,13 +31,8 @@ class UDState(CovarianceMoments):
     d_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
 
-    @property
-    def P(self) -> np.ndarray:
-        return _sqrt.ud_covariance(self.U, self.d)
-
-    @property
-    def P_predicted(self) -> np.ndarray:
-        return _sqrt.ud_covariance(self.U_predicted, self.d_predicted)
+    P = property(lambda self: _sqrt.ud_covariance(self.U, self.d))
+    P_predicted = property(lambda self: _sqrt.ud_covariance(self.U_predicted, self.d_predicted))
 
 
 class BiermanFilter(BankEstimator):
@@ -54,8 +47,7 @@ class BiermanFilter(BankEstimator):
 
     @guarded
     def predict(self, state: UDState, transitions) -> UDState:
-        M, n = state.x.shape
-        bank = self.check_transitions(transitions, M, n, state.x)
+        bank = self.check_transitions(transitions, *state.x.shape, state.x)
         x, U, d = _sqrt.thornton_predict(state.x, state.U, state.d, bank.F, bank.B, _sqrt.noise_root(bank))
         self.check_finite("predict", predicted_mean=x, predicted_variances_d=d, predicted_covariance_factor_U=U)
         return UDState(x, U, d, x, U, d)

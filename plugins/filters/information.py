@@ -48,8 +48,7 @@ def information_predict(x, P, F, B, Q, check):
     """
     x_pred, P_pred = cov_form.predict(x, P, F, B, Q)
     check("predict", predicted_mean=x_pred, predicted_covariance=P_pred)
-    Y_pred, s_pred = info.to_information(x_pred, P_pred)
-    return Y_pred, s_pred, x_pred, P_pred
+    return (*info.to_information(x_pred, P_pred), x_pred, P_pred)
 
 
 def stacked_innovation(step, x_pred, P_pred, layout):
@@ -73,8 +72,7 @@ class InformationFilter(BankEstimator):
 
     @guarded
     def predict(self, state: InformationState, transitions: TransitionBank) -> InformationState:
-        M, n = state.s.shape
-        bank = self.check_transitions(transitions, M, n)
+        bank = self.check_transitions(transitions, *state.s.shape)
         Y, s, x, P = information_predict(*state.moments, bank.F, bank.B, bank.Q, self.check_finite)
         return InformationState(Y, s, x, P, (x, P))
 
@@ -89,8 +87,7 @@ class InformationFilter(BankEstimator):
         Y, s, x_post, P_post, delta = info.assimilate(x_prior, state.Y, dY, g)
         self.check_finite("update", updated_mean=x_post)
         _, nis_local = info.local_scores(state.Y, Y, g, delta, q, log_det_R, step.dim)
-        new = InformationState(Y, s, state.x_predicted, state.P_predicted, (x_post, P_post), innovation, nis_local)
-        return new, innovation
+        return InformationState(Y, s, state.x_predicted, state.P_predicted, (x_post, P_post), innovation, nis_local), innovation
 
 
 @hookimpl

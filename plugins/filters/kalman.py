@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import operator
 from collections.abc import Sequence
-from functools import cached_property
+from functools import cache, cached_property
 
 import attrs
 import numpy as np
@@ -43,10 +43,7 @@ class CovarianceState(CovarianceMoments):
     x_predicted: np.ndarray = bank_field(0)
     P_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
-
-    @property
-    def bank_size(self) -> int:
-        return self.x.shape[0]
+    bank_size = property(lambda self: self.x.shape[0])
 
 
 @attrs.frozen(eq=False, slots=False)
@@ -79,10 +76,7 @@ class AxisState(CovarianceMoments):
     P = property(lambda self: self._dense[1])
     x_predicted = property(lambda self: self._dense_predicted[0])
     P_predicted = property(lambda self: self._dense_predicted[1])
-
-    @property
-    def bank_size(self) -> int:
-        return self.xa.shape[-1]
+    bank_size = property(lambda self: self.xa.shape[-1])
 
 
 class KalmanFilter(BankEstimator):
@@ -110,7 +104,6 @@ class KalmanFilter(BankEstimator):
         self.structure = bool(structure) and form != "conventional"
         self._split_cache: tuple | None = None
         self._transposed_cache: tuple | None = None
-        self._plan_cache: dict = {}
         self._predict_lanes: dict = {}  # id(bank) -> (bank, state form, shape, kernel, operands), the last few banks
         self._lane: _UpdateLane | None = None  # the measurement model of the last update, for the update lane
 
@@ -219,27 +212,6 @@ class KalmanFilter(BankEstimator):
         return Ft
 
     # ------------------------------------------------------------------ update
-    def _axis_plan(self, step, axes):
-        """How a measurement step maps onto the axes, or None if it does not separate.
-
-        Needs: selection H, one row per axis, the same component position c in
-        each measured axis, and R diagonal.
-        """
-        if step.selection is None or not step.R_diagonal:
-            return None
-        key = (step.selection, axes)
-        if key in self._plan_cache:
-            return self._plan_cache[key]
-        where = {i: (a, block.index(i)) for a, block in enumerate(axes) for i in block}
-        rows = [where[i] for i in step.selection]
-        plan = None
-        if len({a for a, _ in rows}) == len(rows) and len({c for _, c in rows}) == 1:
-            order = np.argsort([a for a, _ in rows])  # rows sorted by axis
-            measured = np.array(sorted(a for a, _ in rows))
-            plan = (rows[0][1], None if len(rows) == len(axes) else measured, order)
-        self._plan_cache[key] = plan
-        return plan
-
     def _update_axes(self, state: AxisState, step, plan):
         c, measured, order = plan
         M, m = state.bank_size, step.dim
@@ -300,10 +272,8 @@ class KalmanFilter(BankEstimator):
             c, measured, order = plan
             axis_row = np.empty(m, dtype=np.intp)
             axis_row[order] = np.arange(len(state.axes)) if measured is None else measured
-            run, payload = (
-                kernel.axis_update,
-                (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)), (0,) * state.xa.shape[0], state.axes),
-            )
+            run = kernel.axis_update
+            payload = (int(c), axis_row, np.ascontiguousarray(np.diagonal(step.R)), (0,) * state.xa.shape[0], state.axes)
             shape = (state.n, state.bank_size)
         else:
             M, n = state.x.shape
@@ -328,7 +298,7 @@ class KalmanFilter(BankEstimator):
         if step is None:
             return self.unmeasured(state, M)
         if isinstance(state, AxisState):
-            plan = self._axis_plan(step, state.axes) if step.H is not None else None
+            plan = _axis_plan(step.selection, state.axes) if step.selection is not None and step.R_diagonal else None
             if plan is not None:
                 result = self._update_axes(state, step, plan)
                 self._learn_lane(state, z, sensors, layout, step, plan)
@@ -340,6 +310,19 @@ class KalmanFilter(BankEstimator):
         innovation = Innovation(nu, S, loglik, nis)
         self._learn_lane(state, z, sensors, layout, step)
         return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
+
+
+@cache
+def _axis_plan(selection: tuple[int, ...], axes: tuple) -> tuple | None:
+    """How a selection H (the state indices it measures, R diagonal) maps onto the axes, or None if it does not
+    separate: needs one row per axis and the same component position c in each measured axis."""
+    where = {i: (a, block.index(i)) for a, block in enumerate(axes) for i in block}
+    rows = [where[i] for i in selection]
+    if len({a for a, _ in rows}) != len(rows) or len({c for _, c in rows}) != 1:
+        return None
+    order = np.argsort([a for a, _ in rows])  # rows sorted by axis
+    measured = np.array(sorted(a for a, _ in rows))
+    return rows[0][1], None if len(rows) == len(axes) else measured, order
 
 
 class _UpdateLane:

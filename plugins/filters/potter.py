@@ -1,10 +1,8 @@
 """Potter square-root filter bank (SPEC §3; seed 003, "Potter style"; Potter 1963, Bierman 1977).
 
-State x and a square root S of P = S Sᵀ.  Time update: S⁻ from the QR
-factorization of [(F S)ᵀ; Wᵀ] (W Wᵀ = G Q Gᵀ), so S⁻S⁻ᵀ = F P Fᵀ + G Q Gᵀ.
-Measurement update: whiten by the Cholesky factor of R, then one scalar Potter
-step per component (``_sqrt.potter_update``).  P is never formed in the
-filter; ``covariance`` assembles it for reading.
+State x and a square root S of P = S Sᵀ; time update by QR (``_sqrt.potter_predict``), measurement update by
+whitening and one scalar Potter step per component (``_sqrt.potter_update``).  P is never formed in the filter;
+``covariance`` assembles it for reading.
 """
 
 from __future__ import annotations
@@ -31,14 +29,8 @@ class SquareRootState(CovarianceMoments):
     S_predicted: np.ndarray = bank_field(0)
     innovation: Innovation | None = None
 
-    @property
-    def P(self) -> np.ndarray:
-        """P = S Sᵀ."""
-        return self.S @ np.swapaxes(self.S, -1, -2)
-
-    @property
-    def P_predicted(self) -> np.ndarray:
-        return self.S_predicted @ np.swapaxes(self.S_predicted, -1, -2)
+    P = property(lambda self: self.S @ np.swapaxes(self.S, -1, -2))
+    P_predicted = property(lambda self: self.S_predicted @ np.swapaxes(self.S_predicted, -1, -2))
 
 
 class PotterFilter(BankEstimator):
@@ -53,8 +45,7 @@ class PotterFilter(BankEstimator):
 
     @guarded
     def predict(self, state: SquareRootState, transitions) -> SquareRootState:
-        M, n = state.x.shape
-        bank = self.check_transitions(transitions, M, n, state.x)
+        bank = self.check_transitions(transitions, *state.x.shape, state.x)
         x, S = _sqrt.potter_predict(state.x, state.S, bank.F, bank.B, _sqrt.noise_root(bank))
         self.check_finite("predict", predicted_mean=x, predicted_covariance_factor=S)
         return SquareRootState(x, S, x, S)

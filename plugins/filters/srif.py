@@ -1,10 +1,8 @@
 """Square-root information filter bank (SPEC §3; Bierman 1977; seed 000 ref. 16).
 
-State R and ζ with I = P⁻¹ = Rᵀ R and ζ = R x.  Measurement update: QR of the
-stacked rows [[R⁻, ζ⁻], [L_R⁻¹H, L_R⁻¹z]] = [[R⁺, ζ⁺], [0, e]], NIS = e² and
-ln det S = ln det R_meas + 2 ln|det R⁺| − 2 ln|det R⁻|.  Time update:
-Dyer–McReynolds (F⁻¹ only through solves), or through the covariance square
-root when some F of the bank is singular (the stop mode).
+State R and ζ with I = P⁻¹ = Rᵀ R and ζ = R x.  Measurement update by QR of the stacked whitened rows
+(:func:`._sqrt.srif_update`, ℓ by :func:`._sqrt.srif_scores`); time update Dyer–McReynolds, or through the
+covariance square root when some F of the bank is singular (the stop mode) (:func:`._sqrt.srif_predict`).
 """
 
 from __future__ import annotations
@@ -41,13 +39,8 @@ class SRIFState(DerivedMoments):
     def predicted_moments(self):
         return _sqrt.srif_moments(self.R_predicted, self.zeta_predicted)
 
-    @property
-    def x_predicted(self) -> np.ndarray:
-        return self.predicted_moments[0]
-
-    @property
-    def P_predicted(self) -> np.ndarray:
-        return self.predicted_moments[1]
+    x_predicted = property(lambda self: self.predicted_moments[0])
+    P_predicted = property(lambda self: self.predicted_moments[1])
 
 
 def srif_innovation(nu, H, Rinfo, R_meas):
@@ -68,8 +61,7 @@ class SquareRootInformationFilter(BankEstimator):
 
     @guarded
     def predict(self, state: SRIFState, transitions) -> SRIFState:
-        M, n = state.zeta.shape
-        bank = self.check_transitions(transitions, M, n, state.mean if callable(transitions) else None)
+        bank = self.check_transitions(transitions, *state.zeta.shape, state.mean if callable(transitions) else None)
         R, zeta = _sqrt.srif_predict(state.R, state.zeta, bank.F, bank.B, _sqrt.noise_root(bank))
         self.check_finite("predict", predicted_information_factor=R, predicted_information_state=zeta)
         return SRIFState(R, zeta, R, zeta)
