@@ -32,6 +32,7 @@ outside the gate does not underflow the weights.
 from __future__ import annotations
 
 import functools
+import math
 from abc import abstractmethod
 from collections.abc import Sequence
 
@@ -46,7 +47,7 @@ from hybridtrack.sdk.estimation import BankEstimator, check_layout, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.measurements import block_diagonal
 from hybridtrack.sdk.mixtures import logsumexp, moment_match
-from hybridtrack.sdk.scans import RowScan, Scan
+from hybridtrack.sdk.scans import RowScan, Scan, check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
@@ -59,6 +60,18 @@ def check_gate_probability(value) -> float | None:
     if not (0.0 < value < 1.0):
         raise ValueError(f"gate_probability: expected P_G in (0, 1) (or None for no gate), got {value!r}")
     return value
+
+
+def set_clutter_model(estimator, detection_probability, clutter_density, gate_probability) -> None:
+    """The parametric clutter model on ``estimator``, checked: ``detection_probability`` P_D in (0, 1],
+    ``clutter_density`` λ ≥ 0, ``gate_probability`` P_G (:func:`check_gate_probability`), and ``log_miss`` =
+    ln(1 − P_D P_G) (−∞ when a miss is impossible: P_D = 1, no gate), ``log_detect`` = ln(P_D / λ) (ln P_D for λ = 0)."""
+    P_D = estimator.detection_probability = check_detection_probability(detection_probability)
+    lam = estimator.clutter_density = check_clutter_density(clutter_density)
+    estimator.gate_probability = check_gate_probability(gate_probability)
+    miss = 1.0 - P_D * (1.0 if estimator.gate_probability is None else estimator.gate_probability)
+    estimator.log_miss = math.log(miss) if miss > 0 else -math.inf
+    estimator.log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
 
 
 @functools.lru_cache(maxsize=64)
@@ -118,21 +131,16 @@ def log_half_det_2pi_s(L: np.ndarray) -> np.ndarray:
 
 
 def pda_weights(
-    d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float, gate_probability: float | None
+    d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float, log_miss: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """β_i (M, L), β_0 (M,) and ln Λ (M,) of the parametric PDA (:mod:`.pda`; Λ in the module docstring).
 
-    ln b = ln λ + ln √|2πS| + ln(1 − P_D P_G) − ln P_D (−∞ when λ = 0 or P_D P_G = 1).
+    ln b = ln λ + ln √|2πS| + ln(1 − P_D P_G) − ln P_D (−∞ when λ = 0 or P_D P_G = 1; ``log_miss`` = ln(1 − P_D P_G)).
     """
     P_D, lam = detection_probability, clutter_density
-    P_G = 1.0 if gate_probability is None else gate_probability
     M = d2.shape[0]
     half = log_half_det_2pi_s(L)  # (M,)
-    miss = 1.0 - P_D * P_G
-    with np.errstate(divide="ignore"):
-        log_miss = np.log(miss) if miss > 0 else -np.inf
-        log_b = np.log(lam) + half + log_miss - np.log(P_D) if lam > 0 else np.full(M, -np.inf)
-    log_b = np.broadcast_to(log_b, (M,))
+    log_b = np.broadcast_to(np.log(lam) + half + log_miss - np.log(P_D) if lam > 0 else -np.inf, (M,))
     log_e = np.where(gated, -0.5 * d2, -np.inf)  # (M, L)
     terms = np.concatenate([log_b[:, None], log_e], axis=1)  # (M, 1 + L)
     total = logsumexp(terms, axis=1)

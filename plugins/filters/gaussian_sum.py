@@ -64,17 +64,16 @@ from hybridtrack.core.validation import as_float_array, check_positive, check_po
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute
 from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalized_weights
-from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     as_scans,
     candidate_residuals,
-    check_gate_probability,
     distances,
     gate_threshold,
     log_half_det_2pi_s,
     pad_axis,
     scan_by_scan,
+    set_clutter_model,
     stacked_innovation,
     summed_loglik,
 )
@@ -150,9 +149,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         gate_probability: float | None = 0.99,
     ):
         super().__init__()
-        self.detection_probability = check_detection_probability(detection_probability)
-        self.clutter_density = check_clutter_density(clutter_density)
-        self.gate_probability = check_gate_probability(gate_probability)
+        set_clutter_model(self, detection_probability, clutter_density, gate_probability)
         self.merge_threshold = None if merge_threshold is None else float(merge_threshold)
         if self.merge_threshold is not None and not (math.isfinite(self.merge_threshold) and self.merge_threshold >= 0):
             raise ValueError(f"merge_threshold: expected a finite squared Mahalanobis distance ≥ 0 or None, got {self.merge_threshold!r}")
@@ -259,8 +256,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         x, P, log_weights = mixture
         M, C, n = x.shape
         L, m = scan.z.shape
-        P_D, lam = self.detection_probability, self.clutter_density
-        P_G = 1.0 if self.gate_probability is None else self.gate_probability
         H, R = model.H, np.asarray(sensor.noise_cov, dtype=float)
         flat_x, flat_P = x.reshape(M * C, n), P.reshape(M * C, n, n)
         z_pred = flat_x @ H.T  # (MC, m)
@@ -271,11 +266,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         gamma = gate_threshold(self.gate_probability, m)
         gated = d2 <= gamma
         half = log_half_det_2pi_s(chol_c)  # ln √|2πS_c|
-        log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
-        log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
-        child_detect = np.where(gated, log_detect - half[:, None] - 0.5 * d2, -np.inf).reshape(M, C, L)
+        child_detect = np.where(gated, self.log_detect - half[:, None] - 0.5 * d2, -np.inf).reshape(M, C, L)
         any_gated = gated.reshape(M, C * L).any(axis=1) if L else np.zeros(M, dtype=bool)
-        miss = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
+        miss = np.where(
+            (self.clutter_density > 0) | ~any_gated, self.log_miss, -np.inf
+        )  # λ = 0 and a candidate gated: no miss term (as PDA)
         terms = np.concatenate([np.broadcast_to(miss[:, None, None], (M, C, 1)), child_detect], axis=2)  # (M, C, 1 + L)
         joint = log_weights[:, :, None] + terms
         loglik = logsumexp(joint.reshape(M, -1), axis=-1)

@@ -42,8 +42,6 @@ has score −∞ and every hypothesis is the Kalman filter.
 
 from __future__ import annotations
 
-import math
-
 import attrs
 import numpy as np
 
@@ -54,7 +52,7 @@ from hybridtrack.sdk.estimation import bank_field
 from hybridtrack.sdk.mixtures import normalized_weights
 from hybridtrack.sdk.scans import check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, pad_axis, stacked_innovation
+from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, pad_axis, set_clutter_model, stacked_innovation
 from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
@@ -132,16 +130,11 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         form: str = "joseph",
     ):
         super().__init__(gate_probability, form)
-        self.detection_probability = check_detection_probability(detection_probability)
-        self.clutter_density = check_positive(clutter_density, "clutter_density", what="λ; the score has ln(P_D/λ)")
+        check_detection_probability(detection_probability)
+        clutter_density = check_positive(clutter_density, "clutter_density", what="λ; the score has ln(P_D/λ)")
+        set_clutter_model(self, detection_probability, clutter_density, gate_probability)  # log_miss, log_detect
         self.window = check_positive_int(window, "window", what="the N of N-scan pruning")
         self.max_hypotheses = check_positive_int(max_hypotheses, "max_hypotheses", what="the cap on hypotheses per filter")
-        P_G = 1.0 if self.gate_probability is None else self.gate_probability
-        miss = 1.0 - self.detection_probability * P_G
-        #: ln(1 − P_D P_G), −∞ when a miss is impossible (P_D = 1, no gate)
-        self.log_miss = math.log(miss) if miss > 0 else -math.inf
-        #: ln(P_D / λ)
-        self.log_detect = math.log(self.detection_probability) - math.log(self.clutter_density)
 
     def initialize(self, mean, cov) -> MHTState:
         x, P = self.check_prior(mean, cov)

@@ -96,14 +96,13 @@ from hybridtrack.core.validation import check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.sdk.mixtures import logsumexp
-from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import (
     as_scans,
     candidate_residuals,
-    check_gate_probability,
     distances,
     gate_threshold,
     scan_by_scan,
+    set_clutter_model,
     stacked_innovation,
     summed_loglik,
 )
@@ -252,9 +251,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         gate_probability: float | None = None,
     ):
         super().__init__()
-        self.detection_probability = check_detection_probability(detection_probability)
-        self.clutter_density = check_clutter_density(clutter_density)
-        self.gate_probability = check_gate_probability(gate_probability)
+        set_clutter_model(self, detection_probability, clutter_density, gate_probability)
         if isinstance(particles, bool) or not isinstance(particles, numbers.Integral):
             raise TypeError(f"particles: expected an int ≥ 1 (particles per filter), got {type(particles).__name__} {particles!r}")
         if particles < 1:
@@ -420,7 +417,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         M, N, n = particles.shape
         R = np.asarray(sensor.noise_cov, dtype=float)
         L, m = scan.z.shape
-        P_D, lam = self.detection_probability, self.clutter_density
         flat = particles.reshape(M * N, n)
         h = model.measure(flat, layout).reshape(M, N, m)
         # the particle prediction of z: ẑ = h(x̄) + Σ w δ, δ = residual(h(x), h(x̄)) (wrapped about the mean for angles)
@@ -432,21 +428,20 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         d = delta - delta_mean[:, None, :]
         S = symmetrize(np.swapaxes(d * w[..., None], -1, -2) @ d + R)
         chol_S = cholesky(S, "innovation covariance S")
-        P_G = 1.0 if self.gate_probability is None else self.gate_probability
-        log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
-        log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
         gamma = gate_threshold(self.gate_probability, m)
         nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
         d2 = distances(nu_r, chol_S)  # (M, L)
         gated = d2 <= gamma
         cols = np.flatnonzero(gated.any(axis=0))  # candidates inside some filter's gate: the only ones evaluated
         any_gated = gated.any(axis=1)
-        miss_term = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
+        miss_term = np.where(
+            (self.clutter_density > 0) | ~any_gated, self.log_miss, -np.inf
+        )  # λ = 0 and a candidate gated: no miss term (as PDA)
         beta = np.zeros((M, L))
         if cols.size:
             nu_i = np.asarray(candidate_residuals(h.reshape(M * N, m), scan.z[cols], sensor, model)).reshape(M, N, cols.size, m)
             log_n, _ = CholeskyFactor(R, "measurement noise R").scores(nu_i)  # (M, N, Lg)
-            log_detected = np.where(gated[:, None, cols], log_detect + log_n, -np.inf)
+            log_detected = np.where(gated[:, None, cols], self.log_detect + log_n, -np.inf)
             terms = np.concatenate([np.broadcast_to(miss_term[:, None, None], (M, N, 1)), log_detected], axis=2)
             particle_loglik = logsumexp(terms, axis=2)  # ln Λ(x⁽ⁱ⁾) (M, N)
             joint = log_weights + particle_loglik
@@ -459,7 +454,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
             beta0 = np.where(ok, np.exp(miss_term - np.where(ok, loglik, 0.0)), 1.0)
         else:
             new_log_weights = log_weights
-            loglik = np.full(M, log_miss)
+            loglik = np.full(M, self.log_miss)
             beta0 = np.ones(M)
         combined = np.einsum("jl,jli->ji", beta, nu_r)
         selected = np.where(any_gated & (beta.sum(axis=1) > 0), np.argmax(beta, axis=1) if L else -1, -1).astype(np.int64)
