@@ -272,16 +272,9 @@ class ScanEstimator(BankEstimator):
 class ClutterEstimator(ScanEstimator):
     """Covariance-form bank whose update associates candidates before correcting (NN, PDA).
 
-    ``z`` as for :class:`ScanEstimator`, and also a
-    :class:`~hybridtrack.sdk.scans.RowScan` (or a sequence mixing them with
-    Scans) — candidates per filter row (M, L, m), NaN-padded: row j is gated
-    and weighed against its own candidates only (padding is never gated),
-    so stacked runs (one filter each) update as one bank, row j's state and
-    association equal to the one-filter update with its own Scan to
-    rounding.  A row whose slots are all padding updates as a row with
-    nothing gated (state unchanged for NN; β_0 = 1 for PDA); its
-    ClutterInnovation entry is then that of ν = 0, where a scan with no
-    candidate at all adds no innovation block.
+    ``z`` as for :class:`ScanEstimator`, and also a :class:`~hybridtrack.sdk.scans.RowScan` (or a sequence mixing
+    them with Scans), candidates per filter row (M, L, m): row j gated and weighed against its own candidates only,
+    a row of padding only as a row with nothing gated, ν = 0 (docs/clutter.md, "Stacked runs").
 
     Subclasses give the weights: :meth:`associate` (d², gated, chol S) → (β_i, β_0, selected, ln Λ).
     """
@@ -293,25 +286,24 @@ class ClutterEstimator(ScanEstimator):
         return CovarianceState(x, P, x, P, None)
 
     def scan_candidates(self, state, scan, sensor, model):
-        """As :meth:`ScanEstimator.scan_candidates`, plus for a RowScan the mask (M, L) of its real candidates."""
-        if scan.z.ndim == 2:
-            return super().scan_candidates(state, scan, sensor, model)
+        """As :meth:`ScanEstimator.scan_candidates`, plus the mask (M, L) of the real candidates (a Scan's are all,
+        shared by the rows; a RowScan's ``present``)."""
         M = state.x.shape[0]
-        if scan.z.shape[0] != M:
+        if scan.z.ndim == 3 and scan.z.shape[0] != M:
             raise ValueError(f"z: RowScan of sensor {scan.sensor!r} has {scan.z.shape[0]} rows for a bank of {M} filters")
+        present = scan.present if scan.z.ndim == 3 else np.ones((M, scan.size), dtype=bool)
         z_pred = predict_measurement(state.x, model)
-        candidates = np.where(scan.present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
+        candidates = np.where(present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
         nu = candidate_residuals(z_pred, candidates, sensor, model)
-        return nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, scan.present
+        return nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, present
 
-    def associate_scan(self, state, nu, H, R, selection, sensor_name, candidates, z_pred, present=None):
+    def associate_scan(self, state, nu, H, R, selection, sensor_name, candidates, z_pred, present=True):
         """Gate, weigh and update with one scan: ν (M, L, m) → the updated state, ν used (M, m), S, Association;
-        ``present`` (M, L) marks a RowScan's real candidates (padding gets d² = ∞, never gated)."""
+        ``present`` (M, L) marks the real candidates (padding gets d² = ∞, never gated)."""
         x, P = state.x, state.P
         S, L, gamma, d2, gated = self.gate(nu, P, H, R, selection)
-        if present is not None:
-            d2 = np.where(present, d2, np.inf)
-            gated = d2 <= gamma
+        d2 = np.where(present, d2, np.inf)
+        gated = d2 <= gamma
         beta, beta0, selected, loglik = self.associate(d2, gated, L)
         record = Association(sensor_name, np.asarray(candidates), z_pred, S, gamma, d2, gated, beta, beta0, selected, loglik)
         if nu.shape[1] == 0:

@@ -73,21 +73,10 @@ class MHTState(CovarianceState):
     scores: np.ndarray = bank_field(0, kw_only=True)
     history: np.ndarray = bank_field(0, kw_only=True)
 
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x[:, 0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P[:, 0]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted[:, 0]
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted[:, 0]
+    mean = property(lambda self: self.x[:, 0])
+    covariance = property(lambda self: self.P[:, 0])
+    predicted_mean = property(lambda self: self.x_predicted[:, 0])
+    predicted_covariance = property(lambda self: self.P_predicted[:, 0])
 
     @property
     def count(self) -> np.ndarray:
