@@ -215,10 +215,8 @@ class PMHTFilter(ScanEstimator):
             candidates=np.zeros((M, W, 0, 0)),
             present=np.zeros((M, W, 0), dtype=bool),
             weights=np.zeros((M, W, 0)),
-            smoothed_mean=np.repeat(x[:, None], W, axis=1),
-            smoothed_covariance=np.repeat(P[:, None], W, axis=1),
-            filtered_mean=np.repeat(x[:, None], W, axis=1),
-            filtered_covariance=np.repeat(P[:, None], W, axis=1),
+            **{f"{kind}_mean": np.repeat(x[:, None], W, axis=1) for kind in ("smoothed", "filtered")},
+            **{f"{kind}_covariance": np.repeat(P[:, None], W, axis=1) for kind in ("smoothed", "filtered")},
             iterations=np.zeros(M, dtype=np.int64),
             log_posterior=np.zeros(M),
         )
@@ -348,25 +346,23 @@ class PMHTFilter(ScanEstimator):
 
     def _em(self, prior_x, prior_P, guess, valid, F, B, Q, H, R, pad, candidates, present):
         """EM over the window's slots from the initial guess X̂⁰ (M, W, n) (module docstring)."""
-        Hw, Rw, cw, pw = H, R, candidates, present
-        M = guess.shape[0]
-        mb = Hw.shape[2]
-        LR = cholesky(Rw, "measurement noise R")
+        M, mb = guess.shape[0], H.shape[2]
+        LR = cholesky(R, "measurement noise R")
         # ln |2π R| of the real components: the padded identity block adds pad · ln 2π
         logdet_R = mb * LOG_2PI + log_det_from_cholesky(LR) - pad * LOG_2PI
-        w, _ = self._estep(guess, Hw, cw, pw, LR, logdet_R)
+        w, _ = self._estep(guess, H, candidates, present, LR, logdet_R)
         active = np.ones(M, dtype=bool)
         best = None
         last_J = np.full(M, -np.inf)
         iterations = np.zeros(M, dtype=np.int64)
         for iteration in range(self.max_iterations):
-            result = self._smooth(prior_x, prior_P, F, B, Q, Hw, Rw, cw, w)
+            result = self._smooth(prior_x, prior_P, F, B, Q, H, R, candidates, w)
             xs, _, _, _, _, _, nis_sum, Wsum, zsyn = result
             # J = ln p(X̂) + Σ ln(λ + P_D N) at the smoother's output (module docstring)
-            resid = zsyn - np.einsum("mwij,mwj->mwi", Hw, xs)
+            resid = zsyn - np.einsum("mwij,mwj->mwi", H, xs)
             u = forward_substitute(LR, resid)
             quad = np.where(Wsum >= MIN_WEIGHT, Wsum * np.einsum("...i,...i->...", u, u), 0.0).sum(axis=1)
-            w_next, meas = self._estep(xs, Hw, cw, pw, LR, logdet_R)  # also the next iteration's E-step
+            w_next, meas = self._estep(xs, H, candidates, present, LR, logdet_R)  # also the next iteration's E-step
             J = -0.5 * (nis_sum - quad) + meas
             if best is None:
                 best = (result, w)
