@@ -100,19 +100,15 @@ def distances(nu: np.ndarray, L: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", w, w)
 
 
-def nearest_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
+def nearest_weights(d2: np.ndarray, gated: np.ndarray, chol: np.ndarray):
     """The nearest neighbour's association (β_i one-hot (M, L), β_0 (M,), selected i* (M,), ℓ (M,)): i* the gated
     candidate with the smallest d² (−1 where none is gated), ℓ = −½(m ln 2π + ln det S + d²_{i*}) (NaN for none)."""
-    M = d2.shape[0]
-    selected = np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1) if d2.shape[1] else np.full(M, -1)
-    selected = selected.astype(np.int64)
+    M, L = d2.shape
+    selected = (np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1) if L else np.full(M, -1)).astype(np.int64)
     rows = np.flatnonzero(selected >= 0)
-    beta = np.zeros(d2.shape)
-    beta[rows, selected[rows]] = 1.0
     loglik = np.full(M, np.nan)
-    if rows.size:
-        loglik[rows] = -0.5 * d2[rows, selected[rows]] - log_half_det_2pi_s(L)[rows]
-    return beta, (selected < 0).astype(float), selected, loglik
+    loglik[rows] = -0.5 * d2[rows, selected[rows]] - log_half_det_2pi_s(chol)[rows]
+    return (np.arange(L) == selected[:, None]).astype(float), (selected < 0).astype(float), selected, loglik
 
 
 def pad_axis(a: np.ndarray, axis: int, size: int, value) -> np.ndarray:
@@ -352,10 +348,7 @@ def scan_by_scan(estimator: BankEstimator, state, scans, sensors, layout, step, 
 def summed_loglik(records: Sequence[Association], M: int) -> np.ndarray:
     """ℓ = Σ ln Λ (M,) over a step's Associations, a scan impossible under the model (ln Λ = −∞) counting as no
     measurement (0)."""
-    loglik = np.zeros(M)
-    for record in records:
-        loglik = loglik + np.where(np.isfinite(record.loglik), record.loglik, 0.0)
-    return loglik
+    return sum((np.where(np.isfinite(record.loglik), record.loglik, 0.0) for record in records), np.zeros(M))
 
 
 def predict_measurement(x: np.ndarray, model) -> np.ndarray:

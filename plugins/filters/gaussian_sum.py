@@ -300,8 +300,8 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         x, P, log_weights = _compact(x, P, log_weights)
         if self.merge_threshold is not None and x.shape[1] > 1:
             x, P, log_weights = merge(x, P, log_weights, self.merge_threshold)
-        if x.shape[1] > self.max_components:  # compacted: heaviest first
-            x, P, log_weights = x[:, : self.max_components], P[:, : self.max_components], log_weights[:, : self.max_components]
+        cap = self.max_components  # compacted: heaviest first
+        x, P, log_weights = x[:, :cap], P[:, :cap], log_weights[:, :cap]
         log_weights = log_weights - logsumexp(log_weights, axis=-1)[:, None]
         return _compact(x, P, log_weights)
 
