@@ -84,7 +84,7 @@ from hybridtrack.sdk.estimation import bank_field, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import ScanEstimator, gate_threshold, innovation_covariance, log_half_det_2pi_s, pad_axis
+from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, pad_axis
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
@@ -265,15 +265,11 @@ class PMHTFilter(ScanEstimator):
         M, n = state.x.shape
         L, m = cands.shape[1], cands.shape[2]
         z_pred = state.x @ H.T
-        if L == 0:
-            none = np.zeros((M, 0))
-            S, gamma = innovation_covariance(state.P, H, R), gate_threshold(self.gate_probability, m)
-            record = Association(
-                name, np.asarray(raw), z_pred, S, gamma, none, none.astype(bool), none, np.ones(M), np.full(M, -1), np.zeros(M)
-            )
-            return state, None, None, record
         # gate at the prediction: d² = νᵀ S⁻¹ ν ≤ γ, S = H P⁻ Hᵀ + R
         S_pred, L_pred, gamma, d2, gated = self.gate(cands - z_pred[:, None, :], state.P, H, R)
+        if L == 0:
+            record = Association(name, np.asarray(raw), z_pred, S_pred, gamma, d2, gated, d2, np.ones(M), np.full(M, -1), np.zeros(M))
+            return state, None, None, record
         ell = -0.5 * d2 - log_half_det_2pi_s(L_pred)[:, None]  # ln N(ν_r; 0, S) at the prediction
         # ln(1 + P_D N / λ), or ln(P_D N) for λ = 0
         terms = np.logaddexp(0.0, self.log_pd + ell - self.log_lambda) if self.clutter_density > 0 else self.log_pd + ell
