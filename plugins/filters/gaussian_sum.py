@@ -106,17 +106,11 @@ class MixtureState:
 def _compact(x, P, log_weights):
     """Sort every filter's components by weight (heaviest first), trim the common width to the largest
     occupied count, and fill empty slots with a copy of the filter's heaviest component (finite arithmetic)."""
-    order = np.argsort(-log_weights, axis=1, kind="stable")
-    log_weights = np.take_along_axis(log_weights, order, axis=1)
-    x = np.take_along_axis(x, order[..., None], axis=1)
-    P = np.take_along_axis(P, order[..., None, None], axis=1)
     width = max(int(np.isfinite(log_weights).sum(axis=1).max()), 1)
-    log_weights, x, P = log_weights[:, :width].copy(), x[:, :width].copy(), P[:, :width].copy()
+    kept = np.arange(x.shape[0])[:, None], np.argsort(-log_weights, axis=1, kind="stable")[:, :width]
+    x, P, log_weights = x[kept], P[kept], log_weights[kept]
     empty = ~np.isfinite(log_weights)
-    if empty.any():
-        x = np.where(empty[..., None], x[:, :1], x)
-        P = np.where(empty[..., None, None], P[:, :1], P)
-    return x, P, log_weights
+    return np.where(empty[..., None], x[:, :1], x), np.where(empty[..., None, None], P[:, :1], P), log_weights
 
 
 class GaussianSumFilter(RecordsFilterStates, BankEstimator):
@@ -221,13 +215,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         if found is None:
             return self.unmeasured(state, M)
         step, nu, H = found
-        m = nu.shape[-1]
-        engine = cov_form.resolve_engine(self.engine, n, m)
+        engine = cov_form.resolve_engine(self.engine, n, nu.shape[-1])
         x, P, S, loglik_c, _ = cov_form.update_scored(
             state.x.reshape(M * C, n), state.P.reshape(M * C, n, n), nu, H, step.R, step.selection, self.form, engine
         )
-        x, P = x.reshape(M, C, n), P.reshape(M, C, n, n)
-        nu, S, loglik_c = nu.reshape(M, C, m), S.reshape(M, C, m, m), loglik_c.reshape(M, C)
+        x, P, nu, S, loglik_c = (a.reshape((M, C) + a.shape[1:]) for a in (x, P, nu, S, loglik_c))
         joint = state.log_weights + loglik_c
         loglik = logsumexp(joint, axis=-1)
         log_weights = joint - loglik[:, None]
