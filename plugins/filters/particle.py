@@ -349,17 +349,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         x, P = weighted_moments(particles, state.log_weights)
         return ParticleState(particles, state.log_weights, state.keys, state.counters + 1, x, P, None)
 
-    def _residuals(self, step, particles: np.ndarray, layout) -> np.ndarray:
-        """ν⁽ⁱ⁾ = residual(z, h(x⁽ⁱ⁾)) (M, N, m) of the present components, through the step's sensor models."""
-        M, N, n = particles.shape
-        flat = particles.reshape(M * N, n)
-        if step.H is not None:
-            z_pred = step.predicted(flat, layout)[0]
-        else:
-            z_pred = np.concatenate([model.measure(flat, layout) for model in step.models], axis=-1)
-        z = np.broadcast_to(step.z[:, None, :], (M, N, step.dim)).reshape(M * N, step.dim)
-        return np.asarray(step.with_z(z).residual(z_pred)).reshape(M, N, step.dim)
-
     @guarded
     def update(self, state: ParticleState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         """SIR update: w ∝ w⁻ p(z | x) in log space, ℓ, N_eff, systematic resampling where N_eff < threshold · N."""
@@ -372,7 +361,14 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             return self.unmeasured(state, M)
-        nu = self._residuals(step, state.particles, layout)
+        # ν⁽ⁱ⁾ = residual(z, h(x⁽ⁱ⁾)) (M, N, m) of the present components, through the step's sensor models
+        flat = state.particles.reshape(M * N, n)
+        if step.H is not None:
+            z_pred = step.predicted(flat, layout)[0]
+        else:
+            z_pred = np.concatenate([model.measure(flat, layout) for model in step.models], axis=-1)
+        z_rows = np.broadcast_to(step.z[:, None, :], (M, N, step.dim)).reshape(M * N, step.dim)
+        nu = np.asarray(step.with_z(z_rows).residual(z_pred)).reshape(M, N, step.dim)
         R = np.asarray(step.R, dtype=float)
         particle_loglik, _ = CholeskyFactor(R if R.ndim == 2 else R[:, None], "measurement noise R").scores(nu)
         prior = state.log_weights
@@ -400,12 +396,22 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
     def _resampled(self, state: ParticleState, log_weights, innovation_class, *scores):
         """The updated state: N_eff of the new weights, systematic resampling where N_eff < threshold · N, and the
         innovation ``innovation_class(*scores, N_eff, resampled)``."""
-        N = state.particles.shape[1]
+        N, n = state.particles.shape[1:]
         ess = effective_sample_size(log_weights)
         resampled = ess < self.threshold * N
         particles = state.particles
         if resampled.any():
-            particles, log_weights = self._resample(state, particles, log_weights, np.flatnonzero(resampled))
+            # systematic resampling of those filters (then weights 1/N), with the regularisation jitter if enabled
+            rows = np.flatnonzero(resampled)
+            generators = list(self._generators(state.keys, state.counters, _RESAMPLE, rows))
+            index = systematic_resample(log_weights[rows], np.array([g.random() for g in generators]))
+            chosen = np.take_along_axis(particles[rows], index[..., None], axis=1)
+            if self.regularize:
+                _, spread = weighted_moments(particles[rows], log_weights[rows])
+                eps = np.stack([g.standard_normal((N, n)) for g in generators])
+                chosen = chosen + silverman_bandwidth(N, n) * (eps @ np.swapaxes(psd_square_root(spread), -1, -2))
+            particles, log_weights = particles.copy(), log_weights.copy()
+            particles[rows], log_weights[rows] = chosen, -math.log(N)
         innovation = innovation_class(*scores, ess, resampled)
         new = ParticleState(particles, log_weights, state.keys, state.counters + 1, state.x_predicted, state.P_predicted, innovation)
         self.check_finite("update", updated_mean=new.mean)
@@ -460,24 +466,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         selected = np.where(any_gated & (beta.sum(axis=1) > 0), np.argmax(beta, axis=1) if L else -1, -1).astype(np.int64)
         record = Association(sensor.name, scan.z, z_hat, S, gamma, d2, gated, beta, beta0, selected, loglik)
         return new_log_weights, combined, S, record
-
-    def _resample(self, state: ParticleState, particles, log_weights, rows: np.ndarray):
-        """Systematic resampling of the filters ``rows`` (then weights 1/N), with the regularisation jitter if enabled."""
-        M, N, n = particles.shape
-        generators = list(self._generators(state.keys, state.counters, _RESAMPLE, rows))
-        u = np.array([g.random() for g in generators])
-        index = systematic_resample(log_weights[rows], u)
-        chosen = np.take_along_axis(particles[rows], index[..., None], axis=1)
-        if self.regularize:
-            _, spread = weighted_moments(particles[rows], log_weights[rows])
-            D = psd_square_root(spread)
-            eps = np.stack([g.standard_normal((N, n)) for g in generators])
-            chosen = chosen + silverman_bandwidth(N, n) * (eps @ np.swapaxes(D, -1, -2))
-        particles = particles.copy()
-        particles[rows] = chosen
-        log_weights = log_weights.copy()
-        log_weights[rows] = -math.log(N)
-        return particles, log_weights
 
 
 @hookimpl
