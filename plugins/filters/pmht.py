@@ -294,38 +294,20 @@ class PMHTFilter(ScanEstimator):
         newest.update(pad=np.full(M, mb - m), candidates=cs, present=pr)
         slots = {name: shift(getattr(s, name), value) for name, value in newest.items()}
         guess = shift(s.smoothed_mean, state.x)  # the new scan starts from the prediction
-        xs, Ps, xf, Pf, xp_T, Pp_T, weights, iterations, log_posterior = self._em(prior_x, prior_P, guess, **slots)
-        # the newest scan's synthetic innovation ν = z̃ − H x⁻ (real components only), S = H P⁻ Hᵀ + R / W
+        em = self._em(prior_x, prior_P, guess, **slots)
+        # the newest scan's synthetic innovation ν = z̃ − H x⁻ (real components only), S = H P⁻ Hᵀ + R / W (R when W = 0)
         w_T = np.zeros((M, L))  # back to the scan's candidate order
-        np.put_along_axis(w_T, order, weights[:, -1, :Lg], axis=1)
+        np.put_along_axis(w_T, order, em["weights"][:, -1, :Lg], axis=1)
         W_T = w_T.sum(axis=1)
         has = W_T >= MIN_WEIGHT
         safe = np.where(has, W_T, 1.0)
         z_syn = np.einsum("ml,mli->mi", w_T, cands) / safe[:, None]
-        nu = np.where(has[:, None], z_syn - xp_T @ H.T, 0.0)
-        R_syn = np.broadcast_to(R, (M, m, m)) / safe[:, None, None]
-        S = symmetrize(H @ Pp_T @ H.T + np.where(has[:, None, None], R_syn, np.broadcast_to(R, (M, m, m))))
+        nu = np.where(has[:, None], z_syn - em["x_predicted"] @ H.T, 0.0)
+        S = symmetrize(H @ em["P_predicted"] @ H.T + R / safe[:, None, None])
         selected = np.where(gated.any(axis=1), np.argmax(np.where(gated, w_T, -1.0), axis=1), -1).astype(np.int64)
         missed = np.prod(1.0 - w_T, axis=1)
         record = Association(name, np.asarray(raw), z_pred, S_pred, gamma, d2, gated, w_T, missed, selected, assoc_loglik)
-        new = attrs.evolve(
-            s,
-            x=xf[:, -1],
-            P=Pf[:, -1],
-            x_predicted=xp_T,
-            P_predicted=Pp_T,
-            prior_x=prior_x,
-            prior_P=prior_P,
-            **_no_pending(M, n),
-            **slots,
-            weights=weights,
-            smoothed_mean=xs,
-            smoothed_covariance=Ps,
-            filtered_mean=xf,
-            filtered_covariance=Pf,
-            iterations=iterations,
-            log_posterior=log_posterior,
-        )
+        new = attrs.evolve(s, prior_x=prior_x, prior_P=prior_P, **_no_pending(M, n), **slots, **em)
         return new, nu, S, record
 
     def _estep(self, X, Hw, cw, pw, LR, logdet_R):
@@ -341,7 +323,9 @@ class PMHTFilter(ScanEstimator):
         return w, np.where(pw, total, 0.0).sum(axis=(1, 2))
 
     def _em(self, prior_x, prior_P, guess, valid, F, B, Q, H, R, pad, candidates, present):
-        """EM over the window's slots from the initial guess X̂⁰ (M, W, n) (module docstring)."""
+        """EM over the window's slots from the initial guess X̂⁰ (M, W, n) (module docstring) → the PMHTState fields
+        it sets: the window's smoothed and filtered moments and weights, the estimate at the newest scan (x, P and
+        its prediction), the iterations and the objective J reached."""
         M, mb = guess.shape[0], H.shape[2]
         LR = cholesky(R, "measurement noise R")
         # ln |2π R| of the real components: the padded identity block adds pad · ln 2π
@@ -377,7 +361,9 @@ class PMHTFilter(ScanEstimator):
             w = np.where(active[:, None, None], w_next, w)
         (xs, Ps, xf, Pf, xp_T, Pp_T, _, _, _), w = best
         self.check_finite("update", smoothed_mean=xs, smoothed_covariance=Ps)
-        return xs, Ps, xf, Pf, xp_T, Pp_T, w, iterations, last_J
+        window = {"smoothed_mean": xs, "smoothed_covariance": Ps, "filtered_mean": xf, "filtered_covariance": Pf, "weights": w}
+        estimate = {"x": xf[:, -1], "P": Pf[:, -1], "x_predicted": xp_T, "P_predicted": Pp_T}
+        return window | estimate | {"iterations": iterations, "log_posterior": last_J}
 
     def _smooth(self, prior_x, prior_P, F, B, Q, Hw, Rw, cw, w):
         """Kalman filter and RTS smoother over the window on the synthetic measurements of the weights w."""
