@@ -21,6 +21,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hybridtrack_plugins.filters._association import pad_axis
+
 
 def _weighted_points(recorder, entity, steps, points, weights, times, max_radius):
     log = getattr(recorder, "log_weighted_points", None)
@@ -33,10 +35,7 @@ def _weighted_points(recorder, entity, steps, points, weights, times, max_radius
 def _pad(arrays: list[np.ndarray], fill: float) -> np.ndarray:
     """Stack per-step arrays whose axis 0 (slots) differ in length, padding with ``fill``."""
     width = max(a.shape[0] for a in arrays)
-    out = np.full((len(arrays), width) + arrays[0].shape[1:], fill, dtype=np.float64)
-    for k, a in enumerate(arrays):
-        out[k, : a.shape[0]] = a
-    return out
+    return np.stack([pad_axis(np.asarray(a, dtype=np.float64), 0, width, fill) for a in arrays])
 
 
 def log_filter_states(

@@ -197,8 +197,7 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
 
         scores (M, C), history (M, C, N) → chosen child ids (M, H) and their scores (−∞ padding, pointing at the best).
         """
-        M, C = scores.shape
-        H = self.max_hypotheses
+        C, H = scores.shape[1], self.max_hypotheses
         order = np.argsort(-scores, axis=1, kind="stable")
         s = np.take_along_axis(scores, order, axis=1)
         hist = np.take_along_axis(history, order[:, :, None], axis=1)

@@ -68,14 +68,9 @@ and NIS = ν̄ᵀS⁻¹ν̄; :class:`ParticleInnovation` adds N_eff, whether eac
 was resampled, and the Gaussian ℓ of (ν̄, S).  ``mean`` and ``covariance`` are
 the weighted moments Σ w x and Σ w (x − x̄)(x − x̄)ᵀ.
 
-Random numbers: each filter carries its own stream key (drawn from ``seed`` at
-``initialize``) and a step counter, and every draw of a step comes from a
-generator seeded by (key, stage, counter).  A step of a filter is therefore a
-function of its own state: the same seed reproduces a run, ``take`` and
-``concatenate`` commute with the steps, and a repeated row (a copy) draws the
-same noise as its original (common random numbers across hypotheses).  The
-estimator is ``sampling``: its state is more than (x, P), so a filter
-re-initialized from its mean and covariance draws new particles.
+Random numbers: every draw of a step comes from a generator seeded by (the filter's stream key, drawn from
+``seed`` at ``initialize``; the stage; its step counter), so a filter's step is a function of its own state
+(what follows, and why the estimator is ``sampling``: docs/estimators.md, "Random numbers").
 """
 
 from __future__ import annotations
