@@ -85,11 +85,8 @@ def gate_threshold(gate_probability: float | None, m: int) -> float:
 def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray, selection=None) -> np.ndarray:
     """S = H P⁻ Hᵀ + R (M, m, m), symmetrised; with ``selection`` H P Hᵀ is indexing (as in ``_covariance.update``)."""
     if selection is not None:
-        idx = list(selection)
-        S = P[:, :, idx][:, idx, :] + R
-    else:
-        S = H @ P @ np.swapaxes(H, -1, -2) + R
-    return symmetrize(S)
+        return symmetrize(P[:, :, list(selection)][:, list(selection), :] + R)
+    return symmetrize(H @ P @ np.swapaxes(H, -1, -2) + R)
 
 
 def distances(nu: np.ndarray, L: np.ndarray) -> np.ndarray:

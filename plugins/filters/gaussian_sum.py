@@ -167,8 +167,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         means, covs, weights, total = check_prior_mixture(means, covs, weights)
         with np.errstate(divide="ignore"):
             log_weights = np.log(weights / total[:, None])
-        x, P, log_weights = _compact(means, covs, log_weights)
-        return self._state(x, P, log_weights)
+        return self._state(*_compact(means, covs, log_weights))
 
     @staticmethod
     def _state(x, P, log_weights, prior: MixtureState | None = None, innovation=None) -> MixtureState:

@@ -198,12 +198,8 @@ class PMHTFilter(ScanEstimator):
         M, n = x.shape
         W = self.window
         return PMHTState(
-            x=x,
-            P=P,
-            x_predicted=x,
-            P_predicted=P,
-            prior_x=x,
-            prior_P=P,
+            **dict.fromkeys(("x", "x_predicted", "prior_x"), x),  # the estimate, its prediction and the window's prior
+            **dict.fromkeys(("P", "P_predicted", "prior_P"), P),
             **_no_pending(M, n),
             valid=np.zeros((M, W), dtype=bool),
             F=np.broadcast_to(np.eye(n), (M, W, n, n)).copy(),
