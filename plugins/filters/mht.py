@@ -67,7 +67,8 @@ class MHTState(CovarianceState):
     x (M, H, n), P (M, H, n, n), their last prediction, ``scores`` Σ (M, H) (−∞:
     an empty slot), ``history`` (M, H, N) the last N decisions (−1 missed, i ≥ 0
     candidate i, −2 before the first scan).  ``mean``/``covariance`` are the best
-    hypothesis's (slot 0).
+    hypothesis's (slot 0); ``count`` (M,) the live hypotheses, ``probabilities``
+    p_h = exp(Σ_h) / Σ_g exp(Σ_g) (M, H), 0 for an empty slot.
     """
 
     scores: np.ndarray = bank_field(0, kw_only=True)
@@ -77,16 +78,8 @@ class MHTState(CovarianceState):
     covariance = property(lambda self: self.P[:, 0])
     predicted_mean = property(lambda self: self.x_predicted[:, 0])
     predicted_covariance = property(lambda self: self.P_predicted[:, 0])
-
-    @property
-    def count(self) -> np.ndarray:
-        """Number of live hypotheses per filter (M,)."""
-        return np.isfinite(self.scores).sum(axis=1)
-
-    @property
-    def probabilities(self) -> np.ndarray:
-        """p_h = exp(Σ_h) / Σ_g exp(Σ_g) (M, H), 0 for an empty slot."""
-        return normalized_weights(self.scores)
+    count = property(lambda self: np.isfinite(self.scores).sum(axis=1))
+    probabilities = property(lambda self: normalized_weights(self.scores))
 
 
 @attrs.frozen(eq=False)
@@ -152,8 +145,7 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         child[:, :, 0] = parent[:, :, 0] + self.log_miss
         child[:, :, 1:] = np.where(gated.reshape(M, H, L), parent + self.log_detect + ell.reshape(M, H, L), -np.inf)
         dead = ~np.isfinite(child).any(axis=(1, 2))  # a miss impossible and nothing gated: no information, keep as missed
-        if dead.any():
-            child[dead, :, 0] = state.scores[dead]
+        child[dead, :, 0] = state.scores[dead]
         decisions = np.arange(-1, L)  # (1 + L,)
         child_history = np.empty((M, H, 1 + L, N), dtype=np.int64)
         child_history[..., :-1] = state.history[:, :, None, 1:]

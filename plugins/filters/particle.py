@@ -176,7 +176,8 @@ def silverman_bandwidth(N: int, n: int) -> float:
 @attrs.frozen(eq=False, slots=False)
 class ParticleState(DerivedMoments):
     """A bank of M particle filters: particles (M, N, n), normalised log-weights (M, N), random-stream keys (M, 2)
-    and step counters (M,), plus the moments of the last prediction and the last innovation."""
+    and step counters (M,), plus the moments of the last prediction and the last innovation; ``weights`` w (M, N)
+    (Σ_i w⁽ⁱ⁾ = 1) and ``effective_sample_size`` N_eff = 1/Σ w² (M,) read the current weights."""
 
     particles: np.ndarray = bank_field(0)
     log_weights: np.ndarray = bank_field(0)
@@ -190,15 +191,8 @@ class ParticleState(DerivedMoments):
     def moments(self) -> tuple[np.ndarray, np.ndarray]:
         return weighted_moments(self.particles, self.log_weights)
 
-    @property
-    def weights(self) -> np.ndarray:
-        """w (M, N), Σ_i w⁽ⁱ⁾ = 1."""
-        return np.exp(self.log_weights)
-
-    @property
-    def effective_sample_size(self) -> np.ndarray:
-        """N_eff = 1/Σ w² (M,) of the current weights."""
-        return effective_sample_size(self.log_weights)
+    weights = property(lambda self: np.exp(self.log_weights))
+    effective_sample_size = property(lambda self: effective_sample_size(self.log_weights))
 
 
 def _check_seed(seed) -> np.random.Generator:
