@@ -32,6 +32,7 @@ outside the gate does not underflow the weights.
 from __future__ import annotations
 
 import functools
+import math
 from abc import abstractmethod
 from collections.abc import Sequence
 
@@ -46,7 +47,7 @@ from hybridtrack.sdk.estimation import BankEstimator, check_layout, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.measurements import block_diagonal
 from hybridtrack.sdk.mixtures import logsumexp, moment_match
-from hybridtrack.sdk.scans import RowScan, Scan
+from hybridtrack.sdk.scans import RowScan, Scan, check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
@@ -61,6 +62,18 @@ def check_gate_probability(value) -> float | None:
     return value
 
 
+def set_clutter_model(estimator, detection_probability, clutter_density, gate_probability) -> None:
+    """The parametric clutter model on ``estimator``, checked: ``detection_probability`` P_D in (0, 1],
+    ``clutter_density`` λ ≥ 0, ``gate_probability`` P_G (:func:`check_gate_probability`), and ``log_miss`` =
+    ln(1 − P_D P_G) (−∞ when a miss is impossible: P_D = 1, no gate), ``log_detect`` = ln(P_D / λ) (ln P_D for λ = 0)."""
+    P_D = estimator.detection_probability = check_detection_probability(detection_probability)
+    lam = estimator.clutter_density = check_clutter_density(clutter_density)
+    estimator.gate_probability = check_gate_probability(gate_probability)
+    miss = 1.0 - P_D * (1.0 if estimator.gate_probability is None else estimator.gate_probability)
+    estimator.log_miss = math.log(miss) if miss > 0 else -math.inf
+    estimator.log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
+
+
 @functools.lru_cache(maxsize=64)
 def gate_threshold(gate_probability: float | None, m: int) -> float:
     """γ with P(χ²_m ≤ γ) = P_G; ∞ without a gate."""
@@ -72,11 +85,8 @@ def gate_threshold(gate_probability: float | None, m: int) -> float:
 def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray, selection=None) -> np.ndarray:
     """S = H P⁻ Hᵀ + R (M, m, m), symmetrised; with ``selection`` H P Hᵀ is indexing (as in ``_covariance.update``)."""
     if selection is not None:
-        idx = list(selection)
-        S = P[:, :, idx][:, idx, :] + R
-    else:
-        S = H @ P @ np.swapaxes(H, -1, -2) + R
-    return symmetrize(S)
+        return symmetrize(P[:, :, list(selection)][:, list(selection), :] + R)
+    return symmetrize(H @ P @ np.swapaxes(H, -1, -2) + R)
 
 
 def distances(nu: np.ndarray, L: np.ndarray) -> np.ndarray:
@@ -87,19 +97,15 @@ def distances(nu: np.ndarray, L: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", w, w)
 
 
-def nearest_weights(d2: np.ndarray, gated: np.ndarray, L: np.ndarray):
+def nearest_weights(d2: np.ndarray, gated: np.ndarray, chol: np.ndarray):
     """The nearest neighbour's association (β_i one-hot (M, L), β_0 (M,), selected i* (M,), ℓ (M,)): i* the gated
     candidate with the smallest d² (−1 where none is gated), ℓ = −½(m ln 2π + ln det S + d²_{i*}) (NaN for none)."""
-    M = d2.shape[0]
-    selected = np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1) if d2.shape[1] else np.full(M, -1)
-    selected = selected.astype(np.int64)
+    M, L = d2.shape
+    selected = (np.where(gated.any(axis=1), np.argmin(np.where(gated, d2, np.inf), axis=1), -1) if L else np.full(M, -1)).astype(np.int64)
     rows = np.flatnonzero(selected >= 0)
-    beta = np.zeros(d2.shape)
-    beta[rows, selected[rows]] = 1.0
     loglik = np.full(M, np.nan)
-    if rows.size:
-        loglik[rows] = -0.5 * d2[rows, selected[rows]] - log_half_det_2pi_s(L)[rows]
-    return beta, (selected < 0).astype(float), selected, loglik
+    loglik[rows] = -0.5 * d2[rows, selected[rows]] - log_half_det_2pi_s(chol)[rows]
+    return (np.arange(L) == selected[:, None]).astype(float), (selected < 0).astype(float), selected, loglik
 
 
 def pad_axis(a: np.ndarray, axis: int, size: int, value) -> np.ndarray:
@@ -118,21 +124,16 @@ def log_half_det_2pi_s(L: np.ndarray) -> np.ndarray:
 
 
 def pda_weights(
-    d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float, gate_probability: float | None
+    d2: np.ndarray, gated: np.ndarray, L: np.ndarray, detection_probability: float, clutter_density: float, log_miss: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """β_i (M, L), β_0 (M,) and ln Λ (M,) of the parametric PDA (:mod:`.pda`; Λ in the module docstring).
 
-    ln b = ln λ + ln √|2πS| + ln(1 − P_D P_G) − ln P_D (−∞ when λ = 0 or P_D P_G = 1).
+    ln b = ln λ + ln √|2πS| + ln(1 − P_D P_G) − ln P_D (−∞ when λ = 0 or P_D P_G = 1; ``log_miss`` = ln(1 − P_D P_G)).
     """
     P_D, lam = detection_probability, clutter_density
-    P_G = 1.0 if gate_probability is None else gate_probability
     M = d2.shape[0]
     half = log_half_det_2pi_s(L)  # (M,)
-    miss = 1.0 - P_D * P_G
-    with np.errstate(divide="ignore"):
-        log_miss = np.log(miss) if miss > 0 else -np.inf
-        log_b = np.log(lam) + half + log_miss - np.log(P_D) if lam > 0 else np.full(M, -np.inf)
-    log_b = np.broadcast_to(log_b, (M,))
+    log_b = np.broadcast_to(np.log(lam) + half + log_miss - np.log(P_D) if lam > 0 else -np.inf, (M,))
     log_e = np.where(gated, -0.5 * d2, -np.inf)  # (M, L)
     terms = np.concatenate([log_b[:, None], log_e], axis=1)  # (M, 1 + L)
     total = logsumexp(terms, axis=1)
@@ -264,16 +265,9 @@ class ScanEstimator(BankEstimator):
 class ClutterEstimator(ScanEstimator):
     """Covariance-form bank whose update associates candidates before correcting (NN, PDA).
 
-    ``z`` as for :class:`ScanEstimator`, and also a
-    :class:`~hybridtrack.sdk.scans.RowScan` (or a sequence mixing them with
-    Scans) — candidates per filter row (M, L, m), NaN-padded: row j is gated
-    and weighed against its own candidates only (padding is never gated),
-    so stacked runs (one filter each) update as one bank, row j's state and
-    association equal to the one-filter update with its own Scan to
-    rounding.  A row whose slots are all padding updates as a row with
-    nothing gated (state unchanged for NN; β_0 = 1 for PDA); its
-    ClutterInnovation entry is then that of ν = 0, where a scan with no
-    candidate at all adds no innovation block.
+    ``z`` as for :class:`ScanEstimator`, and also a :class:`~hybridtrack.sdk.scans.RowScan` (or a sequence mixing
+    them with Scans), candidates per filter row (M, L, m): row j gated and weighed against its own candidates only,
+    a row of padding only as a row with nothing gated, ν = 0 (docs/clutter.md, "Stacked runs").
 
     Subclasses give the weights: :meth:`associate` (d², gated, chol S) → (β_i, β_0, selected, ln Λ).
     """
@@ -285,25 +279,24 @@ class ClutterEstimator(ScanEstimator):
         return CovarianceState(x, P, x, P, None)
 
     def scan_candidates(self, state, scan, sensor, model):
-        """As :meth:`ScanEstimator.scan_candidates`, plus for a RowScan the mask (M, L) of its real candidates."""
-        if scan.z.ndim == 2:
-            return super().scan_candidates(state, scan, sensor, model)
+        """As :meth:`ScanEstimator.scan_candidates`, plus the mask (M, L) of the real candidates (a Scan's are all,
+        shared by the rows; a RowScan's ``present``)."""
         M = state.x.shape[0]
-        if scan.z.shape[0] != M:
+        if scan.z.ndim == 3 and scan.z.shape[0] != M:
             raise ValueError(f"z: RowScan of sensor {scan.sensor!r} has {scan.z.shape[0]} rows for a bank of {M} filters")
+        present = scan.present if scan.z.ndim == 3 else np.ones((M, scan.size), dtype=bool)
         z_pred = predict_measurement(state.x, model)
-        candidates = np.where(scan.present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
+        candidates = np.where(present[..., None], scan.z, z_pred[:, None, :])  # padding: ν = 0, never gated
         nu = candidate_residuals(z_pred, candidates, sensor, model)
-        return nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, scan.present
+        return nu, model.H, sensor.noise_cov, model.selection, sensor.name, scan.z, z_pred, present
 
-    def associate_scan(self, state, nu, H, R, selection, sensor_name, candidates, z_pred, present=None):
+    def associate_scan(self, state, nu, H, R, selection, sensor_name, candidates, z_pred, present=True):
         """Gate, weigh and update with one scan: ν (M, L, m) → the updated state, ν used (M, m), S, Association;
-        ``present`` (M, L) marks a RowScan's real candidates (padding gets d² = ∞, never gated)."""
+        ``present`` (M, L) marks the real candidates (padding gets d² = ∞, never gated)."""
         x, P = state.x, state.P
         S, L, gamma, d2, gated = self.gate(nu, P, H, R, selection)
-        if present is not None:
-            d2 = np.where(present, d2, np.inf)
-            gated = d2 <= gamma
+        d2 = np.where(present, d2, np.inf)
+        gated = d2 <= gamma
         beta, beta0, selected, loglik = self.associate(d2, gated, L)
         record = Association(sensor_name, np.asarray(candidates), z_pred, S, gamma, d2, gated, beta, beta0, selected, loglik)
         if nu.shape[1] == 0:
@@ -352,10 +345,7 @@ def scan_by_scan(estimator: BankEstimator, state, scans, sensors, layout, step, 
 def summed_loglik(records: Sequence[Association], M: int) -> np.ndarray:
     """ℓ = Σ ln Λ (M,) over a step's Associations, a scan impossible under the model (ln Λ = −∞) counting as no
     measurement (0)."""
-    loglik = np.zeros(M)
-    for record in records:
-        loglik = loglik + np.where(np.isfinite(record.loglik), record.loglik, 0.0)
-    return loglik
+    return sum((np.where(np.isfinite(record.loglik), record.loglik, 0.0) for record in records), np.zeros(M))
 
 
 def predict_measurement(x: np.ndarray, model) -> np.ndarray:

@@ -1,22 +1,11 @@
 """Recording the inside of the nonlinear and clutter filters through the recorder seam (docs/recording.md; issue 17 item 6).
 
-Per filter ``<name>`` of a bank, from the states of a run (one state per step):
-
-* ``particle`` (:class:`~hybridtrack_plugins.filters.particle.ParticleState`):
-  ``world/estimate/<name>/particles`` — the particle cloud, Points3D per step (z = 0)
-  with radius ∝ √w (area ∝ weight; at most ``max_points`` particles, the
-  heaviest); ``estimator/<name>/effective_sample_size`` — N_eff = 1/Σ w²;
-* ``gaussian_sum`` (:class:`~hybridtrack_plugins.filters.gaussian_sum.MixtureState`):
-  ``world/estimate/<name>/components`` — the component means, Points3D with
-  radius ∝ √w; ``world/estimate/<name>/component/<c>`` — the 2σ position
-  ellipse of slot c (slots sorted by weight, heaviest first; nothing where the
-  slot is empty); ``estimator/<name>/component_weight`` — w_c per slot
-  (series ``w0`` …, 0 when empty);
-* ``mht`` (:class:`~hybridtrack_plugins.filters.mht.MHTState`):
-  ``estimator/<name>/hypothesis_probability`` — p_h per slot (series ``h0`` …,
-  best first; 0 for an empty slot); ``estimator/<name>/hypotheses`` — the number
-  of live hypotheses; ``world/estimate/<name>/hypothesis/<h>`` — the 2σ ellipse of
-  hypothesis slot h.
+Per filter ``<name>`` of a bank, from the states of a run (one state per step), the entities listed in
+docs/recording.md: a ``particle`` filter's cloud (the ``max_points`` heaviest, radius ∝ √w) and N_eff = 1/Σ w²
+(:class:`~hybridtrack_plugins.filters.particle.ParticleState`); a ``gaussian_sum`` filter's component means,
+weights w_c and 2σ position ellipses per slot (:class:`~hybridtrack_plugins.filters.gaussian_sum.MixtureState`;
+slots heaviest first); an ``mht`` filter's hypothesis probabilities p_h, live count and 2σ ellipses per slot
+(:class:`~hybridtrack_plugins.filters.mht.MHTState`).
 
 Weighted points go through the recorder's optional ``log_weighted_points``
 (:class:`~hybridtrack.recording.RerunRecorder`); a recorder without it gets
@@ -32,6 +21,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hybridtrack_plugins.filters._association import pad_axis
+
 
 def _weighted_points(recorder, entity, steps, points, weights, times, max_radius):
     log = getattr(recorder, "log_weighted_points", None)
@@ -44,10 +35,7 @@ def _weighted_points(recorder, entity, steps, points, weights, times, max_radius
 def _pad(arrays: list[np.ndarray], fill: float) -> np.ndarray:
     """Stack per-step arrays whose axis 0 (slots) differ in length, padding with ``fill``."""
     width = max(a.shape[0] for a in arrays)
-    out = np.full((len(arrays), width) + arrays[0].shape[1:], fill, dtype=np.float64)
-    for k, a in enumerate(arrays):
-        out[k, : a.shape[0]] = a
-    return out
+    return np.stack([pad_axis(np.asarray(a, dtype=np.float64), 0, width, fill) for a in arrays])
 
 
 def log_filter_states(

@@ -40,17 +40,9 @@ class NodeCopies(NodeMoments):
     """Mixin of the per-node states: ``node_fields`` the fields with a copy per node (axis 0; the first
     (N, M, n, n)), ``nodes`` N, the last prediction read at node 0."""
 
-    @property
-    def nodes(self) -> int:
-        return getattr(self, self.node_fields[0]).shape[0]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted[0]
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted[0]
+    nodes = property(lambda self: getattr(self, self.node_fields[0]).shape[0])
+    predicted_mean = property(lambda self: self.x_predicted[0])
+    predicted_covariance = property(lambda self: self.P_predicted[0])
 
 
 @attrs.frozen(eq=False)

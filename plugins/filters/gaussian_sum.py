@@ -64,17 +64,16 @@ from hybridtrack.core.validation import as_float_array, check_positive, check_po
 from hybridtrack.sdk.estimation import BankEstimator, bank_field, check_layout, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, forward_substitute
 from hybridtrack.sdk.mixtures import logsumexp, mixture, moment_match, normalized_weights
-from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters._association import (
     as_scans,
     candidate_residuals,
-    check_gate_probability,
     distances,
     gate_threshold,
     log_half_det_2pi_s,
     pad_axis,
     scan_by_scan,
+    set_clutter_model,
     stacked_innovation,
     summed_loglik,
 )
@@ -107,17 +106,11 @@ class MixtureState:
 def _compact(x, P, log_weights):
     """Sort every filter's components by weight (heaviest first), trim the common width to the largest
     occupied count, and fill empty slots with a copy of the filter's heaviest component (finite arithmetic)."""
-    order = np.argsort(-log_weights, axis=1, kind="stable")
-    log_weights = np.take_along_axis(log_weights, order, axis=1)
-    x = np.take_along_axis(x, order[..., None], axis=1)
-    P = np.take_along_axis(P, order[..., None, None], axis=1)
     width = max(int(np.isfinite(log_weights).sum(axis=1).max()), 1)
-    log_weights, x, P = log_weights[:, :width].copy(), x[:, :width].copy(), P[:, :width].copy()
+    kept = np.arange(x.shape[0])[:, None], np.argsort(-log_weights, axis=1, kind="stable")[:, :width]
+    x, P, log_weights = x[kept], P[kept], log_weights[kept]
     empty = ~np.isfinite(log_weights)
-    if empty.any():
-        x = np.where(empty[..., None], x[:, :1], x)
-        P = np.where(empty[..., None, None], P[:, :1], P)
-    return x, P, log_weights
+    return np.where(empty[..., None], x[:, :1], x), np.where(empty[..., None, None], P[:, :1], P), log_weights
 
 
 class GaussianSumFilter(RecordsFilterStates, BankEstimator):
@@ -150,9 +143,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         gate_probability: float | None = 0.99,
     ):
         super().__init__()
-        self.detection_probability = check_detection_probability(detection_probability)
-        self.clutter_density = check_clutter_density(clutter_density)
-        self.gate_probability = check_gate_probability(gate_probability)
+        set_clutter_model(self, detection_probability, clutter_density, gate_probability)
         self.merge_threshold = None if merge_threshold is None else float(merge_threshold)
         if self.merge_threshold is not None and not (math.isfinite(self.merge_threshold) and self.merge_threshold >= 0):
             raise ValueError(f"merge_threshold: expected a finite squared Mahalanobis distance ≥ 0 or None, got {self.merge_threshold!r}")
@@ -176,8 +167,7 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         means, covs, weights, total = check_prior_mixture(means, covs, weights)
         with np.errstate(divide="ignore"):
             log_weights = np.log(weights / total[:, None])
-        x, P, log_weights = _compact(means, covs, log_weights)
-        return self._state(x, P, log_weights)
+        return self._state(*_compact(means, covs, log_weights))
 
     @staticmethod
     def _state(x, P, log_weights, prior: MixtureState | None = None, innovation=None) -> MixtureState:
@@ -224,13 +214,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         if found is None:
             return self.unmeasured(state, M)
         step, nu, H = found
-        m = nu.shape[-1]
-        engine = cov_form.resolve_engine(self.engine, n, m)
+        engine = cov_form.resolve_engine(self.engine, n, nu.shape[-1])
         x, P, S, loglik_c, _ = cov_form.update_scored(
             state.x.reshape(M * C, n), state.P.reshape(M * C, n, n), nu, H, step.R, step.selection, self.form, engine
         )
-        x, P = x.reshape(M, C, n), P.reshape(M, C, n, n)
-        nu, S, loglik_c = nu.reshape(M, C, m), S.reshape(M, C, m, m), loglik_c.reshape(M, C)
+        x, P, nu, S, loglik_c = (a.reshape((M, C) + a.shape[1:]) for a in (x, P, nu, S, loglik_c))
         joint = state.log_weights + loglik_c
         loglik = logsumexp(joint, axis=-1)
         log_weights = joint - loglik[:, None]
@@ -259,8 +247,6 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         x, P, log_weights = mixture
         M, C, n = x.shape
         L, m = scan.z.shape
-        P_D, lam = self.detection_probability, self.clutter_density
-        P_G = 1.0 if self.gate_probability is None else self.gate_probability
         H, R = model.H, np.asarray(sensor.noise_cov, dtype=float)
         flat_x, flat_P = x.reshape(M * C, n), P.reshape(M * C, n, n)
         z_pred = flat_x @ H.T  # (MC, m)
@@ -271,11 +257,11 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         gamma = gate_threshold(self.gate_probability, m)
         gated = d2 <= gamma
         half = log_half_det_2pi_s(chol_c)  # ln √|2πS_c|
-        log_miss = math.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -math.inf
-        log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
-        child_detect = np.where(gated, log_detect - half[:, None] - 0.5 * d2, -np.inf).reshape(M, C, L)
+        child_detect = np.where(gated, self.log_detect - half[:, None] - 0.5 * d2, -np.inf).reshape(M, C, L)
         any_gated = gated.reshape(M, C * L).any(axis=1) if L else np.zeros(M, dtype=bool)
-        miss = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
+        miss = np.where(
+            (self.clutter_density > 0) | ~any_gated, self.log_miss, -np.inf
+        )  # λ = 0 and a candidate gated: no miss term (as PDA)
         terms = np.concatenate([np.broadcast_to(miss[:, None, None], (M, C, 1)), child_detect], axis=2)  # (M, C, 1 + L)
         joint = log_weights[:, :, None] + terms
         loglik = logsumexp(joint.reshape(M, -1), axis=-1)
@@ -305,8 +291,8 @@ class GaussianSumFilter(RecordsFilterStates, BankEstimator):
         x, P, log_weights = _compact(x, P, log_weights)
         if self.merge_threshold is not None and x.shape[1] > 1:
             x, P, log_weights = merge(x, P, log_weights, self.merge_threshold)
-        if x.shape[1] > self.max_components:  # compacted: heaviest first
-            x, P, log_weights = x[:, : self.max_components], P[:, : self.max_components], log_weights[:, : self.max_components]
+        cap = self.max_components  # compacted: heaviest first
+        x, P, log_weights = x[:, :cap], P[:, :cap], log_weights[:, :cap]
         log_weights = log_weights - logsumexp(log_weights, axis=-1)[:, None]
         return _compact(x, P, log_weights)
 

@@ -42,8 +42,6 @@ has score −∞ and every hypothesis is the Kalman filter.
 
 from __future__ import annotations
 
-import math
-
 import attrs
 import numpy as np
 
@@ -54,7 +52,7 @@ from hybridtrack.sdk.estimation import bank_field
 from hybridtrack.sdk.mixtures import normalized_weights
 from hybridtrack.sdk.scans import check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, pad_axis, stacked_innovation
+from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, pad_axis, set_clutter_model, stacked_innovation
 from hybridtrack_plugins.filters.clutter_recording import RecordsFilterStates
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
@@ -69,37 +67,19 @@ class MHTState(CovarianceState):
     x (M, H, n), P (M, H, n, n), their last prediction, ``scores`` Σ (M, H) (−∞:
     an empty slot), ``history`` (M, H, N) the last N decisions (−1 missed, i ≥ 0
     candidate i, −2 before the first scan).  ``mean``/``covariance`` are the best
-    hypothesis's (slot 0).
+    hypothesis's (slot 0); ``count`` (M,) the live hypotheses, ``probabilities``
+    p_h = exp(Σ_h) / Σ_g exp(Σ_g) (M, H), 0 for an empty slot.
     """
 
     scores: np.ndarray = bank_field(0, kw_only=True)
     history: np.ndarray = bank_field(0, kw_only=True)
 
-    @property
-    def mean(self) -> np.ndarray:
-        return self.x[:, 0]
-
-    @property
-    def covariance(self) -> np.ndarray:
-        return self.P[:, 0]
-
-    @property
-    def predicted_mean(self) -> np.ndarray:
-        return self.x_predicted[:, 0]
-
-    @property
-    def predicted_covariance(self) -> np.ndarray:
-        return self.P_predicted[:, 0]
-
-    @property
-    def count(self) -> np.ndarray:
-        """Number of live hypotheses per filter (M,)."""
-        return np.isfinite(self.scores).sum(axis=1)
-
-    @property
-    def probabilities(self) -> np.ndarray:
-        """p_h = exp(Σ_h) / Σ_g exp(Σ_g) (M, H), 0 for an empty slot."""
-        return normalized_weights(self.scores)
+    mean = property(lambda self: self.x[:, 0])
+    covariance = property(lambda self: self.P[:, 0])
+    predicted_mean = property(lambda self: self.x_predicted[:, 0])
+    predicted_covariance = property(lambda self: self.P_predicted[:, 0])
+    count = property(lambda self: np.isfinite(self.scores).sum(axis=1))
+    probabilities = property(lambda self: normalized_weights(self.scores))
 
 
 @attrs.frozen(eq=False)
@@ -132,16 +112,11 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         form: str = "joseph",
     ):
         super().__init__(gate_probability, form)
-        self.detection_probability = check_detection_probability(detection_probability)
-        self.clutter_density = check_positive(clutter_density, "clutter_density", what="λ; the score has ln(P_D/λ)")
+        check_detection_probability(detection_probability)
+        clutter_density = check_positive(clutter_density, "clutter_density", what="λ; the score has ln(P_D/λ)")
+        set_clutter_model(self, detection_probability, clutter_density, gate_probability)  # log_miss, log_detect
         self.window = check_positive_int(window, "window", what="the N of N-scan pruning")
         self.max_hypotheses = check_positive_int(max_hypotheses, "max_hypotheses", what="the cap on hypotheses per filter")
-        P_G = 1.0 if self.gate_probability is None else self.gate_probability
-        miss = 1.0 - self.detection_probability * P_G
-        #: ln(1 − P_D P_G), −∞ when a miss is impossible (P_D = 1, no gate)
-        self.log_miss = math.log(miss) if miss > 0 else -math.inf
-        #: ln(P_D / λ)
-        self.log_detect = math.log(self.detection_probability) - math.log(self.clutter_density)
 
     def initialize(self, mean, cov) -> MHTState:
         x, P = self.check_prior(mean, cov)
@@ -170,8 +145,7 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
         child[:, :, 0] = parent[:, :, 0] + self.log_miss
         child[:, :, 1:] = np.where(gated.reshape(M, H, L), parent + self.log_detect + ell.reshape(M, H, L), -np.inf)
         dead = ~np.isfinite(child).any(axis=(1, 2))  # a miss impossible and nothing gated: no information, keep as missed
-        if dead.any():
-            child[dead, :, 0] = state.scores[dead]
+        child[dead, :, 0] = state.scores[dead]
         decisions = np.arange(-1, L)  # (1 + L,)
         child_history = np.empty((M, H, 1 + L, N), dtype=np.int64)
         child_history[..., :-1] = state.history[:, :, None, 1:]
@@ -215,8 +189,7 @@ class MHTFilter(RecordsFilterStates, ScanEstimator):
 
         scores (M, C), history (M, C, N) → chosen child ids (M, H) and their scores (−∞ padding, pointing at the best).
         """
-        M, C = scores.shape
-        H = self.max_hypotheses
+        C, H = scores.shape[1], self.max_hypotheses
         order = np.argsort(-scores, axis=1, kind="stable")
         s = np.take_along_axis(scores, order, axis=1)
         hist = np.take_along_axis(history, order[:, :, None], axis=1)

@@ -38,8 +38,7 @@ class NearestNeighbourFilter(ClutterEstimator):
         """Without a gate and with one candidate per step (a plain z) NN is the Kalman filter."""
         return self.gate_probability is None
 
-    def associate(self, d2, gated, L):
-        return nearest_weights(d2, gated, L)
+    associate = staticmethod(nearest_weights)
 
 
 @hookimpl

@@ -68,14 +68,9 @@ and NIS = ν̄ᵀS⁻¹ν̄; :class:`ParticleInnovation` adds N_eff, whether eac
 was resampled, and the Gaussian ℓ of (ν̄, S).  ``mean`` and ``covariance`` are
 the weighted moments Σ w x and Σ w (x − x̄)(x − x̄)ᵀ.
 
-Random numbers: each filter carries its own stream key (drawn from ``seed`` at
-``initialize``) and a step counter, and every draw of a step comes from a
-generator seeded by (key, stage, counter).  A step of a filter is therefore a
-function of its own state: the same seed reproduces a run, ``take`` and
-``concatenate`` commute with the steps, and a repeated row (a copy) draws the
-same noise as its original (common random numbers across hypotheses).  The
-estimator is ``sampling``: its state is more than (x, P), so a filter
-re-initialized from its mean and covariance draws new particles.
+Random numbers: every draw of a step comes from a generator seeded by (the filter's stream key, drawn from
+``seed`` at ``initialize``; the stage; its step counter), so a filter's step is a function of its own state
+(what follows, and why the estimator is ``sampling``: docs/estimators.md, "Random numbers").
 """
 
 from __future__ import annotations
@@ -96,14 +91,13 @@ from hybridtrack.core.validation import check_prior_mixture
 from hybridtrack.sdk.estimation import BankEstimator, DerivedMoments, bank_field, check_layout, guarded
 from hybridtrack.sdk.linalg import CholeskyFactor, cholesky, psd_square_root, symmetrize
 from hybridtrack.sdk.mixtures import logsumexp
-from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters._association import (
     as_scans,
     candidate_residuals,
-    check_gate_probability,
     distances,
     gate_threshold,
     scan_by_scan,
+    set_clutter_model,
     stacked_innovation,
     summed_loglik,
 )
@@ -182,7 +176,8 @@ def silverman_bandwidth(N: int, n: int) -> float:
 @attrs.frozen(eq=False, slots=False)
 class ParticleState(DerivedMoments):
     """A bank of M particle filters: particles (M, N, n), normalised log-weights (M, N), random-stream keys (M, 2)
-    and step counters (M,), plus the moments of the last prediction and the last innovation."""
+    and step counters (M,), plus the moments of the last prediction and the last innovation; ``weights`` w (M, N)
+    (Σ_i w⁽ⁱ⁾ = 1) and ``effective_sample_size`` N_eff = 1/Σ w² (M,) read the current weights."""
 
     particles: np.ndarray = bank_field(0)
     log_weights: np.ndarray = bank_field(0)
@@ -196,15 +191,8 @@ class ParticleState(DerivedMoments):
     def moments(self) -> tuple[np.ndarray, np.ndarray]:
         return weighted_moments(self.particles, self.log_weights)
 
-    @property
-    def weights(self) -> np.ndarray:
-        """w (M, N), Σ_i w⁽ⁱ⁾ = 1."""
-        return np.exp(self.log_weights)
-
-    @property
-    def effective_sample_size(self) -> np.ndarray:
-        """N_eff = 1/Σ w² (M,) of the current weights."""
-        return effective_sample_size(self.log_weights)
+    weights = property(lambda self: np.exp(self.log_weights))
+    effective_sample_size = property(lambda self: effective_sample_size(self.log_weights))
 
 
 def _check_seed(seed) -> np.random.Generator:
@@ -252,9 +240,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         gate_probability: float | None = None,
     ):
         super().__init__()
-        self.detection_probability = check_detection_probability(detection_probability)
-        self.clutter_density = check_clutter_density(clutter_density)
-        self.gate_probability = check_gate_probability(gate_probability)
+        set_clutter_model(self, detection_probability, clutter_density, gate_probability)
         if isinstance(particles, bool) or not isinstance(particles, numbers.Integral):
             raise TypeError(f"particles: expected an int ≥ 1 (particles per filter), got {type(particles).__name__} {particles!r}")
         if particles < 1:
@@ -352,17 +338,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         x, P = weighted_moments(particles, state.log_weights)
         return ParticleState(particles, state.log_weights, state.keys, state.counters + 1, x, P, None)
 
-    def _residuals(self, step, particles: np.ndarray, layout) -> np.ndarray:
-        """ν⁽ⁱ⁾ = residual(z, h(x⁽ⁱ⁾)) (M, N, m) of the present components, through the step's sensor models."""
-        M, N, n = particles.shape
-        flat = particles.reshape(M * N, n)
-        if step.H is not None:
-            z_pred = step.predicted(flat, layout)[0]
-        else:
-            z_pred = np.concatenate([model.measure(flat, layout) for model in step.models], axis=-1)
-        z = np.broadcast_to(step.z[:, None, :], (M, N, step.dim)).reshape(M * N, step.dim)
-        return np.asarray(step.with_z(z).residual(z_pred)).reshape(M, N, step.dim)
-
     @guarded
     def update(self, state: ParticleState, z, sensors: Sequence[Sensor], layout: Sequence[str]):
         """SIR update: w ∝ w⁻ p(z | x) in log space, ℓ, N_eff, systematic resampling where N_eff < threshold · N."""
@@ -375,7 +350,14 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         step = self.measurement_step(z, sensors, layout, M, n)
         if step is None:
             return self.unmeasured(state, M)
-        nu = self._residuals(step, state.particles, layout)
+        # ν⁽ⁱ⁾ = residual(z, h(x⁽ⁱ⁾)) (M, N, m) of the present components, through the step's sensor models
+        flat = state.particles.reshape(M * N, n)
+        if step.H is not None:
+            z_pred = step.predicted(flat, layout)[0]
+        else:
+            z_pred = np.concatenate([model.measure(flat, layout) for model in step.models], axis=-1)
+        z_rows = np.broadcast_to(step.z[:, None, :], (M, N, step.dim)).reshape(M * N, step.dim)
+        nu = np.asarray(step.with_z(z_rows).residual(z_pred)).reshape(M, N, step.dim)
         R = np.asarray(step.R, dtype=float)
         particle_loglik, _ = CholeskyFactor(R if R.ndim == 2 else R[:, None], "measurement noise R").scores(nu)
         prior = state.log_weights
@@ -403,12 +385,22 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
     def _resampled(self, state: ParticleState, log_weights, innovation_class, *scores):
         """The updated state: N_eff of the new weights, systematic resampling where N_eff < threshold · N, and the
         innovation ``innovation_class(*scores, N_eff, resampled)``."""
-        N = state.particles.shape[1]
+        N, n = state.particles.shape[1:]
         ess = effective_sample_size(log_weights)
         resampled = ess < self.threshold * N
         particles = state.particles
         if resampled.any():
-            particles, log_weights = self._resample(state, particles, log_weights, np.flatnonzero(resampled))
+            # systematic resampling of those filters (then weights 1/N), with the regularisation jitter if enabled
+            rows = np.flatnonzero(resampled)
+            generators = list(self._generators(state.keys, state.counters, _RESAMPLE, rows))
+            index = systematic_resample(log_weights[rows], np.array([g.random() for g in generators]))
+            chosen = np.take_along_axis(particles[rows], index[..., None], axis=1)
+            if self.regularize:
+                _, spread = weighted_moments(particles[rows], log_weights[rows])
+                eps = np.stack([g.standard_normal((N, n)) for g in generators])
+                chosen = chosen + silverman_bandwidth(N, n) * (eps @ np.swapaxes(psd_square_root(spread), -1, -2))
+            particles, log_weights = particles.copy(), log_weights.copy()
+            particles[rows], log_weights[rows] = chosen, -math.log(N)
         innovation = innovation_class(*scores, ess, resampled)
         new = ParticleState(particles, log_weights, state.keys, state.counters + 1, state.x_predicted, state.P_predicted, innovation)
         self.check_finite("update", updated_mean=new.mean)
@@ -420,7 +412,6 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         M, N, n = particles.shape
         R = np.asarray(sensor.noise_cov, dtype=float)
         L, m = scan.z.shape
-        P_D, lam = self.detection_probability, self.clutter_density
         flat = particles.reshape(M * N, n)
         h = model.measure(flat, layout).reshape(M, N, m)
         # the particle prediction of z: ẑ = h(x̄) + Σ w δ, δ = residual(h(x), h(x̄)) (wrapped about the mean for angles)
@@ -432,21 +423,20 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         d = delta - delta_mean[:, None, :]
         S = symmetrize(np.swapaxes(d * w[..., None], -1, -2) @ d + R)
         chol_S = cholesky(S, "innovation covariance S")
-        P_G = 1.0 if self.gate_probability is None else self.gate_probability
-        log_miss = math.log1p(-P_D * P_G) if P_D * P_G < 1.0 else -math.inf
-        log_detect = math.log(P_D) - (math.log(lam) if lam > 0 else 0.0)
         gamma = gate_threshold(self.gate_probability, m)
         nu_r = np.asarray(candidate_residuals(z_hat, scan.z, sensor, model))
         d2 = distances(nu_r, chol_S)  # (M, L)
         gated = d2 <= gamma
         cols = np.flatnonzero(gated.any(axis=0))  # candidates inside some filter's gate: the only ones evaluated
         any_gated = gated.any(axis=1)
-        miss_term = np.where((lam > 0) | ~any_gated, log_miss, -np.inf)  # λ = 0 and a candidate gated: no miss term (as PDA)
+        miss_term = np.where(
+            (self.clutter_density > 0) | ~any_gated, self.log_miss, -np.inf
+        )  # λ = 0 and a candidate gated: no miss term (as PDA)
         beta = np.zeros((M, L))
         if cols.size:
             nu_i = np.asarray(candidate_residuals(h.reshape(M * N, m), scan.z[cols], sensor, model)).reshape(M, N, cols.size, m)
             log_n, _ = CholeskyFactor(R, "measurement noise R").scores(nu_i)  # (M, N, Lg)
-            log_detected = np.where(gated[:, None, cols], log_detect + log_n, -np.inf)
+            log_detected = np.where(gated[:, None, cols], self.log_detect + log_n, -np.inf)
             terms = np.concatenate([np.broadcast_to(miss_term[:, None, None], (M, N, 1)), log_detected], axis=2)
             particle_loglik = logsumexp(terms, axis=2)  # ln Λ(x⁽ⁱ⁾) (M, N)
             joint = log_weights + particle_loglik
@@ -459,30 +449,12 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
             beta0 = np.where(ok, np.exp(miss_term - np.where(ok, loglik, 0.0)), 1.0)
         else:
             new_log_weights = log_weights
-            loglik = np.full(M, log_miss)
+            loglik = np.full(M, self.log_miss)
             beta0 = np.ones(M)
         combined = np.einsum("jl,jli->ji", beta, nu_r)
         selected = np.where(any_gated & (beta.sum(axis=1) > 0), np.argmax(beta, axis=1) if L else -1, -1).astype(np.int64)
         record = Association(sensor.name, scan.z, z_hat, S, gamma, d2, gated, beta, beta0, selected, loglik)
         return new_log_weights, combined, S, record
-
-    def _resample(self, state: ParticleState, particles, log_weights, rows: np.ndarray):
-        """Systematic resampling of the filters ``rows`` (then weights 1/N), with the regularisation jitter if enabled."""
-        M, N, n = particles.shape
-        generators = list(self._generators(state.keys, state.counters, _RESAMPLE, rows))
-        u = np.array([g.random() for g in generators])
-        index = systematic_resample(log_weights[rows], u)
-        chosen = np.take_along_axis(particles[rows], index[..., None], axis=1)
-        if self.regularize:
-            _, spread = weighted_moments(particles[rows], log_weights[rows])
-            D = psd_square_root(spread)
-            eps = np.stack([g.standard_normal((N, n)) for g in generators])
-            chosen = chosen + silverman_bandwidth(N, n) * (eps @ np.swapaxes(D, -1, -2))
-        particles = particles.copy()
-        particles[rows] = chosen
-        log_weights = log_weights.copy()
-        log_weights[rows] = -math.log(N)
-        return particles, log_weights
 
 
 @hookimpl

@@ -25,8 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
-from hybridtrack_plugins.filters._association import ClutterEstimator, pda_weights
+from hybridtrack_plugins.filters._association import ClutterEstimator, pda_weights, set_clutter_model
 
 
 class PDAFilter(ClutterEstimator):
@@ -41,8 +40,7 @@ class PDAFilter(ClutterEstimator):
         self, detection_probability: float = 1.0, clutter_density: float = 0.0, gate_probability: float | None = 0.99, form: str = "joseph"
     ):
         super().__init__(gate_probability, form)
-        self.detection_probability = check_detection_probability(detection_probability)
-        self.clutter_density = check_clutter_density(clutter_density)
+        set_clutter_model(self, detection_probability, clutter_density, gate_probability)
 
     @property
     def exact_kalman(self) -> bool:
@@ -50,7 +48,7 @@ class PDAFilter(ClutterEstimator):
         return self.clutter_density == 0.0 and self.detection_probability == 1.0 and self.gate_probability is None
 
     def associate(self, d2, gated, L):
-        beta, beta0, loglik = pda_weights(d2, gated, L, self.detection_probability, self.clutter_density, self.gate_probability)
+        beta, beta0, loglik = pda_weights(d2, gated, L, self.detection_probability, self.clutter_density, self.log_miss)
         selected = np.where(gated.any(axis=1), np.argmax(beta, axis=1), -1) if beta.shape[1] else np.full(beta.shape[0], -1)
         return beta, beta0, selected.astype(np.int64), loglik
 

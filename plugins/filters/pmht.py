@@ -84,7 +84,7 @@ from hybridtrack.sdk.estimation import bank_field, guarded
 from hybridtrack.sdk.linalg import LOG_2PI, cholesky, cholesky_solve, forward_substitute, gaussian_scores, log_det_from_cholesky, symmetrize
 from hybridtrack.sdk.scans import check_clutter_density, check_detection_probability
 from hybridtrack_plugins.filters import _covariance as cov_form
-from hybridtrack_plugins.filters._association import ScanEstimator, gate_threshold, innovation_covariance, log_half_det_2pi_s, pad_axis
+from hybridtrack_plugins.filters._association import ScanEstimator, log_half_det_2pi_s, pad_axis
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
 #: total association weight W_t below which a scan is prediction only (module docstring)
@@ -198,12 +198,8 @@ class PMHTFilter(ScanEstimator):
         M, n = x.shape
         W = self.window
         return PMHTState(
-            x=x,
-            P=P,
-            x_predicted=x,
-            P_predicted=P,
-            prior_x=x,
-            prior_P=P,
+            **dict.fromkeys(("x", "x_predicted", "prior_x"), x),  # the estimate, its prediction and the window's prior
+            **dict.fromkeys(("P", "P_predicted", "prior_P"), P),
             **_no_pending(M, n),
             valid=np.zeros((M, W), dtype=bool),
             F=np.broadcast_to(np.eye(n), (M, W, n, n)).copy(),
@@ -215,10 +211,8 @@ class PMHTFilter(ScanEstimator):
             candidates=np.zeros((M, W, 0, 0)),
             present=np.zeros((M, W, 0), dtype=bool),
             weights=np.zeros((M, W, 0)),
-            smoothed_mean=np.repeat(x[:, None], W, axis=1),
-            smoothed_covariance=np.repeat(P[:, None], W, axis=1),
-            filtered_mean=np.repeat(x[:, None], W, axis=1),
-            filtered_covariance=np.repeat(P[:, None], W, axis=1),
+            **{f"{kind}_mean": np.repeat(x[:, None], W, axis=1) for kind in ("smoothed", "filtered")},
+            **{f"{kind}_covariance": np.repeat(P[:, None], W, axis=1) for kind in ("smoothed", "filtered")},
             iterations=np.zeros(M, dtype=np.int64),
             log_posterior=np.zeros(M),
         )
@@ -267,15 +261,11 @@ class PMHTFilter(ScanEstimator):
         M, n = state.x.shape
         L, m = cands.shape[1], cands.shape[2]
         z_pred = state.x @ H.T
-        if L == 0:
-            none = np.zeros((M, 0))
-            S, gamma = innovation_covariance(state.P, H, R), gate_threshold(self.gate_probability, m)
-            record = Association(
-                name, np.asarray(raw), z_pred, S, gamma, none, none.astype(bool), none, np.ones(M), np.full(M, -1), np.zeros(M)
-            )
-            return state, None, None, record
         # gate at the prediction: d² = νᵀ S⁻¹ ν ≤ γ, S = H P⁻ Hᵀ + R
         S_pred, L_pred, gamma, d2, gated = self.gate(cands - z_pred[:, None, :], state.P, H, R)
+        if L == 0:
+            record = Association(name, np.asarray(raw), z_pred, S_pred, gamma, d2, gated, d2, np.ones(M), np.full(M, -1), np.zeros(M))
+            return state, None, None, record
         ell = -0.5 * d2 - log_half_det_2pi_s(L_pred)[:, None]  # ln N(ν_r; 0, S) at the prediction
         # ln(1 + P_D N / λ), or ln(P_D N) for λ = 0
         terms = np.logaddexp(0.0, self.log_pd + ell - self.log_lambda) if self.clutter_density > 0 else self.log_pd + ell
@@ -300,38 +290,20 @@ class PMHTFilter(ScanEstimator):
         newest.update(pad=np.full(M, mb - m), candidates=cs, present=pr)
         slots = {name: shift(getattr(s, name), value) for name, value in newest.items()}
         guess = shift(s.smoothed_mean, state.x)  # the new scan starts from the prediction
-        xs, Ps, xf, Pf, xp_T, Pp_T, weights, iterations, log_posterior = self._em(prior_x, prior_P, guess, **slots)
-        # the newest scan's synthetic innovation ν = z̃ − H x⁻ (real components only), S = H P⁻ Hᵀ + R / W
+        em = self._em(prior_x, prior_P, guess, **slots)
+        # the newest scan's synthetic innovation ν = z̃ − H x⁻ (real components only), S = H P⁻ Hᵀ + R / W (R when W = 0)
         w_T = np.zeros((M, L))  # back to the scan's candidate order
-        np.put_along_axis(w_T, order, weights[:, -1, :Lg], axis=1)
+        np.put_along_axis(w_T, order, em["weights"][:, -1, :Lg], axis=1)
         W_T = w_T.sum(axis=1)
         has = W_T >= MIN_WEIGHT
         safe = np.where(has, W_T, 1.0)
         z_syn = np.einsum("ml,mli->mi", w_T, cands) / safe[:, None]
-        nu = np.where(has[:, None], z_syn - xp_T @ H.T, 0.0)
-        R_syn = np.broadcast_to(R, (M, m, m)) / safe[:, None, None]
-        S = symmetrize(H @ Pp_T @ H.T + np.where(has[:, None, None], R_syn, np.broadcast_to(R, (M, m, m))))
+        nu = np.where(has[:, None], z_syn - em["x_predicted"] @ H.T, 0.0)
+        S = symmetrize(H @ em["P_predicted"] @ H.T + R / safe[:, None, None])
         selected = np.where(gated.any(axis=1), np.argmax(np.where(gated, w_T, -1.0), axis=1), -1).astype(np.int64)
         missed = np.prod(1.0 - w_T, axis=1)
         record = Association(name, np.asarray(raw), z_pred, S_pred, gamma, d2, gated, w_T, missed, selected, assoc_loglik)
-        new = attrs.evolve(
-            s,
-            x=xf[:, -1],
-            P=Pf[:, -1],
-            x_predicted=xp_T,
-            P_predicted=Pp_T,
-            prior_x=prior_x,
-            prior_P=prior_P,
-            **_no_pending(M, n),
-            **slots,
-            weights=weights,
-            smoothed_mean=xs,
-            smoothed_covariance=Ps,
-            filtered_mean=xf,
-            filtered_covariance=Pf,
-            iterations=iterations,
-            log_posterior=log_posterior,
-        )
+        new = attrs.evolve(s, prior_x=prior_x, prior_P=prior_P, **_no_pending(M, n), **slots, **em)
         return new, nu, S, record
 
     def _estep(self, X, Hw, cw, pw, LR, logdet_R):
@@ -347,26 +319,26 @@ class PMHTFilter(ScanEstimator):
         return w, np.where(pw, total, 0.0).sum(axis=(1, 2))
 
     def _em(self, prior_x, prior_P, guess, valid, F, B, Q, H, R, pad, candidates, present):
-        """EM over the window's slots from the initial guess X̂⁰ (M, W, n) (module docstring)."""
-        Hw, Rw, cw, pw = H, R, candidates, present
-        M = guess.shape[0]
-        mb = Hw.shape[2]
-        LR = cholesky(Rw, "measurement noise R")
+        """EM over the window's slots from the initial guess X̂⁰ (M, W, n) (module docstring) → the PMHTState fields
+        it sets: the window's smoothed and filtered moments and weights, the estimate at the newest scan (x, P and
+        its prediction), the iterations and the objective J reached."""
+        M, mb = guess.shape[0], H.shape[2]
+        LR = cholesky(R, "measurement noise R")
         # ln |2π R| of the real components: the padded identity block adds pad · ln 2π
         logdet_R = mb * LOG_2PI + log_det_from_cholesky(LR) - pad * LOG_2PI
-        w, _ = self._estep(guess, Hw, cw, pw, LR, logdet_R)
+        w, _ = self._estep(guess, H, candidates, present, LR, logdet_R)
         active = np.ones(M, dtype=bool)
         best = None
         last_J = np.full(M, -np.inf)
         iterations = np.zeros(M, dtype=np.int64)
         for iteration in range(self.max_iterations):
-            result = self._smooth(prior_x, prior_P, F, B, Q, Hw, Rw, cw, w)
+            result = self._smooth(prior_x, prior_P, F, B, Q, H, R, candidates, w)
             xs, _, _, _, _, _, nis_sum, Wsum, zsyn = result
             # J = ln p(X̂) + Σ ln(λ + P_D N) at the smoother's output (module docstring)
-            resid = zsyn - np.einsum("mwij,mwj->mwi", Hw, xs)
+            resid = zsyn - np.einsum("mwij,mwj->mwi", H, xs)
             u = forward_substitute(LR, resid)
             quad = np.where(Wsum >= MIN_WEIGHT, Wsum * np.einsum("...i,...i->...", u, u), 0.0).sum(axis=1)
-            w_next, meas = self._estep(xs, Hw, cw, pw, LR, logdet_R)  # also the next iteration's E-step
+            w_next, meas = self._estep(xs, H, candidates, present, LR, logdet_R)  # also the next iteration's E-step
             J = -0.5 * (nis_sum - quad) + meas
             if best is None:
                 best = (result, w)
@@ -385,7 +357,9 @@ class PMHTFilter(ScanEstimator):
             w = np.where(active[:, None, None], w_next, w)
         (xs, Ps, xf, Pf, xp_T, Pp_T, _, _, _), w = best
         self.check_finite("update", smoothed_mean=xs, smoothed_covariance=Ps)
-        return xs, Ps, xf, Pf, xp_T, Pp_T, w, iterations, last_J
+        window = {"smoothed_mean": xs, "smoothed_covariance": Ps, "filtered_mean": xf, "filtered_covariance": Pf, "weights": w}
+        estimate = {"x": xf[:, -1], "P": Pf[:, -1], "x_predicted": xp_T, "P_predicted": Pp_T}
+        return window | estimate | {"iterations": iterations, "log_posterior": last_J}
 
     def _smooth(self, prior_x, prior_P, F, B, Q, Hw, Rw, cw, w):
         """Kalman filter and RTS smoother over the window on the synthetic measurements of the weights w."""
