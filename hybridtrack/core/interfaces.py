@@ -388,35 +388,6 @@ class DetectorStep:
     decision: Any = None
 
 
-class Detector(Labelled, ABC):
-    """A sequential change detector fed one step at a time.
-
-    Contract: ``reset()`` forgets the past; ``step(step, innovation)`` consumes
-    the :class:`Innovation` of the bank it watches at that step and returns a
-    :class:`DetectorStep`; ``name`` is the registry name, ``label`` the
-    instance's name in a run.  Detectors are deterministic given their input.
-
-    Checked by :func:`hybridtrack.testing.check_detector`, fed
-    ``example_innovations(rng)`` when the detector defines it.
-    """
-
-    name: ClassVar[str]
-
-    @abstractmethod
-    def reset(self) -> None: ...
-
-    @abstractmethod
-    def step(self, step: int, innovation: Innovation) -> DetectorStep: ...
-
-    def batch(self, runs: int) -> DetectorBatch:
-        """``runs`` independent copies of this detector fed together (Monte Carlo runs stacked in one bank).
-
-        The one batching protocol (its specialisations and callers: ``docs/plugins.md`` §1).  Optional: the
-        default steps deep copies one by one; a class may return a vectorized batch whose outputs equal the copies'.
-        """
-        return DetectorBatch(self, runs)
-
-
 class DetectorBatch:
     """R independent copies of one :class:`Detector` fed together.
 
@@ -443,6 +414,39 @@ class DetectorBatch:
         if len(runs) == 1:
             return [self.copies[int(runs[0])].step(step, innovation)]
         return [self.copies[int(r)].step(step, innovation.take(np.arange(u * M, (u + 1) * M), size)) for u, r in enumerate(runs)]
+
+
+class Detector(Labelled, ABC):
+    """A sequential change detector fed one step at a time.
+
+    Contract: ``reset()`` forgets the past; ``step(step, innovation)`` consumes
+    the :class:`Innovation` of the bank it watches at that step and returns a
+    :class:`DetectorStep`; ``name`` is the registry name, ``label`` the
+    instance's name in a run.  Detectors are deterministic given their input.
+
+    Checked by :func:`hybridtrack.testing.check_detector`, fed
+    ``example_innovations(rng)`` when the detector defines it.
+    """
+
+    name: ClassVar[str]
+
+    @abstractmethod
+    def reset(self) -> None: ...
+
+    @abstractmethod
+    def step(self, step: int, innovation: Innovation) -> DetectorStep: ...
+
+    #: what :meth:`batch` builds by default (the protocols of :mod:`hybridtrack.core.protocols` set their own)
+    batch_class: ClassVar[type[DetectorBatch]] = DetectorBatch
+
+    def batch(self, runs: int) -> DetectorBatch:
+        """``runs`` independent copies of this detector fed together (Monte Carlo runs stacked in one bank).
+
+        The one batching protocol (its specialisations and callers: ``docs/plugins.md`` §1).  Optional: the
+        default, ``batch_class(self, runs)``, steps deep copies one by one; a class may return a vectorized batch
+        whose outputs equal the copies'.
+        """
+        return self.batch_class(self, runs)
 
 
 # --------------------------------------------------------------------------- solvers
