@@ -7,15 +7,10 @@ Layout of ``OUT/``::
     runs-0000000-0000019.npz       arrays "index" (c,), "__campaign__" and one (c, …) array per result name
     set_aside/                     unusable files moved away by ``set_aside=True`` (``--set-aside``)
 
-Every file is written to a temporary name in the same folder, flushed and
-renamed over its final name (atomic on POSIX), so a killed campaign leaves
-only complete chunk files plus perhaps a ``*.tmp-*`` file, which
-:meth:`ResultStore.open` deletes; the chunk files are the record of which runs
-are done.  One campaign at a time writes to a folder (:meth:`ResultStore.locked`).
-Every chunk records its campaign's identity (format, experiment, parameters,
-seed) as the JSON text array ``__campaign__``, and every file read is checked
-(:class:`CorruptResults`, :class:`CampaignMismatch`; the rules: docs/experiments.md,
-"Storage and resumption").
+Writes are atomic (a ``*.tmp-*`` file renamed; :meth:`ResultStore.open` deletes leftovers), one campaign at a
+time (:meth:`ResultStore.locked`); every chunk records its campaign's identity (format, experiment, parameters,
+seed) as the JSON text ``__campaign__`` and every file read is checked (:class:`CorruptResults`,
+:class:`CampaignMismatch`): docs/experiments.md, "Storage and resumption".
 """
 
 from __future__ import annotations
