@@ -8,11 +8,8 @@ attrs class whose per-filter arrays are :func:`bank_field` s; ``take`` and
 ``concatenate`` (the bank operations of the
 :class:`~hybridtrack.core.interfaces.Estimator` contract) then work on the state's
 own form — square-root factors and per-node copies are selected and joined,
-never rebuilt from (x, P).
-
-Every state of this family exposes per filter ``mean`` (M, n), ``covariance`` (M, n, n) (the current estimate),
-``predicted_mean`` / ``predicted_covariance`` (the last prediction's) and ``innovation`` (ν, S, ℓ, NIS of the last
-update; None after ``predict`` or ``initialize``).
+never rebuilt from (x, P).  What every state exposes (``mean``, ``covariance``, the prediction's, ``innovation``):
+``docs/estimators.md``, "What every estimator gives".
 """
 
 from __future__ import annotations
