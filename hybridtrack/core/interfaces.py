@@ -22,6 +22,7 @@ attributes that let the checks build a component are listed in
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import functools
 from abc import ABC, abstractmethod
@@ -258,10 +259,8 @@ class TransitionBank:
     def stack(cls, transitions: Sequence[LinearTransition]) -> TransitionBank:
         root = None
         if len({t.Q.shape for t in transitions}) == 1:
-            try:
+            with contextlib.suppress(np.linalg.LinAlgError):
                 root = np.stack([t.G @ np.linalg.cholesky(t.Q) for t in transitions])
-            except np.linalg.LinAlgError:
-                root = None
         return cls(
             np.stack([t.F for t in transitions]),
             np.stack([t.B for t in transitions]),
