@@ -113,11 +113,11 @@ def load_plugins(
     own = [PluginInfo(getattr(obj, "__name__", None) or type(obj).__name__) for obj in builtins]
     for obj, info in zip(builtins, own):
         register(obj, info, from_code=True)
-    extra = list(extra)
+    extra = [(getattr(obj, "__name__", None) or type(obj).__name__, obj) for obj in extra]
     points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order)
     known = {point.name for point in points} | {_family(point.name) for point in points}
     known |= {point.dist.name for point in points if getattr(point, "dist", None)}
-    known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
+    known |= {name for name, _ in extra}
     if blocked - known:
         report(
             f"{DISABLE_ENV if disabled is None else 'disabled'}: no installed plugin or distribution is named"
@@ -143,8 +143,7 @@ def load_plugins(
                 continue
             register(obj, info, from_code=False)
 
-    for obj in extra:
-        name = getattr(obj, "__name__", None) or type(obj).__name__
+    for name, obj in extra:
         if name not in blocked:
             register(obj, PluginInfo(name), from_code=True)
 
