@@ -394,14 +394,13 @@ class DetectorBatch:
     0 … R−1) the innovation of their stacked banks (U·M rows, row u·M + j is
     filter j of run ``runs[u]``) and returns one :class:`DetectorStep` per run,
     each equal to ``copies[r].step(step, <the rows of run r>)``.  This default
-    keeps deep copies (``copies``) and steps them one by one; a vectorized
-    batch that keeps its state otherwise gets the copies on first use.
+    steps deep copies (``copies``, made on first use, also for a vectorized
+    batch that keeps its state otherwise) one by one.
     """
 
     def __init__(self, detector: Detector, runs: int):
         self.detector = detector
         self.runs = int(runs)
-        self.copies = [copy.deepcopy(detector) for _ in range(self.runs)]
 
     @functools.cached_property
     def copies(self) -> list[Detector]:
