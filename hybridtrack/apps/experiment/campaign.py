@@ -4,13 +4,10 @@
     result = campaign.run()              # computes only the runs missing from runs/demo
     result.arrays["rmse"]                # (200,) ordered by run index
 
-Run ``i`` always gets child ``i`` of ``SeedSequence(seed)``
-(:mod:`~hybridtrack.apps.experiment.worker`), so the arrays do not depend on the
-executor, the chunk size or interruptions.  Every finished chunk is stored at
-once (:mod:`~hybridtrack.apps.experiment.store`), under the folder's lock.  A
-failing run stops the campaign with :class:`RunFailed`, Ctrl-C with
-:class:`CampaignInterrupted`, both after the runs finished before are stored;
-running the campaign again resumes.
+Run ``i`` always gets child ``i`` of ``SeedSequence(seed)`` (:func:`~hybridtrack.apps.experiment.worker.run_seed`);
+each finished chunk is stored at once (:mod:`~hybridtrack.apps.experiment.store`); a failing run stops the
+campaign with :class:`RunFailed`, Ctrl-C with :class:`CampaignInterrupted`, both after the finished runs are
+stored; running it again resumes (docs/experiments.md).
 """
 
 from __future__ import annotations
