@@ -1,14 +1,9 @@
 """The ``hybridtrack`` command line: ``hybridtrack <command> [options]``.
 
-Sub-commands come through the plugin hook ``register_commands(commands)``
-(:mod:`hybridtrack.core.commands`): ``commands.add(name, help, configure,
-run)``.  The built-in ones (``plugins``, ``simulate``, ``inspect``, ``run``,
-``track``) are one module each under :mod:`hybridtrack.cli`, listed in
-:data:`COMMAND_MODULES` and loaded before the entry-point plugins (so their
-names stay theirs, and disabling plugins never removes them); a third party
-adds one from its plugin module like any component.  A command's heavy
-imports belong inside its ``run`` function; ``hybridtrack --version`` is
-answered before any plugin is loaded, so it stays fast.
+Sub-commands come through the plugin hook ``register_commands`` (:mod:`hybridtrack.core.commands`).  The
+built-in ones are one module each, listed in :data:`COMMAND_MODULES` and loaded before the entry-point plugins
+(so their names stay theirs, and disabling plugins never removes them).  ``hybridtrack --version`` is answered
+before any plugin is loaded, so it stays fast.
 
 ``main(argv)`` returns the exit status instead of exiting, so tests call it in
 process; the console script ``hybridtrack`` is ``sys.exit(main())``.
