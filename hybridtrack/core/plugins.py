@@ -1,15 +1,10 @@
-"""Plugin loading on pluggy.
-
-Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions, found through the ``hybridtrack``
-entry-point group; the built-ins (each module of ``hybridtrack_plugins``, :mod:`hybridtrack.algorithms.registration`)
-are declared there by this project's own ``pyproject.toml``, exactly like a third-party package, and load first, so
-a name taken by a built-in stays the built-in's.  Every kind of :data:`hybridtrack.core.kinds.KINDS` registers
-through its hook, sub-commands through ``register_commands``.  Loading isolates faults (import errors of any
-``BaseException`` but ``KeyboardInterrupt``, misspelt hooks, failing hooks, taken names, classes not implementing
-their kind's interface: a :class:`PluginWarning` naming the plugin and its distribution, the others still load), and
-``HYBRIDTRACK_DISABLE_PLUGINS`` blocks plugins by entry-point name, family or distribution: ``docs/plugins.md`` §3
-and §6.  A factory (not a class) returning the wrong type is caught at first use (:func:`resolve`,
-:func:`check_component`) by a TypeError naming the plugin and distribution.
+"""Plugin loading on pluggy: modules (or objects) with :data:`hybridtrack.hookimpl` functions from the ``hybridtrack``
+entry-point group, this project's own first (so a built-in's name stays its own), each kind of
+:data:`hybridtrack.core.kinds.KINDS` through its hook, sub-commands through ``register_commands``.  Faults are isolated
+(any ``BaseException`` but ``KeyboardInterrupt``: a :class:`PluginWarning` naming the plugin and its distribution,
+the others still load), ``HYBRIDTRACK_DISABLE_PLUGINS`` blocks plugins by entry-point name, family or distribution,
+and a factory returning the wrong type is caught at first use (:func:`resolve`, :func:`check_component`) by a
+TypeError naming the plugin and distribution: ``docs/plugins.md`` §3, §4, §6.
 """
 
 from __future__ import annotations
