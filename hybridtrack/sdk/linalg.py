@@ -1,9 +1,8 @@
-"""Batched small-matrix linear algebra shared by the filter plugins.
+"""Batched small-matrix linear algebra shared by the filter plugins (docs/estimators.md, "Linear algebra").
 
-Everything works on stacks: a matrix argument has shape (..., m, m), a vector
-(..., m).  Solves go through a Cholesky factor (for small m the recurrences
-written out, one vectorized operation per entry over the whole stack; LAPACK
-for larger m); nothing calls ``inv`` (ARCHITECTURE.md, "The hot path").  A matrix that should be positive definite and is not raises
+Everything works on stacks: a matrix argument has shape (..., m, m), a vector (..., m).  Solves go through a
+Cholesky factor (for small m the recurrences written out, one vectorized operation per entry over the whole stack;
+LAPACK for larger m); nothing calls ``inv``.  A matrix that should be positive definite and is not raises
 :class:`numpy.linalg.LinAlgError` naming which one.
 """
 
