@@ -23,7 +23,7 @@ import numpy as np
 
 from hybridtrack.apps.experiment.definition import Experiment, load_experiment
 from hybridtrack.apps.experiment.executors import CONNECT_TIMEOUT, EXECUTORS, check_scheduler_address, make_executor
-from hybridtrack.apps.experiment.store import ResultStore
+from hybridtrack.apps.experiment.store import ResultStore, _is_integer
 from hybridtrack.apps.experiment.worker import run_chunk
 
 
@@ -39,10 +39,6 @@ class CampaignInterrupted(KeyboardInterrupt):
             f"interrupted: {stored} of {n} runs stored in {out} ({computed} computed by this call); run the same campaign again to resume"
         )
         self.out, self.n, self.stored, self.computed = out, n, stored, computed
-
-
-def _is_integer(value, low: int) -> bool:
-    return not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= low
 
 
 def _valid(test, expected: str, error: type[Exception] = ValueError):

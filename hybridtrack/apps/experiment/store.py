@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import uuid
 from collections.abc import Iterable, Iterator, Mapping
@@ -78,8 +79,8 @@ def _differences(recorded: Mapping[str, Any], wanted: Mapping[str, Any]) -> str:
     return "; ".join(f"{key}: folder has {recorded.get(key)!r}, asked {wanted.get(key)!r}" for key in keys)
 
 
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
+def _is_integer(value: Any, low: float = -math.inf) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= low
 
 
 def _check_manifest(data: Any) -> str | None:
@@ -87,11 +88,11 @@ def _check_manifest(data: Any) -> str | None:
     if not isinstance(data, dict):
         return f"expected a JSON object, got {type(data).__name__}"
     expected = {
-        "format": (_is_int, "an integer"),
+        "format": (_is_integer, "an integer"),
         "experiment": (lambda v: isinstance(v, str) and v != "", "a non-empty string"),
         "parameters": (lambda v: isinstance(v, dict), "an object"),
-        "seed": (lambda v: _is_int(v) and v >= 0, "a non-negative integer"),
-        "n": (lambda v: _is_int(v) and v >= 1, "a positive integer"),
+        "seed": (lambda v: _is_integer(v, 0), "a non-negative integer"),
+        "n": (lambda v: _is_integer(v, 1), "a positive integer"),
         "locator": (lambda v: v is None or isinstance(v, str), "a string or null"),
     }
     for key, (valid, what) in expected.items():
