@@ -56,13 +56,10 @@ _USER_FILE_ERRORS = (FileNotFoundError, PermissionError, IsADirectoryError, NotA
 
 def _option(convert: Callable[[str], float], check: Callable[[float], bool], expected: str) -> Callable[[str], float]:
     def parse(text: str):
-        try:
-            value = convert(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
-        if not check(value):
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
-        return value
+        with contextlib.suppress(ValueError):  # not a number
+            if check(value := convert(text)):
+                return value
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
 
     return parse
 
