@@ -1,14 +1,9 @@
 """The ``hybridtrack`` command line: ``hybridtrack <command> [options]``.
 
-Sub-commands come through the plugin hook ``register_commands(commands)``
-(:mod:`hybridtrack.core.commands`): ``commands.add(name, help, configure,
-run)``.  The built-in ones (``plugins``, ``simulate``, ``inspect``, ``run``,
-``track``) are one module each under :mod:`hybridtrack.cli`, listed in
-:data:`COMMAND_MODULES` and loaded before the entry-point plugins (so their
-names stay theirs, and disabling plugins never removes them); a third party
-adds one from its plugin module like any component.  A command's heavy
-imports belong inside its ``run`` function; ``hybridtrack --version`` is
-answered before any plugin is loaded, so it stays fast.
+Sub-commands come through the plugin hook ``register_commands`` (:mod:`hybridtrack.core.commands`).  The
+built-in ones are one module each, listed in :data:`COMMAND_MODULES` and loaded before the entry-point plugins
+(so their names stay theirs, and disabling plugins never removes them).  ``hybridtrack --version`` is answered
+before any plugin is loaded, so it stays fast.
 
 ``main(argv)`` returns the exit status instead of exiting, so tests call it in
 process; the console script ``hybridtrack`` is ``sys.exit(main())``.
@@ -61,13 +56,10 @@ _USER_FILE_ERRORS = (FileNotFoundError, PermissionError, IsADirectoryError, NotA
 
 def _option(convert: Callable[[str], float], check: Callable[[float], bool], expected: str) -> Callable[[str], float]:
     def parse(text: str):
-        try:
-            value = convert(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
-        if not check(value):
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
-        return value
+        with contextlib.suppress(ValueError):  # not a number
+            if check(value := convert(text)):
+                return value
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
 
     return parse
 
@@ -143,10 +135,7 @@ def _asks_version(argv: Sequence[str]) -> bool:
 def build_parser(available: dict[str, Command] | None = None) -> argparse.ArgumentParser:
     from hybridtrack import __version__
 
-    parser = _Parser(
-        prog="hybridtrack",
-        description="Estimation of hybrid (mode-switching) motion: plugins, simulations, detectors.",
-    )
+    parser = _Parser(prog="hybridtrack", description="Estimation of hybrid (mode-switching) motion: plugins, simulations, detectors.")
     parser.add_argument("--version", action="version", version=f"hybridtrack {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="<command>")
     for command in (commands() if available is None else available).values():

@@ -3,12 +3,9 @@
 EXPERIMENT is a registered name (``demo_rmse``), a script ``path/to/foo.py``
 defining ``EXPERIMENT``, or NAME for ``experiments/NAME.py`` in the working
 directory.  Prints the mean (and standard deviation) of every result over the
-runs, or with ``--json`` the same as JSON.  The options, the recordings and
-the storage: docs/experiments.md.
-
-Exit status: 0 done; 1 a run of the experiment failed (its traceback is
-printed; the runs before it are stored); 2 a user error, one line on stderr
-naming the option or file; 130 interrupted by Ctrl-C (the finished runs are stored).
+runs, or with ``--json`` the same as JSON.  The options, the exit statuses
+(0, 1 a run failed, 2 a user error, 130 Ctrl-C), the recordings and the
+storage: docs/experiments.md.
 """
 
 from __future__ import annotations

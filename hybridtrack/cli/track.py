@@ -1,13 +1,9 @@
 """``hybridtrack track FILE --config CONFIG.toml --out DIR [--id ID …]``: track every object of a position file.
 
-Runs the estimator configured in CONFIG (TOML: reader settings, measurement
-σ, prior, a registered algorithm with its modes — the schema is in
-``docs/real_data.md``, checked by :mod:`hybridtrack.apps.tracking`) on each
-object of FILE (or the objects named by ``--id``, repeatable) and writes
-``DIR/<id>.rrd``, ``DIR/<id>.npz`` and ``DIR/summary.json``
-(``{"objects": [{"id", "segments": [{"start", "end", "mode", "radius"}],
-"decisions": [{"time", "mode"}]}], "skipped": [{"id", "reason"}]}``).
-A progress bar over the objects goes to stderr (``--no-progress`` to hide it).
+Runs the estimator configured in CONFIG (checked by :mod:`hybridtrack.apps.tracking`) on each object of FILE
+(or the objects named by ``--id``, repeatable) and writes ``DIR/<id>.rrd``, ``DIR/<id>.npz`` and
+``DIR/summary.json`` (the configuration schema and the outputs: ``docs/real_data.md``).  A progress bar over
+the objects goes to stderr (``--no-progress`` to hide it).
 
 Exit status: 0 done; 2 a user error, one line on stderr (missing file or
 configuration, unknown key, bad value, unknown estimator kind or mode, an

@@ -22,6 +22,7 @@ attributes that let the checks build a component are listed in
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import functools
 from abc import ABC, abstractmethod
@@ -258,10 +259,8 @@ class TransitionBank:
     def stack(cls, transitions: Sequence[LinearTransition]) -> TransitionBank:
         root = None
         if len({t.Q.shape for t in transitions}) == 1:
-            try:
+            with contextlib.suppress(np.linalg.LinAlgError):
                 root = np.stack([t.G @ np.linalg.cholesky(t.Q) for t in transitions])
-            except np.linalg.LinAlgError:
-                root = None
         return cls(
             np.stack([t.F for t in transitions]),
             np.stack([t.B for t in transitions]),
@@ -388,6 +387,33 @@ class DetectorStep:
     decision: Any = None
 
 
+class DetectorBatch:
+    """R independent copies of one :class:`Detector` fed together.
+
+    ``step(step, runs, innovation)`` feeds the runs ``runs`` (U indices into
+    0 … R−1) the innovation of their stacked banks (U·M rows, row u·M + j is
+    filter j of run ``runs[u]``) and returns one :class:`DetectorStep` per run,
+    each equal to ``copies[r].step(step, <the rows of run r>)``.  This default
+    steps deep copies (``copies``, made on first use, also for a vectorized
+    batch that keeps its state otherwise) one by one.
+    """
+
+    def __init__(self, detector: Detector, runs: int):
+        self.detector = detector
+        self.runs = int(runs)
+
+    @functools.cached_property
+    def copies(self) -> list[Detector]:
+        return [copy.deepcopy(self.detector) for _ in range(self.runs)]
+
+    def step(self, step: int, runs: Sequence[int], innovation: Innovation) -> list[DetectorStep]:
+        size = np.shape(innovation.loglik)[0]
+        M = size // len(runs)
+        if len(runs) == 1:
+            return [self.copies[int(runs[0])].step(step, innovation)]
+        return [self.copies[int(r)].step(step, innovation.take(np.arange(u * M, (u + 1) * M), size)) for u, r in enumerate(runs)]
+
+
 class Detector(Labelled, ABC):
     """A sequential change detector fed one step at a time.
 
@@ -408,41 +434,17 @@ class Detector(Labelled, ABC):
     @abstractmethod
     def step(self, step: int, innovation: Innovation) -> DetectorStep: ...
 
+    #: what :meth:`batch` builds by default (the protocols of :mod:`hybridtrack.core.protocols` set their own)
+    batch_class: ClassVar[type[DetectorBatch]] = DetectorBatch
+
     def batch(self, runs: int) -> DetectorBatch:
         """``runs`` independent copies of this detector fed together (Monte Carlo runs stacked in one bank).
 
         The one batching protocol (its specialisations and callers: ``docs/plugins.md`` §1).  Optional: the
-        default steps deep copies one by one; a class may return a vectorized batch whose outputs equal the copies'.
+        default, ``batch_class(self, runs)``, steps deep copies one by one; a class may return a vectorized batch
+        whose outputs equal the copies'.
         """
-        return DetectorBatch(self, runs)
-
-
-class DetectorBatch:
-    """R independent copies of one :class:`Detector` fed together.
-
-    ``step(step, runs, innovation)`` feeds the runs ``runs`` (U indices into
-    0 … R−1) the innovation of their stacked banks (U·M rows, row u·M + j is
-    filter j of run ``runs[u]``) and returns one :class:`DetectorStep` per run,
-    each equal to ``copies[r].step(step, <the rows of run r>)``.  This default
-    keeps deep copies (``copies``) and steps them one by one; a vectorized
-    batch that keeps its state otherwise gets the copies on first use.
-    """
-
-    def __init__(self, detector: Detector, runs: int):
-        self.detector = detector
-        self.runs = int(runs)
-        self.copies = [copy.deepcopy(detector) for _ in range(self.runs)]
-
-    @functools.cached_property
-    def copies(self) -> list[Detector]:
-        return [copy.deepcopy(self.detector) for _ in range(self.runs)]
-
-    def step(self, step: int, runs: Sequence[int], innovation: Innovation) -> list[DetectorStep]:
-        size = np.shape(innovation.loglik)[0]
-        M = size // len(runs)
-        if len(runs) == 1:
-            return [self.copies[int(runs[0])].step(step, innovation)]
-        return [self.copies[int(r)].step(step, innovation.take(np.arange(u * M, (u + 1) * M), size)) for u, r in enumerate(runs)]
+        return self.batch_class(self, runs)
 
 
 # --------------------------------------------------------------------------- solvers

@@ -1,15 +1,10 @@
-"""Plugin loading on pluggy.
-
-Plugins are modules (or objects) with :data:`hybridtrack.hookimpl` functions, found through the ``hybridtrack``
-entry-point group; the built-ins (each module of ``hybridtrack_plugins``, :mod:`hybridtrack.algorithms.registration`)
-are declared there by this project's own ``pyproject.toml``, exactly like a third-party package, and load first, so
-a name taken by a built-in stays the built-in's.  Every kind of :data:`hybridtrack.core.kinds.KINDS` registers
-through its hook, sub-commands through ``register_commands``.  Loading isolates faults (import errors of any
-``BaseException`` but ``KeyboardInterrupt``, misspelt hooks, failing hooks, taken names, classes not implementing
-their kind's interface: a :class:`PluginWarning` naming the plugin and its distribution, the others still load), and
-``HYBRIDTRACK_DISABLE_PLUGINS`` blocks plugins by entry-point name, family or distribution: ``docs/plugins.md`` §3
-and §6.  A factory (not a class) returning the wrong type is caught at first use (:func:`resolve`,
-:func:`check_component`) by a TypeError naming the plugin and distribution.
+"""Plugin loading on pluggy: modules (or objects) with :data:`hybridtrack.hookimpl` functions from the ``hybridtrack``
+entry-point group, this project's own first (so a built-in's name stays its own), each kind of
+:data:`hybridtrack.core.kinds.KINDS` through its hook, sub-commands through ``register_commands``.  Faults are isolated
+(any ``BaseException`` but ``KeyboardInterrupt``: a :class:`PluginWarning` naming the plugin and its distribution,
+the others still load), ``HYBRIDTRACK_DISABLE_PLUGINS`` blocks plugins by entry-point name, family or distribution,
+and a factory returning the wrong type is caught at first use (:func:`resolve`, :func:`check_component`) by a
+TypeError naming the plugin and distribution: ``docs/plugins.md`` §3, §4, §6.
 """
 
 from __future__ import annotations
@@ -113,11 +108,11 @@ def load_plugins(
     own = [PluginInfo(getattr(obj, "__name__", None) or type(obj).__name__) for obj in builtins]
     for obj, info in zip(builtins, own):
         register(obj, info, from_code=True)
-    extra = list(extra)
+    extra = [(getattr(obj, "__name__", None) or type(obj).__name__, obj) for obj in extra]
     points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_load_order)
     known = {point.name for point in points} | {_family(point.name) for point in points}
     known |= {point.dist.name for point in points if getattr(point, "dist", None)}
-    known |= {getattr(obj, "__name__", None) or type(obj).__name__ for obj in extra}
+    known |= {name for name, _ in extra}
     if blocked - known:
         report(
             f"{DISABLE_ENV if disabled is None else 'disabled'}: no installed plugin or distribution is named"
@@ -143,8 +138,7 @@ def load_plugins(
                 continue
             register(obj, info, from_code=False)
 
-    for obj in extra:
-        name = getattr(obj, "__name__", None) or type(obj).__name__
+    for name, obj in extra:
         if name not in blocked:
             register(obj, PluginInfo(name), from_code=True)
 

@@ -5,9 +5,9 @@
 * :class:`HypothesisTest` — the sequential test of Algorithm 1 (known switch
   times) over a fixed bank, and :class:`ChangeTimeTest`, the test of
   Algorithm 3 (unknown change time) over a growing bank;
-* their batches (:meth:`~hybridtrack.core.interfaces.Detector.batch`, the one
-  batching protocol of every detector): R independent copies fed together,
-  looped by default, vectorized where a class overrides ``batch``;
+* their batches (``batch_class``, built by :meth:`~hybridtrack.core.interfaces.Detector.batch`,
+  the one batching protocol of every detector): R independent copies fed
+  together, looped by default, vectorized where a class overrides ``batch``;
 * :class:`Association` and :class:`ClutterInnovation` — what a clutter-aware
   update did with each scan.
 
@@ -88,29 +88,6 @@ class ClutterInnovation(Innovation):
 # --------------------------------------------------------------------------- detectors the algorithms call
 
 
-class ScoreDetector(Detector):
-    """A detector that reads only per-filter scores: ℓ (M,), NIS (M,) and m.
-
-    ``observe(step, loglik, nis, m)`` is the entry point; ``step`` calls it
-    with the innovation's scores.  The same detector then runs on the scores
-    a node of a decentralized filter computes locally
-    (:meth:`Estimator.node_scores`), so the adaptive estimators run one copy
-    per node.
-    """
-
-    def step(self, step: int, innovation: Innovation) -> DetectorStep:
-        return self.observe(step, np.asarray(innovation.loglik, float), np.asarray(innovation.nis, float), innovation.measurement_dim)
-
-    @abstractmethod
-    def observe(self, step: int, loglik: np.ndarray, nis: np.ndarray, m: int) -> DetectorStep:
-        """Consume one step's scores: ℓ (M,), NIS (M,), m (0 = no measurement this step)."""
-
-    def batch(self, runs: int) -> ScoreDetectorBatch:
-        """``runs`` copies of this detector fed together (:meth:`Detector.batch`): :class:`ScoreDetectorBatch`,
-        which a class may subclass to vectorize :meth:`ScoreDetectorBatch.observe` over the runs."""
-        return ScoreDetectorBatch(self, runs)
-
-
 class ScoreDetectorBatch(DetectorBatch):
     """R copies of one :class:`ScoreDetector` fed their scores: ``observe(step, runs, loglik (U, M), nis (U, M), m)``
     (m shared: the runs of one call measured the same components) returns one DetectorStep per run, each equal to
@@ -129,31 +106,24 @@ class ScoreDetectorBatch(DetectorBatch):
         return [self.copies[int(r)].observe(step, loglik[u], nis[u], m) for u, r in enumerate(runs)]
 
 
-class HypothesisTest(ScoreDetector):
-    """A sequential test between the hypotheses of a fixed bank (seed 001 Algorithm 1 drives one).
+class ScoreDetector(Detector):
+    """A detector that reads only per-filter scores: ℓ (M,), NIS (M,) and m.
 
-    Declared attributes, read and set by the driver:
-
-    * ``hypotheses`` (tuple of names, one per filter, or None) — set before
-      :meth:`reset` at every switching moment;
-    * ``decided`` — index of the accepted hypothesis once the test has
-      decided (the step's ``DetectorStep.decision`` is set then), else None;
-    * ``upper``, ``lower`` — the thresholds A and B (recorded beside ln λ).
-
-    ``observe`` reports ``statistics["log_ratio"]`` (M,) and may report
-    ``statistics["active"]`` (M,), 1 for the hypotheses still in play.
+    ``observe(step, loglik, nis, m)`` is the entry point; ``step`` calls it
+    with the innovation's scores.  The same detector then runs on the scores
+    a node of a decentralized filter computes locally
+    (:meth:`Estimator.node_scores`), so the adaptive estimators run one copy
+    per node.
     """
 
-    declared_attributes: ClassVar[tuple[str, ...]] = ("hypotheses", "decided", "upper", "lower")
-    hypotheses: tuple[str, ...] | None = None
-    decided: int | None = None
-    upper: float
-    lower: float
+    batch_class = ScoreDetectorBatch
 
-    def batch(self, runs: int) -> HypothesisTestBatch:
-        """``runs`` copies of this test fed together (:meth:`Detector.batch`): looped deep copies,
-        :class:`HypothesisTestBatch`, unless a test vectorizes it (``sprt_pairwise``)."""
-        return HypothesisTestBatch(self, runs)
+    def step(self, step: int, innovation: Innovation) -> DetectorStep:
+        return self.observe(step, np.asarray(innovation.loglik, float), np.asarray(innovation.nis, float), innovation.measurement_dim)
+
+    @abstractmethod
+    def observe(self, step: int, loglik: np.ndarray, nis: np.ndarray, m: int) -> DetectorStep:
+        """Consume one step's scores: ℓ (M,), NIS (M,), m (0 = no measurement this step)."""
 
 
 @attrs.frozen(eq=False)
@@ -202,53 +172,27 @@ class HypothesisTestBatch(DetectorBatch):
         return BatchStep(ratio, active, decided, tuple(decisions))
 
 
-class ChangeTimeTest(HypothesisTest):
-    """A test for a change at an unknown time over a growing bank (seed 000 Algorithm 3 drives one).
+class HypothesisTest(ScoreDetector):
+    """A sequential test between the hypotheses of a fixed bank (seed 001 Algorithm 1 drives one).
 
-    Row 0 of the bank is the current mode; the driver starts one filter per
-    alternative at every step and tells the test with :meth:`add`; rows
-    1 … E of each innovation are those entries in the order added.
+    Declared attributes, read and set by the driver:
 
-    Besides :class:`HypothesisTest`'s attributes (``hypotheses[0]`` is the
-    current mode; ``decided`` is the alternative p ≥ 1 on a change, 0 on "no
-    change"): ``alpha``, ``beta`` (error probabilities), ``pruning`` (one of
-    :data:`PRUNING_RULES`), ``starts`` (E,) the change step of each entry,
-    ``chosen_entry`` (the entry followed after a change).
+    * ``hypotheses`` (tuple of names, one per filter, or None) — set before
+      :meth:`reset` at every switching moment;
+    * ``decided`` — index of the accepted hypothesis once the test has
+      decided (the step's ``DetectorStep.decision`` is set then), else None;
+    * ``upper``, ``lower`` — the thresholds A and B (recorded beside ln λ).
+
+    ``observe`` reports ``statistics["log_ratio"]`` (M,) and may report
+    ``statistics["active"]`` (M,), 1 for the hypotheses still in play.
     """
 
-    PRUNING_RULES: ClassVar[tuple[str, ...]] = ("oldest", "nearest_lower")
-    declared_attributes: ClassVar[tuple[str, ...]] = HypothesisTest.declared_attributes + (
-        "alpha",
-        "beta",
-        "pruning",
-        "starts",
-        "chosen_entry",
-    )
-    alpha: float
-    beta: float
-    pruning: str
-    starts: np.ndarray
-    chosen_entry: int | None = None
-
-    @abstractmethod
-    def add(self, modes: Sequence[int], start: int) -> None:
-        """Append one entry per alternative in ``modes`` (1 … M−1) hypothesising the change at ``start``."""
-
-    @abstractmethod
-    def keep(self, rows: Sequence[int]) -> None:
-        """Keep only the entries ``rows`` (indices into the entries, in order)."""
-
-    @abstractmethod
-    def prune(self, bank_size: int | None = None) -> np.ndarray:
-        """Bound the entries to ``bank_size`` by the pruning rule; return the entry rows kept."""
-
-    @abstractmethod
-    def log_ratios(self) -> np.ndarray:
-        """ln λ_p for each alternative p = 1 … M−1."""
-
-    def batch(self, runs: int) -> ChangeTimeTestBatch:
-        """As :meth:`HypothesisTest.batch`: :class:`ChangeTimeTestBatch`, vectorized by ``sprt_unknown_change``."""
-        return ChangeTimeTestBatch(self, runs)
+    batch_class = HypothesisTestBatch
+    declared_attributes: ClassVar[tuple[str, ...]] = ("hypotheses", "decided", "upper", "lower")
+    hypotheses: tuple[str, ...] | None = None
+    decided: int | None = None
+    upper: float
+    lower: float
 
 
 @attrs.frozen(eq=False)
@@ -321,3 +265,49 @@ class ChangeTimeTestBatch(DetectorBatch):
             keep[r] = np.zeros(keep[r].size, dtype=bool)
             keep[r][rows] = True
         return np.concatenate(keep) if keep else np.zeros(0, dtype=bool)
+
+
+class ChangeTimeTest(HypothesisTest):
+    """A test for a change at an unknown time over a growing bank (seed 000 Algorithm 3 drives one).
+
+    Row 0 of the bank is the current mode; the driver starts one filter per
+    alternative at every step and tells the test with :meth:`add`; rows
+    1 … E of each innovation are those entries in the order added.
+
+    Besides :class:`HypothesisTest`'s attributes (``hypotheses[0]`` is the
+    current mode; ``decided`` is the alternative p ≥ 1 on a change, 0 on "no
+    change"): ``alpha``, ``beta`` (error probabilities), ``pruning`` (one of
+    :data:`PRUNING_RULES`), ``starts`` (E,) the change step of each entry,
+    ``chosen_entry`` (the entry followed after a change).
+    """
+
+    batch_class = ChangeTimeTestBatch
+    PRUNING_RULES: ClassVar[tuple[str, ...]] = ("oldest", "nearest_lower")
+    declared_attributes: ClassVar[tuple[str, ...]] = HypothesisTest.declared_attributes + (
+        "alpha",
+        "beta",
+        "pruning",
+        "starts",
+        "chosen_entry",
+    )
+    alpha: float
+    beta: float
+    pruning: str
+    starts: np.ndarray
+    chosen_entry: int | None = None
+
+    @abstractmethod
+    def add(self, modes: Sequence[int], start: int) -> None:
+        """Append one entry per alternative in ``modes`` (1 … M−1) hypothesising the change at ``start``."""
+
+    @abstractmethod
+    def keep(self, rows: Sequence[int]) -> None:
+        """Keep only the entries ``rows`` (indices into the entries, in order)."""
+
+    @abstractmethod
+    def prune(self, bank_size: int | None = None) -> np.ndarray:
+        """Bound the entries to ``bank_size`` by the pruning rule; return the entry rows kept."""
+
+    @abstractmethod
+    def log_ratios(self) -> np.ndarray:
+        """ln λ_p for each alternative p = 1 … M−1."""

@@ -116,14 +116,13 @@ def check_positive_int(value, name: str, minimum: int = 1, what: str | None = No
 def check_positive(value, name: str, what: str | None = None) -> float:
     """``value`` as a positive finite float, else a ValueError naming ``name`` (and saying ``what`` the value
     is, when given)."""
-    if what is not None:
-        message = f"{name}: expected a finite number > 0 ({what}), got {value!r}"
+    expected = "a positive finite number" if what is None else f"a finite number > 0 ({what})"
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise ValueError(message if what is not None else f"{name}: expected a positive number, got {value!r}") from None
+        raise ValueError(f"{name}: expected {'a positive number' if what is None else expected}, got {value!r}") from None
     if not (np.isfinite(number) and number > 0):
-        raise ValueError(message if what is not None else f"{name}: expected a positive finite number, got {value!r}")
+        raise ValueError(f"{name}: expected {expected}, got {value!r}")
     return number
 
 

@@ -8,11 +8,8 @@ attrs class whose per-filter arrays are :func:`bank_field` s; ``take`` and
 ``concatenate`` (the bank operations of the
 :class:`~hybridtrack.core.interfaces.Estimator` contract) then work on the state's
 own form — square-root factors and per-node copies are selected and joined,
-never rebuilt from (x, P).
-
-Every state of this family exposes per filter ``mean`` (M, n), ``covariance`` (M, n, n) (the current estimate),
-``predicted_mean`` / ``predicted_covariance`` (the last prediction's) and ``innovation`` (ν, S, ℓ, NIS of the last
-update; None after ``predict`` or ``initialize``).
+never rebuilt from (x, P).  What every state exposes (``mean``, ``covariance``, the prediction's, ``innovation``):
+``docs/estimators.md``, "What every estimator gives".
 """
 
 from __future__ import annotations
@@ -136,14 +133,9 @@ def empty_innovation(bank_size: int) -> Innovation:
 
 
 def guarded(method: Callable) -> Callable:
-    """Run an estimator's ``predict``/``update`` with numpy's floating-point warnings silenced.
-
-    An overflow or invalid operation inside the step then leaves inf/NaN in
-    its outputs, which the step's :meth:`BankEstimator.check_finite` call (and,
-    for ``update``, the check of the returned innovation's ℓ and NIS here)
-    turns into a ValueError naming what overflowed — never NaN/inf results
-    with a RuntimeWarning.
-    """
+    """Run an estimator's ``predict``/``update`` under ``np.errstate`` (docs/estimators.md, "Numerics"): the inf/NaN
+    of an overflow become, through :meth:`BankEstimator.check_finite` (and, for ``update``, the check of the
+    returned ℓ and NIS here), a ValueError naming what overflowed."""
 
     @functools.wraps(method)
     def run(self, *args, **kwargs):
@@ -233,16 +225,10 @@ class BankEstimator(Estimator):
         return transitions
 
     def check_finite(self, stage: str, **arrays: np.ndarray) -> None:
-        """The arrays a step produced (keyword: what they are, e.g. ``predicted_covariance=P``) are finite.
-
-        One BLAS dot a·a per array on the hot path (NaN/inf whenever an entry
-        is; call it inside a :func:`guarded` method, whose ``np.errstate`` keeps
-        that quiet); only then are the entries searched (a dot that overflowed
-        on finite entries finds nothing and the step goes on), and a ValueError names
-        the first non-finite quantity, its value and index, and says that the
-        values exceed the float64 arithmetic of the filter.  ``stage`` is
-        ``"predict"`` or ``"update"``.
-        """
+        """The arrays a step produced (keyword: what they are, e.g. ``predicted_covariance=P``) are finite, else a
+        ValueError naming the first non-finite quantity, its value and index (``stage``: ``"predict"`` or
+        ``"update"``).  One BLAS dot a·a per array (call it inside a :func:`guarded` method); the entries are
+        searched only when a dot is not finite (an overflow of the dot on finite entries finds nothing)."""
         for array in arrays.values():
             flat = array.reshape(-1)
             # chunks of ≤ 8192 entries: OpenBLAS threads a longer dot, which stalls on a loaded machine

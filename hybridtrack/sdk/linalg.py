@@ -1,9 +1,8 @@
-"""Batched small-matrix linear algebra shared by the filter plugins.
+"""Batched small-matrix linear algebra shared by the filter plugins (docs/estimators.md, "Linear algebra").
 
-Everything works on stacks: a matrix argument has shape (..., m, m), a vector
-(..., m).  Solves go through a Cholesky factor (for small m the recurrences
-written out, one vectorized operation per entry over the whole stack; LAPACK
-for larger m); nothing calls ``inv`` (ARCHITECTURE.md, "The hot path").  A matrix that should be positive definite and is not raises
+Everything works on stacks: a matrix argument has shape (..., m, m), a vector (..., m).  Solves go through a
+Cholesky factor (for small m the recurrences written out, one vectorized operation per entry over the whole stack;
+LAPACK for larger m); nothing calls ``inv``.  A matrix that should be positive definite and is not raises
 :class:`numpy.linalg.LinAlgError` naming which one.
 """
 
@@ -121,13 +120,12 @@ class CholeskyFactor:
       NIS = ν₀²/a + r² a / det S with r = ν₁ − (b/a) ν₀ (= |L⁻¹ν|², a sum of
       non-negative terms), ln det S = ln(a c − b²).
 
-    For 2 < m ≤ ``SMALL_CHOLESKY`` the factor is kept as its entries
-    (stack-shaped arrays, from the recurrence of :func:`cholesky`) and, entry by
-    entry over the stack, (L⁻¹)_ii = 1 / L_ii,
+    For 2 < m ≤ ``SMALL_CHOLESKY`` the factor of :func:`cholesky` (its
+    recurrence) and, entry by entry over the stack, (L⁻¹)_ii = 1 / L_ii,
     (L⁻¹)_ij = −(Σ_{j≤k<i} L_ik (L⁻¹)_kj) / L_ii (i > j),
-    (S⁻¹)_ij = Σ_{k ≥ max(i, j)} (L⁻¹)_ki (L⁻¹)_kj (exactly symmetric), and w,
-    NIS, ln det S = 2 Σ ln L_ii as above.  Larger m: LAPACK's factor,
-    :func:`cholesky_solve` on the identity and :func:`gaussian_scores`.
+    (S⁻¹)_ij = Σ_{k ≥ max(i, j)} (L⁻¹)_ki (L⁻¹)_kj (exactly symmetric).  Larger m:
+    LAPACK's factor and :func:`cholesky_solve` on the identity.  For m > 2 the scores are
+    :func:`gaussian_scores`.
     """
 
     def __init__(self, S: np.ndarray, what: str = "matrix"):
@@ -147,19 +145,14 @@ class CholeskyFactor:
                 bad = ~(a > 0)
                 raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(bad)[0])})")
             self.kind = "closed"
-        elif 0 < m <= SMALL_CHOLESKY:
-            self.entries, ok = _cholesky_entries(S)
-            if not ok.all():
-                raise np.linalg.LinAlgError(f"{what} is not positive definite (stack index {tuple(int(i) for i in np.argwhere(~ok)[0])})")
-            self.kind = "entries"
         else:
             self._L = cholesky(S, what)
-            self.kind = "lapack"
+            self.kind = "entries" if m <= SMALL_CHOLESKY else "lapack"
 
     @property
     def L(self) -> np.ndarray:
         if self._L is None:
-            self._L = _assemble(self._closed_entries() if self.kind == "closed" else self.entries, self.shape)
+            self._L = _assemble(self._closed_entries(), self.shape)
         return self._L
 
     def _closed_entries(self):
@@ -186,15 +179,15 @@ class CholeskyFactor:
             return S_inv
         if self.kind == "lapack":
             return cholesky_solve(self._L, np.broadcast_to(np.eye(m), self.shape))
-        entries = self.entries
+        L = self._L
         inv = [[None] * m for _ in range(m)]
         for i in range(m):
-            inv[i][i] = 1.0 / entries[i][i]
+            inv[i][i] = 1.0 / L[..., i, i]
             for j in range(i - 1, -1, -1):
-                acc = entries[i][j] * inv[j][j]
+                acc = L[..., i, j] * inv[j][j]
                 for k in range(j + 1, i):
-                    acc = acc + entries[i][k] * inv[k][j]
-                inv[i][j] = -acc / entries[i][i]
+                    acc = acc + L[..., i, k] * inv[k][j]
+                inv[i][j] = -acc / L[..., i, i]
         S_inv = np.empty(self.shape)
         for i in range(m):
             for j in range(i, m):
@@ -208,31 +201,17 @@ class CholeskyFactor:
 
     def scores(self, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(ℓ, NIS) of ν (..., m) as :func:`gaussian_scores`."""
-        m = self.shape[-1]
-        if self.kind == "lapack":
-            return gaussian_scores(nu, self._L)
-        if self.kind == "closed":  # S = U D Uᵀ: NIS = ν₀²/a + r²/(det S / a), r = ν₁ − (b/a) ν₀
-            S, nu0 = self.S, nu[..., 0]
-            t = nu0 / S[..., 0, 0]
-            nis = nu0 * t
-            if m == 2:
-                r = nu[..., 1] - S[..., 1, 0] * t
-                nis += S[..., 0, 0] * (r * r) / self.det
-            return -0.5 * (m * LOG_2PI + np.log(self.det) + nis), nis
-        entries = self.entries
-        log_det = np.log(entries[0][0])
-        for i in range(1, m):
-            log_det += np.log(entries[i][i])
-        log_det *= 2.0
-        w = []
-        for i in range(m):
-            acc = nu[..., i]
-            for j in range(i):
-                acc = acc - entries[i][j] * w[j]
-            w.append(acc / entries[i][i])
-            nis = w[i] * w[i] if i == 0 else nis + w[i] * w[i]
-        loglik = -0.5 * (m * LOG_2PI + log_det + nis)
-        return loglik, nis
+        if self.kind != "closed":  # ν and L broadcast to one stack shape
+            lead = np.broadcast_shapes(self.shape[:-2], nu.shape[:-1])
+            return gaussian_scores(np.broadcast_to(nu, lead + nu.shape[-1:]), np.broadcast_to(self._L, lead + self.shape[-2:]))
+        m = self.shape[-1]  # S = U D Uᵀ: NIS = ν₀²/a + r²/(det S / a), r = ν₁ − (b/a) ν₀
+        S, nu0 = self.S, nu[..., 0]
+        t = nu0 / S[..., 0, 0]
+        nis = nu0 * t
+        if m == 2:
+            r = nu[..., 1] - S[..., 1, 0] * t
+            nis += S[..., 0, 0] * (r * r) / self.det
+        return -0.5 * (m * LOG_2PI + np.log(self.det) + nis), nis
 
 
 def forward_substitute(L: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -13,9 +13,7 @@ measurement space, per step) and V the volume of the surveillance region, a
 box [low, high] in measurement coordinates.
 
 The clutter-aware estimators (``nearest_neighbour``, ``pda``) accept a :class:`Scan` (or, stacked runs, a
-:class:`RowScan`) per sensor in place of the stacked z of :meth:`Estimator.update`.  Sequences of scans over steps
-and the clutter simulator are :mod:`hybridtrack.engine.clutter`; the recording of scans and associations
-:mod:`hybridtrack.recording.clutter`.
+:class:`RowScan`) per sensor in place of the stacked z of :meth:`Estimator.update` (docs/clutter.md).
 """
 
 from __future__ import annotations

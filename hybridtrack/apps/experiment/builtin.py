@@ -2,7 +2,7 @@
 
 One run simulates Table 1 of seed 001 (L3 R5 S L3 S L4, 360 steps) from
 x0 = [0, 0, 0, 2] with Q = q·I₂ and a position sensor with R = r·I₂, runs the
-known-modes filter (:func:`hybridtrack.algorithms.known_modes.run_known_modes`, prior
+known-modes filter (:class:`hybridtrack.algorithms.known_modes.KnownModes`, prior
 N(x0, I)) and returns, per state component (x, vx, y, vy), the sum over the steps
 k = 1 … K of the squared error, K, the run's nRMSE and mean NIS.
 Pooling ``squared_error`` over runs gives seed 001's RMSE_i = √(mean over runs
@@ -10,8 +10,6 @@ and steps of (x_i − x̂_i)²) exactly (:func:`pooled_rmse`).
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 
@@ -81,27 +79,22 @@ def squared_errors(means: np.ndarray, truth, layout) -> np.ndarray:
     return np.sum(error**2, axis=0)
 
 
-def _known_modes_options(q: float, tau: float, estimator: str) -> dict[str, Any]:
-    """The settings of seed 001's optimal KF: prior N(x0, I), Q = q·I₂."""
-    return dict(estimator=estimator, prior=seed001_prior(), tau=tau, noise_cov=float(q) * np.eye(2))
+def _known_modes(schedule: Schedule, sensors, q: float, tau: float, estimator: str):
+    """Seed 001's optimal KF (``KnownModes``, Q = q·I₂) on ``schedule``; it runs from :func:`seed001_prior`."""
+    from hybridtrack.algorithms.known_modes import KnownModes
+
+    return KnownModes(schedule=schedule, sensors=sensors, estimator=estimator, tau=tau, noise_cov=float(q) * np.eye(2))
 
 
 def known_modes_estimate(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman", recorder=None):
     """The optimal KF of seed 001 (told the modes; prior N(x0, I)) on one run's measurements."""
-    from hybridtrack.algorithms.known_modes import run_known_modes
-
-    options = _known_modes_options(q, tau, estimator)
-    return run_known_modes(schedule, sensors=sensors, measurements=measurements, recorder=recorder, **options)
+    return _known_modes(schedule, sensors, q, tau, estimator).run(measurements, seed001_prior(), recorder=recorder)
 
 
 def known_modes_estimate_batch(schedule: Schedule, sensors, measurements, *, q: float, tau: float, estimator: str = "kalman"):
     """:func:`known_modes_estimate` of many runs at once (``measurements`` name → (runs, K+1, m)) as one stacked
     bank (``KnownModes.run_batch``): one run result per run, equal to the per-run ones to rounding."""
-    from hybridtrack.algorithms.known_modes import KnownModes
-
-    options = _known_modes_options(q, tau, estimator)
-    prior = options.pop("prior")
-    return KnownModes(schedule=schedule, sensors=sensors, **options).run_batch(measurements, prior)
+    return _known_modes(schedule, sensors, q, tau, estimator).run_batch(measurements, seed001_prior())
 
 
 def pooled_rmse(squared_error: np.ndarray, steps: np.ndarray) -> np.ndarray:

@@ -4,13 +4,10 @@
     result = campaign.run()              # computes only the runs missing from runs/demo
     result.arrays["rmse"]                # (200,) ordered by run index
 
-Run ``i`` always gets child ``i`` of ``SeedSequence(seed)``
-(:mod:`~hybridtrack.apps.experiment.worker`), so the arrays do not depend on the
-executor, the chunk size or interruptions.  Every finished chunk is stored at
-once (:mod:`~hybridtrack.apps.experiment.store`), under the folder's lock.  A
-failing run stops the campaign with :class:`RunFailed`, Ctrl-C with
-:class:`CampaignInterrupted`, both after the runs finished before are stored;
-running the campaign again resumes.
+Run ``i`` always gets child ``i`` of ``SeedSequence(seed)`` (:func:`~hybridtrack.apps.experiment.worker.run_seed`);
+each finished chunk is stored at once (:mod:`~hybridtrack.apps.experiment.store`); a failing run stops the
+campaign with :class:`RunFailed`, Ctrl-C with :class:`CampaignInterrupted`, both after the finished runs are
+stored; running it again resumes (docs/experiments.md).
 """
 
 from __future__ import annotations
@@ -26,7 +23,7 @@ import numpy as np
 
 from hybridtrack.apps.experiment.definition import Experiment, load_experiment
 from hybridtrack.apps.experiment.executors import CONNECT_TIMEOUT, EXECUTORS, check_scheduler_address, make_executor
-from hybridtrack.apps.experiment.store import ResultStore
+from hybridtrack.apps.experiment.store import ResultStore, _is_integer
 from hybridtrack.apps.experiment.worker import run_chunk
 
 
@@ -42,10 +39,6 @@ class CampaignInterrupted(KeyboardInterrupt):
             f"interrupted: {stored} of {n} runs stored in {out} ({computed} computed by this call); run the same campaign again to resume"
         )
         self.out, self.n, self.stored, self.computed = out, n, stored, computed
-
-
-def _is_integer(value, low: int) -> bool:
-    return not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= low
 
 
 def _valid(test, expected: str, error: type[Exception] = ValueError):

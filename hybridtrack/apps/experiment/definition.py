@@ -1,16 +1,10 @@
 """What a Monte Carlo experiment is, and how a name or a path becomes one.
 
-An :class:`Experiment` is a name, a function ``run_one(index, rng, **parameters)``
-returning one run's results (a mapping name → float or array, the same names
-and shapes for every run) and default ``parameters``; ``run_one`` draws all its
-randomness from ``rng``, the generator of run ``index``.  An optional
-``run_batch(indices, rngs, **parameters)`` runs a chunk at once with the same
-per-run generators and must give ``run_one``'s results (docs/experiments.md,
-"Batched experiments").
-
-Worker processes receive not the function but a *locator* string they resolve
-on their side, so an experiment defined in a script that is not an importable
-module still runs there:
+An :class:`Experiment` is a name, ``run_one(index, rng, **parameters)`` (one run's results, name → float or
+array with the same names and shapes in every run, all randomness drawn from ``rng``), default ``parameters`` and
+optionally ``run_batch(indices, rngs, **parameters)`` giving ``run_one``'s results for a chunk at once
+(docs/experiments.md).  Workers receive not the function but a *locator* string they resolve on their side (so a
+script that is not an importable module runs):
 
 * ``"package.module:ATTRIBUTE"`` — an importable module's attribute;
 * ``"/path/to/script.py"`` (or ``"/path/to/script.py:ATTRIBUTE"``) — a file

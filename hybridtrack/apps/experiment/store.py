@@ -7,21 +7,17 @@ Layout of ``OUT/``::
     runs-0000000-0000019.npz       arrays "index" (c,), "__campaign__" and one (c, …) array per result name
     set_aside/                     unusable files moved away by ``set_aside=True`` (``--set-aside``)
 
-Every file is written to a temporary name in the same folder, flushed and
-renamed over its final name (atomic on POSIX), so a killed campaign leaves
-only complete chunk files plus perhaps a ``*.tmp-*`` file, which
-:meth:`ResultStore.open` deletes; the chunk files are the record of which runs
-are done.  One campaign at a time writes to a folder (:meth:`ResultStore.locked`).
-Every chunk records its campaign's identity (format, experiment, parameters,
-seed) as the JSON text array ``__campaign__``, and every file read is checked
-(:class:`CorruptResults`, :class:`CampaignMismatch`; the rules: docs/experiments.md,
-"Storage and resumption").
+Writes are atomic (a ``*.tmp-*`` file renamed; :meth:`ResultStore.open` deletes leftovers), one campaign at a
+time (:meth:`ResultStore.locked`); every chunk records its campaign's identity (format, experiment, parameters,
+seed) as the JSON text ``__campaign__`` and every file read is checked (:class:`CorruptResults`,
+:class:`CampaignMismatch`): docs/experiments.md, "Storage and resumption".
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import uuid
 from collections.abc import Iterable, Iterator, Mapping
@@ -83,8 +79,8 @@ def _differences(recorded: Mapping[str, Any], wanted: Mapping[str, Any]) -> str:
     return "; ".join(f"{key}: folder has {recorded.get(key)!r}, asked {wanted.get(key)!r}" for key in keys)
 
 
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
+def _is_integer(value: Any, low: float = -math.inf) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= low
 
 
 def _check_manifest(data: Any) -> str | None:
@@ -92,11 +88,11 @@ def _check_manifest(data: Any) -> str | None:
     if not isinstance(data, dict):
         return f"expected a JSON object, got {type(data).__name__}"
     expected = {
-        "format": (_is_int, "an integer"),
+        "format": (_is_integer, "an integer"),
         "experiment": (lambda v: isinstance(v, str) and v != "", "a non-empty string"),
         "parameters": (lambda v: isinstance(v, dict), "an object"),
-        "seed": (lambda v: _is_int(v) and v >= 0, "a non-negative integer"),
-        "n": (lambda v: _is_int(v) and v >= 1, "a positive integer"),
+        "seed": (lambda v: _is_integer(v, 0), "a non-negative integer"),
+        "n": (lambda v: _is_integer(v, 1), "a positive integer"),
         "locator": (lambda v: v is None or isinstance(v, str), "a string or null"),
     }
     for key, (valid, what) in expected.items():
@@ -236,14 +232,7 @@ class ResultStore:
         return None
 
     def open(
-        self,
-        *,
-        experiment: str,
-        locator: str | None,
-        parameters: Mapping[str, Any],
-        seed: int,
-        n: int,
-        set_aside: bool = False,
+        self, *, experiment: str, locator: str | None, parameters: Mapping[str, Any], seed: int, n: int, set_aside: bool = False
     ) -> np.ndarray:
         """Create the folder or check that it holds the same campaign; drop leftovers of a killed write.
 

@@ -1,17 +1,7 @@
-"""What runs on a worker: a chunk of runs of one experiment, each with its own seed.
-
-Run ``i`` of a campaign seeded ``seed`` uses ``numpy.random.default_rng(
-SeedSequence(seed, spawn_key=(i,)))`` — exactly the ``i``-th child of
-``SeedSequence(seed).spawn(n)`` for any n > i, computed without spawning the
-others — so its numbers do not depend on the executor, the chunking or the
-resume order.
-
-A chunk stops at the first failing run (or Ctrl-C) and returns the runs
-finished before it with the failure (or ``interrupted``), so the campaign can
-store them first.  An experiment with ``run_batch`` gets the chunk as one batch;
-when the batch raises, the chunk is run again with ``run_one`` to name the
-failing run (docs/experiments.md, "Batched experiments").  Process-pool workers
-start with :func:`worker_init`.
+"""What runs on a worker: a chunk of runs of one experiment, run ``i`` seeded by :func:`run_seed` (docs/experiments.md,
+"Seeds").  A chunk stops at the first failing run (or Ctrl-C) and returns the runs finished before it with the
+failure (or ``interrupted``), so the campaign stores them first; a chunk of an experiment with ``run_batch`` is one
+batch, run again with ``run_one`` when it raises ("Batched experiments").  Pool workers start with :func:`worker_init`.
 """
 
 from __future__ import annotations
@@ -36,7 +26,9 @@ ORPHAN_EXIT = 70
 
 
 def run_seed(seed: int, index: int) -> np.random.SeedSequence:
-    """The seed sequence of run ``index``: child ``index`` of ``SeedSequence(seed)``."""
+    """The seed sequence of run ``index``: SeedSequence(seed, spawn_key=(index,)), exactly child ``index`` of
+    ``SeedSequence(seed).spawn(n)`` for any n > index, so a run's numbers do not depend on the executor, the
+    chunking or the resume order."""
     return np.random.SeedSequence(seed, spawn_key=(int(index),))
 
 
