@@ -135,7 +135,10 @@ def _asks_version(argv: Sequence[str]) -> bool:
 def build_parser(available: dict[str, Command] | None = None) -> argparse.ArgumentParser:
     from hybridtrack import __version__
 
-    parser = _Parser(prog="hybridtrack", description="Estimation of hybrid (mode-switching) motion: plugins, simulations, detectors.")
+    parser = _Parser(
+        prog="hybridtrack",
+        description="Estimation of hybrid (mode-switching) motion: plugins, simulations, detectors.",
+    )
     parser.add_argument("--version", action="version", version=f"hybridtrack {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="<command>")
     for command in (commands() if available is None else available).values():

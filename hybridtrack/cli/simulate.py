@@ -155,7 +155,14 @@ def run(args: argparse.Namespace) -> int:
             try:
                 with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported below, once
                     truth, z = simulate(
-                        schedule, x0, args.tau, [sensor], seed=args.seed, recorder=recorder, process_noise=not args.no_noise, models=models
+                        schedule,
+                        x0,
+                        args.tau,
+                        [sensor],
+                        seed=args.seed,
+                        recorder=recorder,
+                        process_noise=not args.no_noise,
+                        models=models,
                     )
                 log_measurements(recorder, [sensor], z, truth.steps, truth.times)
             except (ValueError, FloatingPointError) as error:  # e.g. a state that overflows from a huge --x0

@@ -62,7 +62,12 @@ def run_recording_path(folder: str | Path, index: int) -> Path:
 
 
 def record_runs(
-    experiment: Experiment | str, indices: Iterable[int], folder: str | Path, *, seed: int, parameters: Mapping[str, Any]
+    experiment: Experiment | str,
+    indices: Iterable[int],
+    folder: str | Path,
+    *,
+    seed: int,
+    parameters: Mapping[str, Any],
 ) -> dict[int, tuple[Path, dict[str, np.ndarray]]]:
     """Replay runs ``indices`` of a campaign (``seed``, ``parameters``) with a recorder each.
 

@@ -232,7 +232,14 @@ class ResultStore:
         return None
 
     def open(
-        self, *, experiment: str, locator: str | None, parameters: Mapping[str, Any], seed: int, n: int, set_aside: bool = False
+        self,
+        *,
+        experiment: str,
+        locator: str | None,
+        parameters: Mapping[str, Any],
+        seed: int,
+        n: int,
+        set_aside: bool = False,
     ) -> np.ndarray:
         """Create the folder or check that it holds the same campaign; drop leftovers of a killed write.
 
