@@ -58,7 +58,7 @@ from typing import NamedTuple
 import numpy as np
 
 from hybridtrack.core.validation import as_float_array
-from hybridtrack.io.csv_text import NUMBER, checked_path, csv_records, decode_csv_text
+from hybridtrack.io.csv_text import NUMBER, checked_path, read_csv
 from hybridtrack.sdk.timestamps import check_times
 
 
@@ -178,13 +178,8 @@ def _steps(path: Path, body) -> list[int]:
 
 
 def _read_csv(path: Path) -> MeasurementFile:
-    text = decode_csv_text(path, path.read_bytes(), _CSV_HINT)
-    rows = csv_records(path, text, strip=True)
-    if not rows:
-        raise ValueError(f"{path}: empty file; {_CSV_HINT}")
-    header_line, header = rows[0]
+    header_line, header, body = read_csv(path, "a .csv measurement file", _CSV_HINT)
     first, sensors = _header(path, header_line, header)
-    body = rows[1:]
     if not body:
         raise ValueError(f"{path}: header only, no data rows; {_CSV_HINT}")
     for line, row in body:

@@ -63,21 +63,19 @@ reachable from the last good fix are dropped, a lasting jump is flagged and kept
 
 from __future__ import annotations
 
-import gzip
 import math
 import os
 import warnings
 from collections import Counter
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from pathlib import Path
 from types import SimpleNamespace
 
 import attrs
 import numpy as np
 
 from hybridtrack.core.validation import check_positive
-from hybridtrack.io.csv_text import checked_path, csv_records, decode_csv_text, finite_number
+from hybridtrack.io.csv_text import checked_path, finite_number, read_csv
 
 #: WGS-84 semi-major axis a (m) and flattening f (NIMA TR8350.2, 3rd ed., table 3.1)
 WGS84_A = 6_378_137.0
@@ -406,16 +404,6 @@ def projection_error(origin: Sequence[float], distance: float = 100e3, *, projec
 # --- reading ---------------------------------------------------------------------------------------------------
 
 
-def _text(path: Path) -> str:
-    data = checked_path(path, "a CSV file of position reports").read_bytes()
-    if path.suffix.lower() == ".gz":
-        try:
-            data = gzip.decompress(data)
-        except (OSError, EOFError) as error:
-            raise ValueError(f"{path}: not a readable gzip file ({error})") from None
-    return decode_csv_text(path, data, _HINT)
-
-
 def _timestamp(cell: str) -> datetime | None:
     try:
         stamp = datetime.fromisoformat(cell)
@@ -474,11 +462,7 @@ def read_tracks(
         raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
     origin = origin if isinstance(origin, str) else _origin(origin)
 
-    records = csv_records(path, _text(path), strip=True)
-    if not records:
-        raise ValueError(f"{path}: empty file; {_HINT}")
-    header_line, header = records[0]
-    body = records[1:]
+    header_line, header, body = read_csv(path, "a CSV file of position reports", _HINT)
     position_columns = [lat, lon] if geographic else [x, y]
     if alt is not None:
         position_columns.append(alt)
