@@ -486,7 +486,7 @@ def read_tracks(
     # numeric seconds or ISO-8601: decided by the first non-empty time cell
     first_time = next((row[columns[time]] for _, row in body if len(row) > columns[time] and row[columns[time]]), "")
     iso = finite_number(first_time) is None and _timestamp(first_time) is not None
-    rows: list[SimpleNamespace] = []  # the rows used: line, id, time, values (the position cells), course, speed
+    groups: dict[str, list[SimpleNamespace]] = {}  # id → the rows used: line, id, time, values (the position cells), course, speed
     for line, row in body:
         if len(row) != len(header):
             report(line, None, "bad_row", "dropped", f"{len(row)} cells, the header has {len(header)}; row dropped")
@@ -532,15 +532,14 @@ def read_tracks(
                     extra.append(math.nan)
                 else:
                     extra.append(value * factor)
-            rows.append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1]))
+            groups.setdefault(key, []).append(
+                SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1])
+            )
 
+    rows = [r for group in groups.values() for r in group]  # rows[0]: the first row used of the file
     epoch = min((r.time for r in rows), default=None) if iso else None
     for r in rows if iso else ():
         r.time = (r.time - epoch).total_seconds()
-
-    groups: dict[str, list[SimpleNamespace]] = {}
-    for r in rows:
-        groups.setdefault(r.id, []).append(r)
 
     def positions_of(group, at):
         values = np.array([r.values for r in group], dtype=np.float64).reshape(len(group), len(position_columns))
@@ -554,13 +553,12 @@ def read_tracks(
     check_origin = origin if not isinstance(origin, str) else (fix(rows[0]) if rows else None)
     kept_groups: dict[str, list[SimpleNamespace]] = {}
     for key, group in groups.items():
-        order = sorted(range(len(group)), key=lambda i: group[i].time)
-        if order != list(range(len(group))):
-            late = next(group[i] for i, j in zip(order, range(len(group))) if i != j)
+        ordered = sorted(group, key=lambda r: r.time)
+        late = next((r for r, s in zip(ordered, group) if r is not s), None)
+        if late is not None:
             report(late.line, time, "unsorted", "sorted", f"id {key!r}: rows out of time order (the first misplaced one here); sorted", key)
-        group = [group[i] for i in order]
-        unique = [group[0]]
-        for r in group[1:]:
+        unique = [ordered[0]]
+        for r in ordered[1:]:
             if r.time == unique[-1].time:
                 same = r.values == unique[-1].values and r.course == unique[-1].course and r.speed == unique[-1].speed
                 what = "identical to" if same else "with different values from"
@@ -587,27 +585,20 @@ def read_tracks(
 
     tracks = {}
     for key, group in kept_groups.items():
-        mine = tuple(p for p in problems if p.id == key)
-        missing = []
         for name, attr, code in ((course, "course", course_not_available), (speed, "speed", speed_not_available)):
             lines = [r.line for r in group if getattr(r, attr) == "n/a"]  # none without the column (all None)
             if lines:
                 shown = ", ".join(map(str, lines[:5])) + (", …" if len(lines) > 5 else "")
-                missing.append(Problem(
-                    lines[0], name, "not_available", "set_nan",
-                    f"{path}:{lines[0]}: id {key!r}: column {name!r} holds {code} (not available) in {len(lines)} rows (lines {shown}); set to NaN",
-                    key,
-                ))  # fmt: skip
-        mine = tuple(sorted(mine + tuple(missing), key=by_place))
-        problems += missing
+                message = f"id {key!r}: column {name!r} holds {code} (not available) in {len(lines)} rows (lines {shown}); set to NaN"
+                report(lines[0], name, "not_available", "set_nan", message, key)
         tracks[key] = Track(
             id=key,
             times=np.array([r.time for r in group], dtype=np.float64),
             positions=positions_of(group, origin),
             lines=[r.line for r in group],
-            course=_values(group, "course", course),
-            speed=_values(group, "speed", speed),
-            problems=mine,
+            course=None if course is None else [math.nan if r.course == "n/a" else r.course for r in group],
+            speed=None if speed is None else [math.nan if r.speed == "n/a" else r.speed for r in group],
+            problems=sorted((p for p in problems if p.id == key), key=by_place),
         )
     problems.sort(key=by_place)
     if warn and problems:
@@ -615,13 +606,6 @@ def read_tracks(
         summary = ", ".join(f"{n} {kind}" for kind, n in counts.most_common())
         warnings.warn(f"{path}: {len(problems)} problems: {summary}; see TrackFile.problems", stacklevel=2)
     return TrackFile(str(path), tracks, origin if geographic else None, projection if geographic else None, epoch, tuple(problems))
-
-
-def _values(group, attr, name):
-    """The course or speed column of a group of rows (None without the column; NaN where not available)."""
-    if name is None:
-        return None
-    return np.array([math.nan if getattr(r, attr) == "n/a" else getattr(r, attr) for r in group], dtype=np.float64)
 
 
 def _speed_check(group, positions, max_speed, tolerance, key, report, column):
