@@ -501,40 +501,35 @@ def read_tracks(
             form = "an ISO-8601 timestamp (as in the first row)" if iso else "a finite number of seconds"
             report(line, time, "bad_time", "dropped", f"column {time!r} holds {cell!r}, not {form}; row dropped", key)
             continue
-        values = []
-        for name in position_columns:
+        values = [finite_number(row[columns[name]]) for name in position_columns]
+        if None in values:
+            name = position_columns[values.index(None)]
+            cell = row[columns[name]]
+            report(line, name, "not_a_number", "dropped", f"column {name!r} holds {cell!r}, not a finite number; row dropped", key)
+            continue
+        if geographic and not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
+            bad, value, limits = (lat, values[0], "[-90, 90]") if not -90.0 <= values[0] <= 90.0 else (lon, values[1], "[-180, 180]")
+            report(line, bad, "out_of_range", "dropped", f"column {bad!r} holds {value}, outside {limits} degrees; row dropped", key)
+            continue
+        extra = []
+        for name, low, high, code, factor in (
+            (course, 0.0, 360.0, course_not_available, 1.0),
+            (speed, 0.0, math.inf, speed_not_available, SPEED_UNITS[speed_unit]),
+        ):
+            if name is None:
+                extra.append(None)
+                continue
             cell = row[columns[name]]
             value = finite_number(cell)
-            if value is None:
-                report(line, name, "not_a_number", "dropped", f"column {name!r} holds {cell!r}, not a finite number; row dropped", key)
-                break
-            values.append(value)
-        else:
-            if geographic and not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
-                bad, value, limits = (lat, values[0], "[-90, 90]") if not -90.0 <= values[0] <= 90.0 else (lon, values[1], "[-180, 180]")
-                report(line, bad, "out_of_range", "dropped", f"column {bad!r} holds {value}, outside {limits} degrees; row dropped", key)
-                continue
-            extra = []
-            for name, low, high, code, factor in (
-                (course, 0.0, 360.0, course_not_available, 1.0),
-                (speed, 0.0, math.inf, speed_not_available, SPEED_UNITS[speed_unit]),
-            ):
-                if name is None:
-                    extra.append(None)
-                    continue
-                cell = row[columns[name]]
-                value = finite_number(cell)
-                if value is not None and code is not None and value == code:
-                    extra.append("n/a")
-                elif value is None or not low <= value <= high:
-                    kind, why = ("not_a_number", "not a finite number") if value is None else ("out_of_range", f"outside [{low}, {high}]")
-                    report(line, name, kind, "set_nan", f"column {name!r} holds {cell!r}, {why}; set to NaN", key)
-                    extra.append(math.nan)
-                else:
-                    extra.append(value * factor)
-            groups.setdefault(key, []).append(
-                SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1])
-            )
+            if value is not None and code is not None and value == code:
+                extra.append("n/a")
+            elif value is None or not low <= value <= high:
+                kind, why = ("not_a_number", "not a finite number") if value is None else ("out_of_range", f"outside [{low}, {high}]")
+                report(line, name, kind, "set_nan", f"column {name!r} holds {cell!r}, {why}; set to NaN", key)
+                extra.append(math.nan)
+            else:
+                extra.append(value * factor)
+        groups.setdefault(key, []).append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1]))
 
     rows = [r for group in groups.values() for r in group]  # rows[0]: the first row used of the file
     epoch = min((r.time for r in rows), default=None) if iso else None
@@ -624,26 +619,23 @@ def _speed_check(group, positions, max_speed, tolerance, key, report, column):
     i = 1
     while i < len(group):
         k = kept[-1]
-        if ok(k, i):
-            kept.append(i)
-            i += 1
-            continue
-        v = gap(k, i) / (times[i] - times[k])
-        allowance = f" (+ {tolerance:g} m)" if tolerance else ""
-        back = next((m for m in range(i + 1, min(i + 1 + MAX_OUTLIER_BURST, len(group))) if ok(k, m)), None)
-        where = f"id {key!r}: reaching this fix from line {group[k].line} ({gap(k, i):.1f} m in {times[i] - times[k]:.3g} s) takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}"
-        if back is not None:
-            burst = f"id {key!r}: part of the same burst"
-            for m in range(i, back):
-                report(group[m].line, column, "speed_jump", "dropped", f"{where if m == i else burst}; row dropped", key)
-            i = back
-            continue
-        if len(kept) == 1 and i + 1 < len(group) and ok(i, i + 1):
-            report(group[k].line, column, "speed_jump", "dropped",
-                   f"id {key!r}: the next fixes (lines {group[i].line}, {group[i + 1].line}) agree with each other but leaving this first fix takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}; row dropped", key)  # fmt: skip
-            kept = [i]
-        else:
-            report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
-            kept.append(i)
+        if not ok(k, i):
+            v = gap(k, i) / (times[i] - times[k])
+            allowance = f" (+ {tolerance:g} m)" if tolerance else ""
+            back = next((m for m in range(i + 1, min(i + 1 + MAX_OUTLIER_BURST, len(group))) if ok(k, m)), None)
+            where = f"id {key!r}: reaching this fix from line {group[k].line} ({gap(k, i):.1f} m in {times[i] - times[k]:.3g} s) takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}"
+            if back is not None:
+                burst = f"id {key!r}: part of the same burst"
+                for m in range(i, back):
+                    report(group[m].line, column, "speed_jump", "dropped", f"{where if m == i else burst}; row dropped", key)
+                i = back
+                continue
+            if len(kept) == 1 and i + 1 < len(group) and ok(i, i + 1):
+                report(group[k].line, column, "speed_jump", "dropped",
+                       f"id {key!r}: the next fixes (lines {group[i].line}, {group[i + 1].line}) agree with each other but leaving this first fix takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}; row dropped", key)  # fmt: skip
+                kept = []  # the first fix dropped: the track starts here
+            else:
+                report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
+        kept.append(i)
         i += 1
     return [group[i] for i in kept]
