@@ -380,7 +380,6 @@ def track_one(
 
     estimator, sensor, models = _build(config, registry)
     layout = estimator.layout
-    prior = _prior(track, config, layout)
     xy = np.asarray(track.positions[:, :2], dtype=float)
     name = output_name(track.id)
     heights = None
@@ -391,7 +390,7 @@ def track_one(
     altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}) if out is not None else None
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
-        run = estimator.run({sensor.name: xy}, prior, times=track.times, recorder=recorder)
+        run = estimator.run({sensor.name: xy}, _prior(track, config, layout), times=track.times, recorder=recorder)
         if recorder is not None:
             est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
             in_3d = (None, None) if heights is None else (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
@@ -447,13 +446,10 @@ def track_file(
         data = read_tracks(path, **cfg["reader"], warn=False)
     except TypeError as error:
         raise ConfigError(f"[reader]: {error}") from None
-    chosen = list(data.tracks)
-    if ids is not None:
-        ids = list(ids)
-        missing = [i for i in ids if i not in data.tracks]
-        if missing:
-            raise ConfigError(f"--id {missing[0]!r}: no such object in {path} ({len(data.tracks)} objects)")
-        chosen = list(dict.fromkeys(ids))
+    chosen = list(data.tracks) if ids is None else list(dict.fromkeys(ids))
+    missing = [i for i in chosen if i not in data.tracks]
+    if missing:
+        raise ConfigError(f"--id {missing[0]!r}: no such object in {path} ({len(data.tracks)} objects)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     objects, skipped = [], []
