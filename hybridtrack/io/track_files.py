@@ -546,8 +546,7 @@ def read_tracks(
         return r.values[0], r.values[1], r.values[2] if alt else 0.0
 
     check_origin = origin if not isinstance(origin, str) else (fix(rows[0]) if rows else None)
-    kept_groups: dict[str, list[SimpleNamespace]] = {}
-    for key, group in groups.items():
+    for key, group in groups.items():  # each group becomes the rows kept
         ordered = sorted(group, key=lambda r: r.time)
         late = next((r for r, s in zip(ordered, group) if r is not s), None)
         if late is not None:
@@ -563,9 +562,9 @@ def read_tracks(
             unique.append(r)
         if max_speed is not None and len(unique) > 1:
             unique = _speed_check(unique, positions_of(unique, check_origin), max_speed, jump_tolerance, key, report, time)
-        kept_groups[key] = unique
+        groups[key] = unique
 
-    kept = [r for g in kept_groups.values() for r in g]
+    kept = [r for g in groups.values() for r in g]
     if geographic and isinstance(origin, str):
         if not kept:
             origin = None
@@ -579,7 +578,7 @@ def read_tracks(
         return problem.line, header.index(problem.column) if problem.column in header else -1
 
     tracks = {}
-    for key, group in kept_groups.items():
+    for key, group in groups.items():
         for name, attr, code in ((course, "course", course_not_available), (speed, "speed", speed_not_available)):
             lines = [r.line for r in group if getattr(r, attr) == "n/a"]  # none without the column (all None)
             if lines:
