@@ -71,13 +71,6 @@ def markdown_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column])
     return "\n".join(lines) + "\n"
 
 
-def _atomic_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    temporary.write_text(text, encoding="utf-8")
-    os.replace(temporary, path)
-
-
 def write_report(
     json_path: str | os.PathLike,
     rows: Iterable[Mapping[str, Any]],
@@ -97,8 +90,11 @@ def write_report(
     markdown_path = Path(markdown_path) if markdown_path is not None else json_path.with_suffix(".md")
     text = json.dumps({"rows": rows, "protocol": plain(dict(protocol))}, indent=2, allow_nan=False) + "\n"
     table = f"### {title}\n\n" + markdown_table(rows, columns) + (f"\n{notes.strip()}\n" if notes.strip() else "")
-    _atomic_text(json_path, text)
-    _atomic_text(markdown_path, table)
+    for path, content in ((json_path, text), (markdown_path, table)):  # each written atomically
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+        temporary.write_text(content, encoding="utf-8")
+        os.replace(temporary, path)
     return json_path, markdown_path
 
 

@@ -103,11 +103,10 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         where, raw = "config", dict(config)
     else:
         where = str(config)
-        path = Path(config)
-        if not path.is_file():
+        if not Path(config).is_file():
             raise ConfigError(f"{where}: no such configuration file")
         try:
-            raw = tomllib.loads(path.read_text(encoding="utf-8"))
+            raw = tomllib.loads(Path(config).read_text(encoding="utf-8"))
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
             raise ConfigError(f"{where}: not a valid TOML file ({error})") from None
     unknown = sorted(set(raw) - set(_SECTIONS))

@@ -159,8 +159,7 @@ def _cell(path: Path, line: int, column: str, cell: str) -> float:
 
 def _steps(path: Path, body) -> list[int]:
     """The ``step`` column: integers 0 … :data:`MAX_STEP`, none repeated (the error names both lines)."""
-    steps: list[int] = []
-    lines: dict[int, int] = {}
+    lines: dict[int, int] = {}  # step → its line, in file order
     for line, row in body:
         cell = row[0]
         if not _INTEGER.fullmatch(cell):
@@ -173,8 +172,7 @@ def _steps(path: Path, body) -> list[int]:
         if step in lines:
             raise ValueError(f"{path}:{line}: step {step} is repeated (first at line {lines[step]})")
         lines[step] = line
-        steps.append(step)
-    return steps
+    return list(lines)
 
 
 def _read_csv(path: Path) -> MeasurementFile:
