@@ -202,12 +202,8 @@ def _joined(runs: list[list]) -> list[list]:
 
 
 def _merge_short(runs: list[list], t: np.ndarray, min_duration: float) -> list[list]:
-    def duration(i):
-        end = t[runs[i + 1][1]] if i + 1 < len(runs) else t[runs[i][2]]
-        return end - t[runs[i][1]]
-
     while len(runs) > 1:
-        lengths = [duration(i) for i in range(len(runs))]
+        lengths = np.diff(t[[r[1] for r in runs] + [runs[-1][2]]])  # a run ends where the next starts (the last: at its last)
         i = int(np.argmin(lengths))
         if lengths[i] >= min_duration:
             break
