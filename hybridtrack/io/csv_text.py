@@ -1,11 +1,4 @@
-"""Reading CSV files the same way for every file format of the project (measurement files, position reports).
-
-:func:`checked_path` refuses what is not a file name, a directory or a missing file; :func:`read_csv` reads the
-file (``.gz`` through gzip) as UTF-8 (a leading byte-order mark stripped), refusing UTF-16, zip archives, other
-encodings and NUL bytes, naming the file and the offending byte, and splits it into records with their line
-numbers, the separator ``,`` or — when the header line has no comma but a semicolon — ``;``, blank records
-skipped; :func:`finite_number` reads a plain decimal cell.
-"""
+"""Reading CSV files the same way for every file format of the project (measurement files, position reports)."""
 
 from __future__ import annotations
 
@@ -43,9 +36,12 @@ def finite_number(cell: str) -> float | None:
 
 
 def read_csv(path, expected: str, hint: str) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
-    """``(header line, header cells, [(line, cells), …])`` of the non-blank records of the CSV file ``path``, cells
-    stripped of spaces; ``expected`` (what the file should be) and ``hint`` (what a valid file looks like) go into the
-    errors, each a ValueError naming the file (malformed CSV: and the line); an empty file is refused."""
+    """``(header line, header cells, [(line, cells), …])`` of the non-blank records of the CSV file ``path``: read
+    (``.gz`` through gzip) as UTF-8, a leading byte-order mark stripped, separated by ``,`` or — when the header line
+    has no comma but a semicolon — ``;``, cells stripped of spaces.  UTF-16, zip archives, other encodings, NUL bytes
+    (naming the byte), malformed CSV (naming the line) and an empty file are a ValueError naming the file;
+    ``expected`` (what the file should be, for :func:`checked_path`) and ``hint`` (what a valid file looks like) go
+    into the errors."""
     path = checked_path(path, expected)
     data = path.read_bytes()
     if path.suffix.lower() == ".gz":

@@ -28,9 +28,8 @@ Columns (names configurable, see :func:`read_tracks`):
 Projection (``projection=``):
 
 * ``"enu"`` (default) — exact local east-north-up coordinates: geodetic →
-  WGS-84 ECEF, X = (N + h) cos φ cos λ, Y = (N + h) cos φ sin λ,
-  Z = (N (1 − e²) + h) sin φ with N = a / √(1 − e² sin² φ), then the rotation
-  to the tangent plane at the origin (φ₀, λ₀):
+  WGS-84 ECEF (:func:`geodetic_to_ecef`), then the rotation to the tangent
+  plane at the origin (φ₀, λ₀):
   e = −sin λ₀ ΔX + cos λ₀ ΔY,
   n = −sin φ₀ cos λ₀ ΔX − sin φ₀ sin λ₀ ΔY + cos φ₀ ΔZ,
   u = cos φ₀ cos λ₀ ΔX + cos φ₀ sin λ₀ ΔY + sin φ₀ ΔZ
@@ -206,9 +205,8 @@ def project(lat, lon, h=None, *, origin: Sequence[float], projection: str = "enu
     """Project WGS-84 latitude/longitude (degrees) and optional height (m) to the local tangent plane at
     ``origin`` = (lat₀, lon₀[, h₀]): (K, 2) east/north, or (K, 3) east/north/up when ``h`` is given.
 
-    ``"enu"``: ECEF difference rotated to east-north-up (module docstring; Hofmann-Wellenhof et al. 2008, §10.2.2).
-    ``"equirectangular"``: e = Δλ (N₀ + h₀) cos φ₀, n = Δφ M₀, u = h − h₀.
-    """
+    ``"enu"`` (the ECEF difference rotated to east-north-up) and ``"equirectangular"``: the formulas of the module
+    docstring (Hofmann-Wellenhof et al. 2008, §10.2.2)."""
     _check_projection(projection)
     lat0, lon0, h0 = _origin(origin)
     lat = np.asarray(lat, dtype=np.float64)
