@@ -39,6 +39,7 @@ a :class:`ConfigError` (a ValueError) naming the key.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import json
 import math
 import os
@@ -65,24 +66,18 @@ TURNS = ("left_turn", "right_turn")
 #: the vertical filter's defaults: σ_h (m), white-acceleration density q (m²/s³), prior σ of the climb rate (m/s)
 ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma": 5.0}
 
-_READER_KEYS = {
-    "preset", "time", "x", "y", "lat", "lon", "alt", "id", "course", "speed", "speed_unit", "course_not_available",
-    "speed_not_available", "origin", "projection", "max_speed", "jump_tolerance", "min_reports",
-}  # fmt: skip
-_SECTIONS = {
-    "reader": _READER_KEYS,
-    "measurement": {"sigma"},
-    "altitude": {"sigma", "acceleration_density", "velocity_sigma"},
-    "prior": {"velocity", "position_sigma", "velocity_sigma"},
-    "estimator": {
-        "algorithm", "kind", "filter", "process_noise", "modes", "radii", "alpha", "beta", "bank_size", "initial_mode", "sojourn",
-        "method", "parameters",
-    },
-}  # fmt: skip
-#: the keywords the tracker itself gives every algorithm (``[estimator] parameters`` may not repeat them)
-_RESERVED = {"modes", "sensors", "estimator", "name", "registry", "alpha", "beta", "bank_size", "initial_mode", "sojourn"}
 #: keys that belong to one algorithm (``imm``: the whole multiple-model family), given to its factory (but ``method``)
 _KIND_ONLY = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), "imm": ("sojourn", "method")}
+_SECTIONS = {
+    "reader": set(inspect.signature(read_tracks).parameters) - {"path", "warn"} | {"preset", "min_reports"},  # read_tracks' keywords
+    "measurement": {"sigma"},
+    "altitude": set(ALTITUDE_DEFAULTS),
+    "prior": {"velocity", "position_sigma", "velocity_sigma"},
+    "estimator": {"algorithm", "kind", "filter", "process_noise", "modes", "radii", "parameters"}
+    | set(_KIND_ONLY["unknown_change"] + _KIND_ONLY["imm"]),
+}
+#: the keywords the tracker itself gives every algorithm (``[estimator] parameters`` may not repeat them)
+_RESERVED = {"modes", "sensors", "estimator", "name", "registry", "alpha", "beta", "bank_size", "initial_mode", "sojourn"}
 
 
 class ConfigError(ValueError):
