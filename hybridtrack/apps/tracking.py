@@ -116,17 +116,15 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         if bad:
             raise ConfigError(f"{where}: unknown key(s) {bad} in [{section}]; expected some of {sorted(keys)}")
         out[section] = dict(table)
-    reader = out["reader"]
-    preset = reader.pop("preset", None)
+    preset = out["reader"].pop("preset", None)
     if preset is not None and preset not in PRESETS:
         raise ConfigError(f"{where}: [reader] preset = {preset!r}; expected one of {sorted(PRESETS)}")
-    reader = {**PRESETS.get(preset, {}), **reader}
-    min_reports = reader.pop("min_reports", 3)
+    reader = out["reader"] = {**PRESETS.get(preset, {}), **out["reader"]}
+    min_reports = out["min_reports"] = reader.pop("min_reports", 3)
     if isinstance(min_reports, bool) or not isinstance(min_reports, int) or min_reports < 2:
         raise ConfigError(f"{where}: [reader] min_reports = {min_reports!r}; expected an integer ≥ 2")
     if isinstance(reader.get("origin"), list):
         reader["origin"] = tuple(reader["origin"])
-    out["reader"], out["min_reports"] = reader, min_reports
 
     sigma = out["measurement"].get("sigma")
     if sigma is None:
@@ -173,22 +171,20 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
             if value >= 0.5:
                 raise ConfigError(f"{where}: [estimator] {key} = {value!r}; expected an error probability in (0, 0.5)")
             est[key] = value
-        bank = est.get("bank_size", 30)
+        bank = est.setdefault("bank_size", 30)
         if bank != "algorithm4" and (isinstance(bank, bool) or not isinstance(bank, int) or bank < 1):
             raise ConfigError(f"{where}: [estimator] bank_size = {bank!r}; expected a positive integer or 'algorithm4'")
-        est["bank_size"] = bank
         names = [name if "radius" not in params else f"{name}_r{params['radius']:g}" for name, params in est["modes"]]
         first = est.get("initial_mode", names[0])
         if first not in names:
             raise ConfigError(f"{where}: [estimator] initial_mode = {first!r}; expected one of {names}")
         est["initial_mode"] = names.index(first)
     elif family == "imm":
-        sojourn = est.get("sojourn", 60.0)
+        sojourn = est.setdefault("sojourn", 60.0)
         for v in sojourn if isinstance(sojourn, list) else [sojourn]:
             _positive("estimator", "sojourn", v, where)
         if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
             raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
-        est["sojourn"] = sojourn
     return out
 
 
