@@ -230,11 +230,9 @@ def write_csv(
     with open(path, "w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(header)
-        for k in range(steps):
+        for k, z in enumerate(np.hstack(list(arrays.values()))):  # z: step k of every sensor, in header order
             row = [str(k) if times is None else repr(float(times[k]))]
-            for z in arrays.values():
-                row += ["" if not np.isfinite(v) else repr(float(v)) for v in z[k]]
-            writer.writerow(row)
+            writer.writerow(row + ["" if not np.isfinite(v) else repr(float(v)) for v in z])
 
 
 _NPZ_HINT = "expected an NPZ archive (numpy.savez) of one (steps, m) numeric array per sensor"
