@@ -51,8 +51,6 @@ import numpy as np
 
 from hybridtrack.core.validation import check_positive
 
-MODES = ("straight", "left_turn", "right_turn", "stop")
-
 #: default parameters (SI units; the turn rates are 0.5°/s and 0.25°/s)
 DEFAULTS = {
     "window": 30.0,

@@ -62,7 +62,6 @@ PRESETS = {"solent_ais": SOLENT_AIS}
 MULTIPLE_MODEL = ("imm", "gpb1", "gpb2")
 #: registry name → summary mode name
 SUMMARY_NAMES = {"constant_acceleration": "acceleration"}
-TURNS = ("left_turn", "right_turn")
 #: the vertical filter's defaults: σ_h (m), white-acceleration density q (m²/s³), prior σ of the climb rate (m/s)
 ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma": 5.0}
 
@@ -220,7 +219,7 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
         else:
             raise ConfigError(f"{where}: [estimator] modes entry {entry!r}; expected a name or {{name = …, radius = …}}")
         name = "constant_acceleration" if name == "acceleration" else name
-        if name in TURNS and "radius" not in params:
+        if name in ("left_turn", "right_turn") and "radius" not in params:
             if radii is None:
                 raise ConfigError(f"{where}: [estimator] mode {name!r} needs a radius: give radii = [...] or {{name, radius}}")
             out += [(name, {"radius": r}) for r in radii]

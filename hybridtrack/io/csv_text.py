@@ -73,5 +73,4 @@ def read_csv(path, expected: str, hint: str) -> tuple[int, list[str], list[tuple
         raise ValueError(f"{path}:{reader.line_num}: malformed CSV ({error})") from None
     if not records:
         raise ValueError(f"{path}: empty file; {hint}")
-    (header_line, header), *body = records
-    return header_line, header, body
+    return *records[0], records[1:]

@@ -243,7 +243,6 @@ def ecef_to_geodetic(xyz) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     lam = np.arctan2(y, x)
     p = np.hypot(x, y)
     phi = np.arctan2(z, p * (1.0 - WGS84_E2))
-    h = np.zeros_like(p)
     for _ in range(6):
         n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * np.sin(phi) ** 2)
         h = p / np.cos(phi) - n
