@@ -233,8 +233,7 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 
 def _build(config: dict, registry=None):
     """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
-    sigma = config["measurement"]["sigma"]
-    sensor = resolve("sensor", ("position", {"noise_cov": sigma**2 * np.eye(2)}), registry)
+    sensor = resolve("sensor", ("position", {"noise_cov": config["measurement"]["sigma"] ** 2 * np.eye(2)}), registry)
     est = config["estimator"]
     q = est["process_noise"] ** 2 * np.eye(2)
     specs = []

@@ -236,7 +236,6 @@ def write_csv(
 
 
 _NPZ_HINT = "expected an NPZ archive (numpy.savez) of one (steps, m) numeric array per sensor"
-_NUMERIC_KINDS = "iuf"  # signed/unsigned integers and floats; bool, complex, text, objects are refused
 
 
 def _read_npz(path: Path) -> MeasurementFile:
@@ -281,7 +280,7 @@ def _read_npz(path: Path) -> MeasurementFile:
         for name, (shape, _, dtype) in headers.items():
             if dtype.hasobject:
                 raise ValueError(f"{path}: array {name!r} holds Python objects (a pickle), which are refused; {_NPZ_HINT}")
-            if dtype.kind not in _NUMERIC_KINDS:
+            if dtype.kind not in "iuf":  # signed/unsigned integers and floats; bool, complex, text, objects are refused
                 raise ValueError(f"{path}: array {name!r} has dtype {dtype} ({dtype.kind!r} kind); expected float or integer numbers")
             if is_time and name == "time":
                 continue
