@@ -44,6 +44,7 @@ models: a turn is a constant-rate segment).
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import attrs
@@ -190,13 +191,8 @@ def _states(omega, v, p) -> list[str]:
 
 def _joined(runs: list[list]) -> list[list]:
     """[mode, first, last] runs with equal neighbours joined."""
-    out = [runs[0]]
-    for r in runs[1:]:
-        if r[0] == out[-1][0]:
-            out[-1][2] = r[2]
-        else:
-            out.append(r)
-    return out
+    groups = [list(group) for _, group in itertools.groupby(runs, key=lambda r: r[0])]
+    return [[group[0][0], group[0][1], group[-1][2]] for group in groups]
 
 
 def _merge_short(runs: list[list], t: np.ndarray, min_duration: float) -> list[list]:
