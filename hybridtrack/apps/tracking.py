@@ -142,7 +142,13 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
     prior["velocity_sigma"] = _positive("prior", "velocity_sigma", prior.get("velocity_sigma", 10.0), where)
 
     est = out["estimator"]
-    kind = _algorithm(est, where, registry)
+    given = [key for key in ("algorithm", "kind") if key in est]  # kind: the older spelling
+    if len(given) != 1:
+        raise ConfigError(f"{where}: [estimator] algorithm (a registered algorithm name) is required, once (kind is its older spelling)")
+    kind = est.pop(given[0])
+    known = registry_or_default(registry).names("algorithm")
+    if kind not in known:
+        raise ConfigError(f"{where}: [estimator] {given[0]} = {kind!r}; expected a registered algorithm, one of {known}")
     family = "imm" if kind in MULTIPLE_MODEL else kind
     for other, keys in _KIND_ONLY.items():
         misplaced = sorted(set(est).intersection(keys)) if other != family else []
@@ -185,19 +191,6 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
             raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
     return out
-
-
-def _algorithm(est: dict, where: str, registry) -> str:
-    """The registry name of ``[estimator] algorithm`` (or of its older spelling ``kind``), checked."""
-    given = [key for key in ("algorithm", "kind") if key in est]
-    if len(given) != 1:
-        raise ConfigError(f"{where}: [estimator] algorithm (a registered algorithm name) is required, once (kind is its older spelling)")
-    key = given[0]
-    name = est.pop(key)
-    known = registry_or_default(registry).names("algorithm")
-    if name not in known:
-        raise ConfigError(f"{where}: [estimator] {key} = {name!r}; expected a registered algorithm, one of {known}")
-    return name
 
 
 def _modes(modes, radii, where) -> list[tuple[str, dict]]:
