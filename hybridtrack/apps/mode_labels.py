@@ -236,7 +236,6 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
     runs = _merge_short(_joined([[m, k, k] for k, m in enumerate(_states(omega, vbar, p))]), t, p["min_duration"])
     raw = _step_rates(t, c)
     segments = []
-    modes: list[str] = []
     for i, (mode, first, last) in enumerate(runs):
         end = t[runs[i + 1][1]] if i + 1 < len(runs) else t[last]
         s = v[first : last + 1]
@@ -255,10 +254,10 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
                 "last": int(last),
             }
         )
-        modes += [mode] * (last - first + 1)
     for a in (omega, vbar):
         a.setflags(write=False)
-    return ModeLabels(tuple(segments), p, omega, vbar, tuple(modes))
+    modes = tuple(mode for mode, first, last in runs for _ in range(first, last + 1))  # the mode of each report
+    return ModeLabels(tuple(segments), p, omega, vbar, modes)
 
 
 def label_track(track, **parameters) -> ModeLabels:

@@ -464,9 +464,7 @@ def read_tracks(
     if alt is not None:
         position_columns.append(alt)
     columns = {}
-    for name in [time, *position_columns, id, course, speed]:
-        if name is None:
-            continue
+    for name in [name for name in (time, *position_columns, id, course, speed) if name is not None]:
         if name not in header:
             raise ValueError(f"{path}:{header_line}: no column {name!r} in the header; the columns are {header}")
         if header.count(name) > 1:
