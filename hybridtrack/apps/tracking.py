@@ -27,11 +27,10 @@ changes.
 The configuration (TOML tables ``[reader]``, ``[measurement]``, ``[altitude]``,
 ``[prior]``, ``[estimator]``; unknown keys and tables are refused) is tabulated
 in ``docs/real_data.md`` and checked by :func:`load_config`.  The algorithm is
-built from the registry as ``(algorithm, {modes, sensors, estimator, name,
-registry, …})`` — the modes, the position sensor, the filter, the name
-``"track"``, the keys that belong to it, then ``[estimator] parameters`` — so
-any registered algorithm that takes those keywords
-(:class:`hybridtrack.core.algorithm.Algorithm`) can be named.  Every user
+built from the registry with the keywords ``modes``, ``sensors`` (the position
+sensor), ``estimator`` (the filter), ``name`` (``"track"``), ``registry``, its
+own keys and ``[estimator] parameters``, so any registered algorithm taking
+them (:class:`hybridtrack.core.algorithm.Algorithm`) can be named.  Every user
 error — a missing file, unknown key, bad value, unknown algorithm or mode — is
 a :class:`ConfigError` (a ValueError) naming the key.
 """
@@ -303,9 +302,8 @@ def filter_altitude(times, heights, *, sigma: float, acceleration_density: float
 
 def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_measured=None, lat_lon_estimated=None) -> None:
     """What ``hybridtrack track`` adds to the estimator's own logging (``docs/real_data.md``, *What the recording
-    shows*): ``measured``, ``estimated`` (K, 3) east, north, altitude (m) as ``world/measurements/altitude`` and
-    ``world/estimate/<name>/altitude``; ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees under
-    ``map/measurements`` and ``map/estimate/<name>`` (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`);
+    shows*; the entity paths in ``docs/recording.md``): ``measured``, ``estimated`` (K, 3) east, north, altitude (m)
+    and ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`);
     a NullRecorder ignores them."""
     steps = np.arange(len(times), dtype=np.int64)
     for log, entity, points in (

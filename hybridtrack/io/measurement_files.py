@@ -31,9 +31,7 @@ NPZ layout: one array per sensor, named by the sensor, shape (steps, m), plus
 optionally a 1-D array ``time`` (steps,) of the step times in seconds (a 2-D
 array named ``time`` is still read as a sensor).
 
-:func:`read_measurement_file` returns both, ``(measurements, times or None)``;
-:func:`read_measurements` returns the measurements only.  Pass the times on as
-``Pipeline(..., times=times)``.
+Pass the times of :func:`read_measurement_file` on as ``Pipeline(..., times=times)``.
 
 What the readers accept and refuse — every error names the file, and the line
 and column or the array where it applies — is tabulated in ``docs/sensors.md``
@@ -239,8 +237,6 @@ _NPZ_HINT = "expected an NPZ archive (numpy.savez) of one (steps, m) numeric arr
 
 
 def _read_npz(path: Path) -> MeasurementFile:
-    """Every member's .npy header is checked (Python objects, non-numeric dtypes, axes, steps, :data:`MAX_BYTES`)
-    before any array is loaded; each array is then loaded (``allow_pickle=False``) and read to its end."""
     with open(path, "rb") as handle:
         magic = handle.read(6)
     if not magic:

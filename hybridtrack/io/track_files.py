@@ -272,8 +272,7 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
         prime, meridian = _radii(phi0)
         lat = lat0 + np.degrees(n / (meridian + h0))
         lon = (lon0 + np.degrees(e / ((prime + h0) * math.cos(phi0))) + 180.0) % 360.0 - 180.0
-        h = h0 + (positions[:, 2] if positions.shape[1] == 3 else 0.0)
-        return np.stack([lat, lon, h] if positions.shape[1] == 3 else [lat, lon], axis=-1)
+        return np.stack([lat, lon, h0 + positions[:, 2]] if positions.shape[1] == 3 else [lat, lon], axis=-1)
     sp, cp, sl, cl = math.sin(phi0), math.cos(phi0), math.sin(lam0), math.cos(lam0)
     rotation = np.array([[-sl, cl, 0.0], [-sp * cl, -sp * sl, cp], [cp * cl, cp * sl, sp]])  # ECEF → ENU
     base = geodetic_to_ecef(lat0, lon0, h0)
