@@ -440,8 +440,7 @@ def read_tracks(
     ``course_not_available``/``speed_not_available`` are the codes meaning "no value" (``speed_not_available`` in
     ``speed_unit``).  The speed check of geographic files runs in the plane of the file's first valid fix (or of the
     explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the arithmetic mean of the degrees, so it
-    is wrong for tracks that cross the ±180° meridian (give the origin there).  :data:`SOLENT_AIS` holds the
-    settings of the Solent AIS file.
+    is wrong for tracks that cross the ±180° meridian (give the origin there).
     """
     path = checked_path(path)
     if (lat is None) != (lon is None):
@@ -597,9 +596,7 @@ def read_tracks(
 
 
 def _speed_check(group, positions, max_speed, tolerance, key, report, column):
-    """Drop outlier bursts and first-fix outliers faster than ``max_speed``; flag (and keep) lasting jumps.
-
-    Fix j is reachable from fix i when |p_j − p_i| ≤ max_speed (t_j − t_i) + tolerance."""
+    """Drop outlier bursts and first-fix outliers faster than ``max_speed`` (reachable: module docstring); flag (and keep) lasting jumps."""
     times = np.array([r.time for r in group])
 
     def gap(i, j):
