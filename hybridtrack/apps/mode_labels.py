@@ -44,14 +44,13 @@ models: a turn is a constant-rate segment).
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import attrs
 import numpy as np
 
 from hybridtrack.core.validation import check_positive
-
-MODES = ("straight", "left_turn", "right_turn", "stop")
 
 #: default parameters (SI units; the turn rates are 0.5°/s and 0.25°/s)
 DEFAULTS = {
@@ -192,22 +191,13 @@ def _states(omega, v, p) -> list[str]:
 
 def _joined(runs: list[list]) -> list[list]:
     """[mode, first, last] runs with equal neighbours joined."""
-    out = [runs[0]]
-    for r in runs[1:]:
-        if r[0] == out[-1][0]:
-            out[-1][2] = r[2]
-        else:
-            out.append(r)
-    return out
+    groups = [list(group) for _, group in itertools.groupby(runs, key=lambda r: r[0])]
+    return [[group[0][0], group[0][1], group[-1][2]] for group in groups]
 
 
 def _merge_short(runs: list[list], t: np.ndarray, min_duration: float) -> list[list]:
-    def duration(i):
-        end = t[runs[i + 1][1]] if i + 1 < len(runs) else t[runs[i][2]]
-        return end - t[runs[i][1]]
-
     while len(runs) > 1:
-        lengths = [duration(i) for i in range(len(runs))]
+        lengths = np.diff(t[[r[1] for r in runs] + [runs[-1][2]]])  # a run ends where the next starts (the last: at its last)
         i = int(np.argmin(lengths))
         if lengths[i] >= min_duration:
             break
@@ -246,7 +236,6 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
     runs = _merge_short(_joined([[m, k, k] for k, m in enumerate(_states(omega, vbar, p))]), t, p["min_duration"])
     raw = _step_rates(t, c)
     segments = []
-    modes: list[str] = []
     for i, (mode, first, last) in enumerate(runs):
         end = t[runs[i + 1][1]] if i + 1 < len(runs) else t[last]
         s = v[first : last + 1]
@@ -265,10 +254,10 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
                 "last": int(last),
             }
         )
-        modes += [mode] * (last - first + 1)
     for a in (omega, vbar):
         a.setflags(write=False)
-    return ModeLabels(tuple(segments), p, omega, vbar, tuple(modes))
+    modes = tuple(mode for mode, first, last in runs for _ in range(first, last + 1))  # the mode of each report
+    return ModeLabels(tuple(segments), p, omega, vbar, modes)
 
 
 def label_track(track, **parameters) -> ModeLabels:

@@ -53,10 +53,8 @@ def plain(value: Any) -> Any:
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
+    if isinstance(value, (np.ndarray, np.generic)):  # a numpy scalar's tolist() is its item()
         return plain(value.tolist())
-    if isinstance(value, np.generic):
-        return plain(value.item())
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
@@ -69,13 +67,6 @@ def markdown_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column])
     lines = ["| " + " | ".join(c.header for c in columns) + " |", "|" + "---|" * len(columns)]
     lines += ["| " + " | ".join(c.cell(row) for c in columns) + " |" for row in rows]
     return "\n".join(lines) + "\n"
-
-
-def _atomic_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    temporary.write_text(text, encoding="utf-8")
-    os.replace(temporary, path)
 
 
 def write_report(
@@ -97,8 +88,11 @@ def write_report(
     markdown_path = Path(markdown_path) if markdown_path is not None else json_path.with_suffix(".md")
     text = json.dumps({"rows": rows, "protocol": plain(dict(protocol))}, indent=2, allow_nan=False) + "\n"
     table = f"### {title}\n\n" + markdown_table(rows, columns) + (f"\n{notes.strip()}\n" if notes.strip() else "")
-    _atomic_text(json_path, text)
-    _atomic_text(markdown_path, table)
+    for path, content in ((json_path, text), (markdown_path, table)):  # each written atomically
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+        temporary.write_text(content, encoding="utf-8")
+        os.replace(temporary, path)
     return json_path, markdown_path
 
 

@@ -27,11 +27,10 @@ changes.
 The configuration (TOML tables ``[reader]``, ``[measurement]``, ``[altitude]``,
 ``[prior]``, ``[estimator]``; unknown keys and tables are refused) is tabulated
 in ``docs/real_data.md`` and checked by :func:`load_config`.  The algorithm is
-built from the registry as ``(algorithm, {modes, sensors, estimator, name,
-registry, …})`` — the modes, the position sensor, the filter, the name
-``"track"``, the keys that belong to it, then ``[estimator] parameters`` — so
-any registered algorithm that takes those keywords
-(:class:`hybridtrack.core.algorithm.Algorithm`) can be named.  Every user
+built from the registry with the keywords ``modes``, ``sensors`` (the position
+sensor), ``estimator`` (the filter), ``name`` (``"track"``), ``registry``, its
+own keys and ``[estimator] parameters``, so any registered algorithm taking
+them (:class:`hybridtrack.core.algorithm.Algorithm`) can be named.  Every user
 error — a missing file, unknown key, bad value, unknown algorithm or mode — is
 a :class:`ConfigError` (a ValueError) naming the key.
 """
@@ -39,6 +38,7 @@ a :class:`ConfigError` (a ValueError) naming the key.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import json
 import math
 import os
@@ -61,28 +61,21 @@ PRESETS = {"solent_ais": SOLENT_AIS}
 MULTIPLE_MODEL = ("imm", "gpb1", "gpb2")
 #: registry name → summary mode name
 SUMMARY_NAMES = {"constant_acceleration": "acceleration"}
-TURNS = ("left_turn", "right_turn")
 #: the vertical filter's defaults: σ_h (m), white-acceleration density q (m²/s³), prior σ of the climb rate (m/s)
 ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma": 5.0}
 
-_READER_KEYS = {
-    "preset", "time", "x", "y", "lat", "lon", "alt", "id", "course", "speed", "speed_unit", "course_not_available",
-    "speed_not_available", "origin", "projection", "max_speed", "jump_tolerance", "min_reports",
-}  # fmt: skip
-_SECTIONS = {
-    "reader": _READER_KEYS,
-    "measurement": {"sigma"},
-    "altitude": {"sigma", "acceleration_density", "velocity_sigma"},
-    "prior": {"velocity", "position_sigma", "velocity_sigma"},
-    "estimator": {
-        "algorithm", "kind", "filter", "process_noise", "modes", "radii", "alpha", "beta", "bank_size", "initial_mode", "sojourn",
-        "method", "parameters",
-    },
-}  # fmt: skip
-#: the keywords the tracker itself gives every algorithm (``[estimator] parameters`` may not repeat them)
-_RESERVED = {"modes", "sensors", "estimator", "name", "registry", "alpha", "beta", "bank_size", "initial_mode", "sojourn"}
 #: keys that belong to one algorithm (``imm``: the whole multiple-model family), given to its factory (but ``method``)
 _KIND_ONLY = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), "imm": ("sojourn", "method")}
+_SECTIONS = {
+    "reader": set(inspect.signature(read_tracks).parameters) - {"path", "warn"} | {"preset", "min_reports"},  # read_tracks' keywords
+    "measurement": {"sigma"},
+    "altitude": set(ALTITUDE_DEFAULTS),
+    "prior": {"velocity", "position_sigma", "velocity_sigma"},
+    "estimator": {"algorithm", "kind", "filter", "process_noise", "modes", "radii", "parameters"}
+    | set(_KIND_ONLY["unknown_change"] + _KIND_ONLY["imm"]),
+}
+#: the keywords the tracker itself gives every algorithm (``[estimator] parameters`` may not repeat them)
+_RESERVED = {"modes", "sensors", "estimator", "name", "registry", "alpha", "beta", "bank_size", "initial_mode", "sojourn"}
 
 
 class ConfigError(ValueError):
@@ -103,11 +96,10 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         where, raw = "config", dict(config)
     else:
         where = str(config)
-        path = Path(config)
-        if not path.is_file():
+        if not Path(config).is_file():
             raise ConfigError(f"{where}: no such configuration file")
         try:
-            raw = tomllib.loads(path.read_text(encoding="utf-8"))
+            raw = tomllib.loads(Path(config).read_text(encoding="utf-8"))
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
             raise ConfigError(f"{where}: not a valid TOML file ({error})") from None
     unknown = sorted(set(raw) - set(_SECTIONS))
@@ -122,17 +114,15 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         if bad:
             raise ConfigError(f"{where}: unknown key(s) {bad} in [{section}]; expected some of {sorted(keys)}")
         out[section] = dict(table)
-    reader = out["reader"]
-    preset = reader.pop("preset", None)
+    preset = out["reader"].pop("preset", None)
     if preset is not None and preset not in PRESETS:
         raise ConfigError(f"{where}: [reader] preset = {preset!r}; expected one of {sorted(PRESETS)}")
-    reader = {**PRESETS.get(preset, {}), **reader}
-    min_reports = reader.pop("min_reports", 3)
+    reader = out["reader"] = {**PRESETS.get(preset, {}), **out["reader"]}
+    min_reports = out["min_reports"] = reader.pop("min_reports", 3)
     if isinstance(min_reports, bool) or not isinstance(min_reports, int) or min_reports < 2:
         raise ConfigError(f"{where}: [reader] min_reports = {min_reports!r}; expected an integer ≥ 2")
     if isinstance(reader.get("origin"), list):
         reader["origin"] = tuple(reader["origin"])
-    out["reader"], out["min_reports"] = reader, min_reports
 
     sigma = out["measurement"].get("sigma")
     if sigma is None:
@@ -151,7 +141,13 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
     prior["velocity_sigma"] = _positive("prior", "velocity_sigma", prior.get("velocity_sigma", 10.0), where)
 
     est = out["estimator"]
-    kind = _algorithm(est, where, registry)
+    given = [key for key in ("algorithm", "kind") if key in est]  # kind: the older spelling
+    if len(given) != 1:
+        raise ConfigError(f"{where}: [estimator] algorithm (a registered algorithm name) is required, once (kind is its older spelling)")
+    kind = est.pop(given[0])
+    known = registry_or_default(registry).names("algorithm")
+    if kind not in known:
+        raise ConfigError(f"{where}: [estimator] {given[0]} = {kind!r}; expected a registered algorithm, one of {known}")
     family = "imm" if kind in MULTIPLE_MODEL else kind
     for other, keys in _KIND_ONLY.items():
         misplaced = sorted(set(est).intersection(keys)) if other != family else []
@@ -179,36 +175,21 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
             if value >= 0.5:
                 raise ConfigError(f"{where}: [estimator] {key} = {value!r}; expected an error probability in (0, 0.5)")
             est[key] = value
-        bank = est.get("bank_size", 30)
+        bank = est.setdefault("bank_size", 30)
         if bank != "algorithm4" and (isinstance(bank, bool) or not isinstance(bank, int) or bank < 1):
             raise ConfigError(f"{where}: [estimator] bank_size = {bank!r}; expected a positive integer or 'algorithm4'")
-        est["bank_size"] = bank
         names = [name if "radius" not in params else f"{name}_r{params['radius']:g}" for name, params in est["modes"]]
         first = est.get("initial_mode", names[0])
         if first not in names:
             raise ConfigError(f"{where}: [estimator] initial_mode = {first!r}; expected one of {names}")
         est["initial_mode"] = names.index(first)
     elif family == "imm":
-        sojourn = est.get("sojourn", 60.0)
+        sojourn = est.setdefault("sojourn", 60.0)
         for v in sojourn if isinstance(sojourn, list) else [sojourn]:
             _positive("estimator", "sojourn", v, where)
         if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
             raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
-        est["sojourn"] = sojourn
     return out
-
-
-def _algorithm(est: dict, where: str, registry) -> str:
-    """The registry name of ``[estimator] algorithm`` (or of its older spelling ``kind``), checked."""
-    given = [key for key in ("algorithm", "kind") if key in est]
-    if len(given) != 1:
-        raise ConfigError(f"{where}: [estimator] algorithm (a registered algorithm name) is required, once (kind is its older spelling)")
-    key = given[0]
-    name = est.pop(key)
-    known = registry_or_default(registry).names("algorithm")
-    if name not in known:
-        raise ConfigError(f"{where}: [estimator] {key} = {name!r}; expected a registered algorithm, one of {known}")
-    return name
 
 
 def _modes(modes, radii, where) -> list[tuple[str, dict]]:
@@ -230,7 +211,7 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
         else:
             raise ConfigError(f"{where}: [estimator] modes entry {entry!r}; expected a name or {{name = …, radius = …}}")
         name = "constant_acceleration" if name == "acceleration" else name
-        if name in TURNS and "radius" not in params:
+        if name in ("left_turn", "right_turn") and "radius" not in params:
             if radii is None:
                 raise ConfigError(f"{where}: [estimator] mode {name!r} needs a radius: give radii = [...] or {{name, radius}}")
             out += [(name, {"radius": r}) for r in radii]
@@ -244,8 +225,7 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 
 def _build(config: dict, registry=None):
     """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
-    sigma = config["measurement"]["sigma"]
-    sensor = resolve("sensor", ("position", {"noise_cov": sigma**2 * np.eye(2)}), registry)
+    sensor = resolve("sensor", ("position", {"noise_cov": config["measurement"]["sigma"] ** 2 * np.eye(2)}), registry)
     est = config["estimator"]
     q = est["process_noise"] ** 2 * np.eye(2)
     specs = []
@@ -322,9 +302,8 @@ def filter_altitude(times, heights, *, sigma: float, acceleration_density: float
 
 def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_measured=None, lat_lon_estimated=None) -> None:
     """What ``hybridtrack track`` adds to the estimator's own logging (``docs/real_data.md``, *What the recording
-    shows*): ``measured``, ``estimated`` (K, 3) east, north, altitude (m) as ``world/measurements/altitude`` and
-    ``world/estimate/<name>/altitude``; ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees under
-    ``map/measurements`` and ``map/estimate/<name>`` (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`);
+    shows*; the entity paths in ``docs/recording.md``): ``measured``, ``estimated`` (K, 3) east, north, altitude (m)
+    and ``lat_lon_measured``, ``lat_lon_estimated`` (K, 2) degrees (:meth:`~hybridtrack.recording.RerunRecorder.log_geo_path`);
     a NullRecorder ignores them."""
     steps = np.arange(len(times), dtype=np.int64)
     for log, entity, points in (
@@ -380,7 +359,6 @@ def track_one(
 
     estimator, sensor, models = _build(config, registry)
     layout = estimator.layout
-    prior = _prior(track, config, layout)
     xy = np.asarray(track.positions[:, :2], dtype=float)
     name = output_name(track.id)
     heights = None
@@ -391,7 +369,7 @@ def track_one(
     altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}) if out is not None else None
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
-        run = estimator.run({sensor.name: xy}, prior, times=track.times, recorder=recorder)
+        run = estimator.run({sensor.name: xy}, _prior(track, config, layout), times=track.times, recorder=recorder)
         if recorder is not None:
             est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
             in_3d = (None, None) if heights is None else (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
@@ -447,13 +425,10 @@ def track_file(
         data = read_tracks(path, **cfg["reader"], warn=False)
     except TypeError as error:
         raise ConfigError(f"[reader]: {error}") from None
-    chosen = list(data.tracks)
-    if ids is not None:
-        ids = list(ids)
-        missing = [i for i in ids if i not in data.tracks]
-        if missing:
-            raise ConfigError(f"--id {missing[0]!r}: no such object in {path} ({len(data.tracks)} objects)")
-        chosen = list(dict.fromkeys(ids))
+    chosen = list(data.tracks) if ids is None else list(dict.fromkeys(ids))
+    missing = [i for i in chosen if i not in data.tracks]
+    if missing:
+        raise ConfigError(f"--id {missing[0]!r}: no such object in {path} ({len(data.tracks)} objects)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     objects, skipped = [], []

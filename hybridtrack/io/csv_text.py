@@ -1,15 +1,9 @@
-"""Reading CSV text the same way for every file format of the project (measurement files, position reports).
-
-:func:`checked_path` refuses what is not a file name, a directory or a missing file; :func:`decode_csv_text`
-accepts UTF-8 (a leading byte-order mark stripped) and refuses UTF-16, zip archives, other encodings and NUL
-bytes, naming the file and the offending byte; :func:`csv_records` splits the text into records with their line
-numbers, the separator ``,`` or — when the header line has no comma but a semicolon — ``;``, blank records
-skipped; :func:`finite_number` reads a plain decimal cell.
-"""
+"""Reading CSV files the same way for every file format of the project (measurement files, position reports)."""
 
 from __future__ import annotations
 
 import csv
+import gzip
 import io
 import math
 import os
@@ -41,9 +35,20 @@ def finite_number(cell: str) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def decode_csv_text(path: Path, data: bytes, hint: str) -> str:
-    """UTF-8 text of ``data`` read from ``path``, a leading byte-order mark stripped; anything else is a ValueError
-    naming the file (``hint`` says what a valid file looks like)."""
+def read_csv(path, expected: str, hint: str) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
+    """``(header line, header cells, [(line, cells), …])`` of the non-blank records of the CSV file ``path``: read
+    (``.gz`` through gzip) as UTF-8, a leading byte-order mark stripped, separated by ``,`` or — when the header line
+    has no comma but a semicolon — ``;``, cells stripped of spaces.  UTF-16, zip archives, other encodings, NUL bytes
+    (naming the byte), malformed CSV (naming the line) and an empty file are a ValueError naming the file;
+    ``expected`` (what the file should be, for :func:`checked_path`) and ``hint`` (what a valid file looks like) go
+    into the errors."""
+    path = checked_path(path, expected)
+    data = path.read_bytes()
+    if path.suffix.lower() == ".gz":
+        try:
+            data = gzip.decompress(data)
+        except (OSError, EOFError) as error:
+            raise ValueError(f"{path}: not a readable gzip file ({error})") from None
     if data.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise ValueError(f"{path}: the file is UTF-16 text; save it as UTF-8 ({hint})")
     if data.startswith(b"PK\x03\x04"):
@@ -54,11 +59,6 @@ def decode_csv_text(path: Path, data: bytes, hint: str) -> str:
         raise ValueError(f"{path}: not a UTF-8 text CSV (byte 0x{data[error.start]:02x} at offset {error.start}); {hint}") from None
     if "\x00" in text:
         raise ValueError(f"{path}: not a UTF-8 text CSV (NUL byte at offset {text.index(chr(0))}); {hint}")
-    return text
-
-
-def csv_records(path: Path, text: str, *, strip: bool = False) -> list[tuple[int, list[str]]]:
-    """(line, cells) for each non-blank record (cells stripped of spaces with ``strip``); malformed CSV names the line."""
     first_line = next((line for line in text.splitlines() if line.strip()), "")
     delimiter = ";" if "," not in first_line and ";" in first_line else ","
     reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
@@ -67,8 +67,10 @@ def csv_records(path: Path, text: str, *, strip: bool = False) -> list[tuple[int
         start = 1
         for row in reader:
             if any(cell.strip() for cell in row):
-                records.append((start, [cell.strip() for cell in row] if strip else row))
+                records.append((start, [cell.strip() for cell in row]))
             start = reader.line_num + 1
     except csv.Error as error:
         raise ValueError(f"{path}:{reader.line_num}: malformed CSV ({error})") from None
-    return records
+    if not records:
+        raise ValueError(f"{path}: empty file; {hint}")
+    return *records[0], records[1:]

@@ -31,9 +31,7 @@ NPZ layout: one array per sensor, named by the sensor, shape (steps, m), plus
 optionally a 1-D array ``time`` (steps,) of the step times in seconds (a 2-D
 array named ``time`` is still read as a sensor).
 
-:func:`read_measurement_file` returns both, ``(measurements, times or None)``;
-:func:`read_measurements` returns the measurements only.  Pass the times on as
-``Pipeline(..., times=times)``.
+Pass the times of :func:`read_measurement_file` on as ``Pipeline(..., times=times)``.
 
 What the readers accept and refuse — every error names the file, and the line
 and column or the array where it applies — is tabulated in ``docs/sensors.md``
@@ -58,7 +56,7 @@ from typing import NamedTuple
 import numpy as np
 
 from hybridtrack.core.validation import as_float_array
-from hybridtrack.io.csv_text import NUMBER, checked_path, csv_records, decode_csv_text
+from hybridtrack.io.csv_text import NUMBER, checked_path, read_csv
 from hybridtrack.sdk.timestamps import check_times
 
 
@@ -159,8 +157,7 @@ def _cell(path: Path, line: int, column: str, cell: str) -> float:
 
 def _steps(path: Path, body) -> list[int]:
     """The ``step`` column: integers 0 … :data:`MAX_STEP`, none repeated (the error names both lines)."""
-    steps: list[int] = []
-    lines: dict[int, int] = {}
+    lines: dict[int, int] = {}  # step → its line, in file order
     for line, row in body:
         cell = row[0]
         if not _INTEGER.fullmatch(cell):
@@ -173,18 +170,12 @@ def _steps(path: Path, body) -> list[int]:
         if step in lines:
             raise ValueError(f"{path}:{line}: step {step} is repeated (first at line {lines[step]})")
         lines[step] = line
-        steps.append(step)
-    return steps
+    return list(lines)
 
 
 def _read_csv(path: Path) -> MeasurementFile:
-    text = decode_csv_text(path, path.read_bytes(), _CSV_HINT)
-    rows = csv_records(path, text, strip=True)
-    if not rows:
-        raise ValueError(f"{path}: empty file; {_CSV_HINT}")
-    header_line, header = rows[0]
+    header_line, header, body = read_csv(path, "a .csv measurement file", _CSV_HINT)
     first, sensors = _header(path, header_line, header)
-    body = rows[1:]
     if not body:
         raise ValueError(f"{path}: header only, no data rows; {_CSV_HINT}")
     for line, row in body:
@@ -237,71 +228,12 @@ def write_csv(
     with open(path, "w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(header)
-        for k in range(steps):
+        for k, z in enumerate(np.hstack(list(arrays.values()))):  # z: step k of every sensor, in header order
             row = [str(k) if times is None else repr(float(times[k]))]
-            for z in arrays.values():
-                row += ["" if not np.isfinite(v) else repr(float(v)) for v in z[k]]
-            writer.writerow(row)
+            writer.writerow(row + ["" if not np.isfinite(v) else repr(float(v)) for v in z])
 
 
 _NPZ_HINT = "expected an NPZ archive (numpy.savez) of one (steps, m) numeric array per sensor"
-_NUMERIC_KINDS = "iuf"  # signed/unsigned integers and floats; bool, complex, text, objects are refused
-
-
-def _npz_headers(path: Path) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
-    """Array name → (shape, dtype) read from each member's .npy header, before any array is loaded."""
-    try:
-        archive = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, OSError, EOFError) as error:
-        raise ValueError(f"{path}: corrupt or truncated NPZ archive ({error}); {_NPZ_HINT}") from None
-    headers: dict[str, tuple[tuple[int, ...], np.dtype]] = {}
-    with archive:
-        for member in archive.namelist():
-            name = member.removesuffix(".npy")
-            if not member.endswith(".npy"):
-                raise ValueError(f"{path}: archive member {member!r} is not a .npy array; {_NPZ_HINT}")
-            if name in headers:
-                raise ValueError(f"{path}: array {name!r} appears twice in the archive")
-            try:
-                with archive.open(member) as stream:
-                    version = np.lib.format.read_magic(stream)
-                    read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-                    shape, _, dtype = read(stream)
-            except Exception as error:  # zipfile, zlib and numpy raise several types for a damaged member
-                raise ValueError(f"{path}: array {name!r} cannot be read, the archive is corrupt or truncated ({error})") from None
-            headers[name] = (shape, dtype)
-    return headers
-
-
-def _npz_arrays(path: Path, names: list[str]) -> dict[str, np.ndarray]:
-    """Load each member (``allow_pickle=False``) and read it to its end, so zipfile checks its CRC-32."""
-    arrays = {}
-    with zipfile.ZipFile(path) as archive:
-        for name in names:
-            try:
-                with archive.open(name + ".npy") as stream:
-                    arrays[name] = np.lib.format.read_array(stream, allow_pickle=False)
-                    trailing = stream.read()  # reaching the end makes zipfile compare the CRC-32
-            except Exception as error:  # a damaged body (CRC, zlib, short read) after a readable header
-                raise ValueError(f"{path}: array {name!r} cannot be read, the archive is corrupt or truncated ({error})") from None
-            if trailing:
-                raise ValueError(f"{path}: array {name!r} has {len(trailing)} bytes after its data; the archive is corrupt")
-    return arrays
-
-
-def _npz_check(path: Path, name: str, shape: tuple[int, ...], dtype: np.dtype, time: bool) -> None:
-    """Refuse an array by its header: Python objects, non-numeric dtypes, wrong number of axes."""
-    if dtype.hasobject:
-        raise ValueError(f"{path}: array {name!r} holds Python objects (a pickle), which are refused; {_NPZ_HINT}")
-    if dtype.kind not in _NUMERIC_KINDS:
-        raise ValueError(f"{path}: array {name!r} has dtype {dtype} ({dtype.kind!r} kind); expected float or integer numbers")
-    if time:
-        return
-    if len(shape) != 2:
-        extra = " (a time array must be named 'time')" if len(shape) == 1 else ""
-        raise ValueError(f"{path}: array {name!r} has shape {shape}; expected 2-D (steps, m){extra}")
-    if shape[0] == 0 or shape[1] == 0:
-        raise ValueError(f"{path}: array {name!r} has shape {shape}; expected at least one step and one component")
 
 
 def _read_npz(path: Path) -> MeasurementFile:
@@ -313,26 +245,64 @@ def _read_npz(path: Path) -> MeasurementFile:
         raise ValueError(f"{path}: a single .npy array, not an NPZ archive; {_NPZ_HINT}")
     if not magic.startswith((b"PK\x03\x04", b"PK\x05\x06")):
         raise ValueError(f"{path}: not an NPZ (zip) archive (it starts with {magic!r}); {_NPZ_HINT}")
-    headers = _npz_headers(path)
-    if not headers:
-        raise ValueError(f"{path}: the archive holds no arrays; {_NPZ_HINT}")
-    is_time = "time" in headers and len(headers["time"][0]) == 1
-    for name, (shape, dtype) in headers.items():
-        _npz_check(path, name, shape, dtype, is_time and name == "time")
-    sensors = {name: shape for name, (shape, _) in headers.items() if not (is_time and name == "time")}
-    if not sensors:
-        raise ValueError(f"{path}: the archive holds only the 'time' array, no sensor; {_NPZ_HINT}")
-    steps = {shape[0] for shape in sensors.values()}
-    if len(steps) != 1:
-        counts = ", ".join(f"{name} {shape[0]}" for name, shape in sensors.items())
-        raise ValueError(f"{path}: the arrays have different numbers of steps ({counts}); expected one row per step in each")
-    size = sum(8 * int(np.prod(shape)) for shape, _ in headers.values())
-    if size > MAX_BYTES:
-        raise ValueError(
-            f"{path}: the arrays need {size / 2**20:.0f} MiB as float64, above the limit {MAX_BYTES / 2**20:.0f} MiB"
-            " (measurements_io.MAX_BYTES)"
-        )
-    arrays = _npz_arrays(path, list(headers))
+    try:
+        archive = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError, EOFError) as error:
+        raise ValueError(f"{path}: corrupt or truncated NPZ archive ({error}); {_NPZ_HINT}") from None
+
+    def member(name: str, header: bool):
+        try:
+            with archive.open(name + ".npy") as stream:
+                if header:
+                    version = np.lib.format.read_magic(stream)
+                    read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                    return read(stream)
+                return np.lib.format.read_array(stream, allow_pickle=False), stream.read()  # reaching the end: the CRC-32 check
+        except Exception as error:  # zipfile, zlib and numpy raise several types for a damaged header or body
+            raise ValueError(f"{path}: array {name!r} cannot be read, the archive is corrupt or truncated ({error})") from None
+
+    with archive:
+        headers: dict[str, tuple[tuple[int, ...], bool, np.dtype]] = {}
+        for entry in archive.namelist():
+            name = entry.removesuffix(".npy")
+            if not entry.endswith(".npy"):
+                raise ValueError(f"{path}: archive member {entry!r} is not a .npy array; {_NPZ_HINT}")
+            if name in headers:
+                raise ValueError(f"{path}: array {name!r} appears twice in the archive")
+            headers[name] = member(name, header=True)
+        if not headers:
+            raise ValueError(f"{path}: the archive holds no arrays; {_NPZ_HINT}")
+        is_time = "time" in headers and len(headers["time"][0]) == 1
+        for name, (shape, _, dtype) in headers.items():
+            if dtype.hasobject:
+                raise ValueError(f"{path}: array {name!r} holds Python objects (a pickle), which are refused; {_NPZ_HINT}")
+            if dtype.kind not in "iuf":  # signed/unsigned integers and floats; bool, complex, text, objects are refused
+                raise ValueError(f"{path}: array {name!r} has dtype {dtype} ({dtype.kind!r} kind); expected float or integer numbers")
+            if is_time and name == "time":
+                continue
+            if len(shape) != 2:
+                extra = " (a time array must be named 'time')" if len(shape) == 1 else ""
+                raise ValueError(f"{path}: array {name!r} has shape {shape}; expected 2-D (steps, m){extra}")
+            if shape[0] == 0 or shape[1] == 0:
+                raise ValueError(f"{path}: array {name!r} has shape {shape}; expected at least one step and one component")
+        sensors = {name: shape for name, (shape, _, _) in headers.items() if not (is_time and name == "time")}
+        if not sensors:
+            raise ValueError(f"{path}: the archive holds only the 'time' array, no sensor; {_NPZ_HINT}")
+        steps = {shape[0] for shape in sensors.values()}
+        if len(steps) != 1:
+            counts = ", ".join(f"{name} {shape[0]}" for name, shape in sensors.items())
+            raise ValueError(f"{path}: the arrays have different numbers of steps ({counts}); expected one row per step in each")
+        size = sum(8 * int(np.prod(shape)) for shape, _, _ in headers.values())
+        if size > MAX_BYTES:
+            raise ValueError(
+                f"{path}: the arrays need {size / 2**20:.0f} MiB as float64, above the limit {MAX_BYTES / 2**20:.0f} MiB"
+                " (measurements_io.MAX_BYTES)"
+            )
+        arrays = {}
+        for name in headers:
+            arrays[name], trailing = member(name, header=False)
+            if trailing:
+                raise ValueError(f"{path}: array {name!r} has {len(trailing)} bytes after its data; the archive is corrupt")
     times = arrays.pop("time") if is_time else None
     measurements = {name: as_float_array(z, f"{path}: array {name!r}", (None, None), allow_nan=True) for name, z in arrays.items()}
     if times is not None:

@@ -28,9 +28,8 @@ Columns (names configurable, see :func:`read_tracks`):
 Projection (``projection=``):
 
 * ``"enu"`` (default) — exact local east-north-up coordinates: geodetic →
-  WGS-84 ECEF, X = (N + h) cos φ cos λ, Y = (N + h) cos φ sin λ,
-  Z = (N (1 − e²) + h) sin φ with N = a / √(1 − e² sin² φ), then the rotation
-  to the tangent plane at the origin (φ₀, λ₀):
+  WGS-84 ECEF (:func:`geodetic_to_ecef`), then the rotation to the tangent
+  plane at the origin (φ₀, λ₀):
   e = −sin λ₀ ΔX + cos λ₀ ΔY,
   n = −sin φ₀ cos λ₀ ΔX − sin φ₀ sin λ₀ ΔY + cos φ₀ ΔZ,
   u = cos φ₀ cos λ₀ ΔX + cos φ₀ sin λ₀ ΔY + sin φ₀ ΔZ
@@ -63,21 +62,19 @@ reachable from the last good fix are dropped, a lasting jump is flagged and kept
 
 from __future__ import annotations
 
-import gzip
 import math
 import os
 import warnings
 from collections import Counter
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from pathlib import Path
 from types import SimpleNamespace
 
 import attrs
 import numpy as np
 
 from hybridtrack.core.validation import check_positive
-from hybridtrack.io.csv_text import checked_path, csv_records, decode_csv_text, finite_number
+from hybridtrack.io.csv_text import checked_path, finite_number, read_csv
 
 #: WGS-84 semi-major axis a (m) and flattening f (NIMA TR8350.2, 3rd ed., table 3.1)
 WGS84_A = 6_378_137.0
@@ -208,9 +205,8 @@ def project(lat, lon, h=None, *, origin: Sequence[float], projection: str = "enu
     """Project WGS-84 latitude/longitude (degrees) and optional height (m) to the local tangent plane at
     ``origin`` = (lat₀, lon₀[, h₀]): (K, 2) east/north, or (K, 3) east/north/up when ``h`` is given.
 
-    ``"enu"``: ECEF difference rotated to east-north-up (module docstring; Hofmann-Wellenhof et al. 2008, §10.2.2).
-    ``"equirectangular"``: e = Δλ (N₀ + h₀) cos φ₀, n = Δφ M₀, u = h − h₀.
-    """
+    ``"enu"`` (the ECEF difference rotated to east-north-up) and ``"equirectangular"``: the formulas of the module
+    docstring (Hofmann-Wellenhof et al. 2008, §10.2.2)."""
     _check_projection(projection)
     lat0, lon0, h0 = _origin(origin)
     lat = np.asarray(lat, dtype=np.float64)
@@ -247,7 +243,6 @@ def ecef_to_geodetic(xyz) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     lam = np.arctan2(y, x)
     p = np.hypot(x, y)
     phi = np.arctan2(z, p * (1.0 - WGS84_E2))
-    h = np.zeros_like(p)
     for _ in range(6):
         n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * np.sin(phi) ** 2)
         h = p / np.cos(phi) - n
@@ -277,8 +272,7 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
         prime, meridian = _radii(phi0)
         lat = lat0 + np.degrees(n / (meridian + h0))
         lon = (lon0 + np.degrees(e / ((prime + h0) * math.cos(phi0))) + 180.0) % 360.0 - 180.0
-        h = h0 + (positions[:, 2] if positions.shape[1] == 3 else 0.0)
-        return np.stack([lat, lon, h] if positions.shape[1] == 3 else [lat, lon], axis=-1)
+        return np.stack([lat, lon, h0 + positions[:, 2]] if positions.shape[1] == 3 else [lat, lon], axis=-1)
     sp, cp, sl, cl = math.sin(phi0), math.cos(phi0), math.sin(lam0), math.cos(lam0)
     rotation = np.array([[-sl, cl, 0.0], [-sp * cl, -sp * sl, cp], [cp * cl, cp * sl, sp]])  # ECEF → ENU
     base = geodetic_to_ecef(lat0, lon0, h0)
@@ -406,16 +400,6 @@ def projection_error(origin: Sequence[float], distance: float = 100e3, *, projec
 # --- reading ---------------------------------------------------------------------------------------------------
 
 
-def _text(path: Path) -> str:
-    data = checked_path(path, "a CSV file of position reports").read_bytes()
-    if path.suffix.lower() == ".gz":
-        try:
-            data = gzip.decompress(data)
-        except (OSError, EOFError) as error:
-            raise ValueError(f"{path}: not a readable gzip file ({error})") from None
-    return decode_csv_text(path, data, _HINT)
-
-
 def _timestamp(cell: str) -> datetime | None:
     try:
         stamp = datetime.fromisoformat(cell)
@@ -456,8 +440,7 @@ def read_tracks(
     ``course_not_available``/``speed_not_available`` are the codes meaning "no value" (``speed_not_available`` in
     ``speed_unit``).  The speed check of geographic files runs in the plane of the file's first valid fix (or of the
     explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the arithmetic mean of the degrees, so it
-    is wrong for tracks that cross the ±180° meridian (give the origin there).  :data:`SOLENT_AIS` holds the
-    settings of the Solent AIS file.
+    is wrong for tracks that cross the ±180° meridian (give the origin there).
     """
     path = checked_path(path)
     if (lat is None) != (lon is None):
@@ -474,18 +457,12 @@ def read_tracks(
         raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
     origin = origin if isinstance(origin, str) else _origin(origin)
 
-    records = csv_records(path, _text(path), strip=True)
-    if not records:
-        raise ValueError(f"{path}: empty file; {_HINT}")
-    header_line, header = records[0]
-    body = records[1:]
+    header_line, header, body = read_csv(path, "a CSV file of position reports", _HINT)
     position_columns = [lat, lon] if geographic else [x, y]
     if alt is not None:
         position_columns.append(alt)
     columns = {}
-    for name in [time, *position_columns, id, course, speed]:
-        if name is None:
-            continue
+    for name in [name for name in (time, *position_columns, id, course, speed) if name is not None]:
         if name not in header:
             raise ValueError(f"{path}:{header_line}: no column {name!r} in the header; the columns are {header}")
         if header.count(name) > 1:
@@ -502,7 +479,7 @@ def read_tracks(
     # numeric seconds or ISO-8601: decided by the first non-empty time cell
     first_time = next((row[columns[time]] for _, row in body if len(row) > columns[time] and row[columns[time]]), "")
     iso = finite_number(first_time) is None and _timestamp(first_time) is not None
-    rows: list[SimpleNamespace] = []  # the rows used: line, id, time, values (the position cells), course, speed
+    groups: dict[str, list[SimpleNamespace]] = {}  # id → the rows used: line, id, time, values (the position cells), course, speed
     for line, row in body:
         if len(row) != len(header):
             report(line, None, "bad_row", "dropped", f"{len(row)} cells, the header has {len(header)}; row dropped")
@@ -517,46 +494,40 @@ def read_tracks(
             form = "an ISO-8601 timestamp (as in the first row)" if iso else "a finite number of seconds"
             report(line, time, "bad_time", "dropped", f"column {time!r} holds {cell!r}, not {form}; row dropped", key)
             continue
-        values = []
-        for name in position_columns:
+        values = [finite_number(row[columns[name]]) for name in position_columns]
+        if None in values:
+            name = position_columns[values.index(None)]
+            cell = row[columns[name]]
+            report(line, name, "not_a_number", "dropped", f"column {name!r} holds {cell!r}, not a finite number; row dropped", key)
+            continue
+        if geographic and not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
+            bad, value, limits = (lat, values[0], "[-90, 90]") if not -90.0 <= values[0] <= 90.0 else (lon, values[1], "[-180, 180]")
+            report(line, bad, "out_of_range", "dropped", f"column {bad!r} holds {value}, outside {limits} degrees; row dropped", key)
+            continue
+        extra = []
+        for name, low, high, code, factor in (
+            (course, 0.0, 360.0, course_not_available, 1.0),
+            (speed, 0.0, math.inf, speed_not_available, SPEED_UNITS[speed_unit]),
+        ):
+            if name is None:
+                extra.append(None)
+                continue
             cell = row[columns[name]]
             value = finite_number(cell)
-            if value is None:
-                report(line, name, "not_a_number", "dropped", f"column {name!r} holds {cell!r}, not a finite number; row dropped", key)
-                break
-            values.append(value)
-        else:
-            if geographic and not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
-                bad, value, limits = (lat, values[0], "[-90, 90]") if not -90.0 <= values[0] <= 90.0 else (lon, values[1], "[-180, 180]")
-                report(line, bad, "out_of_range", "dropped", f"column {bad!r} holds {value}, outside {limits} degrees; row dropped", key)
-                continue
-            extra = []
-            for name, low, high, code, factor in (
-                (course, 0.0, 360.0, course_not_available, 1.0),
-                (speed, 0.0, math.inf, speed_not_available, SPEED_UNITS[speed_unit]),
-            ):
-                if name is None:
-                    extra.append(None)
-                    continue
-                cell = row[columns[name]]
-                value = finite_number(cell)
-                if value is not None and code is not None and value == code:
-                    extra.append("n/a")
-                elif value is None or not low <= value <= high:
-                    kind, why = ("not_a_number", "not a finite number") if value is None else ("out_of_range", f"outside [{low}, {high}]")
-                    report(line, name, kind, "set_nan", f"column {name!r} holds {cell!r}, {why}; set to NaN", key)
-                    extra.append(math.nan)
-                else:
-                    extra.append(value * factor)
-            rows.append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1]))
+            if value is not None and code is not None and value == code:
+                extra.append("n/a")
+            elif value is None or not low <= value <= high:
+                kind, why = ("not_a_number", "not a finite number") if value is None else ("out_of_range", f"outside [{low}, {high}]")
+                report(line, name, kind, "set_nan", f"column {name!r} holds {cell!r}, {why}; set to NaN", key)
+                extra.append(math.nan)
+            else:
+                extra.append(value * factor)
+        groups.setdefault(key, []).append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1]))
 
+    rows = [r for group in groups.values() for r in group]  # rows[0]: the first row used of the file
     epoch = min((r.time for r in rows), default=None) if iso else None
     for r in rows if iso else ():
         r.time = (r.time - epoch).total_seconds()
-
-    groups: dict[str, list[SimpleNamespace]] = {}
-    for r in rows:
-        groups.setdefault(r.id, []).append(r)
 
     def positions_of(group, at):
         values = np.array([r.values for r in group], dtype=np.float64).reshape(len(group), len(position_columns))
@@ -568,15 +539,13 @@ def read_tracks(
         return r.values[0], r.values[1], r.values[2] if alt else 0.0
 
     check_origin = origin if not isinstance(origin, str) else (fix(rows[0]) if rows else None)
-    kept_groups: dict[str, list[SimpleNamespace]] = {}
-    for key, group in groups.items():
-        order = sorted(range(len(group)), key=lambda i: group[i].time)
-        if order != list(range(len(group))):
-            late = next(group[i] for i, j in zip(order, range(len(group))) if i != j)
+    for key, group in groups.items():  # each group becomes the rows kept
+        ordered = sorted(group, key=lambda r: r.time)
+        late = next((r for r, s in zip(ordered, group) if r is not s), None)
+        if late is not None:
             report(late.line, time, "unsorted", "sorted", f"id {key!r}: rows out of time order (the first misplaced one here); sorted", key)
-        group = [group[i] for i in order]
-        unique = [group[0]]
-        for r in group[1:]:
+        unique = [ordered[0]]
+        for r in ordered[1:]:
             if r.time == unique[-1].time:
                 same = r.values == unique[-1].values and r.course == unique[-1].course and r.speed == unique[-1].speed
                 what = "identical to" if same else "with different values from"
@@ -586,9 +555,9 @@ def read_tracks(
             unique.append(r)
         if max_speed is not None and len(unique) > 1:
             unique = _speed_check(unique, positions_of(unique, check_origin), max_speed, jump_tolerance, key, report, time)
-        kept_groups[key] = unique
+        groups[key] = unique
 
-    kept = [r for g in kept_groups.values() for r in g]
+    kept = [r for g in groups.values() for r in g]
     if geographic and isinstance(origin, str):
         if not kept:
             origin = None
@@ -602,28 +571,21 @@ def read_tracks(
         return problem.line, header.index(problem.column) if problem.column in header else -1
 
     tracks = {}
-    for key, group in kept_groups.items():
-        mine = tuple(p for p in problems if p.id == key)
-        missing = []
+    for key, group in groups.items():
         for name, attr, code in ((course, "course", course_not_available), (speed, "speed", speed_not_available)):
             lines = [r.line for r in group if getattr(r, attr) == "n/a"]  # none without the column (all None)
             if lines:
                 shown = ", ".join(map(str, lines[:5])) + (", …" if len(lines) > 5 else "")
-                missing.append(Problem(
-                    lines[0], name, "not_available", "set_nan",
-                    f"{path}:{lines[0]}: id {key!r}: column {name!r} holds {code} (not available) in {len(lines)} rows (lines {shown}); set to NaN",
-                    key,
-                ))  # fmt: skip
-        mine = tuple(sorted(mine + tuple(missing), key=by_place))
-        problems += missing
+                message = f"id {key!r}: column {name!r} holds {code} (not available) in {len(lines)} rows (lines {shown}); set to NaN"
+                report(lines[0], name, "not_available", "set_nan", message, key)
         tracks[key] = Track(
             id=key,
             times=np.array([r.time for r in group], dtype=np.float64),
             positions=positions_of(group, origin),
             lines=[r.line for r in group],
-            course=_values(group, "course", course),
-            speed=_values(group, "speed", speed),
-            problems=mine,
+            course=None if course is None else [math.nan if r.course == "n/a" else r.course for r in group],
+            speed=None if speed is None else [math.nan if r.speed == "n/a" else r.speed for r in group],
+            problems=sorted((p for p in problems if p.id == key), key=by_place),
         )
     problems.sort(key=by_place)
     if warn and problems:
@@ -633,17 +595,8 @@ def read_tracks(
     return TrackFile(str(path), tracks, origin if geographic else None, projection if geographic else None, epoch, tuple(problems))
 
 
-def _values(group, attr, name):
-    """The course or speed column of a group of rows (None without the column; NaN where not available)."""
-    if name is None:
-        return None
-    return np.array([math.nan if getattr(r, attr) == "n/a" else getattr(r, attr) for r in group], dtype=np.float64)
-
-
 def _speed_check(group, positions, max_speed, tolerance, key, report, column):
-    """Drop outlier bursts and first-fix outliers faster than ``max_speed``; flag (and keep) lasting jumps.
-
-    Fix j is reachable from fix i when |p_j − p_i| ≤ max_speed (t_j − t_i) + tolerance."""
+    """Drop outlier bursts and first-fix outliers faster than ``max_speed`` (reachable: module docstring); flag (and keep) lasting jumps."""
     times = np.array([r.time for r in group])
 
     def gap(i, j):
@@ -656,26 +609,23 @@ def _speed_check(group, positions, max_speed, tolerance, key, report, column):
     i = 1
     while i < len(group):
         k = kept[-1]
-        if ok(k, i):
-            kept.append(i)
-            i += 1
-            continue
-        v = gap(k, i) / (times[i] - times[k])
-        allowance = f" (+ {tolerance:g} m)" if tolerance else ""
-        back = next((m for m in range(i + 1, min(i + 1 + MAX_OUTLIER_BURST, len(group))) if ok(k, m)), None)
-        where = f"id {key!r}: reaching this fix from line {group[k].line} ({gap(k, i):.1f} m in {times[i] - times[k]:.3g} s) takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}"
-        if back is not None:
-            burst = f"id {key!r}: part of the same burst"
-            for m in range(i, back):
-                report(group[m].line, column, "speed_jump", "dropped", f"{where if m == i else burst}; row dropped", key)
-            i = back
-            continue
-        if len(kept) == 1 and i + 1 < len(group) and ok(i, i + 1):
-            report(group[k].line, column, "speed_jump", "dropped",
-                   f"id {key!r}: the next fixes (lines {group[i].line}, {group[i + 1].line}) agree with each other but leaving this first fix takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}; row dropped", key)  # fmt: skip
-            kept = [i]
-        else:
-            report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
-            kept.append(i)
+        if not ok(k, i):
+            v = gap(k, i) / (times[i] - times[k])
+            allowance = f" (+ {tolerance:g} m)" if tolerance else ""
+            back = next((m for m in range(i + 1, min(i + 1 + MAX_OUTLIER_BURST, len(group))) if ok(k, m)), None)
+            where = f"id {key!r}: reaching this fix from line {group[k].line} ({gap(k, i):.1f} m in {times[i] - times[k]:.3g} s) takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}"
+            if back is not None:
+                burst = f"id {key!r}: part of the same burst"
+                for m in range(i, back):
+                    report(group[m].line, column, "speed_jump", "dropped", f"{where if m == i else burst}; row dropped", key)
+                i = back
+                continue
+            if len(kept) == 1 and i + 1 < len(group) and ok(i, i + 1):
+                report(group[k].line, column, "speed_jump", "dropped",
+                       f"id {key!r}: the next fixes (lines {group[i].line}, {group[i + 1].line}) agree with each other but leaving this first fix takes {v:.1f} m/s > max_speed {max_speed:g} m/s{allowance}; row dropped", key)  # fmt: skip
+                kept = []  # the first fix dropped: the track starts here
+            else:
+                report(group[i].line, column, "speed_jump", "flagged", f"{where}, and the track continues from here; kept", key)
+        kept.append(i)
         i += 1
     return [group[i] for i in kept]
