@@ -240,8 +240,9 @@ def simulate_trajectories(
     for i, (segment, model) in enumerate(zip(schedule.segments, models)):
         x = np.stack([model.enter(row, current_layout, {"acceleration": segment.acceleration}) for row in x])
         current_layout, switch_states, built = model.layout, x.copy(), None
+        block = np.empty((R, segment.steps, model.state_dim))
         for j in range(segment.steps):
-            dt = float(intervals[k])
+            dt = float(intervals[k + j])
             if dt != built:  # regular sampling: one transition per segment; given times: one per step
                 transitions, built = [model.transition(dt, row) for row in switch_states], dt
                 F, B = np.stack([t.F for t in transitions]), np.stack([t.B for t in transitions])
@@ -254,9 +255,10 @@ def simulate_trajectories(
                 x = np.stack([model.propagate(row, dt, s) for row, s in zip(x, switch_states)])
             if process_noise:
                 x = x + np.einsum("rij,rj->ri", GL, noise[:, j])
-            if not np.all(np.isfinite(x)):
-                raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
-            k += 1
-            states[:, k] = convert_layout(x, current_layout, layout)
-            segment_index[k] = i
+            block[:, j] = x
+        if not np.all(np.isfinite(block)):
+            raise FloatingPointError(f"schedule row {i} ({segment.mode}): state became non-finite")
+        states[:, k + 1 : k + segment.steps + 1] = convert_layout(block, current_layout, layout)
+        segment_index[k + 1 : k + segment.steps + 1] = i
+        k += segment.steps
     return [Trajectory(schedule, tau, layout, states[r], segment_index.copy(), times) for r in range(R)]

@@ -155,21 +155,17 @@ class _Turn(MotionModel):
         B = [x_c(1−c), ω x_c s, y_c(1−c), ω y_c s] with x_c = x_s − d·v_ys/ω,
         y_c = y_s + d·v_xs/ω (d = ``direction``), written without dividing by ω.
         """
-        x, vx, y, vy = np.moveaxis(switch_states, -1, 0)
+        x, vx, y, vy = switch_states if switch_states.ndim == 1 else (switch_states[..., i] for i in range(4))  # 1-D: scalars
         w = np.hypot(vx, vy) / self.radius
         c, s = np.cos(w * tau), np.sin(w * tau)
         sin_over_w = tau * np.sinc(w * tau / np.pi)  # sin(ωτ)/ω, τ at ω = 0
         one_minus_cos_over_w = w * (tau * np.sinc(w * tau / (2 * np.pi))) ** 2 / 2  # (1 − cos ωτ)/ω
         d = self.direction
-        B = np.stack(
-            [
-                x * (1 - c) - d * vy * one_minus_cos_over_w,
-                (w * x - d * vy) * s,
-                y * (1 - c) + d * vx * one_minus_cos_over_w,
-                (w * y + d * vx) * s,
-            ],
-            axis=-1,
-        )
+        B = np.empty(switch_states.shape)
+        B[..., 0] = x * (1 - c) - d * vy * one_minus_cos_over_w
+        B[..., 1] = (w * x - d * vy) * s
+        B[..., 2] = y * (1 - c) + d * vx * one_minus_cos_over_w
+        B[..., 3] = (w * y + d * vx) * s
         return c, sin_over_w, -w * s, B
 
     def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
