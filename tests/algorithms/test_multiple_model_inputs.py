@@ -1,45 +1,13 @@
-"""MultipleModelEstimator.run_batch's inputs named in errors (its equivalence with the runs alone is
-tests/engine/test_batch.py), the sojourn-time matrices against scipy's expm, and the grouped transitions of its banks."""
+"""The sojourn-time matrices of MultipleModelEstimator against scipy's expm, and the grouped transitions of its
+banks (its batch equivalence and its named input errors are in tests/engine/test_batch.py)."""
 
 import numpy as np
 import pytest
 
-from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, sojourn_matrix
+from hybridtrack.algorithms.multiple_model import sojourn_matrix
 from hybridtrack_plugins.motion.linear_modes import LeftTurn, Straight
-from hybridtrack_plugins.sensors.position import PositionSensor
 
-RUNS, STEPS = 4, 16
-SENSORS = [PositionSensor(name="a", noise_cov=np.diag([0.5, 0.8])), PositionSensor(name="b", components="x", noise_cov=[[0.3]])]
 TOL = {"rtol": 1e-12, "atol": 1e-12}
-
-
-def data(seed=3):
-    rng = np.random.default_rng(seed)
-    times = np.cumsum(rng.uniform(0.5, 1.5, size=(RUNS, STEPS)), axis=1)
-    t = times - times[:, :1]
-    x = np.stack([t[r] * (1.0 + 0.2 * r) for r in range(RUNS)])  # straight runs at different speeds
-    y = np.stack([np.sin(0.3 * t[r]) * 5 for r in range(RUNS)])
-    z = {
-        "a": np.stack([x, y], axis=-1) + rng.normal(0, 0.7, (RUNS, STEPS, 2)),
-        "b": x[..., None] + rng.normal(0, 0.5, (RUNS, STEPS, 1)),
-    }
-    z["b"][0, 4:8] = np.nan  # run 0 lacks sensor b
-    z["a"][1, 6, 0] = np.nan  # run 1 lacks one component
-    z["a"][2, 10], z["b"][2, 10] = np.nan, np.nan  # run 2: prediction only
-    means = np.stack([[0.0, 1.0 + 0.2 * r, 0.0, 0.5] for r in range(RUNS)])
-    covs = np.stack([np.diag([1.0, 0.5, 1.0, 0.5]) * (1 + r) for r in range(RUNS)])
-    return z, times, (means, covs)
-
-
-def test_batch_input_errors_name_the_argument():
-    z, times, prior = data()
-    mm = MultipleModelEstimator([Straight(), Straight(noise_cov=np.eye(2))], sojourn=5.0, sensors=SENSORS)
-    with pytest.raises(ValueError, match="times"):
-        mm.run_batch(z, prior, times=times[:2])
-    with pytest.raises(ValueError, match="measurements"):
-        mm.run_batch({n: a[0] for n, a in z.items()}, prior, times=times)
-    with pytest.raises(ValueError, match="recorders"):
-        mm.run_batch(z, prior, times=times, recorders={RUNS: None})
 
 
 def test_sojourn_matrices_equal_scipy_expm_one_at_a_time_and_stacked():

@@ -573,6 +573,17 @@ def test_innovation_take_slices_every_per_filter_field():
     np.testing.assert_array_equal(cut.selected, [4])
 
 
+def test_bad_multiple_model_batch_inputs_are_named():
+    z, times, prior = multiple_model_data()
+    mm = MultipleModelEstimator([Straight(), Straight(noise_cov=np.eye(2))], sojourn=5.0, sensors=MM_SENSORS)
+    with pytest.raises(ValueError, match="times"):
+        mm.run_batch(z, prior, times=times[:2])
+    with pytest.raises(ValueError, match="measurements"):
+        mm.run_batch({n: a[0] for n, a in z.items()}, prior, times=times)
+    with pytest.raises(ValueError, match="recorders"):
+        mm.run_batch(z, prior, times=times, recorders={MM_RUNS: None})
+
+
 def test_bad_batch_inputs_are_named():
     z, times, prior = batch_data()
     options = {"models": MODELS, "sensors": SENSORS, "estimator": "kalman"}
