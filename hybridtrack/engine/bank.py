@@ -288,7 +288,6 @@ class FilterBank:
         self.runs = 1
         self._group = np.zeros(0, dtype=np.intp)  # each filter's group: index into self.groups
         self._only: LayoutBank | None = None  # the one group, when every filter runs a model of the bank's layout
-        self._model_group: dict[int, tuple[MotionModel, int]] = {}  # id → (model, its group)
         self._positions: dict[tuple[str, ...], np.ndarray] = {}  # a group's components in the bank's layout
         self._moments: dict = {}
 
@@ -298,17 +297,14 @@ class FilterBank:
     def _index(self, models: Sequence[MotionModel]) -> np.ndarray:
         """Each model's group (the group of its layout, created on first sight), looked up once per distinct model."""
         ids = np.fromiter(map(id, models), dtype=np.int64, count=len(models))
-        distinct, first, inverse = np.unique(ids, return_index=True, return_inverse=True)
-        groups = np.empty(distinct.size, dtype=np.intp)
+        _, first, inverse = np.unique(ids, return_index=True, return_inverse=True)
+        groups = np.empty(first.size, dtype=np.intp)
         for u, i in enumerate(first):
-            known = self._model_group.get(int(distinct[u]))
-            if known is None:
-                model, layout = models[i], tuple(models[i].layout)
-                if layout not in self.groups:
-                    self._positions[layout] = self.fill.positions(layout, f"model {model.name!r}")
-                    self.groups[layout] = LayoutBank(self.estimator, layout, self.sensors)
-                known = self._model_group[id(model)] = (model, list(self.groups).index(layout))
-            groups[u] = known[1]
+            layout = tuple(models[i].layout)
+            if layout not in self.groups:
+                self._positions[layout] = self.fill.positions(layout, f"model {models[i].name!r}")
+                self.groups[layout] = LayoutBank(self.estimator, layout, self.sensors)
+            groups[u] = list(self.groups).index(layout)
         return groups[inverse.reshape(-1)]
 
     def _members(self):
