@@ -64,7 +64,7 @@ def _inverse_and_scores(S, nu, Si, L, Li, w, m_tuple):  # pragma: no cover - com
     """S⁻¹ (into ``Si``), ln det S and NIS = νᵀS⁻¹ν of one filter by the closed forms for m ≤ 2 and the Cholesky
     recurrence for m ≥ 3 (the formulas in the module docstring); S (m²,) symmetric, ν (m,), L, Li (m², zeroed), w
     (m,) scratch, m = ``len(m_tuple)``.  Returns (True, ln det S, NIS), or (False, 0, 0) when S is not positive
-    definite (or NaN).  Inlined into :func:`update_bank` and :func:`update_bank_selected` (one copy of the code)."""
+    definite (or NaN).  Inlined into :func:`update_bank` and :func:`update_bank_blocked` (one copy of the code)."""
     Mm = len(m_tuple)
     if Mm <= 2:
         sa = S[0]
@@ -356,14 +356,20 @@ def predict_bank_checked(x, P, F, B, Q, x_out, P_out, n_tuple, w_tuple):  # prag
 def update_bank_blocked(
     x, P, z, sel, R, limit, x_out, P_out, nu_out, S_out, loglik, nis, n_tuple, m_tuple, f_tuple, w_tuple
 ):  # pragma: no cover
-    """:func:`update_bank_selected` for m ≤ 2 (``len(m_tuple)``), blocked across filters like
-    :func:`predict_bank_checked`: per block of W = ``len(w_tuple)`` filters, x, ν = z − x⁻[sel], P⁻, P⁻[:, sel],
-    P⁻[sel, :] and P⁻[sel][:, sel] are copied into a scratch with the filter index innermost; one loop over the lanes
-    with compile-time offsets only (vectorized by LLVM) takes the step (S⁻¹ and NIS by the closed forms of the module
-    docstring, P⁺ by the form ``len(f_tuple) − 1``, the Joseph T[:, sel] as P⁻[:, sel] − K P⁻[sel][:, sel]); the copy
-    out takes ℓ (the logarithm per filter: no vector logarithm without SVML).  The same operations in the same order
-    per filter as :func:`update_bank_selected`: bitwise its results.  Returns 0, or 1 when z has an entry that is NaN
-    or beyond ``limit``, S is not positive definite or an output is not finite."""
+    """The update of each filter for a selection H (rows e_sel[b]ᵀ, the position sensors) with ν = z − x⁻[sel]
+    computed here: P Hᵀ = P⁻[:, sel], H P = P⁻[sel, :], S = ½(C + Cᵀ), C = P⁻[sel][:, sel] + R, the Joseph
+    T Hᵀ = T[:, sel] = P⁻[:, sel] − K P⁻[sel][:, sel]; otherwise the arithmetic of :func:`update_bank` (P⁺ by the
+    form ``len(f_tuple) − 1``), except that the Joseph U = T + (K R − T Hᵀ) Kᵀ, symmetric in exact arithmetic, has
+    its upper triangle formed and mirrored (the reference's ½(U + Uᵀ) differs by rounding only).  z (1 or M, m),
+    R (m²,).
+
+    Blocked across filters like :func:`predict_bank_checked`: per block of W = ``len(w_tuple)`` filters, x, ν,
+    P⁻, P⁻[:, sel], P⁻[sel, :] and P⁻[sel][:, sel] are copied into a scratch with the filter index innermost; one
+    loop over the lanes with compile-time offsets only takes the step (for m ≤ 2, S⁻¹ and NIS by the closed forms
+    of the module docstring, vectorized by LLVM; for m ≥ 3 by the Cholesky recurrence, lane by lane); the copy out
+    takes ℓ (the logarithm per filter: no vector logarithm without SVML).  The same operations in the same order
+    per filter whatever W: 1-wide blocks are the filter-by-filter loop, bitwise.  Returns 0, or 1 when z has an
+    entry that is NaN or beyond ``limit``, S is not positive definite or an output is not finite."""
     N, Mm, form, W = len(n_tuple), len(m_tuple), len(f_tuple) - 1, len(w_tuple)
     NN = N * N
     OX = 0
@@ -388,7 +394,8 @@ def update_bank_blocked(
         for a in range(Mm):
             if not abs(z[b, a]) <= limit:
                 return 1
-    buf = np.zeros((OCHK + 1, W))
+    OL = OCHK + 1  # m ≥ 3: the Cholesky scratch L, L⁻¹ (zeroed) and w per lane
+    buf = np.zeros((OL + (2 * Mm * Mm + Mm if Mm > 2 else 0), W))
     for blk in range(-(-M // W)):
         i0 = blk * W
         cnt = min(W, M - i0)
@@ -413,26 +420,32 @@ def update_bank_blocked(
                     v = 0.5 * ((buf[OSS + a * Mm + b, ln] + R[a * Mm + b]) + (buf[OSS + b * Mm + a, ln] + R[b * Mm + a]))
                     buf[OS + a * Mm + b, ln] = v
                     buf[OS + b * Mm + a, ln] = v
-            sa = buf[OS, ln]
-            nu0 = buf[ONU, ln]
-            if Mm == 1:
-                det = sa
-                buf[OSI, ln] = 1.0 / sa
-            else:
-                sb, sc = buf[OS + 2, ln], buf[OS + 3, ln]
-                det = sa * sc - sb * sb
-                rd = 1.0 / det
-                buf[OSI, ln] = sc * rd
-                buf[OSI + 3, ln] = sa * rd
-                buf[OSI + 1, ln] = -(sb * rd)
-                buf[OSI + 2, ln] = -(sb * rd)
-            t = nu0 / sa
-            s_nis = nu0 * t
-            if Mm == 2:
-                res = buf[ONU + 1, ln] - buf[OS + 2, ln] * t
-                s_nis += sa * (res * res) / det
-            # S positive definite: a > 0 and det S > 0 (False for NaN); else a NaN check sum
-            chk = 0.0 if (sa > 0.0 and det > 0.0) else math.nan
+            if Mm <= 2:  # the closed forms, vectorized (no logarithm: ln det S is taken in the copy out)
+                sa = buf[OS, ln]
+                nu0 = buf[ONU, ln]
+                if Mm == 1:
+                    det = sa
+                    buf[OSI, ln] = 1.0 / sa
+                else:
+                    sb, sc = buf[OS + 2, ln], buf[OS + 3, ln]
+                    det = sa * sc - sb * sb
+                    rd = 1.0 / det
+                    buf[OSI, ln] = sc * rd
+                    buf[OSI + 3, ln] = sa * rd
+                    buf[OSI + 1, ln] = -(sb * rd)
+                    buf[OSI + 2, ln] = -(sb * rd)
+                t = nu0 / sa
+                s_nis = nu0 * t
+                if Mm == 2:
+                    res = buf[ONU + 1, ln] - buf[OS + 2, ln] * t
+                    s_nis += sa * (res * res) / det
+                # S positive definite: a > 0 and det S > 0 (False for NaN); else a NaN check sum
+                chk = 0.0 if (sa > 0.0 and det > 0.0) else math.nan
+            else:  # the Cholesky recurrence, lane by lane; ODET holds ln det S
+                S, nu, Si = buf[OS : OS + Mm * Mm, ln], buf[ONU : ONU + Mm, ln], buf[OSI : OSI + Mm * Mm, ln]
+                L, Li, w = buf[OL : OL + Mm * Mm, ln], buf[OL + Mm * Mm : OL + 2 * Mm * Mm, ln], buf[OL + 2 * Mm * Mm :, ln]
+                ok, det, s_nis = _inverse_and_scores(S, nu, Si, L, Li, w, m_tuple)
+                chk = 0.0 if ok else math.nan
             buf[ODET, ln] = det
             buf[ONIS, ln] = s_nis
             for a in range(N):
@@ -489,7 +502,7 @@ def update_bank_blocked(
             if buf[OCHK, ln] != 0.0:  # S not positive definite, or an output inf or NaN
                 return 1
             s_nis = buf[ONIS, ln]
-            ll = -0.5 * (Mm * LOG_2PI + math.log(buf[ODET, ln]) + s_nis)
+            ll = -0.5 * (Mm * LOG_2PI + (math.log(buf[ODET, ln]) if Mm <= 2 else buf[ODET, ln]) + s_nis)
             if ll - ll != 0.0:  # inf or NaN
                 return 1
             nis[i] = s_nis
@@ -511,112 +524,6 @@ def update_bank_blocked(
                         Po[a * N + b] = v
                         Po[b * N + a] = v
     return 0
-
-
-@_njit
-def update_bank_selected(x, P, z, sel, R, form, limit, x_out, P_out, nu_out, S_out, loglik, nis, n_tuple, m_tuple):  # pragma: no cover
-    """The update of each filter for a selection H (H = rows e_sel[b]ᵀ, the position sensors) with ν = z − x⁻[sel]
-    computed here: P Hᵀ = P[:, sel], H P = P[sel, :], S = ½(C + Cᵀ), C = P[sel][:, sel] + R, T Hᵀ = T[:, sel];
-    otherwise the arithmetic of :func:`update_bank`, except that the Joseph U = T + (K R − T Hᵀ) Kᵀ, symmetric in
-    exact arithmetic, has its upper triangle formed and mirrored (the reference's ½(U + Uᵀ) differs by rounding
-    only).  z (1 or M, m), R (m²,).  Returns 0, or 1 when z has an entry that is NaN or beyond ``limit``, S is not
-    positive definite or an output is not finite."""
-    N, Mm = len(n_tuple), len(m_tuple)
-    M = x.shape[0]
-    per_z = z.shape[0] > 1
-    for b in range(z.shape[0]):
-        for a in range(Mm):
-            if not abs(z[b, a]) <= limit:
-                return 1
-    S = np.empty(Mm * Mm)
-    Si = np.empty(Mm * Mm)
-    L = np.zeros(Mm * Mm)
-    Li = np.zeros(Mm * Mm)
-    w = np.empty(Mm)
-    K = np.empty(N * Mm)
-    T = np.empty(N * N)
-    D = np.empty(N * Mm)
-    bad = 0
-    for i in range(M):
-        Pi, xi, zi, nui = P[i], x[i], z[i if per_z else 0], nu_out[i]
-        for a in range(Mm):
-            nui[a] = zi[a] - xi[sel[a]]
-        for a in range(Mm):
-            S[a * Mm + a] = Pi[sel[a] * N + sel[a]] + R[a * Mm + a]
-            for b in range(a + 1, Mm):
-                S[a * Mm + b] = S[b * Mm + a] = 0.5 * (
-                    (Pi[sel[a] * N + sel[b]] + R[a * Mm + b]) + (Pi[sel[b] * N + sel[a]] + R[b * Mm + a])
-                )
-        ok, log_det, s_nis = _inverse_and_scores(S, nui, Si, L, Li, w, m_tuple)
-        if not ok:
-            return 1
-        nis[i] = s_nis
-        ll = -0.5 * (Mm * LOG_2PI + log_det + s_nis)
-        loglik[i] = ll
-        if ll - ll != 0.0:  # inf or NaN
-            bad = 1
-        So = S_out[i]
-        for a in range(Mm * Mm):
-            So[a] = S[a]
-        # K = P Hᵀ S⁻¹ = P[:, sel] S⁻¹, x⁺ = x⁻ + K ν
-        xo = x_out[i]
-        for a in range(N):
-            acc2 = xi[a]
-            for b in range(Mm):
-                acc = 0.0
-                for q in range(Mm):
-                    acc += Pi[a * N + sel[q]] * Si[q * Mm + b]
-                K[a * Mm + b] = acc
-                acc2 += acc * nui[b]
-            xo[a] = acc2
-            if acc2 - acc2 != 0.0:  # inf or NaN
-                bad = 1
-        # T = P − K (H P) = P − K P[sel, :] (Joseph) or P − K (P Hᵀ)ᵀ = P − K P[:, sel]ᵀ
-        if form == 0:
-            for a in range(N):
-                for b in range(N):
-                    acc = 0.0
-                    for q in range(Mm):
-                        acc += K[a * Mm + q] * Pi[sel[q] * N + b]
-                    T[a * N + b] = Pi[a * N + b] - acc
-        else:
-            for a in range(N):
-                for b in range(N):
-                    acc = 0.0
-                    for q in range(Mm):
-                        acc += K[a * Mm + q] * Pi[b * N + sel[q]]
-                    T[a * N + b] = Pi[a * N + b] - acc
-        Po = P_out[i]
-        if form == 0:  # D = K R − T[:, sel], U = T + D Kᵀ (symmetric: its upper triangle, mirrored)
-            for a in range(N):
-                for b in range(Mm):
-                    acc = 0.0
-                    for q in range(Mm):
-                        acc += K[a * Mm + q] * R[q * Mm + b]
-                    D[a * Mm + b] = acc - T[a * N + sel[b]]
-            for a in range(N):
-                for b in range(a, N):
-                    v = T[a * N + b]
-                    for q in range(Mm):
-                        v += D[a * Mm + q] * K[b * Mm + q]
-                    Po[a * N + b] = v
-                    Po[b * N + a] = v
-                    if v - v != 0.0:  # inf or NaN
-                        bad = 1
-        elif form == 1:
-            for a in range(N):
-                for b in range(a, N):
-                    v = 0.5 * (T[a * N + b] + T[b * N + a]) if a != b else T[a * N + a]
-                    Po[a * N + b] = v
-                    Po[b * N + a] = v
-                    if v - v != 0.0:  # inf or NaN
-                        bad = 1
-        else:
-            for a in range(N * N):
-                Po[a] = T[a]
-                if T[a] - T[a] != 0.0:
-                    bad = 1
-    return bad
 
 
 @_njit

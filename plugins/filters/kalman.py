@@ -279,13 +279,10 @@ class KalmanFilter(BankEstimator):
             M, n = state.x.shape
             if self.dense_engine(n, m) != "numba":
                 return
-            form, sizes = kernel.FORMS[self.form], ((0,) * n, (0,) * m)
-            operands = (np.array(step.selection, dtype=np.intp), np.ascontiguousarray(step.R, dtype=float).reshape(-1))
-            if m <= 2:  # the kernel blocked across filters (vectorized), the form in a tuple's length
-                run, tail = kernel.update_bank_blocked, (*sizes, (0,) * (form + 1), (0,) * kernel.LANE_WIDTH)
-                payload = ((*operands, FILTER_MAGNITUDE_LIMIT), tail)
-            else:  # m = 3: the filter-by-filter one (Cholesky)
-                run, payload = kernel.update_bank_selected, ((*operands, form, FILTER_MAGNITUDE_LIMIT), sizes)
+            run = kernel.update_bank_blocked  # blocked across filters; the sizes and the form in tuples' lengths
+            selection, R = np.array(step.selection, dtype=np.intp), np.ascontiguousarray(step.R, dtype=float).reshape(-1)
+            tail = ((0,) * n, (0,) * m, (0,) * (kernel.FORMS[self.form] + 1), (0,) * kernel.LANE_WIDTH)
+            payload = ((selection, R, FILTER_MAGNITUDE_LIMIT), tail)
             shape = (M, n)
         self._lane = _UpdateLane(type(state), tuple(sensors), tuple(layout), z.shape, shape, m, run, kernel.FORMS[self.form], payload)
 
@@ -329,9 +326,8 @@ class _UpdateLane:
     """The measurement model of an update, kept for the next ones: the sensors (by identity), the layout, z's
     shape, the bank's shape and state form, the kernel, the update form's code and the kernel's operands —
     separable: the measured component c, the axis of each z row, the variances r (for the state's axes);
-    dense: the operands before the outputs (the selected state indices, R flattened, the form for the
-    filter-by-filter kernel, the magnitude limit) and after them (the size tuples and, for the blocked kernel
-    (m ≤ 2), the form and block-width tuples)."""
+    dense: the operands before the outputs (the selected state indices, R flattened, the magnitude limit) and
+    after them (the size, form and block-width tuples)."""
 
     __slots__ = ("kind", "sensors", "layout", "z_shape", "shape", "m", "run", "form", "payload")
 

@@ -55,7 +55,7 @@ class _Spy:
     def __init__(self, monkeypatch):
         module = cov_form.kernel_module()
         self.calls = {}
-        for name in ("axis_predict", "axis_update", "predict_bank_checked", "update_bank_blocked", "update_bank_selected"):
+        for name in ("axis_predict", "axis_update", "predict_bank_checked", "update_bank_blocked"):
             function = getattr(module, name)
 
             def counted(*args, _f=function, _name=name):
@@ -111,7 +111,7 @@ def test_dense_lane_with_two_sensors_equals_the_reference(monkeypatch):
         got, _ = _run(KalmanFilter(structure=structure), [_bank()] * 20, Z, sensors)
         ref, _ = _run(KalmanFilter(structure=structure, engine="numpy"), [_bank()] * 20, Z, sensors)
         _assert_equal_runs(got, ref, "joseph")
-    assert spy.calls.get("update_bank_selected", 0) >= 15, spy.calls
+    assert spy.calls.get("update_bank_blocked", 0) >= 15, spy.calls  # m = 3: the Cholesky lanes
 
 
 def test_lane_hands_a_bad_step_to_the_reference_and_its_errors():
@@ -165,14 +165,15 @@ def _update_outputs(M, n, m):
 @pytest.mark.slow  # ≈ 12 s on a fresh checkout (one numba compile per (n, m, form)), ≈ 0.5 s from numba's cache
 @pytest.mark.parametrize("M_blocked", [1, 16, 37])
 def test_blocked_kernels_equal_the_filter_by_filter_ones_bitwise(M_blocked):
-    """The blocked (vectorized) lane kernels against the filter-by-filter ones on random SPD systems, n = 4 with m = 2
-    and every form, m = 1 (Joseph), shared and per-filter z, M a partial, a whole and several blocks: bitwise equal (same
-    operations in the same order per filter); predict_bank_checked with 1-wide blocks is the filter-by-filter
-    loop.  A non-finite output or an indefinite S in the last (partial) block is reported."""
+    """The blocked (vectorized) lane kernels against themselves with 1-wide blocks (the filter-by-filter loop) on random
+    SPD systems, n = 4 with m = 2 and every form, m = 1 and m = 3 (Joseph), shared and per-filter z, M a partial, a whole
+    and several blocks: bitwise equal (same operations in the same order per filter), and the update equal to
+    update_bank with H the selection to 1e-12.  A non-finite output or an indefinite S in the last (partial) block is
+    reported."""
     kernel = cov_form.kernel_module()
     W = kernel.LANE_WIDTH
     rng = np.random.default_rng(7)
-    for n, m_sizes, forms in ((4, (2,), range(3)), (4, (1,), (0,))):  # a few (n, m, form): each compiles
+    for n, m_sizes, forms in ((4, (2,), range(3)), (4, (1, 3), (0,))):  # a few (n, m, form): each compiles
         A = rng.standard_normal((M_blocked, n, n))
         P = (A @ np.swapaxes(A, 1, 2) + np.eye(n)).reshape(M_blocked, n * n)
         x = rng.standard_normal((M_blocked, n))
@@ -196,8 +197,13 @@ def test_blocked_kernels_equal_the_filter_by_filter_ones_bitwise(M_blocked):
                     got, ref = _update_outputs(M_blocked, n, m), _update_outputs(M_blocked, n, m)
                     sizes = ((0,) * n, (0,) * m)
                     assert kernel.update_bank_blocked(x, P, z, sel, R, 1e12, *got, *sizes, (0,) * (form + 1), (0,) * W) == 0
-                    assert kernel.update_bank_selected(x, P, z, sel, R, form, 1e12, *ref, *sizes) == 0
+                    assert kernel.update_bank_blocked(x, P, z, sel, R, 1e12, *ref, *sizes, (0,) * (form + 1), (0,)) == 0
                     assert all(np.array_equal(a, b) for a, b in zip(got, ref)), (n, m, form)
+                    H, general = np.eye(n)[sel].reshape(1, -1), _update_outputs(M_blocked, n, m)
+                    nu = np.broadcast_to(z, (M_blocked, m)) - x[:, sel]
+                    assert kernel.update_bank(x, P, nu, H, R.reshape(1, -1), form, *general[:2], *general[3:], *sizes) == -1
+                    for a, b in zip(got[:2] + got[3:], general[:2] + general[3:]):
+                        assert _rel(a, b) < 1e-12, (n, m, form)
             P_bad = P.copy()
             P_bad[-1, sel[0] * n + sel[0]] = -10.0 - R[0]  # S of the last filter not positive definite
             assert kernel.update_bank_blocked(x, P_bad, z, sel, R, 1e12, *_update_outputs(M_blocked, n, m), *sizes, (0,), (0,) * W) == 1
