@@ -71,7 +71,7 @@ _SECTIONS = {
     "measurement": {"sigma"},
     "altitude": set(ALTITUDE_DEFAULTS),
     "prior": {"velocity", "position_sigma", "velocity_sigma"},
-    "estimator": {"algorithm", "kind", "filter", "process_noise", "modes", "radii", "parameters"}
+    "estimator": {"algorithm", "kind", "filter", "process_noise", "noise_density", "modes", "radii", "parameters"}
     | set(_KIND_ONLY["unknown_change"] + _KIND_ONLY["imm"]),
 }
 #: the keywords the tracker itself gives every algorithm (``[estimator] parameters`` may not repeat them)
@@ -164,7 +164,12 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         raise ConfigError(
             f"{where}: [estimator] parameters = {parameters!r}; expected a table of further keyword arguments (not {sorted(_RESERVED)})"
         )
-    est["process_noise"] = _positive("estimator", "process_noise", est.get("process_noise", 0.1), where)
+    if "noise_density" in est:  # per second (m²/s³ of white acceleration), else per report (the older form)
+        if "process_noise" in est:
+            raise ConfigError(f"{where}: [estimator] process_noise (per report) and noise_density (per second): give one")
+        est["noise_density"] = _positive("estimator", "noise_density", est["noise_density"], where)
+    else:
+        est["process_noise"] = _positive("estimator", "process_noise", est.get("process_noise", 0.1), where)
     est["modes"] = _modes(est.get("modes", ["straight", "left_turn", "right_turn"]), est.pop("radii", None), where)
     est.setdefault("filter", "kalman")
     if not isinstance(est["filter"], str):
@@ -204,12 +209,12 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
     for entry in modes:
         if isinstance(entry, str):
             name, params = entry, {}
-        elif isinstance(entry, Mapping) and isinstance(entry.get("name"), str) and set(entry) <= {"name", "radius"}:
+        elif isinstance(entry, Mapping) and isinstance(entry.get("name"), str) and set(entry) <= {"name", "radius", "noise_density"}:
             name, params = entry["name"], {k: v for k, v in entry.items() if k != "name"}
-            if "radius" in params:
-                params["radius"] = _positive("estimator", "modes.radius", params["radius"], where)
+            for key in set(params):
+                params[key] = _positive("estimator", f"modes.{key}", params[key], where)
         else:
-            raise ConfigError(f"{where}: [estimator] modes entry {entry!r}; expected a name or {{name = …, radius = …}}")
+            raise ConfigError(f"{where}: [estimator] modes entry {entry!r}; expected a name or {{name = …, radius = …, noise_density = …}}")
         name = "constant_acceleration" if name == "acceleration" else name
         if name in ("left_turn", "right_turn") and "radius" not in params:
             if radii is None:
@@ -227,11 +232,11 @@ def _build(config: dict, registry=None):
     """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
     sensor = resolve("sensor", ("position", {"noise_cov": config["measurement"]["sigma"] ** 2 * np.eye(2)}), registry)
     est = config["estimator"]
-    q = est["process_noise"] ** 2 * np.eye(2)
+    noise = {"noise_density": est["noise_density"]} if "noise_density" in est else {"noise_cov": est["process_noise"] ** 2 * np.eye(2)}
     specs = []
     for name, params in est["modes"]:
-        try:
-            specs.append(resolve("motion_model", (name, {**params, "noise_cov": q}), registry))
+        try:  # a mode's own noise_density (a stop's m²/s) before the estimator's
+            specs.append(resolve("motion_model", (name, params if "noise_density" in params else {**params, **noise}), registry))
         except KeyError as error:
             raise ConfigError(f"[estimator] modes: unknown motion model {name!r} ({error.args[0] if error.args else error})") from None
     family = "imm" if est["algorithm"] in MULTIPLE_MODEL else est["algorithm"]
@@ -317,7 +322,21 @@ def record_track(recorder, name, times, measured=None, estimated=None, lat_lon_m
 
 
 def _summary_mode(model) -> tuple[str, float | None]:
-    return SUMMARY_NAMES.get(model.name, model.name), (None if model.radius is None else float(model.radius))
+    radius = getattr(model, "radius", None)
+    return SUMMARY_NAMES.get(model.name, model.name), (None if radius is None else float(radius))
+
+
+def _step_modes(models, run, layout) -> tuple[list[str], list[float | None]]:
+    """The summary (mode, radius) of every step: the followed (most probable) model's; a model with the turn rate
+    in its state (``omega``) is a left turn where the estimated ω > 0 and a right turn where it is negative (its
+    radius varies along the turn: None)."""
+    omega = run.means[:, layout.index("omega")] if "omega" in layout else None
+    out = []
+    for k, i in enumerate(run.mode):
+        model = models[int(i)]
+        out.append((("left_turn" if omega[k] > 0 else "right_turn"), None) if "omega" in model.layout else _summary_mode(model))
+    modes, radii = zip(*out)
+    return list(modes), list(radii)
 
 
 def segments_of(times: np.ndarray, modes: Sequence[str], radii: Sequence[float | None]) -> list[dict]:
@@ -380,7 +399,7 @@ def track_one(
                 )
                 geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (track.positions, estimated_enu))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
-    modes, radii = zip(*(_summary_mode(models[int(i)]) for i in run.mode))  # the followed mode, or the most probable model
+    modes, radii = _step_modes(models, run, layout)  # the followed mode, or the most probable model
     if getattr(estimator, "detector", None) is not None:
         by_label = dict(zip(run.modes, models))
         decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]

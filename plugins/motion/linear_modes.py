@@ -21,6 +21,21 @@ noise drives it).  Leaving it drops the acceleration (the velocity reached is
 kept).  A turn entered at zero speed has ω = 0 and moves as the straight mode:
 the formulas below use (1 − cos ωτ)/ω = 2 sin²(ωτ/2)/ω and sin(ωτ)/ω = τ·sinc,
 so nothing divides by zero.
+
+Process noise, either per step or per second:
+
+* ``noise_cov`` (the seeds' form, default Q of Example 1): w ~ N(0, Q_p) on
+  the velocities (accelerations) of each step, whatever its length;
+* ``noise_density`` q, in physical units per second
+  (:mod:`hybridtrack.sdk.process_noise`): each axis block gets the discretized
+  continuous white-noise Q(Δt) — straight and the turns white acceleration,
+  q [[Δt³/3, Δt²/2], [Δt²/2, Δt]], q in m²/s³ (for a turn this is the
+  constant-velocity Q, the usual approximation for ωΔt ≪ 1); constant
+  acceleration white jerk (order 3, q in m²/s⁵); stop a position random walk
+  of q in m²/s, the velocity the mean velocity of that walk over the step,
+  p⁺ = p + w, v⁺ = w/Δt, w ~ N(0, q Δt), i.e. Q_axis = q [[Δt, 1], [1, 1/Δt]]
+  (heading undefined, speed ~ √(q/Δt)).  Written G(Δt) w with w ~ N(0, q I),
+  G(Δt) a factor of Q(Δt)/q, so ``noise_cov`` = q I is the transition's Q.
 """
 
 from __future__ import annotations
@@ -35,6 +50,7 @@ import numpy as np
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank, convert_layout
 from hybridtrack.core.validation import as_float_array, check_covariance, check_positive
+from hybridtrack.sdk.process_noise import check_density, white_noise_root
 
 LAYOUT_4 = ("x", "vx", "y", "vy")
 LAYOUT_6 = ("x", "vx", "ax", "y", "vy", "ay")
@@ -44,8 +60,56 @@ G_6 = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0
 DEFAULT_NOISE = ((0.01, 0.0), (0.0, 0.01))
 
 
-def _noise_cov(value) -> np.ndarray:
-    return check_covariance(value, "noise_cov", 2, readonly=True)
+def _noise_cov(value) -> np.ndarray | None:
+    return None if value is None else check_covariance(value, "noise_cov", 2, readonly=True)
+
+
+def _noise_density(value) -> float | None:
+    return None if value is None else check_density(value, "noise_density", "units²/s per derivative order (m²/s³ for a velocity)")
+
+
+def _noise_field():
+    return attrs.field(default=None, converter=_noise_cov, eq=attrs.cmp_using(eq=np.array_equal))
+
+
+@attrs.frozen
+class _Noise:
+    """The noise of a linear mode (module docstring): ``noise_cov`` per step or ``noise_density`` per second, not
+    both; without either the Q of Example 1 per step.  Under a density ``noise_cov`` reads q I (the Q of the
+    transition) and :meth:`noise_gain` is the factor G(Δt) of the axis blocks."""
+
+    noise_cov: np.ndarray | None = _noise_field()
+    noise_density: float | None = attrs.field(default=None, converter=_noise_density, kw_only=True)
+
+    #: the white-noise order of an axis block under a density (2: white acceleration, 3: white jerk)
+    order: ClassVar[int] = 2
+
+    def __attrs_post_init__(self):
+        if self.noise_density is None:
+            object.__setattr__(self, "noise_cov", _noise_cov(DEFAULT_NOISE) if self.noise_cov is None else self.noise_cov)
+        elif self.noise_cov is not None:
+            raise ValueError(
+                f"noise_cov, noise_density: give the noise per step (noise_cov) or per second (noise_density), not both;"
+                f" got noise_cov {self.noise_cov.tolist()} and noise_density {self.noise_density!r}"
+            )
+        else:
+            q = np.eye(self.axis_gain(1.0).shape[1] * 2) * self.noise_density
+            q.flags.writeable = False
+            object.__setattr__(self, "noise_cov", q)
+
+    def axis_gain(self, tau: float) -> np.ndarray:
+        """G_axis(Δt), the factor of one axis block's Q(Δt)/q."""
+        return white_noise_root(tau, self.order)
+
+    def noise_gain(self, tau: float) -> np.ndarray:
+        """G of the transition: the seeds' fixed G (per-step noise) or blockdiag(G_axis(Δt), G_axis(Δt))."""
+        if self.noise_density is None:
+            return G_6 if self.state_dim == 6 else G_4
+        axis = self.axis_gain(tau)
+        k, r = axis.shape
+        G = np.zeros((2 * k, 2 * r))
+        G[:k, :r] = G[k:, r:] = axis
+        return G
 
 
 def _check_tau(tau: float) -> float:
@@ -61,13 +125,10 @@ def _blockdiag(axis: np.ndarray) -> np.ndarray:
 
 
 @attrs.frozen
-class _FixedMatrixMode(MotionModel):
+class _FixedMatrixMode(_Noise, MotionModel):
     """A mode whose Φ depends on τ only (B = 0): subclasses give Φ_axis."""
 
-    noise_cov: np.ndarray = attrs.field(default=DEFAULT_NOISE, converter=_noise_cov, eq=attrs.cmp_using(eq=np.array_equal))
-
     layout: ClassVar[tuple[str, ...]] = LAYOUT_4
-    G: ClassVar[np.ndarray] = G_4
 
     @abstractmethod
     def axis_matrix(self, tau: float) -> np.ndarray:
@@ -75,7 +136,7 @@ class _FixedMatrixMode(MotionModel):
 
     def transition(self, tau: float, switch_state: np.ndarray | None = None) -> LinearTransition:
         tau = _check_tau(tau)
-        return LinearTransition(_blockdiag(self.axis_matrix(tau)), np.zeros(self.state_dim), self.G, self.noise_cov)
+        return LinearTransition(_blockdiag(self.axis_matrix(tau)), np.zeros(self.state_dim), self.noise_gain(tau), self.noise_cov)
 
     def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
         """The one transition (Φ does not depend on the switch state) repeated for the S switch states."""
@@ -107,6 +168,11 @@ class Stop(_FixedMatrixMode):
     def axis_matrix(self, tau):
         return np.array([[1.0, 0.0], [0.0, 0.0]])
 
+    def axis_gain(self, tau: float) -> np.ndarray:
+        """[√Δt, 1/√Δt]ᵀ: p⁺ = p + w, v⁺ = w/Δt with w ~ N(0, q Δt) (module docstring)."""
+        root = np.sqrt(_check_tau(tau))
+        return np.array([[root], [1.0 / root]])
+
 
 @attrs.frozen
 class ConstantAcceleration(_FixedMatrixMode):
@@ -117,7 +183,7 @@ class ConstantAcceleration(_FixedMatrixMode):
 
     name: ClassVar[str] = "constant_acceleration"
     layout: ClassVar[tuple[str, ...]] = LAYOUT_6
-    G: ClassVar[np.ndarray] = G_6
+    order: ClassVar[int] = 3
 
     def axis_matrix(self, tau):
         return np.array([[1.0, tau, tau * tau / 2], [0.0, 1.0, tau], [0.0, 0.0, 1.0]])
@@ -129,13 +195,13 @@ class ConstantAcceleration(_FixedMatrixMode):
 
 
 @attrs.frozen
-class _Turn(MotionModel):
+class _Turn(_Noise, MotionModel):
     """Uniform circular motion of radius r (seed 000, modes 2–3); ``direction`` +1 left, −1 right."""
 
     radius: float = attrs.field(
         default=5.0, converter=float, validator=lambda i, a, v: check_positive(v, "radius", "turn radius in metres")
     )
-    noise_cov: np.ndarray = attrs.field(default=DEFAULT_NOISE, converter=_noise_cov, eq=attrs.cmp_using(eq=np.array_equal))
+    noise_cov: np.ndarray | None = _noise_field()
 
     layout: ClassVar[tuple[str, ...]] = LAYOUT_4
     direction: ClassVar[int] = 1
@@ -170,7 +236,7 @@ class _Turn(MotionModel):
 
     def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
         c, sin_over_w, minus_w_sin, B = self.coefficients(_check_tau(tau), as_float_array(switch_state, "switch_state", (4,)))
-        return LinearTransition(_blockdiag(np.array([[c, sin_over_w], [minus_w_sin, c]])), B, G_4, self.noise_cov)
+        return LinearTransition(_blockdiag(np.array([[c, sin_over_w], [minus_w_sin, c]])), B, self.noise_gain(tau), self.noise_cov)
 
     def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
         """:meth:`transition` at S switch states at once (the same formulas, vectorized over the rows)."""
@@ -179,7 +245,7 @@ class _Turn(MotionModel):
         F[:, 0, 0] = F[:, 1, 1] = F[:, 2, 2] = F[:, 3, 3] = c
         F[:, 0, 1] = F[:, 2, 3] = sin_over_w
         F[:, 1, 0] = F[:, 3, 2] = minus_w_sin
-        noise = _repeat(TransitionBank.stack([LinearTransition(np.eye(4), np.zeros(4), G_4, self.noise_cov)]), c.size)
+        noise = _repeat(TransitionBank.stack([LinearTransition(np.eye(4), np.zeros(4), self.noise_gain(tau), self.noise_cov)]), c.size)
         return TransitionBank(F, B, noise.Q, noise.noise_root)
 
 

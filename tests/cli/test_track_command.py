@@ -142,6 +142,9 @@ def test_id_selects_objects(tmp_path):
         (lambda c: c.replace("alpha = 0.01", "alpha = 0.7"), "alpha = 0.7"),
         (lambda c: c.replace("alpha = 0.01", "sojourn = 3.0"), "belong to kind 'imm'"),
         (lambda c: c.replace("sigma = 5.0", "sigma = 5.0 5"), "not a valid TOML file"),
+        (lambda c: c.replace("process_noise = 0.05", "process_noise = 0.05\nnoise_density = 0.01"), "give one"),
+        (lambda c: c.replace("process_noise = 0.05", "noise_density = -1.0"), "noise_density = -1.0; expected a positive number"),
+        (lambda c: c.replace('"straight", "left_turn"', '{name = "stop", noise_density = 0}, "left_turn"'), "modes.noise_density = 0"),
     ],
 )
 def test_bad_config_is_one_line_and_status_2(tmp_path, capsys, edit, message):
@@ -242,3 +245,28 @@ def test_bad_algorithm_settings_are_config_errors(tmp_path, edit, message):
     with pytest.raises(ConfigError) as info:
         track_file(csv, cfg, tmp_path / "out", ids=["starboard"])
     assert message in str(info.value)
+
+
+def test_turn_rate_mode_names_the_turn_by_the_sign_of_omega(tmp_path):
+    """An IMM of straight and coordinated_turn (ω in the state, noise per second): the steps of the turn are a
+    left turn for the port leg and a right turn for the starboard leg (the sign of the estimated ω)."""
+    csv, cfg = write_csv(tmp_path / "legs.csv"), write_config(tmp_path / "c.toml", "imm")
+    text = cfg.read_text().replace("process_noise = 0.05", "noise_density = 0.01").replace("radii = [200.0, 1000.0]\n", "")
+    text = text.replace(
+        'modes = ["straight", "left_turn", "right_turn"]', 'modes = ["straight", {name = "coordinated_turn", noise_density = 0.01}]'
+    )
+    cfg.write_text(text + "parameters = {missing_variance = {omega = 1e-3}}\n")
+    summary = track_file(csv, cfg, tmp_path / "out")
+    t_turn = STRAIGHT * DT
+    for obj, expected in zip(summary["objects"], ("left_turn", "right_turn")):
+        turning = sum(
+            max(0.0, min(s["end"], t_turn + TURN * DT) - max(s["start"], t_turn + 10 * DT))
+            for s in obj["segments"]
+            if s["mode"] == expected
+        )
+        assert turning > 0.8 * (TURN - 10) * DT, obj["segments"]
+        assert all(s["radius"] is None for s in obj["segments"])
+        with np.load(tmp_path / "out" / f"{obj['id']}.npz") as npz:
+            assert list(npz["layout"]) == ["x", "vx", "y", "vy", "omega"]
+            omega = npz["means"][STRAIGHT + 10 :, 4]
+            assert np.median(omega) == pytest.approx((1 if expected == "left_turn" else -1) * SPEED / RADIUS, rel=0.2)
