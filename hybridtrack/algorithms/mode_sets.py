@@ -32,12 +32,13 @@ def turn_bank(r_min: float = 1.0, r_max: float = 10.0, n: int = 10, noise_cov=No
     )
 
 
-def resolve_modes(modes: Sequence, registry: Registry) -> list[MotionModel]:
-    """The motion models of ``modes`` (objects, names or (name, parameters)), at least one, all in one layout."""
+def resolve_modes(modes: Sequence, registry: Registry, *, one_layout: bool = True) -> list[MotionModel]:
+    """The motion models of ``modes`` (objects, names or (name, parameters)), at least one; with ``one_layout`` all
+    in one state layout (the algorithms whose bank mixes layouts pass False)."""
     models = [resolve("motion_model", m, registry) for m in modes]
     if not models:
         raise ValueError("modes: expected at least one motion mode, got an empty set")
     layouts = {m.layout for m in models}
-    if len(layouts) != 1:
+    if one_layout and len(layouts) != 1:
         raise ValueError(f"modes: every mode must share one state layout, got {sorted(layouts)}")
     return models

@@ -75,6 +75,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.algorithms.bank_runs import run_alone
+from hybridtrack.algorithms.mode_smoothing import smooth_log_mode_probabilities
 from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry, registry_or_default
@@ -240,6 +241,19 @@ class MultipleModelEstimator:
         self.bank = FilterBank(
             self.estimator, self.layout, self.network.sensors, missing_mean=missing_mean, missing_variance=missing_variance
         )
+
+    def smooth(self, run: MultipleModelRun, lag: float | None = None) -> MultipleModelRun:
+        """The run with smoothed mode probabilities (:mod:`hybridtrack.algorithms.mode_smoothing`; fixed interval,
+        or fixed lag of ``lag`` seconds): ``log_mode_probabilities`` ln μ_{k|N}, ``mode`` their argmax, ``means`` and
+        ``covs`` the models' estimates x̂_j(k|k) mixed with them (the modes smoothed; each model's own estimate
+        stays the filtered one)."""
+        times = np.asarray(run.times, dtype=float)
+        r = len(self.models)
+        log_transitions = np.zeros((times.size, r, r))
+        log_transitions[1:] = self.log_transition_matrix(np.diff(times))
+        log_mu = smooth_log_mode_probabilities(run.log_mode_probabilities, run.model_loglik, log_transitions, times, lag)
+        means, covs = mixture(log_mu, run.model_means, run.model_covs)
+        return attrs.evolve(run, log_mode_probabilities=log_mu, mode=np.argmax(log_mu, axis=1), means=means, covs=covs)
 
     # ------------------------------------------------------------------ Markov chain
     def log_transition_matrix(self, dt) -> np.ndarray:

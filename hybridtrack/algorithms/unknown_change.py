@@ -37,6 +37,7 @@ from hybridtrack.core.protocols import ChangeTimeTest, ScoreDetector
 from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import check_positive_int
 from hybridtrack.engine.bank import FilterBank
+from hybridtrack.engine.layouts import LayoutFill, union_layout
 from hybridtrack.engine.pipeline import mode_labels
 from hybridtrack.engine.results import RunResult
 from hybridtrack.sdk.network import SensorNetwork
@@ -103,6 +104,12 @@ class UnknownChangeAdaptive:
     through a long gap without measurements, where every step adds M − 1
     filters and nothing decides — gets a RuntimeWarning and is pruned to that
     size by the detector's rule from then on.
+
+    Modes of different state layouts (the 4-state modes beside ``coordinated_turn`` with ω, or the 6-state
+    constant acceleration) share one bank in their union layout (:mod:`hybridtrack.engine.layouts`): a
+    hypothesis of another layout starts from the current estimate with each component it adds at
+    ``missing_mean``, ``missing_variance`` (a number, or component → value, e.g. ``{"omega": 1e-4}``), and the
+    estimate and the outputs are in the union layout.  ``bank_size="algorithm4"`` needs modes of one layout.
     """
 
     def __init__(
@@ -122,13 +129,17 @@ class UnknownChangeAdaptive:
         max_bank_size: int = 5000,
         name: str = "unknown_change",
         registry: Registry | None = None,
+        missing_mean: float | Mapping[str, float] = 0.0,
+        missing_variance: float | Mapping[str, float] = 1.0,
     ):
         registry = registry_or_default(registry)
-        self.models = resolve_modes(modes, registry)
+        self.models = resolve_modes(modes, registry, one_layout=False)
         if len(self.models) < 2:
             raise ValueError(f"modes: a change needs at least two modes, got {len(self.models)}")
         self.labels = mode_labels(self.models)
-        self.layout = self.models[0].layout
+        self.layout = union_layout([m.layout for m in self.models])
+        self.missing = {"missing_mean": missing_mean, "missing_variance": missing_variance}
+        LayoutFill(self.layout, **self.missing)  # checked here, named in the error
         if isinstance(initial_mode, bool) or not isinstance(initial_mode, (int, np.integer)) or not 0 <= initial_mode < len(self.models):
             raise ValueError(f"initial_mode: expected an index in 0 … {len(self.models) - 1}, got {initial_mode!r}")
         self.initial_mode = int(initial_mode)
@@ -147,6 +158,8 @@ class UnknownChangeAdaptive:
                 raise ValueError(f"bank_size: expected a positive integer, 'algorithm4' or None, got {bank_size!r}")
             if pruning is None:
                 self.detector.pruning = "oldest"
+            if len({m.layout for m in self.models}) > 1:
+                raise ValueError(f"bank_size: 'algorithm4' needs modes of one state layout, got {sorted({m.layout for m in self.models})}")
         elif bank_size is not None:
             bank_size = check_positive_int(bank_size, "bank_size")
         self.bank_size = bank_size
@@ -222,7 +235,7 @@ class UnknownChangeAdaptive:
         others = np.array([[i for i in range(M) if i != c] for c in range(M)])  # the alternatives of each current mode
         names = [(self.labels[c],) + tuple(self.labels[i] for i in others[c]) for c in range(M)]
         test.restart(runs, [names[self.initial_mode]] * R)
-        bank = FilterBank(self.estimator, self.layout, self.network.sensors)
+        bank = FilterBank(self.estimator, self.layout, self.network.sensors, **self.missing)
         bank.start(x0, P0, [self.models[self.initial_mode]] * R, x0, runs)
         scores = bank.step(None, z[:, 0])
 

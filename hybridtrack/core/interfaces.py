@@ -162,6 +162,11 @@ class Sensor(ABC):
     * ``measurement_noise(z)`` is the R that goes with the measurement z
       (``noise_cov`` unless the sensor's R depends on z, e.g. radar
       pseudo-measurements).
+    * ``noise_depends_on_state`` (default False) and ``state_noise(x, layout)``:
+      the part of R that depends on the measured object's state, at x (M, n) →
+      (M, m, m), added to ``measurement_noise(z)``; estimators evaluate it at
+      each filter's predicted state (e.g. a time-stamp jitter δt ~ N(0, σ_t²)
+      moves a position fix by v δt: σ_t² v vᵀ along the track).
 
     Checked by :func:`hybridtrack.testing.check_sensor` on states of
     ``example_layout`` (default ``("x", "vx", "y", "vy")``).
@@ -198,6 +203,15 @@ class Sensor(ABC):
         ``noise_cov``; sensors whose R depends on z (radar converted to Cartesian coordinates) override it.
         """
         return self.noise_cov
+
+    @property
+    def noise_depends_on_state(self) -> bool:
+        """True when :meth:`state_noise` adds to R (the update then evaluates it at each filter's state)."""
+        return False
+
+    def state_noise(self, x: np.ndarray, layout: Sequence[str]) -> np.ndarray:
+        """The state-dependent part of R at x (M, n) → (M, m, m) (zero unless ``noise_depends_on_state``)."""
+        return np.zeros(np.shape(x)[:-1] + self.noise_cov.shape)
 
     def simulate(self, x: np.ndarray, layout: Sequence[str], rng: np.random.Generator) -> np.ndarray:
         """z = h(x) + v, v ~ N(0, R), for x of shape (..., n)."""

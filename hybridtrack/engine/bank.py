@@ -186,7 +186,9 @@ class LayoutBank:
     def transitions(self, dt) -> TransitionBank:
         """Every filter's transition over its own Δt ((F,) or one for all), each built at its switch state (rebuilt
         where Δt changed or the filter is new); the filters of a run with a nonlinear model are relinearized at
-        their current means."""
+        their current means — or, for an estimator that ``accepts_nonlinear``, wherever it asks: the linearizing
+        callable x (F, n) → TransitionBank of the EKF contract, which the EKF calls at the means (the same bank)
+        and a sigma-point filter at each of its points."""
         if dt.__class__ is float and dt == self._shared_dt and self._bank is not None:
             return self._bank  # the common step: nothing changed
         shared = float(dt) if np.ndim(dt) == 0 else None
@@ -198,9 +200,8 @@ class LayoutBank:
             nonlinear = np.zeros(self.runs, dtype=bool)
             nonlinear[self.run[[not m.linear for m in self.models]]] = True
             rows = np.flatnonzero(nonlinear[self.run])
-            at = TransitionBank.stack([self.models[i].transition(float(dt[i]), x) for i, x in zip(rows, self.means[rows])])
             if rows.size == len(self):
-                return at
+                return self._relinearized(rows, dt, None)
         stale = np.arange(len(self)) if self._F is None else np.flatnonzero(~(dt == self._dt))
         if stale.size:
             new = grouped_transitions([self.models[i] for i in stale], dt[stale], self.switch_states[stale])
@@ -220,9 +221,23 @@ class LayoutBank:
         if not rows.size:
             self._shared_dt = shared
             return self._bank
-        F, B, Q = self._F.copy(), self._B.copy(), self._Q.copy()
-        F[rows], B[rows], Q[rows] = at.F, at.B, at.Q
-        return TransitionBank(F, B, Q, _fill(None if self._root is None else self._root.copy(), rows, at.noise_root))
+        return self._relinearized(rows, dt, self._bank)
+
+    def _relinearized(self, rows: np.ndarray, dt: np.ndarray, base: TransitionBank | None):
+        """The bank with the filters ``rows`` linearized at x[rows] (the others as in ``base``; None: rows are
+        all): the callable x (F, n) → TransitionBank for an estimator that ``accepts_nonlinear``, else that bank
+        at the current means."""
+        models, steps = [self.models[i] for i in rows], [float(dt[i]) for i in rows]
+
+        def at(x: np.ndarray) -> TransitionBank:
+            new = TransitionBank.stack([model.transition(step, xi) for model, step, xi in zip(models, steps, np.asarray(x)[rows])])
+            if base is None:
+                return new
+            F, B, Q = base.F.copy(), base.B.copy(), base.Q.copy()
+            F[rows], B[rows], Q[rows] = new.F, new.B, new.Q
+            return TransitionBank(F, B, Q, _fill(None if base.noise_root is None else base.noise_root.copy(), rows, new.noise_root))
+
+        return at if self.estimator.accepts_nonlinear else at(self.means)
 
     def step(self, dt, z) -> BankStep:
         """Predict every filter over its run's Δt (``dt`` (R,) or one for all; None: update only), then update it

@@ -250,7 +250,7 @@ class BankEstimator(Estimator):
         else :meth:`update_measured` (the form's maths, given the step).  Forms needing more (scans, node copies,
         compiled lanes) override ``update`` and call :meth:`unmeasured` for a step without a measurement."""
         M, n = self.mean(state).shape
-        step = self.measurement_step(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n, state)
         return self.unmeasured(state, M) if step is None else self.update_measured(state, step, z, sensors, layout)
 
     def update_measured(self, state, step, z, sensors: Sequence, layout: Sequence[str]):
@@ -263,14 +263,22 @@ class BankEstimator(Estimator):
         innovation = empty_innovation(bank_size)
         return attrs.evolve(state, innovation=innovation, **dict.fromkeys(self.update_results)), innovation
 
-    def measurement_step(self, z, sensors: Sequence, layout: Sequence[str], bank_size: int, n: int):
+    def measurement_step(self, z, sensors: Sequence, layout: Sequence[str], bank_size: int, n: int, state=None):
         """The present sensors' stacked model of this step (:class:`~hybridtrack.sdk.measurements.MeasurementStep`), or None.
 
         Checks the layout against n and z's shape; NaN components are left
         out (:mod:`hybridtrack.sdk.measurements`); None means nothing was measured.
+        A sensor whose R depends on the state gets it at each filter's mean of ``state`` (this estimator's state, or
+        the means (M, n) themselves; the predicted state).
         """
         check_layout(layout, n)
-        return self.assembler.assemble(z, sensors, layout, bank_size)
+        step = self.assembler.assemble(z, sensors, layout, bank_size)
+        if step is None or not step.noise_depends_on_state:
+            return step
+        if state is None:
+            names = [m.sensor.name for m in step.models if m.sensor.noise_depends_on_state]
+            raise ValueError(f"sensors: the noise of {names} depends on the state, and {self.name!r} did not give its state")
+        return step.with_state_noise(state if isinstance(state, np.ndarray) else self.mean(state), layout)
 
     def linearize(self, x: np.ndarray, z, sensors: Sequence, layout: Sequence[str], step=None):
         """(step, ν, H) at x (M, n), or None when nothing was measured (prediction only).
@@ -280,7 +288,7 @@ class BankEstimator(Estimator):
         """
         M, n = x.shape
         if step is None:
-            step = self.measurement_step(z, sensors, layout, M, n)
+            step = self.measurement_step(z, sensors, layout, M, n, x)
         if step is None:
             return None
         if step.H is None and not self.accepts_nonlinear:

@@ -90,6 +90,24 @@ class MeasurementStep:
         """The same model with new measurement rows (the cached-structure path of :meth:`MeasurementAssembler.assemble`)."""
         return MeasurementStep(self.models, z, self.R, self.blocks, self.H, self.selection, self.plain_residual, self.R_diagonal)
 
+    @property
+    def noise_depends_on_state(self) -> bool:
+        """Some present sensor's R depends on the state (:meth:`with_state_noise` completes R)."""
+        return any(model.sensor.noise_depends_on_state for model in self.models)
+
+    def with_state_noise(self, x: np.ndarray, layout: Sequence[str]) -> MeasurementStep:
+        """The model with R (M, m, m) per filter: each state-dependent sensor's block plus its ``state_noise`` at the
+        filter's state x (M, n) (the present components only)."""
+        M, m = x.shape[0], self.dim
+        R = np.array(np.broadcast_to(self.R, (M, m, m)))
+        for model, block in zip(self.models, self.blocks):
+            if model.sensor.noise_depends_on_state:
+                extra = np.asarray(model.sensor.state_noise(x, layout), dtype=float)
+                if model.rows is not None:
+                    extra = extra[:, list(model.rows)][:, :, list(model.rows)]
+                R[:, block, block] += extra
+        return MeasurementStep(self.models, self.z, R, self.blocks, self.H, self.selection, self.plain_residual, False)
+
     def predicted(self, x: np.ndarray, layout: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
         """ẑ = h(x⁻) (M, m) and H = ∂h/∂x at x⁻ ((m, n) linear, (M, m, n) otherwise)."""
         if self.selection is not None:

@@ -232,8 +232,11 @@ def check_sensor(sensor: Sensor, *, layout: Sequence[str] | None = None, seed: i
     many = _array(many, label, "simulate of a (2000, n) stack", (draws, m))
     noise = _array(sensor.residual(many, np.broadcast_to(z[0], (draws, m))), label, "simulated noise")
     sample = np.cov(noise, rowvar=False).reshape(m, m)
-    # R that goes with this measurement: noise_cov, or R(z) for pseudo-measurement sensors (Sensor.measurement_noise)
+    # R that goes with this measurement: noise_cov, or R(z) for pseudo-measurement sensors (Sensor.measurement_noise),
+    # plus the part that depends on the state (Sensor.state_noise)
     R = _array(sensor.measurement_noise(z[0]), label, "measurement_noise(z)", (m, m))
+    if getattr(sensor, "noise_depends_on_state", False):
+        R = R + _array(sensor.state_noise(X[:1].copy(), layout), label, "state_noise(x)", (1, m, m))[0]
     error = np.linalg.norm(sample - R) / np.linalg.norm(R)
     _require(
         error < 0.25,

@@ -223,7 +223,7 @@ class ScanEstimator(BankEstimator):
         """The one candidate of a stacked z against every row of x (filters, or hypotheses), as :meth:`associate_scan`
         takes it, or None when nothing was measured: ν (rows, 1, m), H, R, the selection, the sensors' name, z, ẑ."""
         M, n = state.x.shape[0], state.x.shape[-1]
-        step = self.measurement_step(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n, state)
         if step is None:
             return None
         per_filter = state.x.size // (M * n)  # rows of x per filter

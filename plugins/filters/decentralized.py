@@ -108,7 +108,7 @@ class NodeBank(BankEstimator):
                 raise ValueError(f"sensors: expected {state.nodes} sensors (one per node of this decentralized filter), got {len(sensors)}")
             state = replicate(state, len(sensors))
         M, n = getattr(state, state.node_fields[0]).shape[1:3]
-        step = self.measurement_step(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n, state)
         if step is None:
             return self.unmeasured(state, M)
         if step.H is None:

@@ -291,7 +291,7 @@ class KalmanFilter(BankEstimator):
         """The reference update (dense or axis-separable).  Overflow: :func:`guarded` checks ℓ and NIS, which are
         non-finite whenever S or ν is (x⁺ = x⁻ + K ν is finite for a finite x⁻, ν and positive definite S)."""
         M, n = state.bank_size, (state.n if isinstance(state, AxisState) else state.x.shape[1])
-        step = self.measurement_step(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n, state)
         if step is None:
             return self.unmeasured(state, M)
         if isinstance(state, AxisState):

@@ -347,7 +347,7 @@ class ParticleFilter(RecordsFilterStates, BankEstimator):
         scans = as_scans(z)
         if scans is not None or (isinstance(z, (list, tuple)) and len(z) == 0):
             return self._update_scans(state, scans or [], sensors, layout)
-        step = self.measurement_step(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n, state)
         if step is None:
             return self.unmeasured(state, M)
         # ν⁽ⁱ⁾ = residual(z, h(x⁽ⁱ⁾)) (M, N, m) of the present components, through the step's sensor models

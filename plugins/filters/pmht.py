@@ -237,7 +237,7 @@ class PMHTFilter(ScanEstimator):
     def stacked_candidates(self, state: PMHTState, z, sensors, layout):
         """The one candidate of a stacked z: candidates (M, 1, m), H, R, the sensors' name, z; None if nothing was measured."""
         M, n = state.x.shape
-        step = self.measurement_step(z, sensors, layout, M, n)
+        step = self.measurement_step(z, sensors, layout, M, n, state)
         if step is None:
             return None
         if step.H is None:
