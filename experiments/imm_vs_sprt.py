@@ -32,7 +32,8 @@ Datasets:
   turn label) the AIS positions (projected, ENU) are the truth; each draw
   thins them to irregular intervals (next report at least U(5, 30) s after the
   last) and adds N(0, 25² m²) to each position; the modes, process noise and
-  SPRT settings are those of examples/ships.toml; the reference modes are the
+  SPRT settings are those of examples/ships.toml (its noise density per
+  second, q = 0.001 m²/s³; the CV filter's q_cv = q · f a density too); the reference modes are the
   course-based labels (hybridtrack.apps.mode_labels, defaults) and the known switch
   times are the label changes; IMM sojourn 120 s.
 
@@ -205,8 +206,13 @@ def run_imm_like(cases: list[Case], method: str):
     return out
 
 
+def _noise(settings: dict, q: float) -> dict:
+    """The modes' noise keyword: a density per second (q in m²/s³) where the dataset's modes have one, else per step."""
+    return {"noise_density": q} if settings.get("density") else {"noise_cov": q * np.eye(2)}
+
+
 def run_cv(cases: list[Case], q: float):
-    _, results = _multiple_model(cases, "imm", [("straight", {"noise_cov": q * np.eye(2)})], transition_matrix=[[1.0]])
+    _, results = _multiple_model(cases, "imm", [("straight", _noise(cases[0].settings, q))], transition_matrix=[[1.0]])
     return [(p, ["straight"] * len(c.times), sec, None) for c, (p, _, sec) in zip(cases, results)]
 
 
@@ -406,12 +412,16 @@ def solent_vessels(count: int, min_duration: float = 900.0) -> list[tuple]:
 def solent_cases(vessels: list[tuple], draws: int, seed: int, ships: dict, max_steps: int | None = None) -> list[Case]:
     """Thinned (U(5, 30) s) AIS positions + N(0, 25²) per draw; modes and settings from ships.toml."""
     est = ships["estimator"]
-    q = est["process_noise"] ** 2
-    modes = [(name, {**params, "noise_cov": q * np.eye(2)}) for name, params in est["modes"]]
+    density = "noise_density" in est  # per second, else σ_w² per report
+    q = est["noise_density"] if density else est["process_noise"] ** 2
+    modes = [
+        (name, params if "noise_density" in params else {**params, **_noise({"density": density}, q)}) for name, params in est["modes"]
+    ]
     sigma = 25.0
     settings = {
         "R": sigma**2,
         "q": q,
+        "density": density,
         "alpha": 0.01,
         "beta": 0.01,
         "unknown_alpha": est["alpha"],

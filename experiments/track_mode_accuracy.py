@@ -1,6 +1,7 @@
 """Mode accuracy of ``hybridtrack track`` against the course-based labels (hybridtrack.apps.mode_labels).
 
     python experiments/track_mode_accuracy.py FILE --config examples/ships.toml [--out DIR] [--json PATH] [--moving-only]
+        [--smooth | --lag SECONDS]
 
 Runs :func:`hybridtrack.apps.tracking.track_file` on FILE (or reads the results
 already in ``--out`` with ``--reuse``) and compares, report by report, the
@@ -70,13 +71,15 @@ def scores(pairs: list[tuple[np.ndarray, np.ndarray]]) -> dict:
     }
 
 
-def evaluate(path, config, out, *, reuse: bool = False, moving_only: bool = False, min_moving: int = 50, ids=None) -> dict:
+def evaluate(
+    path, config, out, *, reuse: bool = False, moving_only: bool = False, min_moving: int = 50, ids=None, smooth=False, lag=None
+) -> dict:
     labelled = labelled_tracks(path, config)
     ids = list(labelled) if ids is None else [k for k in ids if k in labelled]
     if moving_only:
         ids = [k for k in ids if np.sum(labelled[k][1] != "stop") >= min_moving]
     if not reuse:
-        track_file(path, config, out, ids)
+        track_file(path, config, out, ids, smooth=smooth, lag=lag)
     summary = json.loads((Path(out) / "summary.json").read_text())
     pairs = []
     for entry in summary["objects"]:
@@ -99,10 +102,13 @@ def main(argv=None) -> dict:
     parser.add_argument("--min-moving", type=int, default=50)
     parser.add_argument("--json", help="write the scores here")
     parser.add_argument("--id", action="append", dest="ids", help="score only this object (repeatable)")
+    parser.add_argument("--smooth", action="store_true", help="score the fixed-interval smoothed run (hybridtrack track --smooth)")
+    parser.add_argument("--lag", type=float, help="score the fixed-lag smoothed run (seconds)")
     args = parser.parse_args(argv)
-    result = evaluate(
-        args.file, args.config, args.out, reuse=args.reuse, moving_only=args.moving_only, min_moving=args.min_moving, ids=args.ids
+    options = dict(
+        reuse=args.reuse, moving_only=args.moving_only, min_moving=args.min_moving, ids=args.ids, smooth=args.smooth, lag=args.lag
     )
+    result = evaluate(args.file, args.config, args.out, **options)
     result["command"] = "python experiments/track_mode_accuracy.py " + " ".join(sys.argv[1:] if argv is None else argv)
     text = json.dumps(result, indent=2)
     print(text)

@@ -236,7 +236,11 @@ def test_track_names_the_new_algorithm(zigzag, tmp_path):
     (tmp_path / "c.toml").write_text(TRACK_CONFIG)
     summary = track_file(csv, tmp_path / "c.toml", tmp_path / "out")
     (boat,) = summary["objects"]
-    assert boat["segments"][-1] == {"start": boat["segments"][-1]["start"], "end": 80.0, "mode": "left_turn", "radius": 200.0}
+    last = boat["segments"][-1]
+    assert {key: last[key] for key in ("end", "mode", "radius")} == {"end": 80.0, "mode": "left_turn", "radius": 200.0}
+    assert last["mean_speed"] == pytest.approx(10.0, rel=0.05) and last["mean_turn_rate"] == pytest.approx(
+        np.degrees(10.0 / 200.0), rel=0.1
+    )
     assert boat["segments"][-1]["start"] <= 20.0
     assert [d["mode"] for d in boat["decisions"]] == [s["mode"] for s in boat["segments"][1:]]  # no detector: the mode changes
     npz = np.load(tmp_path / "out" / "boat.npz")

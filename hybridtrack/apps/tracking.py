@@ -7,14 +7,25 @@ object, ``OUT/<id>.rrd`` (a Rerun recording: what the estimator logs, plus
 :func:`record_track`'s 3-D altitude and map views), ``OUT/<id>.npz`` (``times``
 (K,), ``means`` (K, n), ``covariances`` (K, n, n), ``modes`` (K,) the summary
 mode name per step, ``radii`` (K,) the turn radius per step (NaN off turns),
-``layout``, ``positions`` (K, 2) the measured fixes; with altitude ``altitude``,
-``altitude_mean``, ``altitude_var`` of :func:`filter_altitude`) and
+``layout``, ``positions`` (K, 2) the measured fixes; for a geographic file ``lat_lon`` (K, 2) the estimate in
+degrees; with altitude ``altitude``, ``altitude_mean``, ``altitude_var`` of :func:`filter_altitude`) and
 ``OUT/summary.json``::
 
     {"objects": [{"id": str,
-                  "segments": [{"start": float, "end": float, "mode": str, "radius": float | null}],
-                  "decisions": [{"time": float, "mode": str}]}],
-     "skipped": [{"id": str, "reason": str}]}
+                  "segments": [{"start": float, "end": float, "mode": str, "radius": float | null,
+                                "mean_speed": float, "heading_change": float, "mean_turn_rate": float | null,
+                                "start_utc": str, "end_utc": str}],
+                  "decisions": [{"time": float, "mode": str, "time_utc": str}]}],
+     "skipped": [{"id": str, "reason": str}],
+     "epoch_utc": str | null, "origin": {"lat": float, "lon": float, "h": float} | null,
+     "problems": [{"line": int, "column": str | null, "kind": str, "action": str, "message": str, "id": str | null}]}
+
+Times (``start``, ``end``, ``time``) are seconds after the file's earliest time stamp, ``epoch_utc`` (ISO
+8601); the ``*_utc`` keys are there for files of ISO time stamps only.  Segment statistics are
+:func:`describe_segments`'s (m/s, degrees and °/s, positive to the left); ``origin`` is the map origin (lat°,
+lon°, h m) of the projection (None for x/y files); ``problems`` every row the reader dropped, flagged or
+repaired, with its reason (:class:`~hybridtrack.io.track_files.Problem`).  The recordings of a file of ISO
+time stamps also have the ``utc`` timeline.
 
 Mode names are the motion models' registry names (``acceleration`` for
 ``constant_acceleration``), ``radius`` the turn radius (m) of the model
@@ -45,9 +56,11 @@ import os
 import re
 import tomllib
 from collections.abc import Iterable, Mapping, Sequence
+from datetime import UTC, timedelta
 from pathlib import Path
 from typing import Any
 
+import attrs
 import numpy as np
 
 from hybridtrack.core.plugins import resolve
@@ -68,7 +81,7 @@ ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma
 _KIND_ONLY = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), "imm": ("sojourn", "method")}
 _SECTIONS = {
     "reader": set(inspect.signature(read_tracks).parameters) - {"path", "warn"} | {"preset", "min_reports"},  # read_tracks' keywords
-    "measurement": {"sigma"},
+    "measurement": {"sigma", "time_jitter"},
     "altitude": set(ALTITUDE_DEFAULTS),
     "prior": {"velocity", "position_sigma", "velocity_sigma"},
     "estimator": {"algorithm", "kind", "filter", "process_noise", "noise_density", "modes", "radii", "parameters"}
@@ -128,6 +141,8 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
     if sigma is None:
         raise ConfigError(f"{where}: [measurement] sigma (m) is required")
     out["measurement"]["sigma"] = _positive("measurement", "sigma", sigma, where)
+    if "time_jitter" in out["measurement"]:
+        out["measurement"]["time_jitter"] = _positive("measurement", "time_jitter", out["measurement"]["time_jitter"], where)
 
     alt = out["altitude"]
     for key, default in ALTITUDE_DEFAULTS.items():
@@ -230,7 +245,12 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 
 def _build(config: dict, registry=None):
     """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
-    sensor = resolve("sensor", ("position", {"noise_cov": config["measurement"]["sigma"] ** 2 * np.eye(2)}), registry)
+    measurement = config["measurement"]
+    sensor = resolve(
+        "sensor",
+        ("position", {"noise_cov": measurement["sigma"] ** 2 * np.eye(2), "time_jitter": measurement.get("time_jitter", 0.0)}),
+        registry,
+    )
     est = config["estimator"]
     noise = {"noise_density": est["noise_density"]} if "noise_density" in est else {"noise_cov": est["process_noise"] ** 2 * np.eye(2)}
     specs = []
@@ -339,6 +359,36 @@ def _step_modes(models, run, layout) -> tuple[list[str], list[float | None]]:
     return list(modes), list(radii)
 
 
+def describe_segments(segments: list[dict], times: np.ndarray, means: np.ndarray, layout: Sequence[str], epoch=None) -> list[dict]:
+    """Each segment of :func:`segments_of` with what the estimate says about it: ``mean_speed`` (m/s, the mean of
+    |v̂| over its steps), ``heading_change`` (degrees, positive to the left (counter-clockwise): the unwrapped
+    heading atan2(v̂y, v̂x) at its end minus at its start) and ``mean_turn_rate`` (°/s, heading_change over its
+    duration; None for a segment of no duration); with ``epoch`` (the UTC instant of t = 0) ``start_utc`` and
+    ``end_utc`` (ISO 8601)."""
+    vx, vy = means[:, layout.index("vx")], means[:, layout.index("vy")]
+    speed, heading = np.hypot(vx, vy), np.degrees(np.unwrap(np.arctan2(vy, vx)))
+    out = []
+    for segment in segments:
+        first, last = np.searchsorted(times, segment["start"]), np.searchsorted(times, segment["end"])
+        steps = slice(first, max(last, first + 1))  # its own steps (the last segment: to the last step)
+        change = float(heading[min(last, len(times) - 1)] - heading[first])
+        duration = segment["end"] - segment["start"]
+        extra = {
+            "mean_speed": float(np.mean(speed[steps])),
+            "heading_change": change,
+            "mean_turn_rate": change / duration if duration > 0 else None,
+        }
+        if epoch is not None:
+            extra |= {key + "_utc": utc_text(epoch, segment[key]) for key in ("start", "end")}
+        out.append(segment | extra)
+    return out
+
+
+def utc_text(epoch, seconds: float) -> str:
+    """ISO 8601 UTC of ``epoch`` + ``seconds`` (to the microsecond)."""
+    return (epoch + timedelta(seconds=float(seconds))).astimezone(UTC).isoformat().replace("+00:00", "Z")
+
+
 def segments_of(times: np.ndarray, modes: Sequence[str], radii: Sequence[float | None]) -> list[dict]:
     """Runs of equal (mode, radius) over the steps: start = time of the first step, end = time of the next run's
     first step (the last run ends at the last time)."""
@@ -367,13 +417,22 @@ def track_one(
     *,
     origin: Sequence[float] | None = None,
     projection: str = "enu",
+    epoch=None,
+    smooth: bool = False,
+    lag: float | None = None,
+    record: bool = True,
 ) -> dict:
-    """Run the configured estimator on one track; write ``out/<id>.rrd`` and ``.npz`` (when ``out`` is given);
+    """Run the configured estimator on one track; write ``out/<id>.rrd`` (unless ``record`` is False) and ``.npz``
+    (when ``out`` is given);
     return the object's summary entry ``{"id", "segments", "decisions"}``.
 
     ``origin`` (lat°, lon°, h m) and ``projection``: the tangent plane the track was projected to (the
     :class:`~hybridtrack.io.track_files.TrackFile`'s); given, the recording gets the map view and the altitude is the
-    height above the origin's height (else the altitude column as read)."""
+    height above the origin's height (else the altitude column as read).  ``epoch`` (the UTC instant of t = 0, for
+    files of ISO time stamps): the recording gets a ``utc`` timeline and the segments their UTC start and end.
+    ``smooth`` (fixed interval) or ``lag`` (seconds, fixed lag): the outputs are the algorithm's smoothed run
+    (its ``smooth(run, lag)``, e.g. the multiple-model mode smoother), recorded beside the causal one as
+    ``<name>_smoothed``."""
     from hybridtrack.recording import RerunRecorder
 
     estimator, sensor, models = _build(config, registry)
@@ -386,18 +445,21 @@ def track_one(
         if origin is not None:  # the geodetic height above the origin's (the ENU up also holds the Earth's curvature)
             heights = unproject(track.positions, origin=origin, projection=projection)[:, 2] - (list(origin) + [0.0])[2]
     altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
-    recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}) if out is not None else None
+    recording = out is not None and record
+    recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}, epoch=epoch) if recording else None
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
         run = estimator.run({sensor.name: xy}, _prior(track, config, layout), times=track.times, recorder=recorder)
+        if smooth or lag is not None:
+            run = estimator.smooth(run, lag)
+            if recorder is not None:
+                recorder.log_result(run, name=f"{estimator.name}_smoothed", sensors=(), measurements={})
+        est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
+        geo = (None, None)
+        if origin is not None:  # with heights, the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
+            estimated_enu = est_xy if heights is None else np.column_stack([est_xy, altitude[0][:, 0] + track.positions[:, 2] - heights])
+            geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (track.positions, estimated_enu))
         if recorder is not None:
-            est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
             in_3d = (None, None) if heights is None else (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
-            geo = (None, None)
-            if origin is not None:  # with heights, the ENU up of the filtered height: ĥ + (u − h) of the fix (the curvature)
-                estimated_enu = (
-                    est_xy if heights is None else np.column_stack([est_xy, altitude[0][:, 0] + track.positions[:, 2] - heights])
-                )
-                geo = tuple(unproject(p, origin=origin, projection=projection)[:, :2] for p in (track.positions, estimated_enu))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
     modes, radii = _step_modes(models, run, layout)  # the followed mode, or the most probable model
     if getattr(estimator, "detector", None) is not None:
@@ -416,9 +478,13 @@ def track_one(
             radii=np.array([np.nan if r is None else r for r in radii]),
             layout=np.array(layout),
             positions=xy,
+            **({} if geo[1] is None else {"lat_lon": geo[1]}),
             **({} if altitude is None else {"altitude_mean": altitude[0], "altitude_var": altitude[1], "altitude": heights}),
         )
-    return {"id": track.id, "segments": segments_of(run.times, modes, radii), "decisions": decisions}
+    if epoch is not None:
+        decisions = [d | {"time_utc": utc_text(epoch, d["time"])} for d in decisions]
+    segments = describe_segments(segments_of(run.times, modes, radii), np.asarray(run.times, dtype=float), run.means, layout, epoch)
+    return {"id": track.id, "segments": segments, "decisions": decisions}
 
 
 def track_file(
@@ -429,15 +495,27 @@ def track_file(
     *,
     progress: bool = False,
     registry=None,
+    smooth: bool = False,
+    lag: float | None = None,
 ) -> dict:
     """Track every object of ``path`` (or those in ``ids``) with ``config`` (a TOML path or a mapping; module
     docstring) and write ``out/<id>.rrd``, ``out/<id>.npz`` and ``out/summary.json``; returns the summary.
 
     Objects with fewer than ``min_reports`` reports are skipped and listed under ``"skipped"``; an id not in the
-    file is a ConfigError.  ``progress`` shows a tqdm bar over the objects (on stderr)."""
+    file is a ConfigError.  ``progress`` shows a tqdm bar over the objects (on stderr).  ``smooth`` / ``lag``
+    (seconds): fixed-interval / fixed-lag smoothing of recorded files (:func:`track_one`); a ConfigError for an
+    algorithm without a smoother, for both at once and for a negative lag."""
     from tqdm.auto import tqdm
 
     cfg = load_config(config, registry)
+    if smooth and lag is not None:
+        raise ConfigError("--smooth and --lag: give one (--smooth: fixed interval; --lag SECONDS: fixed lag)")
+    if lag is not None and not (math.isfinite(lag) and lag >= 0):
+        raise ConfigError(f"--lag {lag!r}: expected a number of seconds ≥ 0")
+    if (smooth or lag is not None) and not callable(getattr(_build(cfg, registry)[0], "smooth", None)):
+        raise ConfigError(
+            f"--smooth/--lag: algorithm {cfg['estimator']['algorithm']!r} has no smoother (the multiple-model algorithms imm, gpb1, gpb2 have)"
+        )
     if not Path(path).is_file():
         raise FileNotFoundError(2, "no such position file", str(path))
     try:
@@ -456,7 +534,14 @@ def track_file(
         if len(track) < cfg["min_reports"]:
             skipped.append({"id": key, "reason": f"{len(track)} reports < min_reports {cfg['min_reports']}"})
             continue
-        objects.append(track_one(track, cfg, out, registry, origin=data.origin, projection=data.projection or "enu"))
-    summary = {"objects": objects, "skipped": skipped}
+        options = dict(origin=data.origin, projection=data.projection or "enu", epoch=data.epoch, smooth=smooth, lag=lag)
+        objects.append(track_one(track, cfg, out, registry, **options))
+    summary = {
+        "objects": objects,
+        "skipped": skipped,
+        "epoch_utc": None if data.epoch is None else utc_text(data.epoch, 0.0),
+        "origin": None if data.origin is None else dict(zip(("lat", "lon", "h"), data.origin)),
+        "problems": [attrs.asdict(problem) for problem in data.problems],
+    }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return summary

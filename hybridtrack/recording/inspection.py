@@ -16,6 +16,7 @@ import struct
 import tempfile
 import warnings
 import weakref
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -179,11 +180,13 @@ class RecordingFile:
 
     def _scan(self, reader) -> None:
         """One pass over the chunks keeping only the summary."""
+        import pyarrow as pa
         import pyarrow.compute as pc
 
         self._components: dict[str, set[str]] = {}
         low = high = None
-        events: list[tuple[int, str, str]] = []
+        spans: dict[str, list[int]] = {}  # "time" / "utc" → [min, max] in integer nanoseconds
+        events: list[tuple[int, str, str, int | None]] = []
         last: dict[str, tuple[int, list[float]]] = {}
         configuration = None
         for entity, batch in self._chunks():
@@ -198,11 +201,18 @@ class RecordingFile:
             if lo is not None:
                 low = lo if low is None else min(low, lo)
                 high = hi if high is None else max(high, hi)
+            nanoseconds = {key: batch.column(key).cast(pa.int64()) for key in ("time", "utc") if key in names}
+            for key, column in nanoseconds.items():
+                lo_t, hi_t = pc.min(column).as_py(), pc.max(column).as_py()
+                if lo_t is not None:
+                    span = spans.setdefault(key, [lo_t, hi_t])
+                    span[0], span[1] = min(span[0], lo_t), max(span[1], hi_t)
             if entity == "/events/decisions" and "TextLog:text" in names:
                 levels = batch.column("TextLog:level").to_pylist() if "TextLog:level" in names else [None] * batch.num_rows
-                for s, level, text in zip(steps.to_pylist(), levels, batch.column("TextLog:text").to_pylist()):
+                at = nanoseconds["time"].to_pylist() if "time" in nanoseconds else [None] * batch.num_rows
+                for s, level, text, t in zip(steps.to_pylist(), levels, batch.column("TextLog:text").to_pylist(), at):
                     if s is not None and text:
-                        events.append((int(s), level[0] if level else "", text[0]))
+                        events.append((int(s), level[0] if level else "", text[0], t))
             column = next((c for c in _POSITIONS if c in names), None)
             if entity.startswith("/world/estimate/") and column is not None:
                 step_values = steps.to_numpy(zero_copy_only=False)
@@ -213,6 +223,7 @@ class RecordingFile:
                     if value:
                         last[entity] = (int(step_values[valid[0]]), [float(c) for c in value[0]])
         self._step_range = None if low is None else (int(low), int(high))
+        self._spans = spans
         self._events = sorted(events, key=lambda e: e[0])
         self._last_positions = last
         self._configuration = json.loads(configuration) if configuration else {}
@@ -326,7 +337,18 @@ class RecordingFile:
 
     def events(self) -> list[tuple[int, str, str]]:
         """Text events on ``/events/decisions``: (step, level, text) sorted by step."""
-        return list(self._events)
+        return [event[:3] for event in self._events]
+
+    def time_range(self) -> tuple[float, float] | None:
+        """The first and last time (s) on the ``time`` timeline (None if nothing is on it)."""
+        span = self._spans.get("time")
+        return None if span is None else (span[0] / 1e9, span[1] / 1e9)
+
+    def utc_range(self) -> tuple[str, str] | None:
+        """The first and last instant on the ``utc`` timeline as ISO 8601 UTC strings (None for a recording without
+        real time stamps)."""
+        span = self._spans.get("utc")
+        return None if span is None else tuple(_iso(ns) for ns in span)
 
     def step_range(self) -> tuple[int, int] | None:
         """The smallest and largest step of any entity on the ``step`` timeline (None if there is none)."""
@@ -350,12 +372,20 @@ class RecordingFile:
             "configuration": self.configuration,
             "entity_paths": self.entity_paths,
             "step_range": list(step_range) if step_range else None,
-            "decisions": [{"step": s, "level": lv, "text": t} for s, lv, t in self.events()],
+            "time_range": list(self.time_range()) if self.time_range() else None,
+            "utc_range": list(self.utc_range()) if self.utc_range() else None,
+            "decisions": [{"step": s, "level": lv, "text": t, "time": None if ns is None else ns / 1e9} for s, lv, t, ns in self._events],
             "final_estimates": self.final_estimates(),
             "truncated": self.truncated,
             "problem": self.problem,
             "readable_bytes": self.readable_bytes,
         }
+
+
+def _iso(nanoseconds: int) -> str:
+    """ISO 8601 UTC of integer nanoseconds since the Unix epoch (to the nearest microsecond)."""
+    instant = datetime(1970, 1, 1, tzinfo=UTC) + timedelta(microseconds=(nanoseconds + 500) // 1000)
+    return instant.isoformat().replace("+00:00", "Z")
 
 
 def format_summary(summary: dict) -> str:
@@ -366,10 +396,17 @@ def format_summary(summary: dict) -> str:
         f"recording id:   {summary['recording_id']}",
         f"configuration:  {json.dumps(summary['configuration'], sort_keys=True)}",
         f"steps:          {summary['step_range'][0]}..{summary['step_range'][1]}" if summary["step_range"] else "steps:          none",
+        f"times:          {summary['time_range'][0]:g}..{summary['time_range'][1]:g} s"
+        if summary.get("time_range")
+        else "times:          none",
+        *([f"utc:            {summary['utc_range'][0]} .. {summary['utc_range'][1]}"] if summary.get("utc_range") else []),
         f"entity paths ({len(summary['entity_paths'])}):",
         *[f"  {p}" for p in summary["entity_paths"]],
         f"decisions ({len(summary['decisions'])}):",
-        *[f"  step {d['step']:>5}  {d['level']:<5} {d['text']}" for d in summary["decisions"]],
+        *[
+            f"  step {d['step']:>5}  {'' if d.get('time') is None else format(d['time'], '.6g') + ' s':>10}  {d['level']:<5} {d['text']}"
+            for d in summary["decisions"]
+        ],
         "final estimates:",
         *[
             f"  {name:<24} step {e['step']:>5}  x={e['position'][0]:.4g} y={e['position'][1]:.4g}"

@@ -2,7 +2,8 @@
 
 :class:`RerunRecorder` owns one ``rerun.RecordingStream`` with a file sink, :class:`NullRecorder` records
 nothing; leaving either context flushes and closes the file.  Series are logged as whole columns
-(``send_columns``) on the timelines ``step`` and ``time`` (duration in seconds, when times are given).
+(``send_columns``) on the timelines ``step`` and ``time`` (duration in seconds, when times are given) and, for a
+recording of real time stamps (``epoch`` given), ``utc`` (the absolute time epoch + t).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import json
 import re
 from collections.abc import Sequence
 from contextlib import AbstractContextManager
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
@@ -25,6 +27,11 @@ APPLICATION_ID = "hybridtrack"
 
 #: the largest |t| in seconds the ``time`` timeline holds: rerun durations are int64 nanoseconds
 MAX_RECORDABLE_SECONDS = (2**63 - 1) / 1e9
+
+
+def unix_nanoseconds(instant) -> int:
+    """A timezone-aware datetime as whole nanoseconds since 1970-01-01T00:00:00Z (exact to its microsecond)."""
+    return (instant - datetime(1970, 1, 1, tzinfo=UTC)) // timedelta(microseconds=1) * 1000
 
 
 def check_recordable_times(times, name: str = "times") -> None:
@@ -159,9 +166,12 @@ class RerunRecorder(AbstractContextManager):
     Everything spatial is 3-D east-north-up (2-D positions get z = 0); each entity is styled once from its path
     (:func:`spatial_style`, :func:`series_style`).  :meth:`close` adds the space-time view and embeds the blueprint
     of what was logged (:func:`content_blueprint`) as the file's active and default layout.
+
+    ``epoch`` (a timezone-aware UTC datetime, the instant of t = 0): every series and event is also put on the
+    ``utc`` timeline at epoch + t, so that a recording of real reports shows their clock time.
     """
 
-    def __init__(self, path: str | Path, configuration: dict | None = None):
+    def __init__(self, path: str | Path, configuration: dict | None = None, *, epoch=None):
         import rerun as rr
 
         self._rr = rr
@@ -179,6 +189,7 @@ class RerunRecorder(AbstractContextManager):
         self._breaks: dict[str, np.ndarray] = {}  # a hypothesis's path: where its pieces in play start (rows of its track)
         self._events: list[tuple[int, str]] = []  # the decisions: (step, text)
         self._time_step: float | None = None
+        self._epoch = None if epoch is None else unix_nanoseconds(epoch)  # t = 0, in whole ns since the Unix epoch
         self._closed = False
 
     # -- helpers
@@ -190,11 +201,17 @@ class RerunRecorder(AbstractContextManager):
         indexes = [rr.TimeColumn("step", sequence=steps)]
         if times is not None:
             indexes.append(rr.TimeColumn("time", duration=times))
+            if self._epoch is not None:
+                indexes.append(rr.TimeColumn("utc", timestamp=self._utc(times)))
             if self._time_step is None and times.size > 1:
                 gaps = np.diff(steps) > 0
                 if gaps.any():
                     self._time_step = float(np.median(np.diff(times)[gaps] / np.diff(steps)[gaps]))
         return indexes
+
+    def _utc(self, times):
+        """epoch + t as numpy datetime64[ns] (exact integer nanoseconds: no float rounding of 10⁹ s clock times)."""
+        return (self._epoch + np.round(np.asarray(times, dtype=np.float64) * 1e9).astype(np.int64)).astype("datetime64[ns]")
 
     def _note(self, entity: str, view_class: str) -> bool:
         """Note a logged entity (True the first time), declaring east-north-up on its spatial root."""
@@ -301,6 +318,8 @@ class RerunRecorder(AbstractContextManager):
         self.stream.set_time("step", sequence=int(step))
         if time is not None:
             self.stream.set_time("time", duration=float(time))
+            if self._epoch is not None:
+                self.stream.set_time("utc", timestamp=self._utc(time))
         self.stream.log("events/decisions", self._rr.TextLog(text, level=level))
         self._note("events/decisions", "TextLog")
         self._events.append((int(step), str(text)))

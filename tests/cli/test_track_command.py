@@ -1,6 +1,7 @@
 """``hybridtrack track``: a configured estimator over every object of a position file (hybridtrack.apps.tracking)."""
 
 import json
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -87,16 +88,22 @@ def test_track_writes_outputs_and_finds_the_turn(tmp_path, capsys, rerun_cli, ki
     status = main(["track", str(csv), "--config", str(cfg), "--out", str(out), "--no-progress"])
     assert status == 0, capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary) == {"objects", "skipped"}
+    assert set(summary) == {"objects", "skipped", "epoch_utc", "origin", "problems"}
+    assert summary["epoch_utc"] is None and summary["origin"] is None and summary["problems"] == []  # x/y metres, seconds
     assert summary["skipped"] == [{"id": "short", "reason": "2 reports < min_reports 5"}]
     assert [o["id"] for o in summary["objects"]] == ["port", "starboard"]
     t_turn = STRAIGHT * DT
     for obj, expected in zip(summary["objects"], ("left_turn", "right_turn")):
         assert set(obj) == {"id", "segments", "decisions"}
         for s in obj["segments"]:
-            assert set(s) == {"start", "end", "mode", "radius"}
+            assert set(s) == {"start", "end", "mode", "radius", "mean_speed", "heading_change", "mean_turn_rate"}
             assert s["mode"] in {"straight", "left_turn", "right_turn"}
             assert (s["radius"] is None) == (s["mode"] == "straight")
+            if s["end"] - s["start"] >= 20 * DT:  # the estimate's speed and heading over a long segment
+                assert s["mean_speed"] == pytest.approx(SPEED, rel=0.1), s
+                assert s["mean_turn_rate"] == pytest.approx(s["heading_change"] / (s["end"] - s["start"]))
+        turned = sum(s["heading_change"] for s in obj["segments"])  # 229° of heading, left positive
+        assert turned == pytest.approx((1 if expected == "left_turn" else -1) * np.degrees(SPEED / RADIUS * TURN * DT), abs=25.0)
         for d in obj["decisions"]:
             assert set(d) == {"time", "mode"} and isinstance(d["time"], float)
         segs = obj["segments"]
@@ -118,7 +125,8 @@ def test_track_writes_outputs_and_finds_the_turn(tmp_path, capsys, rerun_cli, ki
             assert list(npz["layout"]) == ["x", "vx", "y", "vy"]
             # the per-step modes merge into exactly the summary's segments
             radii = [None if np.isnan(r) else float(r) for r in npz["radii"]]
-            assert segments_of(npz["times"], [str(m) for m in npz["modes"]], radii) == segs
+            base = [{key: seg[key] for key in ("start", "end", "mode", "radius")} for seg in segs]
+            assert segments_of(npz["times"], [str(m) for m in npz["modes"]], radii) == base
             assert np.all(np.linalg.eigvalsh(npz["covariances"]) > 0)
         rrd = out / f"{obj['id']}.rrd"
         assert RecordingFile(rrd).application_id == "hybridtrack"
@@ -143,6 +151,7 @@ def test_id_selects_objects(tmp_path):
         (lambda c: c.replace("alpha = 0.01", "sojourn = 3.0"), "belong to kind 'imm'"),
         (lambda c: c.replace("sigma = 5.0", "sigma = 5.0 5"), "not a valid TOML file"),
         (lambda c: c.replace("process_noise = 0.05", "process_noise = 0.05\nnoise_density = 0.01"), "give one"),
+        (lambda c: c.replace("[measurement]", "[measurement]\ntime_jitter = -1.0"), "[measurement] time_jitter = -1.0"),
         (lambda c: c.replace("process_noise = 0.05", "noise_density = -1.0"), "noise_density = -1.0; expected a positive number"),
         (lambda c: c.replace('"straight", "left_turn"', '{name = "stop", noise_density = 0}, "left_turn"'), "modes.noise_density = 0"),
     ],
@@ -180,6 +189,9 @@ def test_example_configs_load():
     assert len(ships["estimator"]["modes"]) == 1 + 2 * 3
     aircraft = load_config(ROOT / "examples" / "aircraft.toml")
     assert aircraft["estimator"]["algorithm"] == "imm"
+    turn_rate = load_config(ROOT / "examples" / "ships_turn_rate.toml")
+    assert [name for name, _ in turn_rate["estimator"]["modes"]] == ["straight", "coordinated_turn", "stop"]
+    assert ships["estimator"]["noise_density"] == turn_rate["estimator"]["noise_density"] == 0.001
 
 
 @pytest.mark.slow
@@ -189,11 +201,25 @@ def test_first_three_solent_vessels_with_the_ships_config(tmp_path):
     ids = list(read_tracks(SOLENT, **SOLENT_AIS, warn=False).tracks)[:3]
     summary = track_file(SOLENT, ROOT / "examples" / "ships.toml", tmp_path, ids=ids)
     assert [o["id"] for o in summary["objects"]] == ids
+    assert summary["epoch_utc"] == "2016-01-12T13:02:11.218000Z", summary["epoch_utc"]  # the file's earliest time stamp
+    assert summary["origin"]["lat"] == pytest.approx(50.8, abs=0.2) and summary["origin"]["lon"] == pytest.approx(-1.3, abs=0.3)
+    assert summary["problems"] and all(
+        p["action"] in {"dropped", "flagged", "set_nan", "sorted"} and p["message"] for p in summary["problems"]
+    )
     for obj in summary["objects"]:
         segs = obj["segments"]
         assert segs[0]["start"] < segs[-1]["end"] and all(a["end"] == b["start"] for a, b in zip(segs, segs[1:]))
+        first = segs[0]
+        assert first["start_utc"] == (
+            datetime(2016, 1, 12, 13, 2, 11, 218000, tzinfo=UTC) + timedelta(seconds=first["start"])
+        ).isoformat().replace("+00:00", "Z")
         with np.load(tmp_path / f"{obj['id']}.npz") as npz:
             assert np.all(np.isfinite(npz["means"]))
+            assert npz["lat_lon"].shape == (npz["times"].size, 2)
+            assert np.max(np.abs(npz["lat_lon"][:, 0] - 50.8)) < 0.3  # the estimate in degrees, in the Solent
+        recording = RecordingFile(tmp_path / f"{obj['id']}.rrd")
+        utc = recording.utc_range()
+        assert utc[0] == first["start_utc"] and utc[1] == segs[-1]["end_utc"], (utc, first["start_utc"], segs[-1]["end_utc"])
 
 
 @pytest.mark.parametrize(
@@ -270,3 +296,42 @@ def test_turn_rate_mode_names_the_turn_by_the_sign_of_omega(tmp_path):
             assert list(npz["layout"]) == ["x", "vx", "y", "vy", "omega"]
             omega = npz["means"][STRAIGHT + 10 :, 4]
             assert np.median(omega) == pytest.approx((1 if expected == "left_turn" else -1) * SPEED / RADIUS, rel=0.2)
+
+
+def test_smooth_and_lag_give_the_smoothed_imm_run(tmp_path, capsys):
+    """``--smooth`` (fixed interval) and ``--lag`` (fixed lag) on the IMM: the turn is found at least as well as by
+    the causal run, the recording holds both, and a lag longer than the file equals ``--smooth``."""
+    csv, cfg = write_csv(tmp_path / "legs.csv"), write_config(tmp_path / "c.toml", "imm")
+    outputs = {}
+    for label, extra in (("causal", []), ("smooth", ["--smooth"]), ("lag", ["--lag", "1000"])):
+        out = tmp_path / label
+        assert main(["track", str(csv), "--config", str(cfg), "--out", str(out), "--no-progress"] + extra) == 0, capsys.readouterr().err
+        outputs[label] = json.loads((out / "summary.json").read_text())
+    t_turn = STRAIGHT * DT
+
+    def turning(summary, expected):
+        obj = next(o for o in summary["objects"] if o["id"] == {"left_turn": "port", "right_turn": "starboard"}[expected])
+        return sum(max(0.0, min(s["end"], t_turn + TURN * DT) - max(s["start"], t_turn)) for s in obj["segments"] if s["mode"] == expected)
+
+    for expected in ("left_turn", "right_turn"):
+        assert turning(outputs["smooth"], expected) >= turning(outputs["causal"], expected)
+    assert outputs["lag"] == outputs["smooth"]
+    entities = RecordingFile(tmp_path / "smooth" / "port.rrd").entity_paths
+    assert "/world/estimate/track_smoothed" in entities and "/world/estimate/track" in entities, entities
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--smooth"], "has no smoother"),
+        (["--lag", "-5"], "--lag -5.0: expected a number of seconds"),
+        (["--smooth", "--lag", "3"], "not allowed with"),
+    ],
+)
+def test_smoothing_errors_are_one_line_and_status_2(tmp_path, capsys, extra, message):
+    csv, cfg = write_csv(tmp_path / "legs.csv"), write_config(tmp_path / "c.toml")  # unknown_change: no smoother
+    if "-5" in extra:
+        cfg = write_config(tmp_path / "c.toml", "imm")
+    status = main(["track", str(csv), "--config", str(cfg), "--out", str(tmp_path / "out")] + extra)
+    err = capsys.readouterr().err
+    assert status == 2 and message in err, err

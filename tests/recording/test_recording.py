@@ -1,5 +1,7 @@
 """Recordings: round trip, validity after errors, determinism, offline inspection."""
 
+from datetime import UTC, datetime
+
 import numpy as np
 import pytest
 
@@ -58,6 +60,25 @@ def test_round_trip_is_exact_for_float64_series_and_float32_for_positions(tmp_pa
     assert summary["step_range"] == [0, 40]
     assert set(summary["final_estimates"]) == {"straight", "right_turn_r5"}
     assert "application id: hybridtrack" in format_summary(summary)
+    assert summary["time_range"] == [0.0, 4.0] and summary["utc_range"] is None
+    assert summary["decisions"] == [{"step": 7, "level": "INFO", "text": "a decision", "time": 0.7}]
+    assert "times:          0..4 s" in format_summary(summary)
+    assert rerun_cli("rrd", "verify", path).returncode == 0
+
+
+def test_a_recording_of_real_time_stamps_has_the_utc_timeline(tmp_path, rerun_cli):
+    """epoch + t on the ``utc`` timeline in exact nanoseconds (a 10⁹ s clock time in float64 would lose the
+    microseconds), read back and printed by ``inspect``."""
+    epoch = datetime(2016, 1, 12, 13, 2, 11, 218000, tzinfo=UTC)
+    path = tmp_path / "utc.rrd"
+    times = np.array([0.0, 10.000001, 3600.5])
+    with RerunRecorder(path, {"utc": True}, epoch=epoch) as recorder:
+        recorder.log_scalars("estimator/kf/nis", np.arange(3), np.ones(3), times)
+        recorder.log_event(2, "late", 3600.5)
+    rec = RecordingFile(path)
+    assert rec.utc_range() == ("2016-01-12T13:02:11.218000Z", "2016-01-12T14:02:11.718000Z")
+    text = format_summary(rec.summary())
+    assert "utc:            2016-01-12T13:02:11.218000Z .. 2016-01-12T14:02:11.718000Z" in text and "3600.5 s" in text
     assert rerun_cli("rrd", "verify", path).returncode == 0
 
 
