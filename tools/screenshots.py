@@ -98,13 +98,13 @@ def run(command: list, environment: dict) -> None:
 def aircraft_on_solent(work: Path) -> Path:
     """examples/aircraft.toml with its [reader] swapped for the Solent AIS preset (the rest as written)."""
     text = (ROOT / "examples" / "aircraft.toml").read_text(encoding="utf-8")
-    head, reader, rest = text.partition("[reader]")
+    head, reader, rest = text.partition("\n[reader]\n")  # the table header on its own line (not a mention in a comment)
     body, _, after = rest.partition("\n[")
     reader_lines = ['preset = "solent_ais"'] + [
         line for line in body.splitlines() if line.split("=")[0].strip() in ("max_speed", "jump_tolerance", "min_reports")
     ]
     config = work / "aircraft_on_solent.toml"
-    config.write_text(head + reader + "\n" + "\n".join(reader_lines) + "\n\n[" + after, encoding="utf-8")
+    config.write_text(head + reader + "\n".join(reader_lines) + "\n\n[" + after, encoding="utf-8")
     return config
 
 
