@@ -243,8 +243,9 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 # --------------------------------------------------------------------------- building and running
 
 
-def _build(config: dict, registry=None):
-    """The algorithm and its sensor from a checked configuration (registry resolution, no plugin imports)."""
+def build_tracker(config: dict, registry=None):
+    """(algorithm, sensor, models) from a checked configuration (:func:`load_config`; registry resolution, no plugin
+    imports)."""
     measurement = config["measurement"]
     sensor = resolve(
         "sensor",
@@ -271,7 +272,7 @@ def _build(config: dict, registry=None):
     return estimator, sensor, specs
 
 
-def _prior(track: Track, config: dict, layout: Sequence[str]):
+def track_prior(track: Track, config: dict, layout: Sequence[str]):
     """(mean, cov) in ``layout``: position = first fix, velocity from the first two fixes (or zero), diagonal covariance."""
     p = config["prior"]
     z = track.positions[:, :2]
@@ -435,7 +436,7 @@ def track_one(
     ``<name>_smoothed``."""
     from hybridtrack.recording import RerunRecorder
 
-    estimator, sensor, models = _build(config, registry)
+    estimator, sensor, models = build_tracker(config, registry)
     layout = estimator.layout
     xy = np.asarray(track.positions[:, :2], dtype=float)
     name = output_name(track.id)
@@ -448,7 +449,7 @@ def track_one(
     recording = out is not None and record
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}, epoch=epoch) if recording else None
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
-        run = estimator.run({sensor.name: xy}, _prior(track, config, layout), times=track.times, recorder=recorder)
+        run = estimator.run({sensor.name: xy}, track_prior(track, config, layout), times=track.times, recorder=recorder)
         if smooth or lag is not None:
             run = estimator.smooth(run, lag)
             if recorder is not None:
@@ -512,7 +513,7 @@ def track_file(
         raise ConfigError("--smooth and --lag: give one (--smooth: fixed interval; --lag SECONDS: fixed lag)")
     if lag is not None and not (math.isfinite(lag) and lag >= 0):
         raise ConfigError(f"--lag {lag!r}: expected a number of seconds ≥ 0")
-    if (smooth or lag is not None) and not callable(getattr(_build(cfg, registry)[0], "smooth", None)):
+    if (smooth or lag is not None) and not callable(getattr(build_tracker(cfg, registry)[0], "smooth", None)):
         raise ConfigError(
             f"--smooth/--lag: algorithm {cfg['estimator']['algorithm']!r} has no smoother (the multiple-model algorithms imm, gpb1, gpb2 have)"
         )

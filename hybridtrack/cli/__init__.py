@@ -43,6 +43,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "hybridtrack.cli.inspect",
     "hybridtrack.cli.run",
     "hybridtrack.cli.track",
+    "hybridtrack.cli.fit",
 )
 
 

@@ -88,7 +88,7 @@ def test_disabled_plugins_are_not_listed(capsys, monkeypatch):
 
 
 def test_commands_come_through_the_hook_and_names_are_unique(monkeypatch):
-    assert list(cli.commands()) == ["plugins", "simulate", "inspect", "run", "track"]
+    assert list(cli.commands()) == ["plugins", "simulate", "inspect", "run", "track", "fit"]
     monkeypatch.setattr(cli, "COMMAND_MODULES", cli.COMMAND_MODULES + ("hybridtrack.cli.plugins",))
     with pytest.raises(PluginError, match="hybridtrack.cli.plugins"):
         cli.commands()

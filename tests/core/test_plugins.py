@@ -194,7 +194,7 @@ def test_commands_come_through_the_hook_and_the_builtins_are_not_listed_as_plugi
     from hybridtrack import cli
 
     loaded = load_plugins(builtins=cli.builtin_plugins(), extra=[Hello()], entrypoints=False)
-    assert list(loaded.commands) == ["plugins", "simulate", "inspect", "run", "track", "hello"]
+    assert list(loaded.commands) == ["plugins", "simulate", "inspect", "run", "track", "fit", "hello"]
     assert loaded.commands["hello"].plugin == "Hello" and loaded.commands["plugins"].plugin == "hybridtrack.cli.plugins"
     assert [info.name for info in loaded.plugins] == ["Hello"] and loaded.problems == ()
 

@@ -1,0 +1,187 @@
+"""Parameters of a tracker configuration fitted to a file by maximum likelihood (``hybridtrack fit``).
+
+The multiple-model tracker of a configuration gives, for every object, the
+innovation likelihood of each report, ln p(z_k | z_0 … z_{k−1}) (the mixture's
+``loglik`` of :class:`~hybridtrack.algorithms.multiple_model.MultipleModelRun`),
+so the log-likelihood of the file under parameters θ is
+
+    ℓ(θ) = Σ_objects Σ_k ln p(z_k | Z_{k−1}; θ)
+
+(the prediction-error decomposition; Harvey 1989, *Forecasting, Structural
+Time Series Models and the Kalman Filter*, §3.4; Bar-Shalom, Li &
+Kirubarajan 2001, §11.6 for the mixture's likelihood).  Fitted, each as its
+logarithm so that it stays positive: the measurement noise σ (``[measurement]
+sigma``, m), the white-acceleration density q (``[estimator] noise_density``,
+m²/s³, every mode without its own; started from σ_w²/10 s for a file of the
+per-report ``process_noise``) and, with more than one mode, the mean time in
+each mode (``[estimator] sojourn``, s, one for all modes).  θ̂ maximizes ℓ
+(L-BFGS-B from the configuration's values); the standard errors come from
+the observed information, the numerical Hessian H of −ℓ in the logarithms at
+θ̂ (central differences): SE(ln θ_i) = √(H⁻¹)_ii and SE(θ_i) = θ̂_i SE(ln θ_i)
+(the delta method).  Direct maximization, not EM: the IMM's likelihood has no
+closed-form M-step.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import re
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import attrs
+import numpy as np
+from scipy.optimize import minimize
+
+from hybridtrack.apps.tracking import MULTIPLE_MODEL, ConfigError, build_tracker, load_config, track_prior
+from hybridtrack.io.track_files import read_tracks
+
+#: parameter → (table, key, units)
+PARAMETERS = {
+    "sigma": ("measurement", "sigma", "m"),
+    "noise_density": ("estimator", "noise_density", "m²/s³"),
+    "sojourn": ("estimator", "sojourn", "s"),
+}
+
+
+@attrs.frozen
+class FitResult:
+    """``values`` and ``standard_errors`` by parameter name, the log-likelihood at the fit and at the start, the
+    objects and reports used, the likelihood evaluations taken and the fitted configuration (a checked dict)."""
+
+    values: dict[str, float]
+    standard_errors: dict[str, float]
+    loglik: float
+    start_loglik: float
+    objects: int
+    reports: int
+    evaluations: int
+    config: dict
+
+
+def _with(config: dict, values: Mapping[str, float]) -> dict:
+    out = copy.deepcopy(config)
+    for name, value in values.items():
+        table, key, _ = PARAMETERS[name]
+        out[table][key] = float(value)
+    if "noise_density" in values:
+        out["estimator"].pop("process_noise", None)
+    return out
+
+
+def log_likelihood(config: dict, tracks: Iterable, registry=None) -> float:
+    """ℓ of the tracks (module docstring) under a checked configuration of a multiple-model algorithm."""
+    estimator, sensor, _ = build_tracker(config, registry)
+    total = 0.0
+    for track in tracks:
+        run = estimator.run(
+            {sensor.name: np.asarray(track.positions[:, :2], dtype=float)}, track_prior(track, config, estimator.layout), times=track.times
+        )
+        total += float(np.sum(run.loglik))
+    return total
+
+
+def fit_config(
+    path: str | os.PathLike, config: str | os.PathLike | Mapping[str, Any], *, ids=None, max_objects: int | None = None, registry=None
+) -> FitResult:
+    """θ̂ and its standard errors for the objects of ``path`` (those in ``ids``, or the first ``max_objects`` with at
+    least ``min_reports`` reports) under ``config`` (module docstring); a ConfigError for an algorithm other than
+    imm, gpb1, gpb2 or a file without objects to fit."""
+    cfg = load_config(config, registry)
+    if cfg["estimator"]["algorithm"] not in MULTIPLE_MODEL:
+        raise ConfigError(f"[estimator] algorithm {cfg['estimator']['algorithm']!r}: fit needs a multiple-model algorithm {MULTIPLE_MODEL}")
+    if isinstance(cfg["estimator"].get("sojourn"), list):
+        raise ConfigError("[estimator] sojourn: fit estimates one sojourn for all modes; give one number")
+    data = read_tracks(path, **cfg["reader"], warn=False)
+    chosen = [t for key, t in data.tracks.items() if (ids is None or key in set(ids)) and len(t) >= cfg["min_reports"]]
+    chosen = chosen[:max_objects] if max_objects is not None else chosen
+    if not chosen:
+        raise ConfigError(f"{path}: no object with at least min_reports = {cfg['min_reports']} reports to fit")
+    est = cfg["estimator"]
+    start = {
+        "sigma": cfg["measurement"]["sigma"],
+        "noise_density": est.get("noise_density", est.get("process_noise", 0.1) ** 2 / 10.0),
+        "sojourn": est.get("sojourn", 60.0),
+    }
+    if len(est["modes"]) == 1:  # one mode: no switching, nothing to learn about the sojourn
+        del start["sojourn"]
+    names = list(start)
+    evaluations = 0
+
+    def negative(log_theta: np.ndarray) -> float:
+        nonlocal evaluations
+        evaluations += 1
+        value = -log_likelihood(_with(cfg, dict(zip(names, np.exp(log_theta)))), chosen, registry)
+        return value if math.isfinite(value) else 1e300
+
+    x0 = np.log([start[n] for n in names])
+    start_value = negative(x0)
+    found = minimize(negative, x0, method="L-BFGS-B", bounds=[(v - 7.0, v + 7.0) for v in x0], options={"eps": 1e-4, "maxiter": 60})
+    theta = found.x
+    H = _hessian(negative, theta, found.fun)
+    try:
+        cov = np.linalg.inv(H)
+        se_log = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
+    except np.linalg.LinAlgError:
+        se_log = np.full(theta.size, np.nan)
+    values = dict(zip(names, np.exp(theta).tolist()))
+    return FitResult(
+        values=values,
+        standard_errors={n: float(values[n] * s) for n, s in zip(names, se_log)},
+        loglik=-float(found.fun),
+        start_loglik=-start_value,
+        objects=len(chosen),
+        reports=sum(len(t) for t in chosen),
+        evaluations=evaluations,
+        config=_with(cfg, values),
+    )
+
+
+def _hessian(function, x: np.ndarray, fx: float, step: float = 1e-2) -> np.ndarray:
+    """The Hessian of ``function`` at x by central differences of step ``step`` (in the logarithms: 1 %)."""
+    n = x.size
+    H = np.empty((n, n))
+    for i in range(n):
+        for j in range(i, n):
+            if i == j:
+                e = np.zeros(n)
+                e[i] = step
+                H[i, i] = (function(x + e) - 2.0 * fx + function(x - e)) / step**2
+            else:
+                ei, ej = np.zeros(n), np.zeros(n)
+                ei[i], ej[j] = step, step
+                H[i, j] = H[j, i] = (function(x + ei + ej) - function(x + ei - ej) - function(x - ei + ej) + function(x - ei - ej)) / (
+                    4.0 * step**2
+                )
+    return 0.5 * (H + H.T)
+
+
+def write_fitted(config_path: str | os.PathLike, values: Mapping[str, float], out: str | os.PathLike) -> Path:
+    """The configuration file ``config_path`` with the fitted values set (comments and everything else kept): each
+    key replaced in its table, or added under the table's header; ``process_noise`` dropped for ``noise_density``."""
+    text = Path(config_path).read_text(encoding="utf-8")
+    for name, value in values.items():
+        table, key, units = PARAMETERS[name]
+        text = _set_key(text, table, key, f"{value:.6g}", f"fitted by hybridtrack fit ({units})")
+    if "noise_density" in values:
+        text = re.sub(r"(?m)^process_noise\s*=.*\n", "", text)
+    out = Path(out)
+    out.write_text(text, encoding="utf-8")
+    load_config(out)  # what track will read
+    return out
+
+
+def _set_key(text: str, table: str, key: str, value: str, comment: str) -> str:
+    header = re.search(rf"(?m)^\[{re.escape(table)}\]\s*$", text)
+    line = f"{key} = {value}    # {comment}"
+    if header is None:
+        return text.rstrip("\n") + f"\n\n[{table}]\n{line}\n"
+    end = re.search(r"(?m)^\[", text[header.end() :])
+    body_end = header.end() + (end.start() if end else len(text) - header.end())
+    body = text[header.end() : body_end]
+    pattern = rf"(?m)^{re.escape(key)}\s*=.*$"
+    body = re.sub(pattern, line, body, count=1) if re.search(pattern, body) else "\n" + line + body
+    return text[: header.end()] + body + text[body_end:]

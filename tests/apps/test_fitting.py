@@ -1,0 +1,100 @@
+"""``hybridtrack fit`` (hybridtrack.apps.fitting): on simulated tracks with known noise the maximum-likelihood fit
+recovers σ and q within two standard errors, the fitted file keeps the rest and tracks, and bad inputs are
+one-line errors."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hybridtrack.apps.fitting import fit_config, write_fitted
+from hybridtrack.apps.tracking import load_config, track_file
+from hybridtrack.cli import main
+from hybridtrack_plugins.motion.linear_modes import Straight
+
+SIGMA, Q = 8.0, 0.05
+CONFIG = """# a comment the fit keeps
+[reader]
+time = "t"
+x = "east"
+y = "north"
+id = "name"
+min_reports = 5
+
+[measurement]
+sigma = 20.0
+
+[prior]
+position_sigma = 50.0
+velocity_sigma = 5.0
+
+[estimator]
+algorithm = "imm"
+process_noise = 0.3
+modes = ["straight"]
+"""
+
+
+def write_tracks(path, objects=4, reports=150, seed=3):
+    """Constant-velocity tracks driven by white acceleration of density Q, fixes 2–8 s apart with σ = SIGMA."""
+    rng = np.random.default_rng(seed)
+    rows = ["t,name,east,north"]
+    for o in range(objects):
+        x = np.array([1e5 * o, rng.uniform(-8, 8), 2e5, rng.uniform(-8, 8)])
+        t = 0.0
+        for _ in range(reports):
+            z = x[[0, 2]] + rng.normal(0.0, SIGMA, 2)
+            rows.append(f"{t:.3f},o{o},{z[0]:.4f},{z[1]:.4f}")
+            dt = rng.uniform(2.0, 8.0)
+            T = Straight(noise_density=Q).transition(dt)
+            x = T.F @ x + rng.multivariate_normal(np.zeros(4), T.process_noise)
+            t += dt
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.mark.slow  # ≈ 15 s: a few dozen likelihood evaluations over 600 reports
+def test_the_fit_recovers_the_simulated_noise(tmp_path):
+    csv, cfg = write_tracks(tmp_path / "t.csv"), tmp_path / "c.toml"
+    cfg.write_text(CONFIG)
+    result = fit_config(csv, cfg)
+    assert set(result.values) == {"sigma", "noise_density"}  # one mode: no sojourn to fit
+    for name, truth in (("sigma", SIGMA), ("noise_density", Q)):
+        value, se = result.values[name], result.standard_errors[name]
+        assert np.isfinite(se) and 0 < se < 0.5 * value, (name, value, se)
+        assert abs(value - truth) < 2 * se, (name, value, se, truth)
+    assert result.loglik > result.start_loglik and result.objects == 4 and result.reports == 600
+    tuned = write_fitted(cfg, result.values, tmp_path / "tuned.toml")
+    text = tuned.read_text()
+    assert text.startswith("# a comment the fit keeps") and "process_noise" not in text
+    checked = load_config(tuned)
+    assert checked["measurement"]["sigma"] == pytest.approx(result.values["sigma"], rel=1e-5)
+    assert checked["estimator"]["noise_density"] == pytest.approx(result.values["noise_density"], rel=1e-5)
+    assert checked["reader"] == load_config(cfg)["reader"] and checked["prior"] == load_config(cfg)["prior"]
+    summary = track_file(csv, tuned, tmp_path / "out")
+    assert [o["id"] for o in summary["objects"]] == ["o0", "o1", "o2", "o3"]
+
+
+def test_the_command_prints_and_writes(tmp_path, capsys):
+    csv, cfg = write_tracks(tmp_path / "t.csv", objects=2, reports=40), tmp_path / "c.toml"
+    cfg.write_text(CONFIG.replace('modes = ["straight"]', 'modes = ["straight", "left_turn"]\nradii = [300.0]\nsojourn = 60.0'))
+    assert main(["fit", str(csv), "--config", str(cfg), "--out", str(tmp_path / "tuned.toml"), "--json"]) == 0
+    fit = json.loads(capsys.readouterr().out)
+    assert set(fit["values"]) == {"sigma", "noise_density", "sojourn"} and fit["objects"] == 2 and fit["reports"] == 80
+    assert load_config(tmp_path / "tuned.toml")["estimator"]["sojourn"] == pytest.approx(fit["values"]["sojourn"], rel=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("edit", "argv_extra", "message"),
+    [
+        (lambda c: c.replace('algorithm = "imm"', 'algorithm = "unknown_change"'), [], "fit needs a multiple-model algorithm"),
+        (lambda c: c.replace("min_reports = 5", "min_reports = 500"), [], "no object with at least min_reports = 500"),
+        (lambda c: c, ["--max-objects", "0"], "--max-objects 0"),
+    ],
+)
+def test_bad_inputs_are_one_line_and_status_2(tmp_path, capsys, edit, argv_extra, message):
+    csv, cfg = write_tracks(tmp_path / "t.csv", objects=1, reports=20), tmp_path / "c.toml"
+    cfg.write_text(edit(CONFIG))
+    status = main(["fit", str(csv), "--config", str(cfg), "--out", str(tmp_path / "tuned.toml")] + argv_extra)
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and message in err, err
