@@ -225,17 +225,26 @@ class LayoutBank:
 
     def _relinearized(self, rows: np.ndarray, dt: np.ndarray, base: TransitionBank | None):
         """The bank with the filters ``rows`` linearized at x[rows] (the others as in ``base``; None: rows are
-        all): the callable x (F, n) → TransitionBank for an estimator that ``accepts_nonlinear``, else that bank
-        at the current means."""
-        models, steps = [self.models[i] for i in rows], [float(dt[i]) for i in rows]
+        all): the callable x → TransitionBank for an estimator that ``accepts_nonlinear``, else that bank at the
+        current means.  x is (F, n), one point per filter, or (k F, n), k points per filter in filter order (a
+        particle filter's particles): the bank then has k rows per filter."""
+        filters = len(self)
 
         def at(x: np.ndarray) -> TransitionBank:
-            new = TransitionBank.stack([model.transition(step, xi) for model, step, xi in zip(models, steps, np.asarray(x)[rows])])
+            x = np.asarray(x, dtype=float)
+            k, rest = divmod(x.shape[0], filters)
+            if rest or not k:
+                raise ValueError(
+                    f"x: expected points for each of the {filters} filters of the bank (k·{filters} rows), got shape {x.shape}"
+                )
+            points = (rows[:, None] * k + np.arange(k)).reshape(-1)
+            new = TransitionBank.stack([self.models[p // k].transition(float(dt[p // k]), x[p]) for p in points])
             if base is None:
                 return new
-            F, B, Q = base.F.copy(), base.B.copy(), base.Q.copy()
-            F[rows], B[rows], Q[rows] = new.F, new.B, new.Q
-            return TransitionBank(F, B, Q, _fill(None if base.noise_root is None else base.noise_root.copy(), rows, new.noise_root))
+            F, B, Q = (np.repeat(a, k, axis=0) for a in (base.F, base.B, base.Q))
+            F[points], B[points], Q[points] = new.F, new.B, new.Q
+            root = None if base.noise_root is None else np.repeat(base.noise_root, k, axis=0)
+            return TransitionBank(F, B, Q, _fill(root, points, new.noise_root))
 
         return at if self.estimator.accepts_nonlinear else at(self.means)
 

@@ -109,3 +109,28 @@ def test_in_the_multiple_model_bank_the_ukf_takes_its_sigma_points(monkeypatch):
     assert len(calls) >= 80  # one sigma-point prediction per step (the coordinated turn's group)
     assert omegas["ukf"] == pytest.approx(0.05, rel=0.1) and omegas["ekf"] == pytest.approx(0.05, rel=0.1), omegas
     assert omegas["ukf"] != omegas["ekf"]
+
+
+@pytest.mark.parametrize("name", ["particle", "gaussian_sum"])
+def test_the_bank_hands_points_per_filter_to_the_other_nonlinear_estimators(name):
+    """The engine's linearizing callable takes k points per filter (a particle filter's particles, filter-major)
+    as well as one (a Gaussian sum's component means): an IMM of straight and the coordinated turn runs with
+    either estimator inside and follows the turn."""
+    rng = np.random.default_rng(8)
+    t = np.arange(61) * 2.0
+    pos = np.zeros((61, 2))
+    pos[:21, 1] = 10.0 * t[:21]
+    angle = 10.0 / 200.0 * (t[20:] - t[20])
+    pos[20:] = pos[20] + np.array([-200.0, 0.0]) + 200.0 * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    z = pos + rng.normal(0.0, 5.0, pos.shape)
+    sensor = resolve("sensor", ("position", {"name": "p", "noise_cov": 25.0 * np.eye(2)}))
+    imm = MultipleModelEstimator(
+        models=[("straight", {"noise_density": 0.01}), ("coordinated_turn", {"noise_density": 0.01})],
+        sensors=[sensor],
+        sojourn=60.0,
+        estimator=name,
+        missing_variance={"omega": 1e-3},
+    )
+    run = imm.run({"p": z}, (np.array([z[0, 0], 0.0, z[0, 1], 10.0, 0.0]), np.diag([25.0, 4.0, 25.0, 4.0, 1e-3])), times=t)
+    assert np.all(np.isfinite(run.means)) and np.mean(run.mode[35:] == 1) > 0.7, run.mode
+    assert np.sqrt(np.mean(np.sum((run.means[:, [0, 2]] - pos) ** 2, axis=1))) < 10.0
