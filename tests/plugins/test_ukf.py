@@ -79,17 +79,22 @@ def test_bad_parameters_are_named(kwargs, match):
         resolve("estimator", ("ukf", kwargs))
 
 
+def _leg(seed: int, straight: int, turn: int = 40):
+    """North at 10 m/s for ``straight`` fixes 2 s apart, then a left turn of 200 m; σ = 5 m: (t, truth, z)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(straight + turn + 1) * 2.0
+    pos = np.zeros((t.size, 2))
+    pos[: straight + 1, 1] = 10.0 * t[: straight + 1]
+    angle = 10.0 / 200.0 * (t[straight:] - t[straight])
+    pos[straight:] = pos[straight] + np.array([-200.0, 0.0]) + 200.0 * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    return t, pos, pos + rng.normal(0.0, 5.0, pos.shape)
+
+
 def test_in_the_multiple_model_bank_the_ukf_takes_its_sigma_points(monkeypatch):
     """An IMM of straight and the coordinated turn with the UKF inside: the engine's bank hands the UKF the
     linearizing callable (called at 2n + 1 points per step, not once at the means as for the EKF), and both
     follow the turn rate of a 200 m turn at 10 m/s."""
-    rng = np.random.default_rng(4)
-    t = np.arange(81) * 2.0
-    pos = np.zeros((81, 2))
-    pos[:41, 1] = 10.0 * t[:41]
-    angle = 10.0 / 200.0 * (t[40:] - t[40])
-    pos[40:] = pos[40] + np.array([-200.0, 0.0]) + 200.0 * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-    z = pos + rng.normal(0.0, 5.0, pos.shape)
+    t, pos, z = _leg(4, 40)
     sensor = resolve("sensor", ("position", {"name": "p", "noise_cov": 25.0 * np.eye(2)}))
     calls = []
     original = UnscentedKalmanFilter._sigma_point_predict
@@ -116,13 +121,7 @@ def test_the_bank_hands_points_per_filter_to_the_other_nonlinear_estimators(name
     """The engine's linearizing callable takes k points per filter (a particle filter's particles, filter-major)
     as well as one (a Gaussian sum's component means): an IMM of straight and the coordinated turn runs with
     either estimator inside and follows the turn."""
-    rng = np.random.default_rng(8)
-    t = np.arange(61) * 2.0
-    pos = np.zeros((61, 2))
-    pos[:21, 1] = 10.0 * t[:21]
-    angle = 10.0 / 200.0 * (t[20:] - t[20])
-    pos[20:] = pos[20] + np.array([-200.0, 0.0]) + 200.0 * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-    z = pos + rng.normal(0.0, 5.0, pos.shape)
+    t, pos, z = _leg(8, 20)
     sensor = resolve("sensor", ("position", {"name": "p", "noise_cov": 25.0 * np.eye(2)}))
     imm = MultipleModelEstimator(
         models=[("straight", {"noise_density": 0.01}), ("coordinated_turn", {"noise_density": 0.01})],
