@@ -90,25 +90,30 @@ def _leg(seed: int, straight: int, turn: int = 40):
     return t, pos, pos + rng.normal(0.0, 5.0, pos.shape)
 
 
+def _turn_rate_imm(estimator: str, t, z):
+    """The run of an IMM of straight and the coordinated turn with ``estimator`` inside on the fixes z (σ = 5 m)."""
+    sensor = resolve("sensor", ("position", {"name": "p", "noise_cov": 25.0 * np.eye(2)}))
+    imm = MultipleModelEstimator(
+        models=[("straight", {"noise_density": 0.01}), ("coordinated_turn", {"noise_density": 0.01})],
+        sensors=[sensor],
+        sojourn=60.0,
+        estimator=estimator,
+        missing_variance={"omega": 1e-3},
+    )
+    return imm.run({"p": z}, (np.array([z[0, 0], 0.0, z[0, 1], 10.0, 0.0]), np.diag([25.0, 4.0, 25.0, 4.0, 1e-3])), times=t)
+
+
 def test_in_the_multiple_model_bank_the_ukf_takes_its_sigma_points(monkeypatch):
     """An IMM of straight and the coordinated turn with the UKF inside: the engine's bank hands the UKF the
     linearizing callable (called at 2n + 1 points per step, not once at the means as for the EKF), and both
     follow the turn rate of a 200 m turn at 10 m/s."""
     t, pos, z = _leg(4, 40)
-    sensor = resolve("sensor", ("position", {"name": "p", "noise_cov": 25.0 * np.eye(2)}))
     calls = []
     original = UnscentedKalmanFilter._sigma_point_predict
     monkeypatch.setattr(UnscentedKalmanFilter, "_sigma_point_predict", lambda self, s, tr: calls.append(1) or original(self, s, tr))
     omegas = {}
     for name in ("ukf", "ekf"):
-        imm = MultipleModelEstimator(
-            models=[("straight", {"noise_density": 0.01}), ("coordinated_turn", {"noise_density": 0.01})],
-            sensors=[sensor],
-            sojourn=60.0,
-            estimator=name,
-            missing_variance={"omega": 1e-3},
-        )
-        run = imm.run({"p": z}, (np.array([z[0, 0], 0.0, z[0, 1], 10.0, 0.0]), np.diag([25.0, 4.0, 25.0, 4.0, 1e-3])), times=t)
+        run = _turn_rate_imm(name, t, z)
         omegas[name] = np.median(run.model_means[55:, 1, 4])
         assert np.mean(run.mode[50:] == 1) > 0.8, name
     assert len(calls) >= 80  # one sigma-point prediction per step (the coordinated turn's group)
@@ -122,14 +127,6 @@ def test_the_bank_hands_points_per_filter_to_the_other_nonlinear_estimators(name
     as well as one (a Gaussian sum's component means): an IMM of straight and the coordinated turn runs with
     either estimator inside and follows the turn."""
     t, pos, z = _leg(8, 20)
-    sensor = resolve("sensor", ("position", {"name": "p", "noise_cov": 25.0 * np.eye(2)}))
-    imm = MultipleModelEstimator(
-        models=[("straight", {"noise_density": 0.01}), ("coordinated_turn", {"noise_density": 0.01})],
-        sensors=[sensor],
-        sojourn=60.0,
-        estimator=name,
-        missing_variance={"omega": 1e-3},
-    )
-    run = imm.run({"p": z}, (np.array([z[0, 0], 0.0, z[0, 1], 10.0, 0.0]), np.diag([25.0, 4.0, 25.0, 4.0, 1e-3])), times=t)
+    run = _turn_rate_imm(name, t, z)
     assert np.all(np.isfinite(run.means)) and np.mean(run.mode[35:] == 1) > 0.7, run.mode
     assert np.sqrt(np.mean(np.sum((run.means[:, [0, 2]] - pos) ** 2, axis=1))) < 10.0
