@@ -55,6 +55,7 @@ import math
 import os
 import re
 import tomllib
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from datetime import UTC, timedelta
 from pathlib import Path
@@ -66,7 +67,7 @@ import numpy as np
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.validation import check_positive
-from hybridtrack.io.track_files import SOLENT_AIS, Track, read_tracks, unproject
+from hybridtrack.io.track_files import SOLENT_AIS, SPEED_LIMITS, Track, read_tracks, unproject
 
 #: reader presets by name (the ``preset`` key of ``[reader]``)
 PRESETS = {"solent_ais": SOLENT_AIS}
@@ -74,6 +75,12 @@ PRESETS = {"solent_ais": SOLENT_AIS}
 MULTIPLE_MODEL = ("imm", "gpb1", "gpb2")
 #: registry name → summary mode name
 SUMMARY_NAMES = {"constant_acceleration": "acceleration"}
+#: the object class whose speed limit applies when ``[reader]`` gives neither ``max_speed`` nor ``object_class``
+DEFAULT_OBJECT_CLASS = "aircraft"
+#: ``jump_tolerance`` (m) with a class's speed limit when ``[reader]`` does not give it: GPS noise and a second of time-stamp jitter
+CLASS_JUMP_TOLERANCE = 100.0
+#: problem kinds that are the file's own codes, not faults: ``--strict`` lets them pass
+NOT_FAULTS = ("not_available",)
 #: the vertical filter's defaults: σ_h (m), white-acceleration density q (m²/s³), prior σ of the climb rate (m/s)
 ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma": 5.0}
 
@@ -141,6 +148,21 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
     if sigma is None:
         raise ConfigError(f"{where}: [measurement] sigma (m) is required")
     out["measurement"]["sigma"] = _positive("measurement", "sigma", sigma, where)
+    if "max_speed" in reader:
+        out["speed_limit"] = {"max_speed": reader["max_speed"], "set_by": "[reader] max_speed"}
+    else:
+        chosen = reader.get("object_class", DEFAULT_OBJECT_CLASS)
+        if chosen not in SPEED_LIMITS:
+            raise ConfigError(f"{where}: [reader] object_class = {chosen!r}; expected one of {sorted(SPEED_LIMITS)}")
+        given = "object_class" in reader
+        reader["object_class"] = chosen
+        reader.setdefault("jump_tolerance", CLASS_JUMP_TOLERANCE)
+        out["speed_limit"] = {
+            "max_speed": SPEED_LIMITS[chosen],
+            "set_by": f"[reader] object_class {chosen!r}"
+            if given
+            else f"default: no [reader] max_speed or object_class, the {chosen!r} class's",
+        }
     if "time_jitter" in out["measurement"]:
         out["measurement"]["time_jitter"] = _positive("measurement", "time_jitter", out["measurement"]["time_jitter"], where)
 
@@ -498,14 +520,19 @@ def track_file(
     registry=None,
     smooth: bool = False,
     lag: float | None = None,
+    strict: bool = False,
 ) -> dict:
     """Track every object of ``path`` (or those in ``ids``) with ``config`` (a TOML path or a mapping; module
     docstring) and write ``out/<id>.rrd``, ``out/<id>.npz`` and ``out/summary.json``; returns the summary.
 
-    Objects with fewer than ``min_reports`` reports are skipped and listed under ``"skipped"``; an id not in the
-    file is a ConfigError.  ``progress`` shows a tqdm bar over the objects (on stderr).  ``smooth`` / ``lag``
-    (seconds): fixed-interval / fixed-lag smoothing of recorded files (:func:`track_one`); a ConfigError for an
-    algorithm without a smoother, for both at once and for a negative lag."""
+    Objects with fewer than ``min_reports`` reports (or none left: every row dropped by the reader) are skipped and
+    listed under ``"skipped"``; an object whose tracking fails is listed there too, with ``"failed": true`` and the
+    reason naming the object, the file and its lines, its partial outputs removed, and the other objects go on.
+    An id not in the file is a ConfigError.  ``strict``: any problem of the reader (but the file's own
+    "not available" codes) is a ConfigError listing them, before anything is tracked.  ``progress`` shows a tqdm
+    bar over the objects (on stderr).  ``smooth`` / ``lag`` (seconds): fixed-interval / fixed-lag smoothing of
+    recorded files (:func:`track_one`); a ConfigError for an algorithm without a smoother, for both at once and
+    for a negative lag."""
     from tqdm.auto import tqdm
 
     cfg = load_config(config, registry)
@@ -513,7 +540,8 @@ def track_file(
         raise ConfigError("--smooth and --lag: give one (--smooth: fixed interval; --lag SECONDS: fixed lag)")
     if lag is not None and not (math.isfinite(lag) and lag >= 0):
         raise ConfigError(f"--lag {lag!r}: expected a number of seconds ≥ 0")
-    if (smooth or lag is not None) and not callable(getattr(build_tracker(cfg, registry)[0], "smooth", None)):
+    estimator = build_tracker(cfg, registry)[0]  # the configuration's faults stop here, before any object
+    if (smooth or lag is not None) and not callable(getattr(estimator, "smooth", None)):
         raise ConfigError(
             f"--smooth/--lag: algorithm {cfg['estimator']['algorithm']!r} has no smoother (the multiple-model algorithms imm, gpb1, gpb2 have)"
         )
@@ -523,26 +551,52 @@ def track_file(
         data = read_tracks(path, **cfg["reader"], warn=False)
     except TypeError as error:
         raise ConfigError(f"[reader]: {error}") from None
+    faults = [p for p in data.problems if p.kind not in NOT_FAULTS]
+    if strict and faults:
+        raise ConfigError(f"--strict: {path}: {len(faults)} row problem(s): " + "; ".join(problem_summary(faults)))
     chosen = list(data.tracks) if ids is None else list(dict.fromkeys(ids))
-    missing = [i for i in chosen if i not in data.tracks]
+    emptied = list(dict.fromkeys(p.id for p in data.problems if p.id is not None and p.id not in data.tracks))
+    missing = [i for i in chosen if i not in data.tracks and i not in emptied]
     if missing:
         raise ConfigError(f"--id {missing[0]!r}: no such object in {path} ({len(data.tracks)} objects)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     objects, skipped = [], []
-    for key in tqdm(chosen, desc="objects", unit="object", disable=not progress, dynamic_ncols=True):
+    for key in emptied if ids is None else [i for i in chosen if i in emptied]:
+        kinds = problem_summary([p for p in data.problems if p.id == key])
+        skipped.append({"id": key, "reason": f"no report left: every row dropped ({'; '.join(kinds)})"})
+    for key in tqdm([i for i in chosen if i in data.tracks], desc="objects", unit="object", disable=not progress, dynamic_ncols=True):
         track = data.tracks[key]
         if len(track) < cfg["min_reports"]:
             skipped.append({"id": key, "reason": f"{len(track)} reports < min_reports {cfg['min_reports']}"})
             continue
         options = dict(origin=data.origin, projection=data.projection or "enu", epoch=data.epoch, smooth=smooth, lag=lag)
-        objects.append(track_one(track, cfg, out, registry, **options))
+        try:
+            objects.append(track_one(track, cfg, out, registry, **options))
+        except ConfigError:
+            raise
+        except Exception as error:  # one object never sinks the file: reported, its outputs removed
+            for suffix in (".rrd", ".npz"):
+                (out / f"{output_name(key)}{suffix}").unlink(missing_ok=True)
+            where = f"{path}: object {key!r} (lines {int(track.lines.min())}–{int(track.lines.max())})"
+            skipped.append({"id": key, "reason": f"{where}: tracking failed: {type(error).__name__}: {error}", "failed": True})
     summary = {
         "objects": objects,
         "skipped": skipped,
         "epoch_utc": None if data.epoch is None else utc_text(data.epoch, 0.0),
         "origin": None if data.origin is None else dict(zip(("lat", "lon", "h"), data.origin)),
+        "max_speed": cfg["speed_limit"],
+        "problem_counts": dict(Counter(p.kind for p in data.problems).most_common()),
         "problems": [attrs.asdict(problem) for problem in data.problems],
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return summary
+
+
+def problem_summary(problems) -> list[str]:
+    """One text per problem kind, most common first: ``"3 bad_time (dropped; first: FILE:LINE: …)"``."""
+    counts = Counter(p.kind for p in problems)
+    first = {}
+    for p in problems:
+        first.setdefault(p.kind, p)
+    return [f"{n} {kind} ({first[kind].action}; first: {first[kind].message})" for kind, n in counts.most_common()]

@@ -6,16 +6,21 @@ Runs the estimator configured in CONFIG (checked by :mod:`hybridtrack.apps.track
 the objects goes to stderr (``--no-progress`` to hide it).  ``--smooth`` (fixed interval) and ``--lag SECONDS``
 (fixed lag) give the smoothed run of a multiple-model algorithm instead of the causal one.
 
-Exit status: 0 done; 2 a user error, one line on stderr (missing file or
-configuration, unknown key, bad value, unknown estimator kind or mode, an
-``--id`` not in the file, an unreadable position file).
+On stderr: the speed limit of the reader's jump check and where it comes from, the rows the reader dropped or
+repaired (one line per kind, with its count and the first file line; all of them in ``summary.json``
+``"problems"``), and every object that failed.  ``--strict``: any such row problem stops before tracking.
+
+Exit status: 0 done; 1 done, but at least one object failed (listed in ``summary.json`` ``"skipped"`` with
+``"failed": true``; the other objects and ``summary.json`` are written); 2 a user error, one line on stderr
+(missing file or configuration, unknown key, bad value, unknown estimator kind or mode, an ``--id`` not in the
+file, an unreadable position file, a file of which no report is left, a row problem under ``--strict``).
 """
 
 from __future__ import annotations
 
 import argparse
 
-from hybridtrack.cli import UsageError
+from hybridtrack.cli import UsageError, check_output_folder
 from hybridtrack.core.hookspecs import hookimpl
 
 
@@ -25,6 +30,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder (created if needed)")
     parser.add_argument("--id", action="append", dest="ids", metavar="ID", help="track only this object (repeatable)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--strict", action="store_true", help="stop (exit 2) on any row the reader drops or repairs")
     smoothing = parser.add_mutually_exclusive_group()
     smoothing.add_argument(
         "--smooth", action="store_true", help="fixed-interval smoothing of the recorded file (multiple-model algorithms)"
@@ -39,14 +45,26 @@ def run(args: argparse.Namespace) -> int:
 
     from hybridtrack.apps.tracking import track_file
 
+    check_output_folder("--out", args.out)
     try:
         progress = not args.no_progress and sys.stderr.isatty()
-        summary = track_file(args.file, args.config, args.out, args.ids, progress=progress, smooth=args.smooth, lag=args.lag)
+        options = dict(progress=progress, smooth=args.smooth, lag=args.lag, strict=args.strict)
+        summary = track_file(args.file, args.config, args.out, args.ids, **options)
     except ValueError as error:  # a ConfigError names the key, the reader's structural faults name the file
         raise UsageError(str(error)) from None
+    limit = summary["max_speed"]
+    print(f"{args.file}: speed limit {limit['max_speed']:g} m/s ({limit['set_by']})", file=sys.stderr)
+    if summary["problems"]:
+        print(f'{args.file}: {len(summary["problems"])} row problem(s), in summary.json "problems":', file=sys.stderr)
+        for kind, n in summary["problem_counts"].items():
+            first = next(p for p in summary["problems"] if p["kind"] == kind)
+            print(f"  {n} {kind} ({first['action']}); first: {first['message']}", file=sys.stderr)
+    failed = [entry for entry in summary["skipped"] if entry.get("failed")]
+    for entry in failed:
+        print(entry["reason"], file=sys.stderr)
     n, s = len(summary["objects"]), len(summary["skipped"])
-    print(f"tracked {n} object(s), skipped {s}; results in {args.out}")
-    return 0
+    print(f"tracked {n} object(s), skipped {s}" + (f" ({len(failed)} failed)" if failed else "") + f"; results in {args.out}")
+    return 1 if failed else 0
 
 
 @hookimpl

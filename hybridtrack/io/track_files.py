@@ -8,12 +8,14 @@ row, any column order, extra columns ignored; ``.csv.gz`` is read through gzip):
 
 Columns (names configurable, see :func:`read_tracks`):
 
-* **time** — seconds (a decimal number) or ISO-8601 timestamps
-  (``2016-01-12 13:02:11.218``, ``2016-01-12T13:02:11Z``, ``…+01:00``); the
-  first non-empty cell decides which, and every row must then use that form.
+* **time** — seconds (a decimal number; milliseconds with ``time_unit="ms"``), ISO-8601 timestamps
+  (``2016-01-12 13:02:11.218``, ``2016-01-12T13:02:11Z``, ``…+01:00``) or any form a ``time_format``
+  (strptime) reads (``12/01/2016 13:02:11``: ``"%d/%m/%Y %H:%M:%S"``); the first cell that is a number or a
+  timestamp decides which, and every row must then use that form.
   Timestamps without a zone are read as UTC; the track times are seconds after
   :attr:`TrackFile.epoch`, the earliest valid timestamp of the file.  Numeric
-  times are kept as they are (``epoch`` None).
+  times are kept as they are (``epoch`` None); numbers ≥ 10¹¹ (epoch milliseconds
+  read as seconds) are refused unless ``time_unit`` is given.
 * **position** — either ``x, y`` in metres, or latitude/longitude in degrees
   (WGS-84) projected to a local east-north tangent plane at
   :attr:`TrackFile.origin` (see *Projection*).
@@ -62,6 +64,7 @@ reachable from the last good fix are dropped, a lasting jump is flagged and kept
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import warnings
@@ -87,6 +90,15 @@ MAX_OUTLIER_BURST = 3
 
 PROJECTIONS = ("enu", "equirectangular")
 SPEED_UNITS = {"m/s": 1.0, "knots": 1852.0 / 3600.0, "km/h": 1000.0 / 3600.0}
+#: seconds per unit of a numeric time column (``time_unit``)
+TIME_UNITS = {"s": 1.0, "ms": 1e-3}
+#: the physical speed limit (m/s) of each object class (``object_class``): above any ship's (68 kn, fast craft
+#: included), any road vehicle's (306 km/h) and any aircraft's ground speed below Mach 1.2 at altitude
+SPEED_LIMITS = {"ship": 35.0, "ground": 85.0, "aircraft": 400.0}
+#: numeric times from here on are no seconds of our era (the year 5138): epoch milliseconds, unless ``time_unit`` says
+MILLISECONDS_LIKELY = 1e11
+#: a coordinate (m) farther than this from the origin is not a position on or near the Earth (x/y files, altitude)
+MAX_COORDINATE = 1e9
 
 #: column names and codes of the Stone Soup Solent AIS CSV (``data/solent_ais/``): ``read_tracks(path, **SOLENT_AIS)``
 SOLENT_AIS = {
@@ -108,8 +120,8 @@ _HINT = "expected a UTF-8 CSV with a header row and one row per position report"
 class Problem:
     """One fault of the input: ``line`` of the file (the header is line 1; 0 for the whole track), the ``column``
     concerned (or None), ``kind`` (``bad_time``, ``not_a_number``, ``out_of_range``, ``bad_row``, ``missing_id``,
-    ``duplicate_time``, ``speed_jump``, ``not_available``, ``unsorted``), what was done (``action``: ``dropped``,
-    ``flagged``, ``set_nan``, ``sorted``) and a ``message`` naming the file and line."""
+    ``duplicate_time``, ``conflicting_duplicate``, ``speed_jump``, ``not_available``, ``unsorted``), what was done
+    (``action``: ``dropped``, ``flagged``, ``set_nan``, ``sorted``) and a ``message`` naming the file and line."""
 
     line: int
     column: str | None
@@ -426,7 +438,10 @@ def read_tracks(
     origin: str | Sequence[float] = "first",
     projection: str = "enu",
     max_speed: float | None = None,
+    object_class: str | None = None,
     jump_tolerance: float = 0.0,
+    time_unit: str | None = None,
+    time_format: str | None = None,
     warn: bool = True,
 ) -> TrackFile:
     """Read a CSV (or ``.csv.gz``) of time-stamped positions into one :class:`Track` per object.
@@ -436,7 +451,14 @@ def read_tracks(
     ``origin``: ``"first"`` — the first valid fix of the file, ``"mean"`` — the mean latitude/longitude/height of
     the fixes kept after the speed check, or an explicit (lat°, lon°[, h m])).  ``max_speed`` (m/s, None = no check)
     and ``jump_tolerance`` (m, the allowance for position noise and time-stamp jitter) define which fix is reachable
-    (module docstring, which also says what is refused, dropped, flagged or set to NaN).
+    (module docstring, which also says what is refused, dropped, flagged or set to NaN); ``object_class``
+    (``"ship"``, ``"ground"``, ``"aircraft"``) sets ``max_speed`` to that class's physical limit
+    (:data:`SPEED_LIMITS`) when ``max_speed`` is not given.  Numeric times are in ``time_unit`` (``"s"`` or
+    ``"ms"``; by default seconds, and numbers ≥ 10¹¹ — epoch milliseconds, read as seconds after the year 5000 — are
+    refused until ``time_unit`` says which); ``time_format`` (a :func:`datetime.strptime` format such as
+    ``"%d/%m/%Y %H:%M:%S"``, UTC unless it holds a zone) reads time stamps of any other form.  A file of which no
+    report is left (every row dropped) is a ValueError naming the column, what it holds and what is expected (with a
+    hint when every latitude is out of range but the longitudes would fit: swapped columns).
     ``course_not_available``/``speed_not_available`` are the codes meaning "no value" (``speed_not_available`` in
     ``speed_unit``).  The speed check of geographic files runs in the plane of the file's first valid fix (or of the
     explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the arithmetic mean of the degrees, so it
@@ -448,6 +470,16 @@ def read_tracks(
     if speed_unit not in SPEED_UNITS:
         raise ValueError(f"speed_unit: {speed_unit!r}; expected one of {sorted(SPEED_UNITS)}")
     _check_projection(projection)
+    if object_class is not None and object_class not in SPEED_LIMITS:
+        raise ValueError(f"object_class: {object_class!r}; expected one of {sorted(SPEED_LIMITS)}")
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise ValueError(f"time_unit: {time_unit!r}; expected one of {sorted(TIME_UNITS)} (seconds, milliseconds)")
+    if time_format is not None and (not isinstance(time_format, str) or "%" not in time_format):
+        raise ValueError(f"time_format: expected a strptime format such as '%d/%m/%Y %H:%M:%S', got {time_format!r}")
+    if time_format is not None and time_unit is not None:
+        raise ValueError(f"time_format {time_format!r} and time_unit {time_unit!r}: give one (time_unit is for numeric times)")
+    if max_speed is None and object_class is not None:
+        max_speed = SPEED_LIMITS[object_class]
     if max_speed is not None:
         max_speed = check_positive(max_speed, "max_speed (m/s)")
     if not (isinstance(jump_tolerance, (int, float)) and math.isfinite(jump_tolerance) and jump_tolerance >= 0):
@@ -476,9 +508,35 @@ def read_tracks(
     def report(line, column, kind, action, message, track=None):
         problems.append(Problem(line, column, kind, action, f"{path}:{line}: {message}", track))
 
-    # numeric seconds or ISO-8601: decided by the first non-empty time cell
-    first_time = next((row[columns[time]] for _, row in body if len(row) > columns[time] and row[columns[time]]), "")
-    iso = finite_number(first_time) is None and _timestamp(first_time) is not None
+    # time stamps (ISO 8601 or time_format) or numbers: decided by the first time cell that is either
+    cells = (row[columns[time]] for _, row in body if len(row) > columns[time])
+    first_time = next((c for c in cells if finite_number(c) is not None or _timestamp(c) is not None), "")
+    numeric = time_format is None and finite_number(first_time) is not None
+    stamped = time_format is not None or (not numeric and _timestamp(first_time) is not None)
+    if time_format is not None:
+        form = f"a time of time_format {time_format!r}"
+    elif stamped:
+        form = "an ISO-8601 timestamp (as the first time of the file)"
+    elif numeric:
+        form = f"a finite number of {'milliseconds' if time_unit == 'ms' else 'seconds'}"
+    else:
+        form = (
+            "a number of seconds or an ISO-8601 timestamp (2016-01-12 13:02:11); for another form give [reader] time_format,"
+            " a strptime format such as '%d/%m/%Y %H:%M:%S'"
+        )
+
+    def parse_time(cell):
+        if time_format is not None:
+            try:
+                stamp = datetime.strptime(cell, time_format)
+            except ValueError:
+                return None
+            return stamp.replace(tzinfo=UTC) if stamp.tzinfo is None else stamp.astimezone(UTC)
+        if stamped:
+            return _timestamp(cell)
+        value = finite_number(cell) if numeric else None
+        return None if value is None else value * TIME_UNITS[time_unit or "s"]
+
     groups: dict[str, list[SimpleNamespace]] = {}  # id → the rows used: line, id, time, values (the position cells), course, speed
     for line, row in body:
         if len(row) != len(header):
@@ -489,16 +547,28 @@ def read_tracks(
             report(line, id, "missing_id", "dropped", f"column {id!r} is empty; row dropped")
             continue
         cell = row[columns[time]]
-        stamp = _timestamp(cell) if iso else finite_number(cell)
+        stamp = parse_time(cell)
         if stamp is None:
-            form = "an ISO-8601 timestamp (as in the first row)" if iso else "a finite number of seconds"
             report(line, time, "bad_time", "dropped", f"column {time!r} holds {cell!r}, not {form}; row dropped", key)
             continue
+        if numeric and time_unit is None and abs(stamp) >= MILLISECONDS_LIKELY:
+            raise ValueError(
+                f"{path}:{line}: column {time!r} holds {cell}: as seconds, later than the year 5000 — epoch milliseconds?"
+                " set [reader] time_unit = 'ms' (or 's' if these are seconds)"
+            )
         values = [finite_number(row[columns[name]]) for name in position_columns]
         if None in values:
             name = position_columns[values.index(None)]
             cell = row[columns[name]]
             report(line, name, "not_a_number", "dropped", f"column {name!r} holds {cell!r}, not a finite number; row dropped", key)
+            continue
+        metres = list(zip(position_columns, values))[2 if geographic else 0 :]
+        far = next(((name, value) for name, value in metres if abs(value) > MAX_COORDINATE), None)
+        if far is not None:
+            message = (
+                f"column {far[0]!r} holds {far[1]:g}, farther than {MAX_COORDINATE:g} m: not a position on or near the Earth; row dropped"
+            )
+            report(line, far[0], "out_of_range", "dropped", message, key)
             continue
         if geographic and not (-90.0 <= values[0] <= 90.0 and -180.0 <= values[1] <= 180.0):
             bad, value, limits = (lat, values[0], "[-90, 90]") if not -90.0 <= values[0] <= 90.0 else (lon, values[1], "[-180, 180]")
@@ -525,8 +595,8 @@ def read_tracks(
         groups.setdefault(key, []).append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1]))
 
     rows = [r for group in groups.values() for r in group]  # rows[0]: the first row used of the file
-    epoch = min((r.time for r in rows), default=None) if iso else None
-    for r in rows if iso else ():
+    epoch = min((r.time for r in rows), default=None) if stamped else None
+    for r in rows if stamped else ():
         r.time = (r.time - epoch).total_seconds()
 
     def positions_of(group, at):
@@ -544,15 +614,9 @@ def read_tracks(
         late = next((r for r, s in zip(ordered, group) if r is not s), None)
         if late is not None:
             report(late.line, time, "unsorted", "sorted", f"id {key!r}: rows out of time order (the first misplaced one here); sorted", key)
-        unique = [ordered[0]]
-        for r in ordered[1:]:
-            if r.time == unique[-1].time:
-                same = r.values == unique[-1].values and r.course == unique[-1].course and r.speed == unique[-1].speed
-                what = "identical to" if same else "with different values from"
-                message = f"id {key!r}: time {r.time!r} repeats line {unique[-1].line} ({what} it); row dropped"
-                report(r.line, time, "duplicate_time", "dropped", message, key)
-                continue
-            unique.append(r)
+        unique = []
+        for _, same_time in itertools.groupby(ordered, key=lambda r: r.time):
+            unique.extend(_distinct_times(list(same_time), key, report, time))
         if max_speed is not None and len(unique) > 1:
             unique = _speed_check(unique, positions_of(unique, check_origin), max_speed, jump_tolerance, key, report, time)
         groups[key] = unique
@@ -588,11 +652,56 @@ def read_tracks(
             problems=sorted((p for p in problems if p.id == key), key=by_place),
         )
     problems.sort(key=by_place)
+    if not any(tracks.values()):
+        raise ValueError(_nothing_left(path, len(body), problems, header, columns, body, lat, lon))
     if warn and problems:
         counts = Counter(f"{p.kind} ({p.action})" for p in problems)
         summary = ", ".join(f"{n} {kind}" for kind, n in counts.most_common())
         warnings.warn(f"{path}: {len(problems)} problems: {summary}; see TrackFile.problems", stacklevel=2)
     return TrackFile(str(path), tracks, origin if geographic else None, projection if geographic else None, epoch, tuple(problems))
+
+
+def _distinct_times(rows, key, report, column) -> list:
+    """The rows of one object at one time stamp (file order) → the row kept: the first when every row has its
+    position (a repeat: ``duplicate_time``, the others dropped), none when the positions differ (conflicting reports,
+    ``conflicting_duplicate``: each row dropped, not one chosen by its order in the file)."""
+    first = rows[0]
+    if len(rows) == 1:
+        return rows
+    if all(r.values == first.values for r in rows):
+        for r in rows[1:]:
+            same = r.course == first.course and r.speed == first.speed
+            what = "identical to it" if same else "same position, other course or speed"
+            report(
+                r.line,
+                column,
+                "duplicate_time",
+                "dropped",
+                f"id {key!r}: time {r.time!r} repeats line {first.line} ({what}); row dropped",
+                key,
+            )
+        return [first]
+    lines = ", ".join(str(r.line) for r in rows)
+    for r in rows:
+        message = f"id {key!r}: time {r.time!r} has reports of different positions on lines {lines}; conflicting reports, row dropped"
+        report(r.line, column, "conflicting_duplicate", "dropped", message, key)
+    return []
+
+
+def _nothing_left(path, rows, problems, header, columns, body, lat, lon) -> str:
+    """The message of a file of which every row was dropped: the counts by kind, the first problem of the most
+    common kind and, when every latitude is out of range but the longitudes would fit as latitudes, the hint."""
+    counts = Counter(p.kind for p in problems)
+    kind = counts.most_common(1)[0][0] if counts else None
+    summary = ", ".join(f"{n} {k}" for k, n in counts.most_common())
+    first = next((p.message for p in problems if p.kind == kind), "")
+    hint = ""
+    if lat is not None and counts.get("out_of_range"):
+        pairs = [(finite_number(row[columns[lat]]), finite_number(row[columns[lon]])) for _, row in body if len(row) == len(header)]
+        pairs = [(a, b) for a, b in pairs if a is not None and b is not None]
+        if pairs and all(abs(a) > 90.0 and abs(b) <= 90.0 for a, b in pairs):
+            hint = f"; every {lat!r} is outside [-90, 90] but every {lon!r} inside: latitude and longitude swapped? (swap lat and lon in [reader])"
+    return f"{path}: no report left of {rows} data rows ({summary}); the first: {first}{hint}"
 
 
 def _speed_check(group, positions, max_speed, tolerance, key, report, column):

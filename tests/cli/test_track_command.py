@@ -88,8 +88,9 @@ def test_track_writes_outputs_and_finds_the_turn(tmp_path, capsys, rerun_cli, ki
     status = main(["track", str(csv), "--config", str(cfg), "--out", str(out), "--no-progress"])
     assert status == 0, capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary) == {"objects", "skipped", "epoch_utc", "origin", "problems"}
+    assert set(summary) == {"objects", "skipped", "epoch_utc", "origin", "max_speed", "problem_counts", "problems"}
     assert summary["epoch_utc"] is None and summary["origin"] is None and summary["problems"] == []  # x/y metres, seconds
+    assert summary["max_speed"] == {"max_speed": 400.0, "set_by": "default: no [reader] max_speed or object_class, the 'aircraft' class's"}
     assert summary["skipped"] == [{"id": "short", "reason": "2 reports < min_reports 5"}]
     assert [o["id"] for o in summary["objects"]] == ["port", "starboard"]
     t_turn = STRAIGHT * DT

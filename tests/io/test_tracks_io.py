@@ -258,7 +258,7 @@ def test_refused_paths_and_encodings(tmp_path):
         ("1,1e999,1", {}, (3, "x", "not_a_number", "dropped")),
         ("1,1", {}, (3, None, "bad_row", "dropped")),
         ("1,1,1,extra", {}, (3, None, "bad_row", "dropped")),
-        ("0,5,5", {}, (3, "time", "duplicate_time", "dropped")),
+        ("0,0,0", {}, (3, "time", "duplicate_time", "dropped")),
     ],
 )
 def test_reported_rows(tmp_path, row, kwargs, expected):
@@ -277,10 +277,19 @@ def test_unparseable_iso_time(tmp_path):
     assert "ISO-8601" in result.problems[0].message and "'2024-13-01 00:00:00'" in result.problems[0].message
 
 
-def test_duplicate_with_different_values(tmp_path):
-    result = read(tmp_path, "time,x,y\n0,0,0\n0,5,5\n")
-    assert "different values" in result.problems[0].message and "repeats line 2" in result.problems[0].message
-    np.testing.assert_array_equal(result.tracks[""].positions, [[0, 0]])  # the first row in file order is kept
+def test_conflicting_duplicates_are_refused(tmp_path):
+    """Two reports of one time 1 km apart: neither is used (not the first in file order)."""
+    result = read(tmp_path, "time,x,y\n0,0,0\n0,1000,0\n1,1,1\n")
+    assert kinds(result) == [(2, "time", "conflicting_duplicate", "dropped"), (3, "time", "conflicting_duplicate", "dropped")]
+    assert "lines 2, 3" in result.problems[0].message
+    np.testing.assert_array_equal(result.tracks[""].positions, [[1, 1]])
+
+
+def test_repeat_with_other_speed_keeps_the_first(tmp_path):
+    result = read(tmp_path, "time,x,y,s\n0,0,0,1\n0,0,0,2\n1,1,1,1\n", speed="s")
+    assert kinds(result) == [(3, "time", "duplicate_time", "dropped")]
+    assert "other course or speed" in result.problems[0].message and "repeats line 2" in result.problems[0].message
+    np.testing.assert_array_equal(result.tracks[""].speed, [1, 1])
 
 
 @pytest.mark.parametrize(
@@ -360,7 +369,7 @@ def test_speed_check_in_geographic_coordinates(tmp_path):
 
 def test_problems_are_warned_once(tmp_path):
     path = tmp_path / "w.csv"
-    path.write_text("time,x,y\n0,0,0\nx,1,1\n0,2,2\n")
+    path.write_text("time,x,y\n0,0,0\nx,1,1\n0,0,0\n")
     with pytest.warns(UserWarning, match=r"w.csv: 2 problems: 1 bad_time \(dropped\), 1 duplicate_time \(dropped\)"):
         read_tracks(path)
     with warnings.catch_warnings():
@@ -368,7 +377,48 @@ def test_problems_are_warned_once(tmp_path):
         read_tracks(path, warn=False)
 
 
-def test_every_row_dropped_gives_no_track_but_every_problem(tmp_path):
-    result = read(tmp_path, "time,lat,lon\nnoon,50,-1\n1,95,-1\n", lat="lat", lon="lon")
-    assert result.tracks == {} and result.reports == 0 and result.origin is None
-    assert [p.kind for p in result.problems] == ["bad_time", "out_of_range"]
+def test_every_row_dropped_is_an_error_naming_the_column(tmp_path):
+    with pytest.raises(
+        ValueError, match=r"no report left of 2 data rows \(1 bad_time, 1 out_of_range\); the first: .*column 'time' holds 'noon'"
+    ):
+        read(tmp_path, "time,lat,lon\nnoon,50,-1\n1,95,-1\n", lat="lat", lon="lon")
+
+
+def test_day_month_year_times_need_time_format(tmp_path):
+    text = "time,x,y\n12/01/2016 13:02:11,0,0\n12/01/2016 13:02:21,10,0\n"
+    with pytest.raises(ValueError, match=r"no report left of 2 data rows \(2 bad_time\).*'12/01/2016 13:02:11'.*time_format"):
+        read(tmp_path, text)
+    result = read(tmp_path, text, time_format="%d/%m/%Y %H:%M:%S")
+    assert list(result.tracks[""].times) == [0.0, 10.0] and result.epoch.isoformat() == "2016-01-12T13:02:11+00:00"
+    with pytest.raises(ValueError, match="time_format"):
+        read(tmp_path, text, time_format="dd/mm/yyyy")
+
+
+def test_swapped_latitude_and_longitude_get_a_hint(tmp_path):
+    text = "time,lat,lon\n0,-122.4,37.8\n1,-122.41,37.8\n"
+    with pytest.raises(ValueError, match="latitude and longitude swapped"):
+        read(tmp_path, text, lat="lat", lon="lon")
+
+
+def test_epoch_milliseconds_need_time_unit(tmp_path):
+    text = "time,x,y\n1452603731218,0,0\n1452603741218,10,0\n"
+    with pytest.raises(ValueError, match=r"t.csv:2: column 'time' holds 1452603731218.*time_unit = 'ms'"):
+        read(tmp_path, text)
+    np.testing.assert_allclose(read(tmp_path, text, time_unit="ms").tracks[""].times, [1452603731.218, 1452603741.218])
+    assert read(tmp_path, "time,x,y\n0,0,0\n2500,10,0\n", time_unit="ms").tracks[""].times[1] == 2.5
+    with pytest.raises(ValueError, match="time_unit: 'min'"):
+        read(tmp_path, text, time_unit="min")
+
+
+def test_object_class_sets_the_speed_limit(tmp_path):
+    text = "time,x,y\n0,0,0\n10,100,0\n20,5000000,0\n30,300,0\n40,400,0\n"
+    result = read(tmp_path, text, object_class="ship")
+    assert kinds(result) == [(4, "time", "speed_jump", "dropped")] and "max_speed 35 m/s" in result.problems[0].message
+    assert read(tmp_path, text).problems == ()  # no class, no limit: the reader keeps what it is told
+    with pytest.raises(ValueError, match="object_class: 'boat'"):
+        read(tmp_path, text, object_class="boat")
+
+
+def test_positions_far_from_the_earth_are_dropped(tmp_path):
+    result = read(tmp_path, "time,x,y\n0,0,0\n1,1e202,0\n2,2,0\n")
+    assert kinds(result) == [(3, "x", "out_of_range", "dropped")] and "1e+202" in result.problems[0].message
