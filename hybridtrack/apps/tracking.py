@@ -472,8 +472,10 @@ def track_one(
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}, epoch=epoch) if recording else None
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
         run = estimator.run({sensor.name: xy}, track_prior(track, config, layout), times=track.times, recorder=recorder)
+        _check_finite(run, track)
         if smooth or lag is not None:
             run = estimator.smooth(run, lag)
+            _check_finite(run, track)
             if recorder is not None:
                 recorder.log_result(run, name=f"{estimator.name}_smoothed", sensors=(), measurements={})
         est_xy = run.means[:, [layout.index("x"), layout.index("y")]]
@@ -508,6 +510,16 @@ def track_one(
         decisions = [d | {"time_utc": utc_text(epoch, d["time"])} for d in decisions]
     segments = describe_segments(segments_of(run.times, modes, radii), np.asarray(run.times, dtype=float), run.means, layout, epoch)
     return {"id": track.id, "segments": segments, "decisions": decisions}
+
+
+def _check_finite(run, track: Track) -> None:
+    """A FloatingPointError naming the first report whose estimate (mean or covariance) is not finite."""
+    finite = np.isfinite(run.means).all(axis=1) & np.isfinite(run.covs).all(axis=(1, 2))
+    if not finite.all():
+        k = int(np.argmin(finite))
+        raise FloatingPointError(
+            f"the estimate is not finite from the report of line {int(track.lines[k])} (t = {float(track.times[k]):g} s) on"
+        )
 
 
 def track_file(

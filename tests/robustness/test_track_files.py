@@ -162,3 +162,30 @@ def test_one_failing_object_never_sinks_the_file(tmp_path, capsys, monkeypatch):
     assert "f.csv: object 'p' (lines 32–61): tracking failed: FloatingPointError: the filter's covariance is not finite" in entry["reason"]
     assert entry["reason"] in captured.err
     assert not (out / "p.rrd").exists() and not (out / "p.npz").exists()
+
+
+def test_an_estimate_that_is_not_finite_fails_that_object_only(tmp_path, capsys, monkeypatch):
+    """A filter that returns NaN (without raising) for one object: that object failed, naming the report."""
+    real = tracking.build_tracker
+
+    def nan_for_b(config, registry=None):
+        estimator, sensor, models = real(config, registry)
+        run = estimator.run
+
+        def patched(measurements, prior, times, **kwargs):
+            result = run(measurements, prior, times=times, **kwargs)
+            if times[0] == 1000.0:  # object 'b'
+                result.means[7:] = np.nan
+            return result
+
+        monkeypatch.setattr(estimator, "run", patched)
+        return estimator, sensor, models
+
+    monkeypatch.setattr(tracking, "build_tracker", nan_for_b)
+    rows = straight_rows("a") + [f"{1000 + k * 10},b,{k * 50},0" for k in range(30)]
+    status, summary, out = run_track(tmp_path, rows)
+    assert status == 1 and [o["id"] for o in summary["objects"]] == ["a"]
+    (entry,) = summary["skipped"]
+    assert entry["failed"] and "object 'b' (lines 32–61)" in entry["reason"]
+    assert "the estimate is not finite from the report of line 39 (t = 1070 s) on" in entry["reason"], entry
+    assert not (out / "b.npz").exists()
