@@ -31,10 +31,21 @@ import os
 import sys
 import warnings
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from hybridtrack.core.commands import Command, UsageError
 
-__all__ = ["Command", "UsageError", "build_parser", "commands", "integer_option", "main", "number_option"]
+__all__ = [
+    "Command",
+    "UsageError",
+    "build_parser",
+    "check_output_file",
+    "check_output_folder",
+    "commands",
+    "integer_option",
+    "main",
+    "number_option",
+]
 
 #: the built-in command modules (each with a ``register_commands`` hook), in the order ``--help`` lists them
 COMMAND_MODULES: tuple[str, ...] = (
@@ -73,6 +84,28 @@ def integer_option(minimum: int, expected: str) -> Callable[[str], int]:
 def number_option(check: Callable[[float], bool], expected: str) -> Callable[[str], float]:
     """An argparse ``type``: a finite float passing ``check``, else an error saying ``expected``."""
     return _option(float, lambda value: math.isfinite(value) and check(value), expected)
+
+
+def check_output_folder(option: str, path: str | os.PathLike) -> None:
+    """A UsageError unless ``path`` (the value of ``option``) can be a folder: an existing folder, or a new one
+    whose nearest existing ancestor is a folder (``--out PATH: is a file; expected a folder``)."""
+    path = Path(path)
+    for ancestor in (path, *path.parents):
+        if ancestor.exists():
+            if not ancestor.is_dir():
+                what = "is a file" if ancestor == path else f"{ancestor} is a file"
+                raise UsageError(f"{option} {path}: {what}; expected a folder")
+            return
+
+
+def check_output_file(option: str, path: str | os.PathLike, what: str = "a file") -> None:
+    """A UsageError unless ``path`` (the value of ``option``) can be written as a file: not a folder, in an
+    existing folder (``what`` says which file is expected)."""
+    path = Path(path)
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a folder; expected {what}")
+    if not path.parent.is_dir():
+        raise UsageError(f"{option} {path}: folder {str(path.parent)!r} does not exist; expected {what} in an existing folder")
 
 
 class _Parser(argparse.ArgumentParser):

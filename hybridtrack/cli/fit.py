@@ -6,7 +6,7 @@ multiple-model tracker over FILE's objects (:mod:`hybridtrack.apps.fitting`), pr
 errors and writes TUNED.toml: CONFIG with those values set, which ``hybridtrack track`` runs.
 
 Exit status: 0 done; 2 a user error, one line on stderr (missing file or configuration, a configuration that
-is not of a multiple-model algorithm, no object to fit).
+is not of a multiple-model algorithm, no object to fit, an ``--out`` that is a folder or in a missing one).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from hybridtrack.cli import UsageError
+from hybridtrack.cli import UsageError, check_output_file
 from hybridtrack.core.hookspecs import hookimpl
 
 
@@ -36,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--max-objects {args.max_objects}: expected a positive number of objects")
     if not Path(args.file).is_file():
         raise UsageError(f"{args.file}: no such position file")
+    check_output_file("--out", args.out, "a file (the fitted configuration, TOML)")  # before the fit, not after it
     try:
         result = fit_config(args.file, args.config, ids=args.ids, max_objects=args.max_objects)
         write_fitted(args.config, result.values, args.out)

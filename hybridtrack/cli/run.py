@@ -14,7 +14,7 @@ import argparse
 import json
 from typing import Any
 
-from hybridtrack.cli import integer_option, number_option
+from hybridtrack.cli import check_output_folder, integer_option, number_option
 from hybridtrack.core.hookspecs import hookimpl
 
 _positive = integer_option(1, "a positive integer")
@@ -97,13 +97,15 @@ def run(args: argparse.Namespace) -> int:
     )
     from hybridtrack.apps.experiment.store import CampaignLocked
 
+    out = Path(args.out) if args.out else Path("runs") / Path(args.experiment).stem
+    check_output_folder("--out", out)
     try:
         if args.executor == "dask" and not args.scheduler:
             raise ValueError("--executor dask needs --scheduler ADDRESS")
         campaign = Campaign(
             args.experiment,
             args.n,
-            args.out or Path("runs") / Path(args.experiment).stem,
+            out,
             seed=args.seed,
             parameters=dict(args.param or []),
             executor=args.executor,

@@ -19,7 +19,8 @@ increments (Blackman & Popoli 1999 §6.2, eqs. 6.11–6.13)
 
 (λ the clutter density, false measurements per unit measurement volume per
 step).  The candidate child is the Kalman update of h with ν_hi; the missed
-child is h unchanged.  Then
+child is h unchanged (an empty scan, L = 0, a missed detection without clutter: every hypothesis continues as
+"missed", its prediction, with ΔΣ = ln(1 − P_D P_G): the probabilities change only where the N-scan rule merges).  Then
 
 * N-scan rule: children whose last N decisions (one per scan: a candidate index
   or "missed") are equal differ only in branches older than N scans; only the

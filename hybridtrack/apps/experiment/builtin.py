@@ -16,6 +16,7 @@ import numpy as np
 from hybridtrack.apps.experiment.definition import Experiment
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.types import Gaussian
+from hybridtrack.core.validation import check_positive
 from hybridtrack.engine.schedule import SEED001_TABLE1, Schedule, Segment
 
 X0 = (0.0, 0.0, 0.0, 2.0)
@@ -116,10 +117,24 @@ def _demo_rmse(index: int, rng: np.random.Generator, *, R: float, q: float, tau:
     }
 
 
+def check_seed001_parameters(parameters: dict) -> None:
+    """R, τ and ``steps_scale`` positive finite numbers, q a finite number ≥ 0 (a ValueError naming the first that is not)."""
+    for name, what in (
+        ("R", "the measurement noise variance"),
+        ("tau", "the sampling period in seconds"),
+        ("steps_scale", "the schedule's length factor"),
+    ):
+        check_positive(parameters[name], name, what=what)
+    q = parameters["q"]
+    if not (np.isfinite(q) and q >= 0):
+        raise ValueError(f"q: expected a finite number ≥ 0 (the process noise variance), got {q!r}")
+
+
 DEMO_RMSE = Experiment(
     name="demo_rmse",
     run_one=_demo_rmse,
     parameters={"R": 0.01, "q": 0.001, "tau": 0.1, "steps_scale": 1.0},
     description="optimal (known-modes) KF on the seed 001 schedule: squared error per component, nRMSE, mean NIS",
     locator="hybridtrack.apps.experiment.builtin:DEMO_RMSE",
+    check_parameters=check_seed001_parameters,
 )

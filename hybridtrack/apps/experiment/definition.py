@@ -11,7 +11,13 @@ script that is not an importable module runs):
   loaded by path, attribute ``EXPERIMENT`` by default.
 
 :func:`load_experiment` turns a registered name, a ``.py`` path or a locator
-into an :class:`Experiment` whose ``locator`` is set.
+into an :class:`Experiment` whose ``locator`` is set; a script with a syntax error is an
+:class:`ExperimentScriptError` naming the file, the line and the error.
+
+Parameter overrides are checked before any run (:meth:`Experiment.with_parameters`): a name the experiment
+does not have, a value of another type than the default's (a number for a number, an integer for an integer,
+true/false, text, a list, a mapping; a finite number where the default is finite), and the experiment's own
+``check_parameters`` — each a :class:`ParameterError` naming the parameter, what was expected and what was got.
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ import functools
 import hashlib
 import importlib
 import importlib.util
+import math
+import numbers
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -37,6 +45,37 @@ class UnknownExperiment(LookupError):
     """A name that is neither registered nor a script; the message lists what is known."""
 
 
+class ExperimentScriptError(ValueError):
+    """An experiment script that does not compile: the message names the file, the line and the error."""
+
+
+class ParameterError(ValueError):
+    """A parameter override that does not fit the experiment: the message names the parameter, what was expected
+    and what was got."""
+
+
+def _expected_like(default) -> tuple[str, Callable[[Any], bool]] | None:
+    """(what is expected, the test) of an override of a parameter whose default is ``default``; None: anything."""
+    if isinstance(default, bool):
+        return "true or false", lambda value: isinstance(value, bool)
+    if isinstance(default, numbers.Integral):
+        return "an integer", lambda value: isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    if isinstance(default, numbers.Real):
+        finite = math.isfinite(default)
+
+        def number(value) -> bool:
+            return isinstance(value, numbers.Real) and not isinstance(value, bool) and (not finite or math.isfinite(value))
+
+        return ("a finite number" if finite else "a number"), number
+    if isinstance(default, str):
+        return "text", lambda value: isinstance(value, str)
+    if isinstance(default, (list, tuple)):
+        return "a list", lambda value: isinstance(value, (list, tuple))
+    if isinstance(default, Mapping):
+        return "a mapping", lambda value: isinstance(value, Mapping)
+    return None
+
+
 @attrs.frozen(eq=False)
 class Experiment:
     """A named Monte Carlo experiment (module docstring); ``parameters`` are the JSON-serializable defaults
@@ -50,6 +89,9 @@ class Experiment:
     locator: str | None = None
     run_batch: Callable[..., Any] | None = None
     batch_size: int = 100
+    #: ``check_parameters(parameters)``: raises ValueError or TypeError, its message starting with the parameter's
+    #: name, for a value the runs cannot take (a range, a relation between parameters); called before any run
+    check_parameters: Callable[[dict[str, Any]], Any] | None = None
 
     def __attrs_post_init__(self):
         if not self.name or not isinstance(self.name, str):
@@ -60,13 +102,29 @@ class Experiment:
             raise TypeError(f"Experiment {self.name!r}: run_batch must be callable or None, got {self.run_batch!r}")
         if isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int) or self.batch_size < 1:
             raise ValueError(f"Experiment {self.name!r}: batch_size must be a positive integer, got {self.batch_size!r}")
+        if self.check_parameters is not None and not callable(self.check_parameters):
+            raise TypeError(f"Experiment {self.name!r}: check_parameters must be callable or None, got {self.check_parameters!r}")
 
     def with_parameters(self, **overrides: Any) -> dict[str, Any]:
-        """The defaults updated by ``overrides``; an unknown parameter name is an error."""
+        """The defaults updated by ``overrides``, checked: an unknown parameter name, a value unlike its default
+        (module docstring) or one ``check_parameters`` refuses is a :class:`ParameterError`."""
         unknown = sorted(set(overrides) - set(self.parameters))
         if unknown:
-            raise ValueError(f"experiment {self.name!r}: unknown parameter(s) {unknown}; its parameters are {sorted(self.parameters)}")
-        return {**self.parameters, **overrides}
+            raise ParameterError(f"experiment {self.name!r}: unknown parameter(s) {unknown}; its parameters are {sorted(self.parameters)}")
+        for name, value in overrides.items():
+            default = self.parameters[name]
+            like = _expected_like(default)
+            if like is not None and not like[1](value):
+                raise ParameterError(
+                    f"experiment {self.name!r}: parameter {name}: expected {like[0]} (as its default {default!r}), got {value!r}"
+                )
+        parameters = {**self.parameters, **overrides}
+        if self.check_parameters is not None:
+            try:
+                self.check_parameters(dict(parameters))
+            except (ValueError, TypeError) as error:
+                raise ParameterError(f"experiment {self.name!r}: parameter {error}") from None
+        return parameters
 
 
 def _load_script(path: Path) -> Any:
@@ -77,7 +135,12 @@ def _load_script(path: Path) -> Any:
     if spec is None or spec.loader is None:
         raise UnknownExperiment(f"cannot load {path} as a Python script")
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    try:
+        spec.loader.exec_module(module)
+    except SyntaxError as error:  # IndentationError and TabError too; in the script or a module it imports
+        where = f"{error.filename or path}, line {error.lineno}" if error.lineno else f"{error.filename or path}"
+        inside = "" if error.filename in (None, str(path)) else f" (imported by experiment script {path})"
+        raise ExperimentScriptError(f"{where}: {type(error).__name__}: {error.msg}{inside}") from None
     return module
 
 
