@@ -441,6 +441,11 @@ class Detector(Labelled, ABC):
     """
 
     name: ClassVar[str]
+    #: the registered algorithm (kind ``algorithm``) whose bank management this detector needs, e.g.
+    #: ``"unknown_change"`` for a change-time test, whose hypotheses are filters started at every possible change
+    #: time; a :class:`~hybridtrack.engine.pipeline.Pipeline` (a fixed bank) refuses such a detector, naming the
+    #: algorithm.  None (the default): the detector runs on any bank.
+    requires_bank_management: ClassVar[str | None] = None
 
     @abstractmethod
     def reset(self) -> None: ...

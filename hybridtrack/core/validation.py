@@ -8,7 +8,7 @@ fails early with a ``ValueError`` naming the argument and what was expected.
 from __future__ import annotations
 
 import weakref
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import attrs
 import numpy as np
@@ -151,14 +151,80 @@ def check_magnitude(array: np.ndarray, name: str, what: str) -> np.ndarray:
     return array
 
 
+def _check_prior_arrays(mean, cov) -> None:
+    """A TypeError naming the prior when ``initialize(mean, cov)`` is given a prior object (a Gaussian, a dict)
+    in place of the two arrays."""
+    for name, value in (("mean", mean), ("cov", cov)):
+        if isinstance(value, Mapping) or (not isinstance(value, np.ndarray) and hasattr(value, "mean") and hasattr(value, "cov")):
+            what = "a dict" if isinstance(value, Mapping) else f"a {type(value).__name__}"
+            raise TypeError(
+                f"prior: initialize(mean, cov) takes the bank's prior as two arrays, mean (M, n) and cov (M, n, n); got {what} as"
+                f" {name}. From a hybridtrack.Gaussian g: initialize(g.mean[None], g.cov[None]); from arrays x (n,), P (n, n):"
+                " initialize(x[None], P[None])"
+            )
+
+
+#: the largest prior standard deviation (state units: m, m/s) the pipeline and the algorithms take.  Beyond it
+#: the covariance forms of the Kalman filter lose the measurement noise in S = H P Hᵀ + R (float64 keeps about
+#: 16 digits: at a variance of 1e14, entries of R below about 0.02 vanish in the rounding of S), so a "diffuse"
+#: prior of 1e16·I gives a singular S or, with one sensor, a silently wrong first update.
+PRIOR_STD_LIMIT = 1e7
+
+
+def check_prior_spread(cov: np.ndarray, name: str = "prior") -> np.ndarray:
+    """``cov`` ((..., n, n) covariances) if every standard deviation √P_ii is ≤ :data:`PRIOR_STD_LIMIT`.
+
+    Otherwise a ValueError naming ``name``, the largest standard deviation, its
+    component index and the supported range (a diffuse prior: start from the
+    first measurement instead, e.g. its position with the sensor's σ).
+    """
+    variances = np.diagonal(cov, axis1=-2, axis2=-1)
+    big = variances > PRIOR_STD_LIMIT**2
+    if big.any():
+        index = tuple(int(i) for i in np.unravel_index(int(np.argmax(np.where(big, variances, -np.inf))), variances.shape))
+        std = float(np.sqrt(variances[index]))
+        raise ValueError(
+            f"{name}: covariance standard deviations up to {PRIOR_STD_LIMIT:.0e} (m, m/s) are supported, got {std:.3g}"
+            f" (variance {float(variances[index]):.3g} of state component {index[-1]}); beyond, the Kalman filter's"
+            " S = H P Hᵀ + R loses the measurement noise R in float64 rounding. For an uninformative start give a prior"
+            " from the first measurement (its position, the sensor's σ) and a velocity σ of the fastest expected speed"
+        )
+    return cov
+
+
+#: the largest |entry| of a motion model's transition matrix F the filters take: the prediction F P Fᵀ
+#: multiplies a covariance (entries up to FILTER_MAGNITUDE_LIMIT = 1e150) by F twice, and (1e75)² · 1e150
+#: stays below the float64 range (about 1.8e308).
+TRANSITION_MAGNITUDE_LIMIT = 1e75
+
+
+def transition_excess(F, B, process_noise) -> str | None:
+    """None if the entries of F (..., n, n), B (..., n) and the process noise G Q Gᵀ (..., n, n) are finite with
+    |F| ≤ :data:`TRANSITION_MAGNITUDE_LIMIT` (1e75), |B| ≤ 1e225 (as large as F x may be for a prior mean within
+    :data:`FILTER_MAGNITUDE_LIMIT`) and |G Q Gᵀ| ≤ :data:`FILTER_MAGNITUDE_LIMIT` (1e150, a covariance the filter
+    takes, like the prior's); otherwise the first offending entry, e.g. ``"F[1, 0] = -1.28e+299 (expected finite,
+    |value| ≤ 1e+75)"``, for a motion model to raise a ValueError naming the parameter that caused it."""
+    limits = (TRANSITION_MAGNITUDE_LIMIT, 1e225, FILTER_MAGNITUDE_LIMIT)
+    for what, array, limit in zip(("F", "B", "G Q Gᵀ"), (F, B, process_noise), limits):
+        array = np.asarray(array, dtype=np.float64)
+        with np.errstate(invalid="ignore"):
+            if array.size == 0 or np.abs(array).max() <= limit:  # a NaN maximum fails the comparison
+                continue
+            index = tuple(int(i) for i in np.argwhere(~(np.abs(array) <= limit))[0])
+        return f"{what}[{', '.join(map(str, index))}] = {float(array[index]):.3g} (expected finite, |value| ≤ {limit:.0e})"
+    return None
+
+
 def check_prior(mean, cov) -> tuple[np.ndarray, np.ndarray]:
     """Validate a bank prior: mean (M, n), cov (M, n, n) symmetric positive definite, within the filters' arithmetic.
 
     Every entry of mean and cov must have |value| ≤ ``FILTER_MAGNITUDE_LIMIT``
     (1e150) and every variance be ≥ its inverse 1e-150 (the information forms
     invert P): beyond, the filters' products overflow float64.  Errors are
-    ValueErrors naming the argument.
+    ValueErrors naming the argument; a prior object (a Gaussian, a dict) given
+    in place of the arrays is a TypeError naming the prior.
     """
+    _check_prior_arrays(mean, cov)
     mean = as_float_array(mean, "mean", (None, None))
     M, n = mean.shape
     cov = as_float_array(cov, "cov", (M, n, n))

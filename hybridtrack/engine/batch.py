@@ -13,15 +13,42 @@ import numpy as np
 
 from hybridtrack.core.interfaces import Estimator
 from hybridtrack.core.types import Gaussian
-from hybridtrack.core.validation import as_float_array
+from hybridtrack.core.validation import as_float_array, check_prior_spread
 from hybridtrack.sdk.network import SensorNetwork
 from hybridtrack.sdk.timestamps import step_intervals
 
 
+def _length(run) -> int | None:
+    """The number of rows of one run's array or nested sequence (None for a scalar)."""
+    if isinstance(run, np.ndarray):
+        return run.shape[0] if run.ndim else None
+    return len(run) if isinstance(run, Sequence) and not isinstance(run, str) else None
+
+
+def check_run_lengths(value, name: str) -> None:
+    """A ValueError naming ``name`` and each run's number of steps when ``value``, the measurements of one sensor
+    given as a sequence of per-run arrays (K_r+1, m), holds runs of different lengths (a batch needs one K)."""
+    if isinstance(value, np.ndarray) or not isinstance(value, Sequence) or isinstance(value, str) or not value:
+        return
+    lengths = [_length(run) for run in value]
+    if len(set(lengths)) > 1:
+        listed = ", ".join(f"run {r}: {k} steps" for r, k in enumerate(lengths[:10])) + (", …" if len(lengths) > 10 else "")
+        raise ValueError(
+            f"{name}: the runs of a batch need the same number of steps (K+1), got {listed}; run them one by one,"
+            " or pad the shorter ones with NaN rows (not measured) to a common length"
+        )
+
+
 def batch_measurements(measurements: Mapping[str, np.ndarray]) -> tuple[dict[str, np.ndarray], int, int]:
-    """The measurements of R runs, sensor name → (R, K+1, m_i) float arrays (NaN: not measured), with R and K+1."""
+    """The measurements of R runs, sensor name → (R, K+1, m_i) float arrays (NaN: not measured), with R and K+1.
+
+    A sensor's runs may be given as one array or a sequence of R arrays (K+1, m_i); runs of different lengths
+    (:func:`check_run_lengths`) and runs without a step are ValueErrors naming the sensor.
+    """
     if not isinstance(measurements, Mapping) or not measurements:
         raise ValueError("measurements: expected a mapping sensor name → array (runs, K+1, m)")
+    for name, value in measurements.items():
+        check_run_lengths(value, f"measurements[{name!r}]")
     arrays = {
         name: as_float_array(value, f"measurements[{name!r}]", (None, None, None), allow_nan=True) for name, value in measurements.items()
     }
@@ -30,7 +57,10 @@ def batch_measurements(measurements: Mapping[str, np.ndarray]) -> tuple[dict[str
         raise ValueError(f"measurements: every sensor needs the same (runs, K+1), got {sorted(shapes)}")
     runs, steps = shapes.pop()
     if runs < 1 or steps < 1:
-        raise ValueError(f"measurements: expected at least one run and one step, got (runs, K+1) = ({runs}, {steps})")
+        sizes = ", ".join(f"{name!r} {a.shape}" for name, a in arrays.items())
+        raise ValueError(
+            f"measurements: expected at least one run and one step, got (runs, K+1) = ({runs}, {steps}) (sensor shapes {sizes})"
+        )
     return arrays, runs, steps
 
 
@@ -55,14 +85,41 @@ def batch_times(times, tau, runs: int, steps: int) -> tuple[np.ndarray, np.ndarr
     return out_t, out_dt
 
 
+#: how a prior is built, for the errors of :func:`prior_arrays`
+PRIOR_HINT = (
+    "expected a hybridtrack.Gaussian, e.g. Gaussian(np.array([x, vx, y, vy]), np.diag([σx², σvx², σy², σvy²])),"
+    " the pair (mean (n,), cov (n, n)), or per-run (means (runs, n), covs (runs, n, n))"
+)
+
+
+def _prior_kind(prior) -> str | None:
+    """What a prior that is not a Gaussian nor a (mean, cov) pair is (for the TypeError), or None if it may be a pair."""
+    if isinstance(prior, Mapping):
+        return f"a dict with keys {sorted(map(str, prior))} (build Gaussian(mean, cov) from its entries)"
+    if isinstance(prior, np.ndarray):
+        return f"an array of shape {prior.shape} (a bare mean? give its covariance too)"
+    if not isinstance(prior, (tuple, list)):
+        return f"a {type(prior).__name__}"
+    if prior and all(np.ndim(v) == 0 for v in prior):
+        return f"a sequence of {len(prior)} numbers (a bare mean? give its covariance too)"
+    return None
+
+
 def prior_arrays(prior, runs: int, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per-run prior means (R, n) and covariances (R, n, n) from one Gaussian (or (mean (n,), cov (n, n))), or
     per-run means (R, n) with a shared (n, n) or per-run (R, n, n) covariance; ``n`` the state size expected
-    (None: any).  Each run's prior is checked as a :class:`~hybridtrack.core.types.Gaussian`."""
+    (None: any).  Each run's prior is checked as a :class:`~hybridtrack.core.types.Gaussian`, and its standard
+    deviations against :data:`~hybridtrack.core.validation.PRIOR_STD_LIMIT` (a diffuse prior is refused).
+
+    A prior of another kind (a dict, a bare mean) is a TypeError naming ``prior`` and showing how to build one;
+    a pair of wrong shapes a ValueError."""
+    kind = None if isinstance(prior, Gaussian) else _prior_kind(prior)
+    if kind is not None:
+        raise TypeError(f"prior: {PRIOR_HINT}; got {kind}")
     if isinstance(prior, Gaussian):
         priors = [prior] * runs
-    elif not isinstance(prior, (tuple, list)) or len(prior) != 2:
-        raise ValueError("prior: expected a Gaussian, (mean (n,), cov (n, n)) or per-run (mean (runs, n), cov (runs, n, n))")
+    elif len(prior) != 2:
+        raise ValueError(f"prior: {PRIOR_HINT}; got a sequence of {len(prior)} items")
     elif np.ndim(prior[0]) == 1:
         priors = [Gaussian(*prior)] * runs
     else:
@@ -72,7 +129,7 @@ def prior_arrays(prior, runs: int, n: int | None = None) -> tuple[np.ndarray, np
         priors = [Gaussian(mean[r], cov[r]) for r in range(runs)]
     if n is not None and priors[0].mean.shape != (n,):
         raise ValueError(f"prior: expected a mean of the {n} state components, got shape {priors[0].mean.shape}")
-    return np.stack([p.mean for p in priors]), np.stack([p.cov for p in priors])
+    return np.stack([p.mean for p in priors]), check_prior_spread(np.stack([p.cov for p in priors]), "prior")
 
 
 def per_run(value, runs: int, name: str) -> list:

@@ -163,6 +163,9 @@ class Pipeline:
         elif measurements is None:
             raise ValueError("measurements: required (sensor name → (steps, m_i)) unless candidates are given")
         z = self.network.stack(measurements)
+        if z.shape[0] == 0:
+            shapes = ", ".join(f"{name!r} {np.shape(value)}" for name, value in measurements.items())
+            raise ValueError(f"measurements: expected at least one step (a row per step) for the sensors, got 0 steps ({shapes})")
         t, dt = step_intervals(times, tau, z.shape[0])
         self.start(
             z[None], t[None], dt[None], prior_arrays(prior, 1), [recorder], [truth], record_measurements, record_every, record_seconds
@@ -213,6 +216,15 @@ class Pipeline:
         self.estimator: Estimator = resolve("estimator", estimator, registry)
         self.network = sensors if isinstance(sensors, SensorNetwork) else SensorNetwork(sensors)
         self.detectors: list[Detector] = [resolve("detector", d, registry) for d in detectors]
+        for detector in self.detectors:
+            algorithm = getattr(detector, "requires_bank_management", None)
+            if algorithm is not None:
+                raise ValueError(
+                    f"detectors: {detector.name!r} (label {detector.label!r}) needs the bank management of the algorithm"
+                    f" {algorithm!r} (its hypotheses are filters the algorithm starts and prunes as it tests); a Pipeline's"
+                    f" bank is fixed, so the test cannot do what it is for. Run the algorithm instead:"
+                    f" resolve('algorithm', ({algorithm!r}, {{'detector': <this detector>, ...}})) (hybridtrack plugins lists the algorithms)"
+                )
         self.labels = labels = [d.label for d in self.detectors]
         if len(set(labels)) != len(labels):
             raise ValueError(

@@ -22,8 +22,15 @@ def _positive_integer(instance, attribute, value):
 
 
 def _positive_or_none(instance, attribute, value):
-    if value is not None and not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{attribute.name}: expected a positive finite number, got {value!r}")
+    """None or a positive finite real number (a string, a list or a bool is refused, naming the field)."""
+    if value is None:
+        return
+    if (
+        isinstance(value, (bool, np.bool_))
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not (np.isfinite(value) and value > 0)
+    ):
+        raise ValueError(f"{attribute.name}: expected a positive finite number (metres), got {value!r}")
 
 
 @attrs.frozen

@@ -22,7 +22,7 @@ trajectory and the measurements from one seed.
 from __future__ import annotations
 
 import inspect
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import attrs
@@ -30,6 +30,7 @@ import numpy as np
 
 from hybridtrack.core.interfaces import MotionModel, Sensor, convert_layout
 from hybridtrack.core.registry import Registry, registry_or_default
+from hybridtrack.core.types import Gaussian
 from hybridtrack.core.validation import as_float_array, check_covariance
 from hybridtrack.engine.schedule import Schedule
 from hybridtrack.sdk.linalg import psd_square_root
@@ -104,6 +105,14 @@ def takes_keyword(factory, name: str) -> bool:
     return any((p.name == name and p.kind is not p.POSITIONAL_ONLY) or p.kind is p.VAR_KEYWORD for p in parameters)
 
 
+def names_parameter(factory, name: str) -> bool:
+    """Whether the signature of ``factory`` names the parameter ``name`` (False when it is unknown or only ``**kwargs``)."""
+    try:
+        return name in inspect.signature(factory).parameters
+    except (TypeError, ValueError):
+        return False
+
+
 def build_models(
     schedule: Schedule, registry: Registry | None = None, noise_cov=None, *, noise_cov_where_taken: bool = False
 ) -> list[MotionModel]:
@@ -114,12 +123,21 @@ def build_models(
     ``noise_cov`` keyword (the others, e.g. ``ship_turn`` with its own
     ``sigma_velocity`` and ``sigma_rate``, keep their own process noise).
     A factory returning something that is not a MotionModel is a TypeError
-    naming the plugin that registered it.
+    naming the plugin that registered it.  A row without a radius whose mode's
+    factory names a ``radius`` parameter (the turns) is a ValueError naming the
+    row and the key: the radius is the row's to give, never the model's default.
     """
     registry = registry_or_default(registry)
     models = []
+    starts = schedule.switch_steps()
     for i, segment in enumerate(schedule.segments):
         parameters = segment.parameters()
+        if segment.radius is None and names_parameter(registry.get("motion_model", segment.mode), "radius"):
+            raise ValueError(
+                f"schedule row {i} ({segment.mode}, {segment.steps} steps from step {starts[i]}): no radius; the {segment.mode!r}"
+                f" mode turns at a radius the row gives (key 'radius', metres > 0), e.g. ({segment.mode!r}, {segment.steps}, 3.0)"
+                f" or [[segment]] mode = {segment.mode!r}, steps = {segment.steps}, radius = 3.0"
+            )
         if noise_cov is not None and (not noise_cov_where_taken or takes_keyword(registry.get("motion_model", segment.mode), "noise_cov")):
             parameters["noise_cov"] = noise_cov
         try:
@@ -138,6 +156,18 @@ def _schedule_models(schedule: Schedule, models, registry, noise_cov) -> tuple[l
     if len(models) != len(schedule.segments):
         raise ValueError(f"models: expected {len(schedule.segments)} models (one per schedule row), got {len(models)}")
     return models, tuple(dict.fromkeys(name for model in models for name in model.layout))
+
+
+def _initial_state(x0):
+    """``x0``, unless it is a prior (a Gaussian, a dict): then a TypeError naming it and saying what to pass."""
+    if isinstance(x0, Gaussian) or isinstance(x0, Mapping):
+        what = "a Gaussian" if isinstance(x0, Gaussian) else f"a dict with keys {sorted(map(str, x0))}"
+        raise TypeError(
+            f"x0: simulate starts from a state, an array (n,) in the first mode's layout (e.g. np.array([x, vx, y, vy])),"
+            f" not from a prior; got {what}: pass its mean (x0=prior.mean), or a draw from it"
+            " (np.random.default_rng(seed).multivariate_normal(prior.mean, prior.cov))"
+        )
+    return x0
 
 
 def _sampling(tau, times, steps: int) -> tuple[float | None, np.ndarray | None]:
@@ -232,7 +262,7 @@ def simulate_trajectories(
         raise ValueError("seeds: expected one seed per run, got none")
     R, K = len(rngs), schedule.total_steps
     intervals = np.full(K, tau) if times is None else np.diff(times)
-    x = np.repeat(as_float_array(x0, "x0", (models[0].state_dim,))[None], R, axis=0)
+    x = np.repeat(as_float_array(_initial_state(x0), "x0", (models[0].state_dim,))[None], R, axis=0)
     states = np.zeros((R, K + 1, len(layout)))
     states[:, 0] = convert_layout(x, models[0].layout, layout)
     segment_index = np.zeros(K + 1, dtype=int)

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import re
 import zipfile
 from collections.abc import Mapping
@@ -310,14 +311,30 @@ def _read_npz(path: Path) -> MeasurementFile:
     return MeasurementFile(measurements, times)
 
 
+def _save_npz(path: str | Path, arrays: Mapping[str, np.ndarray]) -> None:
+    """The archive ``np.savez(path, **arrays)`` writes (one uncompressed ``<name>.npy`` member per array, zip64, the
+    suffix ``.npz`` added to a path without it), written member by member: ``np.savez`` takes the arrays as
+    keywords, so a sensor named ``file`` or ``allow_pickle`` (its own parameters) could not be written there."""
+    path = os.fspath(path)
+    if not path.endswith(".npz"):
+        path += ".npz"
+    with zipfile.ZipFile(path, mode="w", compression=zipfile.ZIP_STORED, allowZip64=True) as archive:
+        for name, array in arrays.items():
+            with archive.open(name + ".npy", mode="w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(array), allow_pickle=False)
+
+
 def write_npz(path: str | Path, measurements: Mapping[str, np.ndarray], *, times=None) -> None:
-    """Write the NPZ layout; ``times`` (seconds, one per step, strictly increasing) is stored as the array ``time``."""
+    """Write the NPZ layout; ``times`` (seconds, one per step, strictly increasing) is stored as the array ``time``.
+
+    Every sensor name is an array name of its own, ``file`` included (read back by :func:`read_measurement_file`
+    and ``np.load`` under the same name)."""
     arrays = _check(measurements)
     if times is not None:
         if "time" in arrays:
             raise ValueError("measurements: a sensor named 'time' cannot be written with times (the NPZ array 'time' holds them)")
         arrays = {"time": check_times(times, "times", next(iter(arrays.values())).shape[0]), **arrays}
-    np.savez(path, **arrays)
+    _save_npz(path, arrays)
 
 
 def read_measurement_file(path: str | Path) -> MeasurementFile:

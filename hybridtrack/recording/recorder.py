@@ -158,6 +158,11 @@ def _rows(times, rows):
 #: at most this many points per path in the space-time view (longer paths are thinned evenly)
 SPACETIME_POINTS = 4000
 
+#: the roles (``world/<role>``) of the paths every run on a recording shares: the truth and the observer.  The
+#: simulator logs the truth and each pipeline or algorithm given it logs it again; :meth:`RerunRecorder.log_path`
+#: sends only their points not yet logged (same step, time and position)
+SHARED_ROLES = ("truth", "observer")
+
 
 class RerunRecorder(AbstractContextManager):
     """A file recording (.rrd) on its own ``rerun.RecordingStream``; ``configuration`` (a JSON-able dict, seed
@@ -188,6 +193,7 @@ class RerunRecorder(AbstractContextManager):
         self._geo: list[np.ndarray] = []  # the corners of every geo path (for the map view's zoom)
         self._breaks: dict[str, np.ndarray] = {}  # a hypothesis's path: where its pieces in play start (rows of its track)
         self._events: list[tuple[int, str]] = []  # the decisions: (step, text)
+        self._shared: dict[str, list[tuple]] = {}  # SHARED_ROLES path → blocks of logged points: steps (sorted), xyz, times
         self._time_step: float | None = None
         self._epoch = None if epoch is None else unix_nanoseconds(epoch)  # t = 0, in whole ns since the Unix epoch
         self._closed = False
@@ -275,10 +281,40 @@ class RerunRecorder(AbstractContextManager):
         self._note(entity, "Map")
         self._note(f"{entity}/path", "Map")
 
+    def _unlogged(self, entity: str, steps, positions: np.ndarray, times) -> np.ndarray:
+        """The rows of a shared path's points (:data:`SHARED_ROLES`) not logged before at the same step and time with
+        the same position (all rows for the other paths), noting them as logged (in blocks, one per call that logged
+        some: a streamed run's chunks are appended, not merged)."""
+        key = entity.strip("/")
+        parts = key.split("/")
+        if len(parts) < 2 or parts[1] not in SHARED_ROLES:
+            return np.ones(len(positions), dtype=bool)
+        steps = np.asarray(steps, dtype=np.int64)
+        clock = np.full(steps.shape, np.nan) if times is None else np.asarray(times, dtype=np.float64)
+        keep = np.ones(steps.shape, dtype=bool)
+        blocks = self._shared.setdefault(key, [])
+        if not steps.size:
+            return keep
+        low, high = steps.min(), steps.max()
+        for old_steps, old_xyz, old_clock in blocks:
+            if old_steps[0] > high or old_steps[-1] < low:
+                continue
+            at = np.clip(np.searchsorted(old_steps, steps), 0, old_steps.size - 1)
+            same = (old_steps[at] == steps) & np.all((old_xyz[at] == positions) | (np.isnan(old_xyz[at]) & np.isnan(positions)), axis=-1)
+            keep &= ~(same & ((old_clock[at] == clock) | (np.isnan(old_clock[at]) & np.isnan(clock))))
+        if keep.any():
+            order = np.argsort(steps[keep], kind="stable")
+            blocks.append((steps[keep][order], positions[keep][order], clock[keep][order]))
+        return keep
+
     def log_path(self, entity, steps, positions, times=None, *, points=True, line=True):
         positions = _xyz(positions)
         if points:
-            self.log_points(entity, steps, positions, times)
+            keep = self._unlogged(entity, steps, positions, times)
+            if keep.all():
+                self.log_points(entity, steps, positions, times)
+            elif keep.any():
+                self.log_points(entity, np.asarray(steps)[keep], positions[keep], _rows(times, keep))
         if line:
             finite = np.all(np.isfinite(positions), axis=-1)
             pieces = finite_runs(finite)

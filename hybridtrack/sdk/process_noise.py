@@ -62,4 +62,30 @@ def white_noise_covariance(dt, density: float, order: int = 2) -> np.ndarray:
 def white_noise_root(dt, order: int = 2) -> np.ndarray:
     """G(Δt) with G Gᵀ = Q(Δt)/q (the lower Cholesky factor of :func:`white_noise_unit`), so that a model gives
     G(Δt) and the constant noise covariance q I: its ``noise_cov`` stays what its transition's Q is."""
-    return np.linalg.cholesky(white_noise_unit(dt, order))
+    unit = white_noise_unit(dt, order)
+    try:
+        return np.linalg.cholesky(unit)
+    except np.linalg.LinAlgError:  # Q(Δt)/q underflowed: a step far too short for float64
+        raise ValueError(_too_short(np.asarray(dt, dtype=float), order)) from None
+
+
+def _too_short(dt: np.ndarray, order: int) -> str:
+    """The message for a step whose Q(Δt)/q has no Cholesky factor in float64, with the shortest step that has one
+    (bisection of log Δt between the step and 1 s; error path only)."""
+    shortest = float(dt.min())
+
+    def factors(t: float) -> bool:
+        try:
+            np.linalg.cholesky(white_noise_unit(t, order))
+        except np.linalg.LinAlgError:
+            return False
+        return True
+
+    low, high = math.log(shortest), 0.0
+    for _ in range(60):
+        middle = (low + high) / 2
+        low, high = (low, middle) if factors(math.exp(middle)) else (middle, high)
+    return (
+        f"dt: a step Δt (tau) of {shortest!r} s is too short for white noise of order {order}: Q(Δt)/q (entries Δt … Δt^{2 * order - 1}) underflows"
+        f" float64 and has no Cholesky factor; expected steps ≥ {math.exp(high):.3g} s"
+    )

@@ -99,6 +99,11 @@ class DynamicThreshold(Detector):
         self.static_thresholds = {} if threshold_for is None else {"static_threshold": float(threshold_for(self.alpha_start))}
         self.reset()
 
+    @property
+    def requires_bank_management(self) -> str | None:
+        """The wrapped detector's (the bank it needs is the wrapped test's)."""
+        return getattr(self.detector, "requires_bank_management", None)
+
     def reset(self) -> None:
         self.detector.reset()
         self.cue.reset()

@@ -26,9 +26,14 @@ F_1^0 and rows 1 … E are the entries in the order of :meth:`add`;
 * ``"nearest_lower"`` — drop the entries whose ln ψ is nearest the lower bound
   B, i.e. the smallest (seed 003, Zakharov's rule).
 
-Fed a fixed bank of M filters without any :meth:`add` (e.g. by the
-:class:`~hybridtrack.engine.pipeline.Pipeline`), rows 1 … M−1 become the entries of
-modes 1 … M−1 started at the first step.
+Fed a fixed bank of M filters without any :meth:`add` (e.g. by
+:class:`~hybridtrack.algorithms.known_switch.KnownSwitchAdaptive` between its known
+switches), rows 1 … M−1 become the entries of modes 1 … M−1 started at the first
+step.  A :class:`~hybridtrack.engine.pipeline.Pipeline` refuses the test
+(``requires_bank_management = "unknown_change"``): on its bank, whose filters
+are never restarted, it decides at most once, late (11–26 steps into a turn
+that Algorithm 3 detects after 6–11, in five simulated runs), with the change
+time "step 0".
 """
 
 from __future__ import annotations
@@ -193,6 +198,8 @@ class ChangeTimeSPRT(WaldThresholds, ChangeTimeTest):
     """Algorithm 3 of seed 000: log-likelihood ratios averaged over change times, rule (24), bank pruning."""
 
     name = "sprt_unknown_change"
+    #: its alternatives are the filters Algorithm 3 starts at every step: on a fixed bank it decides at most once, late
+    requires_bank_management = "unknown_change"
 
     def __init__(
         self,

@@ -36,12 +36,21 @@ Process noise, either per step or per second:
   p⁺ = p + w, v⁺ = w/Δt, w ~ N(0, q Δt), i.e. Q_axis = q [[Δt, 1], [1, 1/Δt]]
   (heading undefined, speed ~ √(q/Δt)).  Written G(Δt) w with w ~ N(0, q I),
   G(Δt) a factor of Q(Δt)/q, so ``noise_cov`` = q I is the transition's Q.
+
+Inputs checked (ValueErrors naming the parameter): ``radius`` a finite number
+of metres ≥ :data:`MIN_RADIUS` (10⁻⁶ m); ``tau`` finite and > 0; a step whose
+F, B or G Q Gᵀ would exceed the filters' float64 arithmetic
+(:func:`hybridtrack.core.validation.transition_excess`: |F| ≤ 10⁷⁵, e.g. τ ≤ 10⁷⁵ s
+for straight, 4.5·10³⁷ s for constant acceleration) names ``tau`` and the
+usable range of τ for the mode, or, for a turn whose rate ω = |v_s|/r is the
+cause, ``radius``, the switch speed and the smallest usable radius.
 """
 
 from __future__ import annotations
 
+import math
 from abc import abstractmethod
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import attrs
@@ -49,7 +58,7 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank, convert_layout
-from hybridtrack.core.validation import as_float_array, check_covariance, check_positive
+from hybridtrack.core.validation import TRANSITION_MAGNITUDE_LIMIT, as_float_array, check_covariance, check_positive, transition_excess
 from hybridtrack.sdk.process_noise import check_density, white_noise_root
 
 LAYOUT_4 = ("x", "vx", "y", "vy")
@@ -116,6 +125,58 @@ def _check_tau(tau: float) -> float:
     return check_positive(tau, "tau", "the sampling period")
 
 
+#: the smallest turn radius (metres) a turn mode takes: below, ω = |v|/r exceeds 10⁶ rad/s per m/s of speed
+MIN_RADIUS = 1e-6
+
+
+def _radius(value) -> float:
+    """The turn radius in metres: a finite number ≥ :data:`MIN_RADIUS`, else a ValueError naming ``radius``."""
+    number = None
+    if not isinstance(value, (bool, np.bool_)) and np.ndim(value) == 0:
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            pass
+    if number is None or not (math.isfinite(number) and number > 0):
+        raise ValueError(f"radius: expected a finite number of metres > 0 (the turn radius), got {value!r}")
+    if number < MIN_RADIUS:
+        raise ValueError(
+            f"radius: expected a turn radius of at least {MIN_RADIUS:g} m (the turn rate is ω = |v|/r; a tighter turn is taken"
+            f" for a unit mistake), got {value!r}"
+        )
+    return number
+
+
+def _usable(ok: Callable[[float], bool], bad: float, good: float) -> float | None:
+    """The value nearest to ``bad`` for which ``ok`` still holds, going from ``good`` towards ``bad`` (bisection of the
+    logarithm); None when ``ok(good)`` fails too.  Only for error messages (the usable range of a parameter)."""
+    if not ok(good):
+        return None
+    low, high = math.log(good), math.log(bad)
+    for _ in range(60):
+        middle = (low + high) / 2
+        low, high = (middle, high) if ok(math.exp(middle)) else (low, middle)
+    return math.exp(low)
+
+
+def _checked(F, B, G, Q, why: Callable[[str], str]) -> None:
+    """A ValueError if the transition (F, B, G Q Gᵀ) of a step exceeds the filters' float64 arithmetic
+    (:func:`~hybridtrack.core.validation.transition_excess`); ``why(excess)`` names the parameter and its usable range."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        excess = transition_excess(F, B, G @ Q @ np.swapaxes(G, -1, -2))
+    if excess is not None:
+        raise ValueError(why(excess))
+
+
+def _tau_message(name: str, tau: float, excess: str, ok: Callable[[float], bool]) -> str:
+    bound = _usable(ok, tau, 1.0)
+    side = "" if bound is None else f"; expected tau {'≤' if tau > 1.0 else '≥'} {bound:.3g} s for this mode"
+    return (
+        f"tau: a step of {tau!r} s gives the {name!r} transition {excess}, beyond the float64 arithmetic of the filters"
+        f" (the prediction F P Fᵀ + G Q Gᵀ overflows){side}"
+    )
+
+
 def _blockdiag(axis: np.ndarray) -> np.ndarray:
     k = axis.shape[0]
     F = np.zeros((2 * k, 2 * k))
@@ -134,9 +195,24 @@ class _FixedMatrixMode(_Noise, MotionModel):
     def axis_matrix(self, tau: float) -> np.ndarray:
         """Φ_axis, the block of one axis."""
 
+    def arrays(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """F, B, G of a step of ``tau`` seconds (unchecked; :meth:`transition` checks them)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            return _blockdiag(self.axis_matrix(tau)), np.zeros(self.state_dim), self.noise_gain(tau)
+
+    def within_arithmetic(self, tau: float) -> bool:
+        """Whether the transition of a step of ``tau`` seconds stays within the filters' float64 arithmetic."""
+        F, B, G = self.arrays(tau)
+        with np.errstate(over="ignore", invalid="ignore"):
+            return transition_excess(F, B, G @ self.noise_cov @ G.T) is None
+
     def transition(self, tau: float, switch_state: np.ndarray | None = None) -> LinearTransition:
+        """F, B, G, Q of a step of ``tau`` seconds; a ValueError names ``tau`` (and its usable range) when F, B or
+        G Q Gᵀ would exceed the filters' float64 arithmetic (:func:`~hybridtrack.core.validation.transition_excess`)."""
         tau = _check_tau(tau)
-        return LinearTransition(_blockdiag(self.axis_matrix(tau)), np.zeros(self.state_dim), self.noise_gain(tau), self.noise_cov)
+        F, B, G = self.arrays(tau)
+        _checked(F, B, G, self.noise_cov, lambda excess: _tau_message(self.name, tau, excess, self.within_arithmetic))
+        return LinearTransition(F, B, G, self.noise_cov)
 
     def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
         """The one transition (Φ does not depend on the switch state) repeated for the S switch states."""
@@ -198,9 +274,7 @@ class ConstantAcceleration(_FixedMatrixMode):
 class _Turn(_Noise, MotionModel):
     """Uniform circular motion of radius r (seed 000, modes 2–3); ``direction`` +1 left, −1 right."""
 
-    radius: float = attrs.field(
-        default=5.0, converter=float, validator=lambda i, a, v: check_positive(v, "radius", "turn radius in metres")
-    )
+    radius: float = attrs.field(default=5.0, converter=_radius)
     noise_cov: np.ndarray | None = _noise_field()
 
     layout: ClassVar[tuple[str, ...]] = LAYOUT_4
@@ -215,14 +289,15 @@ class _Turn(_Noise, MotionModel):
             raise ValueError("turn centre undefined at zero speed")
         return np.array([x - self.direction * self.radius * vy / speed, y + self.direction * self.radius * vx / speed])
 
-    def coefficients(self, tau: float, switch_states: np.ndarray):
-        """cos ωτ, sin(ωτ)/ω, −ω sin ωτ (the entries of Φ_axis) and B (..., 4) at switch states (..., 4), ω = |v_s|/r.
+    def coefficients(self, tau: float, switch_states: np.ndarray, radius: float | None = None):
+        """cos ωτ, sin(ωτ)/ω, −ω sin ωτ (the entries of Φ_axis) and B (..., 4) at switch states (..., 4), ω = |v_s|/r
+        (r = ``radius``, default the model's).
 
         B = [x_c(1−c), ω x_c s, y_c(1−c), ω y_c s] with x_c = x_s − d·v_ys/ω,
         y_c = y_s + d·v_xs/ω (d = ``direction``), written without dividing by ω.
         """
         x, vx, y, vy = switch_states if switch_states.ndim == 1 else (switch_states[..., i] for i in range(4))  # 1-D: scalars
-        w = np.hypot(vx, vy) / self.radius
+        w = np.hypot(vx, vy) / (self.radius if radius is None else radius)
         c, s = np.cos(w * tau), np.sin(w * tau)
         sin_over_w = tau * np.sinc(w * tau / np.pi)  # sin(ωτ)/ω, τ at ω = 0
         one_minus_cos_over_w = w * (tau * np.sinc(w * tau / (2 * np.pi))) ** 2 / 2  # (1 − cos ωτ)/ω
@@ -234,18 +309,58 @@ class _Turn(_Noise, MotionModel):
         B[..., 3] = (w * y + d * vx) * s
         return c, sin_over_w, -w * s, B
 
+    def arrays(self, tau: float, switch_states: np.ndarray, radius: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """F (..., 4, 4), B (..., 4) and G of a step of ``tau`` seconds at switch states (..., 4) (unchecked;
+        :meth:`transition` checks them); ``radius`` default the model's."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            c, sin_over_w, minus_w_sin, B = self.coefficients(tau, switch_states, radius)
+            F = np.zeros(np.shape(c) + (4, 4))
+            F[..., 0, 0] = F[..., 1, 1] = F[..., 2, 2] = F[..., 3, 3] = c
+            F[..., 0, 1] = F[..., 2, 3] = sin_over_w
+            F[..., 1, 0] = F[..., 3, 2] = minus_w_sin
+            return F, B, self.noise_gain(tau)
+
+    def within_arithmetic(self, tau: float, switch_states: np.ndarray, radius: float | None = None) -> bool:
+        """Whether the transitions of a step of ``tau`` seconds at ``switch_states`` stay within the filters' float64 arithmetic."""
+        F, B, G = self.arrays(tau, switch_states, radius)
+        with np.errstate(over="ignore", invalid="ignore"):
+            return transition_excess(F, B, G @ self.noise_cov @ G.T) is None
+
+    def check_arithmetic(self, tau: float, switch_states: np.ndarray, F, B, G) -> None:
+        """A ValueError naming ``radius`` or ``tau`` and its usable range when the transition (F, B, G) built at
+        ``switch_states`` exceeds the filters' float64 arithmetic: ``radius`` when a wider turn (a smaller ω =
+        |v|/r) would fit, else ``tau``."""
+
+        def why(excess: str) -> str:
+            rows = np.reshape(switch_states, (-1, 4))
+            worst = rows[int(np.argmax(np.hypot(rows[:, 1], rows[:, 3])))]  # the fastest switch state: the largest ω
+            if self.within_arithmetic(tau, worst, 1e300):  # a wide enough turn fits: the radius is the cause
+                speed = float(np.hypot(worst[1], worst[3]))
+                bound = speed / TRANSITION_MAGNITUDE_LIMIT  # ω ≤ 1e75 bounds |ω sin ωτ| in F (and B ≤ ω |x| ≤ 1e225)
+                return (
+                    f"radius: a turn of radius {self.radius!r} m at the switch speed {speed:.3g} m/s (ω = |v|/r = "
+                    f"{speed / self.radius:.3g} rad/s) gives the {self.name!r} transition {excess}, beyond the float64 arithmetic"
+                    f" of the filters (the prediction F P Fᵀ overflows); expected radius ≥ |v|/{TRANSITION_MAGNITUDE_LIMIT:.0e} = {bound:.3g} m"
+                    " at this speed (ω ≤ 1e75 rad/s)"
+                )
+            return _tau_message(self.name, tau, excess, lambda t: self.within_arithmetic(t, worst))
+
+        _checked(F, B, G, self.noise_cov, why)
+
     def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
-        c, sin_over_w, minus_w_sin, B = self.coefficients(_check_tau(tau), as_float_array(switch_state, "switch_state", (4,)))
-        return LinearTransition(_blockdiag(np.array([[c, sin_over_w], [minus_w_sin, c]])), B, self.noise_gain(tau), self.noise_cov)
+        """F, B, G, Q of a step of ``tau`` seconds turning about the centre fixed at ``switch_state``; a ValueError
+        names ``radius`` or ``tau`` (and the usable range) when they would exceed the filters' float64 arithmetic."""
+        tau, switch_state = _check_tau(tau), as_float_array(switch_state, "switch_state", (4,))
+        F, B, G = self.arrays(tau, switch_state)
+        self.check_arithmetic(tau, switch_state, F, B, G)
+        return LinearTransition(F, B, G, self.noise_cov)
 
     def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
         """:meth:`transition` at S switch states at once (the same formulas, vectorized over the rows)."""
-        c, sin_over_w, minus_w_sin, B = self.coefficients(_check_tau(tau), as_float_array(switch_states, "switch_states", (None, 4)))
-        F = np.zeros((c.size, 4, 4))
-        F[:, 0, 0] = F[:, 1, 1] = F[:, 2, 2] = F[:, 3, 3] = c
-        F[:, 0, 1] = F[:, 2, 3] = sin_over_w
-        F[:, 1, 0] = F[:, 3, 2] = minus_w_sin
-        noise = _repeat(TransitionBank.stack([LinearTransition(np.eye(4), np.zeros(4), self.noise_gain(tau), self.noise_cov)]), c.size)
+        tau, switch_states = _check_tau(tau), as_float_array(switch_states, "switch_states", (None, 4))
+        F, B, G = self.arrays(tau, switch_states)
+        self.check_arithmetic(tau, switch_states, F, B, G)
+        noise = _repeat(TransitionBank.stack([LinearTransition(np.eye(4), np.zeros(4), G, self.noise_cov)]), F.shape[0])
         return TransitionBank(F, B, noise.Q, noise.noise_root)
 
 

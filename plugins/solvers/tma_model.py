@@ -75,6 +75,27 @@ class UnobservabilityWarning(UserWarning):
 # --------------------------------------------------------------------------- problems
 
 
+#: the largest |coordinate| (metres) of an observer position: the solvers work in offsets from the first observer
+#: position, and float64 resolves positions of up to 1e9 m (beyond the Moon's orbit) to about 1e-7 m; far beyond,
+#: the offsets of the observer's path and the target's range are lost in rounding (the fit fails on the start)
+MAX_OBSERVER_COORDINATE = 1e9
+
+
+def _check_observer(observer: np.ndarray, batch: bool) -> np.ndarray:
+    """``observer`` (finite already) if every coordinate has |value| ≤ :data:`MAX_OBSERVER_COORDINATE`, else a
+    ValueError naming the observer positions, the first bad index and the usable range."""
+    big = np.abs(observer) > MAX_OBSERVER_COORDINATE
+    if big.any():
+        index = tuple(int(i) for i in np.argwhere(big)[0])
+        where = (f"problem {index[0]}, " if batch and observer.ndim == 3 else "") + f"position {index[-2]}, {'xy'[index[-1]]}"
+        raise ValueError(
+            f"observer: observer positions must be finite with |coordinate| ≤ {MAX_OBSERVER_COORDINATE:.0e} m, got"
+            f" {float(observer[index]):.3g} m ({where}); beyond, float64 rounding loses the observer's path and the"
+            " target's range (use coordinates about a local origin, e.g. the first observer position)"
+        )
+    return observer
+
+
 def _check_count(n: int) -> None:
     if n < N_PARAMETERS:
         raise ValueError(f"bearings: bearings-only TMA needs at least {N_PARAMETERS} bearings to fit θ = (x0, y0, vx, vy), got {n}")
@@ -125,7 +146,7 @@ class BearingsProblem:
 
     ``times`` (n,) seconds, strictly increasing; ``bearings`` (n,) radians, finite
     with |θ| ≤ 2π (wrapped internally; a larger value is refused as probably
-    degrees); ``observer`` (n, 2) observer positions (x̃_k, ỹ_k) in metres;
+    degrees); ``observer`` (n, 2) observer positions (x̃_k, ỹ_k) in metres, |coordinate| ≤ 1e9 (:data:`MAX_OBSERVER_COORDINATE`);
     ``sigma`` the bearing noise in radians when known (used for the χ²(n−4) test
     and the covariance σ²(JᵀJ)⁻¹; otherwise σ² is estimated by F/(n−4));
     ``initial`` a guess of θ at ``reference_time`` (default ``times[0]``);
@@ -136,7 +157,7 @@ class BearingsProblem:
 
     times: np.ndarray = attrs.field(converter=lambda v: check_times(v, "times"))
     bearings: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "bearings", (None,), readonly=True))
-    observer: np.ndarray = attrs.field(converter=lambda v: as_float_array(v, "observer", (None, 2), readonly=True))
+    observer: np.ndarray = attrs.field(converter=lambda v: _check_observer(as_float_array(v, "observer", (None, 2), readonly=True), False))
     sigma: float | None = attrs.field(default=None, converter=_sigma)
     initial: np.ndarray | None = attrs.field(
         default=None, converter=lambda v: None if v is None else as_float_array(v, "initial", (N_PARAMETERS,), readonly=True)
@@ -177,7 +198,7 @@ class BearingsBatch:
 
     times: np.ndarray = attrs.field(converter=lambda v: check_times(v, "times"))
     bearings: np.ndarray = attrs.field(converter=lambda v: _batch_array(v, "bearings", (None, None), "(B, n)"))
-    observer: np.ndarray = attrs.field(converter=lambda v: _batch_array(v, "observer", None))
+    observer: np.ndarray = attrs.field(converter=lambda v: _check_observer(_batch_array(v, "observer", None), True))
     sigma: float | None = attrs.field(default=None, converter=_sigma)
     initial: np.ndarray | None = attrs.field(default=None, converter=lambda v: None if v is None else _batch_array(v, "initial", None))
     reference_time: float = attrs.field(default=None)
