@@ -32,7 +32,7 @@ Datasets:
   turn label) the AIS positions (projected, ENU) are the truth; each draw
   thins them to irregular intervals (next report at least U(5, 30) s after the
   last) and adds N(0, 25² m²) to each position; the modes, process noise and
-  SPRT settings are those of examples/ships.toml (its noise density per
+  SPRT settings are those of examples/ships_sprt.toml (its noise density per
   second, q = 0.001 m²/s³; the CV filter's q_cv = q · f a density too); the reference modes are the
   course-based labels (hybridtrack.apps.mode_labels, defaults) and the known switch
   times are the label changes; IMM sojourn 120 s.
@@ -72,7 +72,7 @@ from hybridtrack.apps.reporting import Column, write_report
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLENT = ROOT / "data" / "solent_ais" / "SolentAIS_20160112_130211.csv"
-SHIPS = ROOT / "examples" / "ships.toml"
+SHIPS = ROOT / "examples" / "ships_sprt.toml"
 METHODS = ("known_switch", "unknown_change", "imm", "gpb2", "cv")
 TYPES = ("straight", "left_turn", "right_turn")
 CV_FACTORS = (1.0, 10.0, 100.0, 1000.0, 1e4)
@@ -410,7 +410,7 @@ def solent_vessels(count: int, min_duration: float = 900.0) -> list[tuple]:
 
 
 def solent_cases(vessels: list[tuple], draws: int, seed: int, ships: dict, max_steps: int | None = None) -> list[Case]:
-    """Thinned (U(5, 30) s) AIS positions + N(0, 25²) per draw; modes and settings from ships.toml."""
+    """Thinned (U(5, 30) s) AIS positions + N(0, 25²) per draw; modes and settings from ships_sprt.toml."""
     est = ships["estimator"]
     density = "noise_density" in est  # per second, else σ_w² per report
     q = est["noise_density"] if density else est["process_noise"] ** 2
@@ -540,7 +540,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--solent-max-steps", type=int, default=None, help="cut each Solent run after this many steps (tests)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
-    parser.add_argument("--ships", default=str(SHIPS), help="the ships configuration for the Solent modes (examples/ships.toml)")
+    parser.add_argument("--ships", default=str(SHIPS), help="the ships configuration for the Solent modes (examples/ships_sprt.toml)")
     args = parser.parse_args(argv)
     from hybridtrack.apps.tracking import load_config
 

@@ -16,11 +16,15 @@ stop below 0.5 m/s, segments under 20 s merged).
 Trackers (``hybridtrack track`` through :func:`hybridtrack.apps.tracking.track_one`,
 outputs read from its ``.npz``, no recording):
 
-* ``sprt`` — examples/ships.toml (Algorithm 3's SPRT bank over fixed-radius turns);
+* ``sprt`` — examples/ships_sprt.toml (Algorithm 3's SPRT bank over fixed-radius turns);
 * ``fixed_radius_imm`` — the same modes and noise in an IMM (sojourn 120 s);
 * ``turn_rate_imm`` — examples/ships_turn_rate.toml (IMM of straight and the
   coordinated turn with ω in the state), causal;
 * ``turn_rate_imm_smoothed`` — the same, ``--smooth`` (fixed interval);
+* ``ships`` — examples/ships.toml: the same IMM also measuring the reported course
+  and speed (the velocity sensor), each report's mode by the estimated turn rate
+  and speed (``[segments] by = "motion"``), causal; ``ships_smoothed`` the same
+  with ``--smooth``;
 * ``cv`` — one constant-velocity Kalman filter, its density q chosen from
   {10⁻⁴, 10⁻³, 10⁻², 10⁻¹} m²/s³ for the least position error over the vessels
   (always "straight");
@@ -28,6 +32,8 @@ outputs read from its ``.npz``, no recording):
   turn (the noise of ``turn_rate_imm``, ω bounded by 0.05 rad/s) and the labels'
   own hysteresis applied to its estimate (stop below 0.5 m/s until 1 m/s, else
   a turn above 0.5°/s of |ω̂| until below 0.25°/s), written here in a few lines;
+  ``turn_rate_ekf_course_speed`` the same EKF also measuring the reported course
+  and speed (the velocity sensor of ``ships``): the alternative to ``ships``;
 * ``always_straight`` — "straight" at every report (positions: the noisy reports).
 
 Scores, pooled over the vessels:
@@ -67,13 +73,13 @@ import attrs
 import numpy as np
 
 from hybridtrack.apps.mode_labels import label_track
-from hybridtrack.apps.tracking import load_config, output_name, track_one
+from hybridtrack.apps.tracking import load_config, measurements_of, output_name, track_one
 from hybridtrack.core.plugins import resolve
 from hybridtrack.io.track_files import read_tracks
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLENT = ROOT / "data" / "solent_ais" / "SolentAIS_20160112_130211.csv"
-SHIPS, TURN_RATE = ROOT / "examples" / "ships.toml", ROOT / "examples" / "ships_turn_rate.toml"
+SHIPS, SPRT, TURN_RATE = (ROOT / "examples" / name for name in ("ships.toml", "ships_sprt.toml", "ships_turn_rate.toml"))
 CLASSES = ("straight", "left_turn", "right_turn", "stop")
 TURNS = ("left_turn", "right_turn")
 CV_DENSITIES = (1e-4, 1e-3, 1e-2, 1e-1)
@@ -115,22 +121,24 @@ def noisy(track, sigma: float, seed: int, index: int):
 
 def configurations(sigma: float) -> dict:
     """tracker → (config dict, smooth)."""
-    ships, turn_rate = load_config(SHIPS), load_config(TURN_RATE)
-    for cfg in (ships, turn_rate):
+    sprt, turn_rate, ships = load_config(SPRT), load_config(TURN_RATE), load_config(SHIPS)
+    for cfg in (sprt, turn_rate, ships):
         cfg["measurement"]["sigma"] = sigma
-    est = ships["estimator"]
-    imm = {**ships, "estimator": {k: v for k, v in est.items() if k not in ("alpha", "beta", "bank_size", "initial_mode")}}
+    est = sprt["estimator"]
+    imm = {**sprt, "estimator": {k: v for k, v in est.items() if k not in ("alpha", "beta", "bank_size", "initial_mode")}}
     imm["estimator"] |= {"algorithm": "imm", "sojourn": 120.0}
     return {
-        "sprt": (ships, False),
+        "sprt": (sprt, False),
         "fixed_radius_imm": (imm, False),
         "turn_rate_imm": (turn_rate, False),
         "turn_rate_imm_smoothed": (turn_rate, True),
+        "ships": (ships, False),
+        "ships_smoothed": (ships, True),
     }
 
 
 def cv_config(sigma: float, q: float) -> dict:
-    cfg = load_config(SHIPS)
+    cfg = load_config(TURN_RATE)
     cfg["measurement"]["sigma"] = sigma
     cfg["estimator"] = {
         "algorithm": "imm",
@@ -158,11 +166,17 @@ def run_tracker(cases, config: dict, smooth: bool) -> tuple[list, list, float]:
     return modes, positions, seconds
 
 
-def run_turn_rate_ekf(cases, sigma: float, max_rate: float = EKF_MAX_RATE) -> tuple[list, list, float]:
-    """One coordinated-turn EKF per vessel, hysteresis on ω̂ and on the speed (module docstring)."""
+def run_turn_rate_ekf(cases, sigma: float, max_rate: float = EKF_MAX_RATE, course_speed: bool = False) -> tuple[list, list, float]:
+    """One coordinated-turn EKF per vessel, hysteresis on ω̂ and on the speed (module docstring); ``course_speed``:
+    also measuring the reported course and speed (ships.toml's velocity sensor)."""
     turn_rate = load_config(TURN_RATE)["estimator"]
     model = resolve("motion_model", ("coordinated_turn", {"noise_density": turn_rate["noise_density"], "max_rate": max_rate}))
-    sensor = resolve("sensor", ("position", {"noise_cov": sigma**2 * np.eye(2)}))
+    sensors = [resolve("sensor", ("position", {"noise_cov": sigma**2 * np.eye(2)}))]
+    ships = load_config(SHIPS)
+    if course_speed:
+        measured = ships["measurement"]
+        spec = {"speed_sigma": measured["speed_sigma"], "course_sigma": np.radians(measured["course_sigma"])}
+        sensors.append(resolve("sensor", ("velocity", spec)))
     ekf = resolve("estimator", ("ekf", {}))
     on, off = np.radians(0.5), np.radians(0.25)
     modes, positions, seconds = [], [], 0.0
@@ -170,14 +184,16 @@ def run_turn_rate_ekf(cases, sigma: float, max_rate: float = EKF_MAX_RATE) -> tu
         start = time.perf_counter()
         z, t = measured.positions[:, :2], measured.times
         v0 = (z[1] - z[0]) / (t[1] - t[0])
+        if course_speed:
+            z = np.hstack([z, measurements_of(measured, ships)["velocity"]])
         state = ekf.initialize(
             np.array([[z[0, 0], v0[0], z[0, 1], v0[1], 0.0]]), np.diag([250.0**2, 7.5**2, 250.0**2, 7.5**2, 0.02**2])[None]
         )
-        state, _ = ekf.update(state, z[0], [sensor], model.layout)
+        state, _ = ekf.update(state, z[0], sensors, model.layout)
         current, out_modes, out_xy = "straight", ["straight"], [ekf.mean(state)[0, [0, 2]]]
         for k in range(1, len(t)):
             state = ekf.predict(state, model.linearizer(t[k] - t[k - 1]))
-            state, _ = ekf.update(state, z[k], [sensor], model.layout)
+            state, _ = ekf.update(state, z[k], sensors, model.layout)
             x = ekf.mean(state)[0]
             w, speed = x[4], np.hypot(x[1], x[3])
             if speed < V_STOP or (current == "stop" and speed < V_GO):
@@ -245,6 +261,7 @@ def evaluate(path=SOLENT, *, sigma=10.0, seed=2016, vessel_count=None, max_repor
     rows.append({"tracker": "cv"} | score(cases, *run_tracker(cases, cv_config(sigma, best), False)))
     settings["cv"] = {"noise_density": best, "chosen_from": list(CV_DENSITIES)}
     rows.append({"tracker": "turn_rate_ekf"} | score(cases, *run_turn_rate_ekf(cases, sigma)))
+    rows.append({"tracker": "turn_rate_ekf_course_speed"} | score(cases, *run_turn_rate_ekf(cases, sigma, course_speed=True)))
     straight = [np.full(len(c[0]), "straight") for c in cases]
     rows.append({"tracker": "always_straight"} | score(cases, straight, [c[2].positions[:, :2] for c in cases], 0.0))
     labels = np.concatenate([c[1] for c in cases])

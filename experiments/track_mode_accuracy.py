@@ -1,6 +1,6 @@
 """Mode accuracy of ``hybridtrack track`` against the course-based labels (hybridtrack.apps.mode_labels).
 
-    python experiments/track_mode_accuracy.py FILE --config examples/ships.toml [--out DIR] [--json PATH] [--moving-only]
+    python experiments/track_mode_accuracy.py FILE --config examples/ships_sprt.toml [--out DIR] [--json PATH] [--moving-only]
         [--smooth | --lag SECONDS]
 
 Runs :func:`hybridtrack.apps.tracking.track_file` on FILE (or reads the results

@@ -8,7 +8,18 @@ from pathlib import Path
 import pytest
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
-TRACKERS = ["sprt", "fixed_radius_imm", "turn_rate_imm", "turn_rate_imm_smoothed", "cv", "turn_rate_ekf", "always_straight"]
+TRACKERS = [
+    "sprt",
+    "fixed_radius_imm",
+    "turn_rate_imm",
+    "turn_rate_imm_smoothed",
+    "ships",
+    "ships_smoothed",
+    "cv",
+    "turn_rate_ekf",
+    "turn_rate_ekf_course_speed",
+    "always_straight",
+]
 SCORES = {
     "accuracy",
     "balanced_accuracy",
@@ -29,7 +40,7 @@ def small(tmp_path_factory):
     spec.loader.exec_module(module)
     path = tmp_path_factory.mktemp("real_tracks") / "r.json"
     module.main(["--vessels", "2", "--max-reports", "150", "--json", str(path), "--plot", "--plot-path", str(path.with_suffix(".png"))])
-    assert path.with_suffix(".md").read_text().count("\n") == 2 + 7 and path.with_suffix(".png").stat().st_size > 10_000
+    assert path.with_suffix(".md").read_text().count("\n") == 2 + len(TRACKERS) and path.with_suffix(".png").stat().st_size > 10_000
     return json.loads(path.read_text())
 
 
@@ -54,3 +65,4 @@ def test_scores_that_are_known_in_advance(small):
     assert rows["cv"]["rmse_m"] < straight["rmse_m"]  # a filter beats the raw reports
     for name in ("sprt", "fixed_radius_imm", "cv", "always_straight"):  # no stop mode: never "stop"
         assert rows[name]["recall"]["stop"] in (None, 0.0), name
+    assert rows["ships"]["rmse_m"] < rows["turn_rate_imm"]["rmse_m"]  # the reported velocity helps the positions

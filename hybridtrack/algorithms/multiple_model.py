@@ -76,6 +76,7 @@ import numpy as np
 
 from hybridtrack.algorithms.bank_runs import run_alone
 from hybridtrack.algorithms.mode_smoothing import smooth_log_mode_probabilities
+from hybridtrack.algorithms.state_smoothing import smooth_models
 from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry, registry_or_default
@@ -245,15 +246,30 @@ class MultipleModelEstimator:
     def smooth(self, run: MultipleModelRun, lag: float | None = None) -> MultipleModelRun:
         """The run with smoothed mode probabilities (:mod:`hybridtrack.algorithms.mode_smoothing`; fixed interval,
         or fixed lag of ``lag`` seconds): ``log_mode_probabilities`` ln μ_{k|N}, ``mode`` their argmax, ``means`` and
-        ``covs`` the models' estimates x̂_j(k|k) mixed with them (the modes smoothed; each model's own estimate
-        stays the filtered one)."""
+        ``covs`` the models' estimates mixed with them.  Fixed interval (or a lag over the whole run): each model's
+        own estimate (``model_means``, ``model_covs``) smoothed by the backward pass of
+        :func:`~hybridtrack.algorithms.state_smoothing.smooth_models`; a shorter fixed lag: the filtered ones."""
         times = np.asarray(run.times, dtype=float)
         r = len(self.models)
         log_transitions = np.zeros((times.size, r, r))
         log_transitions[1:] = self.log_transition_matrix(np.diff(times))
         log_mu = smooth_log_mode_probabilities(run.log_mode_probabilities, run.model_loglik, log_transitions, times, lag)
-        means, covs = mixture(log_mu, run.model_means, run.model_covs)
-        return attrs.evolve(run, log_mode_probabilities=log_mu, mode=np.argmax(log_mu, axis=1), means=means, covs=covs)
+        if lag is None or lag >= times[-1] - times[0]:  # a lag over the whole run is the fixed interval
+            model_means, model_covs, means, covs = smooth_models(
+                run.model_means, run.model_covs, run.log_mode_probabilities, log_mu, log_transitions, times, self.models, self.layout
+            )
+        else:
+            model_means, model_covs = run.model_means, run.model_covs
+            means, covs = mixture(log_mu, model_means, model_covs)
+        return attrs.evolve(
+            run,
+            log_mode_probabilities=log_mu,
+            mode=np.argmax(log_mu, axis=1),
+            means=means,
+            covs=covs,
+            model_means=model_means,
+            model_covs=model_covs,
+        )
 
     # ------------------------------------------------------------------ Markov chain
     def log_transition_matrix(self, dt) -> np.ndarray:

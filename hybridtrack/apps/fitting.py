@@ -36,7 +36,7 @@ import attrs
 import numpy as np
 from scipy.optimize import minimize
 
-from hybridtrack.apps.tracking import MULTIPLE_MODEL, ConfigError, build_tracker, load_config, track_prior
+from hybridtrack.apps.tracking import MULTIPLE_MODEL, ConfigError, build_tracker, load_config, measurements_of, track_prior
 from hybridtrack.io.track_files import read_tracks
 
 #: parameter → (table, key, units)
@@ -74,12 +74,10 @@ def _with(config: dict, values: Mapping[str, float]) -> dict:
 
 def log_likelihood(config: dict, tracks: Iterable, registry=None) -> float:
     """ℓ of the tracks (module docstring) under a checked configuration of a multiple-model algorithm."""
-    estimator, sensor, _ = build_tracker(config, registry)
+    estimator = build_tracker(config, registry)[0]
     total = 0.0
     for track in tracks:
-        run = estimator.run(
-            {sensor.name: np.asarray(track.positions[:, :2], dtype=float)}, track_prior(track, config, estimator.layout), times=track.times
-        )
+        run = estimator.run(measurements_of(track, config), track_prior(track, config, estimator.layout), times=track.times)
         total += float(np.sum(run.loglik))
     return total
 

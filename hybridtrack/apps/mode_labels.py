@@ -175,7 +175,11 @@ def _segment_rate(t, c, raw, first, last, window) -> float:
     return float(np.median(w[np.isfinite(w)])) if np.isfinite(w).any() else math.nan
 
 
-def _states(omega, v, p) -> list[str]:
+def motion_states(omega, v, p) -> list[str]:
+    """The mode of each report from its turn rate ω (rad/s, counter-clockwise positive) and speed v (m/s) by the
+    hysteresis of step 3 of the module docstring, thresholds ``p["omega_on"]``, ``p["omega_off"]``,
+    ``p["v_stop"]``, ``p["v_go"]`` (what :func:`label_modes` does with the smoothed course and speed, and what
+    ``hybridtrack track`` does with the estimated ω̂ and |v̂| under ``[segments] by = "motion"``)."""
     state = "straight"
     stopped = False
     out = []
@@ -233,7 +237,7 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
     t, c, v = _checked(times, course=course, speed=speed)
     omega = turn_rate(t, c, p["window"])
     vbar = smoothed_speed(t, v, p["window"])
-    runs = _merge_short(_joined([[m, k, k] for k, m in enumerate(_states(omega, vbar, p))]), t, p["min_duration"])
+    runs = _merge_short(_joined([[m, k, k] for k, m in enumerate(motion_states(omega, vbar, p))]), t, p["min_duration"])
     raw = _step_rates(t, c)
     segments = []
     for i, (mode, first, last) in enumerate(runs):

@@ -64,6 +64,7 @@ from typing import Any
 import attrs
 import numpy as np
 
+from hybridtrack.apps.mode_labels import motion_states
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.validation import check_positive
@@ -81,6 +82,8 @@ DEFAULT_OBJECT_CLASS = "aircraft"
 CLASS_JUMP_TOLERANCE = 100.0
 #: problem kinds that are the file's own codes, not faults: ``--strict`` lets them pass
 NOT_FAULTS = ("not_available",)
+#: the prior σ of a turn rate ω in the state (°/s): a ship's or an airliner's standard-rate turn is within 1.5 σ
+TURN_RATE_SIGMA = 2.0
 #: the vertical filter's defaults: σ_h (m), white-acceleration density q (m²/s³), prior σ of the climb rate (m/s)
 ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma": 5.0}
 
@@ -88,9 +91,10 @@ ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma
 _KIND_ONLY = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), "imm": ("sojourn", "method")}
 _SECTIONS = {
     "reader": set(inspect.signature(read_tracks).parameters) - {"path", "warn"} | {"preset", "min_reports"},  # read_tracks' keywords
-    "measurement": {"sigma", "time_jitter"},
+    "measurement": {"sigma", "time_jitter", "speed_sigma", "course_sigma"},
     "altitude": set(ALTITUDE_DEFAULTS),
-    "prior": {"velocity", "position_sigma", "velocity_sigma"},
+    "prior": {"velocity", "position_sigma", "velocity_sigma", "turn_rate_sigma"},
+    "segments": {"by", "turn_rate_on", "turn_rate_off", "stop_speed", "go_speed"},
     "estimator": {"algorithm", "kind", "filter", "process_noise", "noise_density", "modes", "radii", "parameters"}
     | set(_KIND_ONLY["unknown_change"] + _KIND_ONLY["imm"]),
 }
@@ -165,6 +169,17 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         }
     if "time_jitter" in out["measurement"]:
         out["measurement"]["time_jitter"] = _positive("measurement", "time_jitter", out["measurement"]["time_jitter"], where)
+    velocity = [key for key in ("speed_sigma", "course_sigma") if key in out["measurement"]]
+    if velocity:  # the reported course and speed as a velocity measurement
+        if len(velocity) == 1:
+            raise ConfigError(f"{where}: [measurement] speed_sigma (m/s) and course_sigma (degrees): give both or neither")
+        for key in velocity:
+            out["measurement"][key] = _positive("measurement", key, out["measurement"][key], where)
+        if reader.get("course") is None or reader.get("speed") is None:
+            raise ConfigError(
+                f"{where}: [measurement] speed_sigma and course_sigma measure the reported course and speed: [reader] needs"
+                f" the course and speed columns (course = ..., speed = ...), got course = {reader.get('course')!r}, speed = {reader.get('speed')!r}"
+            )
 
     alt = out["altitude"]
     for key, default in ALTITUDE_DEFAULTS.items():
@@ -176,6 +191,9 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         raise ConfigError(f"{where}: [prior] velocity = {prior['velocity']!r}; expected 'two_fixes' or 'zero'")
     prior["position_sigma"] = _positive("prior", "position_sigma", prior.get("position_sigma", 10.0 * out["measurement"]["sigma"]), where)
     prior["velocity_sigma"] = _positive("prior", "velocity_sigma", prior.get("velocity_sigma", 10.0), where)
+    prior["turn_rate_sigma"] = _positive("prior", "turn_rate_sigma", prior.get("turn_rate_sigma", TURN_RATE_SIGMA), where)
+
+    out["segments"] = _segment_rule(out["segments"], where)
 
     est = out["estimator"]
     given = [key for key in ("algorithm", "kind") if key in est]  # kind: the older spelling
@@ -234,6 +252,29 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
     return out
 
 
+def _segment_rule(table: dict, where: str) -> dict:
+    """``[segments]`` checked, defaults filled: ``by`` ``"model"`` (the followed or most probable model) or
+    ``"motion"`` (the estimated turn rate and speed through :func:`~hybridtrack.apps.mode_labels.motion_states`:
+    ``turn_rate_on`` / ``turn_rate_off`` in °/s (0.5 and half of it), ``stop_speed`` / ``go_speed`` in m/s (0.5 and
+    twice it))."""
+    by = table.get("by", "model")
+    if by not in ("model", "motion"):
+        raise ConfigError(
+            f"{where}: [segments] by = {by!r}; expected 'model' (the most probable model) or 'motion' (the estimated turn rate and speed)"
+        )
+    if by == "model" and set(table) - {"by"}:
+        raise ConfigError(f"{where}: [segments] {sorted(set(table) - {'by'})} need by = 'motion'")
+    on = _positive("segments", "turn_rate_on", table.get("turn_rate_on", 0.5), where)
+    off = _positive("segments", "turn_rate_off", table.get("turn_rate_off", on / 2), where)
+    stop = _positive("segments", "stop_speed", table.get("stop_speed", 0.5), where)
+    go = _positive("segments", "go_speed", table.get("go_speed", 2 * stop), where)
+    if off > on or go < stop:
+        raise ConfigError(
+            f"{where}: [segments] expected turn_rate_off ≤ turn_rate_on and go_speed ≥ stop_speed, got {off:g} > {on:g} or {go:g} < {stop:g}"
+        )
+    return {"by": by, "turn_rate_on": on, "turn_rate_off": off, "stop_speed": stop, "go_speed": go}
+
+
 def _modes(modes, radii, where) -> list[tuple[str, dict]]:
     """(registry name, parameters) per mode: bare turn names expanded over ``radii``."""
     if not isinstance(modes, list) or not modes:
@@ -266,14 +307,19 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
 
 
 def build_tracker(config: dict, registry=None):
-    """(algorithm, sensor, models) from a checked configuration (:func:`load_config`; registry resolution, no plugin
-    imports)."""
+    """(algorithm, position sensor, models) from a checked configuration (:func:`load_config`; registry resolution,
+    no plugin imports); with ``[measurement] speed_sigma`` and ``course_sigma`` the algorithm also has the
+    ``velocity`` sensor of the reported course and speed (:func:`measurements_of`)."""
     measurement = config["measurement"]
     sensor = resolve(
         "sensor",
         ("position", {"noise_cov": measurement["sigma"] ** 2 * np.eye(2), "time_jitter": measurement.get("time_jitter", 0.0)}),
         registry,
     )
+    sensors = [sensor]
+    if "speed_sigma" in measurement:
+        course_sigma = math.radians(measurement["course_sigma"])
+        sensors.append(resolve("sensor", ("velocity", {"speed_sigma": measurement["speed_sigma"], "course_sigma": course_sigma}), registry))
     est = config["estimator"]
     noise = {"noise_density": est["noise_density"]} if "noise_density" in est else {"noise_cov": est["process_noise"] ** 2 * np.eye(2)}
     specs = []
@@ -284,23 +330,42 @@ def build_tracker(config: dict, registry=None):
             raise ConfigError(f"[estimator] modes: unknown motion model {name!r} ({error.args[0] if error.args else error})") from None
     family = "imm" if est["algorithm"] in MULTIPLE_MODEL else est["algorithm"]
     parameters = {key: est[key] for key in _KIND_ONLY.get(family, ()) if key in est}
-    parameters.update(modes=specs, sensors=[sensor], estimator=est["filter"], name="track", registry=registry, **est["parameters"])
+    parameters.update(modes=specs, sensors=sensors, estimator=est["filter"], name="track", registry=registry, **est["parameters"])
     try:
         estimator = resolve("algorithm", (est["algorithm"], parameters), registry)
     except (TypeError, ValueError) as error:  # a keyword the algorithm does not take, a bad value, not an algorithm
         raise ConfigError(f"[estimator] algorithm {est['algorithm']!r}: {error}") from None
     except KeyError as error:
         raise ConfigError(f"[estimator]: {error.args[0] if error.args else error}") from None
+    if config["segments"]["by"] == "motion" and "omega" not in estimator.layout:
+        raise ConfigError(
+            f"[segments] by = 'motion' needs a turn-rate estimate: a mode with omega in its state (coordinated_turn); the layout is {estimator.layout}"
+        )
     return estimator, sensor, specs
 
 
+def measurements_of(track: Track, config: dict) -> dict[str, np.ndarray]:
+    """The measurements of a track by sensor name: ``position`` (K, 2) its fixes; with ``[measurement]
+    speed_sigma``/``course_sigma`` also ``velocity`` (K, 2) = s (sin χ, cos χ) (east, north) of its reported speed s
+    and course χ, NaN (no measurement) where either is not available."""
+    out = {"position": np.asarray(track.positions[:, :2], dtype=float)}
+    if "speed_sigma" in config["measurement"]:
+        if track.course is None or track.speed is None:
+            raise ValueError(f"object {track.id!r}: [measurement] speed_sigma/course_sigma need its course and speed, the file has none")
+        course = np.radians(track.course)
+        out["velocity"] = track.speed[:, None] * np.column_stack([np.sin(course), np.cos(course)])
+    return out
+
+
 def track_prior(track: Track, config: dict, layout: Sequence[str]):
-    """(mean, cov) in ``layout``: position = first fix, velocity from the first two fixes (or zero), diagonal covariance."""
+    """(mean, cov) in ``layout``: position = first fix, velocity from the first two fixes (or zero), a turn rate ω (if
+    the layout has it) of 0 with σ = ``[prior] turn_rate_sigma`` (°/s), other components 0 with variance 1; diagonal."""
     p = config["prior"]
     z = track.positions[:, :2]
     v = (z[1] - z[0]) / (track.times[1] - track.times[0]) if p["velocity"] == "two_fixes" else np.zeros(2)
     values = {"x": z[0, 0], "y": z[0, 1], "vx": v[0], "vy": v[1]}
     variances = dict.fromkeys(("x", "y"), p["position_sigma"] ** 2) | dict.fromkeys(("vx", "vy"), p["velocity_sigma"] ** 2)
+    variances["omega"] = math.radians(p["turn_rate_sigma"]) ** 2
     return np.array([values.get(c, 0.0) for c in layout]), np.diag([variances.get(c, 1.0) for c in layout])
 
 
@@ -369,10 +434,34 @@ def _summary_mode(model) -> tuple[str, float | None]:
     return SUMMARY_NAMES.get(model.name, model.name), (None if radius is None else float(radius))
 
 
-def _step_modes(models, run, layout) -> tuple[list[str], list[float | None]]:
-    """The summary (mode, radius) of every step: the followed (most probable) model's; a model with the turn rate
-    in its state (``omega``) is a left turn where the estimated ω > 0 and a right turn where it is negative (its
-    radius varies along the turn: None)."""
+def estimated_turn_rate(models, run, layout) -> np.ndarray:
+    """ω̂ (K,) rad/s: of a multiple-model run the mean of the turn-rate models' own estimates (the models with
+    ``omega`` in their layout), weighted by their probabilities — not shrunk towards the 0 that the other
+    models lack it at; else the run's ω̂."""
+    i = layout.index("omega")
+    own = np.array(["omega" in m.layout for m in models])
+    if getattr(run, "model_means", None) is None or not own.any():
+        return run.means[:, i]
+    mu = run.mode_probabilities[:, own]
+    return np.sum(mu * run.model_means[:, own, i], axis=1) / np.maximum(np.sum(mu, axis=1), 1e-300)
+
+
+def _step_modes(models, run, layout, rule=None) -> tuple[list[str], list[float | None]]:
+    """The summary (mode, radius) of every step.  ``rule`` (``[segments]``) ``by = "motion"``: straight, left or
+    right turn, stop by the hysteresis of :func:`~hybridtrack.apps.mode_labels.motion_states` on
+    :func:`estimated_turn_rate` and |v̂| (radius None).  Else the followed (most probable) model's; a model with
+    the turn rate in its state (``omega``) is a left turn where the estimated ω > 0 and a right turn where it is
+    negative (its radius varies along the turn: None)."""
+    if rule is not None and rule["by"] == "motion":
+        thresholds = {
+            "omega_on": math.radians(rule["turn_rate_on"]),
+            "omega_off": math.radians(rule["turn_rate_off"]),
+            "v_stop": rule["stop_speed"],
+            "v_go": rule["go_speed"],
+        }
+        speed = np.hypot(run.means[:, layout.index("vx")], run.means[:, layout.index("vy")])
+        modes = motion_states(estimated_turn_rate(models, run, layout), speed, thresholds)
+        return modes, [None] * len(modes)
     omega = run.means[:, layout.index("omega")] if "omega" in layout else None
     out = []
     for k, i in enumerate(run.mode):
@@ -471,7 +560,7 @@ def track_one(
     recording = out is not None and record
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}, epoch=epoch) if recording else None
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
-        run = estimator.run({sensor.name: xy}, track_prior(track, config, layout), times=track.times, recorder=recorder)
+        run = estimator.run(measurements_of(track, config), track_prior(track, config, layout), times=track.times, recorder=recorder)
         _check_finite(run, track)
         if smooth or lag is not None:
             run = estimator.smooth(run, lag)
@@ -486,12 +575,13 @@ def track_one(
         if recorder is not None:
             in_3d = (None, None) if heights is None else (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
-    modes, radii = _step_modes(models, run, layout)  # the followed mode, or the most probable model
+    modes, radii = _step_modes(models, run, layout, config["segments"])
     if getattr(estimator, "detector", None) is not None:
         by_label = dict(zip(run.modes, models))
         decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]
     else:
-        switches = np.flatnonzero(np.diff(run.mode)) + 1
+        changes = np.array(modes) if config["segments"]["by"] == "motion" else run.mode
+        switches = np.flatnonzero(changes[1:] != changes[:-1]) + 1
         decisions = [{"time": float(run.times[k]), "mode": modes[k]} for k in switches]
     if out is not None:
         np.savez(

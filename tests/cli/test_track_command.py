@@ -185,7 +185,7 @@ def test_missing_inputs_are_one_line_and_status_2(tmp_path, capsys, which):
 
 
 def test_example_configs_load():
-    ships = load_config(ROOT / "examples" / "ships.toml")
+    ships = load_config(ROOT / "examples" / "ships_sprt.toml")
     assert ships["measurement"]["sigma"] == 10.0 and ships["reader"]["id"] == "MMSI"
     assert len(ships["estimator"]["modes"]) == 1 + 2 * 3
     aircraft = load_config(ROOT / "examples" / "aircraft.toml")
