@@ -16,8 +16,9 @@ degrees; with altitude ``altitude``, ``altitude_mean``, ``altitude_var`` of :fun
                                 "mean_speed": float, "heading_change": float, "mean_turn_rate": float | null,
                                 "start_utc": str, "end_utc": str}],
                   "decisions": [{"time": float, "mode": str, "time_utc": str}]}],
-     "skipped": [{"id": str, "reason": str}],
+     "skipped": [{"id": str, "reason": str, "failed": true (an object whose tracking failed)}],
      "epoch_utc": str | null, "origin": {"lat": float, "lon": float, "h": float} | null,
+     "max_speed": {"max_speed": float, "set_by": str}, "problem_counts": {kind: int},
      "problems": [{"line": int, "column": str | null, "kind": str, "action": str, "message": str, "id": str | null}]}
 
 Times (``start``, ``end``, ``time``) are seconds after the file's earliest time stamp, ``epoch_utc`` (ISO
@@ -36,10 +37,10 @@ decisions for an algorithm with a detector, else the steps where that mode
 changes.
 
 The configuration (TOML tables ``[reader]``, ``[measurement]``, ``[altitude]``,
-``[prior]``, ``[estimator]``; unknown keys and tables are refused) is tabulated
+``[prior]``, ``[segments]``, ``[estimator]``; unknown keys and tables are refused) is tabulated
 in ``docs/real_data.md`` and checked by :func:`load_config`.  The algorithm is
-built from the registry with the keywords ``modes``, ``sensors`` (the position
-sensor), ``estimator`` (the filter), ``name`` (``"track"``), ``registry``, its
+built from the registry with the keywords ``modes``, ``sensors`` (the position sensor, and the velocity
+sensor of ``[measurement] speed_sigma``/``course_sigma``), ``estimator`` (the filter), ``name`` (``"track"``), ``registry``, its
 own keys and ``[estimator] parameters``, so any registered algorithm taking
 them (:class:`hybridtrack.core.algorithm.Algorithm`) can be named.  Every user
 error — a missing file, unknown key, bad value, unknown algorithm or mode — is
