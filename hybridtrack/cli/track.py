@@ -13,7 +13,8 @@ repaired (one line per kind, with its count and the first file line; all of them
 Exit status: 0 done; 1 done, but at least one object failed (listed in ``summary.json`` ``"skipped"`` with
 ``"failed": true``; the other objects and ``summary.json`` are written); 2 a user error, one line on stderr
 (missing file or configuration, unknown key, bad value, unknown estimator kind or mode, an ``--id`` not in the
-file, an unreadable position file, a file of which no report is left, a row problem under ``--strict``).
+file, an unreadable position file, a file of which no report is left or no object tracked — every one skipped, listed
+in ``summary.json`` — a row problem under ``--strict``).
 """
 
 from __future__ import annotations
@@ -62,6 +63,9 @@ def run(args: argparse.Namespace) -> int:
     failed = [entry for entry in summary["skipped"] if entry.get("failed")]
     for entry in failed:
         print(entry["reason"], file=sys.stderr)
+    if not summary["objects"] and not failed:  # no empty success
+        reasons = "; ".join(f"{e['id']!r}: {e['reason']}" for e in summary["skipped"][:3]) + ("; …" if len(summary["skipped"]) > 3 else "")
+        raise UsageError(f"{args.file}: no object tracked, every one skipped ({reasons}); see {args.out}/summary.json")
     n, s = len(summary["objects"]), len(summary["skipped"])
     print(f"tracked {n} object(s), skipped {s}" + (f" ({len(failed)} failed)" if failed else "") + f"; results in {args.out}")
     return 1 if failed else 0

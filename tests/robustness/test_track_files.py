@@ -189,3 +189,10 @@ def test_an_estimate_that_is_not_finite_fails_that_object_only(tmp_path, capsys,
     assert entry["failed"] and "object 'b' (lines 32–61)" in entry["reason"]
     assert "the estimate is not finite from the report of line 39 (t = 1070 s) on" in entry["reason"], entry
     assert not (out / "b.npz").exists()
+
+
+def test_no_object_tracked_is_status_2_not_an_empty_success(tmp_path, capsys):
+    status, summary, _ = run_track(tmp_path, ["0,a,0,0", "10,a,50,0", "0,b,0,0"])
+    err = capsys.readouterr().err
+    assert status == 2 and "no object tracked, every one skipped" in err and "'a': 2 reports < min_reports 3" in err
+    assert [entry["id"] for entry in summary["skipped"]] == ["a", "b"]  # the summary says why
