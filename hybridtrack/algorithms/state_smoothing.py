@@ -38,22 +38,43 @@ against Helmick et al.: their second, forward filter (the smoothed model
 estimates here come from the RTS form, each model's filtered estimate taken
 as its own Kalman filter's).  With r = 1 it is the RTS smoother above.
 
-Where it falls short: the model-conditioned estimates of an IMM are mixed at
-every step, so a model whose velocity is not the object's (the stop mode's,
-v ≈ 0, while the object moves) biases the others' velocities, and the backward
-pass integrates that bias into the positions.  Measured on the Solent ships
-(``experiments/real_tracks.py``): with the reported course and speed measured
-the smoothed positions are better than the filtered ones; from positions
-alone, with a stop mode, they can be worse (docs/results.md).
+A gate guards the linearization.  Under the model the shift of a step,
+δ = x̂_{k|N} − x̂_{k|k} = C_k (x̂_{k+1|N} − x̄_{k+1}), is N(0, P_{k|k} − P_{k|N})
+with P_{k|N} ≥ 0, so δᵀ P_{k|k}⁻¹ δ is at most χ²_n-distributed; a step beyond
+its 1 − 10⁻⁴ quantile (a coordinated turn linearized over a gap of half an
+hour, where F x̂ is far from f) keeps its filtered estimate, and the pass goes
+on from there.
+
+The gate also stops the one known failure of this approximation: the
+model-conditioned estimates of an IMM are mixed at every step, so a model whose
+velocity is not the object's (the stop mode's, v ≈ 0, while the object moves)
+would bias the others' velocities through the backward mixing, and the pass
+would integrate that bias into the positions; such steps fall outside the
+gate.  Measured on the 74 Solent ships (``experiments/real_tracks.py``, the
+whole file): docs/results.md.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
+import scipy.stats
 
 from hybridtrack.core.interfaces import MotionModel
 from hybridtrack.sdk.mixtures import logsumexp, mixture
+
+#: the probability beyond which a smoothing step's shift counts as a failed linearization (module docstring)
+GATE_PROBABILITY = 1e-4
+
+
+def consistent(shift, P, gate: float) -> bool:
+    """δᵀ P⁻¹ δ ≤ gate for the shift δ = x̂_{k|N} − x̂_{k|k} of a smoothing step and the filtered covariance P: under the
+    model δ ~ N(0, P_{k|k} − P_{k|N}), P_{k|N} ≥ 0, so δᵀ P_{k|k}⁻¹ δ is at most χ²_n-distributed (module docstring)."""
+    try:
+        factor = scipy.linalg.cho_factor(P)
+    except np.linalg.LinAlgError:
+        return True  # a singular filtered covariance (a state known exactly): nothing to gate against
+    return float(shift @ scipy.linalg.cho_solve(factor, shift)) <= gate
 
 
 def rts_smooth(means, covs, times, model: MotionModel) -> tuple[np.ndarray, np.ndarray]:
@@ -99,6 +120,7 @@ def smooth_models(model_means, model_covs, log_filtered, log_smoothed, log_trans
         if missing:
             raise ValueError(f"layout {tuple(layout)}: lacks {missing} of the model {model.name!r}")
         owns.append(np.array([list(layout).index(c) for c in model.layout]))
+    gates = [scipy.stats.chi2.ppf(1.0 - GATE_PROBABILITY, len(own)) for own in owns]
     has = np.zeros((r, n), dtype=bool)  # has[i, c]: model i has component c
     for i, own in enumerate(owns):
         has[i, own] = True
@@ -120,8 +142,10 @@ def smooth_models(model_means, model_covs, log_filtered, log_smoothed, log_trans
             predicted_cov = F @ P @ F.T + transition.process_noise
             predicted_cov = 0.5 * (predicted_cov + predicted_cov.T)
             gain = scipy.linalg.cho_solve(scipy.linalg.cho_factor(predicted_cov), F @ P).T  # C = P Fᵀ P̄⁻¹ (P̄ symmetric)
-            smoothed_means[k, j, own] = x + gain @ (target[own] - transition.apply(x))
-            cov = P + gain @ (target_cov[np.ix_(own, own)] - predicted_cov) @ gain.T
-            smoothed_covs[k, j][np.ix_(own, own)] = 0.5 * (cov + cov.T)
+            shift = gain @ (target[own] - transition.apply(x))
+            if consistent(shift, P, gates[j]):  # else the linearization failed: the filtered estimate stays
+                smoothed_means[k, j, own] = x + shift
+                cov = P + gain @ (target_cov[np.ix_(own, own)] - predicted_cov) @ gain.T
+                smoothed_covs[k, j][np.ix_(own, own)] = 0.5 * (cov + cov.T)
     means, covs = mixture(log_smoothed, smoothed_means, smoothed_covs)
     return smoothed_means, smoothed_covs, means, covs

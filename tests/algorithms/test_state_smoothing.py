@@ -109,3 +109,15 @@ def test_bad_inputs_name_what_is_wrong(call, message):
     model, times, means, covs, _, _ = filtered_cv_run(steps=5)
     with pytest.raises(ValueError, match=message):
         call(model, times, means, covs)
+
+
+def test_a_step_outside_the_gate_keeps_its_filtered_estimate():
+    """A nearly noise-free straight model (σ 10 m filtered) whose next smoothed state lies 10 km aside: the backward
+    step would move the estimate 10 km, far outside the χ² gate of the filtered covariance, so the filtered estimate
+    stays; 10 m aside it moves (inside the gate)."""
+    model = resolve("motion_model", ("straight", {"noise_density": 1e-9}))
+    x0, P0 = np.array([0.0, 5.0, 0.0, 0.0]), np.diag([100.0, 1.0, 100.0, 1.0])
+    for offset, kept in ((1e4, True), (10.0, False)):
+        x1 = np.array([50.0, 5.0, offset, 0.0])
+        smoothed, _ = rts_smooth(np.stack([x0, x1]), np.stack([P0, P0]), np.array([0.0, 10.0]), model)
+        assert np.array_equal(smoothed[0], x0) == kept, (offset, smoothed[0])
