@@ -79,8 +79,10 @@ MULTIPLE_MODEL = ("imm", "gpb1", "gpb2")
 SUMMARY_NAMES = {"constant_acceleration": "acceleration"}
 #: the object class whose speed limit applies when ``[reader]`` gives neither ``max_speed`` nor ``object_class``
 DEFAULT_OBJECT_CLASS = "aircraft"
-#: ``jump_tolerance`` (m) with a class's speed limit when ``[reader]`` does not give it: GPS noise and a second of time-stamp jitter
+#: ``jump_tolerance`` (m) with a class's speed limit when ``[reader]`` does not give it: 100 m plus 5 times the fixes'
+#: noise, σ + σ_t v_max (the position σ and the along-track error of a time-stamp jitter σ_t at the class's speed)
 CLASS_JUMP_TOLERANCE = 100.0
+JUMP_SIGMAS = 5.0
 #: problem kinds that are the file's own codes, not faults: ``--strict`` lets them pass
 NOT_FAULTS = ("not_available",)
 #: the prior σ of a turn rate ω in the state (°/s): a ship's or an airliner's standard-rate turn is within 1.5 σ
@@ -153,6 +155,8 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
     if sigma is None:
         raise ConfigError(f"{where}: [measurement] sigma (m) is required")
     out["measurement"]["sigma"] = _positive("measurement", "sigma", sigma, where)
+    if "time_jitter" in out["measurement"]:
+        out["measurement"]["time_jitter"] = _positive("measurement", "time_jitter", out["measurement"]["time_jitter"], where)
     if "max_speed" in reader:
         out["speed_limit"] = {"max_speed": reader["max_speed"], "set_by": "[reader] max_speed"}
     else:
@@ -161,15 +165,15 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
             raise ConfigError(f"{where}: [reader] object_class = {chosen!r}; expected one of {sorted(SPEED_LIMITS)}")
         given = "object_class" in reader
         reader["object_class"] = chosen
-        reader.setdefault("jump_tolerance", CLASS_JUMP_TOLERANCE)
+        jitter = out["measurement"].get("time_jitter", 0.0)
+        tolerance = CLASS_JUMP_TOLERANCE + JUMP_SIGMAS * (out["measurement"]["sigma"] + jitter * SPEED_LIMITS[chosen])
+        reader.setdefault("jump_tolerance", tolerance)
         out["speed_limit"] = {
             "max_speed": SPEED_LIMITS[chosen],
             "set_by": f"[reader] object_class {chosen!r}"
             if given
             else f"default: no [reader] max_speed or object_class, the {chosen!r} class's",
         }
-    if "time_jitter" in out["measurement"]:
-        out["measurement"]["time_jitter"] = _positive("measurement", "time_jitter", out["measurement"]["time_jitter"], where)
     velocity = [key for key in ("speed_sigma", "course_sigma") if key in out["measurement"]]
     if velocity:  # the reported course and speed as a velocity measurement
         if len(velocity) == 1:
