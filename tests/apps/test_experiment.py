@@ -351,7 +351,8 @@ def test_killing_a_process_pool_campaign_leaves_no_worker_and_resumes_every_run_
     """The main process of a 2-worker campaign is SIGKILLed (or gets Ctrl-C on its process group) after 3 chunks."""
     out, log, n = tmp_path / "out", tmp_path / "runs.log", 10
     args = ["run", SLOW, "--n", n, "--executor", "process", "--workers", 2, "--chunk", 1, "--out", out, "--seed", 6]
-    args = [*map(str, args), "--param", "delay=0.3", "--param", f"log={log}", "--no-progress"]
+    # 1 s per run: after the third chunk the campaign still has > 3 s to go, more than a gen-2 GC pause of a big pytest process
+    args = [*map(str, args), "--param", "delay=1.0", "--param", f"log={log}", "--no-progress"]
     campaign = subprocess.Popen([sys.executable, "-m", "hybridtrack", *args], stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         assert _wait_for(lambda: len(list(out.glob("runs-*.npz"))) >= 3), "the campaign stored nothing"
