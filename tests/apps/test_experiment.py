@@ -335,6 +335,13 @@ def _running(pid: int) -> bool:
     return "State:\tZ" not in status
 
 
+def _as_from_a_terminal() -> None:
+    """In the child before exec: SIGINT at its default and unblocked, as a shell starts a program (a child inherits
+    an ignored or blocked SIGINT, and a test run's threads — thread pools, spawned helpers — may leave it so)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def _wait_for(condition, limit: float = 60.0) -> bool:
     deadline = time.monotonic() + limit
     while time.monotonic() < deadline:
@@ -351,9 +358,14 @@ def test_killing_a_process_pool_campaign_leaves_no_worker_and_resumes_every_run_
     """The main process of a 2-worker campaign is SIGKILLed (or gets Ctrl-C on its process group) after 3 chunks."""
     out, log, n = tmp_path / "out", tmp_path / "runs.log", 10
     args = ["run", SLOW, "--n", n, "--executor", "process", "--workers", 2, "--chunk", 1, "--out", out, "--seed", 6]
-    # 1 s per run: after the third chunk the campaign still has > 3 s to go, more than a gen-2 GC pause of a big pytest process
-    args = [*map(str, args), "--param", "delay=1.0", "--param", f"log={log}", "--no-progress"]
-    campaign = subprocess.Popen([sys.executable, "-m", "hybridtrack", *args], stderr=subprocess.PIPE, text=True, start_new_session=True)
+    args = [*map(str, args), "--param", "delay=0.3", "--param", f"log={log}", "--no-progress"]
+    campaign = subprocess.Popen(
+        [sys.executable, "-m", "hybridtrack", *args],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=_as_from_a_terminal,
+    )
     try:
         assert _wait_for(lambda: len(list(out.glob("runs-*.npz"))) >= 3), "the campaign stored nothing"
         workers = _children(campaign.pid)
