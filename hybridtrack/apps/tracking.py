@@ -292,12 +292,14 @@ def _modes(modes, radii, where) -> list[tuple[str, dict]]:
     for entry in modes:
         if isinstance(entry, str):
             name, params = entry, {}
-        elif isinstance(entry, Mapping) and isinstance(entry.get("name"), str) and set(entry) <= {"name", "radius", "noise_density"}:
+        elif isinstance(entry, Mapping) and isinstance(entry.get("name"), str):  # any of the model's own parameters
             name, params = entry["name"], {k: v for k, v in entry.items() if k != "name"}
-            for key in set(params):
+            for key in set(params) & {"radius", "noise_density"}:
                 params[key] = _positive("estimator", f"modes.{key}", params[key], where)
         else:
-            raise ConfigError(f"{where}: [estimator] modes entry {entry!r}; expected a name or {{name = …, radius = …, noise_density = …}}")
+            raise ConfigError(
+                f"{where}: [estimator] modes entry {entry!r}; expected a name or a table {{name = …, <the model's parameters> …}}"
+            )
         name = "constant_acceleration" if name == "acceleration" else name
         if name in ("left_turn", "right_turn") and "radius" not in params:
             if radii is None:
@@ -329,10 +331,20 @@ def build_tracker(config: dict, registry=None):
     noise = {"noise_density": est["noise_density"]} if "noise_density" in est else {"noise_cov": est["process_noise"] ** 2 * np.eye(2)}
     specs = []
     for name, params in est["modes"]:
-        try:  # a mode's own noise_density (a stop's m²/s) before the estimator's
-            specs.append(resolve("motion_model", (name, params if "noise_density" in params else {**params, **noise}), registry))
+        try:
+            factory = registry_or_default(registry).get("motion_model", name)
         except KeyError as error:
             raise ConfigError(f"[estimator] modes: unknown motion model {name!r} ({error.args[0] if error.args else error})") from None
+        known = _parameter_names(factory)
+        unknown = sorted(set(params) - known) if known is not None else []
+        if unknown:
+            raise ConfigError(f"[estimator] modes: {name!r} has no parameter {unknown[0]!r}; its parameters are {sorted(known)}")
+        # the estimator's noise where the model takes it and the mode table gives none (a stop's own m²/s first)
+        inherited = {k: v for k, v in noise.items() if known is None or k in known} if "noise_density" not in params else {}
+        try:
+            specs.append(resolve("motion_model", (name, {**params, **inherited}), registry))
+        except (TypeError, ValueError) as error:
+            raise ConfigError(f"[estimator] modes: {name!r} with {params}: {error}") from None
     family = "imm" if est["algorithm"] in MULTIPLE_MODEL else est["algorithm"]
     parameters = {key: est[key] for key in _KIND_ONLY.get(family, ()) if key in est}
     parameters.update(modes=specs, sensors=sensors, estimator=est["filter"], name="track", registry=registry, **est["parameters"])
@@ -360,6 +372,17 @@ def measurements_of(track: Track, config: dict) -> dict[str, np.ndarray]:
         course = np.radians(track.course)
         out["velocity"] = track.speed[:, None] * np.column_stack([np.sin(course), np.cos(course)])
     return out
+
+
+def _parameter_names(factory) -> set[str] | None:
+    """The keyword parameters a component factory takes (None: any, it has ``**kwargs`` or no signature)."""
+    try:
+        parameters = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):
+        return None
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
+        return None
+    return {p.name for p in parameters if p.kind in (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)}
 
 
 def track_prior(track: Track, config: dict, layout: Sequence[str]):
