@@ -17,6 +17,7 @@ each filter's predicted state (``Sensor.state_noise``).
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from collections.abc import Sequence
 from typing import ClassVar
 
@@ -35,8 +36,39 @@ def _components(value) -> tuple[str, ...]:
     return value
 
 
+class SelectionSensor(Sensor):
+    """A linear sensor whose z is the state's named ``components`` (H a selection): what the position sensor and the
+    velocity sensor (``velocity.py``) share; a subclass gives ``name``, ``components`` and R (``noise_cov``)."""
+
+    @property
+    @abstractmethod
+    def noise_cov(self) -> np.ndarray:
+        """R (m, m)."""
+
+    def indices(self, layout: Sequence[str]) -> list[int]:
+        """Indices of the measured components in ``layout`` (H as a selection)."""
+        layout = tuple(layout)
+        missing = [c for c in self.components if c not in layout]
+        if missing:
+            raise ValueError(f"sensor {self.name!r} measures {missing} not in the state layout {layout}")
+        return [layout.index(c) for c in self.components]
+
+    def matrix(self, layout: Sequence[str]) -> np.ndarray:
+        """H (m, n): row i selects component ``components[i]`` of ``layout``."""
+        H = np.zeros((len(self.components), len(tuple(layout))))
+        H[np.arange(len(self.components)), self.indices(layout)] = 1.0
+        return H
+
+    def measure(self, x, layout):
+        return np.asarray(x, dtype=float)[..., self.indices(layout)]
+
+    def jacobian(self, x, layout):
+        x = np.asarray(x, dtype=float)
+        return np.broadcast_to(self.matrix(layout), x.shape[:-1] + (len(self.components), len(tuple(layout)))).copy()
+
+
 @attrs.frozen
-class PositionSensor(Sensor):
+class PositionSensor(SelectionSensor):
     """Linear sensor measuring the named state components (default ``("x", "y")``) with noise R."""
 
     registry_name: ClassVar[str] = "position"
@@ -85,27 +117,6 @@ class PositionSensor(Sensor):
             v = np.asarray(x, dtype=float)[..., self.velocity_indices(layout)]
             z = z + v * (self.time_jitter * rng.standard_normal(v.shape[:-1] + (1,)))
         return z
-
-    def matrix(self, layout: Sequence[str]) -> np.ndarray:
-        """H (m, n): row i selects component ``components[i]`` of ``layout``."""
-        H = np.zeros((len(self.components), len(tuple(layout))))
-        H[np.arange(len(self.components)), self.indices(layout)] = 1.0
-        return H
-
-    def indices(self, layout: Sequence[str]) -> list[int]:
-        """Indices of the measured components in ``layout`` (H as a selection)."""
-        layout = tuple(layout)
-        missing = [c for c in self.components if c not in layout]
-        if missing:
-            raise ValueError(f"sensor {self.name!r} measures {missing} not in the state layout {layout}")
-        return [layout.index(c) for c in self.components]
-
-    def measure(self, x, layout):
-        return np.asarray(x, dtype=float)[..., self.indices(layout)]
-
-    def jacobian(self, x, layout):
-        x = np.asarray(x, dtype=float)
-        return np.broadcast_to(self.matrix(layout), x.shape[:-1] + (len(self.components), len(tuple(layout)))).copy()
 
 
 @hookimpl

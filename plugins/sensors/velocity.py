@@ -25,7 +25,7 @@ import attrs
 import numpy as np
 
 from hybridtrack import hookimpl
-from hybridtrack.core.interfaces import Sensor
+from hybridtrack_plugins.sensors.position import SelectionSensor
 
 
 def _sigma(name: str, unit: str):
@@ -38,7 +38,7 @@ def _sigma(name: str, unit: str):
 
 
 @attrs.frozen
-class VelocitySensor(Sensor):
+class VelocitySensor(SelectionSensor):
     """Linear sensor of ("vx", "vy") with the course/speed error shape R(x) of the module docstring:
     ``speed_sigma`` σ_s (m/s, > 0), ``course_sigma`` σ_χ (radians, ≥ 0)."""
 
@@ -62,26 +62,6 @@ class VelocitySensor(Sensor):
     @property
     def noise_depends_on_state(self) -> bool:
         return self.course_sigma > 0
-
-    def indices(self, layout) -> list[int]:
-        layout = tuple(layout)
-        missing = [c for c in self.components if c not in layout]
-        if missing:
-            raise ValueError(f"sensor {self.name!r} measures {missing} not in the state layout {layout}")
-        return [layout.index(c) for c in self.components]
-
-    def matrix(self, layout) -> np.ndarray:
-        """H (2, n): rows select "vx" and "vy" of ``layout``."""
-        H = np.zeros((2, len(tuple(layout))))
-        H[[0, 1], self.indices(layout)] = 1.0
-        return H
-
-    def measure(self, x, layout):
-        return np.asarray(x, dtype=float)[..., self.indices(layout)]
-
-    def jacobian(self, x, layout):
-        x = np.asarray(x, dtype=float)
-        return np.broadcast_to(self.matrix(layout), x.shape[:-1] + (2, len(tuple(layout)))).copy()
 
     def state_noise(self, x, layout):
         """σ_χ² (|v|² I − v vᵀ) at x (..., n) → (..., 2, 2), the course part of R(x) (module docstring)."""
