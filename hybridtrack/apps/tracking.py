@@ -56,7 +56,6 @@ import math
 import os
 import re
 import tomllib
-from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from datetime import UTC, timedelta
 from pathlib import Path
@@ -69,7 +68,7 @@ from hybridtrack.apps.mode_labels import motion_states
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.validation import check_positive
-from hybridtrack.io.track_files import SOLENT_AIS, SPEED_LIMITS, Track, read_tracks, unproject
+from hybridtrack.io.track_files import SOLENT_AIS, SPEED_LIMITS, Track, problem_kinds, read_tracks, unproject
 
 #: reader presets by name (the ``preset`` key of ``[reader]``)
 PRESETS = {"solent_ais": SOLENT_AIS}
@@ -716,7 +715,7 @@ def track_file(
         "epoch_utc": None if data.epoch is None else utc_text(data.epoch, 0.0),
         "origin": None if data.origin is None else dict(zip(("lat", "lon", "h"), data.origin)),
         "max_speed": cfg["speed_limit"],
-        "problem_counts": dict(Counter(p.kind for p in data.problems).most_common()),
+        "problem_counts": {kind: n for kind, n, _ in problem_kinds(data.problems)},
         "problems": [attrs.asdict(problem) for problem in data.problems],
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
@@ -724,9 +723,5 @@ def track_file(
 
 
 def problem_summary(problems) -> list[str]:
-    """One text per problem kind, most common first: ``"3 bad_time (dropped; first: FILE:LINE: …)"``."""
-    counts = Counter(p.kind for p in problems)
-    first = {}
-    for p in problems:
-        first.setdefault(p.kind, p)
-    return [f"{n} {kind} ({first[kind].action}; first: {first[kind].message})" for kind, n in counts.most_common()]
+    """One text per problem kind, most common first: ``"3 bad_time (dropped); first: FILE:LINE: …"``."""
+    return [f"{n} {kind} ({first.action}); first: {first.message}" for kind, n, first in problem_kinds(problems)]

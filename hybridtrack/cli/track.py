@@ -44,7 +44,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from hybridtrack.apps.tracking import track_file
+    from hybridtrack.apps.tracking import problem_summary, track_file
+    from hybridtrack.io.track_files import Problem
 
     check_output_folder("--out", args.out)
     try:
@@ -57,9 +58,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.file}: speed limit {limit['max_speed']:g} m/s ({limit['set_by']})", file=sys.stderr)
     if summary["problems"]:
         print(f'{args.file}: {len(summary["problems"])} row problem(s), in summary.json "problems":', file=sys.stderr)
-        for kind, n in summary["problem_counts"].items():
-            first = next(p for p in summary["problems"] if p["kind"] == kind)
-            print(f"  {n} {kind} ({first['action']}); first: {first['message']}", file=sys.stderr)
+        for text in problem_summary([Problem(**problem) for problem in summary["problems"]]):
+            print(f"  {text}", file=sys.stderr)
     failed = [entry for entry in summary["skipped"] if entry.get("failed")]
     for entry in failed:
         print(entry["reason"], file=sys.stderr)

@@ -688,15 +688,22 @@ def _distinct_times(rows, key, report, column) -> list:
     return []
 
 
+def problem_kinds(problems) -> list[tuple[str, int, Problem]]:
+    """(kind, count, the first problem of that kind) per kind of ``problems`` (a sequence), the most common first."""
+    first: dict[str, Problem] = {}
+    for problem in problems:
+        first.setdefault(problem.kind, problem)
+    return [(kind, n, first[kind]) for kind, n in Counter(p.kind for p in problems).most_common()]
+
+
 def _nothing_left(path, rows, problems, header, columns, body, lat, lon) -> str:
     """The message of a file of which every row was dropped: the counts by kind, the first problem of the most
     common kind and, when every latitude is out of range but the longitudes would fit as latitudes, the hint."""
-    counts = Counter(p.kind for p in problems)
-    kind = counts.most_common(1)[0][0] if counts else None
-    summary = ", ".join(f"{n} {k}" for k, n in counts.most_common())
-    first = next((p.message for p in problems if p.kind == kind), "")
+    kinds = problem_kinds(problems)
+    summary = ", ".join(f"{n} {kind}" for kind, n, _ in kinds)
+    first = kinds[0][2].message if kinds else ""
     hint = ""
-    if lat is not None and counts.get("out_of_range"):
+    if lat is not None and any(kind == "out_of_range" for kind, _, _ in kinds):
         pairs = [(finite_number(row[columns[lat]]), finite_number(row[columns[lon]])) for _, row in body if len(row) == len(header)]
         pairs = [(a, b) for a, b in pairs if a is not None and b is not None]
         if pairs and all(abs(a) > 90.0 and abs(b) <= 90.0 for a, b in pairs):
