@@ -91,7 +91,8 @@ ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma
 
 #: keys that belong to one algorithm (``imm``: the whole multiple-model family), given to its factory (but ``method``)
 _KIND_ONLY = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), "imm": ("sojourn", "method")}
-_SECTIONS = {
+#: every key `hybridtrack track` accepts, by section (load_config refuses any other; docs/config.md is generated from it)
+CONFIG_KEYS = {
     "reader": set(inspect.signature(read_tracks).parameters) - {"path", "warn"} | {"preset", "min_reports"},  # read_tracks' keywords
     "measurement": {"sigma", "time_jitter", "speed_sigma", "course_sigma"},
     "altitude": set(ALTITUDE_DEFAULTS),
@@ -128,11 +129,11 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
             raw = tomllib.loads(Path(config).read_text(encoding="utf-8"))
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
             raise ConfigError(f"{where}: not a valid TOML file ({error})") from None
-    unknown = sorted(set(raw) - set(_SECTIONS))
+    unknown = sorted(set(raw) - set(CONFIG_KEYS))
     if unknown:
-        raise ConfigError(f"{where}: unknown section(s) {unknown}; expected some of {sorted(_SECTIONS)}")
+        raise ConfigError(f"{where}: unknown section(s) {unknown}; expected some of {sorted(CONFIG_KEYS)}")
     out = {}
-    for section, keys in _SECTIONS.items():
+    for section, keys in CONFIG_KEYS.items():
         table = raw.get(section, {})
         if not isinstance(table, Mapping):
             raise ConfigError(f"{where}: [{section}] must be a table, got {table!r}")
