@@ -1,5 +1,12 @@
 """Reading real time-stamped position files (AIS, GPS logs): one :class:`Track` per object, in metres.
 
+Sources (:func:`read_tracks`, ``format=`` or the file name's ending): CSV files (below), GPX 1.0/1.1 files
+(:mod:`.gpx_files`, via gpxpy), raw AIS NMEA logs (:mod:`.nmea_files`, via pyais) and pandas DataFrames (the
+columns of a CSV; a problem's ``line`` is the row's position + 2).  Each format's reader only produces the rows
+(:class:`Rows`: text cells under a header, the line of each record, the records it could not use as
+problems); checking them, grouping by id, sorting, duplicates, the speed check, the projection and the
+problem reports below are the same code for every format.
+
 CSV layout (comma separated — or ``;`` when the header has no comma — one header
 row, any column order, extra columns ignored; ``.csv.gz`` is read through gzip)::
 
@@ -64,13 +71,18 @@ reachable from the last good fix are dropped, a lasting jump is flagged and kept
 
 from __future__ import annotations
 
+import importlib
+import inspect
 import itertools
 import math
 import os
+import reprlib
+import sys
 import warnings
 from collections import Counter
 from collections.abc import Sequence
 from datetime import UTC, datetime
+from pathlib import Path
 from types import SimpleNamespace
 
 import attrs
@@ -120,7 +132,8 @@ _HINT = "expected a UTF-8 CSV with a header row and one row per position report"
 class Problem:
     """One fault of the input: ``line`` of the file (the header is line 1; 0 for the whole track), the ``column``
     concerned (or None), ``kind`` (``bad_time``, ``not_a_number``, ``out_of_range``, ``bad_row``, ``missing_id``,
-    ``duplicate_time``, ``conflicting_duplicate``, ``speed_jump``, ``not_available``, ``unsorted``), what was done
+    ``duplicate_time``, ``conflicting_duplicate``, ``speed_jump``, ``not_available``, ``unsorted``; NMEA logs also
+    ``bad_checksum`` and ``not_position``), what was done
     (``action``: ``dropped``, ``flagged``, ``set_nan``, ``sorted``) and a ``message`` naming the file and line."""
 
     line: int
@@ -411,8 +424,71 @@ def projection_error(origin: Sequence[float], distance: float = 100e3, *, projec
 
 # --- reading ---------------------------------------------------------------------------------------------------
 
+#: the formats :func:`read_tracks` reads (``format=``)
+FORMATS = ("csv", "gpx", "nmea")
+#: file name endings (lower case) → format, when ``format`` is not given
+EXTENSIONS = {".csv": "csv", ".csv.gz": "csv", ".gpx": "gpx", ".nmea": "nmea", ".ais": "nmea"}
+#: the module reading each format that is not CSV (its ``read_rows(path)`` → :class:`Rows`, ``SETTINGS`` the
+#: column keywords it fixes, ``COLUMNS`` what its rows hold)
+FILE_READERS = {"gpx": "hybridtrack.io.gpx_files", "nmea": "hybridtrack.io.nmea_files"}
+#: the keywords of :func:`read_tracks` that name or read columns: for CSV files and DataFrames only
+COLUMN_KEYWORDS = (
+    "time",
+    "x",
+    "y",
+    "lat",
+    "lon",
+    "alt",
+    "id",
+    "course",
+    "speed",
+    "speed_unit",
+    "course_not_available",
+    "speed_not_available",
+    "time_unit",
+    "time_format",
+)
+#: the name of a DataFrame source in messages and :attr:`TrackFile.path`
+DATA_FRAME = "<DataFrame>"
 
-def _timestamp(cell: str) -> datetime | None:
+
+class MissingExtraError(ImportError, ValueError):
+    """An optional package a reader needs is not installed; the message names it and the ``pip install
+    hybridtrack[extra]`` that brings it (a ValueError too, so that the CLI reports it as a user error)."""
+
+
+def require(module: str, extra: str, what: str):
+    """The module ``module``, imported on first use; without it a :class:`MissingExtraError` saying that ``what``
+    needs it and ``pip install hybridtrack[extra]``."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as error:
+        message = f"{what} needs the {module} package, which is not installed: pip install hybridtrack[{extra}] ({error})"
+        raise MissingExtraError(message, name=module) from None
+
+
+@attrs.frozen
+class Rows:
+    """The position reports of one source as :func:`read_tracks` checks them, whatever the format: text cells
+    under a ``header`` (the CSV's own; for GPX and NMEA the columns their reader produces), ``body`` (line,
+    cells) with the ``line`` of the source each record starts on, the ``problems`` the format's reader found
+    itself (records it could not turn into a row: ``bad_time``, ``bad_checksum``, ``not_position``, …), ``name``
+    (the file, or ``"<DataFrame>"``, as messages show it), ``records`` (how many records the source held, in
+    ``unit``: the count of the no-report-left error) and ``hint`` (what a valid source looks like)."""
+
+    name: str
+    header_line: int
+    header: list[str]
+    body: list[tuple[int, list[str]]]
+    problems: tuple[Problem, ...] = attrs.field(default=(), converter=tuple)
+    records: int | None = None
+    unit: str = "data rows"
+    hint: str = _HINT
+
+
+def timestamp(cell: str) -> datetime | None:
+    """An ISO-8601 time stamp (``2016-01-12 13:02:11.218``, ``…T13:02:11Z``, ``…+01:00``) as a UTC datetime (naive
+    ones read as UTC), None when ``cell`` is not one."""
     try:
         stamp = datetime.fromisoformat(cell)
     except ValueError:
@@ -420,9 +496,39 @@ def _timestamp(cell: str) -> datetime | None:
     return stamp.replace(tzinfo=UTC) if stamp.tzinfo is None else stamp.astimezone(UTC)
 
 
+def is_data_frame(source) -> bool:
+    """Whether ``source`` is a pandas DataFrame (without importing pandas: a DataFrame exists only once it is)."""
+    pandas = sys.modules.get("pandas")
+    return pandas is not None and isinstance(source, pandas.DataFrame)
+
+
+def source_format(source, format: str | None = None) -> str:
+    """The format :func:`read_tracks` reads ``source`` (a path or a DataFrame) in: ``format`` when given (one of
+    :data:`FORMATS`; a DataFrame only as ``"csv"``, its columns), else from the file name's ending
+    (:data:`EXTENSIONS`); a ValueError naming the ending and the formats for any other."""
+    if format is not None and format not in FORMATS:
+        raise ValueError(f"format: {format!r}; expected one of {FORMATS} (or none: from the file name's extension)")
+    if is_data_frame(source):
+        if format not in (None, "csv"):
+            raise ValueError(f"format: {format!r} is a file format; a DataFrame is read by its columns, as a CSV (give no format)")
+        return "csv"
+    if format is not None:
+        return format
+    name = Path(source).name.lower()
+    ending = next((end for end in sorted(EXTENSIONS, key=len, reverse=True) if name.endswith(end)), None)
+    if ending is None:
+        suffix = "".join(Path(name).suffixes[-2:]) or "(none)"
+        endings = ", ".join(EXTENSIONS)
+        raise ValueError(
+            f"{source}: unknown extension {suffix!r}; expected one of {endings} — or give format, one of {FORMATS} ([reader] format = 'csv')"
+        )
+    return EXTENSIONS[ending]
+
+
 def read_tracks(
-    path: str | os.PathLike,
+    source,
     *,
+    format: str | None = None,
     time: str = "time",
     x: str = "x",
     y: str = "y",
@@ -444,28 +550,64 @@ def read_tracks(
     time_format: str | None = None,
     warn: bool = True,
 ) -> TrackFile:
-    """Read a CSV (or ``.csv.gz``) of time-stamped positions into one :class:`Track` per object.
+    """Read time-stamped positions — a CSV (or ``.csv.gz``), GPX or raw AIS NMEA file, or a pandas DataFrame —
+    into one :class:`Track` per object.
 
-    ``time``, ``x``, ``y`` / ``lat``, ``lon``, ``alt``, ``id``, ``course``, ``speed`` name the columns (giving
-    ``lat`` and ``lon`` selects geographic positions, projected with ``projection`` to the tangent plane at
-    ``origin``: ``"first"`` — the first valid fix of the file, ``"mean"`` — the mean latitude/longitude/height of
-    the fixes kept after the speed check, or an explicit (lat°, lon°[, h m])).  ``max_speed`` (m/s, None = no check)
-    and ``jump_tolerance`` (m, the allowance for position noise and time-stamp jitter) define which fix is reachable
-    (module docstring, which also says what is refused, dropped, flagged or set to NaN); ``object_class``
-    (``"ship"``, ``"ground"``, ``"aircraft"``) sets ``max_speed`` to that class's physical limit
-    (:data:`SPEED_LIMITS`) when ``max_speed`` is not given.  Numeric times are in ``time_unit`` (``"s"`` or
-    ``"ms"``; by default seconds, and numbers ≥ 10¹¹ — epoch milliseconds, read as seconds after the year 5000 — are
-    refused until ``time_unit`` says which); ``time_format`` (a :func:`datetime.strptime` format such as
-    ``"%d/%m/%Y %H:%M:%S"``, UTC unless it holds a zone) reads time stamps of any other form.  A file of which no
-    report is left (every row dropped) is a ValueError naming the column, what it holds and what is expected (with a
-    hint when every latitude is out of range but the longitudes would fit: swapped columns).
-    ``course_not_available``/``speed_not_available`` are the codes meaning "no value" (``speed_not_available`` in
-    ``speed_unit``).  The speed check of geographic files runs in the plane of the file's first valid fix (or of the
-    explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the arithmetic mean of the degrees, so it
-    is wrong for tracks that cross the ±180° meridian (give the origin there).
+    ``source``: a file name (str or os.PathLike) or a :class:`pandas.DataFrame` (its columns read as a CSV's:
+    below).  ``format``: ``"csv"``, ``"gpx"`` (:mod:`.gpx_files`) or ``"nmea"`` (:mod:`.nmea_files`); by default
+    from the file name: ``.csv``, ``.csv.gz`` → csv, ``.gpx`` → gpx, ``.nmea``, ``.ais`` → nmea (any other
+    ending without ``format`` is a ValueError).  Whatever the format, the records become rows checked, grouped,
+    sorted, de-duplicated, speed-checked and projected the same way, with the same :class:`Problem` reports
+    (module docstring), and ISO times become seconds after the UTC :attr:`TrackFile.epoch`.
+
+    ``time``, ``x``, ``y`` / ``lat``, ``lon``, ``alt``, ``id``, ``course``, ``speed`` name the columns of a CSV or a
+    DataFrame (GPX and NMEA files have none of their own: any of these keywords — or ``speed_unit``, the
+    ``*_not_available`` codes, ``time_unit``, ``time_format`` — other than its default is a ValueError; those
+    readers set them); giving ``lat`` and ``lon`` selects geographic positions, projected with ``projection`` to
+    the tangent plane at ``origin``: ``"first"`` — the first valid fix of the file, ``"mean"`` — the mean
+    latitude/longitude/height of the fixes kept after the speed check, or an explicit (lat°, lon°[, h m]).
+    ``max_speed`` (m/s, None = no check) and ``jump_tolerance`` (m, the allowance for position noise and
+    time-stamp jitter) define which fix is reachable (module docstring, which also says what is refused, dropped,
+    flagged or set to NaN); ``object_class`` (``"ship"``, ``"ground"``, ``"aircraft"``) sets ``max_speed`` to that
+    class's physical limit (:data:`SPEED_LIMITS`) when ``max_speed`` is not given.  Numeric times are in
+    ``time_unit`` (``"s"`` or ``"ms"``; by default seconds, and numbers ≥ 10¹¹ — epoch milliseconds, read as
+    seconds after the year 5000 — are refused until ``time_unit`` says which); ``time_format`` (a
+    :func:`datetime.strptime` format such as ``"%d/%m/%Y %H:%M:%S"``, UTC unless it holds a zone) reads time stamps
+    of any other form.  A file of which no report is left (every row dropped) is a ValueError naming the column,
+    what it holds and what is expected (with a hint when every latitude is out of range but the longitudes would
+    fit: swapped columns).  ``course_not_available``/``speed_not_available`` are the codes meaning "no value"
+    (``speed_not_available`` in ``speed_unit``).  The speed check of geographic files runs in the plane of the
+    file's first valid fix (or of the explicit origin) before a ``"mean"`` origin is computed; ``"mean"`` is the
+    arithmetic mean of the degrees, so it is wrong for tracks that cross the ±180° meridian (give the origin there).
+
+    A DataFrame's cells may be strings (read as a CSV's), numbers, or pandas Timestamps / ``datetime64`` values
+    (times: naive ones are UTC, like ISO strings without a zone); NaN, None and NaT are empty cells.  A
+    :class:`Problem`'s ``line`` there is the row's position + 2, the line it would have in a CSV written with a
+    header (``frame.to_csv(index=False)``), and messages name the source ``<DataFrame>``.  A format whose package is
+    missing (gpxpy, pyais) is a :class:`MissingExtraError` naming the ``pip install hybridtrack[…]`` extra.
     """
-    path = checked_path(path)
-    if (lat is None) != (lon is None):
+    frame = is_data_frame(source)
+    if not frame and not isinstance(source, (str, os.PathLike)):
+        raise TypeError(
+            f"source: expected a file path (str or os.PathLike) or a pandas DataFrame, got {type(source).__name__} ({reprlib.repr(source)})"
+        )
+    if not frame:
+        checked_path(source, "a position file (" + ", ".join(EXTENSIONS) + ")")
+    kind = source_format(source, format)
+    columns = dict(time=time, x=x, y=y, lat=lat, lon=lon, alt=alt, id=id, course=course, speed=speed, speed_unit=speed_unit)
+    columns.update(course_not_available=course_not_available, speed_not_available=speed_not_available)
+    columns.update(time_unit=time_unit, time_format=time_format)
+    if kind in FILE_READERS:
+        module = importlib.import_module(FILE_READERS[kind])
+        defaults = inspect.signature(read_tracks).parameters
+        for key in COLUMN_KEYWORDS:
+            if columns[key] != defaults[key].default and columns[key] != module.SETTINGS.get(key):
+                raise ValueError(
+                    f"{key}={columns[key]!r}: format {kind!r} has no columns ({key} applies to CSV files and DataFrames);"
+                    f" leave it out: {module.COLUMNS}"
+                )
+        columns.update(module.SETTINGS)
+    if (columns["lat"] is None) != (columns["lon"] is None):
         raise ValueError(f"lat/lon: give both latitude and longitude column names, got lat={lat!r}, lon={lon!r}")
     if speed_unit not in SPEED_UNITS:
         raise ValueError(f"speed_unit: {speed_unit!r}; expected one of {sorted(SPEED_UNITS)}")
@@ -484,12 +626,85 @@ def read_tracks(
         max_speed = check_positive(max_speed, "max_speed (m/s)")
     if not (isinstance(jump_tolerance, (int, float)) and math.isfinite(jump_tolerance) and jump_tolerance >= 0):
         raise ValueError(f"jump_tolerance: expected a finite number of metres ≥ 0, got {jump_tolerance!r}")
-    geographic = lat is not None
     if isinstance(origin, str) and origin not in ("first", "mean"):
         raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
     origin = origin if isinstance(origin, str) else _origin(origin)
 
-    header_line, header, body = read_csv(path, "a CSV file of position reports", _HINT)
+    if frame:
+        wanted = [columns[key] for key in ("time", "x", "y", "lat", "lon", "alt", "id", "course", "speed")]
+        rows = frame_rows(source, wanted)
+    elif kind == "csv":
+        rows = Rows(str(source), *read_csv(source, "a CSV file of position reports", _HINT))
+    else:
+        rows = module.read_rows(source)
+        if columns["alt"] is not None and columns["alt"] not in rows.header:
+            columns["alt"] = None  # a GPX file's elevation only when every point has one
+    data = _read_rows(rows, **columns, origin=origin, projection=projection, max_speed=max_speed, jump_tolerance=jump_tolerance)
+    if warn and data.problems:
+        counts = Counter(f"{p.kind} ({p.action})" for p in data.problems)
+        summary = ", ".join(f"{n} {kind}" for kind, n in counts.most_common())
+        warnings.warn(f"{data.path}: {len(data.problems)} problems: {summary}; see TrackFile.problems", stacklevel=2)
+    return data
+
+
+def frame_rows(frame, names: Sequence[str | None]) -> Rows:
+    """The :class:`Rows` of a pandas DataFrame: every column in the header (its name as a str), the cells of the
+    columns ``names`` (None entries skipped) as text — strings stripped, integers and floats as Python writes them,
+    Timestamps / ``datetime``/``datetime64`` in ISO 8601, NaN/None/NaT/NA empty — and the others empty; row i is
+    "line" i + 2 (as in a CSV written with its header)."""
+    header = [str(c) for c in frame.columns]
+    used = {i for i, c in enumerate(header) if c in set(n for n in names if n is not None)}
+    cells = [[_text(v) for v in frame.iloc[:, i].to_numpy(dtype=object)] if i in used else None for i in range(len(header))]
+    blank = [""] * len(frame)
+    filled = [blank if column is None else column for column in cells]
+    body = [(k + 2, [column[k] for column in filled]) for k in range(len(frame))]
+    return Rows(DATA_FRAME, 1, header, body, hint="expected a DataFrame with one row per position report")
+
+
+def _text(value) -> str:
+    """One DataFrame cell as a CSV's text (:func:`frame_rows`)."""
+    if value is None or type(value).__name__ in ("NaTType", "NAType"):
+        return ""
+    if isinstance(value, str):
+        return value.strip()
+    if isinstance(value, datetime):  # pandas Timestamps too
+        return value.isoformat()
+    if isinstance(value, np.datetime64):
+        return "" if np.isnat(value) else str(np.datetime_as_string(value))
+    if isinstance(value, (bool, np.bool_)):
+        return str(value)
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return "" if math.isnan(value) else repr(float(value))
+    return str(value).strip()
+
+
+def _read_rows(
+    table: Rows,
+    *,
+    time,
+    x,
+    y,
+    lat,
+    lon,
+    alt,
+    id,
+    course,
+    speed,
+    speed_unit,
+    course_not_available,
+    speed_not_available,
+    origin,
+    projection,
+    max_speed,
+    jump_tolerance,
+    time_unit,
+    time_format,
+) -> TrackFile:
+    """The tracks of ``table`` (any format's rows), with the checked keywords of :func:`read_tracks`."""
+    path, header_line, header, body = table.name, table.header_line, table.header, table.body
+    geographic = lat is not None
     position_columns = [lat, lon] if geographic else [x, y]
     if alt is not None:
         position_columns.append(alt)
@@ -500,19 +715,19 @@ def read_tracks(
         if header.count(name) > 1:
             raise ValueError(f"{path}:{header_line}: column {name!r} appears {header.count(name)} times in the header")
         columns[name] = header.index(name)
-    if not body:
-        raise ValueError(f"{path}: header only, no data rows; {_HINT}")
+    if not body and not table.problems:
+        raise ValueError(f"{path}: header only, no data rows; {table.hint}")
 
-    problems: list[Problem] = []
+    problems: list[Problem] = list(table.problems)
 
     def report(line, column, kind, action, message, track=None):
         problems.append(Problem(line, column, kind, action, f"{path}:{line}: {message}", track))
 
     # time stamps (ISO 8601 or time_format) or numbers: decided by the first time cell that is either
     cells = (row[columns[time]] for _, row in body if len(row) > columns[time])
-    first_time = next((c for c in cells if finite_number(c) is not None or _timestamp(c) is not None), "")
+    first_time = next((c for c in cells if finite_number(c) is not None or timestamp(c) is not None), "")
     numeric = time_format is None and finite_number(first_time) is not None
-    stamped = time_format is not None or (not numeric and _timestamp(first_time) is not None)
+    stamped = time_format is not None or (not numeric and timestamp(first_time) is not None)
     if time_format is not None:
         form = f"a time of time_format {time_format!r}"
     elif stamped:
@@ -533,7 +748,7 @@ def read_tracks(
                 return None
             return stamp.replace(tzinfo=UTC) if stamp.tzinfo is None else stamp.astimezone(UTC)
         if stamped:
-            return _timestamp(cell)
+            return timestamp(cell)
         value = finite_number(cell) if numeric else None
         return None if value is None else value * TIME_UNITS[time_unit or "s"]
 
@@ -653,11 +868,8 @@ def read_tracks(
         )
     problems.sort(key=by_place)
     if not any(tracks.values()):
-        raise ValueError(_nothing_left(path, len(body), problems, header, columns, body, lat, lon))
-    if warn and problems:
-        counts = Counter(f"{p.kind} ({p.action})" for p in problems)
-        summary = ", ".join(f"{n} {kind}" for kind, n in counts.most_common())
-        warnings.warn(f"{path}: {len(problems)} problems: {summary}; see TrackFile.problems", stacklevel=2)
+        records = len(body) if table.records is None else table.records
+        raise ValueError(_nothing_left(path, f"{records} {table.unit}", problems, header, columns, body, lat, lon))
     return TrackFile(str(path), tracks, origin if geographic else None, projection if geographic else None, epoch, tuple(problems))
 
 
@@ -708,7 +920,7 @@ def _nothing_left(path, rows, problems, header, columns, body, lat, lon) -> str:
         pairs = [(a, b) for a, b in pairs if a is not None and b is not None]
         if pairs and all(abs(a) > 90.0 and abs(b) <= 90.0 for a, b in pairs):
             hint = f"; every {lat!r} is outside [-90, 90] but every {lon!r} inside: latitude and longitude swapped? (swap lat and lon in [reader])"
-    return f"{path}: no report left of {rows} data rows ({summary}); the first: {first}{hint}"
+    return f"{path}: no report left of {rows} ({summary}); the first: {first}{hint}"
 
 
 def _speed_check(group, positions, max_speed, tolerance, key, report, column):
