@@ -21,8 +21,9 @@
    free port, ``HOME`` and ``XDG_RUNTIME_DIR`` in a temporary folder so nothing
    is written to the user's home) opens the file with the layout embedded in
    it; :class:`rerun.experimental.ViewerClient` moves the time cursor to the end
-   of the ``step`` timeline (``run`` for a campaign summary), pauses, and saves
-   the window (1920×1080).  If the headless viewer cannot
+   of the ``utc`` timeline for a recording of real time stamps (the timeline its
+   blueprint opens on), else of ``step`` (``run`` for a campaign summary),
+   pauses, and saves the window (1920×1080).  If the headless viewer cannot
    start, ``xvfb-run rerun FILE --new --screenshot-to PNG --window-size
    1600x900`` takes the shot instead (the time cursor then stays where the
    viewer puts it).
@@ -44,6 +45,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 RERUN = BIN / "rerun"
@@ -57,6 +60,8 @@ MAX_BYTES = 300_000
 #: seconds after the viewer's start before the shot (its start-up notifications fade in about five)
 SETTLE = 7.0
 WINDOW = "1600x900"
+#: the timeline whose end the cursor goes to: the first of these a recording has (``utc``: real time stamps)
+CURSOR_TIMELINES = ("utc", "step", "run", "time")
 
 
 def log(message: str) -> None:
@@ -155,9 +160,10 @@ def headless_screenshot(recording: Path, png: Path, timeout: float = 120.0) -> l
     """Open ``recording`` in a fresh headless viewer, put the time cursor at the end, save the window; the views' warnings.
 
     The file is loaded in the background (``navigate=False``) and shown only once loaded; the cursor goes to
-    the end of ``step`` (``run`` for a campaign summary, else ``time``): on the ``time`` timeline of a long
-    real-data run the viewer's plots show only a window around the cursor.  The shot is taken at least
-    :data:`SETTLE` seconds after the viewer started, when its start-up notifications have faded.
+    the end of the first of :data:`CURSOR_TIMELINES` the file has: ``utc`` (real time stamps: the clock time the
+    embedded blueprint opens on), ``step``, ``run`` (a campaign summary), ``time``.  The timeline the viewer
+    opened the file on is logged.  The shot is taken at least :data:`SETTLE` seconds after the viewer started,
+    when its start-up notifications have faded.
     """
     from rerun.experimental import ViewerClient
 
@@ -175,13 +181,16 @@ def headless_screenshot(recording: Path, png: Path, timeout: float = 120.0) -> l
             time.sleep(0.3)
         shown = state.recordings[0]
         client.set_location(shown.location)
+        log(f"{recording.name}: the viewer opened it on the {shown.current_timeline!r} timeline")
         timelines = {timeline.name: timeline for timeline in shown.timelines}
-        for name in ("step", "run", "time"):
+        for name in CURSOR_TIMELINES:
             timeline = timelines.get(name)
             if timeline is None or timeline.end is None:
                 continue
             if timeline.time_type == "duration":
                 client.set_time(name, duration=timeline.end / 1e9, play_state="paused")
+            elif timeline.time_type == "timestamp":  # integer ns since the Unix epoch, kept exact
+                client.set_time(name, timestamp=np.datetime64(int(timeline.end), "ns"), play_state="paused")
             else:
                 client.set_time(name, sequence=int(timeline.end), play_state="paused")
             break

@@ -7,7 +7,15 @@ from hybridtrack.recording import (
     multiple_model,  # noqa: F401  (registers the MultipleModelRun writer)
     pipeline,  # noqa: F401  (registers the writer of a pipeline run with log_result)
 )
-from hybridtrack.recording.layout import LEGEND_CORNERS, TRAIL_STEPS, VIEW_CLASSES, content_blueprint, map_zoom
+from hybridtrack.recording.layout import (
+    LEGEND_CORNERS,
+    MAP_VIEW_NAME,
+    MODE_PANEL_TITLE,
+    TRAIL_STEPS,
+    VIEW_CLASSES,
+    content_blueprint,
+    map_zoom,
+)
 from hybridtrack.recording.recorder import (
     APPLICATION_ID,
     MAX_RECORDABLE_SECONDS,
@@ -24,11 +32,13 @@ from hybridtrack.recording.recorder import (
     recording_id,
     short_decision,
 )
-from hybridtrack.recording.style import finite_runs, is_hypothesis, palette, series_style, spatial_style
+from hybridtrack.recording.style import finite_runs, is_hypothesis, log_ratio_name, mode_lanes, palette, series_style, spatial_style
 
 __all__ = [
     "APPLICATION_ID",
     "LEGEND_CORNERS",
+    "MAP_VIEW_NAME",
+    "MODE_PANEL_TITLE",
     "MAX_RECORDABLE_SECONDS",
     "NullRecorder",
     "Recorder",
@@ -43,7 +53,9 @@ __all__ = [
     "is_hypothesis",
     "log_estimate",
     "log_measurements",
+    "log_ratio_name",
     "map_zoom",
+    "mode_lanes",
     "nis_bounds",
     "open_recorder",
     "palette",

@@ -296,6 +296,21 @@ class RecordingFile:
         """The views of the embedded blueprint — the one sent last (latest ``log_time``: the layout
         :class:`~hybridtrack.recording.RerunRecorder` makes active when it closes the file): ``name``,
         ``class`` (``3D``, ``TimeSeries``, ``TextLog``, …), ``origin`` and ``contents`` (entity-path filter rules)."""
+        views: dict[str, dict] = {}
+        for path, batch in self._blueprint_chunks():
+            names = batch.schema.names
+            if not path.startswith("/view/"):
+                continue
+            view = views.setdefault(path.split("/")[2], {"name": None, "class": None, "origin": "/", "contents": ["$origin/**"]})
+            if path.endswith("/ViewContents") and "ViewContents:query" in names:
+                view["contents"] = _last_value(batch, "ViewContents:query") or []
+            for column, key in _VIEW_FIELDS.items():
+                if column in names and _last_value(batch, column):
+                    view[key] = _last_value(batch, column)[0]
+        return [v for v in views.values() if v["class"] is not None]
+
+    def _blueprint_chunks(self) -> list[tuple[str, object]]:
+        """(entity path, record batch) of every chunk of the blueprint sent last (:meth:`blueprint_views`)."""
         import pyarrow as pa
         import pyarrow.compute as pc
 
@@ -307,18 +322,16 @@ class RecordingFile:
             sent = max((t for t in times if t is not None), default=-1)
             if latest is None or sent >= latest:
                 latest, chosen = sent, chunks
-        views: dict[str, dict] = {}
-        for path, batch in chosen:
-            names = batch.schema.names
-            if not path.startswith("/view/"):
-                continue
-            view = views.setdefault(path.split("/")[2], {"name": None, "class": None, "origin": "/", "contents": ["$origin/**"]})
-            if path.endswith("/ViewContents") and "ViewContents:query" in names:
-                view["contents"] = _last_value(batch, "ViewContents:query") or []
-            for column, key in _VIEW_FIELDS.items():
-                if column in names and _last_value(batch, column):
-                    view[key] = _last_value(batch, column)[0]
-        return [v for v in views.values() if v["class"] is not None]
+        return chosen
+
+    def blueprint_timeline(self) -> str | None:
+        """The timeline the embedded blueprint opens the file on (its time panel's ``timeline``: ``utc`` for a
+        recording of real time stamps), or None when it leaves the choice to the viewer."""
+        chosen = None
+        for path, batch in self._blueprint_chunks():
+            if path == "/time_panel" and "TimePanelBlueprint:timeline" in batch.schema.names:
+                chosen = (_last_value(batch, "TimePanelBlueprint:timeline") or [chosen])[0]
+        return chosen
 
     def unviewed_entities(self) -> list[str]:
         """Entity paths with data that no view of the embedded blueprint shows: each needs a view whose

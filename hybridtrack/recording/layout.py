@@ -12,12 +12,15 @@ from collections.abc import Mapping
 
 import numpy as np
 
-#: a time-series panel shows its legend when it holds at most this many entities
-LEGEND_SERIES = 3
-
 #: the corner of a panel's legend where its quantity seldom has data (default ``RightTop``): ℓ ≤ 0 is dense just
-#: below 0 with spikes down; the mode index starts low; a growing bank ramps from the bottom left
-LEGEND_CORNERS = {"loglik": "RightBottom", "mode": "RightBottom", "bank_size": "LeftTop", "association_loglik": "RightBottom"}
+#: below 0 with spikes down; a growing bank ramps from the bottom left
+LEGEND_CORNERS = {"loglik": "RightBottom", "bank_size": "LeftTop", "association_loglik": "RightBottom"}
+
+#: the title of the panel of the identified mode / followed hypothesis: one named lane per mode (``mode_lanes``)
+MODE_PANEL_TITLE = "Identified mode / followed hypothesis, a lane each"
+
+#: the name of the map view: its background needs the internet (rerun fetches OpenStreetMap tiles), the tracks do not
+MAP_VIEW_NAME = "Map (latitude, longitude) · OpenStreetMap tiles load from the internet; offline the tracks are drawn on black"
 
 #: how many steps of points (truth, measurements, estimates, ellipses) the world view shows behind the time cursor
 TRAIL_STEPS = 25
@@ -45,8 +48,8 @@ VIEW_CLASSES = {
 #: time-series panels of ``estimator/<filter>/<quantity>``: quantity → (panel, title), in display order
 _ESTIMATOR_PANELS = {
     "bank_size": ("bank_size", "Bank size (filters running)"),
-    "mode": ("mode", "Identified mode / followed hypothesis (index)"),
-    "followed": ("mode", "Identified mode / followed hypothesis (index)"),
+    "mode": ("mode", MODE_PANEL_TITLE),
+    "followed": ("mode", MODE_PANEL_TITLE),
     "mode_probability": ("mode_probability", "Mode probabilities μ"),
     "nis": ("nis", "NIS (normalized innovation squared) with the χ² 95 % bounds"),
     "nis_bounds": ("nis", "NIS (normalized innovation squared) with the χ² 95 % bounds"),
@@ -89,15 +92,17 @@ def content_blueprint(
     time_step: float | None = None,
     eyes: Mapping[str, tuple] | None = None,
     map_zoom: float | None = None,
+    timeline: str | None = None,
 ):
     """The layout embedded in a file, built from what the run logged (the views: docs/recording.md, "Views").
 
     ``content`` maps every logged entity path to the view class that shows it (:data:`VIEW_CLASSES`); a 3-D
-    view of ``/world`` (points of the last :data:`TRAIL_STEPS` steps, ``time_step`` s each on the ``time``
-    timeline), of ``/spacetime``, one time-series panel per quantity (each listing its entities, so each fits
-    its own range; legend: :data:`LEGEND_CORNERS`, shown for at most :data:`LEGEND_SERIES` series), the events,
-    and a view of the right class for any other root.  ``eyes`` (origin → (position, look_target)) places the
-    3-D cameras; ``map_zoom`` the map view's zoom level (:func:`map_zoom`).
+    view of ``/world`` (points of the last :data:`TRAIL_STEPS` steps, ``time_step`` s each on the ``time`` and
+    ``utc`` timelines), of ``/spacetime``, one time-series panel per quantity (each listing its entities, so each
+    fits its own range; its legend always shown, in the corner of :data:`LEGEND_CORNERS`), the events, and a view
+    of the right class for any other root (the map: :data:`MAP_VIEW_NAME`).  ``eyes`` (origin → (position,
+    look_target)) places the 3-D cameras; ``map_zoom`` the map view's zoom level (:func:`map_zoom`); ``timeline``
+    the timeline the file opens on (``utc`` for real time stamps; None: the viewer's choice, ``step``).
     """
     import rerun.blueprint as rrb
 
@@ -105,6 +110,8 @@ def content_blueprint(
     behind = {"step": ("seq", TRAIL_STEPS)}  # timeline → (unit, the trail's length)
     if time_step is not None and np.isfinite(time_step) and time_step > 0:
         behind["time"] = ("seconds", TRAIL_STEPS * float(time_step))
+        if timeline == "utc":
+            behind["utc"] = behind["time"]
     cursor = rrb.TimeRangeBoundary.cursor_relative
     trail = [rrb.VisibleTimeRange(line, start=cursor(**{unit: -n}), end=cursor(**{unit: 0 * n})) for line, (unit, n) in behind.items()]
 
@@ -126,7 +133,7 @@ def content_blueprint(
         elif view_class == "2D":
             other.append(rrb.Spatial2DView(origin=f"/{root}", name=root))
         elif view_class == "Map":
-            other.append(rrb.MapView(origin=f"/{root}", name="Map (latitude, longitude)" if root == "map" else root, zoom=map_zoom))
+            other.append(rrb.MapView(origin=f"/{root}", name=MAP_VIEW_NAME if root == "map" else root, zoom=map_zoom))
         else:
             other.append(rrb.View(class_identifier=view_class, origin=f"/{root}", name=root))
 
@@ -135,12 +142,18 @@ def content_blueprint(
         key, title, rule = _panel(path, content)
         panels.setdefault(key, (title, []))[1].append(rule)
 
-    def legend(key, entities):  # a legend only where it does not hide the plot; the names show on hover everywhere
-        corner = LEGEND_CORNERS.get(str(key[-1]), "RightTop")
-        return rrb.PlotLegend(corner=getattr(rrb.Corner2D, corner), visible=entities <= LEGEND_SERIES)
+    def legend(key):  # every panel names its series (a long legend is cut at the panel's edge; hover names any line)
+        return rrb.PlotLegend(corner=getattr(rrb.Corner2D, LEGEND_CORNERS.get(str(key[-1]), "RightTop")), visible=True)
 
+    whole = rrb.TimeRangeBoundary.infinite()  # the x axis spans all the data (on a clock timeline, not a window at the cursor)
     series = [
-        rrb.TimeSeriesView(origin="/", contents=list(dict.fromkeys(rules)), name=title, plot_legend=legend(key, len(rules)))
+        rrb.TimeSeriesView(
+            origin="/",
+            contents=list(dict.fromkeys(rules)),
+            name=title,
+            plot_legend=legend(key),
+            axis_x=rrb.TimeAxis(view_range=rrb.TimeRange(start=whole, end=whole)),
+        )
         for key, (title, rules) in sorted(panels.items(), key=lambda item: tuple(str(k) for k in item[0]))
     ]
     texts = sorted({path.split("/")[0] for path, c in content.items() if c == "TextLog"})
@@ -156,7 +169,14 @@ def content_blueprint(
     if not columns:
         columns = [rrb.TextLogView(origin="/events", name="Events")]
     root = rrb.Horizontal(*columns, column_shares=[1, 1]) if len(columns) == 2 else columns[0]
-    return rrb.Blueprint(root, collapse_panels=True)
+    return rrb.Blueprint(root, *_time_panel(timeline), collapse_panels=True)
+
+
+def _time_panel(timeline: str | None) -> list:
+    """The collapsed time panel on ``timeline`` (none: the viewer picks, ``step``), as parts of a Blueprint."""
+    import rerun.blueprint as rrb
+
+    return [] if timeline is None else [rrb.TimePanel(state="collapsed", timeline=timeline)]
 
 
 def map_zoom(lat_lon: np.ndarray, width: float = 700.0, height: float = 220.0) -> float:
@@ -173,10 +193,10 @@ def map_zoom(lat_lon: np.ndarray, width: float = 700.0, height: float = 220.0) -
     return float(np.clip(np.log2(360.0 * fit / 256.0) - 0.5, 1.0, 18.0))
 
 
-def default_blueprint():
+def default_blueprint(timeline: str | None = None):
     """The layout written at the start of every file, for a file whose run never closed it (killed): the world
-    view, the events and one time-series view per root; :meth:`RerunRecorder.close` replaces it by
-    :func:`content_blueprint`."""
+    view, the events and one time-series view per root, on ``timeline`` (as :func:`content_blueprint`);
+    :meth:`RerunRecorder.close` replaces it by :func:`content_blueprint`."""
     import rerun.blueprint as rrb
 
     return rrb.Blueprint(
@@ -189,5 +209,6 @@ def default_blueprint():
             rrb.Vertical(*[rrb.TimeSeriesView(origin=f"/{root}", name=root) for root in ("detector", "estimator", "solver")]),
             column_shares=[3, 2],
         ),
+        *_time_panel(timeline),
         collapse_panels=True,
     )

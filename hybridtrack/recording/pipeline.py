@@ -9,7 +9,7 @@ import numpy as np
 
 from hybridtrack.engine.pipeline import PipelineResult
 from hybridtrack.recording.clutter import log_associations, log_scans
-from hybridtrack.recording.recorder import decision_text, log_estimate, log_measurements, nis_bounds
+from hybridtrack.recording.recorder import decision_text, log_estimate, log_measurements, measured_components, nis_bounds
 from hybridtrack.recording.results import log_result
 
 
@@ -44,6 +44,7 @@ def log_pipeline(
     K = result.steps
     names = result.modes
     position = [result.layout.index("x"), result.layout.index("y")]
+    components = measured_components(network.sensors)  # the innovations' columns
     if start < K:
         rows = slice(start, K)
         steps, times = np.arange(start, K), result.times[rows]
@@ -56,8 +57,11 @@ def log_pipeline(
             log_measurements(recorder, network.sensors, network.split(z[rows]), steps, times)
         for j, name in enumerate(names):
             log_estimate(recorder, name, steps, result.means[rows, j], result.covs[rows, j], position, times, line=False)
-            for key, values in (("nis", result.nis), ("loglik", result.loglik), ("innovation", result.innovations)):
+            for key, values in (("nis", result.nis), ("loglik", result.loglik)):
                 recorder.log_scalars(f"estimator/{name}/{key}", steps, values[rows, j], times)
+            innovation = result.innovations[rows, j]
+            labels = components if innovation.ndim == 2 and innovation.shape[1] == len(components) > 1 else None
+            recorder.log_scalars(f"estimator/{name}/innovation", steps, innovation, times, names=labels)
         bounds = nis_bounds(np.isfinite(z[rows]).sum(axis=1))
         recorder.log_scalars("estimator/nis_bounds", steps, bounds, times, names=["χ² 2.5 %", "χ² 97.5 %"])
         if candidates is not None:

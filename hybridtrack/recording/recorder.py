@@ -3,7 +3,8 @@
 :class:`RerunRecorder` owns one ``rerun.RecordingStream`` with a file sink, :class:`NullRecorder` records
 nothing; leaving either context flushes and closes the file.  Series are logged as whole columns
 (``send_columns``) on the timelines ``step`` and ``time`` (duration in seconds, when times are given) and, for a
-recording of real time stamps (``epoch`` given), ``utc`` (the absolute time epoch + t).
+recording of real time stamps (``epoch`` given), ``utc`` (the absolute time epoch + t), the timeline such a file
+opens on.
 """
 
 from __future__ import annotations
@@ -21,7 +22,16 @@ import numpy as np
 
 from hybridtrack.recording.layout import content_blueprint, default_blueprint, map_zoom
 from hybridtrack.recording.results import log_result
-from hybridtrack.recording.style import finite_runs, is_hypothesis, palette, series_style, spatial_style
+from hybridtrack.recording.style import (
+    LANE_WIDTH,
+    finite_runs,
+    is_hypothesis,
+    is_mode_series,
+    mode_lanes,
+    palette,
+    series_style,
+    spatial_style,
+)
 
 APPLICATION_ID = "hybridtrack"
 
@@ -173,7 +183,8 @@ class RerunRecorder(AbstractContextManager):
     of what was logged (:func:`content_blueprint`) as the file's active and default layout.
 
     ``epoch`` (a timezone-aware UTC datetime, the instant of t = 0): every series and event is also put on the
-    ``utc`` timeline at epoch + t, so that a recording of real reports shows their clock time.
+    ``utc`` timeline at epoch + t, so that a recording of real reports shows their clock time; the embedded
+    blueprint then opens the file on ``utc`` (``step`` stays one click away in the time panel).
     """
 
     def __init__(self, path: str | Path, configuration: dict | None = None, *, epoch=None):
@@ -185,7 +196,7 @@ class RerunRecorder(AbstractContextManager):
         self.configuration = dict(configuration or {})
         self.recording_id = recording_id(self.configuration)
         self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
-        self.stream.save(str(self.path), default_blueprint=default_blueprint())
+        self.stream.save(str(self.path), default_blueprint=default_blueprint(timeline=None if epoch is None else "utc"))
         self.stream.send_property("configuration", rr.AnyValues(json=json.dumps(self.configuration, sort_keys=True, default=str)))
         self.content: dict[str, str] = {}  # entity path → view class (VIEW_CLASSES)
         self._tracks: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
@@ -196,6 +207,7 @@ class RerunRecorder(AbstractContextManager):
         self._shared: dict[str, list[tuple]] = {}  # SHARED_ROLES path → blocks of logged points: steps (sorted), xyz, times
         self._time_step: float | None = None
         self._epoch = None if epoch is None else unix_nanoseconds(epoch)  # t = 0, in whole ns since the Unix epoch
+        self._on_utc = False  # whether anything was put on the utc timeline
         self._closed = False
 
     # -- helpers
@@ -209,6 +221,7 @@ class RerunRecorder(AbstractContextManager):
             indexes.append(rr.TimeColumn("time", duration=times))
             if self._epoch is not None:
                 indexes.append(rr.TimeColumn("utc", timestamp=self._utc(times)))
+                self._on_utc = True
             if self._time_step is None and times.size > 1:
                 gaps = np.diff(steps) > 0
                 if gaps.any():
@@ -347,7 +360,8 @@ class RerunRecorder(AbstractContextManager):
         first = self._note(entity, "TimeSeries")
         if first or names is not None:
             labels, colours = series_style(entity, 1 if values.ndim == 1 else values.shape[1], names)
-            self.stream.log(entity, rr.SeriesLines(names=labels, colors=colours), static=True)
+            widths = [LANE_WIDTH] * len(labels) if is_mode_series(entity) else None
+            self.stream.log(entity, rr.SeriesLines(names=labels, colors=colours, widths=widths), static=True)
 
     def log_event(self, step, text, time=None, level="INFO"):
         check_recordable_times(time, "time")
@@ -356,6 +370,7 @@ class RerunRecorder(AbstractContextManager):
             self.stream.set_time("time", duration=float(time))
             if self._epoch is not None:
                 self.stream.set_time("utc", timestamp=self._utc(time))
+                self._on_utc = True
         self.stream.log("events/decisions", self._rr.TextLog(text, level=level))
         self._note("events/decisions", "TextLog")
         self._events.append((int(step), str(text)))
@@ -489,9 +504,15 @@ class RerunRecorder(AbstractContextManager):
         """Record a finished run's result (:func:`hybridtrack.recording.results.log_result`)."""
         log_result(result, self, **context)
 
+    @property
+    def timeline(self) -> str | None:
+        """The timeline the embedded blueprint opens on: ``utc`` when something was logged on it, else None (the
+        viewer's choice, ``step``)."""
+        return "utc" if self._on_utc else None
+
     def blueprint(self):
         """The blueprint of what was logged so far (:func:`content_blueprint`)."""
-        return content_blueprint(self.content, time_step=self._time_step)
+        return content_blueprint(self.content, time_step=self._time_step, timeline=self.timeline)
 
     def flush(self):
         """Block until everything logged so far is written to the file (no footer yet: that comes with :meth:`close`)."""
@@ -507,7 +528,8 @@ class RerunRecorder(AbstractContextManager):
                 eyes = self._log_spacetime()
             finally:
                 zoom = map_zoom(np.concatenate(self._geo)) if self._geo else None
-                self.stream.send_blueprint(content_blueprint(self.content, time_step=self._time_step, eyes=eyes, map_zoom=zoom))
+                blueprint = content_blueprint(self.content, time_step=self._time_step, eyes=eyes, map_zoom=zoom, timeline=self.timeline)
+                self.stream.send_blueprint(blueprint)
                 self.stream.flush()
                 self.stream.disconnect()
 
@@ -516,15 +538,31 @@ class RerunRecorder(AbstractContextManager):
         return False
 
 
+def component_names(sensor) -> list[str]:
+    """The names of a sensor's measured components: its ``components`` (``("vx", "vy")``), else ``[0]``, ``[1]``, …
+    (the sensor's own name alone for a one-component sensor without them, e.g. a bearing)."""
+    m = int(sensor.measurement_dim)
+    if sensor.components is not None and len(sensor.components) == m:
+        return [str(c) for c in sensor.components]
+    return [""] if m == 1 else [f"[{i}]" for i in range(m)]
+
+
+def measured_components(sensors) -> list[str]:
+    """``<sensor> <component>`` for every column of the network's stacked z (the innovations' legend names)."""
+    return [f"{s.name} {c}".strip() for s in sensors for c in component_names(s)]
+
+
 def log_measurements(recorder, sensors, measurements, steps, times=None) -> None:
-    """Log each sensor's measurements: points when it measures (x, y), scalar series otherwise."""
+    """Log each sensor's measurements: points when it measures (x, y), scalar series otherwise (one per component,
+    named ``<sensor> <component>``)."""
     for sensor in sensors:
         z = measurements[sensor.name]
         entity = f"world/measurements/{sensor.name}"
         if sensor.components is not None and tuple(sensor.components) == ("x", "y"):
             recorder.log_points(entity, steps, z, times)
         else:
-            recorder.log_scalars(entity, steps, z, times)
+            names = component_names(sensor)
+            recorder.log_scalars(entity, steps, z, times, names=names if np.ndim(z) == 2 and np.shape(z)[1] == len(names) > 1 else None)
 
 
 def log_estimate(recorder, name, steps, means, covs, position, times=None, *, line: bool = True) -> None:
@@ -549,9 +587,12 @@ def log_run(recorder, run, name: str, *, sensors=(), measurements=None, truth=No
 
 
 def log_mode(recorder, name: str, steps, run, series: str = "mode") -> None:
-    """A run's mode per step (indices into ``run.modes``): the series ``estimator/<name>/<series>`` and the mode
-    colouring of ``world/estimate/<name>`` (:meth:`Recorder.log_modes`)."""
-    recorder.log_scalars(f"estimator/{name}/{series}", steps, run.mode.astype(float), run.times)
+    """A run's mode per step (indices into ``run.modes``): ``estimator/<name>/<series>``, one series per mode the
+    run was in, named after it, in its palette colour, on its own lane (:func:`~hybridtrack.recording.style.mode_lanes`),
+    and the mode colouring of ``world/estimate/<name>`` (:meth:`Recorder.log_modes`)."""
+    lanes, names = mode_lanes(run.mode, run.modes)
+    if names:
+        recorder.log_scalars(f"estimator/{name}/{series}", steps, lanes[:, 0] if len(names) == 1 else lanes, run.times, names=names)
     recorder.log_modes(f"world/estimate/{name}", steps, run.mode, run.modes, run.times)
 
 

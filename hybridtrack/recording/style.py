@@ -85,23 +85,68 @@ def spatial_style(entity: str) -> tuple[tuple[int, int, int], str]:
     return palette(parts[-1]), parts[-1]
 
 
+#: the ``estimator/<f>/<series>`` entities of a mode per step, logged as one lane per mode (:func:`mode_lanes`)
+MODE_SERIES = ("mode", "followed")
+
+#: the line width (UI points) of each mode lane: thick enough that a mode held for a few steps shows
+LANE_WIDTH = 4.0
+
+
+def is_mode_series(entity: str) -> bool:
+    """Whether a scalar entity is a mode per step (``estimator/<f>/mode`` or ``…/followed``), drawn as lanes."""
+    parts = entity.strip("/").split("/")
+    return len(parts) == 3 and parts[0] == "estimator" and parts[2] in MODE_SERIES
+
+
+def mode_lanes(modes: np.ndarray, names: Sequence[str]) -> tuple[np.ndarray, list[str]]:
+    """One lane per mode the run was in: values (K, L) and the L mode names, the mode of the most steps first (ties
+    in the order of ``names``).
+
+    Column i holds the lane number L − 1 − i at the steps in its mode and NaN elsewhere (rerun draws no line
+    across NaN), so the legend lists the lanes top down and, cut at the panel's edge in a large bank, still names
+    the modes the run spent most steps in; −1 (no mode yet) is in no lane, a mode never entered has none.
+    """
+    modes = np.asarray(modes, dtype=np.int64)
+    counts = np.array([np.count_nonzero(modes == j) for j in range(len(names))], dtype=np.int64)
+    visited = [int(j) for j in np.argsort(-counts, kind="stable") if counts[j] > 0]
+    values = np.full((modes.size, len(visited)), np.nan)
+    for i, j in enumerate(visited):
+        values[modes == j, i] = len(visited) - 1 - i
+    return values, [str(names[j]) for j in visited]
+
+
+def log_ratio_name(hypothesis: str, against: str | None = None) -> str:
+    """The legend name of ln λ of ``hypothesis`` against ``against`` (None: the best of the other hypotheses in
+    play, what ``sprt_pairwise`` reports): ``ln λ left_turn_r3 : straight``, ``ln λ left_turn_r3 : best other``."""
+    return f"ln λ {hypothesis} : {'best other' if against is None else against}"
+
+
 def series_style(entity: str, columns: int, names: Sequence[str] | None = None) -> tuple[list[str], list[tuple[int, int, int]]]:
     """Legend names and colours of the ``columns`` series of a scalar entity, from its path.
 
-    ``detector/<d>/log_ratio/<h>`` → h in the colour of h; ``detector/<d>/upper``/``lower`` → A/B (signal
-    functions: the ±3 bounds) in the threshold colour; ``estimator/<f>/<quantity>[/<sub>]`` → f (or "f: sub")
-    in the colour of f (of sub below ``mode_probability``); ``solver/<method>/…`` → method;
-    ``world/measurements/<sensor>`` → sensor.  Several columns: ``names`` (or ``[i]``) after the name,
-    the colour lightened per column.
+    ``detector/<d>/log_ratio/<h>`` → ``names`` (the hypothesis pairs, :func:`log_ratio_name`) or ``ln λ h``, in
+    the colour of h; ``detector/<d>/log_ratio`` (one column per hypothesis) → ``ln λ <name>``;
+    ``detector/<d>/upper``/``lower`` → A/B (signal functions: the ±3 bounds) in the threshold colour;
+    ``estimator/<f>/mode``/``followed`` with ``names`` → the mode names in their colours (:func:`mode_lanes`);
+    ``estimator/<f>/<quantity>[/<sub>]`` → f (or "f: sub") in the colour of f (of sub below ``mode_probability``);
+    ``solver/<method>/…`` → method; ``world/measurements/<sensor>`` → sensor.  Several columns: ``names`` (or
+    ``[i]``) after the name, the colour lightened per column.
     """
     parts = entity.strip("/").split("/")
     name, colour = parts[-1], palette(parts[-1])
-    if parts[0] == "estimator" and len(parts) == 2 and names is not None and len(names) == columns:  # estimator/nis_bounds
+    named = names is not None and len(names) == columns
+    if parts[0] == "estimator" and len(parts) == 2 and named:  # estimator/nis_bounds
         return list(names), [palette("threshold")] * columns
+    if is_mode_series(entity) and named:
+        return list(names), [palette(n) for n in names]
+    if parts[0] == "detector" and len(parts) == 3 and parts[2] == "log_ratio" and columns > 1 and named:
+        return [f"ln λ {n}" for n in names], [palette(n) for n in names]
     if parts[0] == "detector" and len(parts) >= 3:
         signal = "signal" in parts[1]
         if parts[2] == "log_ratio" and len(parts) > 3:
-            name, colour = parts[3], palette(parts[3])
+            name, colour = f"ln λ {parts[3]}", palette(parts[3])
+            if named:
+                return list(names), [_shade(colour, i) for i in range(columns)]
         elif parts[-1] in ("upper", "lower") and len(parts) == 3:
             bound = {"upper": ("+3 bound", "A (upper)"), "lower": ("−3 bound", "B (lower)")}[parts[-1]]
             name, colour = bound[0] if signal else bound[1], palette("threshold")

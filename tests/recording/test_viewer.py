@@ -116,7 +116,7 @@ def test_palette_is_stable_distinct_for_a_bank_and_shared_by_every_view(demo):
 
 
 def test_series_are_named_after_their_hypothesis_and_thresholds_after_a_and_b():
-    assert series_style("detector/sprt/log_ratio/left_turn_r3", 1) == (["left_turn_r3"], [palette("left_turn_r3")])
+    assert series_style("detector/sprt/log_ratio/left_turn_r3", 1) == (["ln λ left_turn_r3"], [palette("left_turn_r3")])
     assert series_style("detector/sprt/upper", 1)[0] == ["A (upper)"]
     assert series_style("detector/signal_function/lower", 1)[0] == ["−3 bound"]
     assert series_style("estimator/straight/nis", 1) == (["straight"], [palette("straight")])
@@ -126,12 +126,15 @@ def test_series_are_named_after_their_hypothesis_and_thresholds_after_a_and_b():
 
 
 def test_no_line_joins_two_periods_a_hypothesis_was_out_of_play(example1):
-    """ln λ of an alternative is logged on every step, NaN where it is not in play: rerun breaks the line at NaN."""
+    """ln λ of an alternative is logged on every step, NaN where it is not in play: rerun breaks the line at NaN
+    (one series per mode it is weighed against: left_turn_r5 against straight, then against right_turn_r5)."""
     rec = RecordingFile(example1)
     steps, ratio = rec.series("detector/sprt_unknown_change/log_ratio/left_turn_r5")
     assert steps.tolist() == list(range(steps[0], steps[-1] + 1))  # no step missing: the gap is explicit
-    assert np.isnan(ratio).any() and np.isfinite(ratio).any()
-    assert np.isnan(ratio[0])  # step 0: no alternative yet
+    assert ratio.shape == (steps.size, 2)
+    assert np.isnan(ratio).any(axis=0).all() and np.isfinite(ratio).any(axis=0).all()
+    assert np.isnan(ratio[0]).all()  # step 0: no alternative yet
+    assert not (np.isfinite(ratio[:, 0]) & np.isfinite(ratio[:, 1])).any()  # one pair at a time
 
 
 def test_each_quantity_has_its_own_panel(demo, example1):

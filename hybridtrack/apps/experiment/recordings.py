@@ -4,7 +4,7 @@ A campaign stores numbers only.  :func:`record_runs` replays chosen runs
 (:func:`choose_runs`) with the generators they had in the campaign, one
 ``RerunRecorder`` file each, so a recording shows exactly a stored run;
 :func:`write_summary_recording` writes every result as a series over the run
-index, :func:`read_summary_recording` reads it back.  ``hybridtrack run
+index with its running mean and 95 % band, :func:`read_summary_recording` reads the results back.  ``hybridtrack run
 EXPERIMENT --record K`` (``--record-runs I,J,…``) and ``--summary-recording``
 use them (docs/experiments.md, "Recordings of a campaign").
 """
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -92,45 +93,117 @@ def record_runs(
     return written
 
 
-def write_summary_recording(arrays: Mapping[str, np.ndarray], path: str | Path, configuration: Mapping[str, Any]) -> list[str]:
+#: the first run at which a summary recording draws the 95 % band (below it s/√n of a handful of runs says little)
+BAND_FROM_RUNS = 5
+
+#: the unit of a result, by its name (the first pattern that matches; the library's SI units: positions in metres,
+#: times in seconds): a position RMSE or error in m, a squared error in the state's units squared, NIS without
+#: unit, steps in steps; any other name has no declared unit (``write_summary_recording(..., units=)`` gives one)
+RESULT_UNITS = (
+    (re.compile(r"(^|_)rmse(_|$)|(^|_)position_error(_|$)"), "m"),
+    (re.compile(r"squared_error"), "state units²"),
+    (re.compile(r"(^|_)nis(_|$)"), "no unit"),
+    (re.compile(r"(^|_)(steps|delay)(_|$)"), "steps"),
+    (re.compile(r"(^|_)(seconds|time|duration)(_|$)"), "s"),
+)
+
+
+def result_unit(name: str, units: Mapping[str, str] | None = None) -> str:
+    """The unit of result ``name`` in a summary recording: ``units[name]`` if given, else :data:`RESULT_UNITS`, else
+    ``"unit not declared"``."""
+    if units and name in units:
+        return str(units[name])
+    return next((unit for pattern, unit in RESULT_UNITS if pattern.search(name)), "unit not declared")
+
+
+def running_statistics(values: np.ndarray, start: int = BAND_FROM_RUNS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The running mean over runs 0 … i of ``values`` (n,) or (n, c) (NaN runs left out) and the 95 % band of that
+    mean, mean ∓ 1.96 s/√m (s the sample standard deviation of the m finite runs so far; NaN until m ≥ ``start``).
+
+    The sums are taken about the overall mean, so a constant result has s = 0 exactly rather than rounding noise.
+    """
+    x = np.asarray(values, dtype=np.float64)
+    finite = np.isfinite(x)
+    centre = np.nanmean(np.where(finite, x, np.nan), axis=0) if finite.any() else np.zeros(x.shape[1:])
+    d = np.where(finite, x - np.where(np.isfinite(centre), centre, 0.0), 0.0)
+    m = np.cumsum(finite, axis=0).astype(np.float64)
+    s1, s2 = np.cumsum(d, axis=0), np.cumsum(d * d, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(m > 0, s1 / m, np.nan)
+        variance = np.clip((s2 - s1 * s1 / m) / (m - 1), 0.0, None)
+        half = np.where(m >= max(start, 2), 1.96 * np.sqrt(variance / m), np.nan)
+    mean = mean + np.where(np.isfinite(centre), centre, 0.0)
+    return mean, mean - half, mean + half
+
+
+def write_summary_recording(
+    arrays: Mapping[str, np.ndarray], path: str | Path, configuration: Mapping[str, Any], *, units: Mapping[str, str] | None = None
+) -> list[str]:
     """Every result of ``arrays`` (name → (n, …) by run, plus ``index``) as series over the run index, into ``path``.
 
-    Returns the names left out (rank > 1 per run).  ``configuration`` is
-    stored as the recording property ``configuration`` and gives the
-    recording id.
+    Each result ``campaign/<name>`` (c series ``<name>[i]`` for a result of shape (c,)) gets beside it, under
+    ``statistics/<name>``, its running mean over the runs so far and the 95 % band of that mean, mean ± 1.96 s/√n
+    (:func:`running_statistics`, from run :data:`BAND_FROM_RUNS`), in one panel per result whose title and series
+    names give the unit (:func:`result_unit`; ``units`` result name → unit overrides it).  Returns the names left
+    out (rank > 1 per run).  ``configuration`` is stored as the recording property ``configuration`` and gives
+    the recording id.
     """
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from hybridtrack.recording import APPLICATION_ID, recording_id
+    from hybridtrack.recording import APPLICATION_ID, palette, recording_id
 
     if "index" not in arrays:
         raise ValueError("arrays: expected the campaign's arrays with their 'index' (CampaignResult.arrays)")
     index = np.asarray(arrays["index"], dtype=np.int64)
-    series, skipped = {}, []
+    order = np.argsort(index, kind="stable")  # the running statistics go over the runs in index order
+    results, skipped = {}, []
     for name, values in arrays.items():
         if name == "index":
             continue
         values = np.asarray(values, dtype=np.float64)
-        if values.ndim == 1:
-            series[f"campaign/{name}"] = (values, None)
-        elif values.ndim == 2:
-            series[f"campaign/{name}"] = (values, [f"{name}[{i}]" for i in range(values.shape[1])])
+        if values.ndim in (1, 2):
+            results[name] = values[order]
         else:
             skipped.append(name)
+    index = index[order]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     configuration = dict(configuration)
     stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id({"summary": configuration}))
-    panels = [rrb.TimeSeriesView(origin=f"/{entity}", name=entity.removeprefix("campaign/")) for entity in sorted(series)]
+    panels = []
+    for name in sorted(results):
+        unit = result_unit(name, units)
+        title = f"{name} ({unit}): per run, running mean, 95 % band mean ± 1.96 s/√n (n ≥ {BAND_FROM_RUNS} runs)"
+        legend = rrb.PlotLegend(corner=rrb.Corner2D.RightBottom, visible=True)
+        panels.append(
+            rrb.TimeSeriesView(origin="/", contents=[f"+ /campaign/{name}", f"+ /statistics/{name}"], name=title, plot_legend=legend)
+        )
     blueprint = rrb.Blueprint(rrb.Grid(*panels), rrb.TimePanel(timeline=RUN_TIMELINE, state="collapsed"), collapse_panels=True)
     stream.save(str(path), default_blueprint=blueprint)
     try:
         stream.send_property("configuration", rr.AnyValues(json=json.dumps(configuration, sort_keys=True, default=str)))
-        for entity, (values, names) in sorted(series.items()):
-            stream.send_columns(entity, indexes=[rr.TimeColumn(RUN_TIMELINE, sequence=index)], columns=rr.Scalars.columns(scalars=values))
-            if names is not None:
-                stream.log(entity, rr.SeriesLines(names=names), static=True)
+        runs = [rr.TimeColumn(RUN_TIMELINE, sequence=index)]
+        for name, values in sorted(results.items()):
+            unit, colour = result_unit(name, units), palette(name)
+            columns = [""] if values.ndim == 1 else [f"[{i}]" for i in range(values.shape[1])]
+            light = tuple(round(c + (255 - c) * 0.55) for c in colour)
+            stream.send_columns(f"campaign/{name}", indexes=runs, columns=rr.Scalars.columns(scalars=values))
+            stream.log(
+                f"campaign/{name}",
+                rr.SeriesLines(
+                    names=[f"{name}{c} per run ({unit})" for c in columns], colors=[light] * len(columns), widths=[1.0] * len(columns)
+                ),
+                static=True,
+            )
+            mean, lower, upper = running_statistics(values)
+            stacked = np.column_stack([mean, lower, upper])  # (n, 3c): the means, the lower bounds, the upper bounds
+            labels = [f"running mean{c} ({unit})" for c in columns]
+            labels += [f"mean{c} − 1.96 s/√n ({unit})" for c in columns] + [f"mean{c} + 1.96 s/√n ({unit})" for c in columns]
+            widths = [3.0] * len(columns) + [1.5] * 2 * len(columns)
+            colours = [colour] * len(columns) + [palette("threshold")] * 2 * len(columns)
+            stream.send_columns(f"statistics/{name}", indexes=runs, columns=rr.Scalars.columns(scalars=stacked))
+            stream.log(f"statistics/{name}", rr.SeriesLines(names=labels, colors=colours, widths=widths), static=True)
     finally:
         stream.flush()
         stream.disconnect()
