@@ -107,14 +107,14 @@ class MotionModel(ABC):
     def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
         """F, B, G, Q of one step of length ``tau`` (see the class contract)."""
 
-    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
-        """This mode's transitions at each of the switch states (S, n), stacked as a :class:`TransitionBank`.
+    def transition_bank(self, tau, switch_states: np.ndarray) -> TransitionBank:
+        """The transitions at the switch states (S, n) over ``tau`` (one for all, or (S,): one per row), stacked.
 
-        Optional (used by batched runs, where many runs switch at once): the
-        default stacks ``transition(tau, x)`` for every row; a model may
-        vectorize it, with entries equal to the default's (the motion tests check).
-        """
-        return TransitionBank.stack([self.transition(tau, x) for x in np.asarray(switch_states, dtype=float)])
+        Optional (batched runs): the default stacks ``transition(tau_i, x_i)``; a model may vectorize it, with
+        entries equal to the default's (``check_motion_model`` checks)."""
+        states = np.asarray(switch_states, dtype=float)
+        steps = np.broadcast_to(np.asarray(tau, dtype=float), states.shape[:1])
+        return TransitionBank.stack([self.transition(float(t), x) for t, x in zip(steps, states)])
 
     def propagate(self, x: np.ndarray, tau: float, switch_state: np.ndarray) -> np.ndarray:
         """Noise-free step of x (..., n)."""

@@ -238,7 +238,14 @@ class LayoutBank:
                     f"x: expected points for each of the {filters} filters of the bank (k·{filters} rows), got shape {x.shape}"
                 )
             points = (rows[:, None] * k + np.arange(k)).reshape(-1)
-            new = TransitionBank.stack([self.models[p // k].transition(float(dt[p // k]), x[p]) for p in points])
+            groups: dict = {}
+            for i, p in enumerate(points):
+                groups.setdefault(id(self.models[p // k]), []).append(i)
+            parts = []
+            for members in map(np.asarray, groups.values()):
+                at_points, model = points[members], self.models[points[members[0]] // k]
+                parts.append((members, model.transition_bank(dt[at_points // k], x[at_points])))
+            new = _scattered(parts, points.size, x.shape[1])
             if base is None:
                 return new
             F, B, Q = (np.repeat(a, k, axis=0) for a in (base.F, base.B, base.Q))
@@ -583,13 +590,13 @@ def _fill(root: np.ndarray | None, rows: np.ndarray, new: np.ndarray | None) -> 
 def grouped_transitions(models: Sequence[MotionModel], dts, switch_states: np.ndarray) -> TransitionBank:
     """The transitions of S filters, filter i running ``models[i]`` over ``dts[i]`` (a float for all, or (S,))
     from switch state ``switch_states[i]`` (S, n), all in one layout: one
-    :meth:`~hybridtrack.core.interfaces.MotionModel.transition_bank` call per (model, Δt) group of filters at
-    different switch states, one ``TransitionBank.stack`` of one filter of every other group (a group at one
-    switch state copies its filter's transition), scattered back into filter order.  Equal to
+    :meth:`~hybridtrack.core.interfaces.MotionModel.transition_bank` call per model, over its filters' own Δt
+    (runs of irregular time stamps step together), scattered back into filter order; a model's filters at one
+    Δt and one switch state share one ``transition``.  Equal to
     ``TransitionBank.stack([models[i].transition(dts[i], switch_states[i]) …])`` entry by entry
-    (``transition_bank`` must equal the stacked transitions; the motion tests check), so F_i, B_i, Q_i are
+    (``transition_bank`` must equal the stacked transitions; the contract kit checks), so F_i, B_i, Q_i are
     seed 000's eq. (3) transitions of each filter's mode.  The noise roots G·chol(Q) are kept when every
-    group has one of the same shape (else ``None``, as ``TransitionBank.stack`` gives for noise inputs of
+    model's bank has one of the same shape (else ``None``, as ``TransitionBank.stack`` gives for noise inputs of
     different sizes)."""
     switch_states = np.asarray(switch_states, dtype=float)
     S = len(models)
@@ -597,20 +604,28 @@ def grouped_transitions(models: Sequence[MotionModel], dts, switch_states: np.nd
         raise ValueError(f"switch_states: expected ({S}, n) for {S} filters, got shape {switch_states.shape}")
     steps = np.broadcast_to(np.asarray(dts, dtype=float), (S,))
     groups: dict = {}
-    for i, key in enumerate(zip(map(id, models), steps.tolist())):
-        groups.setdefault(key, []).append(i)
-    singles, copies, banks = [], [], []  # one transition for the group's filters: its first, copied to the others
-    for (_, d), members in groups.items():
-        if len(members) == 1 or (switch_states[members] == switch_states[members[0]]).all():
-            singles.append(members[0])
-            if len(members) > 1:
-                copies.append(members)
+    for i, model in enumerate(models):
+        groups.setdefault(id(model), []).append(i)
+    banks = []
+    for members in map(np.asarray, groups.values()):
+        model, first = models[members[0]], members[0]
+        if (steps[members] == steps[first]).all() and (switch_states[members] == switch_states[first]).all():
+            one = TransitionBank.stack([model.transition(float(steps[first]), switch_states[first])])
+            banks.append((members, _taken(one, np.zeros(len(members), dtype=np.intp))))
         else:
-            banks.append((np.asarray(members), models[members[0]].transition_bank(d, switch_states[members])))
-    if singles:
-        stacked = TransitionBank.stack([models[i].transition(float(steps[i]), switch_states[i]) for i in singles])
-        banks.insert(0, (np.asarray(singles), stacked))
-    n = switch_states.shape[1]
+            d = steps[members]
+            banks.append((members, model.transition_bank(float(d[0]) if (d == d[0]).all() else d, switch_states[members])))
+    return _scattered(banks, S, switch_states.shape[1])
+
+
+def _taken(bank: TransitionBank, rows: np.ndarray) -> TransitionBank:
+    """The bank of the filters ``rows`` of ``bank`` (repeats allowed)."""
+    root = None if bank.noise_root is None else bank.noise_root[rows]
+    return TransitionBank(bank.F[rows], bank.B[rows], bank.Q[rows], root)
+
+
+def _scattered(banks: Sequence[tuple[np.ndarray, TransitionBank]], S: int, n: int) -> TransitionBank:
+    """One bank of S filters from (filter indices, their bank) pairs; the noise roots kept when all have one of one shape."""
     F, B, Q = np.zeros((S, n, n)), np.zeros((S, n)), np.zeros((S, n, n))
     for members, bank in banks:
         F[members], B[members], Q[members] = bank.F, bank.B, bank.Q
@@ -620,7 +635,4 @@ def grouped_transitions(models: Sequence[MotionModel], dts, switch_states: np.nd
         root = np.zeros((S,) + roots[0].shape[1:])
         for (members, _), r in zip(banks, roots):
             root[members] = r
-    for members in copies:
-        for a in (F, B, Q) if root is None else (F, B, Q, root):
-            a[members[1:]] = a[members[0]]
     return TransitionBank(F, B, Q, root)

@@ -139,7 +139,7 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
     dimensions match the layout and ``noise_cov``, with Q and G Q Gᵀ symmetric
     PSD; F x_s + B = f(x_s); F matches finite differences of ``propagate``;
     ``propagate`` equals ``transition(...).apply`` for a linear model and is
-    vectorized over leading axes; ``enter`` round-trips the model's own layout
+    vectorized over leading axes; ``transition_bank`` with one Δt per row equals ``transition`` row by row; ``enter`` round-trips the model's own layout
     and accepts the 4-state layout; fifty noise-free steps stay finite.
     """
     label = _interface_label(model, "motion_model", MotionModel)
@@ -178,6 +178,19 @@ def check_motion_model(model: MotionModel, *, tau: float = 1.0, seed: int = 0) -
     _close(out3[1], rows, label, "propagate of a (2, 5, n) stack", atol=1e-9 * (1 + np.abs(rows).max()))
     if getattr(model, "linear", True):
         _close(out, T.apply(X), label, "propagate against transition(...).apply for a linear model", atol=1e-9 * (1 + np.abs(out).max()))
+
+    steps, states = tau * np.array([1.0, 0.5, 2.0]), x_s + example_state(layout, rng, (3,)) * 0.1
+    bank = model.transition_bank(steps, states.copy())  # runs of irregular time stamps: one Δt per row
+    for i, (t, x) in enumerate(zip(steps, states)):
+        single = model.transition(float(t), x.copy())
+        for what, got, expected in (("F", bank.F[i], single.F), ("B", bank.B[i], single.B), ("Q", bank.Q[i], single.process_noise)):
+            _close(
+                got,
+                expected,
+                label,
+                f"transition_bank(one Δt per row) {what}[{i}] against transition",
+                atol=1e-9 * (1 + np.abs(expected).max()),
+            )
 
     _close(model.enter(x_s.copy(), layout), x_s, label, "enter(state, own layout) (must round-trip)")
     entered = _array(model.enter(example_state(CV_LAYOUT, rng), CV_LAYOUT), label, f"enter from layout {CV_LAYOUT}", (n,))

@@ -110,19 +110,42 @@ class _Noise:
         """G_axis(Δt), the factor of one axis block's Q(Δt)/q."""
         return white_noise_root(tau, self.order)
 
-    def noise_gain(self, tau: float) -> np.ndarray:
-        """G of the transition: the seeds' fixed G (per-step noise) or blockdiag(G_axis(Δt), G_axis(Δt))."""
+    def noise_gain(self, tau) -> np.ndarray:
+        """G of the transition: the seeds' fixed G (per-step noise) or blockdiag(G_axis(Δt), G_axis(Δt)); for an
+        array of Δt (S,), (S, n, r)."""
         if self.noise_density is None:
-            return G_6 if self.state_dim == 6 else G_4
+            G = G_6 if self.state_dim == 6 else G_4
+            return G if np.ndim(tau) == 0 else np.broadcast_to(G, np.shape(tau) + G.shape)
         axis = self.axis_gain(tau)
-        k, r = axis.shape
-        G = np.zeros((2 * k, 2 * r))
-        G[:k, :r] = G[k:, r:] = axis
+        k, r = axis.shape[-2:]
+        G = np.zeros(axis.shape[:-2] + (2 * k, 2 * r))
+        G[..., :k, :r] = G[..., k:, r:] = axis
         return G
 
 
 def _check_tau(tau: float) -> float:
     return check_positive(tau, "tau", "the sampling period")
+
+
+def step_lengths(tau, rows: int) -> np.ndarray:
+    """``tau`` (one step length for all, or one per row) as (rows,) seconds, each finite and > 0, else a ValueError
+    naming ``tau`` and the first bad entry."""
+    steps = np.broadcast_to(np.asarray(tau, dtype=float), (rows,)) if np.ndim(tau) == 0 else as_float_array(tau, "tau", (rows,))
+    bad = ~(np.isfinite(steps) & (steps > 0))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"tau: expected step lengths in seconds, finite and > 0, got tau[{i}] = {float(steps[i])!r}")
+    return steps
+
+
+def transition_stack(F: np.ndarray, B: np.ndarray, G: np.ndarray, noise_cov: np.ndarray) -> TransitionBank:
+    """The bank of F (S, n, n), B (S, n) and G (S, n, r) with w ~ N(0, Q_w = ``noise_cov``): Q = G Q_w Gᵀ and the
+    noise root G chol(Q_w) (None for a singular Q_w), as ``TransitionBank.stack`` of the rows builds them."""
+    try:
+        root = G @ np.linalg.cholesky(noise_cov)
+    except np.linalg.LinAlgError:
+        root = None
+    return TransitionBank(F, B, G @ noise_cov @ np.swapaxes(G, -1, -2), root)
 
 
 #: the smallest turn radius (metres) a turn mode takes: below, ω = |v|/r exceeds 10⁶ rad/s per m/s of speed
@@ -178,10 +201,10 @@ def _tau_message(name: str, tau: float, excess: str, ok: Callable[[float], bool]
 
 
 def _blockdiag(axis: np.ndarray) -> np.ndarray:
-    k = axis.shape[0]
-    F = np.zeros((2 * k, 2 * k))
-    F[:k, :k] = axis
-    F[k:, k:] = axis
+    """blockdiag(A, A) of A (..., k, k)."""
+    k = axis.shape[-1]
+    F = np.zeros(axis.shape[:-2] + (2 * k, 2 * k))
+    F[..., :k, :k] = F[..., k:, k:] = axis
     return F
 
 
@@ -192,13 +215,13 @@ class _FixedMatrixMode(_Noise, MotionModel):
     layout: ClassVar[tuple[str, ...]] = LAYOUT_4
 
     @abstractmethod
-    def axis_matrix(self, tau: float) -> np.ndarray:
-        """Φ_axis, the block of one axis."""
+    def axis_matrix(self, tau) -> np.ndarray:
+        """Φ_axis, the block of one axis ((..., k, k) for an array of Δt)."""
 
-    def arrays(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """F, B, G of a step of ``tau`` seconds (unchecked; :meth:`transition` checks them)."""
+    def arrays(self, tau) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """F, B, G of a step of ``tau`` seconds (or of each of an array of steps; unchecked: :meth:`transition` checks them)."""
         with np.errstate(over="ignore", invalid="ignore"):
-            return _blockdiag(self.axis_matrix(tau)), np.zeros(self.state_dim), self.noise_gain(tau)
+            return _blockdiag(self.axis_matrix(tau)), np.zeros(np.shape(tau) + (self.state_dim,)), self.noise_gain(tau)
 
     def within_arithmetic(self, tau: float) -> bool:
         """Whether the transition of a step of ``tau`` seconds stays within the filters' float64 arithmetic."""
@@ -214,15 +237,19 @@ class _FixedMatrixMode(_Noise, MotionModel):
         _checked(F, B, G, self.noise_cov, lambda excess: _tau_message(self.name, tau, excess, self.within_arithmetic))
         return LinearTransition(F, B, G, self.noise_cov)
 
-    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
-        """The one transition (Φ does not depend on the switch state) repeated for the S switch states."""
-        S = np.shape(switch_states)[0]
-        return _repeat(TransitionBank.stack([self.transition(tau)]), S)
-
-
-def _repeat(bank: TransitionBank, S: int) -> TransitionBank:
-    """A one-filter bank repeated S times."""
-    return TransitionBank(*(None if a is None else np.repeat(a, S, axis=0) for a in attrs.astuple(bank, recurse=False)))
+    def transition_bank(self, tau, switch_states: np.ndarray) -> TransitionBank:
+        """The transitions of the S rows over ``tau`` (one or (S,)): Φ does not depend on the switch state, so one
+        transition per distinct step, vectorized, indexed back to the rows (a step beyond the float64 arithmetic is
+        :meth:`transition`'s ValueError)."""
+        steps = step_lengths(tau, np.shape(switch_states)[0])
+        distinct, rows = np.unique(steps, return_inverse=True)
+        F, B, G = self.arrays(distinct)
+        bank = transition_stack(F, B, G, self.noise_cov)
+        with np.errstate(over="ignore", invalid="ignore"):
+            if transition_excess(bank.F, bank.B, bank.Q) is not None:
+                for t in distinct:
+                    self.transition(float(t))
+        return TransitionBank(*(None if a is None else a[rows] for a in attrs.astuple(bank, recurse=False)))
 
 
 @attrs.frozen
@@ -232,7 +259,10 @@ class Straight(_FixedMatrixMode):
     name: ClassVar[str] = "straight"
 
     def axis_matrix(self, tau):
-        return np.array([[1.0, tau], [0.0, 1.0]])
+        A = np.zeros(np.shape(tau) + (2, 2))
+        A[..., 0, 0] = A[..., 1, 1] = 1.0
+        A[..., 0, 1] = tau
+        return A
 
 
 @attrs.frozen
@@ -242,12 +272,14 @@ class Stop(_FixedMatrixMode):
     name: ClassVar[str] = "stop"
 
     def axis_matrix(self, tau):
-        return np.array([[1.0, 0.0], [0.0, 0.0]])
+        A = np.zeros(np.shape(tau) + (2, 2))
+        A[..., 0, 0] = 1.0
+        return A
 
-    def axis_gain(self, tau: float) -> np.ndarray:
-        """[√Δt, 1/√Δt]ᵀ: p⁺ = p + w, v⁺ = w/Δt with w ~ N(0, q Δt) (module docstring)."""
-        root = np.sqrt(_check_tau(tau))
-        return np.array([[root], [1.0 / root]])
+    def axis_gain(self, tau) -> np.ndarray:
+        """[√Δt, 1/√Δt]ᵀ: p⁺ = p + w, v⁺ = w/Δt with w ~ N(0, q Δt) (module docstring); (..., 2, 1) for an array."""
+        root = np.sqrt(_check_tau(tau) if np.ndim(tau) == 0 else step_lengths(tau, np.size(tau)).reshape(np.shape(tau)))
+        return np.stack([root, 1.0 / root], axis=-1)[..., None]
 
 
 @attrs.frozen
@@ -262,7 +294,11 @@ class ConstantAcceleration(_FixedMatrixMode):
     order: ClassVar[int] = 3
 
     def axis_matrix(self, tau):
-        return np.array([[1.0, tau, tau * tau / 2], [0.0, 1.0, tau], [0.0, 0.0, 1.0]])
+        A = np.zeros(np.shape(tau) + (3, 3))
+        A[..., 0, 0] = A[..., 1, 1] = A[..., 2, 2] = 1.0
+        A[..., 0, 1] = A[..., 1, 2] = tau
+        A[..., 0, 2] = np.multiply(tau, tau) / 2
+        return A
 
     def enter(self, state, layout: Sequence[str], parameters: dict | None = None) -> np.ndarray:
         acceleration = (parameters or {}).get("acceleration") or (0.0, 0.0)
@@ -355,13 +391,20 @@ class _Turn(_Noise, MotionModel):
         self.check_arithmetic(tau, switch_state, F, B, G)
         return LinearTransition(F, B, G, self.noise_cov)
 
-    def transition_bank(self, tau: float, switch_states: np.ndarray) -> TransitionBank:
-        """:meth:`transition` at S switch states at once (the same formulas, vectorized over the rows)."""
-        tau, switch_states = _check_tau(tau), as_float_array(switch_states, "switch_states", (None, 4))
-        F, B, G = self.arrays(tau, switch_states)
-        self.check_arithmetic(tau, switch_states, F, B, G)
-        noise = _repeat(TransitionBank.stack([LinearTransition(np.eye(4), np.zeros(4), G, self.noise_cov)]), F.shape[0])
-        return TransitionBank(F, B, noise.Q, noise.noise_root)
+    def transition_bank(self, tau, switch_states: np.ndarray) -> TransitionBank:
+        """:meth:`transition` at S switch states at once over ``tau`` (one or (S,)): the same formulas, vectorized
+        over the rows (a row beyond the float64 arithmetic is :meth:`transition`'s ValueError)."""
+        switch_states = as_float_array(switch_states, "switch_states", (None, 4))
+        steps = step_lengths(tau, switch_states.shape[0])
+        F, B, G = self.arrays(steps, switch_states)
+        if np.ndim(tau) == 0:
+            self.check_arithmetic(float(steps[0]), switch_states, F, B, G[0])
+        else:
+            with np.errstate(over="ignore", invalid="ignore"):
+                if transition_excess(F, B, G @ self.noise_cov @ np.swapaxes(G, -1, -2)) is not None:
+                    for t, x in zip(steps, switch_states):
+                        self.transition(float(t), x)
+        return transition_stack(F, B, G, self.noise_cov)
 
 
 @attrs.frozen

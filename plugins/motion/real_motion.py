@@ -42,6 +42,7 @@ from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import LinearTransition, MotionModel, TransitionBank
 from hybridtrack.core.validation import as_float_array, check_positive
 from hybridtrack.sdk.process_noise import check_density, white_noise_root
+from hybridtrack_plugins.motion.linear_modes import step_lengths
 from hybridtrack_plugins.motion.ship import ShipTurn
 
 #: (x, vx, y, vy, ω) ↔ the ship turn's (x, y, vx, vy, ω): the same permutation both ways
@@ -64,12 +65,12 @@ class _FiveStateMode(MotionModel):
         return np.diag([q, q, q, q, getattr(self, self.extra_density)])
 
     @staticmethod
-    def noise_gain(tau: float) -> np.ndarray:
-        """G(Δt) (5, 5): blockdiag(G_axis, G_axis, √Δt) in the layout's order."""
+    def noise_gain(tau) -> np.ndarray:
+        """G(Δt) (5, 5): blockdiag(G_axis, G_axis, √Δt) in the layout's order; (S, 5, 5) for Δt (S,)."""
         axis = white_noise_root(tau, 2)
-        G = np.zeros((5, 5))
-        G[:2, :2] = G[2:4, 2:4] = axis
-        G[4, 4] = np.sqrt(tau)
+        G = np.zeros(np.shape(tau) + (5, 5))
+        G[..., :2, :2] = G[..., 2:4, 2:4] = axis
+        G[..., 4, 4] = np.sqrt(tau)
         return G
 
     @abstractmethod
@@ -84,16 +85,25 @@ class _FiveStateMode(MotionModel):
         """The exact nonlinear step f(x) (the switch state plays no role)."""
         return self.f(x, check_positive(tau, "tau", "the step length in seconds"))
 
-    def linearize(self, tau: float, x: np.ndarray) -> TransitionBank:
-        """The bank linearized at every row of x (M, 5): F_m = ∂f/∂x(x_m), B_m = f(x_m) − F_m x_m."""
-        tau = check_positive(tau, "tau", "the step length in seconds")
+    def linearize(self, tau, x: np.ndarray) -> TransitionBank:
+        """The bank linearized at every row of x (M, 5) over ``tau`` (one step or (M,), one per row):
+        F_m = ∂f/∂x(x_m), B_m = f(x_m) − F_m x_m, Q_m = G(Δt_m) Q_w G(Δt_m)ᵀ."""
         x = as_float_array(x, "x", (None, 5))
-        F = self.jacobian(x, tau)
-        root = self.noise_gain(tau) * np.sqrt(np.diag(self.noise_cov))
         M = x.shape[0]
-        return TransitionBank(
-            F, self.f(x, tau) - np.einsum("mij,mj->mi", F, x), np.broadcast_to(root @ root.T, (M, 5, 5)), np.broadcast_to(root, (M, 5, 5))
-        )
+        if np.ndim(tau) == 0:
+            tau = check_positive(tau, "tau", "the step length in seconds")
+            root = self.noise_gain(tau) * np.sqrt(np.diag(self.noise_cov))
+            Q, root = np.broadcast_to(root @ root.T, (M, 5, 5)), np.broadcast_to(root, (M, 5, 5))
+        else:
+            tau = step_lengths(tau, M)
+            root = self.noise_gain(tau) * np.sqrt(np.diag(self.noise_cov))
+            Q = root @ np.swapaxes(root, -1, -2)
+        F = self.jacobian(x, tau)
+        return TransitionBank(F, self.f(x, tau) - np.einsum("mij,mj->mi", F, x), Q, root)
+
+    def transition_bank(self, tau, switch_states: np.ndarray) -> TransitionBank:
+        """:meth:`transition` at each row of ``switch_states`` (S, 5) over ``tau`` (one or (S,)): :meth:`linearize`."""
+        return self.linearize(tau, switch_states)
 
     def transition(self, tau: float, switch_state: np.ndarray) -> LinearTransition:
         """The linearization at ``switch_state``: F = ∂f/∂x, B = f(x_s) − F x_s, G = G(Δt), Q = ``noise_cov``."""
