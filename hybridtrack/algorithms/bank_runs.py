@@ -8,7 +8,7 @@ The banks' step convention (as the Pipeline): step 0 updates the prior with z_0;
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -59,3 +59,45 @@ def run_banks(algorithm, runs_of: Callable[..., list], measurements, prior, time
             **context,
         )
     return runs
+
+
+#: the step (s) between the unmeasured steps that pad a shorter run to its batch's length (:func:`run_ragged`)
+PAD_STEP = 1e-3
+
+
+def run_ragged(algorithm, measurements: Sequence[Mapping[str, np.ndarray]], priors: Sequence, times: Sequence, **options) -> list:
+    """Runs of different lengths (objects of one file) as one batch of ``algorithm.run_batch``: run r's
+    ``measurements[r]`` (sensor name → (K_r+1, m)) at ``times[r]`` (K_r+1,) from ``priors[r]`` ((mean, cov), all in one
+    layout), padded after its last report to the longest run with unmeasured steps (NaN) :data:`PAD_STEP` s apart, and
+    each result cut back to its K_r+1 steps (``RunResult.first_steps``): what the run gives alone, to rounding (the
+    padding follows its last step; a run's arithmetic never mixes with another's).  ``options`` go to ``run_batch``."""
+    lengths = [len(np.asarray(t)) for t in times]
+    if not (len(measurements) == len(priors) == len(lengths) > 0):
+        raise ValueError(
+            f"measurements, priors, times: expected one of each per run, got {len(measurements)}, {len(priors)}, {len(lengths)}"
+        )
+    longest = max(lengths)
+    stacked = {}
+    T = np.empty((len(lengths), longest))
+    for r, (z, t, k) in enumerate(zip(measurements, times, lengths)):
+        for name, values in z.items():
+            values = np.asarray(values, dtype=float)
+            if name not in stacked:
+                stacked[name] = np.full((len(lengths), longest) + values.shape[1:], np.nan)
+            stacked[name][r, :k] = values
+        T[r, :k] = t
+        T[r, k:] = T[r, k - 1] + PAD_STEP * np.arange(1, longest - k + 1)
+    means = np.stack([np.asarray(p[0], dtype=float) for p in priors])
+    covs = np.stack([np.asarray(p[1], dtype=float) for p in priors])
+    runs = algorithm.run_batch(stacked, (means, covs), times=T, **options)
+    return [run.first_steps(k) for run, k in zip(runs, lengths)]
+
+
+def record_run(algorithm, run, recorder, measurements: Mapping[str, np.ndarray], truth=None) -> None:
+    """``recorder.log_result`` of one of ``algorithm``'s runs as its ``run_batch`` records it: the algorithm's name, its
+    sensors, the run's ``measurements`` (sensor name → (K+1, m)), ``truth`` and, for an algorithm with a detector,
+    the detector's label."""
+    context = {"name": algorithm.name, "sensors": algorithm.network.sensors, "measurements": measurements, "truth": truth}
+    if getattr(algorithm, "detector", None) is not None:
+        context["detector"] = algorithm.detector.label
+    recorder.log_result(run, **context)

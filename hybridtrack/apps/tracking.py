@@ -11,7 +11,7 @@ mode name per step, ``radii`` (K,) the turn radius per step (NaN off turns),
 degrees; with altitude ``altitude``, ``altitude_mean``, ``altitude_var`` of :func:`filter_altitude`) and
 ``OUT/summary.json``::
 
-    {"objects": [{"id": str,
+    {"objects": [{"id": str, "output": str (the file stem of its .rrd and .npz),
                   "segments": [{"start": float, "end": float, "mode": str, "radius": float | null,
                                 "mean_speed": float, "heading_change": float, "mean_turn_rate": float | null,
                                 "start_utc": str, "end_utc": str}],
@@ -64,6 +64,8 @@ from typing import Any
 import attrs
 import numpy as np
 
+from hybridtrack.algorithms.bank_runs import record_run, run_ragged
+from hybridtrack.apps.geojson import tracks_geojson
 from hybridtrack.apps.mode_labels import motion_states
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import registry_or_default
@@ -82,8 +84,9 @@ DEFAULT_OBJECT_CLASS = "aircraft"
 #: noise, σ + σ_t v_max (the position σ and the along-track error of a time-stamp jitter σ_t at the class's speed)
 CLASS_JUMP_TOLERANCE = 100.0
 JUMP_SIGMAS = 5.0
-#: problem kinds that are the file's own codes, not faults: ``--strict`` lets them pass
-NOT_FAULTS = ("not_available",)
+#: problem kinds that are not faults — the file's own "not available" codes, an AIS log's messages that are no position
+#: reports — ``--strict`` lets them pass
+NOT_FAULTS = ("not_available", "not_position")
 #: the prior σ of a turn rate ω in the state (°/s): a ship's or an airliner's standard-rate turn is within 1.5 σ
 TURN_RATE_SIGMA = 2.0
 #: the vertical filter's defaults: σ_h (m), white-acceleration density q (m²/s³), prior σ of the climb rate (m/s)
@@ -93,7 +96,7 @@ ALTITUDE_DEFAULTS = {"sigma": 10.0, "acceleration_density": 0.1, "velocity_sigma
 _KIND_ONLY = {"unknown_change": ("alpha", "beta", "bank_size", "initial_mode"), "imm": ("sojourn", "method")}
 #: every key `hybridtrack track` accepts, by section (load_config refuses any other; docs/config.md is generated from it)
 CONFIG_KEYS = {
-    "reader": set(inspect.signature(read_tracks).parameters) - {"path", "warn"} | {"preset", "min_reports"},  # read_tracks' keywords
+    "reader": set(inspect.signature(read_tracks).parameters) - {"source", "warn"} | {"preset", "min_reports"},  # read_tracks' keywords
     "measurement": {"sigma", "time_jitter", "speed_sigma", "course_sigma"},
     "altitude": set(ALTITUDE_DEFAULTS),
     "prior": {"velocity", "position_sigma", "velocity_sigma", "turn_rate_sigma"},
@@ -561,10 +564,12 @@ def track_one(
     smooth: bool = False,
     lag: float | None = None,
     record: bool = True,
+    run=None,
 ) -> dict:
-    """Run the configured estimator on one track; write ``out/<id>.rrd`` (unless ``record`` is False) and ``.npz``
-    (when ``out`` is given);
-    return the object's summary entry ``{"id", "segments", "decisions"}``.
+    """Run the configured estimator on one track (``run``: its causal run, computed already — :func:`track_file`
+    runs the objects of a file as one batch, :func:`run_objects`); write ``out/<id>.rrd`` (unless ``record`` is
+    False) and ``.npz`` (when ``out`` is given); return the object's summary entry ``{"id", "output", "segments",
+    "decisions"}`` (``output`` the file stem of its ``.rrd`` and ``.npz``, :func:`output_name`).
 
     ``origin`` (lat°, lon°, h m) and ``projection``: the tangent plane the track was projected to (the
     :class:`~hybridtrack.io.track_files.TrackFile`'s); given, the recording gets the map view and the altitude is the
@@ -588,7 +593,11 @@ def track_one(
     recording = out is not None and record
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}, epoch=epoch) if recording else None
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
-        run = estimator.run(measurements_of(track, config), track_prior(track, config, layout), times=track.times, recorder=recorder)
+        measured = measurements_of(track, config)
+        if run is None:
+            run = estimator.run(measured, track_prior(track, config, layout), times=track.times)
+        if recorder is not None:
+            record_run(estimator, run, recorder, measured)
         _check_finite(run, track)
         if smooth or lag is not None:
             run = estimator.smooth(run, lag)
@@ -627,7 +636,32 @@ def track_one(
     if epoch is not None:
         decisions = [d | {"time_utc": utc_text(epoch, d["time"])} for d in decisions]
     segments = describe_segments(segments_of(run.times, modes, radii), np.asarray(run.times, dtype=float), run.means, layout, epoch)
-    return {"id": track.id, "segments": segments, "decisions": decisions}
+    return {"id": track.id, "output": name, "segments": segments, "decisions": decisions}
+
+
+#: objects per batch of :func:`run_objects` (its memory grows with objects × the longest's reports)
+BATCH_OBJECTS = 128
+
+
+def run_objects(estimator, tracks: Sequence[Track], config: dict) -> list:
+    """The estimator's causal runs of ``tracks``, the objects of a file stacked as runs of one bank
+    (:func:`~hybridtrack.algorithms.bank_runs.run_ragged`, :data:`BATCH_OBJECTS` at a time, objects of similar
+    length together), each equal to its run alone; a batch that raises (one object's arithmetic failing) gives
+    None for its objects, which :func:`track_one` then runs alone, so that the failure is that object's own."""
+    runs = [None] * len(tracks)
+    order = sorted(range(len(tracks)), key=lambda i: len(tracks[i]))
+    for first in range(0, len(order), BATCH_OBJECTS):
+        chosen = order[first : first + BATCH_OBJECTS]
+        batch = [tracks[i] for i in chosen]
+        try:
+            measured = [measurements_of(t, config) for t in batch]
+            priors = [track_prior(t, config, estimator.layout) for t in batch]
+            results = run_ragged(estimator, measured, priors, [t.times for t in batch])
+        except Exception:  # each object of the batch then runs alone and reports its own failure
+            continue
+        for i, result in zip(chosen, results):
+            runs[i] = result
+    return runs
 
 
 def _check_finite(run, track: Track) -> None:
@@ -651,6 +685,7 @@ def track_file(
     smooth: bool = False,
     lag: float | None = None,
     strict: bool = False,
+    geojson: bool = False,
 ) -> dict:
     """Track every object of ``path`` (or those in ``ids``) with ``config`` (a TOML path or a mapping; module
     docstring) and write ``out/<id>.rrd``, ``out/<id>.npz`` and ``out/summary.json``; returns the summary.
@@ -662,7 +697,9 @@ def track_file(
     "not available" codes) is a ConfigError listing them, before anything is tracked.  ``progress`` shows a tqdm
     bar over the objects (on stderr).  ``smooth`` / ``lag`` (seconds): fixed-interval / fixed-lag smoothing of
     recorded files (:func:`track_one`); a ConfigError for an algorithm without a smoother, for both at once and
-    for a negative lag."""
+    for a negative lag.  ``geojson``: also ``out/tracks.geojson``, each object's estimated track and its segments
+    as LineStrings (:func:`hybridtrack.apps.geojson.tracks_geojson`); for a file in x/y metres (no latitude/longitude,
+    no origin) a ConfigError, after reading the file and before anything is tracked."""
     from tqdm.auto import tqdm
 
     cfg = load_config(config, registry)
@@ -681,6 +718,10 @@ def track_file(
         data = read_tracks(path, **cfg["reader"], warn=False)
     except TypeError as error:
         raise ConfigError(f"[reader]: {error}") from None
+    if geojson and data.origin is None:
+        raise ConfigError(
+            f"--geojson needs latitude/longitude positions: {path} was read as x/y metres (no origin); give [reader] lat and lon columns"
+        )
     faults = [p for p in data.problems if p.kind not in NOT_FAULTS]
     if strict and faults:
         raise ConfigError(f"--strict: {path}: {len(faults)} row problem(s): " + "; ".join(problem_summary(faults)))
@@ -695,12 +736,15 @@ def track_file(
     for key in emptied if ids is None else [i for i in chosen if i in emptied]:
         kinds = problem_summary([p for p in data.problems if p.id == key])
         skipped.append({"id": key, "reason": f"no report left: every row dropped ({'; '.join(kinds)})"})
-    for key in tqdm([i for i in chosen if i in data.tracks], desc="objects", unit="object", disable=not progress, dynamic_ncols=True):
+    present = [i for i in chosen if i in data.tracks]
+    for key in present:
+        if len(data.tracks[key]) < cfg["min_reports"]:
+            skipped.append({"id": key, "reason": f"{len(data.tracks[key])} reports < min_reports {cfg['min_reports']}"})
+    keys = [key for key in present if len(data.tracks[key]) >= cfg["min_reports"]]
+    runs = run_objects(estimator, [data.tracks[key] for key in keys], cfg)
+    for key, run in tqdm(list(zip(keys, runs)), desc="objects", unit="object", disable=not progress, dynamic_ncols=True):
         track = data.tracks[key]
-        if len(track) < cfg["min_reports"]:
-            skipped.append({"id": key, "reason": f"{len(track)} reports < min_reports {cfg['min_reports']}"})
-            continue
-        options = dict(origin=data.origin, projection=data.projection or "enu", epoch=data.epoch, smooth=smooth, lag=lag)
+        options = dict(origin=data.origin, projection=data.projection or "enu", epoch=data.epoch, smooth=smooth, lag=lag, run=run)
         try:
             objects.append(track_one(track, cfg, out, registry, **options))
         except ConfigError:
@@ -720,7 +764,31 @@ def track_file(
         "problems": [attrs.asdict(problem) for problem in data.problems],
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    if geojson:
+        collection = tracks_geojson(summary, out)
+        (out / "tracks.geojson").write_text(json.dumps(collection, allow_nan=False) + "\n", encoding="utf-8")
     return summary
+
+
+def segments_frame(summary: Mapping[str, Any] | str | os.PathLike):
+    """The segments of every object of a :func:`track_file` summary (the dict, or the path of ``summary.json``) as a
+    :class:`pandas.DataFrame`: one row per segment, objects and their segments in order, a column ``id`` (the
+    object's) and one per segment key (``start``, ``end``, ``mode``, ``radius``, ``mean_speed``, ``heading_change``,
+    ``mean_turn_rate``, and for files of ISO time stamps ``start_utc``, ``end_utc`` as ISO 8601 text).  A summary
+    without objects gives no rows (with those columns but the UTC ones).  A ValueError for a summary without an
+    ``"objects"`` list; an ImportError (with the ``pip install`` line) without pandas."""
+    from hybridtrack.engine.results import import_pandas
+
+    pd = import_pandas("segments_frame")
+    if isinstance(summary, (str, os.PathLike)):
+        summary = json.loads(Path(summary).read_text(encoding="utf-8"))
+    objects = summary.get("objects") if isinstance(summary, Mapping) else None
+    if not isinstance(objects, list):
+        got = f"keys {sorted(summary)}" if isinstance(summary, Mapping) else type(summary).__name__
+        raise ValueError(f"summary: expected track_file's summary, a mapping with an 'objects' list, got {got}")
+    rows = [{"id": entry["id"], **segment} for entry in objects for segment in entry["segments"]]
+    plain = ["id", "start", "end", "mode", "radius", "mean_speed", "heading_change", "mean_turn_rate"]
+    return pd.DataFrame(rows, columns=list(dict.fromkeys(key for row in rows for key in row)) or plain)
 
 
 def problem_summary(problems) -> list[str]:

@@ -1,10 +1,11 @@
-"""``hybridtrack track FILE --config CONFIG.toml --out DIR [--id ID …] [--smooth | --lag SECONDS]``: track every object of a position file.
+"""``hybridtrack track FILE --config CONFIG.toml --out DIR [--id ID …] [--smooth | --lag SECONDS] [--geojson]``: track every object of a position file.
 
 Runs the estimator configured in CONFIG (checked by :mod:`hybridtrack.apps.tracking`) on each object of FILE
 (or the objects named by ``--id``, repeatable) and writes ``DIR/<id>.rrd``, ``DIR/<id>.npz`` and
 ``DIR/summary.json`` (the configuration schema and the outputs: ``docs/real_data.md``).  A progress bar over
 the objects goes to stderr (``--no-progress`` to hide it).  ``--smooth`` (fixed interval) and ``--lag SECONDS``
-(fixed lag) give the smoothed run of a multiple-model algorithm instead of the causal one.
+(fixed lag) give the smoothed run of a multiple-model algorithm instead of the causal one.  ``--geojson`` also
+writes ``DIR/tracks.geojson`` (latitude/longitude files only: :func:`hybridtrack.apps.geojson.tracks_geojson`).
 
 On stderr: the speed limit of the reader's jump check and where it comes from, the rows the reader dropped or
 repaired (one line per kind, with its count and the first file line; all of them in ``summary.json``
@@ -13,8 +14,8 @@ repaired (one line per kind, with its count and the first file line; all of them
 Exit status: 0 done; 1 done, but at least one object failed (listed in ``summary.json`` ``"skipped"`` with
 ``"failed": true``; the other objects and ``summary.json`` are written); 2 a user error, one line on stderr
 (missing file or configuration, unknown key, bad value, unknown estimator kind or mode, an ``--id`` not in the
-file, an unreadable position file, a file of which no report is left or no object tracked — every one skipped, listed
-in ``summary.json`` — a row problem under ``--strict``).
+file, an unreadable position file, ``--geojson`` for a file in x/y metres, a file of which no report is left or
+no object tracked — every one skipped, listed in ``summary.json`` — a row problem under ``--strict``).
 """
 
 from __future__ import annotations
@@ -26,12 +27,21 @@ from hybridtrack.core.hookspecs import hookimpl
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("file", metavar="FILE", help="position file (CSV or .csv.gz; see docs/real_data.md)")
+    parser.add_argument(
+        "file",
+        metavar="FILE",
+        help="position file: CSV (.csv, .csv.gz), GPX (.gpx) or raw AIS NMEA (.nmea, .ais); [reader] format for other names (docs/own_files.md)",
+    )
     parser.add_argument("--config", required=True, metavar="CONFIG.toml", help="tracker configuration (TOML)")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder (created if needed)")
     parser.add_argument("--id", action="append", dest="ids", metavar="ID", help="track only this object (repeatable)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--strict", action="store_true", help="stop (exit 2) on any row the reader drops or repairs")
+    parser.add_argument(
+        "--geojson",
+        action="store_true",
+        help="also write DIR/tracks.geojson: the estimated tracks and their segments (latitude/longitude files)",
+    )
     smoothing = parser.add_mutually_exclusive_group()
     smoothing.add_argument(
         "--smooth", action="store_true", help="fixed-interval smoothing of the recorded file (multiple-model algorithms)"
@@ -50,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     check_output_folder("--out", args.out)
     try:
         progress = not args.no_progress and sys.stderr.isatty()
-        options = dict(progress=progress, smooth=args.smooth, lag=args.lag, strict=args.strict)
+        options = dict(progress=progress, smooth=args.smooth, lag=args.lag, strict=args.strict, geojson=args.geojson)
         summary = track_file(args.file, args.config, args.out, args.ids, **options)
     except ValueError as error:  # a ConfigError names the key, the reader's structural faults name the file
         raise UsageError(str(error)) from None

@@ -95,7 +95,7 @@ def test_track_writes_outputs_and_finds_the_turn(tmp_path, capsys, rerun_cli, ki
     assert [o["id"] for o in summary["objects"]] == ["port", "starboard"]
     t_turn = STRAIGHT * DT
     for obj, expected in zip(summary["objects"], ("left_turn", "right_turn")):
-        assert set(obj) == {"id", "segments", "decisions"}
+        assert set(obj) == {"id", "output", "segments", "decisions"} and obj["output"] == obj["id"]
         for s in obj["segments"]:
             assert set(s) == {"start", "end", "mode", "radius", "mean_speed", "heading_change", "mean_turn_rate"}
             assert s["mode"] in {"straight", "left_turn", "right_turn"}

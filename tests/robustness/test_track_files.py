@@ -170,15 +170,16 @@ def test_an_estimate_that_is_not_finite_fails_that_object_only(tmp_path, capsys,
 
     def nan_for_b(config, registry=None):
         estimator, sensor, models = real(config, registry)
-        run = estimator.run
+        run_batch = estimator.run_batch
 
-        def patched(measurements, prior, times, **kwargs):
-            result = run(measurements, prior, times=times, **kwargs)
-            if times[0] == 1000.0:  # object 'b'
-                result.means[7:] = np.nan
-            return result
+        def patched(measurements, prior, times, **kwargs):  # the objects of the file, one batch
+            results = run_batch(measurements, prior, times=times, **kwargs)
+            for result in results:
+                if result.times[0] == 1000.0:  # object 'b'
+                    result.means[7:] = np.nan
+            return results
 
-        monkeypatch.setattr(estimator, "run", patched)
+        monkeypatch.setattr(estimator, "run_batch", patched)
         return estimator, sensor, models
 
     monkeypatch.setattr(tracking, "build_tracker", nan_for_b)
@@ -189,6 +190,31 @@ def test_an_estimate_that_is_not_finite_fails_that_object_only(tmp_path, capsys,
     assert entry["failed"] and "object 'b' (lines 32–61)" in entry["reason"]
     assert "the estimate is not finite from the report of line 39 (t = 1070 s) on" in entry["reason"], entry
     assert not (out / "b.npz").exists()
+
+
+def test_a_batch_that_raises_runs_each_object_alone_and_fails_only_the_culprit(tmp_path, capsys, monkeypatch):
+    """The objects of a file run as one batch; when that batch raises, every object runs alone, and only the one whose
+    own run raises is failed (the others are tracked as they would be in the batch)."""
+    real = tracking.build_tracker
+
+    def raise_for_b(config, registry=None):
+        estimator, sensor, models = real(config, registry)
+        run_batch = estimator.run_batch
+
+        def patched(measurements, prior, times, **kwargs):
+            if any(t[0] == 1000.0 for t in np.atleast_2d(times)):  # a batch (or the run alone) holding object 'b'
+                raise np.linalg.LinAlgError("Matrix is not positive definite")
+            return run_batch(measurements, prior, times=times, **kwargs)
+
+        monkeypatch.setattr(estimator, "run_batch", patched)
+        return estimator, sensor, models
+
+    monkeypatch.setattr(tracking, "build_tracker", raise_for_b)
+    rows = straight_rows("a") + [f"{1000 + k * 10},b,{k * 50},0" for k in range(30)]
+    status, summary, out = run_track(tmp_path, rows)
+    assert status == 1 and [o["id"] for o in summary["objects"]] == ["a"] and (out / "a.npz").exists()
+    (entry,) = summary["skipped"]
+    assert entry["failed"] and "object 'b' (lines 32–61): tracking failed: LinAlgError: Matrix is not positive definite" in entry["reason"]
 
 
 def test_no_object_tracked_is_status_2_not_an_empty_success(tmp_path, capsys):
