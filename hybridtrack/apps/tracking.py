@@ -59,6 +59,7 @@ import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from datetime import UTC, timedelta
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import attrs
@@ -579,6 +580,7 @@ def track_one(
     (its ``smooth(run, lag)``, e.g. the multiple-model mode smoother), recorded beside the causal one as
     ``<name>_smoothed``."""
     from hybridtrack.recording import RerunRecorder
+    from hybridtrack.recording.recorder import log_mode
 
     estimator, sensor, models = build_tracker(config, registry)
     layout = estimator.layout
@@ -612,7 +614,11 @@ def track_one(
         if recorder is not None:
             in_3d = (None, None) if heights is None else (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
-    modes, radii = _step_modes(models, run, layout, config["segments"])
+        modes, radii = _step_modes(models, run, layout, config["segments"])
+        if recorder is not None and config["segments"]["by"] == "motion":  # the summary's modes: lanes, the path's colours
+            names = list(dict.fromkeys(modes))
+            followed = SimpleNamespace(mode=np.array([names.index(m) for m in modes]), modes=tuple(names), times=run.times)
+            log_mode(recorder, estimator.name, np.arange(len(modes)), followed, series="segment")
     if getattr(estimator, "detector", None) is not None:
         by_label = dict(zip(run.modes, models))
         decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]

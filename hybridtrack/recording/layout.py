@@ -50,6 +50,7 @@ _ESTIMATOR_PANELS = {
     "bank_size": ("bank_size", "Bank size (filters running)"),
     "mode": ("mode", MODE_PANEL_TITLE),
     "followed": ("mode", MODE_PANEL_TITLE),
+    "segment": ("segment", "Segments (summary.json: the turn rate and speed decide), a lane each"),
     "mode_probability": ("mode_probability", "Mode probabilities μ"),
     "nis": ("nis", "NIS (normalized innovation squared) with the χ² 95 % bounds"),
     "nis_bounds": ("nis", "NIS (normalized innovation squared) with the χ² 95 % bounds"),

@@ -86,14 +86,14 @@ def spatial_style(entity: str) -> tuple[tuple[int, int, int], str]:
 
 
 #: the ``estimator/<f>/<series>`` entities of a mode per step, logged as one lane per mode (:func:`mode_lanes`)
-MODE_SERIES = ("mode", "followed")
+MODE_SERIES = ("mode", "followed", "segment")
 
 #: the line width (UI points) of each mode lane: thick enough that a mode held for a few steps shows
 LANE_WIDTH = 4.0
 
 
 def is_mode_series(entity: str) -> bool:
-    """Whether a scalar entity is a mode per step (``estimator/<f>/mode`` or ``…/followed``), drawn as lanes."""
+    """Whether a scalar entity is a mode per step (``estimator/<f>/mode``, ``…/followed`` or ``…/segment``), drawn as lanes."""
     parts = entity.strip("/").split("/")
     return len(parts) == 3 and parts[0] == "estimator" and parts[2] in MODE_SERIES
 

@@ -126,7 +126,9 @@ def test_a_segment_of_one_report_ends_at_the_next_report_and_the_last_one_repeat
     lat_lon = np.array([[50.0, -1.0], [50.1, -1.1], [50.2, -1.2], [50.3, -1.3]])
     np.savez(tmp_path / "x_1.npz", times=np.array([0.0, 10.0, 20.0, 30.0]), lat_lon=lat_lon)
     cuts = [(0.0, 10.0, "straight"), (10.0, 20.0, "left_turn"), (20.0, 30.0, "straight"), (30.0, 30.0, "left_turn")]
-    summary = {"objects": [{"id": "x 1", "output": "x_1", "segments": [{"start": a, "end": b, "mode": m, "radius": None} for a, b, m in cuts]}]}
+    summary = {
+        "objects": [{"id": "x 1", "output": "x_1", "segments": [{"start": a, "end": b, "mode": m, "radius": None} for a, b, m in cuts]}]
+    }
     track, *segments = tracks_geojson(summary, tmp_path)["features"]  # the id's file name: x_1.npz
     assert track["geometry"]["coordinates"] == [[-1.0, 50.0], [-1.1, 50.1], [-1.2, 50.2], [-1.3, 50.3]]
     assert track["properties"] == {"id": "x 1", "kind": "track", "mode": None, "start_utc": None, "end_utc": None}
@@ -233,3 +235,21 @@ def test_without_pandas_the_frames_say_how_to_install_it(monkeypatch):
         run.to_pandas()
     with pytest.raises(ImportError, match=r"segments_frame needs pandas.*pip install hybridtrack\[pandas\]"):
         segments_frame({"objects": []})
+
+
+def test_a_recording_of_motion_segments_shows_the_summary_modes_as_lanes(tmp_path):
+    """``[segments] by = "motion"``: the recording has the summary's modes (straight, left_turn …) as a lane panel of
+    their own beside the models' probabilities, one named lane per mode of the summary's segments."""
+    from hybridtrack.recording.inspection import RecordingFile
+
+    csv, cfg = write_files(tmp_path, geographic=False)
+    config = cfg.read_text().replace('modes = ["straight", "left_turn"]\nradii = [200.0]', 'modes = ["straight", "coordinated_turn"]')
+    cfg.write_text(config + '\n[segments]\nby = "motion"\n', encoding="utf-8")
+    summary = track_file(csv, cfg, tmp_path / "out")
+    (entry,) = [o for o in summary["objects"] if o["id"] == "a"]
+    modes = list(dict.fromkeys(s["mode"] for s in entry["segments"]))
+    assert "left_turn" in modes and "straight" in modes
+    steps, lanes = RecordingFile(tmp_path / "out" / "a.rrd").series("estimator/track/segment")
+    lanes = np.atleast_2d(lanes.T).T
+    assert lanes.shape == (30, len(modes))
+    assert (np.isfinite(lanes).sum(axis=1) == 1).all()  # every report in exactly one lane
