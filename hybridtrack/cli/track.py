@@ -2,7 +2,7 @@
 
 Runs the estimator configured in CONFIG (checked by :mod:`hybridtrack.apps.tracking`) on each object of FILE
 (or the objects named by ``--id``, repeatable) and writes ``DIR/<id>.rrd``, ``DIR/<id>.npz`` and
-``DIR/summary.json`` (the configuration schema and the outputs: ``docs/real_data.md``).  A progress bar over
+``DIR/summary.json`` (the configuration: ``docs/config.md``; the outputs: ``docs/real_data.md``).  A progress bar over
 the objects goes to stderr (``--no-progress`` to hide it).  ``--smooth`` (fixed interval) and ``--lag SECONDS``
 (fixed lag) give the smoothed run of a multiple-model algorithm instead of the causal one.  ``--geojson`` also
 writes ``DIR/tracks.geojson`` (latitude/longitude files only: :func:`hybridtrack.apps.geojson.tracks_geojson`).
