@@ -71,7 +71,7 @@ from hybridtrack.apps.mode_labels import motion_states
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.validation import check_positive
-from hybridtrack.io.track_files import SOLENT_AIS, SPEED_LIMITS, Track, problem_kinds, read_tracks, unproject
+from hybridtrack.io.track_files import SOLENT_AIS, SPEED_LIMITS, Track, is_data_frame, problem_kinds, read_tracks, unproject
 
 #: reader presets by name (the ``preset`` key of ``[reader]``)
 PRESETS = {"solent_ais": SOLENT_AIS}
@@ -681,7 +681,7 @@ def _check_finite(run, track: Track) -> None:
 
 
 def track_file(
-    path: str | os.PathLike,
+    path,
     config: str | os.PathLike | Mapping[str, Any],
     out: str | os.PathLike,
     ids: Iterable[str] | None = None,
@@ -695,6 +695,8 @@ def track_file(
 ) -> dict:
     """Track every object of ``path`` (or those in ``ids``) with ``config`` (a TOML path or a mapping; module
     docstring) and write ``out/<id>.rrd``, ``out/<id>.npz`` and ``out/summary.json``; returns the summary.
+    ``path``: a position file (CSV, GPX, NMEA: :func:`~hybridtrack.io.track_files.read_tracks`) or a pandas
+    DataFrame (its columns read as a CSV's, named ``<DataFrame>`` in messages).
 
     Objects with fewer than ``min_reports`` reports (or none left: every row dropped by the reader) are skipped and
     listed under ``"skipped"``; an object whose tracking fails is listed there too, with ``"failed": true`` and the
@@ -718,12 +720,13 @@ def track_file(
         raise ConfigError(
             f"--smooth/--lag: algorithm {cfg['estimator']['algorithm']!r} has no smoother (the multiple-model algorithms imm, gpb1, gpb2 have)"
         )
-    if not Path(path).is_file():
+    if not is_data_frame(path) and not Path(path).is_file():
         raise FileNotFoundError(2, "no such position file", str(path))
     try:
         data = read_tracks(path, **cfg["reader"], warn=False)
     except TypeError as error:
         raise ConfigError(f"[reader]: {error}") from None
+    path = data.path  # the file, or "<DataFrame>", as the messages name it
     if geojson and data.origin is None:
         raise ConfigError(
             f"--geojson needs latitude/longitude positions: {path} was read as x/y metres (no origin); give [reader] lat and lon columns"

@@ -360,8 +360,56 @@ def test_track_command_on_a_gpx_file(tmp_path, capsys):
         f'<?xml version="1.0"?>\n<gpx version="1.1" creator="t"><trk><name>north</name><trkseg>\n{points}\n</trkseg></trk></gpx>\n'
     )
     cfg.write_text(TRACK_CONFIG)  # no [reader] at all: the format from the extension
-    status = main(["track", str(gpx), "--config", str(cfg), "--out", str(out), "--no-progress"])
+    status = main(["track", str(gpx), "--config", str(cfg), "--out", str(out), "--no-progress", "--geojson"])
     assert status == 0, capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())
     assert [entry["id"] for entry in summary["objects"]] == ["north"] and summary["problems"] == []
-    assert (out / "north.npz").exists()
+    assert (out / "north.npz").exists() and (out / "north.rrd").stat().st_size > 0
+    assert summary["epoch_utc"] == "2016-01-12T13:02:00Z"
+    features = json.loads((out / "tracks.geojson").read_text())["features"]
+    assert [f["properties"]["kind"] for f in features] == ["track", "segment"]
+    lon, lat = np.array(features[0]["geometry"]["coordinates"]).T
+    assert np.allclose(lon, -1.09, atol=1e-4) and lat[0] < lat[-1]  # [lon, lat], going north
+
+
+def test_track_command_on_an_nmea_log_with_geojson(tmp_path, capsys):
+    """Raw AIS NMEA to summary.json, .rrd and GeoJSON in one command; the log's type 5 messages are no fault."""
+    lines = []
+    for k in range(12):
+        fields = {**POSITION, "lat": round(50.77 - k * 0.0004, 6), "lon": -1.09, "course": 180.0, "speed": 8.6}
+        lines.append(tag_block(f"c:{UNIX + 10 * k}") + sentences(fields)[0])
+    lines.insert(3, tag_block(f"c:{UNIX + 25}") + sentences({"type": 5, "mmsi": FERRY, "shipname": "FERRY"}, seq_id=1)[0])
+    lines.insert(4, sentences({"type": 5, "mmsi": FERRY, "shipname": "FERRY"}, seq_id=1)[1])
+    log, cfg, out = tmp_path / "ais.nmea", tmp_path / "c.toml", tmp_path / "out"
+    log.write_text("\n".join(lines) + "\n")
+    cfg.write_text(TRACK_CONFIG)
+    status = main(["track", str(log), "--config", str(cfg), "--out", str(out), "--no-progress", "--geojson", "--strict"])
+    assert status == 0, capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert [entry["id"] for entry in summary["objects"]] == [str(FERRY)]
+    assert summary["problem_counts"] == {"not_position": 1}
+    assert (out / f"{FERRY}.rrd").stat().st_size > 0
+    (track, segment) = json.loads((out / "tracks.geojson").read_text())["features"]
+    assert track["properties"]["id"] == str(FERRY) and segment["properties"]["mode"] == "straight"
+
+
+def test_track_file_on_a_data_frame(tmp_path):
+    """A DataFrame to summary.json, .rrd and GeoJSON in one call; messages name it <DataFrame>."""
+    from hybridtrack.apps.tracking import track_file
+
+    pd = pytest.importorskip("pandas")
+    start = pd.Timestamp("2016-01-12 13:02:00", tz="UTC")
+    frame = pd.DataFrame(
+        {
+            "time": [start + pd.Timedelta(seconds=10 * k) for k in range(12)],
+            "lat": [50.77 + k * 0.00045 for k in range(12)],
+            "lon": [-1.09] * 12,
+        }
+    )
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[reader]\nlat = "lat"\nlon = "lon"\n' + TRACK_CONFIG)
+    summary = track_file(frame, cfg, tmp_path / "out", geojson=True)
+    assert [entry["id"] for entry in summary["objects"]] == [""] and summary["epoch_utc"] == "2016-01-12T13:02:00Z"
+    assert (tmp_path / "out" / "track.rrd").exists() and (tmp_path / "out" / "tracks.geojson").exists()
+    with pytest.raises(ValueError, match="--id 'x': no such object in <DataFrame>"):
+        track_file(frame, cfg, tmp_path / "out", ids=["x"])
