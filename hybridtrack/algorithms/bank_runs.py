@@ -8,6 +8,7 @@ The banks' step convention (as the Pipeline): step 0 updates the prior with z_0;
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
@@ -70,7 +71,9 @@ def run_ragged(algorithm, measurements: Sequence[Mapping[str, np.ndarray]], prio
     ``measurements[r]`` (sensor name → (K_r+1, m)) at ``times[r]`` (K_r+1,) from ``priors[r]`` ((mean, cov), all in one
     layout), padded after its last report to the longest run with unmeasured steps (NaN) :data:`PAD_STEP` s apart, and
     each result cut back to its K_r+1 steps (``RunResult.first_steps``): what the run gives alone, to rounding (the
-    padding follows its last step; a run's arithmetic never mixes with another's).  ``options`` go to ``run_batch``."""
+    padding follows its last step; a run's arithmetic never mixes with another's).  An algorithm whose ``run_batch``
+    takes ``lengths`` (the multiple-model estimators) is given them and does not filter the padding at all.
+    ``options`` go to ``run_batch``."""
     lengths = [len(np.asarray(t)) for t in times]
     if not (len(measurements) == len(priors) == len(lengths) > 0):
         raise ValueError(
@@ -89,6 +92,8 @@ def run_ragged(algorithm, measurements: Sequence[Mapping[str, np.ndarray]], prio
         T[r, k:] = T[r, k - 1] + PAD_STEP * np.arange(1, longest - k + 1)
     means = np.stack([np.asarray(p[0], dtype=float) for p in priors])
     covs = np.stack([np.asarray(p[1], dtype=float) for p in priors])
+    if "lengths" in inspect.signature(algorithm.run_batch).parameters:  # the padding is not filtered at all
+        options = {**options, "lengths": lengths}
     runs = algorithm.run_batch(stacked, (means, covs), times=T, **options)
     return [run.first_steps(k) for run, k in zip(runs, lengths)]
 

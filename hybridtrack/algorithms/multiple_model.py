@@ -402,6 +402,7 @@ class MultipleModelEstimator:
         recorders=None,
         mode_probabilities=None,
         prior_layout: Sequence[str] | None = None,
+        lengths: Sequence[int] | None = None,
     ) -> list[MultipleModelRun]:
         """R runs vectorized over runs × models, one :class:`MultipleModelRun` per run (the inputs as
         :func:`~hybridtrack.algorithms.bank_runs.run_banks` takes them; all runs in one bank, each recorded run
@@ -409,33 +410,64 @@ class MultipleModelEstimator:
 
         ``prior`` is in the union layout or a model's layout (``prior_layout``
         names it when ambiguous); ``mode_probabilities``: μ_0 (r,), default uniform.
+        ``lengths`` (R,): run r's own steps, 1 … K+1 (default K+1 for all); the rows after them (the padding of a
+        ragged batch, :func:`~hybridtrack.algorithms.bank_runs.run_ragged`) are neither filtered nor returned: a run
+        leaves the bank after its last step (each run's arithmetic is its own, so the others are unchanged).
         """
         z = stacked_measurements(self.network, measurements)
         R, steps = z.shape[:2]
         T, DT = batch_times(times, self.tau, R, steps)
         truths, recorders = per_run(truth, R, "truth"), per_run(recorders, R, "recorders")
         mean, cov = prior_arrays(prior, R)
-        states = [self.start(mean, cov, z[:, 0], mode_probabilities, prior_layout)]
+        lengths = _run_lengths(lengths, R, steps)
+        # the runs longest first, so that the runs still going at step k are the first ones of the bank
+        order = np.argsort(-lengths, kind="stable")
+        going = R - np.searchsorted(np.sort(lengths), np.arange(steps), side="right")  # the runs with lengths > k
+        zs, DTs = z[order], DT[order]
+        state = self.start(mean[order], cov[order], zs[:, 0], mode_probabilities, prior_layout)
+        fields = attrs.fields_dict(MultipleModelState)
+        out = {name: np.empty((R, steps) + getattr(state, name).shape[1:]) for name in fields}
         same = bool((DT == DT[:1]).all())
-        for k in range(1, steps):
-            states.append(self.step(states[-1], z[:, k], float(DT[0, k - 1]) if same else np.array(DT[:, k - 1])))
-        field = {name: np.stack([getattr(s, name) for s in states], axis=1) for name in attrs.fields_dict(MultipleModelState)}
+        for k in range(steps):
+            if k:
+                A = int(going[k])
+                if A < state.mean.shape[0]:  # runs that ended leave the bank
+                    state = MultipleModelState(*(getattr(state, name)[:A] for name in fields))
+                state = self.step(state, zs[:A, k], float(DTs[0, k - 1]) if same else DTs[:A, k - 1])
+            A = state.mean.shape[0]
+            for name in fields:
+                out[name][:A, k] = getattr(state, name)
+        where = np.empty(R, dtype=np.intp)
+        where[order] = np.arange(R)
         own = ("log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik")
-        runs = [
-            MultipleModelRun(
-                layout=self.layout,
-                modes=self.modes,
-                times=T[r],
-                means=field["mean"][r],
-                covs=field["cov"][r],
-                mode=np.argmax(field["log_mode_probabilities"][r], axis=-1),
-                method=self.method,
-                **{name: field[name][r] for name in own},
+        runs = []
+        for r in range(R):
+            L, i = int(lengths[r]), where[r]
+            field = {name: out[name][i, :L] for name in fields}
+            runs.append(
+                MultipleModelRun(
+                    layout=self.layout,
+                    modes=self.modes,
+                    times=T[r, :L],
+                    means=field["mean"],
+                    covs=field["cov"],
+                    mode=np.argmax(field["log_mode_probabilities"], axis=-1),
+                    method=self.method,
+                    **{name: field[name] for name in own},
+                )
             )
-            for r in range(R)
-        ]
         for r, recorder in enumerate(recorders):
             if recorder is not None:
-                measured = self.network.split(z[r])
+                measured = self.network.split(z[r, : int(lengths[r])])
                 recorder.log_result(runs[r], name=self.name, sensors=self.network.sensors, measurements=measured, truth=truths[r])
         return runs
+
+
+def _run_lengths(lengths, runs: int, steps: int) -> np.ndarray:
+    """``lengths`` as (R,) integers in 1 … K+1 (None: K+1 for every run), else a ValueError naming it."""
+    if lengths is None:
+        return np.full(runs, steps, dtype=np.intp)
+    values = np.asarray(lengths)
+    if values.shape != (runs,) or values.dtype.kind not in "iu" or (values < 1).any() or (values > steps).any():
+        raise ValueError(f"lengths: expected {runs} integers in 1 … {steps} (each run's steps), got {lengths!r}")
+    return values.astype(np.intp)

@@ -596,9 +596,9 @@ def track_one(
     recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}, epoch=epoch) if recording else None
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
         measured = measurements_of(track, config)
-        if run is None:
-            run = estimator.run(measured, track_prior(track, config, layout), times=track.times)
-        if recorder is not None:
+        if run is None:  # alone: the algorithm records its run itself
+            run = estimator.run(measured, track_prior(track, config, layout), times=track.times, recorder=recorder)
+        elif recorder is not None:
             record_run(estimator, run, recorder, measured)
         _check_finite(run, track)
         if smooth or lag is not None:
@@ -653,8 +653,11 @@ def run_objects(estimator, tracks: Sequence[Track], config: dict) -> list:
     """The estimator's causal runs of ``tracks``, the objects of a file stacked as runs of one bank
     (:func:`~hybridtrack.algorithms.bank_runs.run_ragged`, :data:`BATCH_OBJECTS` at a time, objects of similar
     length together), each equal to its run alone; a batch that raises (one object's arithmetic failing) gives
-    None for its objects, which :func:`track_one` then runs alone, so that the failure is that object's own."""
+    None for its objects, which :func:`track_one` then runs alone, so that the failure is that object's own, and so
+    does an algorithm without ``run_batch`` (the Algorithm contract asks only for ``run``)."""
     runs = [None] * len(tracks)
+    if not callable(getattr(estimator, "run_batch", None)):
+        return runs
     order = sorted(range(len(tracks)), key=lambda i: len(tracks[i]))
     for first in range(0, len(order), BATCH_OBJECTS):
         chosen = order[first : first + BATCH_OBJECTS]
