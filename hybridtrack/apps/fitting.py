@@ -36,7 +36,7 @@ import attrs
 import numpy as np
 from scipy.optimize import minimize
 
-from hybridtrack.apps.tracking import MULTIPLE_MODEL, ConfigError, build_tracker, load_config, measurements_of, track_prior
+from hybridtrack.apps.tracking import MULTIPLE_MODEL, ConfigError, build_tracker, load_config, measurements_of, run_objects, track_prior
 from hybridtrack.io.track_files import read_tracks
 
 #: parameter → (table, key, units)
@@ -73,11 +73,15 @@ def _with(config: dict, values: Mapping[str, float]) -> dict:
 
 
 def log_likelihood(config: dict, tracks: Iterable, registry=None) -> float:
-    """ℓ of the tracks (module docstring) under a checked configuration of a multiple-model algorithm."""
+    """ℓ of the tracks (module docstring) under a checked configuration of a multiple-model algorithm: the objects
+    stacked as runs of one bank (:func:`~hybridtrack.apps.tracking.run_objects`; an object of a batch that failed
+    runs alone)."""
     estimator = build_tracker(config, registry)[0]
+    tracks = list(tracks)
     total = 0.0
-    for track in tracks:
-        run = estimator.run(measurements_of(track, config), track_prior(track, config, estimator.layout), times=track.times)
+    for track, run in zip(tracks, run_objects(estimator, tracks, config)):
+        if run is None:
+            run = estimator.run(measurements_of(track, config), track_prior(track, config, estimator.layout), times=track.times)
         total += float(np.sum(run.loglik))
     return total
 

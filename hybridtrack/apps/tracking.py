@@ -683,6 +683,32 @@ def _check_finite(run, track: Track) -> None:
         )
 
 
+def track_objects(tracks: Sequence[Track], config: dict, out, options: dict, source: str, registry=None, progress: bool = False):
+    """Track ``tracks`` (objects of the file ``source``) with the checked ``config`` into the folder ``out``: the
+    causal runs as one batch (:func:`run_objects`), then :func:`track_one` per object with ``options`` (origin,
+    projection, epoch, smooth, lag).  Returns (summary entries, skipped entries): an object whose tracking raises or
+    whose estimate is not finite is skipped with ``"failed": true`` and the reason naming the object, ``source`` and
+    its lines, its outputs removed — one object never sinks the others.  The unit of work of :func:`track_file`'s
+    executors."""
+    from tqdm.auto import tqdm
+
+    out = Path(out)
+    estimator = build_tracker(config, registry)[0]
+    runs = run_objects(estimator, tracks, config)
+    objects, skipped = [], []
+    for track, run in tqdm(list(zip(tracks, runs)), desc="objects", unit="object", disable=not progress, dynamic_ncols=True):
+        try:
+            objects.append(track_one(track, config, out, registry, **options, run=run))
+        except ConfigError:
+            raise
+        except Exception as error:  # one object never sinks the file: reported, its outputs removed
+            for suffix in (".rrd", ".npz"):
+                (out / f"{output_name(track.id)}{suffix}").unlink(missing_ok=True)
+            where = f"{source}: object {track.id!r} (lines {int(track.lines.min())}–{int(track.lines.max())})"
+            skipped.append({"id": track.id, "reason": f"{where}: tracking failed: {type(error).__name__}: {error}", "failed": True})
+    return objects, skipped
+
+
 def track_file(
     path,
     config: str | os.PathLike | Mapping[str, Any],
@@ -695,6 +721,10 @@ def track_file(
     lag: float | None = None,
     strict: bool = False,
     geojson: bool = False,
+    executor: str | None = None,
+    scheduler=None,
+    workers: int | None = None,
+    shard_objects: int = BATCH_OBJECTS,
 ) -> dict:
     """Track every object of ``path`` (or those in ``ids``) with ``config`` (a TOML path or a mapping; module
     docstring) and write ``out/<id>.rrd``, ``out/<id>.npz`` and ``out/summary.json``; returns the summary.
@@ -710,14 +740,25 @@ def track_file(
     recorded files (:func:`track_one`); a ConfigError for an algorithm without a smoother, for both at once and
     for a negative lag.  ``geojson``: also ``out/tracks.geojson``, each object's estimated track and its segments
     as LineStrings (:func:`hybridtrack.apps.geojson.tracks_geojson`); for a file in x/y metres (no latitude/longitude,
-    no origin) a ConfigError, after reading the file and before anything is tracked."""
-    from tqdm.auto import tqdm
-
+    no origin) a ConfigError, after reading the file and before anything is tracked.  ``executor`` (``"inline"``,
+    ``"process"`` with ``workers``, ``"dask"`` with ``scheduler``, as for campaigns:
+    :mod:`hybridtrack.apps.experiment.executors`): the objects are tracked in shards of ``shard_objects`` (similar
+    lengths together), each shard by :func:`track_objects` where the executor runs it, writing into ``out`` (for a
+    Dask cluster of several machines a folder they share); the summary is the same as without."""
     cfg = load_config(config, registry)
     if smooth and lag is not None:
         raise ConfigError("--smooth and --lag: give one (--smooth: fixed interval; --lag SECONDS: fixed lag)")
     if lag is not None and not (math.isfinite(lag) and lag >= 0):
         raise ConfigError(f"--lag {lag!r}: expected a number of seconds ≥ 0")
+    if executor is not None:
+        from hybridtrack.apps.experiment.executors import EXECUTORS, make_executor
+
+        if executor not in EXECUTORS:
+            raise ConfigError(f"--executor {executor!r}: expected one of {', '.join(EXECUTORS)}")
+        if registry is not None:
+            raise ConfigError(f"--executor {executor}: the workers load the installed plugins; a registry object cannot go with them")
+    if isinstance(shard_objects, bool) or not isinstance(shard_objects, int) or shard_objects < 1:
+        raise ConfigError(f"shard_objects = {shard_objects!r}: expected a positive number of objects per shard")
     estimator = build_tracker(cfg, registry)[0]  # the configuration's faults stop here, before any object
     if (smooth or lag is not None) and not callable(getattr(estimator, "smooth", None)):
         raise ConfigError(
@@ -744,7 +785,7 @@ def track_file(
         raise ConfigError(f"--id {missing[0]!r}: no such object in {path} ({len(data.tracks)} objects)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    objects, skipped = [], []
+    skipped = []
     for key in emptied if ids is None else [i for i in chosen if i in emptied]:
         kinds = problem_summary([p for p in data.problems if p.id == key])
         skipped.append({"id": key, "reason": f"no report left: every row dropped ({'; '.join(kinds)})"})
@@ -753,19 +794,19 @@ def track_file(
         if len(data.tracks[key]) < cfg["min_reports"]:
             skipped.append({"id": key, "reason": f"{len(data.tracks[key])} reports < min_reports {cfg['min_reports']}"})
     keys = [key for key in present if len(data.tracks[key]) >= cfg["min_reports"]]
-    runs = run_objects(estimator, [data.tracks[key] for key in keys], cfg)
-    for key, run in tqdm(list(zip(keys, runs)), desc="objects", unit="object", disable=not progress, dynamic_ncols=True):
-        track = data.tracks[key]
-        options = dict(origin=data.origin, projection=data.projection or "enu", epoch=data.epoch, smooth=smooth, lag=lag, run=run)
-        try:
-            objects.append(track_one(track, cfg, out, registry, **options))
-        except ConfigError:
-            raise
-        except Exception as error:  # one object never sinks the file: reported, its outputs removed
-            for suffix in (".rrd", ".npz"):
-                (out / f"{output_name(key)}{suffix}").unlink(missing_ok=True)
-            where = f"{path}: object {key!r} (lines {int(track.lines.min())}–{int(track.lines.max())})"
-            skipped.append({"id": key, "reason": f"{where}: tracking failed: {type(error).__name__}: {error}", "failed": True})
+    options = dict(origin=data.origin, projection=data.projection or "enu", epoch=data.epoch, smooth=smooth, lag=lag)
+    tracks = [data.tracks[key] for key in keys]
+    if executor is None:
+        done = [track_objects(tracks, cfg, out, options, str(path), registry, progress)]
+    else:  # shards of objects of similar length, each tracked where the executor runs it
+        order = sorted(range(len(tracks)), key=lambda i: len(tracks[i]))
+        shards = [[tracks[i] for i in order[first : first + shard_objects]] for first in range(0, len(order), shard_objects)]
+        with make_executor(executor, workers=workers, scheduler=scheduler) as pool:
+            done = list(pool.map_unordered(track_objects, [(shard, cfg, out, options, str(path)) for shard in shards]))
+    by_id = {entry["id"]: entry for shard_objects_done, _ in done for entry in shard_objects_done}
+    objects = [by_id[key] for key in keys if key in by_id]  # the file's order, whatever order the shards finished in
+    failed = {entry["id"]: entry for _, shard_skipped in done for entry in shard_skipped}
+    skipped += [failed[key] for key in keys if key in failed]
     summary = {
         "objects": objects,
         "skipped": skipped,

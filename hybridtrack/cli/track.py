@@ -42,6 +42,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="also write DIR/tracks.geojson: the estimated tracks and their segments (latitude/longitude files)",
     )
+    parser.add_argument(
+        "--executor",
+        choices=("inline", "process", "dask"),
+        help="track the objects in shards on this executor (default: in this process, as one batch); dask needs --scheduler",
+    )
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address for --executor dask (tcp://HOST:PORT)")
+    parser.add_argument("--workers", type=int, metavar="N", help="processes for --executor process (default: CPU count)")
+    parser.add_argument("--shard-objects", type=int, default=128, metavar="N", help="objects per shard with --executor (default 128)")
     smoothing = parser.add_mutually_exclusive_group()
     smoothing.add_argument(
         "--smooth", action="store_true", help="fixed-interval smoothing of the recorded file (multiple-model algorithms)"
@@ -61,6 +69,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         progress = not args.no_progress and sys.stderr.isatty()
         options = dict(progress=progress, smooth=args.smooth, lag=args.lag, strict=args.strict, geojson=args.geojson)
+        if args.executor is not None:
+            if args.executor == "dask" and not args.scheduler:
+                raise ValueError("--executor dask needs --scheduler ADDRESS (tcp://HOST:PORT)")
+            options |= dict(executor=args.executor, scheduler=args.scheduler, workers=args.workers, shard_objects=args.shard_objects)
         summary = track_file(args.file, args.config, args.out, args.ids, **options)
     except ValueError as error:  # a ConfigError names the key, the reader's structural faults name the file
         raise UsageError(str(error)) from None
