@@ -86,6 +86,13 @@ def log_likelihood(config: dict, tracks: Iterable, registry=None) -> float:
     return total
 
 
+def _check_fittable(cfg: dict) -> None:
+    if cfg["estimator"]["algorithm"] not in MULTIPLE_MODEL:
+        raise ConfigError(f"[estimator] algorithm {cfg['estimator']['algorithm']!r}: fit needs a multiple-model algorithm {MULTIPLE_MODEL}")
+    if isinstance(cfg["estimator"].get("sojourn"), list):
+        raise ConfigError("[estimator] sojourn: fit estimates one sojourn for all modes; give one number")
+
+
 def fit_config(
     path: str | os.PathLike, config: str | os.PathLike | Mapping[str, Any], *, ids=None, max_objects: int | None = None, registry=None
 ) -> FitResult:
@@ -93,15 +100,22 @@ def fit_config(
     least ``min_reports`` reports) under ``config`` (module docstring); a ConfigError for an algorithm other than
     imm, gpb1, gpb2 or a file without objects to fit."""
     cfg = load_config(config, registry)
-    if cfg["estimator"]["algorithm"] not in MULTIPLE_MODEL:
-        raise ConfigError(f"[estimator] algorithm {cfg['estimator']['algorithm']!r}: fit needs a multiple-model algorithm {MULTIPLE_MODEL}")
-    if isinstance(cfg["estimator"].get("sojourn"), list):
-        raise ConfigError("[estimator] sojourn: fit estimates one sojourn for all modes; give one number")
+    _check_fittable(cfg)
     data = read_tracks(path, **cfg["reader"], warn=False)
     chosen = [t for key, t in data.tracks.items() if (ids is None or key in set(ids)) and len(t) >= cfg["min_reports"]]
     chosen = chosen[:max_objects] if max_objects is not None else chosen
     if not chosen:
         raise ConfigError(f"{path}: no object with at least min_reports = {cfg['min_reports']} reports to fit")
+    return fit_tracks(chosen, cfg, registry=registry)
+
+
+def fit_tracks(tracks: Iterable, config: dict, *, registry=None) -> FitResult:
+    """:func:`fit_config` on tracks already read (:class:`~hybridtrack.io.track_files.Track` objects, e.g. a
+    part of a file's, or tracks with simulated noise) under a checked configuration (:func:`load_config`)."""
+    cfg, chosen = config, list(tracks)
+    _check_fittable(cfg)
+    if not chosen:
+        raise ConfigError("tracks: no track to fit")
     est = cfg["estimator"]
     start = {
         "sigma": cfg["measurement"]["sigma"],
