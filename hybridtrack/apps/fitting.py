@@ -25,9 +25,12 @@ closed-form M-step.
 from __future__ import annotations
 
 import copy
+import inspect
+import json
 import math
 import os
 import re
+import tomllib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -37,6 +40,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from hybridtrack.apps.tracking import MULTIPLE_MODEL, ConfigError, build_tracker, load_config, measurements_of, run_objects, track_prior
+from hybridtrack.core.registry import registry_or_default
 from hybridtrack.io.track_files import read_tracks
 
 #: parameter → (table, key, units)
@@ -45,6 +49,39 @@ PARAMETERS = {
     "noise_density": ("estimator", "noise_density", "m²/s³"),
     "sojourn": ("estimator", "sojourn", "s"),
 }
+
+
+#: the units of the motion models' own densities a fit estimates (``<mode>.<parameter>``, :func:`mode_densities`)
+DENSITY_UNITS = {"noise_density": "m²/s³ (stop: m²/s)", "rate_density": "rad²/s³", "jerk_density": "(m/s²)²/s"}
+
+
+def mode_densities(config: dict, registry=None) -> dict[str, tuple[int, str, float]]:
+    """The modes' own process densities a fit estimates: ``"<mode>.<parameter>"`` → (index in ``[estimator] modes``,
+    parameter, start value) for every ``*_density`` parameter of a mode's registered factory (the coordinated
+    turn's ``rate_density``, speed change's ``jerk_density``, a third party's), started from the mode's table or
+    the factory's default; ``noise_density`` only where the mode's table gives its own (the others share the
+    estimator's, fitted as ``noise_density``).  A name repeated by two modes gets the mode's index: ``left_turn[2].…``."""
+    found = []
+    for i, (name, params) in enumerate(config["estimator"]["modes"]):
+        try:
+            parameters = inspect.signature(registry_or_default(registry).get("motion_model", name)).parameters.values()
+        except (KeyError, TypeError, ValueError):
+            continue
+        for parameter in parameters:
+            if not parameter.name.endswith("_density") or (parameter.name == "noise_density" and parameter.name not in params):
+                continue
+            start = params.get(parameter.name, parameter.default)
+            if isinstance(start, (int, float)) and not isinstance(start, bool) and math.isfinite(start) and start > 0:
+                found.append((name, i, parameter.name, float(start)))
+    repeated = {name for name, *_ in found if sum(1 for other, *_ in found if other == name) > 1}
+    return {(f"{name}[{i}]" if name in repeated else name) + f".{key}": (i, key, start) for name, i, key, start in found}
+
+
+def describe(name: str) -> tuple[str, str, str]:
+    """(table, key, units) of a fitted parameter: :data:`PARAMETERS`, or ``modes`` and the unit of a mode's density."""
+    if name in PARAMETERS:
+        return PARAMETERS[name]
+    return "estimator", f"modes {name}", DENSITY_UNITS.get(name.rsplit(".", 1)[-1], "")
 
 
 @attrs.frozen
@@ -62,9 +99,14 @@ class FitResult:
     config: dict
 
 
-def _with(config: dict, values: Mapping[str, float]) -> dict:
+def _with(config: dict, values: Mapping[str, float], registry=None) -> dict:
     out = copy.deepcopy(config)
+    densities = mode_densities(config, registry)
     for name, value in values.items():
+        if name in densities:
+            index, key, _ = densities[name]
+            out["estimator"]["modes"][index][1][key] = float(value)
+            continue
         table, key, _ = PARAMETERS[name]
         out[table][key] = float(value)
     if "noise_density" in values:
@@ -124,13 +166,14 @@ def fit_tracks(tracks: Iterable, config: dict, *, registry=None) -> FitResult:
     }
     if len(est["modes"]) == 1:  # one mode: no switching, nothing to learn about the sojourn
         del start["sojourn"]
+    start |= {name: value for name, (_, _, value) in mode_densities(cfg, registry).items()}
     names = list(start)
     evaluations = 0
 
     def negative(log_theta: np.ndarray) -> float:
         nonlocal evaluations
         evaluations += 1
-        value = -log_likelihood(_with(cfg, dict(zip(names, np.exp(log_theta)))), chosen, registry)
+        value = -log_likelihood(_with(cfg, dict(zip(names, np.exp(log_theta))), registry), chosen, registry)
         return value if math.isfinite(value) else 1e300
 
     x0 = np.log([start[n] for n in names])
@@ -152,7 +195,7 @@ def fit_tracks(tracks: Iterable, config: dict, *, registry=None) -> FitResult:
         objects=len(chosen),
         reports=sum(len(t) for t in chosen),
         evaluations=evaluations,
-        config=_with(cfg, values),
+        config=_with(cfg, values, registry),
     )
 
 
@@ -180,8 +223,12 @@ def write_fitted(config_path: str | os.PathLike, values: Mapping[str, float], ou
     key replaced in its table, or added under the table's header; ``process_noise`` dropped for ``noise_density``."""
     text = Path(config_path).read_text(encoding="utf-8")
     for name, value in values.items():
-        table, key, units = PARAMETERS[name]
-        text = _set_key(text, table, key, f"{value:.6g}", f"fitted by hybridtrack fit ({units})")
+        if name in PARAMETERS:
+            table, key, units = PARAMETERS[name]
+            text = _set_key(text, table, key, f"{value:.6g}", f"fitted by hybridtrack fit ({units})")
+    own = {name: value for name, value in values.items() if name not in PARAMETERS}
+    if own:
+        text = _set_mode_densities(text, own, load_config(Path(config_path)))
     if "noise_density" in values:
         text = re.sub(r"(?m)^process_noise\s*=.*\n", "", text)
     out = Path(out)
@@ -201,3 +248,60 @@ def _set_key(text: str, table: str, key: str, value: str, comment: str) -> str:
     pattern = rf"(?m)^{re.escape(key)}\s*=.*$"
     body = re.sub(pattern, line, body, count=1) if re.search(pattern, body) else "\n" + line + body
     return text[: header.end()] + body + text[body_end:]
+
+
+def _set_mode_densities(text: str, values: Mapping[str, float], config: dict) -> str:
+    """``text`` with ``[estimator] modes`` rewritten: each mode whose density was fitted a table with the value
+    (the other entries as they were written; the array's own comments are replaced by one line saying so)."""
+    raw = tomllib.loads(text)["estimator"]["modes"]
+    radii = tomllib.loads(text)["estimator"].get("radii") or []
+    densities = mode_densities(config)
+    entries, first = [], 0  # the checked config's mode index of each raw entry (a bare turn takes one per radius)
+    for entry in raw:
+        entries.append((first, entry))
+        first += len(radii) if isinstance(entry, str) and entry in ("left_turn", "right_turn") and radii else 1
+    out = []
+    for index, entry in entries:
+        fitted = {key: value for name, value in values.items() for i, key, _ in [densities[name]] if i == index}
+        if fitted:
+            entry = ({"name": entry} if isinstance(entry, str) else dict(entry)) | fitted
+        out.append(_toml_value(entry))
+    array = "modes = [    # densities fitted by hybridtrack fit\n" + "".join(f"    {entry},\n" for entry in out) + "]"
+    start = re.search(r"(?m)^modes\s*=\s*\[", text)
+    return text[: start.start()] + array + text[_closing_bracket(text, start.end() - 1) + 1 :]
+
+
+def _toml_value(value) -> str:
+    """A TOML inline value of a mode entry: a string, a number, a bool, a list or an inline table."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, float):
+        return f"{value:.6g}" if "e" in f"{value:.6g}" or "." in f"{value:.6g}" else f"{value:.6g}.0"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(map(_toml_value, value)) + "]"
+    return "{" + ", ".join(f"{key} = {_toml_value(v)}" for key, v in value.items()) + "}"
+
+
+def _closing_bracket(text: str, opening: int) -> int:
+    """The index of the ``]`` closing the ``[`` at ``opening`` (strings and comments skipped)."""
+    depth, i = 0, opening
+    while i < len(text):
+        c = text[i]
+        if c == "#":
+            i = text.find("\n", i)
+            i = len(text) if i < 0 else i
+            continue
+        if c in "\"'":
+            i = text.index(c, i + 1)
+        elif c in "[{":
+            depth += 1
+        elif c in "]}":
+            depth -= 1
+            if depth == 0:
+                return i
+        i += 1
+    raise ValueError("[estimator] modes: the array is not closed")

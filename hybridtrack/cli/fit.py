@@ -30,7 +30,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from hybridtrack.apps.fitting import PARAMETERS, fit_config, write_fitted
+    from hybridtrack.apps.fitting import describe, fit_config, write_fitted
 
     if args.max_objects is not None and args.max_objects < 1:
         raise UsageError(f"--max-objects {args.max_objects}: expected a positive number of objects")
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"fitted on {result.objects} object(s), {result.reports} reports: ln L {result.start_loglik:.1f} → {result.loglik:.1f}")
         for name, value in result.values.items():
-            table, key, units = PARAMETERS[name]
+            table, key, units = describe(name)
             print(f"  [{table}] {key:<14} {value:12.6g} ± {result.standard_errors[name]:.3g} {units}")
         print(f"written: {args.out}")
     return 0

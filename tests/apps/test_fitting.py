@@ -99,3 +99,65 @@ def test_bad_inputs_are_one_line_and_status_2(tmp_path, capsys, edit, argv_extra
     status = main(["fit", str(csv), "--config", str(cfg), "--out", str(tmp_path / "tuned.toml")] + argv_extra)
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1 and message in err, err
+
+
+RATE_DENSITY = 4e-6  # rad²/s³: the turn rate's random walk
+
+
+def write_turning_tracks(path, objects=4, reports=150, seed=5):
+    """Coordinated-turn tracks (ω in the state, a random walk of density RATE_DENSITY; white acceleration Q), fixes
+    2–8 s apart with σ = SIGMA."""
+    from hybridtrack_plugins.motion.real_motion import CoordinatedTurn
+
+    model, rng, rows = CoordinatedTurn(noise_density=Q, rate_density=RATE_DENSITY), np.random.default_rng(seed), ["t,name,east,north"]
+    for o in range(objects):
+        x, t = np.array([1e5 * o, 6.0, 2e5, rng.uniform(-6, 6), 0.0]), 0.0
+        for _ in range(reports):
+            z = x[[0, 2]] + rng.normal(0.0, SIGMA, 2)
+            rows.append(f"{t:.3f},o{o},{z[0]:.4f},{z[1]:.4f}")
+            dt = rng.uniform(2.0, 8.0)
+            noise = rng.multivariate_normal(np.zeros(5), model.transition(dt, x).process_noise)
+            x = model.propagate(x, dt) + noise
+            t += dt
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.mark.slow  # ≈ 30 s: three parameters over 600 reports
+def test_the_fit_recovers_a_modes_own_density(tmp_path):
+    """A mode's own density (the coordinated turn's rate_density) is fitted beside σ and q, and written into the
+    mode's table of the tuned file."""
+    csv, cfg = write_turning_tracks(tmp_path / "t.csv"), tmp_path / "c.toml"
+    cfg.write_text(
+        CONFIG.replace('modes = ["straight"]', 'modes = [\n    {name = "coordinated_turn", rate_density = 1e-5},  # a comment\n]')
+    )
+    result = fit_config(csv, cfg)
+    assert set(result.values) == {"sigma", "noise_density", "coordinated_turn.rate_density"}
+    for name, truth in (("sigma", SIGMA), ("noise_density", Q), ("coordinated_turn.rate_density", RATE_DENSITY)):
+        value, se = result.values[name], result.standard_errors[name]
+        assert np.isfinite(se) and 0 < se < value, (name, value, se)
+        assert abs(value - truth) < 2 * se, (name, value, se, truth)
+    checked = load_config(write_fitted(cfg, result.values, tmp_path / "tuned.toml"))
+    ((name, params),) = checked["estimator"]["modes"]
+    assert name == "coordinated_turn" and params["rate_density"] == pytest.approx(result.values["coordinated_turn.rate_density"], rel=1e-5)
+
+
+def test_the_modes_densities_a_fit_estimates():
+    """Every *_density of a mode's factory; noise_density only where the mode's table gives it; repeated names indexed."""
+    from hybridtrack.apps.fitting import mode_densities
+
+    base = {"measurement": {"sigma": 5.0}, "estimator": {"algorithm": "imm"}}
+    modes = [
+        "straight",
+        {"name": "coordinated_turn"},
+        {"name": "stop", "noise_density": 0.02},
+        {"name": "speed_change", "jerk_density": 2e-4},
+    ]
+    found = mode_densities(load_config(base | {"estimator": base["estimator"] | {"modes": modes}}))
+    assert found == {
+        "coordinated_turn.rate_density": (1, "rate_density", 1e-6),
+        "stop.noise_density": (2, "noise_density", 0.02),
+        "speed_change.jerk_density": (3, "jerk_density", 2e-4),
+    }
+    twice = mode_densities(load_config(base | {"estimator": base["estimator"] | {"modes": ["coordinated_turn", "coordinated_turn"]}}))
+    assert list(twice) == ["coordinated_turn[0].rate_density", "coordinated_turn[1].rate_density"]
