@@ -13,8 +13,9 @@ Kirubarajan 2001, §11.6 for the mixture's likelihood).  Fitted, each as its
 logarithm so that it stays positive: the measurement noise σ (``[measurement]
 sigma``, m), the white-acceleration density q (``[estimator] noise_density``,
 m²/s³, every mode without its own; started from σ_w²/10 s for a file of the
-per-report ``process_noise``) and, with more than one mode, the mean time in
-each mode (``[estimator] sojourn``, s, one for all modes).  θ̂ maximizes ℓ
+per-report ``process_noise``), with more than one mode the mean time in
+each mode (``[estimator] sojourn``, s, one per mode: ``sojourn.<mode>``, :func:`sojourns`), and each mode's own
+process densities (``<mode>.rate_density`` …, :func:`mode_densities`).  θ̂ maximizes ℓ
 (L-BFGS-B from the configuration's values); the standard errors come from
 the observed information, the numerical Hessian H of −ℓ in the logarithms at
 θ̂ (central differences): SE(ln θ_i) = √(H⁻¹)_ii and SE(θ_i) = θ̂_i SE(ln θ_i)
@@ -47,7 +48,6 @@ from hybridtrack.io.track_files import read_tracks
 PARAMETERS = {
     "sigma": ("measurement", "sigma", "m"),
     "noise_density": ("estimator", "noise_density", "m²/s³"),
-    "sojourn": ("estimator", "sojourn", "s"),
 }
 
 
@@ -61,7 +61,7 @@ def mode_densities(config: dict, registry=None) -> dict[str, tuple[int, str, flo
     turn's ``rate_density``, speed change's ``jerk_density``, a third party's), started from the mode's table or
     the factory's default; ``noise_density`` only where the mode's table gives its own (the others share the
     estimator's, fitted as ``noise_density``).  A name repeated by two modes gets the mode's index: ``left_turn[2].…``."""
-    found = []
+    found, labels = [], mode_names(config)
     for i, (name, params) in enumerate(config["estimator"]["modes"]):
         try:
             parameters = inspect.signature(registry_or_default(registry).get("motion_model", name)).parameters.values()
@@ -72,15 +72,34 @@ def mode_densities(config: dict, registry=None) -> dict[str, tuple[int, str, flo
                 continue
             start = params.get(parameter.name, parameter.default)
             if isinstance(start, (int, float)) and not isinstance(start, bool) and math.isfinite(start) and start > 0:
-                found.append((name, i, parameter.name, float(start)))
-    repeated = {name for name, *_ in found if sum(1 for other, *_ in found if other == name) > 1}
-    return {(f"{name}[{i}]" if name in repeated else name) + f".{key}": (i, key, start) for name, i, key, start in found}
+                found.append((labels[i], i, parameter.name, float(start)))
+    return {f"{label}.{key}": (i, key, start) for label, i, key, start in found}
+
+
+def mode_names(config: dict) -> list[str]:
+    """The name of each mode of ``[estimator] modes`` in fitted parameters: its registry name, with its index
+    (``left_turn[2]``) when two modes share it."""
+    names = [name for name, _ in config["estimator"]["modes"]]
+    return [f"{name}[{i}]" if names.count(name) > 1 else name for i, name in enumerate(names)]
+
+
+def sojourns(config: dict) -> dict[str, tuple[int, float]]:
+    """``"sojourn.<mode>"`` → (mode index, start value): the mean time in each mode (s) of a configuration with more
+    than one mode, started from ``[estimator] sojourn`` (one number for all, or one per mode)."""
+    est = config["estimator"]
+    if len(est["modes"]) < 2:  # one mode: no switching, nothing to learn about the sojourn
+        return {}
+    given = est.get("sojourn", 60.0)
+    values = given if isinstance(given, list) else [given] * len(est["modes"])
+    return {f"sojourn.{label}": (i, float(values[i])) for i, label in enumerate(mode_names(config))}
 
 
 def describe(name: str) -> tuple[str, str, str]:
     """(table, key, units) of a fitted parameter: :data:`PARAMETERS`, or ``modes`` and the unit of a mode's density."""
     if name in PARAMETERS:
         return PARAMETERS[name]
+    if name.startswith("sojourn."):
+        return "estimator", f"sojourn {name.removeprefix('sojourn.')}", "s"
     return "estimator", f"modes {name}", DENSITY_UNITS.get(name.rsplit(".", 1)[-1], "")
 
 
@@ -101,8 +120,13 @@ class FitResult:
 
 def _with(config: dict, values: Mapping[str, float], registry=None) -> dict:
     out = copy.deepcopy(config)
-    densities = mode_densities(config, registry)
+    densities, times = mode_densities(config, registry), sojourns(config)
     for name, value in values.items():
+        if name in times:
+            given = out["estimator"].get("sojourn", 60.0)
+            out["estimator"]["sojourn"] = given if isinstance(given, list) else [given] * len(out["estimator"]["modes"])
+            out["estimator"]["sojourn"][times[name][0]] = float(value)
+            continue
         if name in densities:
             index, key, _ = densities[name]
             out["estimator"]["modes"][index][1][key] = float(value)
@@ -131,8 +155,6 @@ def log_likelihood(config: dict, tracks: Iterable, registry=None) -> float:
 def _check_fittable(cfg: dict) -> None:
     if cfg["estimator"]["algorithm"] not in MULTIPLE_MODEL:
         raise ConfigError(f"[estimator] algorithm {cfg['estimator']['algorithm']!r}: fit needs a multiple-model algorithm {MULTIPLE_MODEL}")
-    if isinstance(cfg["estimator"].get("sojourn"), list):
-        raise ConfigError("[estimator] sojourn: fit estimates one sojourn for all modes; give one number")
 
 
 def fit_config(
@@ -162,10 +184,8 @@ def fit_tracks(tracks: Iterable, config: dict, *, registry=None) -> FitResult:
     start = {
         "sigma": cfg["measurement"]["sigma"],
         "noise_density": est.get("noise_density", est.get("process_noise", 0.1) ** 2 / 10.0),
-        "sojourn": est.get("sojourn", 60.0),
     }
-    if len(est["modes"]) == 1:  # one mode: no switching, nothing to learn about the sojourn
-        del start["sojourn"]
+    start |= {name: value for name, (_, value) in sojourns(cfg).items()}
     start |= {name: value for name, (_, _, value) in mode_densities(cfg, registry).items()}
     names = list(start)
     evaluations = 0
@@ -226,7 +246,11 @@ def write_fitted(config_path: str | os.PathLike, values: Mapping[str, float], ou
         if name in PARAMETERS:
             table, key, units = PARAMETERS[name]
             text = _set_key(text, table, key, f"{value:.6g}", f"fitted by hybridtrack fit ({units})")
-    own = {name: value for name, value in values.items() if name not in PARAMETERS}
+    times = sojourns(load_config(Path(config_path)))
+    if any(name in times for name in values):
+        fitted = [values.get(name, start) for name, (_, start) in times.items()]
+        text = _set_key(text, "estimator", "sojourn", _toml_value(fitted), "fitted by hybridtrack fit (s, per mode)")
+    own = {name: value for name, value in values.items() if name not in PARAMETERS and name not in times}
     if own:
         text = _set_mode_densities(text, own, load_config(Path(config_path)))
     if "noise_density" in values:

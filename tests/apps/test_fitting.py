@@ -81,8 +81,10 @@ def test_the_command_prints_and_writes(tmp_path, capsys):
     cfg.write_text(CONFIG.replace('modes = ["straight"]', 'modes = ["straight", "left_turn"]\nradii = [300.0]\nsojourn = 60.0'))
     assert main(["fit", str(csv), "--config", str(cfg), "--out", str(tmp_path / "tuned.toml"), "--json"]) == 0
     fit = json.loads(capsys.readouterr().out)
-    assert set(fit["values"]) == {"sigma", "noise_density", "sojourn"} and fit["objects"] == 2 and fit["reports"] == 80
-    assert load_config(tmp_path / "tuned.toml")["estimator"]["sojourn"] == pytest.approx(fit["values"]["sojourn"], rel=1e-5)
+    per_mode = ["sojourn.straight", "sojourn.left_turn"]  # the mean time in each mode
+    assert set(fit["values"]) == {"sigma", "noise_density", *per_mode} and fit["objects"] == 2 and fit["reports"] == 80
+    tuned = load_config(tmp_path / "tuned.toml")["estimator"]["sojourn"]
+    assert tuned == pytest.approx([fit["values"][name] for name in per_mode], rel=1e-5)
 
 
 @pytest.mark.parametrize(
