@@ -174,6 +174,16 @@ SPACETIME_POINTS = 4000
 SHARED_ROLES = ("truth", "observer")
 
 
+class _ClosedStream:
+    """The stream of a closed :class:`RerunRecorder`: any use is a ValueError naming the file."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def __getattr__(self, name: str):
+        raise ValueError(f"recorder: {self.path} is closed (close() or the end of its with block); expected every log_… call before it")
+
+
 class RerunRecorder(AbstractContextManager):
     """A file recording (.rrd) on its own ``rerun.RecordingStream``; ``configuration`` (a JSON-able dict, seed
     included) gives the recording id (the same run twice, the same id) and is stored as the property ``configuration``.
@@ -530,8 +540,17 @@ class RerunRecorder(AbstractContextManager):
                 zoom = map_zoom(np.concatenate(self._geo)) if self._geo else None
                 blueprint = content_blueprint(self.content, time_step=self._time_step, eyes=eyes, map_zoom=zoom, timeline=self.timeline)
                 self.stream.send_blueprint(blueprint)
-                self.stream.flush()
-                self.stream.disconnect()
+                self.stream.disconnect()  # flushes the batcher and the file, writes the footer, closes the file
+                self._release()
+
+    def _release(self) -> None:
+        """Let go of the closed stream and of what was kept for :meth:`close` (the paths, modes, events, corners).
+
+        A recorder kept after ``with`` (a test, a notebook) then no longer holds the SDK's stream nor the copies of
+        its paths.  Logging after :meth:`close` is a ValueError naming the file.
+        """
+        self.stream = _ClosedStream(self.path)
+        self._tracks, self._modes, self._shared, self._breaks, self._geo, self._events = {}, {}, {}, {}, [], []
 
     def __exit__(self, *exc):
         self.close()
