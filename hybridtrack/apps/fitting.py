@@ -246,13 +246,14 @@ def write_fitted(config_path: str | os.PathLike, values: Mapping[str, float], ou
         if name in PARAMETERS:
             table, key, units = PARAMETERS[name]
             text = _set_key(text, table, key, f"{value:.6g}", f"fitted by hybridtrack fit ({units})")
-    times = sojourns(load_config(Path(config_path)))
+    given = load_config(Path(config_path))
+    times = sojourns(given)
     if any(name in times for name in values):
         fitted = [values.get(name, start) for name, (_, start) in times.items()]
         text = _set_key(text, "estimator", "sojourn", _toml_value(fitted), "fitted by hybridtrack fit (s, per mode)")
     own = {name: value for name, value in values.items() if name not in PARAMETERS and name not in times}
     if own:
-        text = _set_mode_densities(text, own, load_config(Path(config_path)))
+        text = _set_mode_densities(text, own, given)
     if "noise_density" in values:
         text = re.sub(r"(?m)^process_noise\s*=.*\n", "", text)
     out = Path(out)
@@ -277,8 +278,8 @@ def _set_key(text: str, table: str, key: str, value: str, comment: str) -> str:
 def _set_mode_densities(text: str, values: Mapping[str, float], config: dict) -> str:
     """``text`` with ``[estimator] modes`` rewritten: each mode whose density was fitted a table with the value
     (the other entries as they were written; the array's own comments are replaced by one line saying so)."""
-    raw = tomllib.loads(text)["estimator"]["modes"]
-    radii = tomllib.loads(text)["estimator"].get("radii") or []
+    table = tomllib.loads(text)["estimator"]
+    raw, radii = table["modes"], table.get("radii") or []
     densities = mode_densities(config)
     entries, first = [], 0  # the checked config's mode index of each raw entry (a bare turn takes one per radius)
     for entry in raw:

@@ -645,6 +645,13 @@ def track_one(
     return {"id": track.id, "output": name, "segments": segments, "decisions": decisions}
 
 
+def by_length(tracks: Sequence[Track], size: int) -> list[list[int]]:
+    """The indices of ``tracks`` in groups of at most ``size``, shortest first: objects of similar length together,
+    so that a batch pads little (the batches of :func:`run_objects`, the shards of :func:`track_file`)."""
+    order = sorted(range(len(tracks)), key=lambda i: len(tracks[i]))
+    return [order[first : first + size] for first in range(0, len(order), size)]
+
+
 #: objects per batch of :func:`run_objects` (its memory grows with objects × the longest's reports)
 BATCH_OBJECTS = 128
 
@@ -658,9 +665,7 @@ def run_objects(estimator, tracks: Sequence[Track], config: dict) -> list:
     runs = [None] * len(tracks)
     if not callable(getattr(estimator, "run_batch", None)):
         return runs
-    order = sorted(range(len(tracks)), key=lambda i: len(tracks[i]))
-    for first in range(0, len(order), BATCH_OBJECTS):
-        chosen = order[first : first + BATCH_OBJECTS]
+    for chosen in by_length(tracks, BATCH_OBJECTS):
         batch = [tracks[i] for i in chosen]
         try:
             measured = [measurements_of(t, config) for t in batch]
@@ -799,8 +804,7 @@ def track_file(
     if executor is None:
         done = [track_objects(tracks, cfg, out, options, str(path), registry, progress)]
     else:  # shards of objects of similar length, each tracked where the executor runs it
-        order = sorted(range(len(tracks)), key=lambda i: len(tracks[i]))
-        shards = [[tracks[i] for i in order[first : first + shard_objects]] for first in range(0, len(order), shard_objects)]
+        shards = [[tracks[i] for i in group] for group in by_length(tracks, shard_objects)]
         with make_executor(executor, workers=workers, scheduler=scheduler) as pool:
             done = list(pool.map_unordered(track_objects, [(shard, cfg, out, options, str(path)) for shard in shards]))
     by_id = {entry["id"]: entry for shard_objects_done, _ in done for entry in shard_objects_done}
