@@ -232,7 +232,7 @@ def project(lat, lon, h=None, *, origin: Sequence[float], projection: str = "enu
 
     ``"enu"`` (the ECEF difference rotated to east-north-up) and ``"equirectangular"``: the formulas of the module
     docstring (Hofmann-Wellenhof et al. 2008, §10.2.2)."""
-    _check_projection(projection)
+    check_projection(projection)
     lat0, lon0, h0 = _origin(origin)
     lat = np.asarray(lat, dtype=np.float64)
     lon = np.asarray(lon, dtype=np.float64)
@@ -286,7 +286,7 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
     for points at the origin's height.  ``"equirectangular"``: φ = φ₀ + n/M₀, λ = λ₀ + e/((N₀ + h₀) cos φ₀),
     h = h₀ + u (exact inverse of its forward formula).
     """
-    _check_projection(projection)
+    check_projection(projection)
     positions = np.asarray(positions, dtype=np.float64)
     if positions.ndim != 2 or positions.shape[1] not in (2, 3):
         raise ValueError(f"positions: expected (K, 2) east/north or (K, 3) east/north/up metres, got shape {positions.shape}")
@@ -313,7 +313,7 @@ def unproject(positions, *, origin: Sequence[float], projection: str = "enu") ->
     return np.stack(geodetic(up)[:2], axis=-1)
 
 
-def _check_projection(projection) -> None:
+def check_projection(projection) -> None:
     if projection not in PROJECTIONS:
         raise ValueError(f"projection: {projection!r}; expected one of {PROJECTIONS}")
 
@@ -611,24 +611,17 @@ def read_tracks(
         raise ValueError(f"lat/lon: give both latitude and longitude column names, got lat={lat!r}, lon={lon!r}")
     if speed_unit not in SPEED_UNITS:
         raise ValueError(f"speed_unit: {speed_unit!r}; expected one of {sorted(SPEED_UNITS)}")
-    _check_projection(projection)
+    check_projection(projection)
     if object_class is not None and object_class not in SPEED_LIMITS:
         raise ValueError(f"object_class: {object_class!r}; expected one of {sorted(SPEED_LIMITS)}")
-    if time_unit is not None and time_unit not in TIME_UNITS:
-        raise ValueError(f"time_unit: {time_unit!r}; expected one of {sorted(TIME_UNITS)} (seconds, milliseconds)")
-    if time_format is not None and (not isinstance(time_format, str) or "%" not in time_format):
-        raise ValueError(f"time_format: expected a strptime format such as '%d/%m/%Y %H:%M:%S', got {time_format!r}")
-    if time_format is not None and time_unit is not None:
-        raise ValueError(f"time_format {time_format!r} and time_unit {time_unit!r}: give one (time_unit is for numeric times)")
+    check_time_options(time_unit, time_format)
     if max_speed is None and object_class is not None:
         max_speed = SPEED_LIMITS[object_class]
     if max_speed is not None:
         max_speed = check_positive(max_speed, "max_speed (m/s)")
     if not (isinstance(jump_tolerance, (int, float)) and math.isfinite(jump_tolerance) and jump_tolerance >= 0):
         raise ValueError(f"jump_tolerance: expected a finite number of metres ≥ 0, got {jump_tolerance!r}")
-    if isinstance(origin, str) and origin not in ("first", "mean"):
-        raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
-    origin = origin if isinstance(origin, str) else _origin(origin)
+    origin = check_origin_option(origin)
 
     if frame:
         wanted = [columns[key] for key in ("time", "x", "y", "lat", "lon", "alt", "id", "course", "speed")]
@@ -645,6 +638,24 @@ def read_tracks(
         summary = ", ".join(f"{n} {kind}" for kind, n in counts.most_common())
         warnings.warn(f"{data.path}: {len(data.problems)} problems: {summary}; see TrackFile.problems", stacklevel=2)
     return data
+
+
+def check_time_options(time_unit, time_format) -> None:
+    """A ValueError unless ``time_unit`` is None or one of :data:`TIME_UNITS` and ``time_format`` None or a strptime
+    format, and not both are given (:func:`read_tracks`)."""
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise ValueError(f"time_unit: {time_unit!r}; expected one of {sorted(TIME_UNITS)} (seconds, milliseconds)")
+    if time_format is not None and (not isinstance(time_format, str) or "%" not in time_format):
+        raise ValueError(f"time_format: expected a strptime format such as '%d/%m/%Y %H:%M:%S', got {time_format!r}")
+    if time_format is not None and time_unit is not None:
+        raise ValueError(f"time_format {time_format!r} and time_unit {time_unit!r}: give one (time_unit is for numeric times)")
+
+
+def check_origin_option(origin):
+    """The ``origin`` keyword of :func:`read_tracks`: ``"first"``, ``"mean"`` or an explicit (lat°, lon°, h m) (checked)."""
+    if isinstance(origin, str) and origin not in ("first", "mean"):
+        raise ValueError(f"origin: {origin!r}; expected 'first', 'mean' or (lat°, lon°[, h m])")
+    return origin if isinstance(origin, str) else _origin(origin)
 
 
 def frame_rows(frame, names: Sequence[str | None]) -> Rows:
@@ -680,7 +691,69 @@ def _text(value) -> str:
     return str(value).strip()
 
 
-def _read_rows(
+@attrs.define
+class ParsedRows:
+    """The rows of a :class:`Rows` table that passed the row checks of :func:`parse_rows`, before any grouping:
+    ``rows`` in file order, each a namespace with ``line``, ``id`` (the id cell, ``""`` without an id column),
+    ``time`` (seconds: after ``epoch`` for time stamps), ``values`` (the position cells as numbers, in
+    ``position_columns`` order), ``course``, ``speed`` (None without the column, ``"n/a"`` for the file's
+    not-available code, NaN for a bad cell) and ``cells`` (the row's text cells); ``problems`` the faults found so
+    far (a list: later stages add theirs); ``columns`` each configured column's index in ``header``."""
+
+    table: Rows
+    columns: dict[str, int]
+    position_columns: list[str]
+    geographic: bool
+    altitude: bool
+    rows: list[SimpleNamespace]
+    problems: list[Problem]
+    epoch: datetime | None
+    lat: str | None = None
+    lon: str | None = None
+
+    def report(self, line, column, kind, action, message, track=None) -> None:
+        """Add a :class:`Problem` at ``line`` of the file (the message prefixed with ``file:line:``)."""
+        self.problems.append(Problem(line, column, kind, action, f"{self.table.name}:{line}: {message}", track))
+
+    def fix(self, r) -> tuple[float, float, float]:
+        """(lat°, lon°, h m) of a row of a geographic file."""
+        return r.values[0], r.values[1], r.values[2] if self.altitude else 0.0
+
+    def positions(self, rows, origin, projection: str) -> np.ndarray:
+        """The positions (len(rows), 2 or 3) of ``rows`` in metres: the cells of an x/y file, or the latitude/longitude
+        projected with ``projection`` to the tangent plane at ``origin`` (:func:`project`)."""
+        values = np.array([r.values for r in rows], dtype=np.float64).reshape(len(rows), len(self.position_columns))
+        if not self.geographic:
+            return values
+        return project(values[:, 0], values[:, 1], values[:, 2] if self.altitude else None, origin=origin, projection=projection)
+
+    def origin_of(self, kept, origin):
+        """The tangent-plane origin of a geographic file from the rows ``kept``: an explicit (lat°, lon°, h m) as it is;
+        ``"first"`` the fix of the earliest line kept, ``"mean"`` the mean latitude/longitude/height of the fixes kept
+        (None when none is kept)."""
+        if not isinstance(origin, str):
+            return origin
+        if not kept:
+            return None
+        if origin == "first":
+            return self.fix(min(kept, key=lambda r: r.line))
+        v = np.array([r.values for r in kept])
+        return float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if self.altitude else 0.0
+
+    def by_place(self, problem) -> tuple[int, int]:
+        """The sort key of a problem in file order: line, then column."""
+        header = self.table.header
+        return problem.line, header.index(problem.column) if problem.column in header else -1
+
+    def nothing_left(self) -> str:
+        """The message of a source of which every row was dropped (:func:`read_tracks`)."""
+        table = self.table
+        records = len(table.body) if table.records is None else table.records
+        problems = sorted(self.problems, key=self.by_place)
+        return _nothing_left(table.name, f"{records} {table.unit}", problems, table.header, self.columns, table.body, self.lat, self.lon)
+
+
+def parse_rows(
     table: Rows,
     *,
     time,
@@ -695,21 +768,23 @@ def _read_rows(
     speed_unit,
     course_not_available,
     speed_not_available,
-    origin,
-    projection,
-    max_speed,
-    jump_tolerance,
     time_unit,
     time_format,
-) -> TrackFile:
-    """The tracks of ``table`` (any format's rows), with the checked keywords of :func:`read_tracks`."""
+    extra: Sequence[str] = (),
+) -> ParsedRows:
+    """The row checks of :func:`read_tracks` without grouping by object, de-duplicating, the speed check or the
+    projection: each row of ``table`` whose cell count, id, time and position are valid (the module docstring's
+    rules; course and speed cells that are not are set to NaN), with the problems of the others, the times in
+    seconds (after the earliest valid time stamp, :attr:`ParsedRows.epoch`, for time stamps).  ``extra``: more
+    columns that must be in the header (their cells are in each row's ``cells``).  The keywords are those of
+    :func:`read_tracks`, checked."""
     path, header_line, header, body = table.name, table.header_line, table.header, table.body
     geographic = lat is not None
     position_columns = [lat, lon] if geographic else [x, y]
     if alt is not None:
         position_columns.append(alt)
     columns = {}
-    for name in [name for name in (time, *position_columns, id, course, speed) if name is not None]:
+    for name in [name for name in (time, *position_columns, id, course, speed, *extra) if name is not None]:
         if name not in header:
             raise ValueError(f"{path}:{header_line}: no column {name!r} in the header; the columns are {header}")
         if header.count(name) > 1:
@@ -718,10 +793,8 @@ def _read_rows(
     if not body and not table.problems:
         raise ValueError(f"{path}: header only, no data rows; {table.hint}")
 
-    problems: list[Problem] = list(table.problems)
-
-    def report(line, column, kind, action, message, track=None):
-        problems.append(Problem(line, column, kind, action, f"{path}:{line}: {message}", track))
+    parsed = ParsedRows(table, columns, position_columns, geographic, alt is not None, [], list(table.problems), None, lat, lon)
+    report = parsed.report
 
     # time stamps (ISO 8601 or time_format) or numbers: decided by the first time cell that is either
     cells = (row[columns[time]] for _, row in body if len(row) > columns[time])
@@ -752,7 +825,7 @@ def _read_rows(
         value = finite_number(cell) if numeric else None
         return None if value is None else value * TIME_UNITS[time_unit or "s"]
 
-    groups: dict[str, list[SimpleNamespace]] = {}  # id → the rows used: line, id, time, values (the position cells), course, speed
+    rows = parsed.rows  # the rows used, in file order: line, id, time, values (the position cells), course, speed, cells
     for line, row in body:
         if len(row) != len(header):
             report(line, None, "bad_row", "dropped", f"{len(row)} cells, the header has {len(header)}; row dropped")
@@ -789,41 +862,66 @@ def _read_rows(
             bad, value, limits = (lat, values[0], "[-90, 90]") if not -90.0 <= values[0] <= 90.0 else (lon, values[1], "[-180, 180]")
             report(line, bad, "out_of_range", "dropped", f"column {bad!r} holds {value}, outside {limits} degrees; row dropped", key)
             continue
-        extra = []
+        extra_values = []
         for name, low, high, code, factor in (
             (course, 0.0, 360.0, course_not_available, 1.0),
             (speed, 0.0, math.inf, speed_not_available, SPEED_UNITS[speed_unit]),
         ):
             if name is None:
-                extra.append(None)
+                extra_values.append(None)
                 continue
             cell = row[columns[name]]
             value = finite_number(cell)
             if value is not None and code is not None and value == code:
-                extra.append("n/a")
+                extra_values.append("n/a")
             elif value is None or not low <= value <= high:
                 kind, why = ("not_a_number", "not a finite number") if value is None else ("out_of_range", f"outside [{low}, {high}]")
                 report(line, name, kind, "set_nan", f"column {name!r} holds {cell!r}, {why}; set to NaN", key)
-                extra.append(math.nan)
+                extra_values.append(math.nan)
             else:
-                extra.append(value * factor)
-        groups.setdefault(key, []).append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra[0], speed=extra[1]))
+                extra_values.append(value * factor)
+        rows.append(SimpleNamespace(line=line, id=key, time=stamp, values=values, course=extra_values[0], speed=extra_values[1], cells=row))
 
-    rows = [r for group in groups.values() for r in group]  # rows[0]: the first row used of the file
-    epoch = min((r.time for r in rows), default=None) if stamped else None
+    parsed.epoch = min((r.time for r in rows), default=None) if stamped else None
     for r in rows if stamped else ():
-        r.time = (r.time - epoch).total_seconds()
+        r.time = (r.time - parsed.epoch).total_seconds()
+    return parsed
 
-    def positions_of(group, at):
-        values = np.array([r.values for r in group], dtype=np.float64).reshape(len(group), len(position_columns))
-        if not geographic:
-            return values
-        return project(values[:, 0], values[:, 1], values[:, 2] if alt else None, origin=at, projection=projection)
 
-    def fix(r):  # (lat°, lon°, h m) of a row of a geographic file
-        return r.values[0], r.values[1], r.values[2] if alt else 0.0
+def _read_rows(
+    table: Rows,
+    *,
+    time,
+    x,
+    y,
+    lat,
+    lon,
+    alt,
+    id,
+    course,
+    speed,
+    speed_unit,
+    course_not_available,
+    speed_not_available,
+    origin,
+    projection,
+    max_speed,
+    jump_tolerance,
+    time_unit,
+    time_format,
+) -> TrackFile:
+    """The tracks of ``table`` (any format's rows), with the checked keywords of :func:`read_tracks`."""
+    columns = dict(time=time, x=x, y=y, lat=lat, lon=lon, alt=alt, id=id, course=course, speed=speed, speed_unit=speed_unit)
+    columns.update(course_not_available=course_not_available, speed_not_available=speed_not_available)
+    parsed = parse_rows(table, **columns, time_unit=time_unit, time_format=time_format)
+    path, geographic, problems, report = table.name, parsed.geographic, parsed.problems, parsed.report
+    groups: dict[str, list[SimpleNamespace]] = {}  # id → the rows used
+    for r in parsed.rows:
+        groups.setdefault(r.id, []).append(r)
+    rows = parsed.rows  # rows[0]: the first row used of the file
+    epoch = parsed.epoch
 
-    check_origin = origin if not isinstance(origin, str) else (fix(rows[0]) if rows else None)
+    check_origin = origin if not isinstance(origin, str) else (parsed.fix(rows[0]) if rows else None)
     for key, group in groups.items():  # each group becomes the rows kept
         ordered = sorted(group, key=lambda r: r.time)
         late = next((r for r, s in zip(ordered, group) if r is not s), None)
@@ -833,21 +931,12 @@ def _read_rows(
         for _, same_time in itertools.groupby(ordered, key=lambda r: r.time):
             unique.extend(_distinct_times(list(same_time), key, report, time))
         if max_speed is not None and len(unique) > 1:
-            unique = _speed_check(unique, positions_of(unique, check_origin), max_speed, jump_tolerance, key, report, time)
+            unique = _speed_check(unique, parsed.positions(unique, check_origin, projection), max_speed, jump_tolerance, key, report, time)
         groups[key] = unique
 
     kept = [r for g in groups.values() for r in g]
-    if geographic and isinstance(origin, str):
-        if not kept:
-            origin = None
-        elif origin == "first":
-            origin = fix(min(kept, key=lambda r: r.line))
-        else:
-            v = np.array([r.values for r in kept])
-            origin = (float(v[:, 0].mean()), float(v[:, 1].mean()), float(v[:, 2].mean()) if alt else 0.0)
-
-    def by_place(problem):  # file order: line, then column
-        return problem.line, header.index(problem.column) if problem.column in header else -1
+    if geographic:
+        origin = parsed.origin_of(kept, origin)
 
     tracks = {}
     for key, group in groups.items():
@@ -860,16 +949,15 @@ def _read_rows(
         tracks[key] = Track(
             id=key,
             times=np.array([r.time for r in group], dtype=np.float64),
-            positions=positions_of(group, origin),
+            positions=parsed.positions(group, origin, projection),
             lines=[r.line for r in group],
             course=None if course is None else [math.nan if r.course == "n/a" else r.course for r in group],
             speed=None if speed is None else [math.nan if r.speed == "n/a" else r.speed for r in group],
-            problems=sorted((p for p in problems if p.id == key), key=by_place),
+            problems=sorted((p for p in problems if p.id == key), key=parsed.by_place),
         )
-    problems.sort(key=by_place)
+    problems.sort(key=parsed.by_place)
     if not any(tracks.values()):
-        records = len(body) if table.records is None else table.records
-        raise ValueError(_nothing_left(path, f"{records} {table.unit}", problems, header, columns, body, lat, lon))
+        raise ValueError(parsed.nothing_left())
     return TrackFile(str(path), tracks, origin if geographic else None, projection if geographic else None, epoch, tuple(problems))
 
 
