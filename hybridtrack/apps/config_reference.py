@@ -427,6 +427,81 @@ def _estimator() -> dict[str, Entry]:
     }
 
 
+def _association() -> dict[str, Entry]:
+    from hybridtrack.apps.association_keys import ASSOCIATION_DEFAULTS as D
+
+    def d(key):
+        return lambda: D[key]
+
+    return {
+        "method": Entry(
+            '`"gnn"` or `"jpda"`',
+            "the association over tracks: global nearest neighbour or joint probabilistic data association",
+            d("method"),
+        ),
+        "motion": Entry(
+            '`"cv"` or `"modes"`',
+            "each track's filter during association: a constant-velocity Kalman filter, or the IMM of `[estimator]` (its modes); "
+            "the segments per track always come from `[estimator]` run on the detections the track took",
+            d("motion"),
+        ),
+        "scan_window": Entry("number, s > 0", "detections grouped into scans of this many seconds (not with `scan`)", absent="none"),
+        "scan": Entry("string (a column)", "the column that numbers the scans (not with `scan_window`)", absent="none"),
+        "detection_probability": Entry(
+            "number in (0, 1]", "P_D, the probability that an object is detected in a scan", d("detection_probability")
+        ),
+        "clutter_density": Entry("number, 1/m² per scan > 0", "λ, false detections per m² per scan", d("clutter_density")),
+        "birth_density": Entry(
+            "number, 1/m² per scan > 0",
+            "β_NT, new objects per m² per scan: a new track's score starts at ln(β_NT/λ)",
+            absent="`clutter_density`",
+        ),
+        "gate_probability": Entry("number in (0, 1)", "P_G, the χ² gate's probability", d("gate_probability")),
+        "initiation": Entry(
+            '`"two_point"` or `"single_point"`',
+            "new tracks from two detections of consecutive scans (the velocity between them) or from one (at rest, `velocity_sigma`)",
+            d("initiation"),
+        ),
+        "updates_per_scan": Entry(
+            "integer ≥ 1",
+            "how many detections one track may take in a scan: several reports of one object in a time window (AIS in 10 s scans)",
+            d("updates_per_scan"),
+        ),
+        "seed_window": Entry(
+            "number, s > 0",
+            "two-point: how long a detection no track took waits for its second point (objects that report every few minutes)",
+            absent="one scan",
+        ),
+        "max_speed": Entry("number, m/s > 0", "the fastest a two-point track may start", absent="the reader's speed limit"),
+        "velocity_sigma": Entry(
+            "number, m/s > 0", "the velocity prior σ of a single-point track and of a second point", absent="`max_speed`/2"
+        ),
+        "noise_density": Entry(
+            "number, m²/s³ > 0", '`motion = "cv"`: its white-acceleration density', absent="`[estimator] noise_density`"
+        ),
+        "management": Entry(
+            '`"m_of_n"` or `"score"`',
+            "confirmation and deletion: M-of-N logic, or Blackman's track score (an SPRT of target against clutter)",
+            d("management"),
+        ),
+        "confirm_hits": Entry("integer ≥ 1", "M-of-N: M, the detections that confirm a track …", d("confirm_hits")),
+        "confirm_scans": Entry("integer ≥ 1", "… within its first N scans", d("confirm_scans")),
+        "delete_misses": Entry(
+            "integer ≥ 1", "M-of-N: a confirmed track is deleted after this many scans in a row without a detection", d("delete_misses")
+        ),
+        "false_track_probability": Entry(
+            "number in (0, 1)", "score: α, confirming a false track; T_c = ln((1 − β)/α)", d("false_track_probability")
+        ),
+        "track_loss_probability": Entry(
+            "number in (0, 1)", "score: β, deleting a true track; T_d = ln(β/(1 − α))", d("track_loss_probability")
+        ),
+        "deletion_drop": Entry(
+            "number > 0", "score: a confirmed track is deleted when its score falls this far below its maximum", absent="T_c − T_d"
+        ),
+        "max_coast": Entry("number, s > 0", "either rule: a track without a detection for this long is deleted", absent="none"),
+    }
+
+
 #: the sections' titles on the page
 TITLES = {
     "reader": "the file, its columns and the jump check",
@@ -435,6 +510,7 @@ TITLES = {
     "prior": "the start of every track",
     "segments": "how reports are called straight, turn or stop",
     "estimator": "the algorithm, its modes and their noise",
+    "association": "unlabelled detections: scans, association and track management (`hybridtrack.apps.multitarget`)",
 }
 
 
@@ -447,6 +523,7 @@ def reference() -> dict[str, dict[str, Entry]]:
         "prior": _prior(),
         "segments": _segments(),
         "estimator": _estimator(),
+        "association": _association(),
     }
 
 

@@ -66,6 +66,7 @@ import attrs
 import numpy as np
 
 from hybridtrack.algorithms.bank_runs import record_run, run_ragged
+from hybridtrack.apps.association_keys import ASSOCIATION_DEFAULTS
 from hybridtrack.apps.geojson import tracks_geojson
 from hybridtrack.apps.mode_labels import motion_states
 from hybridtrack.core.plugins import resolve
@@ -104,6 +105,7 @@ CONFIG_KEYS = {
     "segments": {"by", "turn_rate_on", "turn_rate_off", "stop_speed", "go_speed"},
     "estimator": {"algorithm", "kind", "filter", "process_noise", "noise_density", "modes", "radii", "parameters"}
     | set(_KIND_ONLY["unknown_change"] + _KIND_ONLY["imm"]),
+    "association": set(ASSOCIATION_DEFAULTS),  # unlabelled detections (hybridtrack.apps.multitarget)
 }
 #: the keywords the tracker itself gives every algorithm (``[estimator] parameters`` may not repeat them)
 _RESERVED = {"modes", "sensors", "estimator", "name", "registry", "alpha", "beta", "bank_size", "initial_mode", "sojourn"}
@@ -145,6 +147,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         if bad:
             raise ConfigError(f"{where}: unknown key(s) {bad} in [{section}]; expected some of {sorted(keys)}")
         out[section] = dict(table)
+    out["unlabelled"] = "association" in raw  # detections without identities: hybridtrack.apps.multitarget
     preset = out["reader"].pop("preset", None)
     if preset is not None and preset not in PRESETS:
         raise ConfigError(f"{where}: [reader] preset = {preset!r}; expected one of {sorted(PRESETS)}")
@@ -566,6 +569,7 @@ def track_one(
     lag: float | None = None,
     record: bool = True,
     run=None,
+    tracker=None,
 ) -> dict:
     """Run the configured estimator on one track (``run``: its causal run, computed already — :func:`track_file`
     runs the objects of a file as one batch, :func:`run_objects`); write ``out/<id>.rrd`` (unless ``record`` is
@@ -578,11 +582,12 @@ def track_one(
     files of ISO time stamps): the recording gets a ``utc`` timeline and the segments their UTC start and end.
     ``smooth`` (fixed interval) or ``lag`` (seconds, fixed lag): the outputs are the algorithm's smoothed run
     (its ``smooth(run, lag)``, e.g. the multiple-model mode smoother), recorded beside the causal one as
-    ``<name>_smoothed``."""
+    ``<name>_smoothed``.  ``tracker``: :func:`build_tracker`'s (algorithm, sensor, models) of ``config``, when the
+    caller has built them (:func:`track_objects`: once for all its objects)."""
     from hybridtrack.recording import RerunRecorder
     from hybridtrack.recording.recorder import log_mode
 
-    estimator, sensor, models = build_tracker(config, registry)
+    estimator, sensor, models = build_tracker(config, registry) if tracker is None else tracker
     layout = estimator.layout
     xy = np.asarray(track.positions[:, :2], dtype=float)
     name = output_name(track.id)
@@ -698,12 +703,12 @@ def track_objects(tracks: Sequence[Track], config: dict, out, options: dict, sou
     from tqdm.auto import tqdm
 
     out = Path(out)
-    estimator = build_tracker(config, registry)[0]
-    runs = run_objects(estimator, tracks, config)
+    tracker = build_tracker(config, registry)
+    runs = run_objects(tracker[0], tracks, config)
     objects, skipped = [], []
     for track, run in tqdm(list(zip(tracks, runs)), desc="objects", unit="object", disable=not progress, dynamic_ncols=True):
         try:
-            objects.append(track_one(track, config, out, registry, **options, run=run))
+            objects.append(track_one(track, config, out, registry, **options, run=run, tracker=tracker))
         except ConfigError:
             raise
         except Exception as error:  # one object never sinks the file: reported, its outputs removed
@@ -764,6 +769,13 @@ def track_file(
             raise ConfigError(f"--executor {executor}: the workers load the installed plugins; a registry object cannot go with them")
     if isinstance(shard_objects, bool) or not isinstance(shard_objects, int) or shard_objects < 1:
         raise ConfigError(f"shard_objects = {shard_objects!r}: expected a positive number of objects per shard")
+    if cfg["unlabelled"]:
+        unsupported = [name for name, given in (("--id", ids is not None), ("--executor", executor), ("--geojson", geojson)) if given]
+        if unsupported:
+            raise ConfigError(f"{unsupported[0]} with [association] (unlabelled detections): not supported; leave it out")
+        from hybridtrack.apps.multitarget import track_detections
+
+        return track_detections(path, cfg, out, registry=registry, smooth=smooth, lag=lag)
     estimator = build_tracker(cfg, registry)[0]  # the configuration's faults stop here, before any object
     if (smooth or lag is not None) and not callable(getattr(estimator, "smooth", None)):
         raise ConfigError(

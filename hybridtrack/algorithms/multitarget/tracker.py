@@ -1,0 +1,516 @@
+"""The multi-target tracker: a population of tracks as R runs of one multiple-model bank, scan by scan.
+
+Each track is a run of a :class:`~hybridtrack.algorithms.multiple_model.MultipleModelEstimator` (one mode — a
+constant-velocity Kalman filter — or the IMM of a mode bank); the population's state is the estimator's
+:class:`~hybridtrack.algorithms.multiple_model.MultipleModelState` with one row per track, and tracks are born
+and removed by row (take / concatenate).  One scan k at time t_k (Δt = t_k − t_{k−1}, the same for all tracks):
+
+1. **Predict** every track to t_k (the estimator's step without a measurement): x̂_{k|k−1}, P_{k|k−1}, the
+   predicted position ẑ_t = H x̂ and S_t = H P Hᵀ + R (the mixture's moments for an IMM).
+2. **Align** each detection i to t_k along the track that may take it: z_ti = z_i + v̂_t (t_k − t_i) (a
+   time-windowed scan holds detections of slightly earlier times t_i ≤ t_k; simulated scans have t_i = t_k).
+3. **Gate** (χ², probability P_G, a k-d tree on the detections: :mod:`.gating`) and score each gated pair with
+   the log-likelihood ratio of "track t took detection i" against "t missed, i is clutter"
+   (Bar-Shalom, Willett & Tian 2011, §6.2; Blackman & Popoli 1999, §6.2):
+
+       s_ti = ln(P_D N(z_ti; ẑ_t, S_t)) − ln(λ (1 − P_D P_G))        (λ the clutter density, per m² per scan)
+
+4. **Associate**: GNN — the joint assignment maximising Σ s (:func:`.assignment.gnn`), each assigned track
+   updated with its detection; JPDA — the exact marginals β_ti, β_t0 over the joint events of each gated cluster
+   (:func:`.jpda.jpda`; Fortmann, Bar-Shalom & Scheffe 1983), each track's posterior the β-weighted mixture of
+   its hypothesis-conditioned posteriors (missed, or each gated detection), moment-matched per mode with the
+   mode probabilities μ_j = Σ_h β_h μ_j^h (Blom & Bloem 2000, "Probabilistic data association avoiding track
+   coalescence", the IMM-JPDA).
+5. **Manage** (:mod:`.management`): the track score ΔL = s_ti + ln(1 − P_D P_G) for a hit, ln(1 − P_D P_G)
+   for a miss (JPDA: its expectation under β), then confirmation and deletion by M-of-N or the score's SPRT.
+6. **Initiate** from the detections no track took (JPDA: Σ_t β_ti < ½): two-point — a detection of the
+   previous scan and one of this scan within ``max_speed`` of each other start a track with the velocity
+   between them; single-point — each starts a track at rest with velocity standard deviation ``velocity_sigma``.
+
+Confirmed tracks keep stable integer ids (1, 2, … in the order they were started).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import attrs
+import numpy as np
+from scipy.spatial import cKDTree
+
+from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, MultipleModelState
+from hybridtrack.algorithms.multitarget.assignment import gnn
+from hybridtrack.algorithms.multitarget.gating import gate, gate_threshold
+from hybridtrack.algorithms.multitarget.jpda import jpda
+from hybridtrack.algorithms.multitarget.management import CONFIRMED, MofN, TrackScore, TrackStatus
+from hybridtrack.core.validation import check_positive, check_positive_int
+from hybridtrack.engine.detections import Detections
+from hybridtrack.sdk.mixtures import logsumexp, mixture
+
+ASSOCIATIONS = ("gnn", "jpda")
+#: the step (s) before each further update of a track within one scan (``updates_per_scan`` > 1)
+REPEAT_STEP = 1e-3
+INITIATIONS = ("two_point", "single_point")
+_FIELDS = [f.name for f in attrs.fields(MultipleModelState)]
+
+
+def take_rows(state: MultipleModelState, rows) -> MultipleModelState:
+    """The tracks at ``rows`` of a population."""
+    return MultipleModelState(*(getattr(state, name)[rows] for name in _FIELDS))
+
+
+def join_rows(states: Sequence[MultipleModelState]) -> MultipleModelState:
+    """Populations one after another."""
+    return MultipleModelState(*(np.concatenate([getattr(s, name) for s in states]) for name in _FIELDS))
+
+
+def put_rows(state: MultipleModelState, rows: np.ndarray, new: MultipleModelState) -> MultipleModelState:
+    """``state`` with its ``rows`` replaced by ``new``'s."""
+    out = {}
+    for name in _FIELDS:
+        value = getattr(state, name).copy()
+        value[rows] = getattr(new, name)
+        out[name] = value
+    return MultipleModelState(**out)
+
+
+def collapse(hypotheses: MultipleModelState, owner: np.ndarray, log_weights: np.ndarray, tracks: int) -> MultipleModelState:
+    """Each track's hypotheses (rows with ``owner`` t, weights w_h ∝ exp(``log_weights``) summing to one per track)
+    merged into one multiple-model estimate: per mode j the weights w_hj = w_h μ_j^h, μ_j = Σ_h w_hj and the
+    moment-matched x̂_j, P_j over h (Bar-Shalom, Li & Kirubarajan 2001, eqs. 11.6.6-9/10), computed about the
+    first hypothesis' mean so that map-grid coordinates lose no digits; the output x̂, P the mixture over j."""
+    log_w = log_weights[:, None] + hypotheses.log_mode_probabilities  # (H, r)
+    r = log_w.shape[1]
+    log_mu = np.full((tracks, r), -np.inf)
+    np.maximum.at(log_mu, owner, log_w)
+    top = np.where(np.isfinite(log_mu), log_mu, 0.0)
+    w = np.exp(log_w - top[owner])  # scaled per track and mode
+    total = np.zeros((tracks, r))
+    np.add.at(total, owner, w)
+    log_mu = top + np.log(np.where(total > 0, total, 1.0))
+    log_mu = log_mu - logsumexp(log_mu, axis=1)[:, None]
+    w = w / np.where(total > 0, total, 1.0)[owner]
+    first = np.full(tracks, -1, dtype=np.intp)
+    first[owner[::-1]] = np.arange(owner.size)[::-1]
+    ref = hypotheses.model_means[first]  # (T, r, n)
+    d = hypotheses.model_means - ref[owner]
+    shift = np.zeros(ref.shape)
+    np.add.at(shift, owner, w[..., None] * d)
+    second = np.zeros(hypotheses.model_covs.shape[:0] + (tracks,) + hypotheses.model_covs.shape[1:])
+    np.add.at(second, owner, w[..., None, None] * (hypotheses.model_covs + d[..., :, None] * d[..., None, :]))
+    model_covs = second - shift[..., :, None] * shift[..., None, :]
+    model_covs = 0.5 * (model_covs + np.swapaxes(model_covs, -1, -2))
+    model_means = ref + shift
+    mean, cov = mixture(log_mu, model_means, model_covs)
+    model_loglik = np.zeros((tracks, r))
+    np.add.at(model_loglik, owner, w * hypotheses.model_loglik)
+    loglik = np.zeros(tracks)
+    np.add.at(loglik, owner, np.exp(log_weights) * hypotheses.loglik)
+    return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, loglik)
+
+
+@attrs.frozen(eq=False, kw_only=True)
+class TrackHistory:
+    """One confirmed track: its ``id``, the time it was started (``born``), confirmed and deleted (None: alive at
+    the end), and the detections it took (``detections``: indices into the input :class:`Detections`, in time
+    order; for JPDA each scan's most probable detection when that beats "missed")."""
+
+    id: int
+    born: float
+    confirmed: float
+    deleted: float | None
+    detections: np.ndarray
+
+
+@attrs.frozen(eq=False, kw_only=True)
+class MultiTargetResult:
+    """What :meth:`MultiTargetTracker.run` returns: one row per scan per confirmed track alive at that scan
+    (coasting ones included): ``time`` (Q,) the scan time, ``scan`` (Q,), ``track_id`` (Q,), ``means`` (Q, n)
+    x̂_{k|k} in ``layout``, ``position_covs`` (Q, 2, 2), ``mode`` (Q,) the index into ``modes`` of the most probable
+    mode, ``hit`` (Q,) whether the track took a detection at that scan; ``tracks`` the confirmed tracks' histories
+    (by id); ``started`` the number of tentative tracks started; ``scan_times`` (K,)."""
+
+    layout: tuple[str, ...]
+    modes: tuple[str, ...]
+    scan_times: np.ndarray
+    time: np.ndarray
+    scan: np.ndarray
+    track_id: np.ndarray
+    means: np.ndarray
+    position_covs: np.ndarray
+    mode: np.ndarray
+    hit: np.ndarray
+    tracks: tuple[TrackHistory, ...]
+    started: int
+
+    def positions(self) -> np.ndarray:
+        """(Q, 2) the estimated x, y of every row."""
+        return self.means[:, [self.layout.index("x"), self.layout.index("y")]]
+
+
+class MultiTargetTracker:
+    """Tracks many objects from unlabelled detections (module docstring).
+
+    ``estimator``: the per-track :class:`MultipleModelEstimator` (its layout must hold x, vx, y, vy; its only
+    sensor measures the position); ``association``: ``"gnn"`` or ``"jpda"``; ``management``: :class:`MofN` or
+    :class:`TrackScore`; ``detection_probability`` P_D; ``clutter_density`` λ and ``birth_density`` β_NT (per m²
+    per scan; the score starts at ln(β_NT/λ)); ``gate_probability`` P_G; ``initiation`` ``"two_point"`` or
+    ``"single_point"``; ``max_speed`` (m/s) bounds a two-point velocity; ``velocity_sigma`` (m/s, default
+    max_speed/2) the velocity prior of a single-point track and of the second point's likelihood;
+    ``updates_per_scan``: how many detections one track may take in a scan (several reports of one object within a
+    time window, e.g. AIS in 10 s scans: each further round associates the detections left with the updated tracks,
+    after a step of :data:`REPEAT_STEP`; 1 for sensors that see each object once per scan); ``seed_window`` (s):
+    how long a detection no track took waits for its second point (default: one scan; objects that report every
+    few minutes, moored ships on AIS, need minutes)."""
+
+    def __init__(
+        self,
+        estimator: MultipleModelEstimator,
+        *,
+        association: str = "gnn",
+        management: MofN | TrackScore | None = None,
+        detection_probability: float = 0.9,
+        clutter_density: float = 1e-6,
+        birth_density: float | None = None,
+        gate_probability: float = 0.999,
+        initiation: str = "two_point",
+        max_speed: float = 50.0,
+        velocity_sigma: float | None = None,
+        updates_per_scan: int = 1,
+        seed_window: float | None = None,
+    ):
+        if not isinstance(estimator, MultipleModelEstimator):
+            raise TypeError(f"estimator: expected a MultipleModelEstimator (one mode or a bank), got {type(estimator).__name__}")
+        missing = [c for c in ("x", "vx", "y", "vy") if c not in estimator.layout]
+        if missing:
+            raise ValueError(f"estimator: its layout {estimator.layout} lacks {missing}; tracks need x, vx, y, vy")
+        sensors = estimator.network.sensors
+        if len(sensors) != 1 or sensors[0].measurement_dim != 2:
+            raise ValueError(f"estimator: expected one sensor measuring the position (x, y), got {[s.name for s in sensors]}")
+        if association not in ASSOCIATIONS:
+            raise ValueError(f"association: expected one of {ASSOCIATIONS}, got {association!r}")
+        if initiation not in INITIATIONS:
+            raise ValueError(f"initiation: expected one of {INITIATIONS}, got {initiation!r}")
+        if not 0.0 < detection_probability <= 1.0:
+            raise ValueError(f"detection_probability: expected P_D in (0, 1], got {detection_probability!r}")
+        if not 0.0 < gate_probability < 1.0:
+            raise ValueError(f"gate_probability: expected P_G in (0, 1), got {gate_probability!r}")
+        self.estimator = estimator
+        self.sensor = sensors[0]
+        self.association = association
+        self.management = MofN() if management is None else management
+        self.detection_probability = float(detection_probability)
+        self.clutter_density = check_positive(clutter_density, "clutter_density (per m² per scan)")
+        self.birth_density = self.clutter_density if birth_density is None else check_positive(birth_density, "birth_density")
+        self.gate_probability = float(gate_probability)
+        self.initiation = initiation
+        self.updates_per_scan = check_positive_int(updates_per_scan, "updates_per_scan")
+        self.seed_window = None if seed_window is None else check_positive(seed_window, "seed_window (s)")
+        self.max_speed = check_positive(max_speed, "max_speed (m/s)")
+        self.velocity_sigma = self.max_speed / 2 if velocity_sigma is None else check_positive(velocity_sigma, "velocity_sigma (m/s)")
+        layout = estimator.layout
+        self._position = np.array([layout.index("x"), layout.index("y")])
+        self._velocity = np.array([layout.index("vx"), layout.index("vy")])
+        self._kinematic = ("x", "vx", "y", "vy")
+        self.R = np.asarray(self.sensor.measurement_noise(np.zeros(2)), dtype=float)
+        self.gamma = gate_threshold(self.gate_probability, 2)
+        self._log_miss = math.log1p(-self.detection_probability * self.gate_probability)
+
+    # ------------------------------------------------------------------ pieces
+    def _scores(self, loglik: np.ndarray) -> np.ndarray:
+        return math.log(self.detection_probability) + loglik - math.log(self.clutter_density) - self._log_miss
+
+    def _start(self, means: np.ndarray, covs: np.ndarray) -> MultipleModelState:
+        """New tracks from (B, 4) means in (x, vx, y, vy) and their covariances, without a measurement."""
+        z = np.full((means.shape[0], 2), np.nan)
+        return self.estimator.start(means, covs, z, prior_layout=self._kinematic)
+
+    def _single_point(self, z: np.ndarray, t: np.ndarray, now: float):
+        """Tracks at rest at the detections (velocity prior N(0, σ_v² I)), moved to ``now``."""
+        s2 = self.velocity_sigma**2
+        B = z.shape[0]
+        delta = now - t
+        means = np.zeros((B, 4))
+        means[:, [0, 2]] = z
+        covs = np.zeros((B, 4, 4))
+        for a, (p, v) in enumerate(((0, 1), (2, 3))):
+            covs[:, p, p] = self.R[a, a] + delta**2 * s2
+            covs[:, p, v] = covs[:, v, p] = delta * s2
+            covs[:, v, v] = s2
+        covs[:, 0, 2] = covs[:, 2, 0] = self.R[0, 1]
+        return means, covs
+
+    def _two_point(self, z1, t1, z2, t2, now: float):
+        """Tracks from detection pairs: v = (z₂ − z₁)/(t₂ − t₁), position z₂ + v (t_k − t₂), with the covariance of
+        that linear map of the two detections (each with R)."""
+        dt = t2 - t1
+        delta = now - t2
+        v = (z2 - z1) / dt[:, None]
+        p = z2 + v * delta[:, None]
+        a1, a2 = -delta / dt, 1 + delta / dt  # p = a1 z1 + a2 z2
+        b1, b2 = -1 / dt, 1 / dt  # v = b1 z1 + b2 z2
+        means = np.column_stack([p[:, 0], v[:, 0], p[:, 1], v[:, 1]])
+        covs = np.zeros((z1.shape[0], 4, 4))
+        pp, pv, vv = a1**2 + a2**2, a1 * b1 + a2 * b2, b1**2 + b2**2
+        for a in range(2):
+            for b in range(2):
+                i, j = 2 * a, 2 * b
+                covs[:, i, j] = pp * self.R[a, b]
+                covs[:, i, j + 1] = covs[:, j + 1, i] = pv * self.R[a, b]
+                covs[:, i + 1, j + 1] = vv * self.R[a, b]
+        return means, covs
+
+    def _pair_seeds(self, seeds_z, seeds_t, z, t):
+        """Greedy nearest pairs (previous-scan seed, new detection) within max_speed: (seed rows, detection rows)."""
+        if seeds_z.shape[0] == 0 or z.shape[0] == 0:
+            return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+        slack = 3.0 * math.sqrt(2.0 * float(np.max(np.diag(self.R))))
+        reach = self.max_speed * float(np.max(t) - np.min(seeds_t)) + slack
+        pairs = cKDTree(seeds_z).query_ball_point(z, reach)
+        rows = np.array([i for i, near in enumerate(pairs) for _ in near], dtype=np.intp)
+        cols = np.array([j for near in pairs for j in near], dtype=np.intp)
+        if rows.size == 0:
+            return rows, cols
+        distance = np.linalg.norm(z[rows] - seeds_z[cols], axis=1)
+        ok = distance <= self.max_speed * (t[rows] - seeds_t[cols]) + slack
+        ok &= t[rows] > seeds_t[cols]
+        rows, cols, distance = rows[ok], cols[ok], distance[ok]
+        order = np.argsort(distance, kind="stable")
+        used_seed, used_det, out_s, out_d = set(), set(), [], []
+        for i, j in zip(rows[order].tolist(), cols[order].tolist()):
+            if i not in used_det and j not in used_seed:
+                used_det.add(i)
+                used_seed.add(j)
+                out_s.append(j)
+                out_d.append(i)
+        return np.array(out_s, dtype=np.intp), np.array(out_d, dtype=np.intp)
+
+    def _explained(self, state: MultipleModelState, z: np.ndarray, t: np.ndarray, now: float) -> np.ndarray:
+        """(B,) whether each waiting seed (z at t) lies within the χ² gate of some track's position retrodicted to t,
+        x̂ − v̂ (t_k − t), with S = P_pos + R grown by (max_speed/10)² (t_k − t)² per axis for the velocity's error: an
+        earlier report of an object already tracked, not the first point of a new one."""
+        position, velocity = state.mean[:, self._position], state.mean[:, self._velocity]
+        P = state.cov[:, self._position[:, None], self._position[None, :]] + self.R
+        reach = math.sqrt(self.gamma * float(np.max(np.linalg.eigvalsh(P)))) + self.max_speed * float(np.max(now - t))
+        near = cKDTree(position).query_ball_point(z, reach)
+        out = np.zeros(z.shape[0], dtype=bool)
+        for i, tracks in enumerate(near):
+            if not tracks:
+                continue
+            lag = now - t[i]
+            nu = z[i] - (position[tracks] - velocity[tracks] * lag)
+            S = P[tracks] + (0.1 * self.max_speed * lag) ** 2 * np.eye(2)
+            d2 = np.einsum("ti,ti->t", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+            out[i] = bool((d2 <= self.gamma).any())
+        return out
+
+    def _second_point_score(self, z1, t1, z2, t2) -> np.ndarray:
+        """ln(P_D N(z₂; z₁, 2R + (Δt σ_v)² I) / λ): the likelihood ratio of the second point under the velocity prior."""
+        dt = t2 - t1
+        S = 2 * self.R[None] + (dt**2 * self.velocity_sigma**2)[:, None, None] * np.eye(2)
+        nu = z2 - z1
+        L = np.linalg.cholesky(S)
+        w = np.linalg.solve(L, nu[..., None])[..., 0]
+        logdet = 2 * np.log(np.abs(np.diagonal(L, axis1=1, axis2=2))).sum(-1)
+        loglik = -0.5 * (np.sum(w**2, -1) + logdet + 2 * math.log(2 * math.pi))
+        return math.log(self.detection_probability) + loglik - math.log(self.clutter_density)
+
+    def _associate(self, state, predicted, dt, z, t, now, *, first: bool):
+        """One association round of detections z (N, 2) at times t with the tracks ``predicted`` to ``now``; the
+        updates start from ``state`` over ``dt``.  Returns (new state, took (T,), ΔL (T,) beyond the miss term,
+        picked (T,) the detection each track took (its most probable one for JPDA; −1 none), taken (N,) the
+        detections used)."""
+        est = self.estimator
+        T = predicted.mean.shape[0]
+        zhat = predicted.mean[:, self._position]
+        S = predicted.cov[:, self._position[:, None], self._position[None, :]] + self.R
+        velocity = predicted.mean[:, self._velocity]
+        pairs = gate(zhat, S, z, threshold=self.gamma, velocities=velocity, offsets=t - now)
+        scores = self._scores(pairs.log_likelihood)
+        miss = None if first else np.full(T, -self._log_miss)  # a further report: "took it" against "it is not the track's"
+        aligned = z[pairs.detection] + velocity[pairs.track] * (now - t[pairs.detection])[:, None]
+        if self.association == "gnn":
+            assigned = gnn(pairs, scores, miss_scores=miss)
+            took = assigned >= 0
+            rows = np.flatnonzero(took)
+            N = max(z.shape[0], 1)
+            e = np.searchsorted(pairs.track * N + pairs.detection, rows * N + assigned[rows])
+            new = predicted
+            if rows.size:
+                new = put_rows(predicted, rows, est.step(take_rows(state, rows), aligned[e], dt))
+            gain = np.zeros(T)
+            gain[rows] = scores[e] + self._log_miss
+            taken = np.zeros(z.shape[0], dtype=bool)
+            taken[assigned[rows]] = True
+            return new, took, gain, assigned, taken
+        beta, beta_miss = jpda(pairs, scores, miss_scores=miss)
+        owner = np.concatenate([np.arange(T), pairs.track])
+        hypotheses = predicted
+        if pairs.track.size:
+            hypotheses = join_rows([predicted, est.step(take_rows(state, pairs.track), aligned, dt)])
+        with np.errstate(divide="ignore"):
+            new = collapse(hypotheses, owner, np.log(np.concatenate([beta_miss, beta])), T)
+        gain = np.zeros(T)
+        np.add.at(gain, pairs.track, beta * (scores + self._log_miss))
+        top = np.zeros(T)
+        np.maximum.at(top, pairs.track, beta)
+        winner = np.flatnonzero(beta >= top[pairs.track])
+        picked = np.full(T, -1, dtype=np.intp)
+        picked[pairs.track[winner]] = pairs.detection[winner]
+        took = (picked >= 0) & (top > beta_miss)
+        share = np.zeros(z.shape[0])
+        np.add.at(share, pairs.detection, beta)
+        return new, took, gain, np.where(took, picked, -1), share >= 0.5
+
+    # ------------------------------------------------------------------ the run
+    def run(self, detections: Detections) -> MultiTargetResult:
+        """All scans of ``detections``, in order (module docstring)."""
+        if not isinstance(detections, Detections):
+            raise TypeError(f"detections: expected a Detections (scans of unlabelled detections), got {type(detections).__name__}")
+        if detections.measurement_dim != 2:
+            raise ValueError(f"detections: expected (x, y) positions, got {detections.measurement_dim} components")
+        est, n = self.estimator, len(self.estimator.layout)
+        state: MultipleModelState | None = None
+        status = TrackStatus.born(0, 0.0, 0.0)
+        ids = np.zeros(0, dtype=np.intp)
+        born_at: dict[int, float] = {}
+        confirmed_at: dict[int, float] = {}
+        deleted_at: dict[int, float] = {}
+        took: dict[int, list[int]] = {}
+        seeds = np.zeros(0, dtype=np.intp)  # detections of the previous scan left for two-point initiation
+        next_id = 1
+        rows_out: dict[str, list] = {k: [] for k in ("time", "scan", "id", "mean", "pcov", "mode", "hit")}
+        bounds = detections.bounds()
+        previous = None
+        for k, now in enumerate(detections.scan_times.tolist()):
+            here = np.arange(bounds[k].start, bounds[k].stop)
+            z, t = detections.z[here], detections.times[here]
+            used = np.zeros(here.size, dtype=bool)
+            T = ids.size
+            if T:
+                dt = now - previous
+                hit = np.zeros(T, dtype=bool)
+                delta = np.full(T, self._log_miss)
+                taken_pairs = []
+                for round_ in range(self.updates_per_scan):
+                    free = np.flatnonzero(~used)
+                    if round_ == 0:
+                        predicted, step = est.step(state, np.full((T, 2), np.nan), dt), dt
+                        if not free.size:
+                            state = predicted
+                    else:  # a further report of the scan: an update after a step of REPEAT_STEP
+                        predicted, step = state, REPEAT_STEP
+                    if not free.size:
+                        break
+                    state, took_now, gain, picked, taken = self._associate(state, predicted, step, z[free], t[free], now, first=round_ == 0)
+                    if round_ and not took_now.any():
+                        break
+                    taken_pairs.append((ids[took_now], here[free[picked[took_now]]]))
+                    hit |= took_now
+                    delta += gain
+                    used[free[taken]] = True
+                status.record(hit, delta, now)
+                confirm, delete = self.management.decide(status, now)
+                status.status = np.where(confirm, CONFIRMED, status.status).astype(np.int8)
+                for tracks_taking, detections_taken in taken_pairs:
+                    for track, detection in zip(tracks_taking.tolist(), detections_taken.tolist()):
+                        took[track].append(int(detection))
+                for track in ids[confirm].tolist():
+                    confirmed_at[track] = now
+                for track in ids[delete & (status.status == CONFIRMED)].tolist():
+                    deleted_at[track] = now
+                keep = ~delete
+                shown = keep & (status.status == CONFIRMED)
+                if shown.any():
+                    rows_out["time"].append(np.full(int(shown.sum()), now))
+                    rows_out["scan"].append(np.full(int(shown.sum()), k))
+                    rows_out["id"].append(ids[shown])
+                    rows_out["mean"].append(state.mean[shown])
+                    rows_out["pcov"].append(state.cov[shown][:, self._position[:, None], self._position[None, :]])
+                    rows_out["mode"].append(np.argmax(state.log_mode_probabilities[shown], axis=1))
+                    rows_out["hit"].append(hit[shown])
+                if not keep.all():
+                    state, status, ids = take_rows(state, keep), status.take(keep), ids[keep]
+            # initiation from the detections no track took
+            free = np.flatnonzero(~used)
+            birth = None
+            if self.initiation == "two_point":
+                if previous is not None and seeds.size and free.size:
+                    sz, st = detections.z[seeds], detections.times[seeds]
+                    s_rows, d_rows = self._pair_seeds(sz, st, z[free], t[free])
+                    if s_rows.size:
+                        pair = (sz[s_rows], st[s_rows], z[free][d_rows], t[free][d_rows])
+                        score = math.log(self.birth_density / self.clutter_density) + self._second_point_score(*pair)
+                        birth = (*self._two_point(*pair, now), score, 2, np.column_stack([seeds[s_rows], here[free][d_rows]]))
+                        free = np.delete(free, d_rows)
+                        seeds = np.delete(seeds, s_rows)
+            elif free.size:
+                score = np.full(free.size, math.log(self.birth_density / self.clutter_density))
+                birth = (*self._single_point(z[free], t[free], now), score, 1, here[free][:, None])
+                free = free[:0]
+            if birth is not None:
+                means, covs, score, hits, origin = birth
+                B = means.shape[0]
+                fresh = self._start(means, covs)
+                new_status = TrackStatus.born(B, 0.0, now, hits)
+                new_status.score = np.asarray(score, dtype=float)
+                new_ids = np.arange(next_id, next_id + B)
+                next_id += B
+                for track, picked in zip(new_ids.tolist(), origin.tolist()):
+                    born_at[track] = now
+                    took[track] = [int(i) for i in picked]
+                for _ in range(self.updates_per_scan - 1):  # the scan's further reports of the new objects
+                    if not free.size:
+                        break
+                    fresh, took_now, gain, picked, taken = self._associate(fresh, fresh, REPEAT_STEP, z[free], t[free], now, first=False)
+                    if not took_now.any():
+                        break
+                    for track, detection in zip(new_ids[took_now].tolist(), here[free[picked[took_now]]].tolist()):
+                        took[track].append(int(detection))
+                    new_status.score = new_status.score + gain
+                    free = free[~taken]
+                new_status.peak = new_status.score.copy()
+                state = fresh if state is None or ids.size == 0 else join_rows([state, fresh])
+                status = TrackStatus.concatenate([status, new_status])
+                ids = np.concatenate([ids, new_ids])
+            if self.initiation == "two_point":
+                if self.seed_window is None or previous is None:
+                    seeds = here[free]
+                else:  # the older seeds within the window wait on, but those a track now explains
+                    seeds = seeds[detections.times[seeds] >= now - self.seed_window]
+                    if seeds.size and ids.size:
+                        seeds = seeds[~self._explained(state, detections.z[seeds], detections.times[seeds], now)]
+                    seeds = np.concatenate([seeds, here[free]])
+            previous = now
+        for track in ids[status.status == CONFIRMED].tolist():
+            deleted_at.setdefault(track, None)
+        histories = tuple(
+            TrackHistory(
+                id=track,
+                born=born_at[track],
+                confirmed=confirmed_at[track],
+                deleted=deleted_at.get(track),
+                detections=np.array(sorted(took[track], key=lambda i: detections.times[i]), dtype=np.intp),
+            )
+            for track in sorted(confirmed_at)
+        )
+
+        def stacked(name, shape, dtype=float):
+            parts = rows_out[name]
+            return np.concatenate(parts) if parts else np.zeros((0,) + shape, dtype=dtype)
+
+        return MultiTargetResult(
+            layout=est.layout,
+            modes=est.modes,
+            scan_times=np.asarray(detections.scan_times, dtype=float),
+            time=stacked("time", ()),
+            scan=stacked("scan", (), np.intp),
+            track_id=stacked("id", (), np.intp),
+            means=stacked("mean", (n,)),
+            position_covs=stacked("pcov", (2, 2)),
+            mode=stacked("mode", (), np.intp),
+            hit=stacked("hit", (), bool),
+            tracks=histories,
+            started=next_id - 1,
+        )
