@@ -1,0 +1,252 @@
+"""Many targets from unlabelled detections: hybridtrack's GNN and JPDA against Stone Soup 1.9.1 (issue 23, item 7).
+
+    python experiments/multitarget.py --json PATH [--plot [--plot-path PNG]] [--quick] [--stonesoup-scans N]
+
+Datasets (scans of unlabelled detections, :class:`hybridtrack.engine.detections.Detections`):
+
+* ``crossing_20`` — :func:`hybridtrack.engine.scenes.crossing_scene` (seed 11): 20 targets crossing and turning at
+  0.5–4 °/s, P_D = 0.9, 10 clutter detections per scan, σ = 10 m, 200 scans of 1 s over 5 km × 5 km;
+* ``crossing_20_pd07`` — the same kind of scene (seed 12) with P_D = 0.7 and 50 clutter detections per scan;
+* ``births_200`` — 200 targets born and dying over 100 scans of 1 s in 20 km × 20 km, P_D 0.9, 20 clutter per scan;
+* ``solent`` — every report of the Solent AIS file (``data/solent_ais``) with its MMSI left out, in 10 s scans
+  (:func:`hybridtrack.io.detection_files.read_detections`); the truth at each scan: every vessel whose reports
+  bracket the scan time, at its reports' linear interpolation (``solent_first_<N>`` the first N scans only, the
+  part Stone Soup is run on: it needs ≈ 11 minutes for the whole file here).
+
+Methods: hybridtrack ``gnn_cv``, ``jpda_cv`` (one constant-velocity Kalman filter per track), ``gnn_modes``,
+``jpda_modes`` (the IMM of straight motion and the coordinated turn with ω in the state per track), all with
+two-point initiation (:class:`hybridtrack.algorithms.multitarget.tracker.MultiTargetTracker`), Blackman's track score
+(α = 10⁻⁴, β = 0.1) on the simulated scenes and M-of-N with a 600 s coast on Solent (objects reporting every 2 s to
+every 3 minutes);
+Stone Soup ``gnn`` and ``jpda_ehm`` with its tutorials' components (``experiments/stonesoup_multitarget.py``),
+the same σ, q, P_D and λ.
+
+Scores (:mod:`hybridtrack.engine.metrics`), the mean over scans of GOSPA (p = 1, α = 2, c = 100 m for the
+simulated scenes, 500 m for Solent) and its localisation / missed / false parts; ``id_switches`` (CLEAR MOT
+mismatches on the GOSPA assignment); ``tracks_created`` (confirmed tracks); ``detections_per_s`` (detections over
+the tracking loop's wall time).  ``--quick``: ``crossing_20`` cut to 40 scans, ``solent`` to 30, for the tests.
+The JSON rows are ``{"dataset", "method", "library", "gospa", "gospa_localisation", "gospa_missed", "gospa_false",
+"id_switches", "tracks_created", "detections_per_s"}`` (plus ``seconds``, ``detections``, ``truths``); a markdown
+table goes beside the JSON (``.md``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hybridtrack import MultipleModelEstimator, crossing_scene, gospa_over_time, read_tracks, simulate_scene
+from hybridtrack.algorithms.multitarget.management import MofN, TrackScore
+from hybridtrack.algorithms.multitarget.tracker import MultiTargetTracker
+from hybridtrack.core.plugins import resolve
+from hybridtrack.engine.detections import Detections, Truth
+from hybridtrack.io.detection_files import read_detections
+from hybridtrack.io.track_files import SOLENT_AIS
+
+ROOT = Path(__file__).resolve().parents[1]
+SOLENT = ROOT / "data" / "solent_ais" / "SolentAIS_20160112_130211.csv"
+SIGMA = 10.0
+#: per dataset: GOSPA c (m), CV density q (m²/s³), the IMM's density and ω variance of its straight mode (rad²/s²), P_D,
+#: tracker options
+SETTINGS = {
+    "simulated": dict(c=100.0, q=1.0, q_modes=0.02, omega_variance=1e-3, detection_probability=0.9, options=dict(management=TrackScore())),
+    "solent": dict(
+        c=500.0,
+        q=0.01,
+        q_modes=0.001,
+        omega_variance=1e-4,
+        detection_probability=0.5,
+        options=dict(updates_per_scan=10, seed_window=600.0, management=MofN(3, 30, 60, max_coast=600.0), max_speed=30.0),
+    ),
+}
+
+
+def load_stonesoup():
+    spec = importlib.util.spec_from_file_location("stonesoup_multitarget", ROOT / "experiments" / "stonesoup_multitarget.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclass looks its module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def solent_detections(scans: int | None = None) -> Detections:
+    """The Solent file without its MMSI in 10 s scans, with the truth interpolated from each vessel's reports."""
+    data = read_detections(SOLENT, time="Time", lat="Latitude_degrees", lon="Longitude_degrees", scan_window=10.0, truth_id="MMSI")
+    labelled = read_tracks(SOLENT, **{k: SOLENT_AIS[k] for k in ("time", "id", "lat", "lon")}, origin=data.origin, warn=False)
+    detections = data.detections
+    times, ids, states = [], [], []
+    index_of = {name: i for i, name in enumerate(data.truth_names)}
+    for key, track in labelled.tracks.items():
+        index = index_of[key]
+        inside = (detections.scan_times >= track.times[0]) & (detections.scan_times <= track.times[-1])
+        t = detections.scan_times[inside]
+        x, y = (np.interp(t, track.times, track.positions[:, a]) for a in (0, 1))
+        times.append(t)
+        ids.append(np.full(t.size, index))
+        states.append(np.column_stack([x, np.zeros_like(x), y, np.zeros_like(y)]))
+    truth = Truth(np.concatenate(times), np.concatenate(ids), np.concatenate(states), ("x", "vx", "y", "vy"))
+    # (no per-detection origin: a vessel whose reports all fall between two scan times has no truth row)
+    out = Detections(detections.scan_times, detections.scan, detections.times, detections.z, truth=truth)
+    return out if scans is None else out.head(scans)
+
+
+def datasets(quick: bool, stonesoup_scans: int) -> dict:
+    out = {"crossing_20": lambda: crossing_scene(seed=11).head(40 if quick else 200)}
+    if not quick:
+        out["crossing_20_pd07"] = lambda: crossing_scene(seed=12, detection_probability=0.7, clutter_per_scan=50.0)
+        region = ((0.0, 20_000.0), (0.0, 20_000.0))
+        out["births_200"] = lambda: simulate_scene(targets=200, scans=100, region=region, clutter_per_scan=20.0, births=True, seed=13)
+        out["solent"] = solent_detections
+    out[f"solent_first_{stonesoup_scans}"] = lambda: solent_detections(stonesoup_scans)
+    return out
+
+
+def clutter_density(name: str, detections: Detections) -> float:
+    if name.startswith("solent"):
+        return 1e-9
+    low, high = detections.z.min(axis=0), detections.z.max(axis=0)
+    per_scan = {"crossing_20": 10.0, "crossing_20_pd07": 50.0, "births_200": 20.0}[name]
+    return per_scan / float(np.prod(high - low))
+
+
+def estimator(modes: bool, settings: dict) -> MultipleModelEstimator:
+    sensor = resolve("sensor", ("position", {"noise_cov": SIGMA**2 * np.eye(2)}))
+    if not modes:
+        return MultipleModelEstimator([("straight", {"noise_density": settings["q"]})], [[1.0]], sensors=[sensor], name="cv")
+    q = settings["q_modes"]
+    models = [("straight", {"noise_density": q}), ("coordinated_turn", {"noise_density": q})]
+    variance = {"omega": settings["omega_variance"]}
+    return MultipleModelEstimator(models, sojourn=30.0, sensors=[sensor], missing_variance=variance, name="imm")
+
+
+def score(name, method, library, detections, time_, ids, positions, seconds, c) -> dict:
+    truth = detections.truth
+    scans = set(detections.scan_times.tolist())
+    keep = np.isin(truth.times, list(scans))
+    series = gospa_over_time(truth.times[keep], truth.ids[keep], truth.positions[keep], time_, ids, positions, c=c)
+    quality = series.track_quality()
+    return {
+        "dataset": name,
+        "method": method,
+        "library": library,
+        "gospa": float(series.distance.mean()),
+        "gospa_localisation": float(series.localisation.mean()),
+        "gospa_missed": float(series.missed.mean()),
+        "gospa_false": float(series.false.mean()),
+        "id_switches": int(quality.id_switches),
+        "tracks_created": int(len(set(np.asarray(ids).tolist()))),
+        "detections_per_s": float(detections.size / seconds),
+        "seconds": float(seconds),
+        "detections": int(detections.size),
+        "truths": int(np.unique(truth.ids[keep]).size),
+    }
+
+
+def run(quick: bool = False, stonesoup_scans: int = 60, stonesoup: bool = True) -> list[dict]:
+    rows = []
+    for name, make in datasets(quick, stonesoup_scans).items():
+        detections = make()
+        settings = SETTINGS["solent" if name.startswith("solent") else "simulated"]
+        lam = clutter_density(name, detections)
+        settings = settings | ({"detection_probability": 0.7} if name == "crossing_20_pd07" else {})
+        for method in ("gnn_cv", "jpda_cv", "gnn_modes", "jpda_modes"):
+            association, motion = method.split("_")
+            tracker = MultiTargetTracker(
+                estimator(motion == "modes", settings),
+                association=association,
+                detection_probability=settings["detection_probability"],
+                clutter_density=lam,
+                **({"max_speed": 40.0} | settings["options"]),
+            )
+            start = time.perf_counter()
+            result = tracker.run(detections)
+            seconds = time.perf_counter() - start
+            rows.append(
+                score(name, method, "hybridtrack", detections, result.time, result.track_id, result.positions(), seconds, settings["c"])
+            )
+            print(json.dumps(rows[-1]), flush=True)
+        if not stonesoup or name == "solent":
+            continue
+        module = load_stonesoup()
+        options = {"deleter": "time", "time_since_update": 600.0} if name.startswith("solent") else {}
+        for method in ("gnn",) if name.startswith("solent") else ("gnn", "jpda_ehm"):
+            ss = module.run_stonesoup(
+                detections.scan_times,
+                detections.scan,
+                detections.z,
+                method=method,
+                sigma=SIGMA,
+                noise_density=settings["q"],
+                detection_probability=settings["detection_probability"],
+                clutter_density=lam,
+                **options,
+            )
+            positions = np.column_stack([ss.x, ss.y])
+            rows.append(score(name, method, "stonesoup", detections, ss.time, ss.track_id, positions, ss.seconds, settings["c"]))
+            print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
+def markdown(rows: list[dict]) -> str:
+    head = "| dataset | library | method | GOSPA | localisation | missed | false | id switches | tracks | detections/s |\n"
+    head += "|---|---|---|---|---|---|---|---|---|---|\n"
+    return head + "".join(
+        f"| {r['dataset']} | {r['library']} | {r['method']} | {r['gospa']:.1f} | {r['gospa_localisation']:.1f} | {r['gospa_missed']:.1f} |"
+        f" {r['gospa_false']:.1f} | {r['id_switches']} | {r['tracks_created']} | {r['detections_per_s']:,.0f} |\n"
+        for r in rows
+    )
+
+
+def plot(rows: list[dict], path: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    reference = {r["dataset"]: r["gospa"] for r in rows if r["library"] == "stonesoup" and r["method"] == "gnn"}
+    names = [n for n in dict.fromkeys(r["dataset"] for r in rows) if n in reference]
+    labels = list(dict.fromkeys(f"{r['library']} {r['method']}" for r in rows))
+    width = 0.8 / len(labels)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.2))
+    for ax, key, title in (
+        (axes[0], "gospa", "mean GOSPA / Stone Soup GNN's (lower is better)"),
+        (axes[1], "detections_per_s", "detections per second"),
+    ):
+        for i, label in enumerate(labels):
+            picked = [next((r for r in rows if r["dataset"] == n and f"{r['library']} {r['method']}" == label), None) for n in names]
+            values = [np.nan if r is None else r[key] / (reference[n] if key == "gospa" else 1.0) for r, n in zip(picked, names)]
+            ax.bar(np.arange(len(names)) + i * width, values, width, label=label)
+        ax.set_xticks(np.arange(len(names)) + 0.4 - width / 2, names, rotation=15)
+        ax.set_title(title)
+    axes[0].axhline(1.0, color="grey", lw=0.8)
+    axes[1].set_yscale("log")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None) -> list[dict]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", required=True, metavar="PATH", help="rows to write (a markdown table beside it, .md)")
+    parser.add_argument("--plot", action="store_true", help="write docs/images/multitarget.png (or --plot-path)")
+    parser.add_argument("--plot-path", default=str(ROOT / "docs" / "images" / "multitarget.png"))
+    parser.add_argument("--quick", action="store_true", help="crossing_20 cut to 40 scans and the first Solent scans only")
+    parser.add_argument("--stonesoup-scans", type=int, default=60, metavar="N", help="Solent scans Stone Soup runs (default 60)")
+    parser.add_argument("--no-stonesoup", action="store_true", help="hybridtrack only")
+    args = parser.parse_args(argv)
+    rows = run(args.quick, args.stonesoup_scans, not args.no_stonesoup)
+    Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
+    Path(args.json).with_suffix(".md").write_text(markdown(rows))
+    if args.plot:
+        plot(rows, args.plot_path)
+    return rows
+
+
+if __name__ == "__main__":
+    main()
