@@ -41,11 +41,12 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack import MultipleModelEstimator, crossing_scene, gospa_over_time, read_tracks, simulate_scene
+from hybridtrack import MultipleModelEstimator, gospa_over_time, read_tracks
 from hybridtrack.algorithms.multitarget.management import MofN, TrackScore
 from hybridtrack.algorithms.multitarget.tracker import MultiTargetTracker
 from hybridtrack.core.plugins import resolve
 from hybridtrack.engine.detections import Detections, Truth
+from hybridtrack.engine.scenes import crossing_scene, simulate_scene
 from hybridtrack.io.detection_files import read_detections
 from hybridtrack.io.track_files import SOLENT_AIS
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridtrack import crossing_scene
+from hybridtrack.engine.scenes import crossing_scene
 
 HERE = Path(__file__).resolve().parent
 

@@ -32,7 +32,7 @@ from hybridtrack.algorithms.multiple_model import MultipleModelEstimator
 from hybridtrack.algorithms.multitarget.management import MofN, TrackScore
 from hybridtrack.algorithms.multitarget.tracker import ASSOCIATIONS, INITIATIONS, MultiTargetTracker
 from hybridtrack.apps.association_keys import ASSOCIATION_DEFAULTS
-from hybridtrack.apps.tracking import ConfigError, build_tracker, run_objects, track_one, utc_text
+from hybridtrack.apps.tracking import ConfigError, build_tracker, load_config, run_objects, track_one, utc_text
 from hybridtrack.core.plugins import resolve
 from hybridtrack.io.detection_files import read_detections
 from hybridtrack.io.track_files import Track, problem_kinds, unproject
@@ -173,10 +173,16 @@ def write_tracks_csv(path: Path, result, modes, lat_lon=None) -> None:
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
-def track_detections(
-    path, config: dict, out, *, registry=None, smooth: bool = False, lag: float | None = None, record: bool = True
-) -> dict:
-    """Track the unlabelled detections of ``path`` with the checked ``config`` (module docstring); returns the summary."""
+def track_detections(path, config, out, *, registry=None, smooth: bool = False, lag: float | None = None, record: bool = True) -> dict:
+    """Track the unlabelled detections of ``path`` with ``config`` (a TOML path, a mapping, or
+    :func:`~hybridtrack.apps.tracking.load_config`'s checked result; module docstring); returns the summary.
+    ``smooth`` / ``lag``: the per-track segments from the smoothed runs; ``record``: write ``tracks.rrd``."""
+    if not (isinstance(config, dict) and "unlabelled" in config):
+        config = load_config(config, registry)
+    if not config["unlabelled"]:
+        raise ConfigError(
+            "track_detections: the configuration has no [association] table (a labelled file: hybridtrack.apps.tracking.track_file)"
+        )
     settings = association_settings(config)
     tracker = build_multitarget(config, settings, registry)
     try:

@@ -770,12 +770,10 @@ def track_file(
     if isinstance(shard_objects, bool) or not isinstance(shard_objects, int) or shard_objects < 1:
         raise ConfigError(f"shard_objects = {shard_objects!r}: expected a positive number of objects per shard")
     if cfg["unlabelled"]:
-        unsupported = [name for name, given in (("--id", ids is not None), ("--executor", executor), ("--geojson", geojson)) if given]
-        if unsupported:
-            raise ConfigError(f"{unsupported[0]} with [association] (unlabelled detections): not supported; leave it out")
-        from hybridtrack.apps.multitarget import track_detections
-
-        return track_detections(path, cfg, out, registry=registry, smooth=smooth, lag=lag)
+        raise ConfigError(
+            "[association]: a file of unlabelled detections is tracked by hybridtrack.apps.multitarget.track_detections"
+            " (hybridtrack track calls it for such a configuration)"
+        )
     estimator = build_tracker(cfg, registry)[0]  # the configuration's faults stop here, before any object
     if (smooth or lag is not None) and not callable(getattr(estimator, "smooth", None)):
         raise ConfigError(

@@ -62,7 +62,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from hybridtrack.apps.tracking import problem_summary, track_file
+    from hybridtrack.apps.multitarget import track_detections
+    from hybridtrack.apps.tracking import load_config, problem_summary, track_file
     from hybridtrack.io.track_files import Problem
 
     check_output_folder("--out", args.out)
@@ -73,7 +74,14 @@ def run(args: argparse.Namespace) -> int:
             if args.executor == "dask" and not args.scheduler:
                 raise ValueError("--executor dask needs --scheduler ADDRESS (tcp://HOST:PORT)")
             options |= dict(executor=args.executor, scheduler=args.scheduler, workers=args.workers, shard_objects=args.shard_objects)
-        summary = track_file(args.file, args.config, args.out, args.ids, **options)
+        config = load_config(args.config)
+        if config["unlabelled"]:  # detections without identities: hybridtrack.apps.multitarget
+            given = [flag for flag, value in (("--id", args.ids), ("--executor", args.executor), ("--geojson", args.geojson)) if value]
+            if given:
+                raise ValueError(f"{given[0]} with [association] (unlabelled detections): not supported; leave it out")
+            summary = track_detections(args.file, config, args.out, smooth=args.smooth, lag=args.lag)
+        else:
+            summary = track_file(args.file, args.config, args.out, args.ids, **options)
     except ValueError as error:  # a ConfigError names the key, the reader's structural faults name the file
         raise UsageError(str(error)) from None
     limit = summary["max_speed"]

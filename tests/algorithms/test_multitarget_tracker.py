@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
-from hybridtrack import MultipleModelEstimator, crossing_scene, gospa_over_time
+from hybridtrack import MultipleModelEstimator, gospa_over_time
 from hybridtrack.algorithms.multitarget.management import MofN, TrackScore
 from hybridtrack.algorithms.multitarget.tracker import MultiTargetTracker, collapse
 from hybridtrack.core.plugins import resolve
 from hybridtrack.engine.detections import Detections
+from hybridtrack.engine.scenes import crossing_scene
 from hybridtrack.sdk.mixtures import moment_match
 
 SIGMA = 10.0

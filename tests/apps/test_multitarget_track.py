@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from hybridtrack import gospa_over_time
+from hybridtrack.apps.multitarget import track_detections
 from hybridtrack.apps.tracking import ConfigError, track_file
 from hybridtrack.cli import main
 from hybridtrack.recording.inspection import RecordingFile
@@ -58,7 +59,7 @@ def test_the_solent_file_without_its_ids(tmp_path):
     config["association"] |= {"scan_window": 10.0, "updates_per_scan": 4, "detection_probability": 0.5, "max_coast": 600.0}
     head = tmp_path / "solent_head.csv"
     head.write_text("".join(SOLENT.read_text().splitlines(keepends=True)[:2500]))  # the first ≈ 10 minutes
-    summary = track_file(head, config, tmp_path / "out")
+    summary = track_detections(head, config, tmp_path / "out")
     rows = _rows(tmp_path / "out" / "tracks.csv")
     assert list(rows[0])[-2:] == ["lat", "lon"]
     lat = np.array([float(r["lat"]) for r in rows])
@@ -67,13 +68,16 @@ def test_the_solent_file_without_its_ids(tmp_path):
     assert len(summary["objects"]) > 10
 
 
-def test_configuration_faults_are_named(tmp_path):
+def test_configuration_faults_are_named(tmp_path, capsys):
     config = tomllib.loads((ROOT / "examples" / "multitarget.toml").read_text())
     with pytest.raises(ConfigError, match=r"\[reader\] id"):
-        track_file(SCENE, config | {"reader": config["reader"] | {"id": "target"}}, tmp_path)
+        track_detections(SCENE, config | {"reader": config["reader"] | {"id": "target"}}, tmp_path)
     with pytest.raises(ConfigError, match="scan_window"):
-        track_file(SCENE, config | {"association": config["association"] | {"scan_window": 5.0}}, tmp_path)
+        track_detections(SCENE, config | {"association": config["association"] | {"scan_window": 5.0}}, tmp_path)
     with pytest.raises(ConfigError, match="method"):
-        track_file(SCENE, config | {"association": config["association"] | {"method": "pmht"}}, tmp_path)
-    with pytest.raises(ConfigError, match="--geojson"):
-        track_file(SCENE, config, tmp_path, geojson=True)
+        track_detections(SCENE, config | {"association": config["association"] | {"method": "pmht"}}, tmp_path)
+    with pytest.raises(ConfigError, match="track_detections"):
+        track_file(SCENE, config, tmp_path)
+    example = str(ROOT / "examples" / "multitarget.toml")
+    assert main(["track", str(SCENE), "--config", example, "--out", str(tmp_path / "o"), "--geojson"]) == 2
+    assert "--geojson with [association]" in capsys.readouterr().err
