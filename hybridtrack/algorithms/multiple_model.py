@@ -55,10 +55,13 @@ The filters form one :class:`~hybridtrack.engine.bank.FilterBank` of the inner
 estimator, grouped by layout (the engine's bank: its transitions, the update
 grouped by missing pattern), so a step is one ``initialize``/``predict``/``update`` per
 distinct layout over every model and every run (R runs: prior (R, n), measurements (R, K+1, m); one
-run is the batch of one).  The inner estimator is re-initialized from the
-mixed (x̂_0j, P_0j) at every step: a mixture of Gaussians has no factor form
-to carry over, so a square-root estimator starts each step from a fresh
-factor of P_0j.
+run is the batch of one) — or, for an estimator with a compiled restart lane (the covariance Kalman filter),
+one :meth:`~hybridtrack.engine.bank.FilterBank.restart_step` over every filter of every layout, equal to them
+to rounding.  The mixing and the merging of the IMM are :mod:`hybridtrack.engine.mixing` (compiled).  The
+inner estimator is re-initialized from the mixed (x̂_0j, P_0j) at every step: a mixture of Gaussians has no
+factor form to carry over, so a square-root estimator starts each step from a fresh factor of P_0j.  The
+run of a batch builds ln Π(Δt) of all its steps at once and hands every Δt of its runs to the models that
+keep their transitions by Δt (``prepare_steps``, an optional extension of the MotionModel protocol).
 
 Step convention (as :class:`~hybridtrack.engine.pipeline.Pipeline`): step 0
 updates each model's copy of the prior with z_0 and weighs the models by
@@ -81,6 +84,7 @@ from hybridtrack.core.interfaces import Estimator, MotionModel, Sensor
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import Registry, registry_or_default
 from hybridtrack.core.validation import as_float_array, check_positive
+from hybridtrack.engine import mixing
 from hybridtrack.engine.bank import FilterBank
 from hybridtrack.engine.batch import batch_times, per_run, prior_arrays, stacked_measurements
 from hybridtrack.engine.layouts import union_layout
@@ -299,16 +303,18 @@ class MultipleModelEstimator:
         x0 = np.broadcast_to(start_means, (R, F, n)).reshape(R * F, n)
         P0 = np.broadcast_to(start_covs, (R, F, n, n)).reshape(R * F, n, n)
         models = [self.models[f] for f in filter_models] * R
-        self.bank.start(x0, 0.5 * (P0 + np.swapaxes(P0, -1, -2)), models, x0, np.repeat(np.arange(R), F))
+        P0, runs = 0.5 * (P0 + np.swapaxes(P0, -1, -2)), np.repeat(np.arange(R), F)
+        done = self.bank.restart_step(x0, P0, models, x0, runs, dt, z)  # the compiled lane, if the estimator has one
+        if done is not None:
+            return done.means.reshape(R, F, n), done.covs.reshape(R, F, n, n), done.loglik.reshape(R, F)
+        self.bank.start(x0, P0, models, x0, runs)
         loglik = self.bank.step(dt, z).loglik.reshape(R, F)
         return np.array(self.bank.means).reshape(R, F, n), self.bank.covs.reshape(R, F, n, n), loglik
 
     def _merge(self, model_means, model_covs, joint, model_loglik) -> MultipleModelState:
         """Merging: ln μ_j = joint_j − ln Σ_l exp(joint_l) (joint_j = ln Λ_j c̄_j), the output x̂, P mixed by μ_j,
         ln p(z_k | Z_{k−1}) = ln Σ_l exp(joint_l)."""
-        total = logsumexp(joint, axis=-1)
-        log_mu = joint - total[:, None]
-        mean, cov = mixture(log_mu, model_means, model_covs)
+        log_mu, total, mean, cov = mixing.merge(joint, model_means, model_covs)
         return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, total)
 
     # ------------------------------------------------------------------ steps
@@ -330,12 +336,18 @@ class MultipleModelEstimator:
         means, covs, ell = self._filter(x, P, np.arange(r), None, z0)
         return self._merge(means, covs, ell + log_mu0, ell)
 
-    def step(self, state: MultipleModelState, z: np.ndarray, dt) -> MultipleModelState:
+    def step(self, state: MultipleModelState, z: np.ndarray, dt, log_pi: np.ndarray | None = None) -> MultipleModelState:
         """One step k ≥ 1 over Δt = ``dt`` (seconds, one for all runs or (R,) per run) with measurements z (R, Σm)
-        (NaN: not measured)."""
+        (NaN: not measured); ``log_pi``: ln Π(Δt) (1 or R, r, r) if the caller has it (:meth:`log_transition_matrix`)."""
         r = len(self.models)
-        log_pi = self.log_transition_matrix(dt if np.ndim(dt) else [dt])  # ln Π(Δt_r): (1, r, r) shared or (R, r, r)
+        if log_pi is None:
+            log_pi = self.log_transition_matrix(dt if np.ndim(dt) else [dt])  # ln Π(Δt_r): (1, r, r) shared or (R, r, r)
         log_mu = state.log_mode_probabilities
+        if self.method == "imm":
+            # model j starts from the mixture of the models i with μ_{i|j} ∝ π_ij μ_i, and ln c̄_j (compiled)
+            log_cbar, starts_x, starts_P = mixing.mix(log_pi, log_mu, state.model_means, state.model_covs)
+            means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), dt, z)
+            return self._merge(means, covs, ell + log_cbar, ell)
         joint_prior = log_pi + log_mu[:, :, None]  # ln π_ij μ_i, (R, i, j)
         log_cbar = logsumexp(joint_prior, axis=1)  # ln c̄_j (R, j)
         if self.method == "gpb2":
@@ -351,12 +363,8 @@ class MultipleModelEstimator:
                 np.swapaxes(joint, 1, 2), np.swapaxes(x.reshape(R, r, r, n), 1, 2), np.swapaxes(P.reshape(R, r, r, n, n), 1, 2)
             )
             return self._merge(means, covs, log_mu_j, np.where(np.isfinite(log_cbar), log_mu_j - log_cbar, 0.0))
-        if self.method == "imm":
-            # model j starts from the mixture of the models i with μ_{i|j} ∝ π_ij μ_i
-            starts_x, starts_P = mixture(np.swapaxes(joint_prior, 1, 2), state.model_means[:, None], state.model_covs[:, None])
-        else:  # gpb1: every filter starts from the merged estimate
-            starts_x, starts_P = state.mean, state.cov
-        means, covs, ell = self._filter(starts_x, starts_P, np.arange(r), dt, z)
+        # gpb1: every filter starts from the merged estimate
+        means, covs, ell = self._filter(state.mean, state.cov, np.arange(r), dt, z)
         return self._merge(means, covs, ell + log_cbar, ell)
 
     def _prior_layout(self, n: int, prior_layout) -> tuple[str, ...]:
@@ -426,24 +434,38 @@ class MultipleModelEstimator:
         zs, DTs = z[order], DT[order]
         state = self.start(mean[order], cov[order], zs[:, 0], mode_probabilities, prior_layout)
         fields = attrs.fields_dict(MultipleModelState)
-        out = {name: np.empty((R, steps) + getattr(state, name).shape[1:]) for name in fields}
+        # the runs' steps back to back (longest first, as the bank holds them): run i of the order at rows first[i] …
+        first = np.concatenate([[0], np.cumsum(lengths[order])[:-1]]).astype(np.intp)
+        out = {name: np.empty((int(lengths.sum()),) + getattr(state, name).shape[1:]) for name in fields}
         same = bool((DT == DT[:1]).all())
+        if not same and steps > 1:  # ln Π(Δt) of every step at once: one table row per distinct Δt
+            distinct, which = np.unique(DTs, return_inverse=True)
+            table, which = self.log_transition_matrix(distinct), which.reshape(DTs.shape)
+        if steps > 1:  # models that keep their transitions by Δt build those of every step at once (optional)
+            used = DT[np.arange(steps - 1)[None, :] < (lengths - 1)[:, None]]
+            for model in {id(m): m for m in self.models}.values():
+                prepare = getattr(model, "prepare_steps", None)
+                if callable(prepare):
+                    prepare(used)
         for k in range(steps):
             if k:
                 A = int(going[k])
                 if A < state.mean.shape[0]:  # runs that ended leave the bank
                     state = MultipleModelState(*(getattr(state, name)[:A] for name in fields))
-                state = self.step(state, zs[:A, k], float(DTs[0, k - 1]) if same else DTs[:A, k - 1])
-            A = state.mean.shape[0]
+                if same:
+                    state = self.step(state, zs[:A, k], float(DTs[0, k - 1]))
+                else:
+                    state = self.step(state, zs[:A, k], DTs[:A, k - 1], table[which[:A, k - 1]])
+            rows = first[: state.mean.shape[0]] + k
             for name in fields:
-                out[name][:A, k] = getattr(state, name)
+                out[name][rows] = getattr(state, name)
         where = np.empty(R, dtype=np.intp)
         where[order] = np.arange(R)
         own = ("log_mode_probabilities", "model_means", "model_covs", "model_loglik", "loglik")
         runs = []
         for r in range(R):
-            L, i = int(lengths[r]), where[r]
-            field = {name: out[name][i, :L] for name in fields}
+            L, i = int(lengths[r]), first[where[r]]
+            field = {name: out[name][i : i + L] for name in fields}
             runs.append(
                 MultipleModelRun(
                     layout=self.layout,

@@ -40,7 +40,7 @@ from hybridtrack.io.track_files import Track, problem_kinds, unproject
 MANAGEMENTS = ("m_of_n", "score")
 MOTIONS = ("cv", "modes")
 #: ``[reader]`` keys that make no sense without identities (a labelled file's; ``[association]`` decides identities)
-_LABELLED_ONLY = ("id", "course", "speed", "speed_unit", "course_not_available", "speed_not_available", "format")
+_LABELLED_ONLY = ("id", "course", "speed", "speed_unit", "course_not_available", "speed_not_available")
 
 
 def association_settings(config: dict, where: str = "config") -> dict:

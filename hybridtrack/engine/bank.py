@@ -25,7 +25,9 @@ switch state changes, so regular sampling builds each filter's transition
 once, and a re-started bank whose transitions came out equal keeps the
 previous bank object (the estimator's per-bank caches stay valid); a run whose
 bank holds a nonlinear model relinearizes all its filters at their means
-every step (EKF; MotionModel contract: F x̂ + B = f(x̂)).
+every step (EKF; MotionModel contract: F x̂ + B = f(x̂)).  :meth:`FilterBank.restart_step` is a start and a
+step in one call of the estimator's optional compiled ``restart_step`` over every filter of every layout (the
+multiple-model estimators' filters, re-started at every step), equal to them to rounding.
 """
 
 from __future__ import annotations
@@ -63,6 +65,16 @@ class BankStep:
     @cached_property
     def m(self) -> np.ndarray:
         return np.full(self.size, self.innovation.measurement_dim)
+
+
+class BankRestart:
+    """The posteriors of :meth:`FilterBank.restart_step` in the bank's layout: ``means`` (F, n), ``covs`` (F, n, n)
+    and per filter ℓ ``loglik``, ``nis`` and ``m`` (the components its update measured; 0: prediction only)."""
+
+    __slots__ = ("means", "covs", "loglik", "nis", "m")
+
+    def __init__(self, means, covs, loglik, nis, m):
+        self.means, self.covs, self.loglik, self.nis, self.m = means, covs, loglik, nis, m
 
 
 class LayoutBank:
@@ -321,6 +333,8 @@ class FilterBank:
         self._only: LayoutBank | None = None  # the one group, when every filter runs a model of the bank's layout
         self._positions: dict[tuple[str, ...], np.ndarray] = {}  # a group's components in the bank's layout
         self._moments: dict = {}
+        self._restart_plans: dict = {}  # model ids -> (models, the grouping of restart_step)
+        self._sensor_fits: dict[tuple[str, ...], bool] = {}  # layout -> every sensor measures its components
 
     def __len__(self) -> int:
         return len(self.models)
@@ -563,6 +577,142 @@ class FilterBank:
         return added
 
     # ------------------------------------------------------------------ steps
+    def restart_step(self, means, covs, models: Sequence[MotionModel], switch_states, run, dt, z) -> BankRestart | None:
+        """The posteriors of :meth:`start` at N(means, covs) ((F, n), (F, n, n), the bank's layout) followed by
+        :meth:`step` over ``dt`` with ``z`` (R, Σm), in one call of the estimator's optional compiled ``restart_step``
+        (``KalmanFilter.restart_step``) over every filter at once, whatever its layout and missing components — the
+        model-matched filters of a multiple-model estimator, re-started at every step.  The bank itself is not
+        changed.  None when the estimator has no ``restart_step``, cannot take filters of smaller layouts embedded
+        in the bank's (``restart_embeds_layouts``) and some model lacks components, a sensor does not measure a
+        model's own components, or the estimator declines the step: the caller then takes :meth:`start` and
+        :meth:`step` (which raise their errors).
+
+        Filter i runs ``models[i]`` over its run's Δt, its transition built as :meth:`LayoutBank.transitions` builds
+        it (one ``transition_bank`` call per model over its filters' own Δt — entries equal to the stacked
+        ``transition``, the models' contract — at the switch states, or at the means for the filters of a run with a
+        nonlinear model) in its model's layout and embedded in the bank's: F, B and Q map the components it lacks to
+        zero, so its prediction, update and scores are its layout's (the estimator's arithmetic adds exact zeros
+        only) and those components come out at the fill (:class:`~hybridtrack.engine.layouts.LayoutFill`), as
+        :attr:`means` and :attr:`covs` read a filter of a smaller layout.  The grouping of a list of models (gather
+        and scatter indices) is kept for the next calls with the same models (by identity)."""
+        lane = getattr(self.estimator, "restart_step", None)
+        if lane is None or type(z) is not np.ndarray or z.ndim != 2:
+            return None
+        F, n = len(models), len(self.layout)
+        means, covs = np.asarray(means, dtype=float), np.asarray(covs, dtype=float)
+        at = means if switch_states is means else np.asarray(switch_states, dtype=float)
+        run = np.zeros(F, dtype=int) if run is None else np.asarray(run, dtype=int)
+        if means.shape != (F, n) or covs.shape != (F, n, n) or at.shape != (F, n) or run.shape != (F,) or not F or z.shape[0] <= run.max():
+            return None
+        plan = self._restart_plan(models)
+        if plan is None:
+            return None
+        groups, lacking_x, lacking_P, lacking_var = plan
+        if dt is None:  # update only: the identity on each filter's own components (x⁻ = x⁺, P⁻ = P⁺ exactly)
+            transitions = TransitionBank(np.zeros((F, n, n)), np.zeros((F, n)), np.zeros((F, n, n)))
+            transitions.F.reshape(F, n * n)[:, :: n + 1] = 1.0
+            transitions.F.reshape(-1)[lacking_P] = 0.0
+        else:
+            transitions = self._restart_transitions(groups, dt, means, at, run)
+        result = lane(means, covs, transitions, z.take(run, axis=0), self.sensors, self.layout)
+        if result is None:
+            return None
+        state, loglik, nis, m = result
+        x, P = np.asarray(self.estimator.mean(state), dtype=float), np.asarray(self.estimator.covariance(state), dtype=float)
+        if lacking_x.size:  # the components a filter's model lacks: at the fill (their covariances are zero already)
+            x.reshape(-1)[lacking_x] = self.fill.mean.take(lacking_var)
+            P.reshape(-1)[lacking_P] = self.fill.variance.take(lacking_var)
+        return BankRestart(x, P, loglik, nis, m)
+
+    def _restart_transitions(self, groups, dt, means: np.ndarray, at: np.ndarray, run: np.ndarray) -> TransitionBank:
+        """The transitions of :meth:`restart_step` ((model, rows, indices) per distinct model of its plan): each
+        model's ``transition_bank`` over its filters' Δt at ``at`` (the switch states; the means for the runs holding
+        a nonlinear model), embedded in the bank's layout."""
+        F, n = means.shape
+        if isinstance(dt, np.ndarray):
+            dt = dt.take(run) if dt.size > 1 else float(dt.item())
+        else:
+            dt = float(dt)
+        if any(not model.linear for model, *_ in groups):  # the runs holding a nonlinear model are relinearized at the means
+            nonlinear = np.zeros(int(run.max()) + 1, dtype=bool)
+            for model, rows, _ in groups:
+                if not model.linear:
+                    nonlinear[run[rows]] = True
+            at = means if nonlinear[run].all() else np.where(nonlinear[run][:, None], means, at)
+        if len(groups) == 1 and groups[0][2] is None:  # one model of the bank's layout: its bank as it comes
+            return groups[0][0].transition_bank(dt, at)
+        Fu, Bu, Qu = np.zeros((F, n, n)), np.zeros((F, n)), np.zeros((F, n, n))
+        flat_at, flat_F, flat_B, flat_Q = at.reshape(-1), Fu.reshape(-1), Bu.reshape(-1), Qu.reshape(-1)
+        for model, rows, (at_x, at_P) in groups:
+            bank = model.transition_bank(dt if type(dt) is float else dt.take(rows), flat_at.take(at_x).reshape(rows.size, -1))
+            flat_F[at_P], flat_B[at_x], flat_Q[at_P] = bank.F.reshape(-1), bank.B.reshape(-1), bank.Q.reshape(-1)
+        return TransitionBank(Fu, Bu, Qu)
+
+    def _restart_plan(self, models: Sequence[MotionModel]):
+        """([(model, its filters' rows, (gather/scatter indices of its components in the flattened (F, n) and (F, n, n)
+        arrays) or None for a model of the bank's layout)], the flattened indices of the components the filters
+        lack in (F, n) and of their variances in (F, n, n), their union-layout components) for a list of models, or
+        None when :meth:`restart_step` cannot take them; kept for the last few lists (by the models' identities)."""
+        key = tuple(map(id, models))
+        cached = self._restart_plans.get(key)
+        if cached is not None:
+            return cached[1]
+        n = len(self.layout)
+        index: dict = {}
+        for i, model in enumerate(models):
+            index.setdefault(id(model), (model, []))[1].append(i)
+        groups, lacking = [], []
+        plan = ()
+        for model, rows in index.values():
+            rows = np.asarray(rows, dtype=np.intp)
+            try:
+                pos = self.fill.positions(model.layout, f"model {model.name!r}")
+            except ValueError:
+                plan = None
+                break
+            if pos.size == n and (pos == np.arange(n)).all():
+                groups.append((model, rows, None if len(index) == 1 else (self._flat(rows, pos))))
+                continue
+            if not getattr(self.estimator, "restart_embeds_layouts", False) or not self._sensors_fit(tuple(model.layout)):
+                plan = None
+                break
+            groups.append((model, rows, self._flat(rows, pos)))
+            lack = self.fill.lacking(pos)
+            lacking.append((rows, lack))
+        if plan is not None:
+            rows_l = [np.repeat(rows, lack.size) for rows, lack in lacking] or [np.zeros(0, dtype=np.intp)]
+            comps = [np.tile(lack, rows.size) for rows, lack in lacking] or [np.zeros(0, dtype=np.intp)]
+            rows_l, comps = np.concatenate(rows_l), np.concatenate(comps)
+            plan = (groups, rows_l * n + comps, rows_l * n * n + comps * (n + 1), comps)
+        if len(self._restart_plans) >= 8:
+            self._restart_plans.pop(next(iter(self._restart_plans)))
+        self._restart_plans[key] = (list(models), plan)  # the models kept: their ids stay theirs
+        return plan
+
+    def _flat(self, rows: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The flattened indices of the components ``pos`` of the filters ``rows`` in (F, n) and of their entries in (F, n, n)."""
+        n = len(self.layout)
+        at_x = (rows[:, None] * n + pos[None, :]).reshape(-1)
+        at_P = (rows[:, None, None] * n * n + pos[None, :, None] * n + pos[None, None, :]).reshape(-1)
+        return at_x, at_P
+
+    def _sensors_fit(self, layout: tuple[str, ...]) -> bool:
+        """Whether every sensor measures (and, for a state-dependent R, reads) components ``layout`` has: its Jacobian
+        and its state noise at a zero state of that layout raise nothing (kept per layout)."""
+        fits = self._sensor_fits.get(layout)
+        if fits is None:
+            zero = np.zeros((1, len(layout)))
+            try:
+                for sensor in self.sensors:
+                    sensor.jacobian(zero, layout)
+                    if sensor.noise_depends_on_state:
+                        sensor.state_noise(zero, layout)
+                fits = True
+            except Exception:  # the reference steps raise it
+                fits = False
+            self._sensor_fits[layout] = fits
+        return fits
+
     def step(self, dt, z) -> BankStep:
         """Predict every filter over its run's Δt and update it with its run's row of ``z``
         (:meth:`LayoutBank.step`), one step per layout; the scores in filter order."""

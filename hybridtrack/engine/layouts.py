@@ -47,6 +47,7 @@ class LayoutFill:
         self.layout = tuple(layout)
         self.mean = self._per_component(missing_mean, "missing_mean", positive=False)
         self.variance = self._per_component(missing_variance, "missing_variance", positive=True)
+        self._lacking_cache: dict[bytes, np.ndarray] = {}
 
     def _per_component(self, value, name: str, positive: bool) -> np.ndarray:
         if isinstance(value, Mapping):
@@ -72,10 +73,18 @@ class LayoutFill:
         """(…, n_j) means and covariances of the union-layout components at ``positions`` in the union layout; each
         component they lack at the missing mean with the missing variance, uncorrelated with the rest."""
         n = len(self.layout)
-        lacking = np.setdiff1d(np.arange(n), positions)
+        lacking = self.lacking(positions)
         x = np.broadcast_to(self.mean, means.shape[:-1] + (n,)).copy()
         x[..., positions] = means
         P = np.zeros(covs.shape[:-2] + (n, n))
         P[..., lacking, lacking] = self.variance[lacking]
         P[..., positions[:, None], positions[None, :]] = covs
         return x, P
+
+    def lacking(self, positions: np.ndarray) -> np.ndarray:
+        """The union-layout components not at ``positions`` (kept per positions: a bank asks at every step)."""
+        key = np.asarray(positions, dtype=np.intp).tobytes()
+        lacking = self._lacking_cache.get(key)
+        if lacking is None:
+            lacking = self._lacking_cache[key] = np.setdiff1d(np.arange(len(self.layout)), positions)
+        return lacking

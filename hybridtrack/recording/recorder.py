@@ -9,6 +9,7 @@ opens on.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import re
@@ -174,6 +175,25 @@ SPACETIME_POINTS = 4000
 SHARED_ROLES = ("truth", "observer")
 
 
+@functools.lru_cache(maxsize=512)
+def _style(archetype: str, colour: tuple, size: float):
+    """The static style of an entity: ``rerun.<archetype>.from_fields(colors=[colour], radii=[ui_points(size)])``
+    (one radius for GeoPoints), built once per style (archetypes are immutable; a file logs each a few times and a
+    run of many files the same few again)."""
+    import rerun as rr
+
+    radius = rr.Radius.ui_points(size)
+    return getattr(rr, archetype).from_fields(colors=[colour], radii=radius if archetype == "GeoPoints" else [radius])
+
+
+@functools.lru_cache(maxsize=512)
+def _series_lines(names: tuple, colours: tuple, widths: tuple | None):
+    """``rerun.SeriesLines(names, colors, widths)``, built once per style (as :func:`_style`)."""
+    import rerun as rr
+
+    return rr.SeriesLines(names=list(names), colors=list(colours), widths=None if widths is None else list(widths))
+
+
 class _ClosedStream:
     """The stream of a closed :class:`RerunRecorder`: any use is a ValueError naming the file."""
 
@@ -218,12 +238,22 @@ class RerunRecorder(AbstractContextManager):
         self._time_step: float | None = None
         self._epoch = None if epoch is None else unix_nanoseconds(epoch)  # t = 0, in whole ns since the Unix epoch
         self._on_utc = False  # whether anything was put on the utc timeline
+        self._index_columns: dict[tuple, list] = {}  # (steps, times) bytes → their index columns (:meth:`_indexes`)
         self._closed = False
 
     # -- helpers
     def _indexes(self, steps, times, rows=slice(None)):
-        """The ``step`` (and ``time``) index columns of ``rows`` of a series, noting the time step τ."""
+        """The ``step`` (and ``time``) index columns of ``rows`` of a series, noting the time step τ; the columns of
+        the steps and times logged before are the ones built then (the series of a run share them)."""
         steps, times = np.asarray(steps, dtype=np.int64)[rows], _rows(times, rows)
+        key = (steps.tobytes(), None if times is None else times.tobytes())
+        hit = self._index_columns.get(key)
+        if hit is not None:
+            return hit
+        self._index_columns[key] = indexes = self._new_indexes(steps, times)
+        return indexes
+
+    def _new_indexes(self, steps: np.ndarray, times: np.ndarray | None) -> list:
         check_recordable_times(times)
         rr = self._rr
         indexes = [rr.TimeColumn("step", sequence=steps)]
@@ -271,7 +301,7 @@ class RerunRecorder(AbstractContextManager):
             colour, _ = spatial_style(entity)
             role = entity.strip("/").split("/")[1:2]
             size = 1.25 if is_hypothesis(entity) else {"measurements": 3.0, "clutter": 2.0, "truth": 2.5}.get(role[0] if role else "", 2.0)
-            self.stream.log(entity, self._rr.Points3D.from_fields(colors=[colour], radii=[self._rr.Radius.ui_points(size)]), static=True)
+            self.stream.log(entity, _style("Points3D", colour, size), static=True)
 
     def log_weighted_points(self, entity, steps, points, weights, times=None, max_radius=0.05):
         """Optional extension of the Recorder protocol: points (K, L, 2 or 3) with weights (K, L) ≥ 0 drawn as radii,
@@ -297,7 +327,7 @@ class RerunRecorder(AbstractContextManager):
         self._geo.append(np.stack([lat_lon[keep].min(axis=0), lat_lon[keep].max(axis=0)]))
         colour, _ = spatial_style(entity)
         self.stream.send_columns(entity, indexes=self._indexes(steps, times, keep), columns=rr.GeoPoints.columns(positions=lat_lon[keep]))
-        self.stream.log(entity, rr.GeoPoints.from_fields(colors=[colour], radii=rr.Radius.ui_points(4.0)), static=True)
+        self.stream.log(entity, _style("GeoPoints", colour, 4.0), static=True)
         self.stream.log(
             f"{entity}/path", rr.GeoLineStrings(lat_lon=[lat_lon[keep]], colors=[colour], radii=rr.Radius.ui_points(1.5)), static=True
         )
@@ -371,7 +401,9 @@ class RerunRecorder(AbstractContextManager):
         if first or names is not None:
             labels, colours = series_style(entity, 1 if values.ndim == 1 else values.shape[1], names)
             widths = [LANE_WIDTH] * len(labels) if is_mode_series(entity) else None
-            self.stream.log(entity, rr.SeriesLines(names=labels, colors=colours, widths=widths), static=True)
+            self.stream.log(
+                entity, _series_lines(tuple(labels), tuple(map(tuple, colours)), None if widths is None else tuple(widths)), static=True
+            )
 
     def log_event(self, step, text, time=None, level="INFO"):
         check_recordable_times(time, "time")
@@ -413,7 +445,7 @@ class RerunRecorder(AbstractContextManager):
         )
         if self._note(entity, "3D"):
             colour, _ = spatial_style(entity)
-            self.stream.log(entity, rr.LineStrips3D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(0.75)]), static=True)
+            self.stream.log(entity, _style("LineStrips3D", colour, 0.75), static=True)
 
     def log_ellipses(self, entity, steps, centers, covs, times=None, sigmas=2.0):
         centers, covs = np.asarray(centers, dtype=np.float64), np.asarray(covs, dtype=np.float64)
@@ -551,6 +583,7 @@ class RerunRecorder(AbstractContextManager):
         """
         self.stream = _ClosedStream(self.path)
         self._tracks, self._modes, self._shared, self._breaks, self._geo, self._events = {}, {}, {}, {}, [], []
+        self._index_columns = {}
 
     def __exit__(self, *exc):
         self.close()

@@ -622,3 +622,243 @@ def axis_update(xa, Pa, z, axis_row, c, r, form, limit, x_out, P_out, nu, S, log
         if ll - ll != 0.0 or not prod > 0.0:
             bad = 1
     return bad
+
+
+# ---------------------------------------------------------------------------------------------- the restart lane
+# Kernels of ``KalmanFilter.restart_step``: a bank started afresh at every step (the model-matched filters of the
+# multiple-model estimators), predicted and updated with each filter's own row of z, whatever its missing
+# components.  Statuses as for the fast lanes: 0 good, non-zero the caller must take the reference steps.
+
+#: a Cholesky pivot at or below this fraction of its diagonal entry sends the step to the reference path (which
+#: decides, with LAPACK's factorization, whether the matrix is positive definite: near singular, the two may differ)
+PIVOT_MARGIN = 1e-12
+
+
+@_njit
+def restart_predict(x0, P0, F, B, Q, limit, rtol, x_out, P_out, n_tuple):  # pragma: no cover - compiled
+    """Start each filter at N(x0, P0) and predict it: the prior checked as ``check_prior`` does (finite, every entry
+    within ``limit``, each positive variance ≥ 1/``limit``, symmetric to ``rtol`` of the largest entry, positive
+    definite by the Cholesky recurrence with the margin :data:`PIVOT_MARGIN`), F, B, Q finite, then
+    :func:`predict_bank`'s x⁻ = F x⁺ + B, P⁻ = ½(C + Cᵀ), C = (F P⁺) Fᵀ + Q.  Matrices flattened row-major to
+    (M, n²); ``n_tuple`` any tuple of length n.  Returns 0, or 1 when a check fails or an output is not finite."""
+    N = len(n_tuple)
+    M = x0.shape[0]
+    FP = np.empty(N * N)
+    L = np.empty(N * N)
+    scale = 0.0
+    skew = 0.0
+    for i in range(M):
+        xi, Pi, Fi, Qi, Po = x0[i], P0[i], F[i], Q[i], P_out[i]
+        for a in range(N):
+            if not abs(xi[a]) <= limit or not abs(B[i, a]) < math.inf:
+                return 1
+        for a in range(N * N):
+            v = Pi[a]
+            if not abs(v) <= limit or not abs(Fi[a]) < math.inf or not abs(Qi[a]) < math.inf:
+                return 1
+            scale = max(scale, abs(v))
+        for a in range(N):
+            d = Pi[a * N + a]
+            if 0.0 < d < 1.0 / limit:
+                return 1
+            for b in range(a + 1, N):
+                skew = max(skew, abs(Pi[a * N + b] - Pi[b * N + a]))
+        for j in range(N):  # positive definite: the Cholesky recurrence on the lower triangle
+            d = Pi[j * N + j]
+            for k in range(j):
+                d -= L[j * N + k] * L[j * N + k]
+            if not d > PIVOT_MARGIN * Pi[j * N + j]:
+                return 1
+            L[j * N + j] = math.sqrt(d)
+            for a in range(j + 1, N):
+                s = Pi[a * N + j]
+                for k in range(j):
+                    s -= L[a * N + k] * L[j * N + k]
+                L[a * N + j] = s / L[j * N + j]
+        for j in range(N):
+            acc = 0.0
+            for k in range(N):
+                acc += Fi[j * N + k] * xi[k]
+            acc += B[i, j]
+            if acc - acc != 0.0:
+                return 1
+            x_out[i, j] = acc
+        for j in range(N):
+            for k in range(N):
+                acc = 0.0
+                for q in range(N):
+                    acc += Fi[j * N + q] * Pi[q * N + k]
+                FP[j * N + k] = acc
+        for j in range(N):
+            for k in range(j, N):
+                c_jk = 0.0
+                c_kj = 0.0
+                for q in range(N):
+                    c_jk += FP[j * N + q] * Fi[k * N + q]
+                    c_kj += FP[k * N + q] * Fi[j * N + q]
+                if j == k:
+                    v = c_jk + Qi[j * N + j]
+                    Po[j * N + j] = v
+                else:
+                    v = 0.5 * ((c_jk + Qi[j * N + k]) + (c_kj + Qi[k * N + j]))
+                    Po[j * N + k] = Po[k * N + j] = v
+                if v - v != 0.0:
+                    return 1
+    if skew > rtol * max(scale, 2.2250738585072014e-308):
+        return 1
+    return 0
+
+
+@functools.partial(_njit, inline="always")
+def _update_present(i, p, xi, Pi, zi, Ei, xo, Po, loglik, nis, rows, cols, R, e, offset, form, N, Mm, scratch):  # pragma: no cover
+    """The update of filter i on its p present rows (``rows``, their state components ``cols``): the body of
+    :func:`update_rows` (its docstring), inlined twice there — with p = m, a compile-time constant (all rows present:
+    fixed-length loops), and with the p of a row with missing components.  ℓ and NIS into ``loglik[i]``,
+    ``nis[i]``; False when S is not positive definite or an output is not finite."""
+    S, Rp, L, Li, Si, w, nu, PH, K, T, D = scratch
+    for a in range(N):  # P Hᵀ
+        for b in range(p):
+            PH[a, b] = Pi[a * N + cols[b]]
+    for a in range(p):
+        nu[a] = zi[rows[a]] - xi[cols[a]]
+        ra = rows[a] - offset
+        for b in range(p):
+            rb = rows[b] - offset
+            if 0 <= ra < e and 0 <= rb < e:
+                Rp[a, b] = R[rows[a] * Mm + rows[b]] + Ei[ra, rb]
+            else:
+                Rp[a, b] = R[rows[a] * Mm + rows[b]]
+    for a in range(p):
+        S[a, a] = PH[cols[a], a] + Rp[a, a]
+        for b in range(a + 1, p):
+            S[a, b] = S[b, a] = 0.5 * ((PH[cols[a], b] + Rp[a, b]) + (PH[cols[b], a] + Rp[b, a]))
+    for j in range(p):  # L Lᵀ = S
+        d = S[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > PIVOT_MARGIN * S[j, j]:
+            return False
+        L[j, j] = math.sqrt(d)
+        for a in range(j + 1, p):
+            s = S[a, j]
+            for k in range(j):
+                s -= L[a, k] * L[j, k]
+            L[a, j] = s / L[j, j]
+    for a in range(p):  # L⁻¹, row by row
+        Li[a, a] = 1.0 / L[a, a]
+        for j in range(a - 1, -1, -1):
+            acc = L[a, j] * Li[j, j]
+            for k in range(j + 1, a):
+                acc += L[a, k] * Li[k, j]
+            Li[a, j] = -acc / L[a, a]
+    for a in range(p):  # S⁻¹ = L⁻ᵀ L⁻¹
+        for j in range(a, p):
+            acc = Li[j, a] * Li[j, j]
+            for k in range(j + 1, p):
+                acc += Li[k, a] * Li[k, j]
+            Si[a, j] = Si[j, a] = acc
+    log_det = 0.0
+    s_nis = 0.0
+    for a in range(p):  # w = L⁻¹ ν
+        log_det += math.log(L[a, a])
+        acc = nu[a]
+        for j in range(a):
+            acc -= L[a, j] * w[j]
+        w[a] = acc / L[a, a]
+        s_nis += w[a] * w[a]
+    ll = -0.5 * (p * LOG_2PI + 2.0 * log_det + s_nis)
+    if ll - ll != 0.0 or s_nis - s_nis != 0.0:
+        return False
+    loglik[i] = ll
+    nis[i] = s_nis
+    for a in range(N):  # K = P Hᵀ S⁻¹, x⁺ = x⁻ + K ν
+        acc2 = 0.0
+        for b in range(p):
+            acc = 0.0
+            for q in range(p):
+                acc += PH[a, q] * Si[q, b]
+            K[a, b] = acc
+            acc2 += acc * nu[b]
+        v = xi[a] + acc2
+        if v - v != 0.0:
+            return False
+        xo[a] = v
+    for a in range(N):  # T = P − K (H P), H P = (P Hᵀ)ᵀ
+        for b in range(N):
+            acc = 0.0
+            for q in range(p):
+                acc += K[a, q] * PH[b, q]
+            T[a, b] = Pi[a * N + b] - acc
+    if form == 0:  # D = K R − T Hᵀ, T += D Kᵀ
+        for a in range(N):
+            for b in range(p):
+                acc = 0.0
+                for q in range(p):
+                    acc += K[a, q] * Rp[q, b]
+                D[a, b] = acc - T[a, cols[b]]
+        for a in range(N):
+            for b in range(N):
+                acc = 0.0
+                for q in range(p):
+                    acc += D[a, q] * K[b, q]
+                T[a, b] += acc
+    for a in range(N):
+        v = T[a, a]
+        if v - v != 0.0:
+            return False
+        Po[a * N + a] = v
+        for b in range(a + 1, N):
+            v = 0.5 * (T[a, b] + T[b, a])
+            if v - v != 0.0:
+                return False
+            Po[a * N + b] = Po[b * N + a] = v
+    return True
+
+
+@_njit
+def update_rows(x, P, z, sel, R, extra, offset, form, limit, x_out, P_out, loglik, nis, dims, n_tuple, m_tuple):  # pragma: no cover
+    """The update of each filter with its own row of z (M, m), NaN components not measured (any pattern per row):
+    for the present rows p of filter i (H the selection of the state components ``sel[p]``, R_i = R + E_i restricted
+    to p: R (m²,) the state-independent part, E_i = ``extra`` (M or 1, e, e) the state-dependent one on the rows
+    ``offset`` … ``offset`` + e − 1 (e = 0: none)), S = ½(C + Cᵀ), C = P⁻[sel_p][:, sel_p] + R_pp, factored by the Cholesky recurrence (margin
+    :data:`PIVOT_MARGIN`), S⁻¹ = L⁻ᵀ L⁻¹, ln det S = 2 Σ ln L_jj, NIS = |L⁻¹ν|², K = P⁻[:, sel_p] S⁻¹,
+    x⁺ = x⁻ + K ν, P⁺ by ``form`` (0 Joseph: T = P⁻ − K P⁻[sel_p, :], U = T + (K R_pp − T[:, sel_p]) Kᵀ,
+    P⁺ = ½(U + Uᵀ); 1 symmetric: P⁺ = ½(T + Tᵀ), T = P⁻ − K (P⁻[:, sel_p])ᵀ) and ℓ = −½(|p| ln 2π + ln det S +
+    NIS) — :func:`update_bank`'s arithmetic on the present rows; a filter with none keeps its prediction (ℓ = NIS =
+    0).  P⁻ must be exactly symmetric (as :func:`restart_predict` gives it): P⁻[sel_p, :] is read as P⁻[:, sel_p]ᵀ.
+    ``dims`` gets |p|.  Returns 0, or 1 when a present entry of z is beyond ``limit`` (or ±inf), S is not positive
+    definite or an output is not finite."""
+    N, Mm = len(n_tuple), len(m_tuple)
+    M = x.shape[0]
+    e = extra.shape[1]
+    per_e = extra.shape[0] > 1
+    rows = np.empty(Mm, dtype=np.intp)
+    cols = np.empty(Mm, dtype=np.intp)
+    square = (np.empty((Mm, Mm)), np.empty((Mm, Mm)), np.zeros((Mm, Mm)), np.zeros((Mm, Mm)), np.empty((Mm, Mm)))
+    scratch = square + (np.empty(Mm), np.empty(Mm), np.empty((N, Mm)), np.empty((N, Mm)), np.empty((N, N)), np.empty((N, Mm)))
+    for i in range(M):
+        xi, Pi, zi, Ei, xo, Po = x[i], P[i], z[i], extra[i if per_e else 0], x_out[i], P_out[i]
+        p = 0
+        for a in range(Mm):
+            if zi[a] == zi[a]:  # not NaN
+                if not abs(zi[a]) <= limit:
+                    return 1
+                rows[p] = a
+                cols[p] = sel[a]
+                p += 1
+        dims[i] = p
+        if p == 0:
+            for a in range(N):
+                xo[a] = xi[a]
+            for a in range(N * N):
+                Po[a] = Pi[a]
+            loglik[i] = 0.0
+            nis[i] = 0.0
+            continue
+        if p == Mm:  # every row present: the loops over m have a compile-time length
+            ok = _update_present(i, Mm, xi, Pi, zi, Ei, xo, Po, loglik, nis, rows, cols, R, e, offset, form, N, Mm, scratch)
+        else:
+            ok = _update_present(i, p, xi, Pi, zi, Ei, xo, Po, loglik, nis, rows, cols, R, e, offset, form, N, Mm, scratch)
+        if not ok:
+            return 1
+    return 0

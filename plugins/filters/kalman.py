@@ -11,7 +11,9 @@ component per axis with diagonal R (the 4-state modes with position sensors),
 the filter runs the exact axis-separable form of ``_separable`` (structure of
 arrays, scalar updates); otherwise, or with ``structure=False``, the dense form.
 The centralized multisensor filter is this filter given all sensors at once
-(H = [H_1; …; H_N], R = blockdiag(R_i), SPEC §2).
+(H = [H_1; …; H_N], R = blockdiag(R_i), SPEC §2).  ``restart_step`` (the restart lane) starts, predicts and
+updates a bank in two compiled passes, each filter with its own missing components (the engine's
+``FilterBank.restart_step``: the multiple-model estimators' filters, re-started at every step).
 """
 
 from __future__ import annotations
@@ -25,8 +27,9 @@ import numpy as np
 
 from hybridtrack import hookimpl
 from hybridtrack.core.interfaces import Innovation, Sensor, TransitionBank
-from hybridtrack.core.validation import FILTER_MAGNITUDE_LIMIT
+from hybridtrack.core.validation import FILTER_MAGNITUDE_LIMIT, SYMMETRY_RTOL
 from hybridtrack.sdk.estimation import BankEstimator, CovarianceMoments, bank_field, guarded
+from hybridtrack.sdk.measurements import block_diagonal
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters import _separable as sep
 
@@ -94,6 +97,9 @@ class KalmanFilter(BankEstimator):
     """
 
     name = "kalman"
+    #: :meth:`restart_step` takes filters of smaller layouts embedded in the bank's (their transitions map the
+    #: components they lack to zero): in the covariance form those stay exactly zero and add exact zeros only
+    restart_embeds_layouts = True
 
     def __init__(self, form: str = "joseph", structure: bool = True, engine: str = "auto"):
         super().__init__()
@@ -106,6 +112,8 @@ class KalmanFilter(BankEstimator):
         self._transposed_cache: tuple | None = None
         self._predict_lanes: dict = {}  # id(bank) -> (bank, state form, shape, kernel, operands), the last few banks
         self._lane: _UpdateLane | None = None  # the measurement model of the last update, for the update lane
+        self._restart_plans: dict = {}  # (sensor ids, layout) -> (sensors, plan of restart_step)
+        self._restart_last: tuple | None = None  # (sensors, layout, plan) of the last restart_step (by identity)
 
     def dense_engine(self, n: int, m: int = 0) -> str:
         """ "numba" or "numpy": what runs a dense step of state size n and measurement size m under ``engine``."""
@@ -211,6 +219,123 @@ class KalmanFilter(BankEstimator):
         self._transposed_cache = (bank, bank.F, Ft)
         return Ft
 
+    # ------------------------------------------------------------------ restart
+    def restart_step(self, mean, cov, transitions, z, sensors: Sequence[Sensor], layout: Sequence[str]):
+        """A bank started at N(mean, cov) ((M, n), (M, n, n)), predicted with ``transitions`` and updated with each
+        filter's own row of z (M, Σm), NaN components not measured in any pattern per row: what ``initialize``,
+        ``predict`` and ``update`` (one per missing pattern) give, to rounding, in two compiled passes
+        (:func:`._kalman_kernel.restart_predict`, :func:`._kalman_kernel.update_rows`; the state-dependent part of R at
+        each x⁻ in between).  Returns (state, ℓ (M,), NIS (M,), measured components (M,)), or None when the lane cannot
+        take the step: the numpy engine or no numba, the conventional form, a sensor that is not linear with a
+        selection H and an R independent of z, or a check of the reference failing (prior, transitions, z, S
+        positive definite, finite outputs), a subclass with its own predict or update — the caller then takes the
+        reference steps, which raise its errors."""
+        plan = self._restart_plan(sensors, layout)
+        if plan is None or type(z) is not np.ndarray or type(mean) is not np.ndarray or type(cov) is not np.ndarray:
+            return None
+        sel, noise, dependent, offset, span, m_tuple = plan
+        M, n = mean.shape
+        if n != len(layout) or cov.shape != (M, n, n) or z.shape != (M, sel.size):
+            return None
+        if callable(transitions) and not isinstance(transitions, TransitionBank):
+            if not self.accepts_nonlinear:
+                return None
+            transitions = transitions(mean)
+        if not isinstance(transitions, TransitionBank) or any(
+            np.shape(A) != shape for A, shape in ((transitions.F, (M, n, n)), (transitions.B, (M, n)), (transitions.Q, (M, n, n)))
+        ):
+            return None
+        kernel = cov_form.kernel_module()
+        x0, P0, F, B, Q = (
+            np.ascontiguousarray(A, dtype=float).reshape(M, -1) for A in (mean, cov, transitions.F, transitions.B, transitions.Q)
+        )
+        x_pred, P_pred = np.empty((M, n)), np.empty((M, n, n))
+        n_tuple = (0,) * n
+        if kernel.restart_predict(x0, P0, F, B, Q, FILTER_MAGNITUDE_LIMIT, SYMMETRY_RTOL, x_pred, P_pred.reshape(M, n * n), n_tuple):
+            return None
+        # R(x⁻) = R + the state-dependent blocks at each filter's prediction (MeasurementStep.with_state_noise); the
+        # blocks go to the kernel as they come (one sensor) or side by side over their span
+        with np.errstate(all="ignore"):
+            if len(dependent) == 1:
+                extra = np.ascontiguousarray(dependent[0][0].state_noise(x_pred, layout), dtype=float)
+            elif dependent:
+                extra = np.zeros((M, span, span))
+                for sensor, block in dependent:
+                    extra[:, block, block] = sensor.state_noise(x_pred, layout)
+            else:
+                extra = _NO_EXTRA
+        x, P = np.empty((M, n)), np.empty((M, n, n))
+        loglik, nis, dims = np.empty(M), np.empty(M), np.empty(M, dtype=np.intp)
+        zc = np.ascontiguousarray(z, dtype=float)
+        outputs = (x, P.reshape(M, n * n), loglik, nis, dims)
+        if (
+            extra.shape[1:] != (span, span)
+            or extra.shape[0] not in (1, M)
+            or kernel.update_rows(
+                x_pred,
+                P_pred.reshape(M, n * n),
+                zc,
+                sel,
+                noise,
+                extra,
+                offset,
+                kernel.FORMS[self.form],
+                FILTER_MAGNITUDE_LIMIT,
+                *outputs,
+                n_tuple,
+                m_tuple,
+            )
+        ):
+            return None
+        return CovarianceState(x, P, x_pred, P_pred, None), loglik, nis, dims
+
+    def _restart_plan(self, sensors, layout):
+        """What :meth:`restart_step` needs of the sensors in ``layout``, kept per sensors and layout: the state index
+        each stacked z component measures (Σm,), R = blockdiag of the sensors' R (flattened), the sensors whose R
+        depends on the state with their blocks relative to the first one, the first one's offset and the blocks'
+        span in z, and a tuple of length Σm; None when the lane cannot take them."""
+        if isinstance(sensors, Sensor):  # one sensor given alone: the reference step takes it
+            return None
+        last = self._restart_last
+        if last is not None and last[1] is layout and len(last[0]) == len(sensors) and all(map(operator.is_, last[0], sensors)):
+            return last[2]
+        if (
+            self.engine == "numpy"
+            or not cov_form.NUMBA_AVAILABLE
+            or self.form == "conventional"
+            or any(getattr(type(self), name) is not getattr(KalmanFilter, name) for name in ("predict", "_predict", "update", "_update"))
+        ):  # a subclass with its own maths (the sigma-point prediction) takes its own steps
+            return None
+        key = (tuple(map(id, sensors)), tuple(layout))
+        cached = self._restart_plans.get(key)
+        if cached is not None and all(map(operator.is_, cached[0], sensors)):
+            self._restart_last = (tuple(sensors), layout, cached[1])
+            return cached[1]
+        plan = None
+        try:
+            models = [self.assembler.sensor_model(s, key[1]) for s in sensors]
+        except ValueError:  # the reference step raises it
+            models = None
+        if models and all(
+            mdl.selection is not None and mdl.plain_residual and type(mdl.sensor).measurement_noise is Sensor.measurement_noise
+            for mdl in models
+        ):
+            sel = np.array([i for mdl in models for i in mdl.selection], dtype=np.intp)
+            noise = block_diagonal([np.asarray(mdl.sensor.noise_cov, dtype=float) for mdl in models])
+            starts = np.cumsum([0] + [mdl.dim for mdl in models])
+            blocks = [
+                (mdl.sensor, int(a), int(b)) for mdl, a, b in zip(models, starts[:-1], starts[1:]) if mdl.sensor.noise_depends_on_state
+            ]
+            offset = blocks[0][1] if blocks else 0
+            span = blocks[-1][2] - offset if blocks else 0
+            dependent = tuple((sensor, slice(a - offset, b - offset)) for sensor, a, b in blocks)
+            plan = (sel, np.ascontiguousarray(noise).reshape(-1), dependent, offset, span, (0,) * sel.size)
+        if len(self._restart_plans) >= PREDICT_LANES:
+            self._restart_plans.pop(next(iter(self._restart_plans)))
+        self._restart_plans[key] = (tuple(sensors), plan)
+        self._restart_last = (tuple(sensors), layout, plan)
+        return plan
+
     # ------------------------------------------------------------------ update
     def _update_axes(self, state: AxisState, step, plan):
         c, measured, order = plan
@@ -307,6 +432,10 @@ class KalmanFilter(BankEstimator):
         innovation = Innovation(nu, S, loglik, nis)
         self._learn_lane(state, z, sensors, layout, step)
         return CovarianceState(x, P, state.x_predicted, state.P_predicted, innovation), innovation
+
+
+#: the state-dependent part of R when no sensor has one (:meth:`KalmanFilter.restart_step`)
+_NO_EXTRA = np.zeros((1, 0, 0))
 
 
 @cache

@@ -48,6 +48,7 @@ cause, ``radius``, the switch speed and the smallest usable radius.
 
 from __future__ import annotations
 
+import itertools
 import math
 from abc import abstractmethod
 from collections.abc import Callable, Sequence
@@ -130,6 +131,8 @@ def _check_tau(tau: float) -> float:
 def step_lengths(tau, rows: int) -> np.ndarray:
     """``tau`` (one step length for all, or one per row) as (rows,) seconds, each finite and > 0, else a ValueError
     naming ``tau`` and the first bad entry."""
+    if type(tau) is np.ndarray and tau.shape == (rows,) and tau.dtype == np.float64 and ((tau > 0) & (tau < math.inf)).all():
+        return tau  # the common case, checked at once (NaN fails both comparisons)
     steps = np.broadcast_to(np.asarray(tau, dtype=float), (rows,)) if np.ndim(tau) == 0 else as_float_array(tau, "tau", (rows,))
     bad = ~(np.isfinite(steps) & (steps > 0))
     if bad.any():
@@ -240,16 +243,80 @@ class _FixedMatrixMode(_Noise, MotionModel):
     def transition_bank(self, tau, switch_states: np.ndarray) -> TransitionBank:
         """The transitions of the S rows over ``tau`` (one or (S,)): Φ does not depend on the switch state, so one
         transition per distinct step, vectorized, indexed back to the rows (a step beyond the float64 arithmetic is
-        :meth:`transition`'s ValueError)."""
+        :meth:`transition`'s ValueError).  The transitions of the steps seen before come from the model's table
+        (:class:`_StepTable`: irregular report times revisit the same Δt), the new ones are computed in one call."""
         steps = step_lengths(tau, np.shape(switch_states)[0])
-        distinct, rows = np.unique(steps, return_inverse=True)
+        table = self.__dict__.get("_step_table")
+        if table is None:  # the instance's own (attrs frozen: set through __dict__; not part of eq or the fields)
+            table = self.__dict__["_step_table"] = _StepTable()
+        return table.bank(steps, self._distinct_bank)
+
+    def prepare_steps(self, steps) -> None:
+        """Build the transitions of the step lengths ``steps`` (any shape; those finite and > 0) in one vectorized
+        call and keep them (:class:`_StepTable`): what a batch of runs about to step through them asks first (the
+        multiple-model estimator gives every Δt of its runs), so that its steps find them built.  An optional
+        extension of the MotionModel protocol; nothing else changes."""
+        steps = np.asarray(steps, dtype=float).reshape(-1)
+        steps = np.unique(steps[np.isfinite(steps) & (steps > 0)])
+        if steps.size:
+            self.transition_bank(steps, np.zeros((steps.size, self.state_dim)))
+
+    def _distinct_bank(self, distinct: np.ndarray) -> TransitionBank:
+        """The transitions of the distinct steps (D,), vectorized (a step beyond the float64 arithmetic is
+        :meth:`transition`'s ValueError)."""
         F, B, G = self.arrays(distinct)
         bank = transition_stack(F, B, G, self.noise_cov)
         with np.errstate(over="ignore", invalid="ignore"):
             if transition_excess(bank.F, bank.B, bank.Q) is not None:
                 for t in distinct:
                     self.transition(float(t))
-        return TransitionBank(*(None if a is None else a[rows] for a in attrs.astuple(bank, recurse=False)))
+        return bank
+
+
+class _StepTable:
+    """The transitions a mode built, by step length: rows of F, B, Q and the noise root (None when the bank had
+    none), stored with room to grow (doubling), and the row of each Δt; at most :data:`STEP_TABLE_SIZE` steps (then
+    it starts afresh)."""
+
+    def __init__(self):
+        self.row: dict[float, int] = {}
+        self.arrays: tuple = ()
+
+    def bank(self, steps: np.ndarray, build: Callable[[np.ndarray], TransitionBank]) -> TransitionBank:
+        """The bank of ``steps`` (S,), building the transitions of the steps not in the table by ``build`` (distinct
+        sorted steps (D,) → their bank) in one call."""
+        keys = steps.tolist()
+        index = np.fromiter(map(self.row.get, keys, itertools.repeat(-1)), np.intp, len(keys))
+        if index.size and index.min() < 0:
+            new = sorted({t for t, r in zip(keys, index.tolist()) if r < 0})
+            if len(self.row) + len(new) > STEP_TABLE_SIZE:  # full: start afresh with this call's steps
+                self.row, self.arrays, new = {}, (), sorted(set(keys))
+            self._add(new, build(np.array(new)))
+            index = np.fromiter(map(self.row.__getitem__, keys), np.intp, len(keys))
+        return TransitionBank(*(None if a is None else a.take(index, axis=0) for a in self.arrays))
+
+    def _add(self, steps: list[float], bank: TransitionBank) -> None:
+        """Append the transitions of the new ``steps`` (the table grown to twice what it holds when full)."""
+        used = len(self.row)
+        root = bank.noise_root if used == 0 or self.arrays[3] is not None else None  # a root for every row, or none
+        parts = (bank.F, bank.B, bank.Q, root)
+        if self.arrays and root is None:
+            self.arrays = self.arrays[:3] + (None,)
+        if not self.arrays or used + len(steps) > self.arrays[0].shape[0]:
+            room = max(64, 2 * (used + len(steps)))
+            grown = tuple(None if a is None else np.empty((room,) + a.shape[1:]) for a in parts)
+            for old, a in zip(self.arrays, grown):
+                if a is not None and old is not None:
+                    a[:used] = old[:used]
+            self.arrays = grown
+        for old, a in zip(self.arrays, parts):
+            if old is not None:
+                old[used : used + len(steps)] = a
+        self.row.update(zip(steps, range(used, used + len(steps))))
+
+
+#: the most step lengths a linear mode keeps the transitions of (:class:`_StepTable`; 4 × 4 modes: about 20 MB)
+STEP_TABLE_SIZE = 50_000
 
 
 @attrs.frozen

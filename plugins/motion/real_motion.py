@@ -32,6 +32,8 @@ Cholesky factor of the unit-density blocks.
 
 from __future__ import annotations
 
+import functools
+import importlib.util
 from abc import abstractmethod
 from typing import ClassVar
 
@@ -45,8 +47,18 @@ from hybridtrack.sdk.process_noise import check_density, white_noise_root
 from hybridtrack_plugins.motion.linear_modes import step_lengths
 from hybridtrack_plugins.motion.ship import ShipTurn
 
+#: numba is installed: the coordinated turn's bank is compiled (:mod:`._turn_kernel`, imported on first use)
+NUMBA_AVAILABLE = importlib.util.find_spec("numba") is not None
 #: (x, vx, y, vy, ω) ↔ the ship turn's (x, y, vx, vy, ω): the same permutation both ways
 _SHIP_ORDER = np.array([0, 2, 1, 3, 4])
+
+
+@functools.cache
+def _turn_kernel():
+    """:mod:`._turn_kernel`, imported (and numba with it) on first use."""
+    from hybridtrack_plugins.motion import _turn_kernel as kernel
+
+    return kernel
 
 
 @attrs.frozen
@@ -144,6 +156,20 @@ class CoordinatedTurn(_FiveStateMode):
         inside = np.abs(np.asarray(x, dtype=float)[..., 4]) < self.max_rate
         J[..., :, 4] *= inside[..., None]  # ω̄ = clip(ω): no derivative where the limit holds
         return J
+
+    def linearize(self, tau, x: np.ndarray) -> TransitionBank:
+        """:meth:`_FiveStateMode.linearize`, row by row in compiled code (:mod:`._turn_kernel`) when numba is installed
+        (the same formulas, to rounding); the numpy path without numba, and wherever the compiled one meets a
+        value that is not finite (the numpy path then raises its error)."""
+        if not NUMBA_AVAILABLE or type(x) is not np.ndarray or x.ndim != 2 or x.shape[1] != 5 or x.dtype != np.float64:
+            return super().linearize(tau, x)
+        M = x.shape[0]
+        steps = np.full(M, check_positive(tau, "tau", "the step length in seconds")) if np.ndim(tau) == 0 else step_lengths(tau, M)
+        q_root = self.__dict__.get("_noise_root")  # √(q, q, q, q, q_ω), kept on the instance (attrs frozen: through __dict__)
+        if q_root is None:
+            q_root = self.__dict__["_noise_root"] = np.sqrt(np.array([self.noise_density] * 4 + [self.rate_density]))
+        out = _turn_kernel().linearized_bank(x, steps, self.max_rate, q_root)
+        return super().linearize(tau, x) if out is None else TransitionBank(*out)
 
 
 @attrs.frozen
