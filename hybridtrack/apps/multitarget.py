@@ -96,9 +96,10 @@ def association_settings(config: dict, where: str = "config") -> dict:
     return out
 
 
-def build_multitarget(config: dict, settings: dict, registry=None) -> MultiTargetTracker:
-    """The tracker of a checked configuration: its per-track filter (``motion``), management and association."""
-    estimator = build_tracker(config, registry)[0]
+def build_multitarget(config: dict, settings: dict, registry=None, built=None) -> MultiTargetTracker:
+    """The tracker of a checked configuration: its per-track filter (``motion``), management and association
+    (``built``: :func:`~hybridtrack.apps.tracking.build_tracker`'s result for ``config``, when the caller has it)."""
+    estimator = (build_tracker(config, registry) if built is None else built)[0]
     if settings["motion"] == "modes":
         if not isinstance(estimator, MultipleModelEstimator):
             raise ConfigError(
@@ -184,7 +185,8 @@ def track_detections(path, config, out, *, registry=None, smooth: bool = False, 
             "track_detections: the configuration has no [association] table (a labelled file: hybridtrack.apps.tracking.track_file)"
         )
     settings = association_settings(config)
-    tracker = build_multitarget(config, settings, registry)
+    built = build_tracker(config, registry)  # the per-track [estimator]: the association's modes and the segments
+    tracker = build_multitarget(config, settings, registry, built)
     try:
         data = read_detections(path, **_reader_options(config, settings))
     except TypeError as error:
@@ -206,7 +208,6 @@ def track_detections(path, config, out, *, registry=None, smooth: bool = False, 
         for history in result.tracks
     ]
     long_enough = [t for t in tracks if len(t) >= max(config["min_reports"], 2) and np.all(np.diff(t.times) > 0)]
-    built = build_tracker(config, registry)
     runs = run_objects(built[0], long_enough, config)
     options = dict(origin=data.origin, projection=data.projection or "enu", epoch=data.epoch, smooth=smooth, lag=lag)
     per_track = {int(t.id): track_one(t, config, None, registry, **options, run=run, tracker=built) for t, run in zip(long_enough, runs)}

@@ -97,7 +97,7 @@ def collapse(hypotheses: MultipleModelState, owner: np.ndarray, log_weights: np.
     d = hypotheses.model_means - ref[owner]
     shift = np.zeros(ref.shape)
     np.add.at(shift, owner, w[..., None] * d)
-    second = np.zeros(hypotheses.model_covs.shape[:0] + (tracks,) + hypotheses.model_covs.shape[1:])
+    second = np.zeros((tracks,) + hypotheses.model_covs.shape[1:])
     np.add.at(second, owner, w[..., None, None] * (hypotheses.model_covs + d[..., :, None] * d[..., None, :]))
     model_covs = second - shift[..., :, None] * shift[..., None, :]
     model_covs = 0.5 * (model_covs + np.swapaxes(model_covs, -1, -2))
