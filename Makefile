@@ -23,8 +23,9 @@ demo: $(STAMP)
 screenshots: $(STAMP)
 	$(BIN)/python tools/screenshots.py
 
+# one pytest worker per core (pytest-xdist); `pytest` alone runs the same tests in one process
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto
 
 clean:
 	rm -rf $(VENV) build *.egg-info demo.rrd
