@@ -367,6 +367,19 @@ class MultipleModelEstimator:
         means, covs, ell = self._filter(state.mean, state.cov, np.arange(r), dt, z)
         return self._merge(means, covs, ell + log_cbar, ell)
 
+    def update(self, state: MultipleModelState, z: np.ndarray) -> MultipleModelState:
+        """The measurement update alone of a predicted ``state`` (a :meth:`step` without a measurement): each model's
+        x̂_j, P_j updated with z (R, Σm), ln μ_j ← ln μ_j + ln Λ_j − ln Σ_l μ_l Λ_l (Bar-Shalom, Li & Kirubarajan
+        2001, §11.6.6, the mode-probability update).  For the IMM (and one model) :meth:`step` (z) equals this
+        update of :meth:`step` (NaN) — the mixing and the prediction do not depend on z — so a caller that needs the
+        prediction first (a tracker gating detections) pays for the prediction once.  GPB1/GPB2 merge before they
+        update, so for them it is not their step: a ValueError."""
+        if self.method != "imm" and len(self.models) > 1:
+            raise ValueError(f"update: the measurement update of a prediction is the IMM's step, not {self.method!r}'s; use step")
+        r = len(self.models)
+        means, covs, ell = self._filter(state.model_means, state.model_covs, np.arange(r), None, z)
+        return self._merge(means, covs, ell + state.log_mode_probabilities, ell)
+
     def _prior_layout(self, n: int, prior_layout) -> tuple[str, ...]:
         if prior_layout is not None:
             layout = tuple(prior_layout)

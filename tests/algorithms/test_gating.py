@@ -165,3 +165,47 @@ def test_clusters_of_a_chain_join_everything():
     i = t + np.tile([0, 1], T)
     track_cluster, detection_cluster, count = clusters(Gate(T, T + 1, t, i, np.ones(2 * T), np.zeros(2 * T)))
     assert count == 1 and (track_cluster == 0).all() and (detection_cluster == 0).all()
+
+
+@pytest.mark.parametrize("dense_pairs", [0, 10**9])
+@pytest.mark.parametrize("m", [1, 2, 3])
+def test_the_k_d_tree_and_the_all_pairs_search_find_the_same_pairs(monkeypatch, dense_pairs, m):
+    """Both candidate searches (k-d trees beyond _DENSE_PAIRS track–detection pairs, every distance below) against
+    the dense reference, on a scene large enough for several radius bands."""
+    import hybridtrack.algorithms.multitarget.gating as gating
+
+    monkeypatch.setattr(gating, "_DENSE_PAIRS", dense_pairs)
+    rng = np.random.default_rng(40 + m)
+    T, N = 120, 150
+    predicted, detections = rng.uniform(-50, 50, (T, m)), rng.uniform(-50, 50, (N, m))
+    S = random_covariances(rng, T, m, elongation=8.0) * rng.uniform(0.1, 20.0, (T, 1, 1))
+    velocities, offsets = rng.normal(0, 1, (T, m)), rng.uniform(-2, 0, N)
+    gamma = gate_threshold(0.99, m)
+    got = gate(predicted, S, detections, threshold=gamma, velocities=velocities, offsets=offsets)
+    t, i, d2, ll = dense(predicted, S, detections, gamma, velocities, offsets)
+    assert got.pairs > 50
+    np.testing.assert_array_equal(got.track, t)
+    np.testing.assert_array_equal(got.detection, i)
+    np.testing.assert_allclose(got.d2, d2, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(got.log_likelihood, ll, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("small_graph", [0, 10**9])
+@pytest.mark.parametrize("seed", range(4))
+def test_clusters_by_label_propagation_and_by_scipy_agree(monkeypatch, small_graph, seed):
+    """Both cluster searches against scipy's connected components of the same bipartite graph."""
+    import scipy.sparse
+    from scipy.sparse.csgraph import connected_components
+
+    import hybridtrack.algorithms.multitarget.gating as gating
+
+    monkeypatch.setattr(gating, "_SMALL_GRAPH", small_graph)
+    rng = np.random.default_rng(seed)
+    T, N = int(rng.integers(5, 300)), int(rng.integers(5, 300))
+    key = np.unique(rng.integers(0, T, 2 * T) * N + rng.integers(0, N, 2 * T))
+    t, i = key // N, key % N
+    track_cluster, detection_cluster, count = clusters(Gate(T, N, t, i, np.ones(t.size), np.zeros(t.size)))
+    graph = scipy.sparse.coo_matrix((np.ones(t.size), (t, T + i)), shape=(T + N, T + N))
+    expected_count, expected = connected_components(graph, directed=False)
+    assert count == expected_count
+    np.testing.assert_array_equal(np.concatenate([track_cluster, detection_cluster]), expected)

@@ -410,3 +410,29 @@ def test_any_registered_exact_estimator_gives_the_same_imm(estimator):
     np.testing.assert_allclose(imm.covs, reference_run.covs, atol=1e-8)
     np.testing.assert_allclose(imm.log_mode_probabilities, reference_run.log_mode_probabilities, atol=1e-8)
     np.testing.assert_allclose(run.means, gpb2.means, atol=1e-8)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_update_of_a_prediction_is_the_imm_step(method):
+    """IMM: step(z) = update(step(no measurement), z) (the mixing and prediction do not depend on z), over 4-,
+    5- and 6-state modes; GPB1/GPB2 merge before updating, so their update is refused."""
+    models = [
+        ("straight", {"noise_density": 0.5}),
+        ("coordinated_turn", {"noise_density": 0.5}),
+        ("constant_acceleration", {"noise_density": 0.5}),
+    ]
+    sensor = PositionSensor(noise_cov=25.0 * np.eye(2))
+    estimator = MultipleModelEstimator(models, sojourn=20.0, sensors=[sensor], method=method)
+    rng = np.random.default_rng(5)
+    R = 7
+    x0 = np.column_stack([rng.normal(4e5, 100, R), rng.normal(0, 8, R), rng.normal(6e6, 100, R), rng.normal(0, 8, R)])
+    state = estimator.start(x0, np.tile(np.diag([400.0, 25.0, 400.0, 25.0]), (R, 1, 1)), x0[:, [0, 2]], prior_layout=LAYOUT_4)
+    z = x0[:, [0, 2]] + rng.normal(0, 30, (R, 2))
+    predicted = estimator.step(state, np.full((R, 2), np.nan), 3.0)
+    if method != "imm":
+        with pytest.raises(ValueError, match="update"):
+            estimator.update(predicted, z)
+        return
+    got, expected = estimator.update(predicted, z), estimator.step(state, z, 3.0)
+    for name in ("mean", "cov", "model_means", "model_covs", "log_mode_probabilities", "model_loglik", "loglik"):
+        np.testing.assert_allclose(getattr(got, name), getattr(expected, name), rtol=1e-12, atol=1e-9, err_msg=name)

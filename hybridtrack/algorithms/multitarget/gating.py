@@ -39,6 +39,12 @@ from hybridtrack.core.validation import as_float_array, check_positive, check_po
 _RADIUS_SLACK = 1e-9
 
 
+#: up to this many track–detection pairs, :func:`_candidates` computes every distance (no k-d tree)
+_DENSE_PAIRS = 4096
+#: up to this many gated pairs, :func:`clusters` propagates labels in numpy (no sparse graph)
+_SMALL_GRAPH = 2000
+
+
 def _index_array(value, name: str) -> np.ndarray:
     array = np.array(value, copy=True)
     if array.ndim != 1 or (array.size and not np.issubdtype(array.dtype, np.integer)):
@@ -143,11 +149,16 @@ def _whiten(L: np.ndarray, nu: np.ndarray) -> np.ndarray:
 def _candidates(predicted: np.ndarray, detections: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The (track, detection) pairs with ‖z_i − ẑ_t‖ ≤ r_t, sorted by track then detection.
 
-    The tracks are grouped in bands of radius within a factor 2 (⌊log₂ r⌋); each band's tree of predicted
+    Up to :data:`_DENSE_PAIRS` track–detection pairs, every distance is computed (one array operation).  Beyond,
+    the tracks are grouped in bands of radius within a factor 2 (⌊log₂ r⌋); each band's tree of predicted
     points meets the tree of the detections once (``cKDTree.sparse_distance_matrix`` at the band's largest
     radius, a dual-tree search), then each pair is checked against its own track's radius.
     """
-    N = detections.shape[0]
+    T, N = predicted.shape[0], detections.shape[0]
+    if T * N <= _DENSE_PAIRS:
+        distance2 = np.sum((detections[None, :, :] - predicted[:, None, :]) ** 2, axis=-1)
+        track, detection = np.nonzero(distance2 <= (radius**2)[:, None])  # row-major: sorted by track, then detection
+        return track.astype(np.intp), detection.astype(np.intp)
     detection_tree = cKDTree(detections, balanced_tree=False, compact_nodes=False)  # quicker to build, as quick to search
     band = np.floor(np.log2(radius)).astype(np.int64)
     tracks, found = [], []
@@ -196,39 +207,100 @@ def gate(predicted, S, detections, *, threshold, velocities=None, offsets=None) 
             raise ValueError("velocities, offsets: expected both (moving detections along the tracks) or neither")
         velocities = as_float_array(velocities, "velocities", (T, m))
         offsets = as_float_array(offsets, "offsets", (N,))
+    return gate_checked(predicted, S, detections, gamma, velocities, offsets)
+
+
+def gate_checked(predicted: np.ndarray, S: np.ndarray, detections: np.ndarray, gamma: float, velocities=None, offsets=None) -> Gate:
+    """:func:`gate` on inputs already checked (float arrays of matching shapes, γ > 0, velocities and offsets
+    both or neither): the per-scan call of a tracker, without :func:`gate`'s input checks.  For m = 2 the
+    innovation covariance S = [[a, b], [b, c]] is inverted in closed form, d² = (c ν₁² − 2b ν₁ν₂ + a ν₂²)/det S,
+    det S = ac − b²; otherwise through its Cholesky factor (module docstring)."""
+    T, m = predicted.shape
+    N = detections.shape[0]
     if T == 0 or N == 0:
         return Gate.empty(T, N)
-    L = _cholesky(S)
+    shifted = velocities is not None
     radius = np.sqrt(gamma * _largest_eigenvalue(S))
     if shifted:
         radius = radius + np.linalg.norm(velocities, axis=1) * float(np.abs(offsets).max())
     radius = radius * (1.0 + _RADIUS_SLACK) + np.finfo(float).tiny
+    if m == 2:
+        a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
+        det = a * c - b * b
+        bad = (np.abs(b - S[:, 1, 0]) > 1e-9 * np.maximum(np.abs(S).max(axis=(1, 2)), np.finfo(float).tiny)) | ~(a > 0) | ~(det > 0)
+        if bad.any():
+            _cholesky(S)  # raises the ValueError naming the first bad S_t
+            raise ValueError(f"S: expected symmetric positive definite innovation covariances, S[{int(np.flatnonzero(bad)[0])}] is not")
+        log_det = np.log(det)
+    else:
+        L = _cholesky(S)
+        log_det = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
     track, detection = _candidates(predicted, detections, radius)
     nu = detections[detection] - predicted[track]
     if shifted:
         nu -= velocities[track] * offsets[detection][:, None]
-    w = _whiten(L[track], nu)
-    d2 = np.einsum("ej,ej->e", w, w)
+    if m == 2:
+        n1, n2 = nu[:, 0], nu[:, 1]
+        d2 = (c[track] * n1 * n1 - 2.0 * b[track] * n1 * n2 + a[track] * n2 * n2) / det[track]
+    else:
+        w = _whiten(L[track], nu)
+        d2 = np.einsum("ej,ej->e", w, w)
     keep = d2 <= gamma
     track, detection, d2 = track[keep], detection[keep], d2[keep]
-    log_det = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
     log_likelihood = -0.5 * (d2 + log_det[track] + m * math.log(2.0 * math.pi))
-    return Gate(T, N, track, detection, d2, log_likelihood)
+    return _built_gate(T, N, track, detection, d2, log_likelihood)
+
+
+def _built_gate(T: int, N: int, *arrays: np.ndarray) -> Gate:
+    """A :class:`Gate` of arrays this module computed (sorted, in range, d² ≥ 0 by construction): read-only,
+    without the constructor's checks of arbitrary input."""
+    out = object.__new__(Gate)
+    for name, value in zip(("tracks", "detections"), (T, N)):
+        object.__setattr__(out, name, int(value))
+    for name, array in zip(("track", "detection", "d2", "log_likelihood"), arrays):
+        array = np.ascontiguousarray(array, dtype=np.intp if name in ("track", "detection") else np.float64)
+        array.setflags(write=False)
+        object.__setattr__(out, name, array)
+    return out
 
 
 def clusters(gate: Gate) -> tuple[np.ndarray, np.ndarray, int]:
     """The connected components of the bipartite gating graph (tracks and detections as nodes, gated pairs as
     edges): (track_cluster (T,), detection_cluster (N,), count).  A track or detection gated with nothing is a
-    cluster of its own.  Labels are numbered in order of first appearance, tracks before detections
-    (``scipy.sparse.csgraph.connected_components``)."""
+    cluster of its own.  Labels are numbered in order of first appearance, tracks before detections.
+
+    Up to :data:`_SMALL_GRAPH` pairs by min-label propagation with pointer jumping (Shiloach & Vishkin 1982, "An
+    O(log n) parallel connectivity algorithm", J. Algorithms 3(1)): every node starts as its own label, each edge
+    lowers both ends' labels to the smaller one, and l ← l[l] until fixed; at the fixed point every node carries the
+    smallest node index of its component.  Larger graphs: ``scipy.sparse.csgraph.connected_components``."""
     if not isinstance(gate, Gate):
         raise TypeError(f"gate: expected a Gate, got {type(gate).__name__}")
     T, N = gate.tracks, gate.detections
     n = T + N
     if n == 0:
         return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), 0
-    graph = scipy.sparse.coo_matrix((np.ones(gate.pairs, dtype=np.int8), (gate.track, T + gate.detection)), shape=(n, n)).tocsr()
-    count, labels = connected_components(graph, directed=False)
+    u, v = gate.track, T + gate.detection
+    if gate.pairs <= _SMALL_GRAPH:
+        labels = np.arange(n, dtype=np.intp)
+        while True:
+            lu, lv = labels[u], labels[v]
+            if np.array_equal(lu, lv):
+                break
+            low = np.minimum(lu, lv)
+            np.minimum.at(labels, lu, low)
+            np.minimum.at(labels, lv, low)
+            while True:
+                jumped = labels[labels]
+                if np.array_equal(jumped, labels):
+                    break
+                labels = jumped
+        roots, labels = np.unique(labels, return_inverse=True)  # roots ascending: the order of first appearance
+        count = roots.size
+    else:
+        indptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(u, minlength=n), out=indptr[1:])  # the pairs are sorted by track: CSR rows as they are
+        graph = scipy.sparse.csr_matrix((np.ones(gate.pairs, dtype=np.int8), v, indptr), shape=(n, n))
+        count, labels = connected_components(graph, directed=False)
     labels = labels.astype(np.intp)
     return labels[:T], labels[T:], int(count)
 

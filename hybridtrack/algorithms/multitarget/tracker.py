@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, MultipleModelState
 from hybridtrack.algorithms.multitarget.assignment import gnn
-from hybridtrack.algorithms.multitarget.gating import gate, gate_threshold
+from hybridtrack.algorithms.multitarget.gating import gate_checked, gate_threshold
 from hybridtrack.algorithms.multitarget.jpda import jpda
 from hybridtrack.algorithms.multitarget.management import CONFIRMED, MofN, TrackScore, TrackStatus
 from hybridtrack.core.validation import check_positive, check_positive_int
@@ -80,33 +80,34 @@ def collapse(hypotheses: MultipleModelState, owner: np.ndarray, log_weights: np.
     merged into one multiple-model estimate: per mode j the weights w_hj = w_h μ_j^h, μ_j = Σ_h w_hj and the
     moment-matched x̂_j, P_j over h (Bar-Shalom, Li & Kirubarajan 2001, eqs. 11.6.6-9/10), computed about the
     first hypothesis' mean so that map-grid coordinates lose no digits; the output x̂, P the mixture over j."""
+    counts = np.bincount(owner, minlength=tracks)
+    if counts.size != tracks or (tracks and counts.min() == 0):
+        raise ValueError(f"owner: expected every track in [0, {tracks}) to own at least one hypothesis, got counts {counts.tolist()}")
+    order = np.argsort(owner, kind="stable")
+    starts = np.zeros(tracks, dtype=np.intp)
+    np.cumsum(counts[:-1], out=starts[1:])
+
+    def per_track(values: np.ndarray) -> np.ndarray:  # Σ over each track's hypotheses (contiguous once sorted)
+        return np.add.reduceat(values[order], starts, axis=0)
+
     log_w = log_weights[:, None] + hypotheses.log_mode_probabilities  # (H, r)
-    r = log_w.shape[1]
-    log_mu = np.full((tracks, r), -np.inf)
-    np.maximum.at(log_mu, owner, log_w)
+    log_mu = np.maximum.reduceat(log_w[order], starts, axis=0)
     top = np.where(np.isfinite(log_mu), log_mu, 0.0)
     w = np.exp(log_w - top[owner])  # scaled per track and mode
-    total = np.zeros((tracks, r))
-    np.add.at(total, owner, w)
+    total = per_track(w)
     log_mu = top + np.log(np.where(total > 0, total, 1.0))
     log_mu = log_mu - logsumexp(log_mu, axis=1)[:, None]
     w = w / np.where(total > 0, total, 1.0)[owner]
-    first = np.full(tracks, -1, dtype=np.intp)
-    first[owner[::-1]] = np.arange(owner.size)[::-1]
-    ref = hypotheses.model_means[first]  # (T, r, n)
+    ref = hypotheses.model_means[order[starts]]  # (T, r, n): each track's first hypothesis
     d = hypotheses.model_means - ref[owner]
-    shift = np.zeros(ref.shape)
-    np.add.at(shift, owner, w[..., None] * d)
-    second = np.zeros((tracks,) + hypotheses.model_covs.shape[1:])
-    np.add.at(second, owner, w[..., None, None] * (hypotheses.model_covs + d[..., :, None] * d[..., None, :]))
+    shift = per_track(w[..., None] * d)
+    second = per_track(w[..., None, None] * (hypotheses.model_covs + d[..., :, None] * d[..., None, :]))
     model_covs = second - shift[..., :, None] * shift[..., None, :]
     model_covs = 0.5 * (model_covs + np.swapaxes(model_covs, -1, -2))
     model_means = ref + shift
     mean, cov = mixture(log_mu, model_means, model_covs)
-    model_loglik = np.zeros((tracks, r))
-    np.add.at(model_loglik, owner, w * hypotheses.model_loglik)
-    loglik = np.zeros(tracks)
-    np.add.at(loglik, owner, np.exp(log_weights) * hypotheses.loglik)
+    model_loglik = per_track(w * hypotheses.model_loglik)
+    loglik = per_track(np.exp(log_weights) * hypotheses.loglik)
     return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, loglik)
 
 
@@ -216,6 +217,7 @@ class MultiTargetTracker:
         self.R = np.asarray(self.sensor.measurement_noise(np.zeros(2)), dtype=float)
         self.gamma = gate_threshold(self.gate_probability, 2)
         self._log_miss = math.log1p(-self.detection_probability * self.gate_probability)
+        self._update_only = estimator.method == "imm" or len(estimator.models) == 1
 
     # ------------------------------------------------------------------ pieces
     def _scores(self, loglik: np.ndarray) -> np.ndarray:
@@ -316,17 +318,23 @@ class MultiTargetTracker:
         loglik = -0.5 * (np.sum(w**2, -1) + logdet + 2 * math.log(2 * math.pi))
         return math.log(self.detection_probability) + loglik - math.log(self.clutter_density)
 
+    def _updated(self, state, predicted, rows, z, dt) -> MultipleModelState:
+        """Tracks ``rows`` updated with z: the measurement update of their prediction (the IMM's step equals it:
+        :meth:`MultipleModelEstimator.update`), otherwise a step of ``dt`` from ``state``."""
+        if self._update_only and predicted is not state:
+            return self.estimator.update(take_rows(predicted, rows), z)
+        return self.estimator.step(take_rows(state, rows), z, dt)
+
     def _associate(self, state, predicted, dt, z, t, now, *, first: bool):
         """One association round of detections z (N, 2) at times t with the tracks ``predicted`` to ``now``; the
         updates start from ``state`` over ``dt``.  Returns (new state, took (T,), ΔL (T,) beyond the miss term,
         picked (T,) the detection each track took (its most probable one for JPDA; −1 none), taken (N,) the
         detections used)."""
-        est = self.estimator
         T = predicted.mean.shape[0]
         zhat = predicted.mean[:, self._position]
         S = predicted.cov[:, self._position[:, None], self._position[None, :]] + self.R
         velocity = predicted.mean[:, self._velocity]
-        pairs = gate(zhat, S, z, threshold=self.gamma, velocities=velocity, offsets=t - now)
+        pairs = gate_checked(zhat, S, z, self.gamma, velocity, t - now)
         scores = self._scores(pairs.log_likelihood)
         miss = None if first else np.full(T, -self._log_miss)  # a further report: "took it" against "it is not the track's"
         aligned = z[pairs.detection] + velocity[pairs.track] * (now - t[pairs.detection])[:, None]
@@ -338,7 +346,7 @@ class MultiTargetTracker:
             e = np.searchsorted(pairs.track * N + pairs.detection, rows * N + assigned[rows])
             new = predicted
             if rows.size:
-                new = put_rows(predicted, rows, est.step(take_rows(state, rows), aligned[e], dt))
+                new = put_rows(predicted, rows, self._updated(state, predicted, rows, aligned[e], dt))
             gain = np.zeros(T)
             gain[rows] = scores[e] + self._log_miss
             taken = np.zeros(z.shape[0], dtype=bool)
@@ -348,7 +356,7 @@ class MultiTargetTracker:
         owner = np.concatenate([np.arange(T), pairs.track])
         hypotheses = predicted
         if pairs.track.size:
-            hypotheses = join_rows([predicted, est.step(take_rows(state, pairs.track), aligned, dt)])
+            hypotheses = join_rows([predicted, self._updated(state, predicted, pairs.track, aligned, dt)])
         with np.errstate(divide="ignore"):
             new = collapse(hypotheses, owner, np.log(np.concatenate([beta_miss, beta])), T)
         gain = np.zeros(T)
