@@ -15,7 +15,8 @@
    (one recorded run and the campaign's summary recording) and
    ``hybridtrack track`` on the Solent AIS file with ``examples/ships.toml`` and
    with ``examples/aircraft.toml`` (its estimator, an IMM, on two vessels: the
-   file's reader section swapped for the Solent preset).
+   file's reader section swapped for the Solent preset), and ``hybridtrack track`` on the Solent file without
+   identities with ``examples/multitarget_solent.toml`` (every vessel a track).
 3. **The screenshot.** For each recording a fresh headless viewer
    (``rerun --headless``, the same binary as the SDK in this environment, on a
    free port, ``HOME`` and ``XDG_RUNTIME_DIR`` in a temporary folder so nothing
@@ -147,6 +148,13 @@ def make_recordings(work: Path, only: set[str], environment: dict) -> dict[str, 
         run([HYBRIDTRACK, "track", SOLENT, "--config", config, "--out", work / name, *ids, "--no-progress"], environment)
         for vessel in VESSELS:
             recordings[f"{name}_{vessel}"] = work / name / f"{vessel}.rrd"
+    if wanted("multitarget_solent"):  # every report without its MMSI: many tracks at once on the map view
+        out = work / "multitarget_solent"
+        run(
+            [HYBRIDTRACK, "track", SOLENT, "--config", ROOT / "examples" / "multitarget_solent.toml", "--out", out, "--no-progress"],
+            environment,
+        )
+        recordings["multitarget_solent"] = out / "tracks.rrd"
     return recordings
 
 
