@@ -12,6 +12,8 @@ ASSOCIATION_DEFAULTS = {
     "gate_probability": 0.999,
     "initiation": "two_point",
     "updates_per_scan": 1,
+    "hypotheses": 10,
+    "mht_scans": 3,
     "seed_window": None,
     "max_speed": None,
     "velocity_sigma": None,

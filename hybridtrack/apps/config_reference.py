@@ -435,8 +435,9 @@ def _association() -> dict[str, Entry]:
 
     return {
         "method": Entry(
-            '`"gnn"` or `"jpda"`',
-            "the association over tracks: global nearest neighbour or joint probabilistic data association",
+            '`"gnn"`, `"jpda"` or `"mht"`',
+            "the association over tracks: global nearest neighbour, joint probabilistic data association, or multiple "
+            "hypothesis tracking (the `hypotheses` best global hypotheses, `mht_scans`-scan pruning; `updates_per_scan` = 1)",
             d("method"),
         ),
         "motion": Entry(
@@ -466,6 +467,14 @@ def _association() -> dict[str, Entry]:
             "integer ≥ 1",
             "how many detections one track may take in a scan: several reports of one object in a time window (AIS in 10 s scans)",
             d("updates_per_scan"),
+        ),
+        "hypotheses": Entry(
+            "integer ≥ 1", '`method = "mht"`: K, the global hypotheses kept each scan (1: the same as `"gnn"`)', d("hypotheses")
+        ),
+        "mht_scans": Entry(
+            "integer ≥ 1",
+            '`method = "mht"`: N of the N-scan pruning: decisions older than N scans are those of the best hypothesis',
+            d("mht_scans"),
         ),
         "seed_window": Entry(
             "number, s > 0",

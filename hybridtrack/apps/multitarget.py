@@ -5,8 +5,10 @@ The file's rows are detections without identities (``time,x,y`` or latitude/long
 seconds; :func:`~hybridtrack.io.detection_files.read_detections`).  Two stages:
 
 1. the multi-target tracker (:class:`~hybridtrack.algorithms.multitarget.tracker.MultiTargetTracker`): GNN or
-   JPDA over tracks, each track a constant-velocity Kalman filter (``motion = "cv"``) or the IMM of
-   ``[estimator]`` (``motion = "modes"``), confirmed and deleted by M-of-N or the track score;
+   JPDA over tracks, or MHT (:class:`~hybridtrack.algorithms.multitarget.mht.MHTTracker`, ``method = "mht"``:
+   the ``hypotheses`` best global hypotheses, ``mht_scans``-scan pruning), each track a constant-velocity Kalman
+   filter (``motion = "cv"``) or the IMM of ``[estimator]`` (``motion = "modes"``), confirmed and deleted by
+   M-of-N or the track score;
 2. per confirmed track, the configured ``[estimator]`` on the detections the track took, exactly as ``track``
    runs a labelled object (:func:`~hybridtrack.apps.tracking.run_objects`, :func:`~hybridtrack.apps.tracking.track_one`):
    its segments and decisions per track id in ``summary.json``.
@@ -30,6 +32,7 @@ import numpy as np
 
 from hybridtrack.algorithms.multiple_model import MultipleModelEstimator
 from hybridtrack.algorithms.multitarget.management import MofN, TrackScore
+from hybridtrack.algorithms.multitarget.mht import MHTTracker
 from hybridtrack.algorithms.multitarget.tracker import ASSOCIATIONS, INITIATIONS, MultiTargetTracker
 from hybridtrack.apps.association_keys import ASSOCIATION_DEFAULTS
 from hybridtrack.apps.tracking import ConfigError, build_tracker, load_config, run_objects, track_one, utc_text
@@ -38,6 +41,8 @@ from hybridtrack.io.detection_files import read_detections
 from hybridtrack.io.track_files import Track, problem_kinds, unproject
 
 MANAGEMENTS = ("m_of_n", "score")
+#: ``[association] method``: the tracker's associations and multiple hypothesis tracking
+METHODS = (*ASSOCIATIONS, "mht")
 MOTIONS = ("cv", "modes")
 #: ``[reader]`` keys that make no sense without identities (a labelled file's; ``[association]`` decides identities)
 _LABELLED_ONLY = ("id", "course", "speed", "speed_unit", "course_not_available", "speed_not_available")
@@ -47,7 +52,7 @@ def association_settings(config: dict, where: str = "config") -> dict:
     """The checked ``[association]`` table, defaults filled (a ConfigError naming the key otherwise)."""
     table = dict(config["association"])
     out = {key: table.get(key, default) for key, default in ASSOCIATION_DEFAULTS.items()}
-    choices = {"method": ASSOCIATIONS, "motion": MOTIONS, "initiation": INITIATIONS, "management": MANAGEMENTS}
+    choices = {"method": METHODS, "motion": MOTIONS, "initiation": INITIATIONS, "management": MANAGEMENTS}
     for key, allowed in choices.items():
         if out[key] not in allowed:
             raise ConfigError(f"{where}: [association] {key} = {out[key]!r}; expected one of {list(allowed)}")
@@ -79,7 +84,7 @@ def association_settings(config: dict, where: str = "config") -> dict:
             or not 0 < value <= (1 if key == "detection_probability" else 0.999999)
         ):
             raise ConfigError(f"{where}: [association] {key} = {value!r}; expected a probability in (0, 1)")
-    for key in ("confirm_hits", "confirm_scans", "delete_misses", "updates_per_scan"):
+    for key in ("confirm_hits", "confirm_scans", "delete_misses", "updates_per_scan", "hypotheses", "mht_scans"):
         if isinstance(out[key], bool) or not isinstance(out[key], int) or out[key] < 1:
             raise ConfigError(f"{where}: [association] {key} = {out[key]!r}; expected a positive integer")
     reader = config["reader"]
@@ -98,7 +103,8 @@ def association_settings(config: dict, where: str = "config") -> dict:
 
 def build_multitarget(config: dict, settings: dict, registry=None, built=None) -> MultiTargetTracker:
     """The tracker of a checked configuration: its per-track filter (``motion``), management and association
-    (``built``: :func:`~hybridtrack.apps.tracking.build_tracker`'s result for ``config``, when the caller has it)."""
+    (``method = "mht"``: an :class:`MHTTracker`, a subclass; ``built``: :func:`~hybridtrack.apps.tracking.build_tracker`'s
+    result for ``config``, when the caller has it)."""
     estimator = (build_tracker(config, registry) if built is None else built)[0]
     if settings["motion"] == "modes":
         if not isinstance(estimator, MultipleModelEstimator):
@@ -119,10 +125,12 @@ def build_multitarget(config: dict, settings: dict, registry=None, built=None) -
         management = TrackScore(
             settings["false_track_probability"], settings["track_loss_probability"], settings["deletion_drop"], settings["max_coast"]
         )
+    mht = settings["method"] == "mht"
     try:
-        return MultiTargetTracker(
+        return (MHTTracker if mht else MultiTargetTracker)(
             per_track,
             association=settings["method"],
+            **({"hypotheses": settings["hypotheses"], "scans": settings["mht_scans"]} if mht else {}),
             management=management,
             detection_probability=settings["detection_probability"],
             clutter_density=settings["clutter_density"],

@@ -337,6 +337,9 @@ class MultiTargetTracker:
         pairs = gate_checked(zhat, S, z, self.gamma, velocity, t - now)
         scores = self._scores(pairs.log_likelihood)
         miss = None if first else np.full(T, -self._log_miss)  # a further report: "took it" against "it is not the track's"
+        # ΔL of a hit beyond the miss term ln(1 − P_D P_G) already counted: s (so ΔL = ln(P_D N / λ)); a further
+        # report of the scan has no miss term of its own: s + ln(1 − P_D P_G) = ln(P_D N / λ)
+        further = 0.0 if first else self._log_miss
         aligned = z[pairs.detection] + velocity[pairs.track] * (now - t[pairs.detection])[:, None]
         if self.association == "gnn":
             assigned = gnn(pairs, scores, miss_scores=miss)
@@ -348,7 +351,7 @@ class MultiTargetTracker:
             if rows.size:
                 new = put_rows(predicted, rows, self._updated(state, predicted, rows, aligned[e], dt))
             gain = np.zeros(T)
-            gain[rows] = scores[e] + self._log_miss
+            gain[rows] = scores[e] + further
             taken = np.zeros(z.shape[0], dtype=bool)
             taken[assigned[rows]] = True
             return new, took, gain, assigned, taken
@@ -360,7 +363,7 @@ class MultiTargetTracker:
         with np.errstate(divide="ignore"):
             new = collapse(hypotheses, owner, np.log(np.concatenate([beta_miss, beta])), T)
         gain = np.zeros(T)
-        np.add.at(gain, pairs.track, beta * (scores + self._log_miss))
+        np.add.at(gain, pairs.track, beta * (scores + further))
         top = np.zeros(T)
         np.maximum.at(top, pairs.track, beta)
         winner = np.flatnonzero(beta >= top[pairs.track])
