@@ -58,10 +58,10 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-import scipy.stats
 
 from hybridtrack.core.interfaces import MotionModel
 from hybridtrack.sdk.mixtures import logsumexp, mixture
+from hybridtrack.sdk.thresholds import chi2_quantile
 
 #: the probability beyond which a smoothing step's shift counts as a failed linearization (module docstring)
 GATE_PROBABILITY = 1e-4
@@ -120,7 +120,7 @@ def smooth_models(model_means, model_covs, log_filtered, log_smoothed, log_trans
         if missing:
             raise ValueError(f"layout {tuple(layout)}: lacks {missing} of the model {model.name!r}")
         owns.append(np.array([list(layout).index(c) for c in model.layout]))
-    gates = [scipy.stats.chi2.ppf(1.0 - GATE_PROBABILITY, len(own)) for own in owns]
+    gates = [chi2_quantile(1.0 - GATE_PROBABILITY, len(own)) for own in owns]
     has = np.zeros((r, n), dtype=bool)  # has[i, c]: model i has component c
     for i, own in enumerate(owns):
         has[i, own] = True

@@ -598,7 +598,9 @@ def track_one(
             heights = unproject(track.positions, origin=origin, projection=projection)[:, 2] - (list(origin) + [0.0])[2]
     altitude = filter_altitude(track.times, heights, **config["altitude"]) if heights is not None else None
     recording = out is not None and record
-    recorder = RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}, epoch=epoch) if recording else None
+    recorder = (  # written in one go: only the layout of what was logged (RerunRecorder's generic_layout)
+        RerunRecorder(out / f"{name}.rrd", {"object": track.id, "config": config}, epoch=epoch, generic_layout=False) if recording else None
+    )
     with recorder if recorder is not None else contextlib.nullcontext():  # a RerunRecorder closes on exit
         measured = measurements_of(track, config)
         if run is None:  # alone: the algorithm records its run itself

@@ -62,7 +62,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from hybridtrack.apps.multitarget import track_detections
     from hybridtrack.apps.tracking import load_config, problem_summary, track_file
     from hybridtrack.io.track_files import Problem
 
@@ -75,7 +74,9 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError("--executor dask needs --scheduler ADDRESS (tcp://HOST:PORT)")
             options |= dict(executor=args.executor, scheduler=args.scheduler, workers=args.workers, shard_objects=args.shard_objects)
         config = load_config(args.config)
-        if config["unlabelled"]:  # detections without identities: hybridtrack.apps.multitarget
+        if config["unlabelled"]:  # detections without identities: hybridtrack.apps.multitarget (imported only for them)
+            from hybridtrack.apps.multitarget import track_detections
+
             given = [flag for flag, value in (("--id", args.ids), ("--executor", args.executor), ("--geojson", args.geojson)) if value]
             if given:
                 raise ValueError(f"{given[0]} with [association] (unlabelled detections): not supported; leave it out")

@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.stats import chi2, norm
+
+from hybridtrack.sdk.thresholds import chi2_cdf, chi2_quantile, chi2_tail, chi2_upper_quantile, normal_upper_quantile
 
 CALIBRATIONS = ("normal", "chi2")
 
@@ -42,15 +43,15 @@ def standardize(nis_sum, dof):
 def bounds(alpha: float, dof: float, calibration: str = "normal") -> tuple[float, float]:
     """(lower, upper) bounds on S for a two-sided per-step false-alarm probability α."""
     if calibration == "normal" or dof <= 0:
-        c = float(norm.isf(alpha / 2.0))
+        c = float(normal_upper_quantile(alpha / 2.0))
         return -c, c
     if calibration == "chi2":
         scale = math.sqrt(2.0 * dof)
-        return float((chi2.ppf(alpha / 2.0, dof) - dof) / scale), float((chi2.isf(alpha / 2.0, dof) - dof) / scale)
+        return float((chi2_quantile(alpha / 2.0, dof) - dof) / scale), float((chi2_upper_quantile(alpha / 2.0, dof) - dof) / scale)
     raise ValueError(f"calibration: expected one of {CALIBRATIONS}, got {calibration!r}")
 
 
 def false_alarm_probability(dof: float, lower: float, upper: float) -> float:
     """Exact P(S < lower or S > upper) when Σ NIS ~ χ²(D) (the correct-model distribution)."""
     scale = math.sqrt(2.0 * dof)
-    return float(chi2.cdf(dof + lower * scale, dof) + chi2.sf(dof + upper * scale, dof))
+    return float(chi2_cdf(dof + lower * scale, dof) + chi2_tail(dof + upper * scale, dof))

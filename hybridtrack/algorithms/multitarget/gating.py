@@ -31,9 +31,9 @@ import numpy as np
 import scipy.sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
-from scipy.stats import chi2
 
 from hybridtrack.core.validation import as_float_array, check_positive, check_positive_int
+from hybridtrack.sdk.thresholds import chi2_quantile
 
 #: the ball radius is widened by this relative amount so that pairs on the gate's boundary survive rounding
 _RADIUS_SLACK = 1e-9
@@ -110,7 +110,7 @@ def gate_threshold(probability: float, m: int) -> float:
     if not 0.0 < p < 1.0:
         raise ValueError(f"probability: expected the gate probability P_G in (0, 1), got {probability!r}")
     m = check_positive_int(m, "m", what="the measurement dimension")
-    return float(chi2.ppf(p, m))
+    return float(chi2_quantile(p, m))
 
 
 def _cholesky(S: np.ndarray) -> np.ndarray:
