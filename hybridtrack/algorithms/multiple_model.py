@@ -340,6 +340,8 @@ class MultipleModelEstimator:
         """One step k ≥ 1 over Δt = ``dt`` (seconds, one for all runs or (R,) per run) with measurements z (R, Σm)
         (NaN: not measured); ``log_pi``: ln Π(Δt) (1 or R, r, r) if the caller has it (:meth:`log_transition_matrix`)."""
         r = len(self.models)
+        if r == 1:  # one model: no mixing, μ = 1 (every method reduces to the model's own filter)
+            return self._one_model(state, dt, z)
         if log_pi is None:
             log_pi = self.log_transition_matrix(dt if np.ndim(dt) else [dt])  # ln Π(Δt_r): (1, r, r) shared or (R, r, r)
         log_mu = state.log_mode_probabilities
@@ -377,8 +379,16 @@ class MultipleModelEstimator:
         if self.method != "imm" and len(self.models) > 1:
             raise ValueError(f"update: the measurement update of a prediction is the IMM's step, not {self.method!r}'s; use step")
         r = len(self.models)
+        if r == 1:
+            return self._one_model(state, None, z)
         means, covs, ell = self._filter(state.model_means, state.model_covs, np.arange(r), None, z)
         return self._merge(means, covs, ell + state.log_mode_probabilities, ell)
+
+    def _one_model(self, state: MultipleModelState, dt, z) -> MultipleModelState:
+        """A step (``dt``; None: the update alone) of a one-model estimator: its filter, ln μ = 0, the output the
+        model's estimate, ln p(z_k | Z_{k−1}) = ln Λ — the mixing and merging of r = 1, without them."""
+        means, covs, ell = self._filter(state.model_means, state.model_covs, np.zeros(1, dtype=np.intp), dt, z)
+        return MultipleModelState(means, covs, np.zeros_like(ell), means[:, 0], covs[:, 0], ell, ell[:, 0])
 
     def _prior_layout(self, n: int, prior_layout) -> tuple[str, ...]:
         if prior_layout is not None:

@@ -128,36 +128,41 @@ def _inverse_and_scores(S, nu, Si, L, Li, w, m_tuple):  # pragma: no cover - com
     return True, log_det, s_nis
 
 
+@functools.partial(_njit, inline="always")
+def _predict_one(xi, Pi, Fi, Bi, Qi, xo, Po, FP, N):  # pragma: no cover - compiled
+    """x⁻ = F x⁺ + B and P⁻ = ½(C + Cᵀ), C = (F P⁺) Fᵀ + Q, of one filter (matrices flattened row-major), into xo, Po;
+    ``FP`` scratch of n²."""
+    for j in range(N):
+        acc = 0.0
+        for k in range(N):
+            acc += Fi[j * N + k] * xi[k]
+        xo[j] = acc + Bi[j]
+    for j in range(N):
+        for k in range(N):
+            acc = 0.0
+            for q in range(N):
+                acc += Fi[j * N + q] * Pi[q * N + k]
+            FP[j * N + k] = acc
+    for j in range(N):
+        for k in range(j, N):
+            c_jk = 0.0
+            c_kj = 0.0
+            for q in range(N):
+                c_jk += FP[j * N + q] * Fi[k * N + q]
+                c_kj += FP[k * N + q] * Fi[j * N + q]
+            if j == k:
+                Po[j * N + j] = c_jk + Qi[j * N + j]
+            else:
+                Po[j * N + k] = Po[k * N + j] = 0.5 * ((c_jk + Qi[j * N + k]) + (c_kj + Qi[k * N + j]))
+
+
 @_njit
 def predict_bank(x, P, F, B, Q, x_out, P_out, n_tuple):  # pragma: no cover - compiled
     """The prediction of each filter (module docstring; outputs written in place); ``n_tuple`` any tuple of length n."""
     N = len(n_tuple)
-    M = x.shape[0]
     FP = np.empty(N * N)
-    for i in range(M):
-        Fi, Pi, xi, Qi, Po = F[i], P[i], x[i], Q[i], P_out[i]
-        for j in range(N):
-            acc = 0.0
-            for k in range(N):
-                acc += Fi[j * N + k] * xi[k]
-            x_out[i, j] = acc + B[i, j]
-        for j in range(N):
-            for k in range(N):
-                acc = 0.0
-                for q in range(N):
-                    acc += Fi[j * N + q] * Pi[q * N + k]
-                FP[j * N + k] = acc
-        for j in range(N):
-            for k in range(j, N):
-                c_jk = 0.0
-                c_kj = 0.0
-                for q in range(N):
-                    c_jk += FP[j * N + q] * Fi[k * N + q]
-                    c_kj += FP[k * N + q] * Fi[j * N + q]
-                if j == k:
-                    Po[j * N + j] = c_jk + Qi[j * N + j]
-                else:
-                    Po[j * N + k] = Po[k * N + j] = 0.5 * ((c_jk + Qi[j * N + k]) + (c_kj + Qi[k * N + j]))
+    for i in range(x.shape[0]):
+        _predict_one(x[i], P[i], F[i], B[i], Q[i], x_out[i], P_out[i], FP, N)
 
 
 @_njit
@@ -675,35 +680,13 @@ def restart_predict(x0, P0, F, B, Q, limit, rtol, x_out, P_out, n_tuple):  # pra
                 for k in range(j):
                     s -= L[a * N + k] * L[j * N + k]
                 L[a * N + j] = s / L[j * N + j]
-        for j in range(N):
-            acc = 0.0
-            for k in range(N):
-                acc += Fi[j * N + k] * xi[k]
-            acc += B[i, j]
-            if acc - acc != 0.0:
+        _predict_one(xi, Pi, Fi, B[i], Qi, x_out[i], Po, FP, N)
+        for a in range(N):
+            if x_out[i, a] - x_out[i, a] != 0.0:
                 return 1
-            x_out[i, j] = acc
-        for j in range(N):
-            for k in range(N):
-                acc = 0.0
-                for q in range(N):
-                    acc += Fi[j * N + q] * Pi[q * N + k]
-                FP[j * N + k] = acc
-        for j in range(N):
-            for k in range(j, N):
-                c_jk = 0.0
-                c_kj = 0.0
-                for q in range(N):
-                    c_jk += FP[j * N + q] * Fi[k * N + q]
-                    c_kj += FP[k * N + q] * Fi[j * N + q]
-                if j == k:
-                    v = c_jk + Qi[j * N + j]
-                    Po[j * N + j] = v
-                else:
-                    v = 0.5 * ((c_jk + Qi[j * N + k]) + (c_kj + Qi[k * N + j]))
-                    Po[j * N + k] = Po[k * N + j] = v
-                if v - v != 0.0:
-                    return 1
+        for a in range(N * N):
+            if Po[a] - Po[a] != 0.0:
+                return 1
     if skew > rtol * max(scale, 2.2250738585072014e-308):
         return 1
     return 0

@@ -52,6 +52,8 @@ ASSOCIATIONS = ("gnn", "jpda")
 #: the step (s) before each further update of a track within one scan (``updates_per_scan`` > 1)
 REPEAT_STEP = 1e-3
 INITIATIONS = ("two_point", "single_point")
+#: up to this many (detection, seed) pairs the two-point initiation computes every distance (no k-d tree)
+DENSE_SEED_PAIRS = 4096
 _FIELDS = [f.name for f in attrs.fields(MultipleModelState)]
 
 
@@ -269,9 +271,12 @@ class MultiTargetTracker:
             return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
         slack = 3.0 * math.sqrt(2.0 * float(np.max(np.diag(self.R))))
         reach = self.max_speed * float(np.max(t) - np.min(seeds_t)) + slack
-        pairs = cKDTree(seeds_z).query_ball_point(z, reach)
-        rows = np.array([i for i, near in enumerate(pairs) for _ in near], dtype=np.intp)
-        cols = np.array([j for near in pairs for j in near], dtype=np.intp)
+        if z.shape[0] * seeds_z.shape[0] <= DENSE_SEED_PAIRS:  # every distance: quicker than a tree for a few
+            rows, cols = np.nonzero(np.sum((z[:, None, :] - seeds_z[None, :, :]) ** 2, axis=-1) <= reach**2)
+        else:
+            pairs = cKDTree(seeds_z).query_ball_point(z, reach)
+            rows = np.array([i for i, near in enumerate(pairs) for _ in near], dtype=np.intp)
+            cols = np.array([j for near in pairs for j in near], dtype=np.intp)
         if rows.size == 0:
             return rows, cols
         distance = np.linalg.norm(z[rows] - seeds_z[cols], axis=1)
