@@ -257,7 +257,7 @@ class MHTTracker(MultiTargetTracker):
             raise TypeError(f"detections: expected a Detections (scans of unlabelled detections), got {type(detections).__name__}")
         if detections.measurement_dim != 2:
             raise ValueError(f"detections: expected (x, y) positions, got {detections.measurement_dim} components")
-        est, n, N = self.estimator, len(self.estimator.layout), self.scans
+        est, N = self.estimator, self.scans
         log_birth = math.log(self.birth_density / self.clutter_density)
         # leaves (track hypotheses): rows of one state, with per-leaf arrays
         leaves: MultipleModelState | None = None
@@ -448,24 +448,7 @@ class MHTTracker(MultiTargetTracker):
                 terminal[track] = node
         histories = self._histories(detections, terminal, origin, born_at, confirmed_at, deleted_at, node_parent, node_detection)
 
-        def stacked(name, shape, dtype=float):
-            parts = rows_out[name]
-            return np.concatenate(parts) if parts else np.zeros((0,) + shape, dtype=dtype)
-
-        result = MultiTargetResult(
-            layout=est.layout,
-            modes=est.modes,
-            scan_times=np.asarray(detections.scan_times, dtype=float),
-            time=stacked("time", ()),
-            scan=stacked("scan", (), np.intp),
-            track_id=stacked("id", (), np.intp),
-            means=stacked("mean", (n,)),
-            position_covs=stacked("pcov", (2, 2)),
-            mode=stacked("mode", (), np.intp),
-            hit=stacked("hit", (), bool),
-            tracks=histories,
-            started=next_id - 1,
-        )
+        result = self._result(detections, rows_out, histories, next_id - 1)
         return result, score.copy()
 
     @staticmethod

@@ -386,7 +386,7 @@ class MultiTargetTracker:
             raise TypeError(f"detections: expected a Detections (scans of unlabelled detections), got {type(detections).__name__}")
         if detections.measurement_dim != 2:
             raise ValueError(f"detections: expected (x, y) positions, got {detections.measurement_dim} components")
-        est, n = self.estimator, len(self.estimator.layout)
+        est = self.estimator
         state: MultipleModelState | None = None
         status = TrackStatus.born(0, 0.0, 0.0)
         ids = np.zeros(0, dtype=np.intp)
@@ -511,14 +511,20 @@ class MultiTargetTracker:
             )
             for track in sorted(confirmed_at)
         )
+        return self._result(detections, rows_out, histories, next_id - 1)
+
+    def _result(self, detections: Detections, rows_out: dict[str, list], histories, started: int) -> MultiTargetResult:
+        """The :class:`MultiTargetResult` of a run's per-scan row blocks ``rows_out`` (time, scan, id, mean, pcov,
+        mode, hit), its track ``histories`` and the number of tracks ``started``."""
+        n = len(self.estimator.layout)
 
         def stacked(name, shape, dtype=float):
             parts = rows_out[name]
             return np.concatenate(parts) if parts else np.zeros((0,) + shape, dtype=dtype)
 
         return MultiTargetResult(
-            layout=est.layout,
-            modes=est.modes,
+            layout=self.estimator.layout,
+            modes=self.estimator.modes,
             scan_times=np.asarray(detections.scan_times, dtype=float),
             time=stacked("time", ()),
             scan=stacked("scan", (), np.intp),
@@ -528,5 +534,5 @@ class MultiTargetTracker:
             mode=stacked("mode", (), np.intp),
             hit=stacked("hit", (), bool),
             tracks=histories,
-            started=next_id - 1,
+            started=started,
         )
