@@ -63,6 +63,10 @@ SIGMA = 10.0
 #: tracker options
 SETTINGS = {
     "simulated": dict(c=100.0, q=1.0, q_modes=0.02, omega_variance=1e-3, detection_probability=0.9, options=dict(management=TrackScore())),
+    # 10 s scans: the IMM's densities of the 1 s scenes would hold a 4°/s turn for 10 s within too tight a gate
+    "simulated_10s": dict(
+        c=100.0, q=1.0, q_modes=1.0, omega_variance=1e-2, detection_probability=0.9, options=dict(management=TrackScore())
+    ),
     "solent": dict(
         c=500.0,
         q=0.01,
@@ -170,7 +174,7 @@ def run(quick: bool = False, stonesoup_scans: int = 60, stonesoup: bool = True) 
     rows = []
     for name, make in datasets(quick, stonesoup_scans).items():
         detections = make()
-        settings = SETTINGS["solent" if name.startswith("solent") else "simulated"]
+        settings = SETTINGS["solent" if name.startswith("solent") else "simulated_10s" if name == "targets_10000" else "simulated"]
         lam = clutter_density(name, detections)
         settings = settings | ({"detection_probability": 0.7} if name == "crossing_20_pd07" else {})
         for method in METHODS.get(name, METHODS[None]):
