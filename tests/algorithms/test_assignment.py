@@ -49,8 +49,12 @@ def random_scene(seed, T=None, N=None, spread=10.0):
     return g, scores, miss
 
 
+@pytest.mark.parametrize("dense_cells", [0, 4096])  # per cluster, and one matrix for the whole scan
 @pytest.mark.parametrize("seed", range(25))
-def test_gnn_equals_brute_force(seed):
+def test_gnn_equals_brute_force(monkeypatch, seed, dense_cells):
+    import hybridtrack.algorithms.multitarget.assignment as assignment
+
+    monkeypatch.setattr(assignment, "DENSE_CELLS", dense_cells)
     g, scores, miss = random_scene(seed)
     tracks = list(range(g.tracks))
     events = joint_assignments(g, tracks)

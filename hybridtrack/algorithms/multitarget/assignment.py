@@ -7,8 +7,9 @@ Systems", ch. 6) and miss_t the score of track t missing, its score is
 
     Σ_{assigned e} s_e + Σ_{missed t} miss_t  =  Σ_t miss_t + Σ_{assigned e} g_e,    g_e = s_e − miss_{t(e)}.
 
-GNN is the assignment of the largest score (Blackman & Popoli 1999, ch. 6), solved per cluster of the gating
-graph (:func:`~.gating.clusters`).  A cluster with one track takes its best pair if g > 0; a cluster with one
+GNN is the assignment of the largest score (Blackman & Popoli 1999, ch. 6).  A small scan (T (N + T) ≤
+:data:`DENSE_CELLS`) is one rectangular assignment problem on the matrix described next, for all its tracks at once;
+a larger one is solved per cluster of the gating graph (:func:`~.gating.clusters`).  A cluster with one track takes its best pair if g > 0; a cluster with one
 detection gives it to the track of the largest g if g > 0 (both vectorized over all such clusters).  A larger
 cluster is the rectangular assignment problem on the T_c × (N_c + T_c) matrix holding g_e in the gated cells,
 0 in each track's own "missed" column and a large negative finite value in the forbidden cells, solved by
@@ -35,6 +36,10 @@ from scipy.optimize import linear_sum_assignment
 
 from hybridtrack.algorithms.multitarget.gating import ClusterLayout, Gate, check_scores, cluster_layout
 from hybridtrack.core.validation import check_positive_int
+
+#: up to this many cells T (N + T), :func:`gnn` solves one assignment matrix for the whole scan (its optimum is
+#: every cluster's: the clusters share no track and no detection) instead of one per cluster
+DENSE_CELLS = 4096
 
 
 def _readonly(value, dtype, ndim: int, name: str) -> np.ndarray:
@@ -152,6 +157,16 @@ def gnn(gate: Gate, scores, *, miss_scores=None) -> np.ndarray:
     if gate.pairs == 0:
         return assigned
     gain = scores - miss[gate.track]
+    T, N = gate.tracks, gate.detections
+    if T * (N + T) <= DENSE_CELLS:  # one matrix for every cluster at once: quicker than splitting a small scan
+        forbidden = -(1.0 + 2.0 * T * float(np.abs(gain).max()))
+        matrix = np.full((T, N + T), forbidden)
+        matrix[gate.track, gate.detection] = gain
+        matrix[np.arange(T), N + np.arange(T)] = 0.0
+        rows, columns = linear_sum_assignment(matrix, maximize=True)
+        took = (columns < N) & (matrix[rows, columns] > 0.0)  # a pair of gain 0 is no better than the miss
+        assigned[rows[took]] = columns[took]
+        return assigned
     layout = cluster_layout(gate)
     Tc, Nc = layout.cluster_tracks, layout.cluster_detections
     best = _best_of_simple_clusters(gate, gain, layout, (Tc == 1) | (Nc == 1))
