@@ -60,8 +60,8 @@ import numpy as np
 import scipy.linalg
 
 from hybridtrack.core.interfaces import MotionModel
+from hybridtrack.sdk.distributions import chi2_quantile
 from hybridtrack.sdk.mixtures import logsumexp, mixture
-from hybridtrack.sdk.thresholds import chi2_quantile
 
 #: the probability beyond which a smoothing step's shift counts as a failed linearization (module docstring)
 GATE_PROBABILITY = 1e-4

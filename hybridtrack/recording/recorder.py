@@ -33,7 +33,7 @@ from hybridtrack.recording.style import (
     series_style,
     spatial_style,
 )
-from hybridtrack.sdk.thresholds import chi2_quantile
+from hybridtrack.sdk.distributions import chi2_quantile
 
 APPLICATION_ID = "hybridtrack"
 

@@ -25,8 +25,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from hybridtrack.sdk.thresholds import chi2_cdf, chi2_quantile, chi2_tail, chi2_upper_quantile, normal_upper_quantile
+from scipy import special
 
 CALIBRATIONS = ("normal", "chi2")
 
@@ -43,15 +42,17 @@ def standardize(nis_sum, dof):
 def bounds(alpha: float, dof: float, calibration: str = "normal") -> tuple[float, float]:
     """(lower, upper) bounds on S for a two-sided per-step false-alarm probability α."""
     if calibration == "normal" or dof <= 0:
-        c = float(normal_upper_quantile(alpha / 2.0))
+        c = float(-special.ndtri(alpha / 2.0))  # Φ⁻¹(1 − α/2)
         return -c, c
     if calibration == "chi2":
         scale = math.sqrt(2.0 * dof)
-        return float((chi2_quantile(alpha / 2.0, dof) - dof) / scale), float((chi2_upper_quantile(alpha / 2.0, dof) - dof) / scale)
+        low = 2.0 * special.gammaincinv(dof / 2.0, alpha / 2.0)  # the χ²(D) quantiles α/2 and 1 − α/2 (the upper by its tail)
+        high = special.chdtri(dof, alpha / 2.0)
+        return float((low - dof) / scale), float((high - dof) / scale)
     raise ValueError(f"calibration: expected one of {CALIBRATIONS}, got {calibration!r}")
 
 
 def false_alarm_probability(dof: float, lower: float, upper: float) -> float:
     """Exact P(S < lower or S > upper) when Σ NIS ~ χ²(D) (the correct-model distribution)."""
     scale = math.sqrt(2.0 * dof)
-    return float(chi2_cdf(dof + lower * scale, dof) + chi2_tail(dof + upper * scale, dof))
+    return float(special.chdtr(dof, max(dof + lower * scale, 0.0)) + special.chdtrc(dof, max(dof + upper * scale, 0.0)))

@@ -38,6 +38,7 @@ from collections.abc import Sequence
 
 import attrs
 import numpy as np
+from scipy import special
 
 from hybridtrack.core.interfaces import Sensor
 from hybridtrack.core.protocols import Association, ClutterInnovation
@@ -47,7 +48,6 @@ from hybridtrack.sdk.linalg import LOG_2PI, CholeskyFactor, cholesky, forward_su
 from hybridtrack.sdk.measurements import block_diagonal
 from hybridtrack.sdk.mixtures import logsumexp, moment_match
 from hybridtrack.sdk.scans import RowScan, Scan, check_clutter_density, check_detection_probability
-from hybridtrack.sdk.thresholds import chi2_quantile
 from hybridtrack_plugins.filters import _covariance as cov_form
 from hybridtrack_plugins.filters.kalman import CovarianceState
 
@@ -79,7 +79,7 @@ def gate_threshold(gate_probability: float | None, m: int) -> float:
     """γ with P(χ²_m ≤ γ) = P_G; ∞ without a gate."""
     if gate_probability is None:
         return float("inf")
-    return float(chi2_quantile(gate_probability, m))
+    return float(2.0 * special.gammaincinv(m / 2.0, gate_probability))  # F⁻¹(P_G) = 2 P⁻¹(m/2, P_G), scipy.stats.chi2.ppf
 
 
 def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray, selection=None) -> np.ndarray:

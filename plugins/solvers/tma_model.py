@@ -34,11 +34,11 @@ from typing import ClassVar
 
 import attrs
 import numpy as np
+from scipy import special
 
 from hybridtrack.core.interfaces import Solution, Solver
 from hybridtrack.core.validation import as_float_array
 from hybridtrack.sdk.linalg import wrap_angle
-from hybridtrack.sdk.thresholds import chi2_tail, chi2_upper_quantile, f_tail
 from hybridtrack.sdk.timestamps import check_times
 from hybridtrack_plugins.sensors.bearing import angle_difference, bearing, bearing_gradient, check_convention, direction
 
@@ -312,7 +312,7 @@ def constant_fits_as_well(bearings, F, alpha: float = CONSTANT_BEARING_ALPHA) ->
     F_c = np.einsum("...k,...k->...", d, d)
     with np.errstate(divide="ignore", invalid="ignore"):
         statistic = ((F_c - F) / (N_PARAMETERS - 1)) / (F / (n - N_PARAMETERS))
-    return f_tail(np.where(np.isnan(statistic), np.inf, statistic), N_PARAMETERS - 1, n - N_PARAMETERS) >= alpha
+    return special.fdtrc(N_PARAMETERS - 1, n - N_PARAMETERS, np.maximum(np.where(np.isnan(statistic), np.inf, statistic), 0.0)) >= alpha
 
 
 def constant_bearing(bearings, sigma, alpha: float = CONSTANT_BEARING_ALPHA) -> np.ndarray:
@@ -337,7 +337,7 @@ def constant_bearing(bearings, sigma, alpha: float = CONSTANT_BEARING_ALPHA) -> 
     slack = 1.0 - 1e-9
     changes = np.abs(delta).max(axis=-1) * slack > 2.0 * CONSTANT_BEARING_ATOL
     if sigma is not None and sigma > 0:
-        changes &= np.einsum("ik,ik->i", delta, delta) / 2.0 * slack > chi2_upper_quantile(alpha, n - 1) * sigma**2
+        changes &= np.einsum("ik,ik->i", delta, delta) / 2.0 * slack > special.chdtri(n - 1, alpha) * sigma**2
     candidate = np.flatnonzero(~changes)
     constant = np.zeros(rows.shape[0], bool)
     if candidate.size:
@@ -345,7 +345,7 @@ def constant_bearing(bearings, sigma, alpha: float = CONSTANT_BEARING_ALPHA) -> 
         test = np.abs(d).max(axis=-1) <= CONSTANT_BEARING_ATOL
         if sigma is not None and sigma > 0:
             F_c = np.einsum("...k,...k->...", d, d)
-            test |= chi2_tail(F_c / sigma**2, n - 1) >= alpha
+            test |= special.chdtrc(n - 1, F_c / sigma**2) >= alpha
         constant[candidate] = test
     return constant.reshape(X.shape[:-1])
 
@@ -683,7 +683,7 @@ def fit_statistics(F, n, sigma, alpha=0.01):
     sqrt_ka = np.sqrt(F / n)
     if sigma is not None and sigma > 0 and dof > 0:
         statistic = F / sigma**2
-        pvalue = chi2_tail(statistic, dof)
+        pvalue = special.chdtrc(dof, statistic)
         return sqrt_ka, statistic, pvalue, pvalue >= alpha
     nan = np.full(F.shape, np.nan)
     return sqrt_ka, nan, nan.copy(), None

@@ -1,4 +1,4 @@
-"""The χ², normal and F quantiles and tails of hybridtrack.sdk.thresholds equal scipy.stats' over grids (1e-12 relative),
+"""The χ², normal and F quantiles and tails of hybridtrack.sdk.distributions equal scipy.stats' over grids (1e-12 relative),
 edges included: the ends of the support, probabilities 0 and 1, dof ≤ 0, NaN."""
 
 import math
@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from hybridtrack.sdk import distributions as dist
 from hybridtrack.sdk import thresholds as th
 
 RTOL = 1e-12
@@ -27,10 +28,10 @@ def same(ours, reference):
 @pytest.mark.parametrize(
     ("ours", "reference", "points"),
     [
-        (th.chi2_quantile, stats.chi2.ppf, P),
-        (th.chi2_upper_quantile, stats.chi2.isf, P),
-        (th.chi2_cdf, stats.chi2.cdf, X),
-        (th.chi2_tail, stats.chi2.sf, X),
+        (dist.chi2_quantile, stats.chi2.ppf, P),
+        (dist.chi2_upper_quantile, stats.chi2.isf, P),
+        (dist.chi2_cdf, stats.chi2.cdf, X),
+        (dist.chi2_tail, stats.chi2.sf, X),
     ],
     ids=["chi2.ppf", "chi2.isf", "chi2.cdf", "chi2.sf"],
 )
@@ -42,42 +43,42 @@ def test_chi2_functions_equal_scipy_stats_over_the_grid(ours, reference, points)
 def test_chi2_edges_equal_scipy_stats():
     edges = np.array([0.0, 1.0, -0.1, 1.1, np.nan])
     for dof in (0, -1, 0.5, 3, np.nan):
-        same(th.chi2_quantile(edges, dof), stats.chi2.ppf(edges, dof))
-        same(th.chi2_upper_quantile(edges, dof), stats.chi2.isf(edges, dof))
-        same(th.chi2_cdf(X, dof), stats.chi2.cdf(X, dof))
-        same(th.chi2_tail(X, dof), stats.chi2.sf(X, dof))
-    assert th.chi2_quantile(0.0, 2) == 0.0 and th.chi2_quantile(1.0, 2) == math.inf
-    assert th.chi2_tail(-1.0, 2) == 1.0 and th.chi2_cdf(-1.0, 2) == 0.0
+        same(dist.chi2_quantile(edges, dof), stats.chi2.ppf(edges, dof))
+        same(dist.chi2_upper_quantile(edges, dof), stats.chi2.isf(edges, dof))
+        same(dist.chi2_cdf(X, dof), stats.chi2.cdf(X, dof))
+        same(dist.chi2_tail(X, dof), stats.chi2.sf(X, dof))
+    assert dist.chi2_quantile(0.0, 2) == 0.0 and dist.chi2_quantile(1.0, 2) == math.inf
+    assert dist.chi2_tail(-1.0, 2) == 1.0 and dist.chi2_cdf(-1.0, 2) == 0.0
 
 
 def test_chi2_by_hand():
     """m = 2 is the exponential with mean 2: F(x) = 1 − e^{−x/2}, F⁻¹(p) = −2 ln(1 − p)."""
     x = np.array([0.1, 1.0, 5.0, 40.0])
-    np.testing.assert_allclose(th.chi2_tail(x, 2), np.exp(-x / 2), rtol=1e-14)
-    np.testing.assert_allclose(th.chi2_cdf(x, 2), -np.expm1(-x / 2), rtol=1e-14)
+    np.testing.assert_allclose(dist.chi2_tail(x, 2), np.exp(-x / 2), rtol=1e-14)
+    np.testing.assert_allclose(dist.chi2_cdf(x, 2), -np.expm1(-x / 2), rtol=1e-14)
     p = np.array([1e-10, 0.3, 0.95])
-    np.testing.assert_allclose(th.chi2_quantile(p, 2), -2 * np.log1p(-p), rtol=1e-13)
-    np.testing.assert_allclose(th.chi2_upper_quantile(p, 2), -2 * np.log(p), rtol=1e-13)
+    np.testing.assert_allclose(dist.chi2_quantile(p, 2), -2 * np.log1p(-p), rtol=1e-13)
+    np.testing.assert_allclose(dist.chi2_upper_quantile(p, 2), -2 * np.log(p), rtol=1e-13)
 
 
 def test_normal_functions_equal_scipy_stats():
-    same(th.normal_upper_quantile(P), stats.norm.isf(P))
-    same(th.normal_upper_quantile(np.array([0.0, 1.0, -0.1, 1.1, np.nan])), stats.norm.isf(np.array([0.0, 1.0, -0.1, 1.1, np.nan])))
+    same(dist.normal_upper_quantile(P), stats.norm.isf(P))
+    same(dist.normal_upper_quantile(np.array([0.0, 1.0, -0.1, 1.1, np.nan])), stats.norm.isf(np.array([0.0, 1.0, -0.1, 1.1, np.nan])))
     z = np.concatenate([-np.geomspace(30, 1e-8, 40), [0.0], np.geomspace(1e-8, 37, 60), [-np.inf, np.inf, np.nan]])
-    same(th.normal_tail(z), stats.norm.sf(z))
+    same(dist.normal_tail(z), stats.norm.sf(z))
     assert th.THREE_SIGMA_ALPHA == float(2.0 * stats.norm.sf(3.0))
     assert th.two_sided_normal_bound(th.THREE_SIGMA_ALPHA) == pytest.approx(3.0, rel=1e-14)
 
 
 def test_f_tail_equals_scipy_stats():
     grid, dfn, dfd = np.meshgrid(X, np.array([1, 3, 7]), np.array([1, 2, 5, 30, 400]), indexing="ij")
-    same(th.f_tail(grid, dfn, dfd), stats.f.sf(grid, dfn, dfd))
+    same(dist.f_tail(grid, dfn, dfd), stats.f.sf(grid, dfn, dfd))
     for dfn, dfd in ((3, 0), (0, 5), (-1, 5), (3, np.nan)):
-        same(th.f_tail(X, dfn, dfd), stats.f.sf(X, dfn, dfd))
+        same(dist.f_tail(X, dfn, dfd), stats.f.sf(X, dfn, dfd))
 
 
 def test_scalars_in_scalars_out():
-    for value in (th.chi2_quantile(0.5, 3), th.chi2_upper_quantile(0.5, 3), th.chi2_cdf(1.0, 3), th.chi2_tail(1.0, 3)):
+    for value in (dist.chi2_quantile(0.5, 3), dist.chi2_upper_quantile(0.5, 3), dist.chi2_cdf(1.0, 3), dist.chi2_tail(1.0, 3)):
         assert np.ndim(value) == 0 and isinstance(float(value), float)
-    assert np.ndim(th.normal_tail(1.0)) == 0 and np.ndim(th.f_tail(1.0, 3, 4)) == 0
-    assert np.isnan(th.chi2_quantile(0.5, 0))
+    assert np.ndim(dist.normal_tail(1.0)) == 0 and np.ndim(dist.f_tail(1.0, 3, 4)) == 0
+    assert np.isnan(dist.chi2_quantile(0.5, 0))

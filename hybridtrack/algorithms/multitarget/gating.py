@@ -33,7 +33,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from hybridtrack.core.validation import as_float_array, check_positive, check_positive_int
-from hybridtrack.sdk.thresholds import chi2_quantile
+from hybridtrack.sdk.distributions import chi2_quantile
 
 #: the ball radius is widened by this relative amount so that pairs on the gate's boundary survive rounding
 _RADIUS_SLACK = 1e-9
