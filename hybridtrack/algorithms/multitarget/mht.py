@@ -258,7 +258,6 @@ class MHTTracker(MultiTargetTracker):
         if detections.measurement_dim != 2:
             raise ValueError(f"detections: expected (x, y) positions, got {detections.measurement_dim} components")
         est, N = self.estimator, self.scans
-        log_birth = math.log(self.birth_density / self.clutter_density)
         # leaves (track hypotheses): rows of one state, with per-leaf arrays
         leaves: MultipleModelState | None = None
         status = TrackStatus.born(0, 0.0, 0.0)
@@ -380,23 +379,9 @@ class MHTTracker(MultiTargetTracker):
             else:
                 best_used = used[0, now_col : now_col + m].copy()
             # initiation from the detections the best hypothesis left unused
-            free = np.flatnonzero(~best_used)
-            birth = None
-            if self.initiation == "two_point":
-                if previous is not None and seeds.size and free.size:
-                    candidates = seeds[~used[0, seeds - used_base]]
-                    sz, st = detections.z[candidates], detections.times[candidates]
-                    s_rows, d_rows = self._pair_seeds(sz, st, z[free], t[free])
-                    if s_rows.size:
-                        pair = (sz[s_rows], st[s_rows], z[free][d_rows], t[free][d_rows])
-                        start_score = log_birth + self._second_point_score(*pair)
-                        birth = (*self._two_point(*pair, now), start_score, 2, np.column_stack([candidates[s_rows], here[free][d_rows]]))
-                        free = np.delete(free, d_rows)
-                        seeds = seeds[~np.isin(seeds, candidates[s_rows])]
-            elif free.size:
-                start_score = np.full(free.size, log_birth)
-                birth = (*self._single_point(z[free], t[free], now), start_score, 1, here[free][:, None])
-                free = free[:0]
+            candidates = seeds[~used[0, seeds - used_base]] if seeds.size else seeds  # also unused in the current Θ*
+            birth, free, paired = self._births(detections, candidates, here, np.flatnonzero(~best_used), now)
+            seeds = seeds[~np.isin(seeds, paired)]
             if birth is not None:
                 means, covs, start_score, hits, picked = birth
                 B = means.shape[0]

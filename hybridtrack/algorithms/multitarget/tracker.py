@@ -293,6 +293,28 @@ class MultiTargetTracker:
                 out_d.append(i)
         return np.array(out_s, dtype=np.intp), np.array(out_d, dtype=np.intp)
 
+    def _births(self, detections: Detections, seeds: np.ndarray, here: np.ndarray, free: np.ndarray, now: float):
+        """New tracks from the scan's detections ``here[free]`` (indices into ``detections``) no track took: two-point,
+        each paired with one of the waiting ``seeds`` (indices into ``detections``), or single-point.  Returns (birth,
+        free left, the seeds paired); birth None or (means, covs, start scores ln(β_NT/λ) [+ the second point's],
+        hits, the detections of each new track (B, hits))."""
+        log_birth = math.log(self.birth_density / self.clutter_density)
+        z, t = detections.z[here], detections.times[here]
+        if self.initiation == "single_point":
+            if not free.size:
+                return None, free, seeds[:0]
+            birth = (*self._single_point(z[free], t[free], now), np.full(free.size, log_birth), 1, here[free][:, None])
+            return birth, free[:0], seeds[:0]
+        if not (seeds.size and free.size):
+            return None, free, seeds[:0]
+        s_rows, d_rows = self._pair_seeds(detections.z[seeds], detections.times[seeds], z[free], t[free])
+        if not s_rows.size:
+            return None, free, seeds[:0]
+        pair = (detections.z[seeds[s_rows]], detections.times[seeds[s_rows]], z[free][d_rows], t[free][d_rows])
+        score = log_birth + self._second_point_score(*pair)
+        birth = (*self._two_point(*pair, now), score, 2, np.column_stack([seeds[s_rows], here[free][d_rows]]))
+        return birth, np.delete(free, d_rows), seeds[s_rows]
+
     def _explained(self, state: MultipleModelState, z: np.ndarray, t: np.ndarray, now: float) -> np.ndarray:
         """(B,) whether each waiting seed (z at t) lies within the χ² gate of some track's position retrodicted to t,
         x̂ − v̂ (t_k − t), with S = P_pos + R grown by (max_speed/10)² (t_k − t)² per axis for the velocity's error: an
@@ -449,22 +471,8 @@ class MultiTargetTracker:
                 if not keep.all():
                     state, status, ids = take_rows(state, keep), status.take(keep), ids[keep]
             # initiation from the detections no track took
-            free = np.flatnonzero(~used)
-            birth = None
-            if self.initiation == "two_point":
-                if previous is not None and seeds.size and free.size:
-                    sz, st = detections.z[seeds], detections.times[seeds]
-                    s_rows, d_rows = self._pair_seeds(sz, st, z[free], t[free])
-                    if s_rows.size:
-                        pair = (sz[s_rows], st[s_rows], z[free][d_rows], t[free][d_rows])
-                        score = math.log(self.birth_density / self.clutter_density) + self._second_point_score(*pair)
-                        birth = (*self._two_point(*pair, now), score, 2, np.column_stack([seeds[s_rows], here[free][d_rows]]))
-                        free = np.delete(free, d_rows)
-                        seeds = np.delete(seeds, s_rows)
-            elif free.size:
-                score = np.full(free.size, math.log(self.birth_density / self.clutter_density))
-                birth = (*self._single_point(z[free], t[free], now), score, 1, here[free][:, None])
-                free = free[:0]
+            birth, free, paired = self._births(detections, seeds, here, np.flatnonzero(~used), now)
+            seeds = seeds[~np.isin(seeds, paired)]
             if birth is not None:
                 means, covs, score, hits, origin = birth
                 B = means.shape[0]
