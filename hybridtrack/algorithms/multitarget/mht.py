@@ -383,12 +383,8 @@ class MHTTracker(MultiTargetTracker):
             birth, free, paired = self._births(detections, candidates, here, np.flatnonzero(~best_used), now)
             seeds = seeds[~np.isin(seeds, paired)]
             if birth is not None:
-                means, covs, start_score, hits, picked = birth
-                B = means.shape[0]
-                fresh = self._start(means, covs)
-                fresh_status = TrackStatus.born(B, 0.0, now, hits)
-                fresh_status.score = np.asarray(start_score, dtype=float)
-                fresh_status.peak = fresh_status.score.copy()
+                fresh, fresh_status, picked = birth
+                B, hits = picked.shape
                 new_ids = np.arange(next_id, next_id + B)
                 next_id += B
                 for track, chosen in zip(new_ids.tolist(), picked.tolist()):

@@ -296,14 +296,14 @@ class MultiTargetTracker:
     def _births(self, detections: Detections, seeds: np.ndarray, here: np.ndarray, free: np.ndarray, now: float):
         """New tracks from the scan's detections ``here[free]`` (indices into ``detections``) no track took: two-point,
         each paired with one of the waiting ``seeds`` (indices into ``detections``), or single-point.  Returns (birth,
-        free left, the seeds paired); birth None or (means, covs, start scores ln(β_NT/λ) [+ the second point's],
-        hits, the detections of each new track (B, hits))."""
+        free left, the seeds paired); birth None or (the new tracks' state, their tentative status with the start
+        score ln(β_NT/λ) [+ the second point's], the detections of each (B, hits))."""
         log_birth = math.log(self.birth_density / self.clutter_density)
         z, t = detections.z[here], detections.times[here]
         if self.initiation == "single_point":
             if not free.size:
                 return None, free, seeds[:0]
-            birth = (*self._single_point(z[free], t[free], now), np.full(free.size, log_birth), 1, here[free][:, None])
+            birth = self._started(*self._single_point(z[free], t[free], now), np.full(free.size, log_birth), here[free][:, None], now)
             return birth, free[:0], seeds[:0]
         if not (seeds.size and free.size):
             return None, free, seeds[:0]
@@ -312,8 +312,16 @@ class MultiTargetTracker:
             return None, free, seeds[:0]
         pair = (detections.z[seeds[s_rows]], detections.times[seeds[s_rows]], z[free][d_rows], t[free][d_rows])
         score = log_birth + self._second_point_score(*pair)
-        birth = (*self._two_point(*pair, now), score, 2, np.column_stack([seeds[s_rows], here[free][d_rows]]))
+        birth = self._started(*self._two_point(*pair, now), score, np.column_stack([seeds[s_rows], here[free][d_rows]]), now)
         return birth, np.delete(free, d_rows), seeds[s_rows]
+
+    def _started(self, means, covs, score, origin: np.ndarray, now: float):
+        """(state, status, origin) of new tracks: started at (means, covs), tentative with ``score`` (its peak too) and
+        one hit per detection of ``origin`` (B, hits)."""
+        status = TrackStatus.born(origin.shape[0], 0.0, now, origin.shape[1])
+        status.score = np.asarray(score, dtype=float)
+        status.peak = status.score.copy()
+        return self._start(means, covs), status, origin
 
     def _explained(self, state: MultipleModelState, z: np.ndarray, t: np.ndarray, now: float) -> np.ndarray:
         """(B,) whether each waiting seed (z at t) lies within the χ² gate of some track's position retrodicted to t,
@@ -474,11 +482,8 @@ class MultiTargetTracker:
             birth, free, paired = self._births(detections, seeds, here, np.flatnonzero(~used), now)
             seeds = seeds[~np.isin(seeds, paired)]
             if birth is not None:
-                means, covs, score, hits, origin = birth
-                B = means.shape[0]
-                fresh = self._start(means, covs)
-                new_status = TrackStatus.born(B, 0.0, now, hits)
-                new_status.score = np.asarray(score, dtype=float)
+                fresh, new_status, origin = birth
+                B = origin.shape[0]
                 new_ids = np.arange(next_id, next_id + B)
                 next_id += B
                 for track, picked in zip(new_ids.tolist(), origin.tolist()):
