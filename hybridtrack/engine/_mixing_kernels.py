@@ -80,3 +80,62 @@ def merge(joint, x, P, log_mu, total, mean, cov):  # pragma: no cover - compiled
         for j in range(r):
             log_mu[k, j] = joint[k, j] - total[k]
         _moments(w, x[k], P[k], mean[k], cov[k])
+
+
+@_jit()
+def merge_groups(
+    order, starts, counts, log_weights, log_p, x, P, model_ll, ll, log_mu, x_out, P_out, mean, cov, model_ll_out, ll_out
+):  # pragma: no cover - compiled
+    """Group g's hypotheses ``order[starts[g]:starts[g] + counts[g]]`` merged per mode (outputs written)."""
+    G = starts.shape[0]
+    H, r, n = x.shape
+    w = np.empty(r)
+    d = np.empty(n)
+    for g in range(G):
+        s, c = starts[g], counts[g]
+        first = order[s]
+        total_ll = 0.0
+        for q in range(s, s + c):
+            total_ll += math.exp(log_weights[order[q]]) * ll[order[q]]
+        ll_out[g] = total_ll
+        for j in range(r):
+            top = -math.inf
+            for q in range(s, s + c):
+                a = log_weights[order[q]] + log_p[order[q], j]
+                if a > top:
+                    top = a
+            shift = top if abs(top) < math.inf else 0.0
+            total = 0.0
+            for q in range(s, s + c):
+                total += math.exp(log_weights[order[q]] + log_p[order[q], j] - shift)
+            log_mu[g, j] = math.log(total) + shift if total > 0.0 else -math.inf
+            for a_ in range(n):
+                x_out[g, j, a_] = 0.0
+                for b in range(n):
+                    P_out[g, j, a_, b] = 0.0
+            model_ll_out[g, j] = 0.0
+            for q in range(s, s + c):
+                h = order[q]
+                if total > 0.0:
+                    wh = math.exp(log_weights[h] + log_p[h, j] - shift) / total
+                else:  # a mode of probability zero: the first hypothesis' estimate (any finite choice is exact)
+                    wh = 1.0 if q == s else 0.0
+                for a_ in range(n):
+                    d[a_] = x[h, j, a_] - x[first, j, a_]
+                    x_out[g, j, a_] += wh * d[a_]
+                for a_ in range(n):
+                    for b in range(n):
+                        P_out[g, j, a_, b] += wh * (P[h, j, a_, b] + d[a_] * d[b])
+                model_ll_out[g, j] += wh * model_ll[h, j]
+            for a_ in range(n):
+                for b in range(a_, n):
+                    v = 0.5 * (
+                        (P_out[g, j, a_, b] - x_out[g, j, a_] * x_out[g, j, b]) + (P_out[g, j, b, a_] - x_out[g, j, b] * x_out[g, j, a_])
+                    )
+                    P_out[g, j, a_, b] = P_out[g, j, b, a_] = v
+            for a_ in range(n):
+                x_out[g, j, a_] += x[first, j, a_]
+        total_mu = _weights(log_mu[g], w)
+        for j in range(r):
+            log_mu[g, j] -= total_mu
+        _moments(w, x_out[g], P_out[g], mean[g], cov[g])

@@ -57,3 +57,49 @@ def test_merge_equals_the_numpy_mixture_and_an_all_impossible_run_gets_equal_wei
     np.testing.assert_allclose(mean, ref_mean, rtol=1e-12, atol=1e-11)
     np.testing.assert_allclose(cov, ref_cov, rtol=1e-12, atol=1e-10)
     np.testing.assert_allclose(mean[2], x[2].mean(axis=0), rtol=1e-12)
+
+
+def hypotheses(seed, H=11, r=3, n=5):
+    """H multiple-model estimates far from the origin (map grid), in 4 groups, one mode impossible in one group."""
+    rng = np.random.default_rng(seed)
+    x, P, log_mu = models(seed, H, r, n)
+    x = x + 4e6
+    group = np.array([0, 1, 1, 2, 2, 2, 3, 3, 3, 3, 1])[:H]
+    log_w = np.log(rng.uniform(0.1, 1.0, H))
+    for g in range(4):
+        log_w[group == g] -= logsumexp(log_w[group == g])
+    log_mu[group == 0] = [0.0, -np.inf, -np.inf]  # group 0: modes 1 and 2 have probability zero
+    log_mu -= logsumexp(log_mu, axis=1)[:, None]
+    return group, log_w, log_mu, x, P, rng.normal(size=(H, r)), rng.normal(size=H)
+
+
+@needs_numba
+def test_merge_groups_equals_the_numpy_merge():
+    group, *inputs = hypotheses(3)
+    compiled = mixing.merge_groups(group, 4, *inputs)
+    counts = np.bincount(group)
+    order = np.argsort(group, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(counts[:-1])])
+    reference = mixing._merge_groups_numpy(group, order, starts, *inputs)
+    for got, expected in zip(compiled, reference):
+        np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-7)
+
+
+def test_merge_groups_is_the_moment_match_of_each_group():
+    group, log_w, log_mu, x, P, model_ll, ll = hypotheses(4)
+    log_mu_out, _, _, mean, cov, _, ll_out = mixing.merge_groups(group, 4, log_w, log_mu, x, P, model_ll, ll)
+    for g in range(4):
+        inside = group == g
+        means, covs = mixture(log_mu[inside], x[inside], P[inside])  # each hypothesis' output estimate
+        expected_mean, expected_cov = mixture(log_w[inside], means, covs)
+        np.testing.assert_allclose(mean[g] - 4e6, expected_mean - 4e6, rtol=1e-9, atol=1e-8)
+        np.testing.assert_allclose(cov[g], expected_cov, rtol=1e-9, atol=1e-6)
+        np.testing.assert_allclose(ll_out[g], np.exp(log_w[inside]) @ ll[inside], rtol=1e-12)
+        np.testing.assert_allclose(logsumexp(log_mu_out[g]), 0.0, atol=1e-12)
+    assert np.isneginf(log_mu_out[0, 1:]).all()
+
+
+def test_merge_groups_names_an_empty_group():
+    group, *inputs = hypotheses(5)
+    with pytest.raises(ValueError, match="group: expected every group in \\[0, 5\\)"):
+        mixing.merge_groups(group, 5, *inputs)

@@ -46,7 +46,7 @@ from hybridtrack.algorithms.multitarget.jpda import jpda
 from hybridtrack.algorithms.multitarget.management import CONFIRMED, MofN, TrackScore, TrackStatus
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.engine.detections import Detections
-from hybridtrack.sdk.mixtures import logsumexp, mixture
+from hybridtrack.engine.mixing import merge_groups
 
 ASSOCIATIONS = ("gnn", "jpda")
 #: the step (s) before each further update of a track within one scan (``updates_per_scan`` > 1)
@@ -81,35 +81,11 @@ def collapse(hypotheses: MultipleModelState, owner: np.ndarray, log_weights: np.
     """Each track's hypotheses (rows with ``owner`` t, weights w_h ∝ exp(``log_weights``) summing to one per track)
     merged into one multiple-model estimate: per mode j the weights w_hj = w_h μ_j^h, μ_j = Σ_h w_hj and the
     moment-matched x̂_j, P_j over h (Bar-Shalom, Li & Kirubarajan 2001, eqs. 11.6.6-9/10), computed about the
-    first hypothesis' mean so that map-grid coordinates lose no digits; the output x̂, P the mixture over j."""
-    counts = np.bincount(owner, minlength=tracks)
-    if counts.size != tracks or (tracks and counts.min() == 0):
-        raise ValueError(f"owner: expected every track in [0, {tracks}) to own at least one hypothesis, got counts {counts.tolist()}")
-    order = np.argsort(owner, kind="stable")
-    starts = np.zeros(tracks, dtype=np.intp)
-    np.cumsum(counts[:-1], out=starts[1:])
-
-    def per_track(values: np.ndarray) -> np.ndarray:  # Σ over each track's hypotheses (contiguous once sorted)
-        return np.add.reduceat(values[order], starts, axis=0)
-
-    log_w = log_weights[:, None] + hypotheses.log_mode_probabilities  # (H, r)
-    log_mu = np.maximum.reduceat(log_w[order], starts, axis=0)
-    top = np.where(np.isfinite(log_mu), log_mu, 0.0)
-    w = np.exp(log_w - top[owner])  # scaled per track and mode
-    total = per_track(w)
-    log_mu = top + np.log(np.where(total > 0, total, 1.0))
-    log_mu = log_mu - logsumexp(log_mu, axis=1)[:, None]
-    w = w / np.where(total > 0, total, 1.0)[owner]
-    ref = hypotheses.model_means[order[starts]]  # (T, r, n): each track's first hypothesis
-    d = hypotheses.model_means - ref[owner]
-    shift = per_track(w[..., None] * d)
-    second = per_track(w[..., None, None] * (hypotheses.model_covs + d[..., :, None] * d[..., None, :]))
-    model_covs = second - shift[..., :, None] * shift[..., None, :]
-    model_covs = 0.5 * (model_covs + np.swapaxes(model_covs, -1, -2))
-    model_means = ref + shift
-    mean, cov = mixture(log_mu, model_means, model_covs)
-    model_loglik = per_track(w * hypotheses.model_loglik)
-    loglik = per_track(np.exp(log_weights) * hypotheses.loglik)
+    first hypothesis' mean so that map-grid coordinates lose no digits; the output x̂, P the mixture over j
+    (:func:`hybridtrack.engine.mixing.merge_groups`)."""
+    h = hypotheses
+    merged = merge_groups(owner, tracks, log_weights, h.log_mode_probabilities, h.model_means, h.model_covs, h.model_loglik, h.loglik)
+    log_mu, model_means, model_covs, mean, cov, model_loglik, loglik = merged
     return MultipleModelState(model_means, model_covs, log_mu, mean, cov, model_loglik, loglik)
 
 
