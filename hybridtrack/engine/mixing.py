@@ -83,12 +83,18 @@ def merge_groups(group: np.ndarray, groups: int, log_weights, log_mode_probabili
     counts = np.bincount(group, minlength=groups)
     if counts.size != groups or (groups and counts.min() == 0):
         raise ValueError(f"group: expected every group in [0, {groups}) to hold at least one hypothesis, got counts {counts.tolist()}")
+    H, r, n = np.shape(model_means)
+    shapes = {"group": (H,), "log_weights": (H,), "log_mode_probabilities": (H, r), "model_covs": (H, r, n, n)}
+    shapes |= {"model_loglik": (H, r), "loglik": (H,)}
+    given = (group, log_weights, log_mode_probabilities, model_covs, model_loglik, loglik)
+    wrong = [f"{name} {np.shape(a)} (expected {shape})" for (name, shape), a in zip(shapes.items(), given) if np.shape(a) != shape]
+    if wrong:
+        raise ValueError(f"merge_groups: for model_means of shape {(H, r, n)}, got " + ", ".join(wrong))
     order = np.argsort(group, kind="stable")
     starts = np.zeros(groups, dtype=np.intp)
     np.cumsum(counts[:-1], out=starts[1:])
     if not NUMBA_AVAILABLE:
         return _merge_groups_numpy(group, order, starts, log_weights, log_mode_probabilities, model_means, model_covs, model_loglik, loglik)
-    H, r, n = model_means.shape
     log_mu, x, P = np.empty((groups, r)), np.empty((groups, r, n)), np.empty((groups, r, n, n))
     mean, cov, model_ll, ll = np.empty((groups, n)), np.empty((groups, n, n)), np.empty((groups, r)), np.empty(groups)
     inputs = (log_weights, log_mode_probabilities, model_means, model_covs, model_loglik, loglik)

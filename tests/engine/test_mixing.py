@@ -74,13 +74,11 @@ def hypotheses(seed, H=11, r=3, n=5):
 
 
 @needs_numba
-def test_merge_groups_equals_the_numpy_merge():
+def test_merge_groups_equals_the_numpy_merge(monkeypatch):
     group, *inputs = hypotheses(3)
     compiled = mixing.merge_groups(group, 4, *inputs)
-    counts = np.bincount(group)
-    order = np.argsort(group, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(counts[:-1])])
-    reference = mixing._merge_groups_numpy(group, order, starts, *inputs)
+    monkeypatch.setattr(mixing, "NUMBA_AVAILABLE", False)
+    reference = mixing.merge_groups(group, 4, *inputs)
     for got, expected in zip(compiled, reference):
         np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-7)
 
@@ -99,7 +97,10 @@ def test_merge_groups_is_the_moment_match_of_each_group():
     assert np.isneginf(log_mu_out[0, 1:]).all()
 
 
-def test_merge_groups_names_an_empty_group():
+def test_merge_groups_names_an_empty_group_and_a_wrong_shape():
     group, *inputs = hypotheses(5)
     with pytest.raises(ValueError, match="group: expected every group in \\[0, 5\\)"):
         mixing.merge_groups(group, 5, *inputs)
+    inputs[4] = inputs[4][:, :2]
+    with pytest.raises(ValueError, match="model_loglik"):
+        mixing.merge_groups(group, 4, *inputs)
