@@ -11,7 +11,8 @@ so the log-likelihood of the file under parameters θ is
 Time Series Models and the Kalman Filter*, §3.4; Bar-Shalom, Li &
 Kirubarajan 2001, §11.6 for the mixture's likelihood).  Fitted, each as its
 logarithm so that it stays positive: the measurement noise σ (``[measurement]
-sigma``, m), the white-acceleration density q (``[estimator] noise_density``,
+sigma``, m) and, where the configuration measures the reported course and speed, their σ_s and σ_χ
+(``speed_sigma``, m/s; ``course_sigma``, degrees), the white-acceleration density q (``[estimator] noise_density``,
 m²/s³, every mode without its own; started from σ_w²/10 s for a file of the
 per-report ``process_noise``), with more than one mode the mean time in
 each mode (``[estimator] sojourn``, s, one per mode: ``sojourn.<mode>``, :func:`sojourns`), and each mode's own
@@ -48,7 +49,11 @@ from hybridtrack.io.track_files import read_tracks
 PARAMETERS = {
     "sigma": ("measurement", "sigma", "m"),
     "noise_density": ("estimator", "noise_density", "m²/s³"),
+    "speed_sigma": ("measurement", "speed_sigma", "m/s"),
+    "course_sigma": ("measurement", "course_sigma", "degrees"),
 }
+#: fitted when the configuration measures the reported course and speed (the ``velocity`` sensor)
+VELOCITY_NOISE = ("speed_sigma", "course_sigma")
 
 
 #: the units of the motion models' own densities a fit estimates (``<mode>.<parameter>``, :func:`mode_densities`)
@@ -185,6 +190,7 @@ def fit_tracks(tracks: Iterable, config: dict, *, registry=None) -> FitResult:
         "sigma": cfg["measurement"]["sigma"],
         "noise_density": est.get("noise_density", est.get("process_noise", 0.1) ** 2 / 10.0),
     }
+    start |= {name: cfg["measurement"][name] for name in VELOCITY_NOISE if name in cfg["measurement"]}
     start |= {name: value for name, (_, value) in sojourns(cfg).items()}
     start |= {name: value for name, (_, _, value) in mode_densities(cfg, registry).items()}
     names = list(start)

@@ -1,7 +1,8 @@
 """``hybridtrack fit FILE --config CONFIG.toml --out TUNED.toml [--id ID …] [--max-objects N] [--json]``: fit a
 tracker configuration's parameters to a file by maximum likelihood.
 
-Estimates the measurement noise σ, the white-acceleration density q and the mean time in each mode of CONFIG's
+Estimates the measurement noise σ (and the reported course and speed's σ_χ, σ_s where CONFIG measures them), the
+white-acceleration density q, each mode's own densities and the mean time in each mode of CONFIG's
 multiple-model tracker over FILE's objects (:mod:`hybridtrack.apps.fitting`), prints them with their standard
 errors and writes TUNED.toml: CONFIG with those values set, which ``hybridtrack track`` runs.
 

@@ -163,3 +163,49 @@ def test_the_modes_densities_a_fit_estimates():
     }
     twice = mode_densities(load_config(base | {"estimator": base["estimator"] | {"modes": ["coordinated_turn", "coordinated_turn"]}}))
     assert list(twice) == ["coordinated_turn[0].rate_density", "coordinated_turn[1].rate_density"]
+
+
+SPEED_SIGMA, COURSE_SIGMA = 0.3, 3.0  # m/s, degrees: the noise of the reported speed and course
+
+
+def write_tracks_with_course(path, objects=4, reports=150, seed=1):
+    """:func:`write_tracks` with the speed and course over ground reported beside each fix, speeds 5–10 m/s: the
+    velocity with the velocity sensor's error, σ_s = SPEED_SIGMA m/s in every direction and σ_χ = COURSE_SIGMA
+    degrees across the track (``VelocitySensor.simulate``)."""
+    from hybridtrack_plugins.sensors.velocity import VelocitySensor
+
+    sensor = VelocitySensor(speed_sigma=SPEED_SIGMA, course_sigma=np.radians(COURSE_SIGMA))
+    rng = np.random.default_rng(seed)
+    rows = ["t,name,east,north,sog,cog"]
+    for o in range(objects):
+        speed, heading = rng.uniform(5.0, 10.0), rng.uniform(0.0, 2 * np.pi)
+        x, t = np.array([1e5 * o, speed * np.sin(heading), 2e5, speed * np.cos(heading)]), 0.0
+        for _ in range(reports):
+            z = x[[0, 2]] + rng.normal(0.0, SIGMA, 2)
+            vx, vy = sensor.simulate(x, ("x", "vx", "y", "vy"), rng)
+            sog, cog = np.hypot(vx, vy), np.degrees(np.arctan2(vx, vy))
+            rows.append(f"{t:.3f},o{o},{z[0]:.4f},{z[1]:.4f},{sog:.4f},{cog % 360.0:.4f}")
+            dt = rng.uniform(2.0, 8.0)
+            T = Straight(noise_density=Q).transition(dt)
+            x = T.F @ x + rng.multivariate_normal(np.zeros(4), T.process_noise)
+            t += dt
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.mark.slow  # ≈ 30 s: four parameters over 600 reports
+def test_the_fit_recovers_the_noise_of_the_reported_course_and_speed(tmp_path):
+    """With ``speed_sigma``/``course_sigma`` (the velocity sensor) the fit estimates them beside σ and q, within two
+    standard errors of the simulated noise, and writes them into ``[measurement]``."""
+    csv, cfg = write_tracks_with_course(tmp_path / "t.csv"), tmp_path / "c.toml"
+    text = CONFIG.replace('id = "name"', 'id = "name"\ncourse = "cog"\nspeed = "sog"\nspeed_unit = "m/s"')
+    cfg.write_text(text.replace("sigma = 20.0", "sigma = 20.0\nspeed_sigma = 1.0\ncourse_sigma = 1.0"))
+    result = fit_config(csv, cfg)
+    assert set(result.values) == {"sigma", "noise_density", "speed_sigma", "course_sigma"}
+    for name, truth in (("sigma", SIGMA), ("noise_density", Q), ("speed_sigma", SPEED_SIGMA), ("course_sigma", COURSE_SIGMA)):
+        value, se = result.values[name], result.standard_errors[name]
+        assert np.isfinite(se) and 0 < se < 0.5 * value, (name, value, se)
+        assert abs(value - truth) < 2 * se, (name, value, se, truth)
+    measured = load_config(write_fitted(cfg, result.values, tmp_path / "tuned.toml"))["measurement"]
+    assert measured["speed_sigma"] == pytest.approx(result.values["speed_sigma"], rel=1e-5)
+    assert measured["course_sigma"] == pytest.approx(result.values["course_sigma"], rel=1e-5)
