@@ -20,7 +20,8 @@ process densities (``<mode>.rate_density`` …, :func:`mode_densities`).  θ̂ m
 (L-BFGS-B from the configuration's values); the standard errors come from
 the observed information, the numerical Hessian H of −ℓ in the logarithms at
 θ̂ (central differences): SE(ln θ_i) = √(H⁻¹)_ii and SE(θ_i) = θ̂_i SE(ln θ_i)
-(the delta method).  Direct maximization, not EM: the IMM's likelihood has no
+(the delta method).  Parameters named in ``hold`` (``hybridtrack fit --hold NAME``) keep the configuration's
+values: a datasheet's noise, or one the data cannot tell apart from the rest.  Direct maximization, not EM: the IMM's likelihood has no
 closed-form M-step.
 """
 
@@ -163,11 +164,18 @@ def _check_fittable(cfg: dict) -> None:
 
 
 def fit_config(
-    path: str | os.PathLike, config: str | os.PathLike | Mapping[str, Any], *, ids=None, max_objects: int | None = None, registry=None
+    path: str | os.PathLike,
+    config: str | os.PathLike | Mapping[str, Any],
+    *,
+    ids=None,
+    max_objects: int | None = None,
+    hold: Iterable[str] = (),
+    registry=None,
 ) -> FitResult:
     """θ̂ and its standard errors for the objects of ``path`` (those in ``ids``, or the first ``max_objects`` with at
-    least ``min_reports`` reports) under ``config`` (module docstring); a ConfigError for an algorithm other than
-    imm, gpb1, gpb2 or a file without objects to fit."""
+    least ``min_reports`` reports) under ``config`` (module docstring), the parameters named in ``hold`` kept at the
+    configuration's values; a ConfigError for an algorithm other than imm, gpb1, gpb2, a file without objects to
+    fit or a name in ``hold`` that is not one of the parameters the configuration has to fit."""
     cfg = load_config(config, registry)
     _check_fittable(cfg)
     data = read_tracks(path, **cfg["reader"], warn=False)
@@ -175,10 +183,10 @@ def fit_config(
     chosen = chosen[:max_objects] if max_objects is not None else chosen
     if not chosen:
         raise ConfigError(f"{path}: no object with at least min_reports = {cfg['min_reports']} reports to fit")
-    return fit_tracks(chosen, cfg, registry=registry)
+    return fit_tracks(chosen, cfg, hold=hold, registry=registry)
 
 
-def fit_tracks(tracks: Iterable, config: dict, *, registry=None) -> FitResult:
+def fit_tracks(tracks: Iterable, config: dict, *, hold: Iterable[str] = (), registry=None) -> FitResult:
     """:func:`fit_config` on tracks already read (:class:`~hybridtrack.io.track_files.Track` objects, e.g. a
     part of a file's, or tracks with simulated noise) under a checked configuration (:func:`load_config`)."""
     cfg, chosen = config, list(tracks)
@@ -193,7 +201,13 @@ def fit_tracks(tracks: Iterable, config: dict, *, registry=None) -> FitResult:
     start |= {name: cfg["measurement"][name] for name in VELOCITY_NOISE if name in cfg["measurement"]}
     start |= {name: value for name, (_, value) in sojourns(cfg).items()}
     start |= {name: value for name, (_, _, value) in mode_densities(cfg, registry).items()}
-    names = list(start)
+    hold = list(dict.fromkeys(hold))
+    unknown = [name for name in hold if name not in start]
+    if unknown:
+        raise ConfigError(f"hold {unknown[0]!r}: not a parameter of this configuration; expected some of {', '.join(start)}")
+    if len(hold) == len(start):
+        raise ConfigError(f"hold {', '.join(hold)}: every parameter held, nothing left to fit")
+    names = [name for name in start if name not in hold]
     evaluations = 0
 
     def negative(log_theta: np.ndarray) -> float:

@@ -1,4 +1,4 @@
-"""``hybridtrack fit FILE --config CONFIG.toml --out TUNED.toml [--id ID …] [--max-objects N] [--json]``: fit a
+"""``hybridtrack fit FILE --config CONFIG.toml --out TUNED.toml [--id ID …] [--max-objects N] [--hold NAME …] [--json]``: fit a
 tracker configuration's parameters to a file by maximum likelihood.
 
 Estimates the measurement noise σ (and the reported course and speed's σ_χ, σ_s where CONFIG measures them), the
@@ -25,6 +25,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="TUNED.toml", help="the fitted configuration to write")
     parser.add_argument("--id", action="append", dest="ids", metavar="ID", help="fit on this object only (repeatable)")
     parser.add_argument("--max-objects", type=int, metavar="N", help="fit on the first N objects")
+    parser.add_argument(
+        "--hold", action="append", default=[], metavar="NAME", help="keep this parameter at CONFIG's value (repeatable; e.g. course_sigma)"
+    )
     parser.add_argument("--json", action="store_true", help="print the fit as JSON")
 
 
@@ -39,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.file}: no such position file")
     check_output_file("--out", args.out, "a file (the fitted configuration, TOML)")  # before the fit, not after it
     try:
-        result = fit_config(args.file, args.config, ids=args.ids, max_objects=args.max_objects)
+        result = fit_config(args.file, args.config, ids=args.ids, max_objects=args.max_objects, hold=args.hold)
         write_fitted(args.config, result.values, args.out)
     except ValueError as error:
         raise UsageError(str(error)) from None

@@ -87,12 +87,28 @@ def test_the_command_prints_and_writes(tmp_path, capsys):
     assert tuned == pytest.approx([fit["values"][name] for name in per_mode], rel=1e-5)
 
 
+def test_held_parameters_keep_the_configurations_values(tmp_path, capsys):
+    """``--hold``: the named parameters are neither fitted nor printed, and the tuned file keeps their values."""
+    csv, cfg = write_tracks(tmp_path / "t.csv", objects=2, reports=40), tmp_path / "c.toml"
+    cfg.write_text(CONFIG)
+    argv = ["fit", str(csv), "--config", str(cfg), "--out", str(tmp_path / "tuned.toml"), "--hold", "sigma", "--json"]
+    assert main(argv) == 0
+    fit = json.loads(capsys.readouterr().out)
+    assert set(fit["values"]) == {"noise_density"}
+    tuned = load_config(tmp_path / "tuned.toml")
+    assert tuned["measurement"]["sigma"] == 20.0 and tuned["estimator"]["noise_density"] == pytest.approx(
+        fit["values"]["noise_density"], rel=1e-5
+    )
+
+
 @pytest.mark.parametrize(
     ("edit", "argv_extra", "message"),
     [
         (lambda c: c.replace('algorithm = "imm"', 'algorithm = "unknown_change"'), [], "fit needs a multiple-model algorithm"),
         (lambda c: c.replace("min_reports = 5", "min_reports = 500"), [], "no object with at least min_reports = 500"),
         (lambda c: c, ["--max-objects", "0"], "--max-objects 0"),
+        (lambda c: c, ["--hold", "speed_sigma"], "hold 'speed_sigma': not a parameter of this configuration; expected some of sigma,"),
+        (lambda c: c, ["--hold", "sigma", "--hold", "noise_density"], "every parameter held, nothing left to fit"),
     ],
 )
 def test_bad_inputs_are_one_line_and_status_2(tmp_path, capsys, edit, argv_extra, message):
