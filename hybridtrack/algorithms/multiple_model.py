@@ -250,9 +250,12 @@ class MultipleModelEstimator:
     def smooth(self, run: MultipleModelRun, lag: float | None = None) -> MultipleModelRun:
         """The run with smoothed mode probabilities (:mod:`hybridtrack.algorithms.mode_smoothing`; fixed interval,
         or fixed lag of ``lag`` seconds): ``log_mode_probabilities`` ln μ_{k|N}, ``mode`` their argmax, ``means`` and
-        ``covs`` the models' estimates mixed with them.  Fixed interval (or a lag over the whole run): each model's
-        own estimate (``model_means``, ``model_covs``) smoothed by the backward pass of
-        :func:`~hybridtrack.algorithms.state_smoothing.smooth_models`; a shorter fixed lag: the filtered ones."""
+        ``covs`` the models' estimates mixed with them.  Each model's own estimate (``model_means``, ``model_covs``)
+        is smoothed by the backward pass of :func:`~hybridtrack.algorithms.state_smoothing.smooth_models`: over the
+        whole run (fixed interval, or a lag over the whole run); with a shorter fixed lag L, step k's estimate uses
+        the reports up to t_k + L only — the fixed-interval smoother of the run cut at the last step j with
+        t_j ≤ t_k + L, run back from j to the first step whose window also ends at j (about L/Δt backward steps
+        per step)."""
         times = np.asarray(run.times, dtype=float)
         r = len(self.models)
         log_transitions = np.zeros((times.size, r, r))
@@ -263,7 +266,25 @@ class MultipleModelEstimator:
                 run.model_means, run.model_covs, run.log_mode_probabilities, log_mu, log_transitions, times, self.models, self.layout
             )
         else:
-            model_means, model_covs = run.model_means, run.model_covs
+            model_means, model_covs = run.model_means.copy(), run.model_covs.copy()
+            last = np.searchsorted(times, times + lag, side="right") - 1  # the window of step k ends at last[k]
+            for end in np.unique(last):
+                steps = np.flatnonzero(last == end)
+                window = slice(int(steps[0]), int(end) + 1)
+                log_window = smooth_log_mode_probabilities(
+                    run.log_mode_probabilities[window], run.model_loglik[window], log_transitions[window], times[window]
+                )
+                smoothed_means, smoothed_covs, _, _ = smooth_models(
+                    run.model_means[window],
+                    run.model_covs[window],
+                    run.log_mode_probabilities[window],
+                    log_window,
+                    log_transitions[window],
+                    times[window],
+                    self.models,
+                    self.layout,
+                )
+                model_means[steps], model_covs[steps] = smoothed_means[steps - steps[0]], smoothed_covs[steps - steps[0]]
             means, covs = mixture(log_mu, model_means, model_covs)
         return attrs.evolve(
             run,

@@ -3,6 +3,7 @@ every mode sequence of a small hidden Markov chain, its fixed-lag limits, and th
 
 import itertools
 
+import attrs
 import numpy as np
 import pytest
 
@@ -67,11 +68,10 @@ def test_bad_inputs_are_named():
         smooth_log_mode_probabilities(np.log(filtered), np.log(lik), np.log(P), np.zeros(7), lag=1.0)
 
 
-def test_smoothing_a_run_finds_the_turn_earlier():
-    """A straight leg then a 200 m turn at 10 m/s, fixes 2 s apart with σ = 5 m: the smoothed run of the IMM calls
-    the turn from its onset, before the filter does, and is right at least as often."""
+def straight_then_turn(n1=40, n2=40):
+    """(IMM, its run): a straight leg then a 200 m turn at 10 m/s, fixes 2 s apart with σ = 5 m."""
     rng = np.random.default_rng(4)
-    dt, speed, radius, n1, n2 = 2.0, 10.0, 200.0, 40, 40
+    dt, speed, radius = 2.0, 10.0, 200.0
     t = np.arange(n1 + n2 + 1) * dt
     pos = np.zeros((t.size, 2))
     pos[: n1 + 1, 1] = speed * t[: n1 + 1]
@@ -85,7 +85,14 @@ def test_smoothing_a_run_finds_the_turn_earlier():
         sojourn=60.0,
     )
     prior = (np.array([z[0, 0], 0.0, z[0, 1], speed]), np.diag([25.0, 4.0, 25.0, 4.0]))
-    run = imm.run({"p": z}, prior, times=t)
+    return imm, imm.run({"p": z}, prior, times=t)
+
+
+def test_smoothing_a_run_finds_the_turn_earlier():
+    """The smoothed run of the IMM calls the turn from its onset, before the filter does, and is right at least as
+    often."""
+    n1, n2 = 40, 40
+    imm, run = straight_then_turn(n1, n2)
     smoothed = imm.smooth(run)
     truth = np.r_[np.zeros(n1, dtype=int), np.ones(n2 + 1, dtype=int)]
     first = {label: int(np.flatnonzero(r.mode[n1 - 5 :] == 1)[0]) + n1 - 5 for label, r in (("filtered", run), ("smoothed", smoothed))}
@@ -94,3 +101,32 @@ def test_smoothing_a_run_finds_the_turn_earlier():
     assert np.mean(smoothed.mode == truth) >= np.mean(run.mode == truth)
     np.testing.assert_allclose(np.exp(smoothed.log_mode_probabilities).sum(axis=1), 1.0, rtol=1e-12)
     assert np.allclose(imm.smooth(run, lag=0.0).means, run.means)
+
+
+def test_fixed_lag_states_are_the_interval_smoother_of_the_run_cut_at_the_lag():
+    """With a lag L each model's estimate at step k is the fixed-interval smoother's of the run cut at the last
+    report within t_k + L (the reference: the run truncated there, smoothed whole); between the filter and the
+    fixed-interval smoother."""
+    imm, run = straight_then_turn()
+    lag = 9.0  # s: four or five reports ahead
+    lagged = imm.smooth(run, lag=lag)
+    for k in (0, 20, 38, 41, 45, 60, run.times.size - 3):
+        end = int(np.searchsorted(run.times, run.times[k] + lag, side="right"))
+        cut = attrs.evolve(
+            run,
+            times=run.times[:end],
+            means=run.means[:end],
+            covs=run.covs[:end],
+            mode=run.mode[:end],
+            log_mode_probabilities=run.log_mode_probabilities[:end],
+            model_means=run.model_means[:end],
+            model_covs=run.model_covs[:end],
+            model_loglik=run.model_loglik[:end],
+            loglik=run.loglik[:end],
+        )
+        reference = imm.smooth(cut)
+        np.testing.assert_allclose(lagged.model_means[k], reference.model_means[k], rtol=1e-10, atol=1e-9)
+        np.testing.assert_allclose(lagged.model_covs[k], reference.model_covs[k], rtol=1e-10, atol=1e-9)
+        np.testing.assert_allclose(lagged.log_mode_probabilities[k], reference.log_mode_probabilities[k], atol=1e-9)
+    whole = imm.smooth(run)
+    assert not np.allclose(lagged.model_means, run.model_means) and not np.allclose(lagged.model_means, whole.model_means)
