@@ -24,7 +24,8 @@ outputs read from its ``.npz``, no recording):
 * ``ships`` — examples/ships.toml: the same IMM also measuring the reported course
   and speed (the velocity sensor), each report's mode by the estimated turn rate
   and speed (``[segments] by = "motion"``), causal; ``ships_smoothed`` the same
-  with ``--smooth``;
+  with ``--smooth``; ``ships_lag_15s`` with ``--lag 15`` (each report decided
+  from the reports up to 15 s after it: the half-width of the labels' window);
 * ``cv`` — one constant-velocity Kalman filter, its density q chosen from
   {10⁻⁴, 10⁻³, 10⁻², 10⁻¹} m²/s³ for the least position error over the vessels
   (always "straight");
@@ -50,7 +51,10 @@ Scores, pooled over the vessels:
   turn direction) that share no report with a labelled turn of that direction,
   per hour of data;
 * ``stopped_in_turn`` — the fraction of stop-labelled reports the tracker calls
-  a turn;
+  a turn; ``stationary_in_turn`` the same over the stationary reports: those of
+  a labelled stop more than the labels' window W = 30 s from both its ends (near
+  an end the vessel is still slowing or starting: the labels smooth its speed
+  over W);
 * ``rmse_m`` — √(mean ‖p̂_k − report_k‖²) over all reports;
 * ``us_per_report`` — wall time per report (this machine; relative).
 
@@ -72,6 +76,7 @@ from pathlib import Path
 import attrs
 import numpy as np
 
+from hybridtrack.apps.mode_labels import DEFAULTS as LABEL_DEFAULTS
 from hybridtrack.apps.mode_labels import label_track
 from hybridtrack.apps.tracking import load_config, measurements_of, output_name, track_one
 from hybridtrack.core.plugins import resolve
@@ -85,6 +90,8 @@ TURNS = ("left_turn", "right_turn")
 CV_DENSITIES = (1e-4, 1e-3, 1e-2, 1e-1)
 #: the turn-rate EKF's bound on ω (rad/s, 2.9°/s: a ship's turn) and its stop hysteresis (m/s, the labels' v_stop, v_go)
 EKF_MAX_RATE, V_STOP, V_GO = 0.05, 0.5, 1.0
+#: s: the fixed lag of ``ships_lag_15s``, the half-width of the labels' centred window
+LAG = LABEL_DEFAULTS["window"] / 2
 
 
 def vessels(path, vessel_count=None, max_reports=None) -> list[tuple]:
@@ -120,7 +127,7 @@ def noisy(track, sigma: float, seed: int, index: int):
 
 
 def configurations(sigma: float) -> dict:
-    """tracker → (config dict, smooth)."""
+    """tracker → (config dict, smooth: False, True (fixed interval) or a fixed lag in seconds)."""
     sprt, turn_rate, ships = load_config(SPRT), load_config(TURN_RATE), load_config(SHIPS)
     for cfg in (sprt, turn_rate, ships):
         cfg["measurement"]["sigma"] = sigma
@@ -134,6 +141,7 @@ def configurations(sigma: float) -> dict:
         "turn_rate_imm_smoothed": (turn_rate, True),
         "ships": (ships, False),
         "ships_smoothed": (ships, True),
+        "ships_lag_15s": (ships, LAG),
     }
 
 
@@ -151,13 +159,14 @@ def cv_config(sigma: float, q: float) -> dict:
     return cfg
 
 
-def run_tracker(cases, config: dict, smooth: bool) -> tuple[list, list, float]:
+def run_tracker(cases, config: dict, smooth: bool | float) -> tuple[list, list, float]:
     """Per vessel (modes (K,), positions (K, 2)) and the seconds taken (tracking and the .npz, no recording)."""
     modes, positions, seconds = [], [], 0.0
     with tempfile.TemporaryDirectory() as out:
         for track, _, measured in cases:
             start = time.perf_counter()
-            track_one(measured, config, Path(out), smooth=smooth, record=False)
+            lag = None if isinstance(smooth, bool) else float(smooth)
+            track_one(measured, config, Path(out), smooth=smooth is True, lag=lag, record=False)
             seconds += time.perf_counter() - start
             with np.load(Path(out) / f"{output_name(track.id)}.npz") as npz:
                 layout = list(npz["layout"])
@@ -221,11 +230,14 @@ def score(cases, modes: list, positions: list, seconds: float) -> dict:
     labels = np.concatenate([c[1] for c in cases])
     decided = np.concatenate(modes)
     recall = {c: (float(np.mean(decided[labels == c] == c)) if np.any(labels == c) else None) for c in CLASSES}
-    delays, onsets, false_turns, hours = [], 0, 0, 0.0
+    delays, onsets, false_turns, hours, stationary = [], 0, 0, 0.0, []
     for (track, label, _), decision in zip(cases, modes):
         t = track.times
         hours += (t[-1] - t[0]) / 3600.0
         for a, b, value in _runs(label):
+            if value == "stop":
+                inside = (t[a:b] - t[a] > LABEL_DEFAULTS["window"]) & (t[b - 1] - t[a:b] > LABEL_DEFAULTS["window"])
+                stationary.append(np.isin(decision[a:b][inside], TURNS))
             if value in TURNS:
                 onsets += 1
                 hit = np.flatnonzero(decision[a:b] == value)
@@ -245,6 +257,7 @@ def score(cases, modes: list, positions: list, seconds: float) -> dict:
         "detected_onsets": len(delays) / onsets if onsets else None,
         "false_turns_per_hour": float(false_turns / hours),
         "stopped_in_turn": float(np.mean(np.isin(decided[stopped], TURNS))) if stopped.any() else None,
+        "stationary_in_turn": float(np.mean(np.concatenate(stationary))) if sum(map(len, stationary)) else None,
         "rmse_m": float(np.sqrt(np.mean(errors))),
         "us_per_report": seconds / labels.size * 1e6,
     }
@@ -284,7 +297,7 @@ def markdown(result: dict) -> str:
     """The table of the rows (docs/results.md includes it)."""
     lines = [
         "| tracker | accuracy | balanced (4 classes) | recall straight / left / right / stop | median onset delay (s) | onsets found |"
-        " false turns / h | stopped reports in a turn | RMSE (m) | µs / report |",
+        " false turns / h | stopped reports in a turn (stationary) | RMSE (m) | µs / report |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
 
@@ -295,7 +308,8 @@ def markdown(result: dict) -> str:
         recall = " / ".join(number(row["recall"][c], ".2f") for c in CLASSES)
         lines.append(
             f"| {row['tracker']} | {row['accuracy']:.3f} | {row['balanced_accuracy']:.3f} | {recall} | {number(row['median_onset_delay_s'], '.0f')}"
-            f" | {number(row['detected_onsets'], '.2f')} | {row['false_turns_per_hour']:.1f} | {number(row['stopped_in_turn'], '.3f')}"
+            f" | {number(row['detected_onsets'], '.2f')} | {row['false_turns_per_hour']:.1f}"
+            f" | {number(row['stopped_in_turn'], '.3f')} ({number(row['stationary_in_turn'], '.3f')})"
             f" | {row['rmse_m']:.1f} | {row['us_per_report']:.0f} |"
         )
     return "\n".join(lines) + "\n"

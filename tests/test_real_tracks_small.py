@@ -15,6 +15,7 @@ TRACKERS = [
     "turn_rate_imm_smoothed",
     "ships",
     "ships_smoothed",
+    "ships_lag_15s",
     "cv",
     "turn_rate_ekf",
     "turn_rate_ekf_course_speed",
@@ -28,6 +29,7 @@ SCORES = {
     "detected_onsets",
     "false_turns_per_hour",
     "stopped_in_turn",
+    "stationary_in_turn",
     "rmse_m",
     "us_per_report",
 }
