@@ -35,20 +35,26 @@ modes = ["straight"]
 """
 
 
+def constant_velocity(x, rng, reports):
+    """(t, x) at each of ``reports`` fixes 2–8 s apart of a constant-velocity track from x, driven by white
+    acceleration of density Q (what the caller draws from ``rng`` between two fixes comes before the next step's)."""
+    t = 0.0
+    for _ in range(reports):
+        yield t, x
+        dt = rng.uniform(2.0, 8.0)
+        T = Straight(noise_density=Q).transition(dt)
+        x = T.F @ x + rng.multivariate_normal(np.zeros(4), T.process_noise)
+        t += dt
+
+
 def write_tracks(path, objects=4, reports=150, seed=3):
-    """Constant-velocity tracks driven by white acceleration of density Q, fixes 2–8 s apart with σ = SIGMA."""
+    """Constant-velocity tracks (:func:`constant_velocity`), fixes with σ = SIGMA."""
     rng = np.random.default_rng(seed)
     rows = ["t,name,east,north"]
     for o in range(objects):
-        x = np.array([1e5 * o, rng.uniform(-8, 8), 2e5, rng.uniform(-8, 8)])
-        t = 0.0
-        for _ in range(reports):
+        for t, x in constant_velocity(np.array([1e5 * o, rng.uniform(-8, 8), 2e5, rng.uniform(-8, 8)]), rng, reports):
             z = x[[0, 2]] + rng.normal(0.0, SIGMA, 2)
             rows.append(f"{t:.3f},o{o},{z[0]:.4f},{z[1]:.4f}")
-            dt = rng.uniform(2.0, 8.0)
-            T = Straight(noise_density=Q).transition(dt)
-            x = T.F @ x + rng.multivariate_normal(np.zeros(4), T.process_noise)
-            t += dt
     path.write_text("\n".join(rows) + "\n")
     return path
 
@@ -185,7 +191,7 @@ SPEED_SIGMA, COURSE_SIGMA = 0.3, 3.0  # m/s, degrees: the noise of the reported 
 
 
 def write_tracks_with_course(path, objects=4, reports=150, seed=1):
-    """:func:`write_tracks` with the speed and course over ground reported beside each fix, speeds 5–10 m/s: the
+    """Constant-velocity tracks with the speed and course over ground reported beside each fix, speeds 5–10 m/s: the
     velocity with the velocity sensor's error, σ_s = SPEED_SIGMA m/s in every direction and σ_χ = COURSE_SIGMA
     degrees across the track (``VelocitySensor.simulate``)."""
     from hybridtrack_plugins.sensors.velocity import VelocitySensor
@@ -195,16 +201,12 @@ def write_tracks_with_course(path, objects=4, reports=150, seed=1):
     rows = ["t,name,east,north,sog,cog"]
     for o in range(objects):
         speed, heading = rng.uniform(5.0, 10.0), rng.uniform(0.0, 2 * np.pi)
-        x, t = np.array([1e5 * o, speed * np.sin(heading), 2e5, speed * np.cos(heading)]), 0.0
-        for _ in range(reports):
+        start = np.array([1e5 * o, speed * np.sin(heading), 2e5, speed * np.cos(heading)])
+        for t, x in constant_velocity(start, rng, reports):
             z = x[[0, 2]] + rng.normal(0.0, SIGMA, 2)
             vx, vy = sensor.simulate(x, ("x", "vx", "y", "vy"), rng)
             sog, cog = np.hypot(vx, vy), np.degrees(np.arctan2(vx, vy))
             rows.append(f"{t:.3f},o{o},{z[0]:.4f},{z[1]:.4f},{sog:.4f},{cog % 360.0:.4f}")
-            dt = rng.uniform(2.0, 8.0)
-            T = Straight(noise_density=Q).transition(dt)
-            x = T.F @ x + rng.multivariate_normal(np.zeros(4), T.process_noise)
-            t += dt
     path.write_text("\n".join(rows) + "\n")
     return path
 
