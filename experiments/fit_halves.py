@@ -45,14 +45,14 @@ def starting_values(config: dict) -> dict:
     """The values a fit starts from (the configuration's own), by the fit's parameter names."""
     est = config["estimator"]
     values = {"sigma": config["measurement"]["sigma"], "noise_density": est.get("noise_density")}
-    values |= {name: config["measurement"][name] for name in VELOCITY_NOISE if name in config["measurement"]}
+    values |= {name: config["measurement"][name] for name in VELOCITY_NOISE if config["measurement"].get(name, 0.0) > 0}
     values |= {name: value for name, (_, value) in sojourns(config).items()}
     return values | {name: value for name, (_, _, value) in mode_densities(config).items()}
 
 
 def fits(hand: dict) -> dict:
     """fitted configuration's name → the parameters it holds at the hand-tuned values."""
-    held = [name for name in VELOCITY_NOISE if name in hand["measurement"]]
+    held = [name for name in VELOCITY_NOISE if hand["measurement"].get(name, 0.0) > 0]
     return {"fitted": ()} | ({"fitted_holding_course_speed": tuple(held)} if held else {})
 
 

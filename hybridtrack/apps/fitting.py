@@ -12,7 +12,7 @@ Time Series Models and the Kalman Filter*, §3.4; Bar-Shalom, Li &
 Kirubarajan 2001, §11.6 for the mixture's likelihood).  Fitted, each as its
 logarithm so that it stays positive: the measurement noise σ (``[measurement]
 sigma``, m) and, where the configuration measures the reported course and speed, their σ_s and σ_χ
-(``speed_sigma``, m/s; ``course_sigma``, degrees), the white-acceleration density q (``[estimator] noise_density``,
+(``speed_sigma``, m/s; ``course_sigma``, degrees, where not 0), the white-acceleration density q (``[estimator] noise_density``,
 m²/s³, every mode without its own; started from σ_w²/10 s for a file of the
 per-report ``process_noise``), with more than one mode the mean time in
 each mode (``[estimator] sojourn``, s, one per mode: ``sojourn.<mode>``, :func:`sojourns`), and each mode's own
@@ -198,10 +198,10 @@ def fit_tracks(tracks: Iterable, config: dict, *, hold: Iterable[str] = (), regi
         "sigma": cfg["measurement"]["sigma"],
         "noise_density": est.get("noise_density", est.get("process_noise", 0.1) ** 2 / 10.0),
     }
-    start |= {name: cfg["measurement"][name] for name in VELOCITY_NOISE if name in cfg["measurement"]}
+    start |= {name: cfg["measurement"][name] for name in VELOCITY_NOISE if cfg["measurement"].get(name, 0.0) > 0}  # σ_χ = 0: no course
     start |= {name: value for name, (_, value) in sojourns(cfg).items()}
     start |= {name: value for name, (_, _, value) in mode_densities(cfg, registry).items()}
-    hold = list(dict.fromkeys(hold))
+    hold = list(dict.fromkeys([hold] if isinstance(hold, str) else hold))
     unknown = [name for name in hold if name not in start]
     if unknown:
         raise ConfigError(f"hold {unknown[0]!r}: not a parameter of this configuration; expected some of {', '.join(start)}")
