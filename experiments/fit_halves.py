@@ -35,24 +35,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from real_tracks import ROOT, SHIPS, SOLENT, noisy, run_tracker, score, vessels  # noqa: E402
 
-from hybridtrack.apps.fitting import VELOCITY_NOISE, fit_tracks, mode_densities, sojourns  # noqa: E402
+from hybridtrack.apps.fitting import VELOCITY_NOISE, fit_tracks, starting_values  # noqa: E402
 from hybridtrack.apps.tracking import load_config  # noqa: E402
 
 HALVES = {"A": slice(0, None, 2), "B": slice(1, None, 2)}
 
 
-def starting_values(config: dict) -> dict:
-    """The values a fit starts from (the configuration's own), by the fit's parameter names."""
-    est = config["estimator"]
-    values = {"sigma": config["measurement"]["sigma"], "noise_density": est.get("noise_density")}
-    values |= {name: config["measurement"][name] for name in VELOCITY_NOISE if config["measurement"].get(name, 0.0) > 0}
-    values |= {name: value for name, (_, value) in sojourns(config).items()}
-    return values | {name: value for name, (_, _, value) in mode_densities(config).items()}
-
-
 def fits(hand: dict) -> dict:
     """fitted configuration's name → the parameters it holds at the hand-tuned values."""
-    held = [name for name in VELOCITY_NOISE if hand["measurement"].get(name, 0.0) > 0]
+    held = [name for name in VELOCITY_NOISE if name in starting_values(hand)]
     return {"fitted": ()} | ({"fitted_holding_course_speed": tuple(held)} if held else {})
 
 

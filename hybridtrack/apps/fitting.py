@@ -186,6 +186,16 @@ def fit_config(
     return fit_tracks(chosen, cfg, hold=hold, registry=registry)
 
 
+def starting_values(config: dict, registry=None) -> dict[str, float]:
+    """The parameters a fit of the checked ``config`` estimates (module docstring), by name, each at the value it
+    starts from: the configuration's own."""
+    est, measured = config["estimator"], config["measurement"]
+    start = {"sigma": measured["sigma"], "noise_density": est.get("noise_density", est.get("process_noise", 0.1) ** 2 / 10.0)}
+    start |= {name: measured[name] for name in VELOCITY_NOISE if measured.get(name, 0.0) > 0}  # σ_χ = 0: no course
+    start |= {name: value for name, (_, value) in sojourns(config).items()}
+    return start | {name: value for name, (_, _, value) in mode_densities(config, registry).items()}
+
+
 def fit_tracks(tracks: Iterable, config: dict, *, hold: Iterable[str] = (), registry=None) -> FitResult:
     """:func:`fit_config` on tracks already read (:class:`~hybridtrack.io.track_files.Track` objects, e.g. a
     part of a file's, or tracks with simulated noise) under a checked configuration (:func:`load_config`)."""
@@ -193,14 +203,7 @@ def fit_tracks(tracks: Iterable, config: dict, *, hold: Iterable[str] = (), regi
     _check_fittable(cfg)
     if not chosen:
         raise ConfigError("tracks: no track to fit")
-    est = cfg["estimator"]
-    start = {
-        "sigma": cfg["measurement"]["sigma"],
-        "noise_density": est.get("noise_density", est.get("process_noise", 0.1) ** 2 / 10.0),
-    }
-    start |= {name: cfg["measurement"][name] for name in VELOCITY_NOISE if cfg["measurement"].get(name, 0.0) > 0}  # σ_χ = 0: no course
-    start |= {name: value for name, (_, value) in sojourns(cfg).items()}
-    start |= {name: value for name, (_, _, value) in mode_densities(cfg, registry).items()}
+    start = starting_values(cfg, registry)
     hold = list(dict.fromkeys([hold] if isinstance(hold, str) else hold))
     unknown = [name for name in hold if name not in start]
     if unknown:
