@@ -216,7 +216,9 @@ class Detections:
     ``scan`` (N,) non-decreasing, the scan of each detection (0 … K−1; a scan may hold none); ``times`` (N,) each
     detection's own time stamp (its scan's time for simulated scans), ``times[i] ≤ scan_times[scan[i]]``; ``z``
     (N, m) the measured positions (x, y) or (x, y, z); ``origin`` (N,) the true object of each detection, −1 for
-    clutter (None: unknown; never read by a tracker); ``truth`` the true objects (:class:`Truth`) or None.
+    clutter (None: unknown; never read by a tracker); ``truth`` the true objects (:class:`Truth`) or None;
+    ``velocity`` (N, 2) the velocity (east, north) in m/s each detection reports (an AIS report's course and speed
+    over ground, a Doppler radar's), NaN where a detection reports none, or None for detections of position only.
     """
 
     scan_times: np.ndarray = _floats("scan_times", 1)
@@ -225,9 +227,16 @@ class Detections:
     z: np.ndarray = _floats("z", 2)
     origin: np.ndarray | None = _indices("origin", optional=True)
     truth: Truth | None = attrs.field(default=None)
+    velocity: np.ndarray | None = attrs.field(
+        default=None,
+        kw_only=True,
+        converter=lambda v: None if v is None else as_float_array(v, "velocity", (None, 2), allow_nan=True, readonly=True),
+    )
 
     def __attrs_post_init__(self):
         k, n = self.scan_times.shape[0], self.scan.shape[0]
+        if self.velocity is not None and self.velocity.shape[0] != n:
+            raise ValueError(f"velocity: expected shape ({n}, 2) (one per detection), got {self.velocity.shape}")
         back = np.flatnonzero(np.diff(self.scan_times) <= 0)
         if back.size:
             i = int(back[0])
@@ -268,8 +277,11 @@ class Detections:
                     raise ValueError(f"origin: detection {i} names object {int(self.origin[i])}, which is not in truth.ids")
 
     @classmethod
-    def from_times(cls, times, z, *, scan_window: float | None = None, scan=None, origin=None, truth: Truth | None = None) -> Detections:
-        """Flat detections — time stamps ``times`` (N,), positions ``z`` (N, m), optional ``origin`` (N,) — grouped
+    def from_times(
+        cls, times, z, *, scan_window: float | None = None, scan=None, origin=None, truth: Truth | None = None, velocity=None
+    ) -> Detections:
+        """Flat detections — time stamps ``times`` (N,), positions ``z`` (N, m), optional ``origin`` (N,) and
+        ``velocity`` (N, 2) — grouped
         into scans by the labels ``scan`` (N,) or into windows of ``scan_window`` seconds, exactly one of the two
         (:func:`group_scans`; module docstring); the detections are sorted stably by time, then by scan."""
         times = as_float_array(times, "times", (None,))
@@ -278,6 +290,8 @@ class Detections:
             origin = index_array(origin, "origin")
             if origin.shape != times.shape:
                 raise ValueError(f"origin: expected shape {times.shape} (one per time), got {origin.shape}")
+        if velocity is not None:
+            velocity = as_float_array(velocity, "velocity", (times.size, 2), allow_nan=True)
         grouping = group_scans(times, scan_window=scan_window, scan=scan)
         order = grouping.order
         return cls(
@@ -287,6 +301,7 @@ class Detections:
             z=z[order],
             origin=None if origin is None else origin[order],
             truth=truth,
+            velocity=None if velocity is None else velocity[order],
         )
 
     @property
@@ -332,4 +347,5 @@ class Detections:
             keep = truth.times <= self.scan_times[scans - 1] if scans else np.zeros(truth.size, dtype=bool)
             truth = Truth(truth.times[keep], truth.ids[keep], truth.states[keep], truth.layout)
         origin = None if self.origin is None else self.origin[:n]
-        return Detections(self.scan_times[:scans], self.scan[:n], self.times[:n], self.z[:n], origin, truth)
+        velocity = None if self.velocity is None else self.velocity[:n]
+        return Detections(self.scan_times[:scans], self.scan[:n], self.times[:n], self.z[:n], origin, truth, velocity=velocity)

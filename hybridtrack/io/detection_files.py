@@ -33,6 +33,7 @@ import numpy as np
 from hybridtrack.engine.detections import Detections, group_scans
 from hybridtrack.io.csv_text import checked_path, finite_number, read_csv
 from hybridtrack.io.track_files import (
+    SPEED_UNITS,
     Problem,
     Rows,
     check_origin_option,
@@ -91,6 +92,11 @@ def read_detections(
     scan: str | None = None,
     scan_window: float | None = None,
     truth_id: str | None = None,
+    course: str | None = None,
+    speed: str | None = None,
+    speed_unit: str = "m/s",
+    course_not_available: float | None = None,
+    speed_not_available: float | None = None,
     origin: str | Sequence[float] = "first",
     projection: str = "enu",
     time_unit: str | None = None,
@@ -105,7 +111,11 @@ def read_detections(
     projected to the tangent plane at ``origin``: ``"first"`` the first valid fix, ``"mean"`` the mean of all, or an
     explicit (lat°, lon°[, h m])).  Scans: ``scan`` names a column of scan labels (numbers; the distinct values in
     increasing order are the scans) or ``scan_window`` gives windows of that many seconds — exactly one of the two.
-    ``truth_id``: a column kept as each detection's true object (module docstring).  ``warn``: one warning
+    ``truth_id``: a column kept as each detection's true object (module docstring).  ``course``, ``speed`` (both or
+    neither; ``speed_unit``, ``course_not_available``, ``speed_not_available`` as for
+    :func:`~hybridtrack.io.track_files.read_tracks`): the course over ground (degrees clockwise from north) and
+    speed each detection reports (an AIS report's), kept as :attr:`Detections.velocity` = s (sin χ, cos χ) (east,
+    north, m/s), NaN where either cell is a "not available" code or not a valid number.  ``warn``: one warning
     summarising the problems found (they are in :attr:`DetectionFile.problems` either way).
     """
     frame = is_data_frame(source)
@@ -130,6 +140,12 @@ def read_detections(
         group_scans([0.0], scan_window=scan_window)  # its checks of scan_window, before the file is read
     if (lat is None) != (lon is None):
         raise ValueError(f"lat/lon: give both latitude and longitude column names, got lat={lat!r}, lon={lon!r}")
+    if (course is None) != (speed is None):
+        raise ValueError(
+            f"course/speed: give both the course and the speed column names (or neither), got course={course!r}, speed={speed!r}"
+        )
+    if speed_unit not in SPEED_UNITS:
+        raise ValueError(f"speed_unit: {speed_unit!r}; expected one of {sorted(SPEED_UNITS)}")
     for name, value in (("scan", scan), ("truth_id", truth_id)):
         if value is not None and not isinstance(value, str):
             raise TypeError(f"{name}: expected a column name (str), got {type(value).__name__} ({value!r})")
@@ -138,7 +154,7 @@ def read_detections(
     origin = check_origin_option(origin)
 
     if frame:
-        rows = frame_rows(source, [time, x, y, lat, lon, alt, scan, truth_id])
+        rows = frame_rows(source, [time, x, y, lat, lon, alt, scan, truth_id, course, speed])
         rows = attrs.evolve(rows, hint="expected a DataFrame with one row per detection")
     else:
         rows = Rows(str(source), *read_csv(source, "a CSV file of detections", _HINT), hint=_HINT)
@@ -152,11 +168,11 @@ def read_detections(
         lon=lon,
         alt=alt,
         id=None,
-        course=None,
-        speed=None,
-        speed_unit="m/s",
-        course_not_available=None,
-        speed_not_available=None,
+        course=course,
+        speed=speed,
+        speed_unit=speed_unit,
+        course_not_available=course_not_available,
+        speed_not_available=speed_not_available,
         time_unit=time_unit,
         time_format=time_format,
         extra=extra,
@@ -202,12 +218,18 @@ def read_detections(
         epoch, times = epoch + timedelta(seconds=float(times.min())), times - times.min()
     grouping = group_scans(times, scan_window=scan_window, scan=None if scan is None else np.array(labels))
     order = grouping.order
+    velocity = None
+    if course is not None:
+        values = np.array([[np.nan if v == "n/a" else v for v in (r.course, r.speed)] for r in kept], dtype=np.float64)
+        chi = np.radians(values[:, 0])
+        velocity = (values[:, 1:] * np.column_stack([np.sin(chi), np.cos(chi)]))[order]
     detections = Detections(
         scan_times=grouping.scan_times,
         scan=grouping.scan,
         times=times[order],
         z=positions[order],
         origin=None if truth is None else truth[order],
+        velocity=velocity,
     )
     lines = np.array([r.line for r in kept], dtype=np.int64)[order]
     problems = tuple(sorted(parsed.problems, key=parsed.by_place))

@@ -70,6 +70,27 @@ def test_scan_column_and_truth_id(tmp_path):
     assert [(p.line, p.column, p.kind, p.action) for p in data.problems] == [(5, "who", "missing_id", "flagged")]
 
 
+def test_reported_course_and_speed_are_kept_as_velocity(tmp_path):
+    text = "time,x,y,cog,sog\n0,0,0,90,10\n1,5,0,0,2\n2,9,1,360,3\n3,12,2,45,102.3\n4,15,3,180,\n"
+    data = read(
+        write(tmp_path, text),
+        scan_window=10.0,
+        course="cog",
+        speed="sog",
+        speed_unit="knots",
+        course_not_available=360.0,
+        speed_not_available=102.3,
+    )
+    v = data.detections.velocity
+    knot = 1852.0 / 3600.0
+    np.testing.assert_allclose(v[:2], [[10 * knot, 0.0], [0.0, 2 * knot]], atol=1e-12)  # east, north
+    assert np.isnan(v[2:]).all()  # course n/a, speed n/a, speed empty: no velocity, the position kept
+    assert data.detections.z.shape == (5, 2)
+    assert read(write(tmp_path, text), scan_window=10.0).detections.velocity is None
+    head = data.detections.head(1)
+    np.testing.assert_array_equal(head.velocity, v[:5])
+
+
 def test_csv_and_data_frame_give_the_same_detections(tmp_path):
     path = write(tmp_path, XY)
     frame = pd.read_csv(path, dtype={"who": str})
@@ -156,6 +177,8 @@ def test_lat_lon_projected_as_read_tracks(tmp_path, origin, projection):
         (dict(scan_window=10.0, truth_id="nope"), ValueError, "no column 'nope' in the header"),
         (dict(scan_window=10.0, truth_id=3), TypeError, "truth_id: expected a column name"),
         (dict(scan_window=10.0, format="gpx"), ValueError, "read_detections reads CSV files and DataFrames"),
+        (dict(scan_window=10.0, course="label"), ValueError, "course/speed: give both"),
+        (dict(scan_window=10.0, course="label", speed="y", speed_unit="mph"), ValueError, "speed_unit: 'mph'"),
     ],
 )
 def test_errors(tmp_path, kwargs, error, message):
