@@ -52,7 +52,8 @@ class TrackStatus:
 
     ``status`` TENTATIVE or CONFIRMED; ``score`` L and ``peak`` max L so far; ``hits`` and ``scans`` the
     detections and scans since birth (the initiating one included); ``misses`` the scans in a row without a
-    detection; ``last_hit`` the time (s) of the last detection."""
+    detection; ``last_hit`` the time (s) of the last detection; ``duplicate`` the scans in a row the track was found a
+    duplicate of an older one (:class:`~.tracker.MultiTargetTracker`, ``duplicate_probability``)."""
 
     status: np.ndarray
     score: np.ndarray
@@ -61,6 +62,7 @@ class TrackStatus:
     scans: np.ndarray
     misses: np.ndarray
     last_hit: np.ndarray
+    duplicate: np.ndarray
 
     @classmethod
     def born(cls, count: int, score: float, time: float, hits: int = 1) -> TrackStatus:
@@ -73,6 +75,7 @@ class TrackStatus:
             scans=np.full(count, hits, dtype=np.intp),
             misses=np.zeros(count, dtype=np.intp),
             last_hit=np.full(count, float(time)),
+            duplicate=np.zeros(count, dtype=np.intp),
         )
 
     def __len__(self) -> int:

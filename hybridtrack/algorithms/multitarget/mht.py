@@ -23,7 +23,7 @@ tracker's track score for management (hit ΔL = s_ti + ln(1 − P_D P_G) = ln(P_
 One scan k (the leaves are the rows of one :class:`MultipleModelState`, so that every filter step is one call):
 
 1. **Predict** every leaf (one step without measurement) and gate all leaves against the scan's detections at once
-   (:func:`~.gating.gate`).
+   (:func:`~.gating.gate_checked`, joined by the reported velocity where the tracks measure it: :class:`~.tracker.MultiTargetTracker`).
 2. **Children** (Cox & Hingorani 1996, "An efficient implementation of Reid's MHT algorithm and its evaluation for
    the purpose of visual tracking", IEEE PAMI 18(2)): for each parent Θ_{k−1} the gate restricted to its leaves,
    and per gated cluster its k best assignments (Murty 1968 by :func:`~.assignment.k_best`); the clusters are
@@ -59,7 +59,7 @@ import numpy as np
 
 from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, MultipleModelState
 from hybridtrack.algorithms.multitarget.assignment import k_best
-from hybridtrack.algorithms.multitarget.gating import Gate, clusters, gate
+from hybridtrack.algorithms.multitarget.gating import Gate, clusters
 from hybridtrack.algorithms.multitarget.management import CONFIRMED, TrackStatus
 from hybridtrack.algorithms.multitarget.tracker import (
     MultiTargetResult,
@@ -286,20 +286,19 @@ class MHTTracker(MultiTargetTracker):
         bounds = detections.bounds()
         previous = None
         pos = self._position
+        reported = self._reported_velocity(detections)
         for k, now in enumerate(detections.scan_times.tolist()):
             here = np.arange(bounds[k].start, bounds[k].stop)
             z, t = detections.z[here], detections.times[here]
+            v = None if reported is None else reported[here]
             m = here.size
             used = np.concatenate([used, np.zeros((used.shape[0], m), dtype=bool)], axis=1)
             now_col = bounds[k].start - used_base
             M = 0 if leaves is None else leaves.mean.shape[0]
             if M:
                 dt = now - previous
-                predicted = est.step(leaves, np.full((M, 2), np.nan), dt)
-                zhat = predicted.mean[:, pos]
-                S = predicted.cov[:, pos[:, None], pos[None, :]] + self.R
-                velocity = predicted.mean[:, self._velocity]
-                pairs = gate(zhat, S, z, threshold=self.gamma, velocities=velocity, offsets=t - now)
+                predicted = est.step(leaves, np.full((M, self._measured), np.nan), dt)
+                pairs, measured = self._gate(predicted, z, t, v, now)
                 scores = self._scores(pairs.log_likelihood)
                 parent, score, decision = self._children(assign, score, pairs, scores)
                 # the distinct (parent leaf, detection or miss) of the kept children: the new leaves
@@ -316,9 +315,7 @@ class MHTTracker(MultiTargetTracker):
                 if rows.size:
                     width = max(m, 1)
                     e = np.searchsorted(pairs.track * width + pairs.detection, source[rows] * width + detection[rows])
-                    d = detection[rows]
-                    aligned = z[d] + velocity[source[rows]] * (now - t[d])[:, None]
-                    new = put_rows(new, rows, self._updated(leaves, predicted, source[rows], aligned, dt))
+                    new = put_rows(new, rows, self._updated(leaves, predicted, source[rows], measured[e], dt))
                     gain[rows] = scores[e]  # ΔL = ln(1 − P_D P_G) + s = ln(P_D N / λ)
                 leaves = new
                 status = status.take(source)

@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, MultipleModelState
 from hybridtrack.algorithms.multitarget.assignment import gnn
-from hybridtrack.algorithms.multitarget.gating import gate_checked, gate_threshold
+from hybridtrack.algorithms.multitarget.gating import Gate, gate_checked, gate_threshold
 from hybridtrack.algorithms.multitarget.jpda import jpda
 from hybridtrack.algorithms.multitarget.management import CONFIRMED, MofN, TrackScore, TrackStatus
 from hybridtrack.core.validation import check_positive, check_positive_int
@@ -55,6 +55,14 @@ INITIATIONS = ("two_point", "single_point")
 #: up to this many (detection, seed) pairs the two-point initiation computes every distance (no k-d tree)
 DENSE_SEED_PAIRS = 4096
 _FIELDS = [f.name for f in attrs.fields(MultipleModelState)]
+
+
+def _selects(sensor, layout: Sequence[str], components: tuple[str, str]) -> bool:
+    """Whether ``sensor`` is linear in the state and measures exactly ``components`` of ``layout`` (H a selection)."""
+    if not all(c in layout for c in components):
+        return False
+    H = np.asarray(sensor.jacobian(np.zeros(len(layout)), layout), dtype=float)
+    return bool(np.array_equal(H, np.eye(len(layout))[[layout.index(c) for c in components]]))
 
 
 def take_rows(state: MultipleModelState, rows) -> MultipleModelState:
@@ -141,7 +149,13 @@ class MultiTargetTracker:
     time window, e.g. AIS in 10 s scans: each further round associates the detections left with the updated tracks,
     after a step of :data:`REPEAT_STEP`; 1 for sensors that see each object once per scan); ``seed_window`` (s):
     how long a detection no track took waits for its second point (default: one scan; objects that report every
-    few minutes, moored ships on AIS, need minutes)."""
+    few minutes, moored ships on AIS, need minutes); ``duplicate_probability`` P_dup (None: off): after each scan, of
+    two tracks that both took a detection and whose kinematic states agree, Δᵀ (P_a + P_b)⁻¹ Δ ≤ χ²₄(P_dup) (Δ the
+    difference of their (x, vx, y, vy)), the one started later is a duplicate at that scan, and a track found one in
+    ``duplicate_scans`` scans in a row (the scans it took no detection in do not break the row) is deleted: the
+    duplicate tracks of one object that share its reports when it reports several times per scan, not the tracks
+    of two ships moored side by side, which seldom report in one scan (Bar-Shalom, Willett & Tian 2011, §9.2, the
+    track-to-track test of a common origin, without the cross-covariance)."""
 
     def __init__(
         self,
@@ -158,6 +172,8 @@ class MultiTargetTracker:
         velocity_sigma: float | None = None,
         updates_per_scan: int = 1,
         seed_window: float | None = None,
+        duplicate_probability: float | None = None,
+        duplicate_scans: int = 3,
     ):
         if not isinstance(estimator, MultipleModelEstimator):
             raise TypeError(f"estimator: expected a MultipleModelEstimator (one mode or a bank), got {type(estimator).__name__}")
@@ -165,8 +181,18 @@ class MultiTargetTracker:
         if missing:
             raise ValueError(f"estimator: its layout {estimator.layout} lacks {missing}; tracks need x, vx, y, vy")
         sensors = estimator.network.sensors
-        if len(sensors) != 1 or sensors[0].measurement_dim != 2:
-            raise ValueError(f"estimator: expected one sensor measuring the position (x, y), got {[s.name for s in sensors]}")
+        if (
+            not 1 <= len(sensors) <= 2
+            or any(s.measurement_dim != 2 for s in sensors)
+            or not _selects(sensors[0], layout := estimator.layout, ("x", "y"))
+        ):
+            raise ValueError(
+                f"estimator: expected a sensor measuring the position (x, y), and optionally a second measuring the velocity (vx, vy), got {[s.name for s in sensors]}"
+            )
+        if len(sensors) == 2 and not _selects(sensors[1], layout, ("vx", "vy")):
+            raise ValueError(
+                f"estimator: its second sensor {sensors[1].name!r} must measure the velocity (vx, vy), as a reported course and speed"
+            )
         if association not in ASSOCIATIONS:
             raise ValueError(f"association: expected one of {ASSOCIATIONS}, got {association!r}")
         if initiation not in INITIATIONS:
@@ -177,6 +203,7 @@ class MultiTargetTracker:
             raise ValueError(f"gate_probability: expected P_G in (0, 1), got {gate_probability!r}")
         self.estimator = estimator
         self.sensor = sensors[0]
+        self.velocity_sensor = sensors[1] if len(sensors) == 2 else None
         self.association = association
         self.management = MofN() if management is None else management
         self.detection_probability = float(detection_probability)
@@ -186,6 +213,10 @@ class MultiTargetTracker:
         self.initiation = initiation
         self.updates_per_scan = check_positive_int(updates_per_scan, "updates_per_scan")
         self.seed_window = None if seed_window is None else check_positive(seed_window, "seed_window (s)")
+        if duplicate_probability is not None and not 0.0 < duplicate_probability < 1.0:
+            raise ValueError(f"duplicate_probability: expected a probability in (0, 1) or None, got {duplicate_probability!r}")
+        self.duplicate_probability = duplicate_probability
+        self.duplicate_scans = check_positive_int(duplicate_scans, "duplicate_scans")
         self.max_speed = check_positive(max_speed, "max_speed (m/s)")
         self.velocity_sigma = self.max_speed / 2 if velocity_sigma is None else check_positive(velocity_sigma, "velocity_sigma (m/s)")
         layout = estimator.layout
@@ -194,6 +225,9 @@ class MultiTargetTracker:
         self._kinematic = ("x", "vx", "y", "vy")
         self.R = np.asarray(self.sensor.measurement_noise(np.zeros(2)), dtype=float)
         self.gamma = gate_threshold(self.gate_probability, 2)
+        self._gamma_joint = gate_threshold(self.gate_probability, 4)
+        self._measured = 2 * len(sensors)  # Σm: the columns of z the estimator takes
+        self._log_speed_area = math.log(math.pi * self.max_speed**2)  # −ln of the uniform velocity density of clutter
         self._log_miss = math.log1p(-self.detection_probability * self.gate_probability)
         self._update_only = estimator.method == "imm" or len(estimator.models) == 1
 
@@ -201,9 +235,12 @@ class MultiTargetTracker:
     def _scores(self, loglik: np.ndarray) -> np.ndarray:
         return math.log(self.detection_probability) + loglik - math.log(self.clutter_density) - self._log_miss
 
-    def _start(self, means: np.ndarray, covs: np.ndarray) -> MultipleModelState:
-        """New tracks from (B, 4) means in (x, vx, y, vy) and their covariances, without a measurement."""
-        z = np.full((means.shape[0], 2), np.nan)
+    def _start(self, means: np.ndarray, covs: np.ndarray, velocity: np.ndarray | None = None) -> MultipleModelState:
+        """New tracks from (B, 4) means in (x, vx, y, vy) and their covariances, updated with the reported velocities
+        (B, 2) of their last detection (when the estimator measures velocity; NaN: none), not with a position."""
+        z = np.full((means.shape[0], self._measured), np.nan)
+        if self.velocity_sensor is not None and velocity is not None:
+            z[:, 2:] = velocity
         return self.estimator.start(means, covs, z, prior_layout=self._kinematic)
 
     def _single_point(self, z: np.ndarray, t: np.ndarray, now: float):
@@ -241,8 +278,14 @@ class MultiTargetTracker:
                 covs[:, i + 1, j + 1] = vv * self.R[a, b]
         return means, covs
 
-    def _pair_seeds(self, seeds_z, seeds_t, z, t):
-        """Greedy nearest pairs (previous-scan seed, new detection) within max_speed: (seed rows, detection rows)."""
+    def _pair_seeds(self, seeds_z, seeds_t, z, t, seeds_v=None, v=None):
+        """Greedy nearest pairs (previous-scan seed, new detection) within max_speed: (seed rows, detection rows).
+
+        With the velocities both report (``seeds_v``, ``v``; NaN: none) a pair must also agree with them: the
+        displacement against the trapezoid rule, ν = z₂ − z₁ − (v₁ + v₂) Δt / 2 (exact for a constant
+        acceleration), within the χ²₂(P_G) gate of its covariance 2R + (Δt²/2) R_v(v̄) (R_v the velocity sensor's
+        noise at the mean velocity v̄), and the pairs are taken in the order of that νᵀ S⁻¹ ν instead of the
+        distance: two reports of one moored ship minutes apart pair, a moored ship and its neighbour do not."""
         if seeds_z.shape[0] == 0 or z.shape[0] == 0:
             return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
         slack = 3.0 * math.sqrt(2.0 * float(np.max(np.diag(self.R))))
@@ -259,7 +302,25 @@ class MultiTargetTracker:
         ok = distance <= self.max_speed * (t[rows] - seeds_t[cols]) + slack
         ok &= t[rows] > seeds_t[cols]
         rows, cols, distance = rows[ok], cols[ok], distance[ok]
-        order = np.argsort(distance, kind="stable")
+        if self.velocity_sensor is not None and seeds_v is not None and rows.size:
+            v1, v2 = seeds_v[cols], v[rows]
+            both = np.isfinite(v1).all(axis=1) & np.isfinite(v2).all(axis=1)
+            dt = t[rows] - seeds_t[cols]
+            mean_v = np.where(both[:, None], 0.5 * (v1 + v2), 0.0)
+            nu = z[rows] - seeds_z[cols] - mean_v * dt[:, None]
+            R_v = np.broadcast_to(self.velocity_sensor.measurement_noise(np.zeros(2)), (rows.size, 2, 2))
+            if self.velocity_sensor.noise_depends_on_state:
+                x = np.zeros((rows.size, len(self.estimator.layout)))
+                x[:, self._velocity] = mean_v
+                R_v = R_v + self.velocity_sensor.state_noise(x, self.estimator.layout)
+            S = 2.0 * self.R + 0.5 * dt[:, None, None] ** 2 * R_v
+            d2 = np.einsum("ei,ei->e", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+            ok = ~both | (d2 <= self.gamma)
+            distance = np.where(both, d2, np.inf)[ok]  # velocity-checked pairs first, by d²; the others by distance after
+            rows, cols = rows[ok], cols[ok]
+            order = np.lexsort((np.linalg.norm(z[rows] - seeds_z[cols], axis=1), distance))
+        else:
+            order = np.argsort(distance, kind="stable")
         used_seed, used_det, out_s, out_d = set(), set(), [], []
         for i, j in zip(rows[order].tolist(), cols[order].tolist()):
             if i not in used_det and j not in used_seed:
@@ -279,33 +340,49 @@ class MultiTargetTracker:
         if self.initiation == "single_point":
             if not free.size:
                 return None, free, seeds[:0]
-            birth = self._started(*self._single_point(z[free], t[free], now), np.full(free.size, log_birth), here[free][:, None], now)
+            origin = here[free][:, None]
+            birth = self._started(*self._single_point(z[free], t[free], now), np.full(free.size, log_birth), origin, now, detections)
             return birth, free[:0], seeds[:0]
         if not (seeds.size and free.size):
             return None, free, seeds[:0]
-        s_rows, d_rows = self._pair_seeds(detections.z[seeds], detections.times[seeds], z[free], t[free])
+        reported = None if detections.velocity is None else detections.velocity[seeds]
+        here_v = None if detections.velocity is None else detections.velocity[here][free]
+        s_rows, d_rows = self._pair_seeds(detections.z[seeds], detections.times[seeds], z[free], t[free], reported, here_v)
         if not s_rows.size:
             return None, free, seeds[:0]
         pair = (detections.z[seeds[s_rows]], detections.times[seeds[s_rows]], z[free][d_rows], t[free][d_rows])
         score = log_birth + self._second_point_score(*pair)
-        birth = self._started(*self._two_point(*pair, now), score, np.column_stack([seeds[s_rows], here[free][d_rows]]), now)
-        return birth, np.delete(free, d_rows), seeds[s_rows]
+        origin = np.column_stack([seeds[s_rows], here[free][d_rows]])
+        fresh, status, origin = self._started(*self._two_point(*pair, now), score, origin, now, detections)
+        if self.duplicate_probability is not None and origin.shape[0] > 1:
+            # several reports of one object in the scan pair with its reports of earlier scans: of the new tracks
+            # that agree (class docstring), the best pair is kept, the others' second points are left for it
+            keep = ~self._duplicates(fresh, np.ones(origin.shape[0], dtype=bool))
+            fresh, status, origin, d_rows = take_rows(fresh, keep), status.take(keep), origin[keep], d_rows[keep]
+        return (fresh, status, origin), np.delete(free, d_rows), seeds[s_rows]
 
-    def _started(self, means, covs, score, origin: np.ndarray, now: float):
-        """(state, status, origin) of new tracks: started at (means, covs), tentative with ``score`` (its peak too) and
-        one hit per detection of ``origin`` (B, hits)."""
+    def _started(self, means, covs, score, origin: np.ndarray, now: float, detections: Detections):
+        """(state, status, origin) of new tracks: started at (means, covs) with the velocity their last detection
+        reports, tentative with ``score`` (its peak too) and one hit per detection of ``origin`` (B, hits)."""
         status = TrackStatus.born(origin.shape[0], 0.0, now, origin.shape[1])
         status.score = np.asarray(score, dtype=float)
         status.peak = status.score.copy()
-        return self._start(means, covs), status, origin
+        velocity = None if detections.velocity is None else detections.velocity[origin[:, -1]]
+        return self._start(means, covs, velocity), status, origin
 
     def _explained(self, state: MultipleModelState, z: np.ndarray, t: np.ndarray, now: float) -> np.ndarray:
-        """(B,) whether each waiting seed (z at t) lies within the χ² gate of some track's position retrodicted to t,
-        x̂ − v̂ (t_k − t), with S = P_pos + R grown by (max_speed/10)² (t_k − t)² per axis for the velocity's error: an
-        earlier report of an object already tracked, not the first point of a new one."""
-        position, velocity = state.mean[:, self._position], state.mean[:, self._velocity]
-        P = state.cov[:, self._position[:, None], self._position[None, :]] + self.R
-        reach = math.sqrt(self.gamma * float(np.max(np.linalg.eigvalsh(P)))) + self.max_speed * float(np.max(now - t))
+        """(B,) whether each waiting seed (z at t) lies within the χ² gate of some track's position retrodicted to t:
+        with lag δ = t_k − t, x̂ − v̂ δ and S = P_pp − δ (P_pv + P_vp) + δ² P_vv + R (the linear map of the track's
+        (x, v) to its position δ earlier; the process noise over δ left out): an earlier report of an object
+        already tracked, not the first point of a new one."""
+        pos, vel = self._position, self._velocity
+        position, velocity = state.mean[:, pos], state.mean[:, vel]
+        P = state.cov
+        P_pp, P_pv, P_vv = P[:, pos[:, None], pos[None, :]], P[:, pos[:, None], vel[None, :]], P[:, vel[:, None], vel[None, :]]
+        lag_max = float(np.max(now - t))
+        bound = P_pp + lag_max * np.abs(P_pv + np.swapaxes(P_pv, 1, 2)) + lag_max**2 * P_vv + self.R
+        speed = float(np.max(np.linalg.norm(velocity, axis=1)))
+        reach = math.sqrt(self.gamma * float(np.max(np.linalg.eigvalsh(bound)))) * 2.0 + speed * lag_max
         near = cKDTree(position).query_ball_point(z, reach)
         out = np.zeros(z.shape[0], dtype=bool)
         for i, tracks in enumerate(near):
@@ -313,7 +390,8 @@ class MultiTargetTracker:
                 continue
             lag = now - t[i]
             nu = z[i] - (position[tracks] - velocity[tracks] * lag)
-            S = P[tracks] + (0.1 * self.max_speed * lag) ** 2 * np.eye(2)
+            cross = P_pv[tracks] + np.swapaxes(P_pv[tracks], 1, 2)
+            S = P_pp[tracks] - lag * cross + lag**2 * P_vv[tracks] + self.R
             d2 = np.einsum("ti,ti->t", nu, np.linalg.solve(S, nu[..., None])[..., 0])
             out[i] = bool((d2 <= self.gamma).any())
         return out
@@ -336,22 +414,63 @@ class MultiTargetTracker:
             return self.estimator.update(take_rows(predicted, rows), z)
         return self.estimator.step(take_rows(state, rows), z, dt)
 
-    def _associate(self, state, predicted, dt, z, t, now, *, first: bool):
-        """One association round of detections z (N, 2) at times t with the tracks ``predicted`` to ``now``; the
-        updates start from ``state`` over ``dt``.  Returns (new state, took (T,), ΔL (T,) beyond the miss term,
-        picked (T,) the detection each track took (its most probable one for JPDA; −1 none), taken (N,) the
-        detections used)."""
-        T = predicted.mean.shape[0]
+    def _gate(self, predicted: MultipleModelState, z: np.ndarray, t: np.ndarray, v: np.ndarray | None, now: float):
+        """The gated pairs of the tracks ``predicted`` to ``now`` and the detections z (N, 2) at times t, with the
+        measurement each pair's update takes (E, Σm): the detection aligned to ``now`` along the track, and the
+        velocity it reports (v (N, 2), NaN: none) when the estimator measures velocity.
+
+        With a reported velocity the gate and the likelihood are those of the joint (position, velocity) innovation,
+        factored as p(z) p(v | z): for track t with predicted x̂, P (the mixture's moments for an IMM),
+        S_p = P_pp + R, K = P_vp S_p⁻¹, v̄ = v̂ + K ν_p, S_v = P_vv − K P_pv + R_v(x̂) (R_v the velocity sensor's
+        noise at x̂), d² = ν_pᵀ S_p⁻¹ ν_p + (v − v̄)ᵀ S_v⁻¹ (v − v̄) ≤ χ²₄(P_G), and ln N(z, v) gains
+        ln N(v; v̄, S_v) + ln(π v_max²): against a clutter (or new) detection whose velocity is uniform over the
+        disc of ``max_speed`` (Bar-Shalom, Willett & Tian 2011, §6.2, the measurement vector extended by the
+        range-rate / velocity; Anderson & Moore 1979, §2.3, the conditional Gaussian).  Without one, the
+        position's χ²₂(P_G) gate alone."""
         zhat = predicted.mean[:, self._position]
         S = predicted.cov[:, self._position[:, None], self._position[None, :]] + self.R
         velocity = predicted.mean[:, self._velocity]
-        pairs = gate_checked(zhat, S, z, self.gamma, velocity, t - now)
+        joint = self.velocity_sensor is not None
+        pairs = gate_checked(zhat, S, z, self._gamma_joint if joint else self.gamma, velocity, t - now)
+        track, detection = pairs.track, pairs.detection
+        aligned = z[detection] + velocity[track] * (now - t[detection])[:, None]
+        if not joint:
+            return pairs, aligned
+        reported = v[detection]
+        P = predicted.cov[track]
+        pos, vel = self._position, self._velocity
+        S_p = S[track]
+        P_vp = P[:, vel[:, None], pos[None, :]]
+        K = np.linalg.solve(S_p, np.swapaxes(P_vp, 1, 2)).swapaxes(1, 2)  # P_vp S_p⁻¹ (S_p symmetric)
+        nu = aligned - zhat[track]
+        expected = velocity[track] + np.einsum("eij,ej->ei", K, nu)
+        R_v = np.broadcast_to(self.velocity_sensor.measurement_noise(np.zeros(2)), P_vp.shape)
+        if self.velocity_sensor.noise_depends_on_state:
+            R_v = R_v + self.velocity_sensor.state_noise(predicted.mean[track], self.estimator.layout)
+        S_v = P[:, vel[:, None], vel[None, :]] - np.einsum("eij,ekj->eik", K, P_vp) + R_v
+        L = np.linalg.cholesky(S_v)
+        w = np.linalg.solve(L, np.nan_to_num(reported - expected)[..., None])[..., 0]
+        d2_v = np.sum(w * w, axis=1)
+        log_v = -0.5 * d2_v - np.log(L[:, 0, 0] * L[:, 1, 1]) - math.log(2 * math.pi) + self._log_speed_area
+        measured = np.isfinite(reported).all(axis=1)
+        d2 = pairs.d2 + np.where(measured, d2_v, 0.0)
+        keep = np.where(measured, d2 <= self._gamma_joint, pairs.d2 <= self.gamma)
+        loglik = pairs.log_likelihood + np.where(measured, log_v, 0.0)
+        gate = Gate(pairs.tracks, pairs.detections, track[keep], detection[keep], d2[keep], loglik[keep])
+        return gate, np.column_stack([aligned, reported])[keep]
+
+    def _associate(self, state, predicted, dt, z, t, v, now, *, first: bool):
+        """One association round of detections z (N, 2) at times t (reported velocities v (N, 2) or None) with the
+        tracks ``predicted`` to ``now``; the updates start from ``state`` over ``dt``.  Returns (new state, took
+        (T,), ΔL (T,) beyond the miss term, picked (T,) the detection each track took (its most probable one for
+        JPDA; −1 none), taken (N,) the detections used)."""
+        T = predicted.mean.shape[0]
+        pairs, aligned = self._gate(predicted, z, t, v, now)
         scores = self._scores(pairs.log_likelihood)
         miss = None if first else np.full(T, -self._log_miss)  # a further report: "took it" against "it is not the track's"
         # ΔL of a hit beyond the miss term ln(1 − P_D P_G) already counted: s (so ΔL = ln(P_D N / λ)); a further
         # report of the scan has no miss term of its own: s + ln(1 − P_D P_G) = ln(P_D N / λ)
         further = 0.0 if first else self._log_miss
-        aligned = z[pairs.detection] + velocity[pairs.track] * (now - t[pairs.detection])[:, None]
         if self.association == "gnn":
             assigned = gnn(pairs, scores, miss_scores=miss)
             took = assigned >= 0
@@ -385,6 +504,42 @@ class MultiTargetTracker:
         np.add.at(share, pairs.detection, beta)
         return new, took, gain, np.where(took, picked, -1), share >= 0.5
 
+    def _duplicates(self, state: MultipleModelState, candidates: np.ndarray) -> np.ndarray:
+        """(T,) the tracks to delete as duplicates: of each pair of ``candidates`` whose kinematic states agree within
+        χ²₄(``duplicate_probability``) (class docstring), the later-started row (rows are in the order tracks started)."""
+        T = candidates.size
+        out = np.zeros(T, dtype=bool)
+        rows = np.flatnonzero(candidates)
+        if rows.size < 2:
+            return out
+        kinematic = np.array([self.estimator.layout.index(c) for c in self._kinematic])
+        x = state.mean[rows][:, kinematic]
+        P = state.cov[rows][:, kinematic[:, None], kinematic[None, :]]
+        gamma = gate_threshold(self.duplicate_probability, 4)
+        largest = float(np.max(np.linalg.eigvalsh(P[:, [0, 2]][:, :, [0, 2]])))
+        pairs = cKDTree(x[:, [0, 2]]).query_pairs(math.sqrt(2.0 * gamma * largest), output_type="ndarray")
+        if not pairs.size:
+            return out
+        a, b = pairs.min(axis=1), pairs.max(axis=1)
+        delta = x[a] - x[b]
+        d2 = np.einsum("ei,ei->e", delta, np.linalg.solve(P[a] + P[b], delta[..., None])[..., 0])
+        for i, j in zip(a[d2 <= gamma].tolist(), b[d2 <= gamma].tolist()):
+            if not out[rows[i]]:  # a track already deleted deletes no other
+                out[rows[j]] = True
+        return out
+
+    def _reported_velocity(self, detections: Detections) -> np.ndarray | None:
+        """The velocities (N, 2) the detections report when the estimator measures velocity (a ValueError when it does
+        and they report none); None when it does not (the tracks then use the positions alone)."""
+        if self.velocity_sensor is None:
+            return None
+        if detections.velocity is None:
+            raise ValueError(
+                f"detections: the estimator's sensor {self.velocity_sensor.name!r} measures the velocity, the detections report none"
+                " (give Detections velocity, e.g. [reader] course and speed; or leave the velocity sensor out)"
+            )
+        return detections.velocity
+
     # ------------------------------------------------------------------ the run
     def run(self, detections: Detections) -> MultiTargetResult:
         """All scans of ``detections``, in order (module docstring)."""
@@ -392,6 +547,7 @@ class MultiTargetTracker:
             raise TypeError(f"detections: expected a Detections (scans of unlabelled detections), got {type(detections).__name__}")
         if detections.measurement_dim != 2:
             raise ValueError(f"detections: expected (x, y) positions, got {detections.measurement_dim} components")
+        reported = self._reported_velocity(detections)
         est = self.estimator
         state: MultipleModelState | None = None
         status = TrackStatus.born(0, 0.0, 0.0)
@@ -408,6 +564,7 @@ class MultiTargetTracker:
         for k, now in enumerate(detections.scan_times.tolist()):
             here = np.arange(bounds[k].start, bounds[k].stop)
             z, t = detections.z[here], detections.times[here]
+            v = None if reported is None else reported[here]
             used = np.zeros(here.size, dtype=bool)
             T = ids.size
             if T:
@@ -418,14 +575,16 @@ class MultiTargetTracker:
                 for round_ in range(self.updates_per_scan):
                     free = np.flatnonzero(~used)
                     if round_ == 0:
-                        predicted, step = est.step(state, np.full((T, 2), np.nan), dt), dt
+                        predicted, step = est.step(state, np.full((T, self._measured), np.nan), dt), dt
                         if not free.size:
                             state = predicted
                     else:  # a further report of the scan: an update after a step of REPEAT_STEP
                         predicted, step = state, REPEAT_STEP
                     if not free.size:
                         break
-                    state, took_now, gain, picked, taken = self._associate(state, predicted, step, z[free], t[free], now, first=round_ == 0)
+                    state, took_now, gain, picked, taken = self._associate(
+                        state, predicted, step, z[free], t[free], None if v is None else v[free], now, first=round_ == 0
+                    )
                     if round_ and not took_now.any():
                         break
                     taken_pairs.append((ids[took_now], here[free[picked[took_now]]]))
@@ -440,6 +599,10 @@ class MultiTargetTracker:
                         took[track].append(int(detection))
                 for track in ids[confirm].tolist():
                     confirmed_at[track] = now
+                if self.duplicate_probability is not None:
+                    found = self._duplicates(state, hit & ~delete)
+                    status.duplicate = np.where(found, status.duplicate + 1, np.where(hit, 0, status.duplicate))
+                    delete |= status.duplicate >= self.duplicate_scans
                 for track in ids[delete & (status.status == CONFIRMED)].tolist():
                     deleted_at[track] = now
                 keep = ~delete
@@ -468,7 +631,9 @@ class MultiTargetTracker:
                 for _ in range(self.updates_per_scan - 1):  # the scan's further reports of the new objects
                     if not free.size:
                         break
-                    fresh, took_now, gain, picked, taken = self._associate(fresh, fresh, REPEAT_STEP, z[free], t[free], now, first=False)
+                    fresh, took_now, gain, picked, taken = self._associate(
+                        fresh, fresh, REPEAT_STEP, z[free], t[free], None if v is None else v[free], now, first=False
+                    )
                     if not took_now.any():
                         break
                     for track, detection in zip(new_ids[took_now].tolist(), here[free[picked[took_now]]].tolist()):
