@@ -26,4 +26,6 @@ ASSOCIATION_DEFAULTS = {
     "track_loss_probability": 0.1,
     "deletion_drop": None,
     "max_coast": None,
+    "duplicate_probability": None,
+    "duplicate_scans": 3,
 }

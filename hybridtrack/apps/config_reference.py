@@ -508,6 +508,13 @@ def _association() -> dict[str, Entry]:
             "number > 0", "score: a confirmed track is deleted when its score falls this far below its maximum", absent="T_c − T_d"
         ),
         "max_coast": Entry("number, s > 0", "either rule: a track without a detection for this long is deleted", absent="none"),
+        "duplicate_probability": Entry(
+            "number in (0, 1)",
+            "gnn / jpda: of two tracks that both took a detection and whose (x, vx, y, vy) agree within χ²₄ at this"
+            " probability, the later-started is a duplicate (one object's reports shared by two tracks)",
+            absent="off",
+        ),
+        "duplicate_scans": Entry("integer ≥ 1", "a track found a duplicate in this many scans in a row is deleted", d("duplicate_scans")),
     }
 
 

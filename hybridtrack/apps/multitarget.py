@@ -44,8 +44,9 @@ MANAGEMENTS = ("m_of_n", "score")
 #: ``[association] method``: the tracker's associations and multiple hypothesis tracking
 METHODS = (*ASSOCIATIONS, "mht")
 MOTIONS = ("cv", "modes")
-#: ``[reader]`` keys that make no sense without identities (a labelled file's; ``[association]`` decides identities)
-_LABELLED_ONLY = ("id", "course", "speed", "speed_unit", "course_not_available", "speed_not_available")
+#: ``[reader]`` keys of the reported course and speed: with ``[measurement] speed_sigma``/``course_sigma`` the tracks
+#: measure the velocity each detection reports (its gate, its update, a new track's start)
+_VELOCITY_KEYS = ("course", "speed", "speed_unit", "course_not_available", "speed_not_available")
 
 
 def association_settings(config: dict, where: str = "config") -> dict:
@@ -76,28 +77,37 @@ def association_settings(config: dict, where: str = "config") -> dict:
             isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0)
         ):
             raise ConfigError(f"{where}: [association] {key} = {value!r}; expected a positive number")
-    for key in ("detection_probability", "gate_probability", "false_track_probability", "track_loss_probability"):
+    for key in ("detection_probability", "gate_probability", "false_track_probability", "track_loss_probability", "duplicate_probability"):
         value = out[key]
+        if key == "duplicate_probability" and value is None:
+            continue
         if (
             isinstance(value, bool)
             or not isinstance(value, (int, float))
             or not 0 < value <= (1 if key == "detection_probability" else 0.999999)
         ):
             raise ConfigError(f"{where}: [association] {key} = {value!r}; expected a probability in (0, 1)")
-    for key in ("confirm_hits", "confirm_scans", "delete_misses", "updates_per_scan", "hypotheses", "mht_scans"):
+    for key in ("confirm_hits", "confirm_scans", "delete_misses", "updates_per_scan", "hypotheses", "mht_scans", "duplicate_scans"):
         if isinstance(out[key], bool) or not isinstance(out[key], int) or out[key] < 1:
             raise ConfigError(f"{where}: [association] {key} = {out[key]!r}; expected a positive integer")
     reader = config["reader"]
-    given = [key for key in _LABELLED_ONLY if reader.get(key) not in (None, "m/s")]
-    if given:
+    if reader.get("id") is not None:
         raise ConfigError(
-            f"{where}: [reader] {given[0]} = {reader[given[0]]!r} with [association]: unlabelled detections have no {given[0]} column "
+            f"{where}: [reader] id = {reader['id']!r} with [association]: unlabelled detections have no id column "
             "(the association decides identities); leave it (or the preset) out of [reader]"
+        )
+    given = [key for key in _VELOCITY_KEYS[:2] if reader.get(key) is not None]
+    if given and "speed_sigma" not in config["measurement"]:
+        raise ConfigError(
+            f"{where}: [reader] {given[0]} = {reader[given[0]]!r} with [association]: the reported course and speed are measured only"
+            " with [measurement] speed_sigma (m/s) and course_sigma (degrees); give them, or leave course and speed out of [reader]"
         )
     if out["max_speed"] is None:
         out["max_speed"] = float(config["speed_limit"]["max_speed"])
-    if "speed_sigma" in config["measurement"]:
-        raise ConfigError(f"{where}: [measurement] speed_sigma/course_sigma with [association]: detections carry no course or speed")
+    if out["method"] == "mht" and out["duplicate_probability"] is not None:
+        raise ConfigError(
+            f"{where}: [association] duplicate_probability is for method = 'gnn' or 'jpda'; MHT keeps no duplicate tracks of its own"
+        )
     return out
 
 
@@ -118,7 +128,7 @@ def build_multitarget(config: dict, settings: dict, registry=None, built=None) -
         density = settings["noise_density"] or est.get("noise_density")
         noise = {"noise_density": density} if density is not None else {"noise_cov": est["process_noise"] ** 2 * np.eye(2)}
         straight = resolve("motion_model", ("straight", noise), registry)
-        per_track = MultipleModelEstimator([straight], [[1.0]], sensors=estimator.network.sensors[:1], name="cv", registry=registry)
+        per_track = MultipleModelEstimator([straight], [[1.0]], sensors=estimator.network.sensors, name="cv", registry=registry)
     if settings["management"] == "m_of_n":
         management = MofN(settings["confirm_hits"], settings["confirm_scans"], settings["delete_misses"], settings["max_coast"])
     else:
@@ -141,9 +151,19 @@ def build_multitarget(config: dict, settings: dict, registry=None, built=None) -
             velocity_sigma=settings["velocity_sigma"],
             updates_per_scan=settings["updates_per_scan"],
             seed_window=settings["seed_window"],
+            **({} if mht else {"duplicate_probability": settings["duplicate_probability"], "duplicate_scans": settings["duplicate_scans"]}),
         )
     except (TypeError, ValueError) as error:
         raise ConfigError(f"[association]: {error}") from None
+
+
+def reported_course_speed(velocity, rows) -> dict:
+    """``course`` (degrees clockwise from north, in [0, 360)) and ``speed`` (m/s) of the reported velocities
+    (east, north) at ``rows``, for a :class:`~hybridtrack.io.track_files.Track` (None without velocities)."""
+    if velocity is None:
+        return {"course": None, "speed": None}
+    v = velocity[rows]
+    return {"course": np.degrees(np.arctan2(v[:, 0], v[:, 1])) % 360.0, "speed": np.hypot(v[:, 0], v[:, 1])}
 
 
 def _reader_options(config: dict, settings: dict) -> dict:
@@ -210,8 +230,7 @@ def track_detections(path, config, out, *, registry=None, smooth: bool = False, 
             times=detections.times[history.detections],
             positions=detections.z[history.detections],
             lines=lines[history.detections],
-            course=None,
-            speed=None,
+            **reported_course_speed(detections.velocity, history.detections),
         )
         for history in result.tracks
     ]
