@@ -110,3 +110,22 @@ def test_score_management_confirms_and_bad_input_is_named():
         MultiTargetTracker("kalman")
     with pytest.raises(TypeError, match="Detections"):
         MultiTargetTracker(_estimator()).run(z)
+
+
+def test_time_stamp_jitter_widens_the_gate_along_the_track():
+    """A 155 m/s target whose reports carry a 3 s time-stamp error (≈ 465 m along the track, 5 m across): with the
+    position sensor's time_jitter the gate, the start and the update use R + σ_t² v vᵀ and one track takes every
+    report; with R alone the track is lost after its first reports."""
+    rng = np.random.default_rng(5)
+    t = np.arange(60) * 5.0
+    v = np.array([150.0, 40.0])
+    z = np.outer(t, v) + v * (3.0 * rng.standard_normal((t.size, 1))) + 5.0 * rng.standard_normal((t.size, 2))
+    detections = Detections.from_times(t, z, scan=np.arange(t.size))
+    found = {}
+    for jitter in (0.0, 3.0):
+        sensor = resolve("sensor", ("position", {"noise_cov": 25.0 * np.eye(2), "time_jitter": jitter}))
+        estimator = MultipleModelEstimator([("straight", {"noise_density": 0.1})], [[1.0]], sensors=[sensor])
+        tracker = MultiTargetTracker(estimator, clutter_density=1e-9, management=MofN(3, 4, 3), max_speed=300.0)
+        found[jitter] = [h.detections.size for h in tracker.run(detections).tracks]
+    assert found[3.0] == [t.size]
+    assert max(found[0.0], default=0) < t.size // 2

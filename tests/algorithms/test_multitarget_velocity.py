@@ -127,3 +127,63 @@ def test_bad_velocity_input_is_named():
         Detections(np.array([0.0]), np.zeros(4, dtype=int), np.zeros(4), np.zeros((4, 2)), velocity=np.zeros((3, 2)))
     with pytest.raises(ValueError, match="velocity"):
         Detections.from_times(np.zeros(4), np.zeros((4, 2)), scan_window=1.0, velocity=np.zeros((4, 3)))
+
+
+def test_a_quiet_moored_ship_beside_a_busy_one_gets_its_own_track():
+    """Ship A moored, reporting every 6 s (some scans two reports); ship B moored 100 m away, reporting every 180 s,
+    both at speed 0, tracked by the IMM of straight motion and stop.  B's reports wait minutes for their second
+    point; A's track, whose velocity the stop mode leaves uncertain after a scan's second report, retrodicted minutes
+    back along that velocity would explain them away (B then starts late, in pieces); retrodicted along the velocity
+    both report, B's reports are 100 m from A's and B gets one track with all of them."""
+    rng = np.random.default_rng(7)
+    t_a = np.arange(0.0, 1800.0, 6.0) + 1.0
+    t_b = np.arange(0.0, 1800.0, 180.0) + 7.0
+    z = np.vstack([np.tile([1000.0, 1000.0], (t_a.size, 1)), np.tile([1100.0, 1000.0], (t_b.size, 1))])
+    z = z + 2.0 * rng.standard_normal(z.shape)
+    times = np.concatenate([t_a, t_b])
+    detections = Detections.from_times(times, z, scan_window=10.0, velocity=np.zeros((times.size, 2)))
+    sensors = [
+        resolve("sensor", ("position", {"noise_cov": SIGMA**2 * np.eye(2)})),
+        resolve("sensor", ("velocity", {"speed_sigma": 0.5, "course_sigma": np.radians(10.0)})),
+    ]
+    models = [("straight", {"noise_density": 0.001}), ("stop", {"noise_density": 0.01})]
+    estimator = MultipleModelEstimator(models, sojourn=[120.0, 3600.0], sensors=sensors)
+    tracker = MultiTargetTracker(
+        estimator,
+        clutter_density=1e-9,
+        detection_probability=0.5,
+        management=MofN(2, 30, 60, max_coast=600.0),
+        seed_window=600.0,
+        updates_per_scan=2,
+        duplicate_probability=0.9,
+    )
+    result = tracker.run(detections)
+    assert len(result.tracks) == 2
+    b = min(result.tracks, key=lambda h: h.detections.size)
+    assert np.all(np.abs(detections.z[b.detections, 0] - 1100.0) < 10.0)
+    assert b.detections.size == t_b.size
+
+
+def test_a_ship_heard_again_after_a_silence_gets_its_id_back():
+    """One ship at 5 m/s east, silent for 900 s (its track deleted after max_coast = 300 s), then heard again where it
+    should be: with reacquire_window its new track takes the old id (one track, every report); without, two tracks.
+    A second ship 20 km away, reporting all the while, keeps an id of its own."""
+    rng = np.random.default_rng(8)
+    t = np.concatenate([np.arange(0.0, 300.0, 10.0), np.arange(1200.0, 1500.0, 10.0)])
+    truth = np.column_stack([5.0 * t, np.zeros_like(t)])
+    other_t = np.arange(5.0, 1500.0, 10.0)
+    other = np.column_stack([np.full(other_t.size, 20_000.0), -3.0 * other_t])
+    times = np.concatenate([t, other_t])
+    z = np.vstack([truth, other]) + SIGMA * rng.standard_normal((times.size, 2))
+    v = np.vstack([np.tile([5.0, 0.0], (t.size, 1)), np.tile([0.0, -3.0], (other_t.size, 1))]) + 0.3 * rng.standard_normal((times.size, 2))
+    detections = Detections.from_times(times, z, scan_window=10.0, velocity=v)
+    options = dict(clutter_density=1e-9, management=MofN(2, 4, 30, max_coast=300.0), max_speed=30.0)
+    apart = MultiTargetTracker(_estimator(), **options).run(detections)
+    assert len(apart.tracks) == 3
+    joined = MultiTargetTracker(_estimator(), **options, reacquire_window=3600.0).run(detections)
+    assert len(joined.tracks) == 2
+    first = min(joined.tracks, key=lambda h: h.id)
+    assert first.deleted is None and first.detections.size >= t.size - 4  # the two start points of the second part
+    assert np.all(detections.z[first.detections, 0] < 10_000.0)
+    with pytest.raises(ValueError, match="reacquire_window"):
+        MultiTargetTracker(_estimator(), reacquire_window=-1.0)

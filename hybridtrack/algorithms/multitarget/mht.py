@@ -414,7 +414,7 @@ class MHTTracker(MultiTargetTracker):
                     seeds = seeds[detections.times[seeds] >= now - self.seed_window]
                     best = assign[0][assign[0] >= 0]
                     if seeds.size and best.size:
-                        seeds = seeds[~self._explained(take_rows(leaves, best), detections.z[seeds], detections.times[seeds], now)]
+                        seeds = seeds[~self._explained(take_rows(leaves, best), now, *self._seed_points(detections, seeds))]
                     seeds = np.concatenate([seeds, here[free]])
             # the detections a later scan may ask about: the seeds' and on
             base = int(seeds.min()) if seeds.size else bounds[k].stop

@@ -43,7 +43,7 @@ from hybridtrack.algorithms.multiple_model import MultipleModelEstimator, Multip
 from hybridtrack.algorithms.multitarget.assignment import gnn
 from hybridtrack.algorithms.multitarget.gating import Gate, gate_checked, gate_threshold
 from hybridtrack.algorithms.multitarget.jpda import jpda
-from hybridtrack.algorithms.multitarget.management import CONFIRMED, MofN, TrackScore, TrackStatus
+from hybridtrack.algorithms.multitarget.management import CONFIRMED, TENTATIVE, MofN, TrackScore, TrackStatus
 from hybridtrack.core.validation import check_positive, check_positive_int
 from hybridtrack.engine.detections import Detections
 from hybridtrack.engine.mixing import merge_groups
@@ -155,7 +155,9 @@ class MultiTargetTracker:
     ``duplicate_scans`` scans in a row (the scans it took no detection in do not break the row) is deleted: the
     duplicate tracks of one object that share its reports when it reports several times per scan, not the tracks
     of two ships moored side by side, which seldom report in one scan (Bar-Shalom, Willett & Tian 2011, §9.2, the
-    track-to-track test of a common origin, without the cross-covariance)."""
+    track-to-track test of a common origin, without the cross-covariance; a tentative track found one is deleted at
+    once); ``reacquire_window`` (s, None: off): a confirmed track deleted that long ago or less gives its id to a
+    newly confirmed track whose state agrees with its own predicted over the gap (:meth:`_reacquire`)."""
 
     def __init__(
         self,
@@ -174,6 +176,7 @@ class MultiTargetTracker:
         seed_window: float | None = None,
         duplicate_probability: float | None = None,
         duplicate_scans: int = 3,
+        reacquire_window: float | None = None,
     ):
         if not isinstance(estimator, MultipleModelEstimator):
             raise TypeError(f"estimator: expected a MultipleModelEstimator (one mode or a bank), got {type(estimator).__name__}")
@@ -217,6 +220,7 @@ class MultiTargetTracker:
             raise ValueError(f"duplicate_probability: expected a probability in (0, 1) or None, got {duplicate_probability!r}")
         self.duplicate_probability = duplicate_probability
         self.duplicate_scans = check_positive_int(duplicate_scans, "duplicate_scans")
+        self.reacquire_window = None if reacquire_window is None else check_positive(reacquire_window, "reacquire_window (s)")
         self.max_speed = check_positive(max_speed, "max_speed (m/s)")
         self.velocity_sigma = self.max_speed / 2 if velocity_sigma is None else check_positive(velocity_sigma, "velocity_sigma (m/s)")
         layout = estimator.layout
@@ -234,6 +238,17 @@ class MultiTargetTracker:
     # ------------------------------------------------------------------ pieces
     def _scores(self, loglik: np.ndarray) -> np.ndarray:
         return math.log(self.detection_probability) + loglik - math.log(self.clutter_density) - self._log_miss
+
+    def _position_noise(self, velocity: np.ndarray) -> np.ndarray:
+        """(B, 2, 2) the position sensor's R at the velocities (B, 2): R + σ_t² v vᵀ with a time-stamp jitter σ_t
+        (``PositionSensor(time_jitter=…)``: AIS positions are fixes to metres, the time they are stamped with is not),
+        R alone otherwise."""
+        R = np.broadcast_to(self.R, (velocity.shape[0], 2, 2))
+        if not self.sensor.noise_depends_on_state:
+            return R
+        x = np.zeros((velocity.shape[0], len(self.estimator.layout)))
+        x[:, self._velocity] = np.nan_to_num(velocity)
+        return R + self.sensor.state_noise(x, self.estimator.layout)
 
     def _start(self, means: np.ndarray, covs: np.ndarray, velocity: np.ndarray | None = None) -> MultipleModelState:
         """New tracks from (B, 4) means in (x, vx, y, vy) and their covariances, updated with the reported velocities
@@ -260,7 +275,7 @@ class MultiTargetTracker:
 
     def _two_point(self, z1, t1, z2, t2, now: float):
         """Tracks from detection pairs: v = (z₂ − z₁)/(t₂ − t₁), position z₂ + v (t_k − t₂), with the covariance of
-        that linear map of the two detections (each with R)."""
+        that linear map of the two detections (each with R at v: with a time-stamp jitter, R + σ_t² v vᵀ)."""
         dt = t2 - t1
         delta = now - t2
         v = (z2 - z1) / dt[:, None]
@@ -270,12 +285,13 @@ class MultiTargetTracker:
         means = np.column_stack([p[:, 0], v[:, 0], p[:, 1], v[:, 1]])
         covs = np.zeros((z1.shape[0], 4, 4))
         pp, pv, vv = a1**2 + a2**2, a1 * b1 + a2 * b2, b1**2 + b2**2
+        R = self._position_noise(v)
         for a in range(2):
             for b in range(2):
                 i, j = 2 * a, 2 * b
-                covs[:, i, j] = pp * self.R[a, b]
-                covs[:, i, j + 1] = covs[:, j + 1, i] = pv * self.R[a, b]
-                covs[:, i + 1, j + 1] = vv * self.R[a, b]
+                covs[:, i, j] = pp * R[:, a, b]
+                covs[:, i, j + 1] = covs[:, j + 1, i] = pv * R[:, a, b]
+                covs[:, i + 1, j + 1] = vv * R[:, a, b]
         return means, covs
 
     def _pair_seeds(self, seeds_z, seeds_t, z, t, seeds_v=None, v=None):
@@ -313,7 +329,7 @@ class MultiTargetTracker:
                 x = np.zeros((rows.size, len(self.estimator.layout)))
                 x[:, self._velocity] = mean_v
                 R_v = R_v + self.velocity_sensor.state_noise(x, self.estimator.layout)
-            S = 2.0 * self.R + 0.5 * dt[:, None, None] ** 2 * R_v
+            S = self._position_noise(v1) + self._position_noise(v2) + 0.5 * dt[:, None, None] ** 2 * R_v
             d2 = np.einsum("ei,ei->e", nu, np.linalg.solve(S, nu[..., None])[..., 0])
             ok = ~both | (d2 <= self.gamma)
             distance = np.where(both, d2, np.inf)[ok]  # velocity-checked pairs first, by d²; the others by distance after
@@ -370,31 +386,62 @@ class MultiTargetTracker:
         velocity = None if detections.velocity is None else detections.velocity[origin[:, -1]]
         return self._start(means, covs, velocity), status, origin
 
-    def _explained(self, state: MultipleModelState, z: np.ndarray, t: np.ndarray, now: float) -> np.ndarray:
+    def _explained(self, state: MultipleModelState, now: float, z: np.ndarray, t: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
         """(B,) whether each waiting seed (z at t) lies within the χ² gate of some track's position retrodicted to t:
         with lag δ = t_k − t, x̂ − v̂ δ and S = P_pp − δ (P_pv + P_vp) + δ² P_vv + R (the linear map of the track's
         (x, v) to its position δ earlier; the process noise over δ left out): an earlier report of an object
-        already tracked, not the first point of a new one."""
+        already tracked, not the first point of a new one.  A seed that reports its velocity v (v (B, 2), NaN: none;
+        when the estimator measures velocity) is retrodicted along the velocity both give, v_f = v̂ + K (v − v̂),
+        P_f = P_vv − K P_vv, K = P_vv (P_vv + R_v)⁻¹: x̂ − v_f δ with S = P_pp − δ (C + Cᵀ) + δ² P_f + R,
+        C = P_pv (I − K)ᵀ the covariance of x̂ and v_f, within χ²₂(P_G), and its velocity must agree too,
+        (v − v̂)ᵀ (P_vv + R_v)⁻¹ (v − v̂) ≤ χ²₂(P_G) — a moored ship's report is not explained by its neighbour's
+        track, whose velocity the stop mode leaves uncertain."""
         pos, vel = self._position, self._velocity
         position, velocity = state.mean[:, pos], state.mean[:, vel]
         P = state.cov
         P_pp, P_pv, P_vv = P[:, pos[:, None], pos[None, :]], P[:, pos[:, None], vel[None, :]], P[:, vel[:, None], vel[None, :]]
         lag_max = float(np.max(now - t))
-        bound = P_pp + lag_max * np.abs(P_pv + np.swapaxes(P_pv, 1, 2)) + lag_max**2 * P_vv + self.R
+        R = self._position_noise(velocity)
+        bound = P_pp + lag_max * np.abs(P_pv + np.swapaxes(P_pv, 1, 2)) + lag_max**2 * P_vv + R
         speed = float(np.max(np.linalg.norm(velocity, axis=1)))
         reach = math.sqrt(self.gamma * float(np.max(np.linalg.eigvalsh(bound)))) * 2.0 + speed * lag_max
         near = cKDTree(position).query_ball_point(z, reach)
         out = np.zeros(z.shape[0], dtype=bool)
+        check_velocity = np.zeros(z.shape[0], dtype=bool)
+        if self.velocity_sensor is not None and v is not None:
+            check_velocity = np.isfinite(v).all(axis=1)
+            R_v = np.broadcast_to(self.velocity_sensor.measurement_noise(np.zeros(2)), P_vv.shape)
+            if self.velocity_sensor.noise_depends_on_state:
+                R_v = R_v + self.velocity_sensor.state_noise(state.mean, self.estimator.layout)
         for i, tracks in enumerate(near):
             if not tracks:
                 continue
             lag = now - t[i]
+            if check_velocity[i]:
+                w = v[i] - velocity[tracks]
+                S_v = P_vv[tracks] + R_v[tracks]
+                K = np.linalg.solve(S_v, P_vv[tracks]).swapaxes(1, 2)  # P_vv S_v⁻¹ (both symmetric)
+                fused = velocity[tracks] + np.einsum("tij,tj->ti", K, w)
+                P_f = P_vv[tracks] - K @ P_vv[tracks]
+                C = P_pv[tracks] @ (np.eye(2) - K).swapaxes(1, 2)  # cov(x̂, v_f) = P_pv (I − K)ᵀ
+                nu = z[i] - (position[tracks] - fused * lag)
+                S = P_pp[tracks] - lag * (C + C.swapaxes(1, 2)) + lag**2 * P_f + R[tracks]
+                d2 = np.einsum("ti,ti->t", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+                d2_v = np.einsum("ti,ti->t", w, np.linalg.solve(S_v, w[..., None])[..., 0])
+                out[i] = bool(((d2 <= self.gamma) & (d2_v <= self.gamma)).any())
+                continue
             nu = z[i] - (position[tracks] - velocity[tracks] * lag)
             cross = P_pv[tracks] + np.swapaxes(P_pv[tracks], 1, 2)
-            S = P_pp[tracks] - lag * cross + lag**2 * P_vv[tracks] + self.R
+            S = P_pp[tracks] - lag * cross + lag**2 * P_vv[tracks] + R[tracks]
             d2 = np.einsum("ti,ti->t", nu, np.linalg.solve(S, nu[..., None])[..., 0])
             out[i] = bool((d2 <= self.gamma).any())
         return out
+
+    @staticmethod
+    def _seed_points(detections: Detections, seeds: np.ndarray):
+        """(z, t, v) of the waiting seeds: positions, times and reported velocities (None without)."""
+        v = None if detections.velocity is None else detections.velocity[seeds]
+        return detections.z[seeds], detections.times[seeds], v
 
     def _second_point_score(self, z1, t1, z2, t2) -> np.ndarray:
         """ln(P_D N(z₂; z₁, 2R + (Δt σ_v)² I) / λ): the likelihood ratio of the second point under the velocity prior."""
@@ -428,8 +475,8 @@ class MultiTargetTracker:
         range-rate / velocity; Anderson & Moore 1979, §2.3, the conditional Gaussian).  Without one, the
         position's χ²₂(P_G) gate alone."""
         zhat = predicted.mean[:, self._position]
-        S = predicted.cov[:, self._position[:, None], self._position[None, :]] + self.R
         velocity = predicted.mean[:, self._velocity]
+        S = predicted.cov[:, self._position[:, None], self._position[None, :]] + self._position_noise(velocity)
         joint = self.velocity_sensor is not None
         pairs = gate_checked(zhat, S, z, self._gamma_joint if joint else self.gamma, velocity, t - now)
         track, detection = pairs.track, pairs.detection
@@ -528,6 +575,45 @@ class MultiTargetTracker:
                 out[rows[j]] = True
         return out
 
+    def _reacquire(self, state: MultipleModelState, ids: np.ndarray, confirm: np.ndarray, lost: dict, now: float, books) -> np.ndarray:
+        """The track ids after re-acquisition: each track confirmed now whose kinematic state agrees with a confirmed
+        track deleted within ``reacquire_window`` s, predicted by the estimator over the gap Δt (no measurement),
+        Δᵀ (P_new + P_lost(Δt))⁻¹ Δ ≤ χ²₄(P_G) (Δ the difference of (x, vx, y, vy)), takes that track's id (the
+        nearest by Δᵀ S⁻¹ Δ, each id once) and its history goes on: a moored ship heard again after a silence longer
+        than the coasting allows, a ship lost in a turn and found again (Blackman & Popoli 1999, §3.2, track
+        continuation).  ``books`` (born_at, confirmed_at, deleted_at, took) are updated in place."""
+        born_at, _, deleted_at, took = books
+        for track in [t for t, (gone, _) in lost.items() if now - gone > self.reacquire_window]:
+            del lost[track]
+        if not lost:
+            return ids
+        old_ids = list(lost)
+        old = join_rows([lost[t][1] for t in old_ids])
+        gap = np.array([now - lost[t][0] for t in old_ids])
+        predicted = self.estimator.step(old, np.full((len(old_ids), self._measured), np.nan), np.maximum(gap, REPEAT_STEP))
+        kinematic = np.array([self.estimator.layout.index(c) for c in self._kinematic])
+        x_old = predicted.mean[:, kinematic]
+        P_old = predicted.cov[:, kinematic[:, None], kinematic[None, :]]
+        gamma = gate_threshold(self.gate_probability, 4)
+        ids = ids.copy()
+        taken: set[int] = set()
+        for row in np.flatnonzero(confirm).tolist():
+            delta = state.mean[row, kinematic] - x_old
+            S = state.cov[row][kinematic[:, None], kinematic[None, :]] + P_old
+            d2 = np.einsum("ei,ei->e", delta, np.linalg.solve(S, delta[..., None])[..., 0])
+            d2[[i for i, t in enumerate(old_ids) if t in taken]] = np.inf
+            best = int(np.argmin(d2))
+            if d2[best] > gamma:
+                continue
+            new, back = int(ids[row]), old_ids[best]
+            taken.add(back)
+            ids[row] = back
+            took[back].extend(took.pop(new))
+            born_at.pop(new)
+            del deleted_at[back]
+            del lost[back]
+        return ids
+
     def _reported_velocity(self, detections: Detections) -> np.ndarray | None:
         """The velocities (N, 2) the detections report when the estimator measures velocity (a ValueError when it does
         and they report none); None when it does not (the tracks then use the positions alone)."""
@@ -556,6 +642,7 @@ class MultiTargetTracker:
         confirmed_at: dict[int, float] = {}
         deleted_at: dict[int, float] = {}
         took: dict[int, list[int]] = {}
+        lost: dict[int, tuple[float, MultipleModelState]] = {}  # confirmed tracks deleted: id → (time, last state)
         seeds = np.zeros(0, dtype=np.intp)  # detections of the previous scan left for two-point initiation
         next_id = 1
         rows_out: dict[str, list] = {k: [] for k in ("time", "scan", "id", "mean", "pcov", "mode", "hit")}
@@ -593,18 +680,27 @@ class MultiTargetTracker:
                     used[free[taken]] = True
                 status.record(hit, delta, now)
                 confirm, delete = self.management.decide(status, now)
+                if self.duplicate_probability is not None:
+                    # a tentative track that is a duplicate is deleted at once (never confirmed); a confirmed one
+                    # after duplicate_scans scans in a row found one
+                    found = self._duplicates(state, hit & ~delete)
+                    tentative = status.status == TENTATIVE
+                    status.duplicate = np.where(found, status.duplicate + 1, np.where(hit, 0, status.duplicate))
+                    delete |= (found & tentative) | (status.duplicate >= self.duplicate_scans)
+                    confirm &= ~delete
                 status.status = np.where(confirm, CONFIRMED, status.status).astype(np.int8)
                 for tracks_taking, detections_taken in taken_pairs:
                     for track, detection in zip(tracks_taking.tolist(), detections_taken.tolist()):
                         took[track].append(int(detection))
+                if self.reacquire_window is not None and confirm.any() and lost:
+                    ids = self._reacquire(state, ids, confirm, lost, now, (born_at, confirmed_at, deleted_at, took))
                 for track in ids[confirm].tolist():
-                    confirmed_at[track] = now
-                if self.duplicate_probability is not None:
-                    found = self._duplicates(state, hit & ~delete)
-                    status.duplicate = np.where(found, status.duplicate + 1, np.where(hit, 0, status.duplicate))
-                    delete |= status.duplicate >= self.duplicate_scans
-                for track in ids[delete & (status.status == CONFIRMED)].tolist():
+                    confirmed_at.setdefault(track, now)
+                gone = delete & (status.status == CONFIRMED)
+                for row, track in zip(np.flatnonzero(gone).tolist(), ids[gone].tolist()):
                     deleted_at[track] = now
+                    if self.reacquire_window is not None and status.duplicate[row] < self.duplicate_scans:
+                        lost[track] = (now, take_rows(state, [row]))
                 keep = ~delete
                 shown = keep & (status.status == CONFIRMED)
                 if shown.any():
@@ -648,10 +744,9 @@ class MultiTargetTracker:
                 if self.seed_window is None or previous is None:
                     seeds = here[free]
                 else:  # the older seeds within the window wait on, but those a track now explains
-                    seeds = seeds[detections.times[seeds] >= now - self.seed_window]
+                    seeds = np.concatenate([seeds[detections.times[seeds] >= now - self.seed_window], here[free]])
                     if seeds.size and ids.size:
-                        seeds = seeds[~self._explained(state, detections.z[seeds], detections.times[seeds], now)]
-                    seeds = np.concatenate([seeds, here[free]])
+                        seeds = seeds[~self._explained(state, now, *self._seed_points(detections, seeds))]
             previous = now
         for track in ids[status.status == CONFIRMED].tolist():
             deleted_at.setdefault(track, None)
