@@ -17,7 +17,8 @@ Datasets (scans of unlabelled detections, :class:`hybridtrack.engine.detections.
 
 Methods: hybridtrack ``gnn_cv``, ``jpda_cv``, ``mht_cv`` (one constant-velocity Kalman filter per track), ``gnn_modes``,
 ``jpda_modes``, ``mht_modes`` (the IMM of straight motion and the coordinated turn with ω in the state per track, and
-on Solent the stop mode too: most of its ships are moored), all
+on Solent the stop mode too: most of its ships are moored; ``*_modes_velocity`` on Solent: the same bank also
+measuring the course and speed each report carries, and duplicate tracks deleted), all
 with two-point initiation (:class:`hybridtrack.algorithms.multitarget.tracker.MultiTargetTracker`; MHT:
 :class:`hybridtrack.algorithms.multitarget.mht.MHTTracker`, K = 10 hypotheses, 3-scan pruning, on the simulated
 scenes only: it takes one detection per track per scan, Solent's 10 s scans need several), Blackman's track score
@@ -41,6 +42,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import math
 import statistics
 import sys
 import time
@@ -92,7 +94,9 @@ def load_stonesoup():
 
 def solent_detections(scans: int | None = None) -> Detections:
     """The Solent file without its MMSI in 10 s scans, with the truth interpolated from each vessel's reports."""
-    data = read_detections(SOLENT, time="Time", lat="Latitude_degrees", lon="Longitude_degrees", scan_window=10.0, truth_id="MMSI")
+    reported = {key: SOLENT_AIS[key] for key in ("course", "speed", "speed_unit", "course_not_available", "speed_not_available")}
+    columns = dict(time="Time", lat="Latitude_degrees", lon="Longitude_degrees", scan_window=10.0, truth_id="MMSI")
+    data = read_detections(SOLENT, **columns, **reported, warn=False)
     labelled = read_tracks(SOLENT, **{k: SOLENT_AIS[k] for k in ("time", "id", "lat", "lon")}, origin=data.origin, warn=False)
     detections = data.detections
     times, ids, states = [], [], []
@@ -107,7 +111,7 @@ def solent_detections(scans: int | None = None) -> Detections:
         states.append(np.column_stack([x, np.zeros_like(x), y, np.zeros_like(y)]))
     truth = Truth(np.concatenate(times), np.concatenate(ids), np.concatenate(states), ("x", "vx", "y", "vy"))
     # (no per-detection origin: a vessel whose reports all fall between two scan times has no truth row)
-    out = Detections(detections.scan_times, detections.scan, detections.times, detections.z, truth=truth)
+    out = Detections(detections.scan_times, detections.scan, detections.times, detections.z, truth=truth, velocity=detections.velocity)
     return out if scans is None else out.head(scans)
 
 
@@ -116,6 +120,17 @@ def solent_detections(scans: int | None = None) -> Detections:
 REPEATS, REPEAT_BELOW = 3, 50_000
 #: the methods run on each dataset (None: the others); 10,000 targets: GNN, the issue's target
 METHODS = {None: ("gnn_cv", "jpda_cv", "mht_cv", "gnn_modes", "jpda_modes", "mht_modes"), "targets_10000": ("gnn_cv", "gnn_modes")}
+#: on Solent also the mode bank measuring each report's course and speed, with duplicate tracks deleted, as
+#: ``examples/multitarget_solent.toml``: σ_s, σ_χ (rad) of the velocity sensor, P_dup and its scans in a row, and
+#: what that example changes in SETTINGS["solent"] (a moored ship stays moored: 1 h in stop; 2 hits confirm)
+VELOCITY = dict(speed_sigma=0.5, course_sigma=math.radians(10.0), duplicate_probability=0.9, duplicate_scans=5, reacquire_window=3600.0)
+VELOCITY_SOLENT = dict(
+    sojourn=[120.0, 120.0, 3600.0, 30.0],
+    speed_change=dict(jerk_density=1e-4, a_variance=0.01),
+    time_jitter=1.0,
+    options=dict(management=MofN(2, 30, 60, max_coast=600.0), gate_probability=0.9999),
+)
+SOLENT_METHODS = METHODS[None] + ("gnn_modes_velocity", "jpda_modes_velocity")
 
 
 def datasets(quick: bool, stonesoup_scans: int) -> dict:
@@ -140,16 +155,22 @@ def clutter_density(name: str, detections: Detections) -> float:
     return per_scan / float(np.prod(high - low))
 
 
-def estimator(modes: bool, settings: dict) -> MultipleModelEstimator:
-    sensor = resolve("sensor", ("position", {"noise_cov": SIGMA**2 * np.eye(2)}))
+def estimator(modes: bool, settings: dict, velocity: bool = False) -> MultipleModelEstimator:
+    position = {"noise_cov": settings.get("sigma", SIGMA) ** 2 * np.eye(2), "time_jitter": settings.get("time_jitter", 0.0)}
+    sensors = [resolve("sensor", ("position", position))]
+    if velocity:
+        sensors.append(resolve("sensor", ("velocity", {k: VELOCITY[k] for k in ("speed_sigma", "course_sigma")})))
     if not modes:
-        return MultipleModelEstimator([("straight", {"noise_density": settings["q"]})], [[1.0]], sensors=[sensor], name="cv")
+        return MultipleModelEstimator([("straight", {"noise_density": settings["q"]})], [[1.0]], sensors=sensors, name="cv")
     q = settings["q_modes"]
     models = [("straight", {"noise_density": q}), ("coordinated_turn", {"noise_density": q})]
     if settings.get("stop_density") is not None:  # moored ships: a position random walk (m²/s)
         models.append(("stop", {"noise_density": settings["stop_density"]}))
     variance = {"omega": settings["omega_variance"]}
-    return MultipleModelEstimator(models, sojourn=settings.get("sojourn", 30.0), sensors=[sensor], missing_variance=variance, name="imm")
+    if settings.get("speed_change") is not None:  # ships leaving and arriving: the along-track acceleration
+        models.append(("speed_change", {"noise_density": q, "jerk_density": settings["speed_change"]["jerk_density"]}))
+        variance["a_along"] = settings["speed_change"]["a_variance"]
+    return MultipleModelEstimator(models, sojourn=settings.get("sojourn", 30.0), sensors=sensors, missing_variance=variance, name="imm")
 
 
 def score(name, method, library, detections, time_, ids, positions, seconds, c) -> dict:
@@ -182,16 +203,23 @@ def run(quick: bool = False, stonesoup_scans: int = 60, stonesoup: bool = True) 
         settings = SETTINGS["solent" if name.startswith("solent") else "simulated_10s" if name == "targets_10000" else "simulated"]
         lam = clutter_density(name, detections)
         settings = settings | ({"detection_probability": 0.7} if name == "crossing_20_pd07" else {})
-        for method in METHODS.get(name, METHODS[None]):
-            association, motion = method.split("_")
+        for method in SOLENT_METHODS if name.startswith("solent") else METHODS.get(name, METHODS[None]):
+            association, motion, *measured = method.split("_")
+            velocity = measured == ["velocity"]
             if association == "mht" and settings["options"].get("updates_per_scan", 1) != 1:
                 continue  # MHT takes one detection per track per scan
+            extra = {k: VELOCITY[k] for k in ("duplicate_probability", "duplicate_scans", "reacquire_window")} if velocity else {}
+            chosen = settings
+            if velocity:
+                chosen = settings | {k: VELOCITY_SOLENT[k] for k in ("sojourn", "speed_change", "time_jitter")}
+                chosen["options"] = settings["options"] | VELOCITY_SOLENT["options"]
             tracker = (MHTTracker if association == "mht" else MultiTargetTracker)(
-                estimator(motion == "modes", settings),
+                estimator(motion == "modes", chosen, velocity),
+                **extra,
                 association=association,
                 detection_probability=settings["detection_probability"],
                 clutter_density=lam,
-                **({"max_speed": 40.0} | settings["options"]),
+                **({"max_speed": 40.0} | chosen["options"]),
             )
             tracker.run(detections.head(5))  # untimed: numba compiles the filter kernels on first use
             times = []

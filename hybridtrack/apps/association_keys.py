@@ -28,4 +28,5 @@ ASSOCIATION_DEFAULTS = {
     "max_coast": None,
     "duplicate_probability": None,
     "duplicate_scans": 3,
+    "reacquire_window": None,
 }

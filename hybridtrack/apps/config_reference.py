@@ -515,6 +515,12 @@ def _association() -> dict[str, Entry]:
             absent="off",
         ),
         "duplicate_scans": Entry("integer ≥ 1", "a track found a duplicate in this many scans in a row is deleted", d("duplicate_scans")),
+        "reacquire_window": Entry(
+            "number, s > 0",
+            "gnn / jpda: a track confirmed whose (x, vx, y, vy) agrees (χ²₄ at gate_probability) with a confirmed track deleted"
+            " this long ago or less, predicted over the gap, takes that track's id: one id for an object heard again after a silence",
+            absent="off",
+        ),
     }
 
 

@@ -71,6 +71,7 @@ def association_settings(config: dict, where: str = "config") -> dict:
         "noise_density",
         "deletion_drop",
         "max_coast",
+        "reacquire_window",
     ):
         value = out[key]
         if value is not None and (
@@ -104,10 +105,9 @@ def association_settings(config: dict, where: str = "config") -> dict:
         )
     if out["max_speed"] is None:
         out["max_speed"] = float(config["speed_limit"]["max_speed"])
-    if out["method"] == "mht" and out["duplicate_probability"] is not None:
-        raise ConfigError(
-            f"{where}: [association] duplicate_probability is for method = 'gnn' or 'jpda'; MHT keeps no duplicate tracks of its own"
-        )
+    for key in ("duplicate_probability", "reacquire_window"):
+        if out["method"] == "mht" and out[key] is not None:
+            raise ConfigError(f"{where}: [association] {key} is for method = 'gnn' or 'jpda', not 'mht'")
     return out
 
 
@@ -151,7 +151,7 @@ def build_multitarget(config: dict, settings: dict, registry=None, built=None) -
             velocity_sigma=settings["velocity_sigma"],
             updates_per_scan=settings["updates_per_scan"],
             seed_window=settings["seed_window"],
-            **({} if mht else {"duplicate_probability": settings["duplicate_probability"], "duplicate_scans": settings["duplicate_scans"]}),
+            **({} if mht else {key: settings[key] for key in ("duplicate_probability", "duplicate_scans", "reacquire_window")}),
         )
     except (TypeError, ValueError) as error:
         raise ConfigError(f"[association]: {error}") from None

@@ -82,6 +82,11 @@ def test_configuration_faults_are_named(tmp_path, capsys):
     mht = config["association"] | {"method": "mht", "duplicate_probability": 0.9}
     with pytest.raises(ConfigError, match="duplicate_probability is for method"):
         track_detections(SCENE, config | {"association": mht}, tmp_path)
+    mht = config["association"] | {"method": "mht", "reacquire_window": 600.0}
+    with pytest.raises(ConfigError, match="reacquire_window is for method"):
+        track_detections(SCENE, config | {"association": mht}, tmp_path)
+    with pytest.raises(ConfigError, match="reacquire_window = -1.0"):
+        track_detections(SCENE, config | {"association": config["association"] | {"reacquire_window": -1.0}}, tmp_path)
     with pytest.raises(ConfigError, match="duplicate_probability"):
         track_detections(SCENE, config | {"association": config["association"] | {"duplicate_probability": 1.0}}, tmp_path)
     with pytest.raises(ConfigError, match="track_detections"):
@@ -103,5 +108,5 @@ def test_the_solent_example_runs_on_the_file_as_written(tmp_path):
     rows = _rows(out / "tracks.csv")
     assert list(rows[0])[-2:] == ["lat", "lon"]
     summary = json.loads((out / "summary.json").read_text())
-    assert 30 < len(summary["objects"]) < 100  # 78 vessels report in these minutes (56 tracks when written)
+    assert 30 < len(summary["objects"]) < 100  # 78 vessels report in these minutes (58 tracks when written)
     assert {r["mode"] for r in rows} >= {"stop", "straight"}
