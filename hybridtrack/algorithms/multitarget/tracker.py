@@ -388,9 +388,9 @@ class MultiTargetTracker:
 
     def _explained(self, state: MultipleModelState, now: float, z: np.ndarray, t: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
         """(B,) whether each waiting seed (z at t) lies within the χ² gate of some track's position retrodicted to t:
-        with lag δ = t_k − t, x̂ − v̂ δ and S = P_pp − δ (P_pv + P_vp) + δ² P_vv + R (the linear map of the track's
-        (x, v) to its position δ earlier; the process noise over δ left out): an earlier report of an object
-        already tracked, not the first point of a new one.  A seed that reports its velocity v (v (B, 2), NaN: none;
+        with lag δ = t_k − t, x̂ − v̂ δ and S = P_pp − δ (P_pv + P_vp) + δ² P_vv + R + (v_max δ / 10)² I (the linear
+        map of the track's (x, v) to its position δ earlier, and for the process noise over δ a velocity error of a
+        tenth of ``max_speed``): an earlier report of an object already tracked, not the first point of a new one.  A seed that reports its velocity v (v (B, 2), NaN: none;
         when the estimator measures velocity) is retrodicted along the velocity both give, v_f = v̂ + K (v − v̂),
         P_f = P_vv − K P_vv, K = P_vv (P_vv + R_v)⁻¹: x̂ − v_f δ with S = P_pp − δ (C + Cᵀ) + δ² P_f + R,
         C = P_pv (I − K)ᵀ the covariance of x̂ and v_f, within χ²₂(P_G), and its velocity must agree too,
@@ -402,7 +402,8 @@ class MultiTargetTracker:
         P_pp, P_pv, P_vv = P[:, pos[:, None], pos[None, :]], P[:, pos[:, None], vel[None, :]], P[:, vel[:, None], vel[None, :]]
         lag_max = float(np.max(now - t))
         R = self._position_noise(velocity)
-        bound = P_pp + lag_max * np.abs(P_pv + np.swapaxes(P_pv, 1, 2)) + lag_max**2 * P_vv + R
+        allowance = (0.1 * self.max_speed * lag_max) ** 2 * np.eye(2)  # the process noise over the lag, bounded
+        bound = P_pp + lag_max * np.abs(P_pv + np.swapaxes(P_pv, 1, 2)) + lag_max**2 * P_vv + R + allowance
         speed = float(np.max(np.linalg.norm(velocity, axis=1)))
         reach = math.sqrt(self.gamma * float(np.max(np.linalg.eigvalsh(bound)))) * 2.0 + speed * lag_max
         near = cKDTree(position).query_ball_point(z, reach)
@@ -432,7 +433,7 @@ class MultiTargetTracker:
                 continue
             nu = z[i] - (position[tracks] - velocity[tracks] * lag)
             cross = P_pv[tracks] + np.swapaxes(P_pv[tracks], 1, 2)
-            S = P_pp[tracks] - lag * cross + lag**2 * P_vv[tracks] + R[tracks]
+            S = P_pp[tracks] - lag * cross + lag**2 * P_vv[tracks] + R[tracks] + (0.1 * self.max_speed * lag) ** 2 * np.eye(2)
             d2 = np.einsum("ti,ti->t", nu, np.linalg.solve(S, nu[..., None])[..., 0])
             out[i] = bool((d2 <= self.gamma).any())
         return out
