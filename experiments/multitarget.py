@@ -123,7 +123,7 @@ METHODS = {None: ("gnn_cv", "jpda_cv", "mht_cv", "gnn_modes", "jpda_modes", "mht
 #: on Solent also the mode bank measuring each report's course and speed, with duplicate tracks deleted, as
 #: ``examples/multitarget_solent.toml``: σ_s, σ_χ (rad) of the velocity sensor, P_dup and its scans in a row, and
 #: what that example changes in SETTINGS["solent"] (a moored ship stays moored: 1 h in stop; 2 hits confirm)
-VELOCITY = dict(speed_sigma=0.5, course_sigma=math.radians(10.0), duplicate_probability=0.9, duplicate_scans=5, reacquire_window=3600.0)
+VELOCITY = dict(speed_sigma=0.5, course_sigma=math.radians(10.0), duplicate_probability=0.9, duplicate_scans=4, reacquire_window=3600.0)
 VELOCITY_SOLENT = dict(
     sojourn=[120.0, 120.0, 3600.0, 30.0],
     speed_change=dict(jerk_density=1e-4, a_variance=0.01),
