@@ -139,8 +139,9 @@ class MultiTargetResult:
 class MultiTargetTracker:
     """Tracks many objects from unlabelled detections (module docstring).
 
-    ``estimator``: the per-track :class:`MultipleModelEstimator` (its layout must hold x, vx, y, vy; its only
-    sensor measures the position); ``association``: ``"gnn"`` or ``"jpda"``; ``management``: :class:`MofN` or
+    ``estimator``: the per-track :class:`MultipleModelEstimator` (its layout must hold x, vx, y, vy; its first
+    sensor measures the position, an optional second the velocity the detections report, :attr:`Detections.velocity`,
+    e.g. the ``velocity`` sensor of an AIS course and speed); ``association``: ``"gnn"`` or ``"jpda"``; ``management``: :class:`MofN` or
     :class:`TrackScore`; ``detection_probability`` P_D; ``clutter_density`` λ and ``birth_density`` β_NT (per m²
     per scan; the score starts at ln(β_NT/λ)); ``gate_probability`` P_G; ``initiation`` ``"two_point"`` or
     ``"single_point"``; ``max_speed`` (m/s) bounds a two-point velocity; ``velocity_sigma`` (m/s, default
