@@ -228,9 +228,11 @@ class MultiTargetTracker:
         self._position = np.array([layout.index("x"), layout.index("y")])
         self._velocity = np.array([layout.index("vx"), layout.index("vy")])
         self._kinematic = ("x", "vx", "y", "vy")
+        self._kinematic_index = np.array([layout.index(c) for c in self._kinematic])
         self.R = np.asarray(self.sensor.measurement_noise(np.zeros(2)), dtype=float)
         self.gamma = gate_threshold(self.gate_probability, 2)
         self._gamma_joint = gate_threshold(self.gate_probability, 4)
+        self._gamma_duplicate = None if duplicate_probability is None else gate_threshold(duplicate_probability, 4)
         self._measured = 2 * len(sensors)  # Σm: the columns of z the estimator takes
         self._log_speed_area = math.log(math.pi * self.max_speed**2)  # −ln of the uniform velocity density of clutter
         self._log_miss = math.log1p(-self.detection_probability * self.gate_probability)
@@ -240,16 +242,17 @@ class MultiTargetTracker:
     def _scores(self, loglik: np.ndarray) -> np.ndarray:
         return math.log(self.detection_probability) + loglik - math.log(self.clutter_density) - self._log_miss
 
-    def _position_noise(self, velocity: np.ndarray) -> np.ndarray:
-        """(B, 2, 2) the position sensor's R at the velocities (B, 2): R + σ_t² v vᵀ with a time-stamp jitter σ_t
-        (``PositionSensor(time_jitter=…)``: AIS positions are fixes to metres, the time they are stamped with is not),
-        R alone otherwise."""
-        R = np.broadcast_to(self.R, (velocity.shape[0], 2, 2))
-        if not self.sensor.noise_depends_on_state:
+    def _noise_at(self, sensor, velocity: np.ndarray) -> np.ndarray:
+        """(B, 2, 2) ``sensor``'s R(x) at the velocities (B, 2) (NaN read as 0; both sensors' R depends on the state
+        through the velocity alone): the position sensor's R + σ_t² v vᵀ with a time-stamp jitter σ_t
+        (``PositionSensor(time_jitter=…)``: AIS positions are fixes to metres, the time they are stamped with is
+        not), the velocity sensor's σ_s² I + σ_χ² (|v|² I − v vᵀ); R alone for a sensor whose noise is fixed."""
+        R = np.broadcast_to(np.asarray(sensor.measurement_noise(np.zeros(2)), dtype=float), (velocity.shape[0], 2, 2))
+        if not sensor.noise_depends_on_state:
             return R
         x = np.zeros((velocity.shape[0], len(self.estimator.layout)))
         x[:, self._velocity] = np.nan_to_num(velocity)
-        return R + self.sensor.state_noise(x, self.estimator.layout)
+        return R + sensor.state_noise(x, self.estimator.layout)
 
     def _start(self, means: np.ndarray, covs: np.ndarray, velocity: np.ndarray | None = None) -> MultipleModelState:
         """New tracks from (B, 4) means in (x, vx, y, vy) and their covariances, updated with the reported velocities
@@ -286,7 +289,7 @@ class MultiTargetTracker:
         means = np.column_stack([p[:, 0], v[:, 0], p[:, 1], v[:, 1]])
         covs = np.zeros((z1.shape[0], 4, 4))
         pp, pv, vv = a1**2 + a2**2, a1 * b1 + a2 * b2, b1**2 + b2**2
-        R = self._position_noise(v)
+        R = self._noise_at(self.sensor, v)
         for a in range(2):
             for b in range(2):
                 i, j = 2 * a, 2 * b
@@ -325,12 +328,8 @@ class MultiTargetTracker:
             dt = t[rows] - seeds_t[cols]
             mean_v = np.where(both[:, None], 0.5 * (v1 + v2), 0.0)
             nu = z[rows] - seeds_z[cols] - mean_v * dt[:, None]
-            R_v = np.broadcast_to(self.velocity_sensor.measurement_noise(np.zeros(2)), (rows.size, 2, 2))
-            if self.velocity_sensor.noise_depends_on_state:
-                x = np.zeros((rows.size, len(self.estimator.layout)))
-                x[:, self._velocity] = mean_v
-                R_v = R_v + self.velocity_sensor.state_noise(x, self.estimator.layout)
-            S = self._position_noise(v1) + self._position_noise(v2) + 0.5 * dt[:, None, None] ** 2 * R_v
+            R_v = self._noise_at(self.velocity_sensor, mean_v)
+            S = self._noise_at(self.sensor, v1) + self._noise_at(self.sensor, v2) + 0.5 * dt[:, None, None] ** 2 * R_v
             d2 = np.einsum("ei,ei->e", nu, np.linalg.solve(S, nu[..., None])[..., 0])
             ok = ~both | (d2 <= self.gamma)
             distance = np.where(both, d2, np.inf)[ok]  # velocity-checked pairs first, by d²; the others by distance after
@@ -391,10 +390,11 @@ class MultiTargetTracker:
         """(B,) whether each waiting seed (z at t) lies within the χ² gate of some track's position retrodicted to t:
         with lag δ = t_k − t, x̂ − v̂ δ and S = P_pp − δ (P_pv + P_vp) + δ² P_vv + R + (v_max δ / 10)² I (the linear
         map of the track's (x, v) to its position δ earlier, and for the process noise over δ a velocity error of a
-        tenth of ``max_speed``): an earlier report of an object already tracked, not the first point of a new one.  A seed that reports its velocity v (v (B, 2), NaN: none;
-        when the estimator measures velocity) is retrodicted along the velocity both give, v_f = v̂ + K (v − v̂),
-        P_f = P_vv − K P_vv, K = P_vv (P_vv + R_v)⁻¹: x̂ − v_f δ with S = P_pp − δ (C + Cᵀ) + δ² P_f + R,
-        C = P_pv (I − K)ᵀ the covariance of x̂ and v_f, within χ²₂(P_G), and its velocity must agree too,
+        tenth of ``max_speed``): an earlier report of an object already tracked, not the first point of a new one.
+        A seed that reports its velocity v (v (B, 2), NaN: none; when the estimator measures velocity) is
+        retrodicted along the velocity both give, v_f = v̂ + K (v − v̂), P_f = P_vv − K P_vv,
+        K = P_vv (P_vv + R_v)⁻¹: x̂ − v_f δ with S = P_pp − δ (C + Cᵀ) + δ² P_f + R, C = P_pv (I − K)ᵀ the
+        covariance of x̂ and v_f, within χ²₂(P_G), and its velocity must agree too,
         (v − v̂)ᵀ (P_vv + R_v)⁻¹ (v − v̂) ≤ χ²₂(P_G) — a moored ship's report is not explained by its neighbour's
         track, whose velocity the stop mode leaves uncertain."""
         pos, vel = self._position, self._velocity
@@ -402,7 +402,7 @@ class MultiTargetTracker:
         P = state.cov
         P_pp, P_pv, P_vv = P[:, pos[:, None], pos[None, :]], P[:, pos[:, None], vel[None, :]], P[:, vel[:, None], vel[None, :]]
         lag_max = float(np.max(now - t))
-        R = self._position_noise(velocity)
+        R = self._noise_at(self.sensor, velocity)
         allowance = (0.1 * self.max_speed * lag_max) ** 2 * np.eye(2)  # the process noise over the lag, bounded
         bound = P_pp + lag_max * np.abs(P_pv + np.swapaxes(P_pv, 1, 2)) + lag_max**2 * P_vv + R + allowance
         speed = float(np.max(np.linalg.norm(velocity, axis=1)))
@@ -412,9 +412,7 @@ class MultiTargetTracker:
         check_velocity = np.zeros(z.shape[0], dtype=bool)
         if self.velocity_sensor is not None and v is not None:
             check_velocity = np.isfinite(v).all(axis=1)
-            R_v = np.broadcast_to(self.velocity_sensor.measurement_noise(np.zeros(2)), P_vv.shape)
-            if self.velocity_sensor.noise_depends_on_state:
-                R_v = R_v + self.velocity_sensor.state_noise(state.mean, self.estimator.layout)
+            R_v = self._noise_at(self.velocity_sensor, velocity)
         for i, tracks in enumerate(near):
             if not tracks:
                 continue
@@ -478,7 +476,7 @@ class MultiTargetTracker:
         position's χ²₂(P_G) gate alone."""
         zhat = predicted.mean[:, self._position]
         velocity = predicted.mean[:, self._velocity]
-        S = predicted.cov[:, self._position[:, None], self._position[None, :]] + self._position_noise(velocity)
+        S = predicted.cov[:, self._position[:, None], self._position[None, :]] + self._noise_at(self.sensor, velocity)
         joint = self.velocity_sensor is not None
         pairs = gate_checked(zhat, S, z, self._gamma_joint if joint else self.gamma, velocity, t - now)
         track, detection = pairs.track, pairs.detection
@@ -493,9 +491,7 @@ class MultiTargetTracker:
         K = np.linalg.solve(S_p, np.swapaxes(P_vp, 1, 2)).swapaxes(1, 2)  # P_vp S_p⁻¹ (S_p symmetric)
         nu = aligned - zhat[track]
         expected = velocity[track] + np.einsum("eij,ej->ei", K, nu)
-        R_v = np.broadcast_to(self.velocity_sensor.measurement_noise(np.zeros(2)), P_vp.shape)
-        if self.velocity_sensor.noise_depends_on_state:
-            R_v = R_v + self.velocity_sensor.state_noise(predicted.mean[track], self.estimator.layout)
+        R_v = self._noise_at(self.velocity_sensor, velocity[track])
         S_v = P[:, vel[:, None], vel[None, :]] - np.einsum("eij,ekj->eik", K, P_vp) + R_v
         L = np.linalg.cholesky(S_v)
         w = np.linalg.solve(L, np.nan_to_num(reported - expected)[..., None])[..., 0]
@@ -561,10 +557,10 @@ class MultiTargetTracker:
         rows = np.flatnonzero(candidates)
         if rows.size < 2:
             return out
-        kinematic = np.array([self.estimator.layout.index(c) for c in self._kinematic])
+        kinematic = self._kinematic_index
         x = state.mean[rows][:, kinematic]
         P = state.cov[rows][:, kinematic[:, None], kinematic[None, :]]
-        gamma = gate_threshold(self.duplicate_probability, 4)
+        gamma = self._gamma_duplicate
         largest = float(np.max(np.linalg.eigvalsh(P[:, [0, 2]][:, :, [0, 2]])))
         pairs = cKDTree(x[:, [0, 2]]).query_pairs(math.sqrt(2.0 * gamma * largest), output_type="ndarray")
         if not pairs.size:
@@ -593,10 +589,10 @@ class MultiTargetTracker:
         old = join_rows([lost[t][1] for t in old_ids])
         gap = np.array([now - lost[t][0] for t in old_ids])
         predicted = self.estimator.step(old, np.full((len(old_ids), self._measured), np.nan), np.maximum(gap, REPEAT_STEP))
-        kinematic = np.array([self.estimator.layout.index(c) for c in self._kinematic])
+        kinematic = self._kinematic_index
         x_old = predicted.mean[:, kinematic]
         P_old = predicted.cov[:, kinematic[:, None], kinematic[None, :]]
-        gamma = gate_threshold(self.gate_probability, 4)
+        gamma = self._gamma_joint
         ids = ids.copy()
         taken: set[int] = set()
         for row in np.flatnonzero(confirm).tolist():
