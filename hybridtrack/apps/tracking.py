@@ -72,7 +72,16 @@ from hybridtrack.apps.mode_labels import motion_states
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import registry_or_default
 from hybridtrack.core.validation import check_positive
-from hybridtrack.io.track_files import SOLENT_AIS, SPEED_LIMITS, Track, is_data_frame, problem_kinds, read_tracks, unproject
+from hybridtrack.io.track_files import (
+    SOLENT_AIS,
+    SPEED_LIMITS,
+    Track,
+    ground_velocity,
+    is_data_frame,
+    problem_kinds,
+    read_tracks,
+    unproject,
+)
 
 #: reader presets by name (the ``preset`` key of ``[reader]``)
 PRESETS = {"solent_ais": SOLENT_AIS}
@@ -376,8 +385,7 @@ def measurements_of(track: Track, config: dict) -> dict[str, np.ndarray]:
     if "speed_sigma" in config["measurement"]:
         if track.course is None or track.speed is None:
             raise ValueError(f"object {track.id!r}: [measurement] speed_sigma/course_sigma need its course and speed, the file has none")
-        course = np.radians(track.course)
-        out["velocity"] = track.speed[:, None] * np.column_stack([np.sin(course), np.cos(course)])
+        out["velocity"] = ground_velocity(track.course, track.speed)
     return out
 
 

@@ -40,6 +40,7 @@ from hybridtrack.io.track_files import (
     check_projection,
     check_time_options,
     frame_rows,
+    ground_velocity,
     is_data_frame,
     parse_rows,
     source_format,
@@ -221,8 +222,7 @@ def read_detections(
     velocity = None
     if course is not None:
         values = np.array([[np.nan if v == "n/a" else v for v in (r.course, r.speed)] for r in kept], dtype=np.float64)
-        chi = np.radians(values[:, 0])
-        velocity = (values[:, 1:] * np.column_stack([np.sin(chi), np.cos(chi)]))[order]
+        velocity = ground_velocity(values[:, 0], values[:, 1])[order]
     detections = Detections(
         scan_times=grouping.scan_times,
         scan=grouping.scan,

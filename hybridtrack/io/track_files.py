@@ -215,6 +215,13 @@ class TrackFile:
 # --- geodesy -------------------------------------------------------------------------------------------------
 
 
+def ground_velocity(course, speed) -> np.ndarray:
+    """(N, 2) the velocity (east, north) of a reported course over ground χ (N,) in degrees clockwise from north and
+    speed s (N,): s (sin χ, cos χ); NaN where either is NaN."""
+    chi = np.radians(np.asarray(course, dtype=float))
+    return np.asarray(speed, dtype=float)[:, None] * np.column_stack([np.sin(chi), np.cos(chi)])
+
+
 def geodetic_to_ecef(lat, lon, h=0.0) -> np.ndarray:
     """WGS-84 geodetic (degrees, degrees, metres) → ECEF (…, 3) in metres: X = (N + h) cos φ cos λ,
     Y = (N + h) cos φ sin λ, Z = (N (1 − e²) + h) sin φ, N = a / √(1 − e² sin² φ) (NIMA TR8350.2, eq. 4-14)."""
