@@ -122,14 +122,18 @@ REPEATS, REPEAT_BELOW = 3, 50_000
 METHODS = {None: ("gnn_cv", "jpda_cv", "mht_cv", "gnn_modes", "jpda_modes", "mht_modes"), "targets_10000": ("gnn_cv", "gnn_modes")}
 #: on Solent also the mode bank measuring each report's course and speed, with duplicate tracks deleted, as
 #: ``examples/multitarget_solent.toml``: σ_s, σ_χ (rad) of the velocity sensor, P_dup and its scans in a row, and
-#: what that example changes in SETTINGS["solent"] (a moored ship stays moored: 1 h in stop; 2 hits confirm)
-VELOCITY = dict(speed_sigma=0.5, course_sigma=math.radians(10.0), duplicate_probability=0.9, duplicate_scans=4, reacquire_window=3600.0)
+#: what that example changes in SETTINGS["solent"] (a moored ship stays moored: 1 h in stop and a 0.003 m²/s walk;
+#: 2 hits confirm; σ 15 m)
+VELOCITY = dict(speed_sigma=0.5, course_sigma=math.radians(10.0), duplicate_probability=0.7, duplicate_scans=4, reacquire_window=3600.0)
 VELOCITY_SOLENT = dict(
+    sigma=15.0,
+    stop_density=0.003,
     sojourn=[120.0, 120.0, 3600.0, 30.0],
     speed_change=dict(jerk_density=1e-4, a_variance=0.01),
     time_jitter=1.0,
     options=dict(management=MofN(2, 30, 60, max_coast=600.0), gate_probability=0.9999),
 )
+VELOCITY_SETTINGS = ("sigma", "stop_density", "sojourn", "speed_change", "time_jitter")
 SOLENT_METHODS = METHODS[None] + ("gnn_modes_velocity", "jpda_modes_velocity")
 
 
@@ -211,7 +215,7 @@ def run(quick: bool = False, stonesoup_scans: int = 60, stonesoup: bool = True) 
             extra = {k: VELOCITY[k] for k in ("duplicate_probability", "duplicate_scans", "reacquire_window")} if velocity else {}
             chosen = settings
             if velocity:
-                chosen = settings | {k: VELOCITY_SOLENT[k] for k in ("sojourn", "speed_change", "time_jitter")}
+                chosen = settings | {k: VELOCITY_SOLENT[k] for k in VELOCITY_SETTINGS}
                 chosen["options"] = settings["options"] | VELOCITY_SOLENT["options"]
             tracker = (MHTTracker if association == "mht" else MultiTargetTracker)(
                 estimator(motion == "modes", chosen, velocity),

@@ -187,3 +187,28 @@ def test_a_ship_heard_again_after_a_silence_gets_its_id_back():
     assert np.all(detections.z[first.detections, 0] < 10_000.0)
     with pytest.raises(ValueError, match="reacquire_window"):
         MultiTargetTracker(_estimator(), reacquire_window=-1.0)
+
+
+def test_a_further_report_of_the_scan_takes_no_time_step():
+    """A moored ship reporting twice in each 10 s scan (2 s apart, speed 0): its second report of a scan updates the
+    track at the scan's time without stepping the motion model, so the stop mode keeps the velocity its first update
+    gave it (a 1 ms step would reset it to the walk's q/Δt = 10 (m/s)², and straight would win the mode) and the
+    track is in stop; its position variance shrinks with each report."""
+    rng = np.random.default_rng(8)
+    scans = 30
+    t = np.repeat(10.0 * np.arange(scans), 2) + np.tile([0.0, 2.0], scans)
+    z = SIGMA * rng.standard_normal((2 * scans, 2)) + 5.0e5  # map-grid coordinates
+    v = 0.1 * rng.standard_normal((2 * scans, 2))
+    detections = Detections.from_times(t, z, scan_window=10.0, velocity=v)
+    sensors = [
+        resolve("sensor", ("position", {"noise_cov": SIGMA**2 * np.eye(2)})),
+        resolve("sensor", ("velocity", {"speed_sigma": 0.5, "course_sigma": np.radians(10.0)})),
+    ]
+    models = [("straight", {"noise_density": 0.01}), ("stop", {"noise_density": 0.01})]
+    estimator = MultipleModelEstimator(models, sojourn=[120.0, 3600.0], sensors=sensors)
+    options = dict(clutter_density=1e-9, management=MofN(2, 30, 60), max_speed=30.0, updates_per_scan=2)
+    result = MultiTargetTracker(estimator, **options, duplicate_probability=0.9, duplicate_scans=2).run(detections)
+    assert len(result.tracks) == 1 and result.tracks[0].detections.size >= 2 * scans - 4
+    assert np.mean(np.array(result.modes)[result.mode[5:]] == "stop") >= 0.9
+    variance = result.position_covs[:, 0, 0]
+    assert variance[-1] < 0.5 * SIGMA**2 / 2  # far below one report's share of two per scan

@@ -49,7 +49,8 @@ from hybridtrack.engine.detections import Detections
 from hybridtrack.engine.mixing import merge_groups
 
 ASSOCIATIONS = ("gnn", "jpda")
-#: the step (s) before each further update of a track within one scan (``updates_per_scan`` > 1)
+#: the step (s) before each further update of a track within one scan (``updates_per_scan`` > 1) for an estimator
+#: whose step is not the update of its prediction (an IMM's or a single filter's further update takes no step)
 REPEAT_STEP = 1e-3
 INITIATIONS = ("two_point", "single_point")
 #: up to this many (detection, seed) pairs the two-point initiation computes every distance (no k-d tree)
@@ -148,7 +149,9 @@ class MultiTargetTracker:
     max_speed/2) the velocity prior of a single-point track and of the second point's likelihood;
     ``updates_per_scan``: how many detections one track may take in a scan (several reports of one object within a
     time window, e.g. AIS in 10 s scans: each further round associates the detections left with the updated tracks,
-    after a step of :data:`REPEAT_STEP`; 1 for sensors that see each object once per scan); ``seed_window`` (s):
+    each detection aligned to the scan's time, so a further update takes no time step — a stop mode's velocity,
+    reset to its walk over the step, would otherwise be that of a 1 ms step; :data:`REPEAT_STEP` for an estimator
+    that cannot update without stepping; 1 for sensors that see each object once per scan); ``seed_window`` (s):
     how long a detection no track took waits for its second point (default: one scan; objects that report every
     few minutes, moored ships on AIS, need minutes); ``duplicate_probability`` P_dup (None: off): after each scan, of
     two tracks that both took a detection and whose kinematic states agree, Δᵀ (P_a + P_b)⁻¹ Δ ≤ χ²₄(P_dup) (Δ the
@@ -456,8 +459,9 @@ class MultiTargetTracker:
 
     def _updated(self, state, predicted, rows, z, dt) -> MultipleModelState:
         """Tracks ``rows`` updated with z: the measurement update of their prediction (the IMM's step equals it:
-        :meth:`MultipleModelEstimator.update`), otherwise a step of ``dt`` from ``state``."""
-        if self._update_only and predicted is not state:
+        :meth:`MultipleModelEstimator.update`; a further report of the scan, ``predicted`` is ``state``, is an update
+        with no time step: every report is aligned to the scan's time), otherwise a step of ``dt`` from ``state``."""
+        if self._update_only:
             return self.estimator.update(take_rows(predicted, rows), z)
         return self.estimator.step(take_rows(state, rows), z, dt)
 
@@ -663,7 +667,7 @@ class MultiTargetTracker:
                         predicted, step = est.step(state, np.full((T, self._measured), np.nan), dt), dt
                         if not free.size:
                             state = predicted
-                    else:  # a further report of the scan: an update after a step of REPEAT_STEP
+                    else:  # a further report of the scan: an update of the updated tracks (_updated)
                         predicted, step = state, REPEAT_STEP
                     if not free.size:
                         break
