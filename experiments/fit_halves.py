@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from real_tracks import ROOT, SHIPS, SOLENT, noisy, run_tracker, score, vessels  # noqa: E402
 
-from hybridtrack.apps.fitting import VELOCITY_NOISE, fit_tracks, starting_values  # noqa: E402
+from hybridtrack.apps.fitting import MAX_ITERATIONS, VELOCITY_NOISE, fit_tracks, starting_values  # noqa: E402
 from hybridtrack.apps.tracking import load_config  # noqa: E402
 
 HALVES = {"A": slice(0, None, 2), "B": slice(1, None, 2)}
@@ -47,12 +47,12 @@ def fits(hand: dict) -> dict:
     return {"fitted": ()} | ({"fitted_holding_course_speed": tuple(held)} if held else {})
 
 
-def fold(cases, fit_half: str, test_half: str, hand: dict) -> dict:
+def fold(cases, fit_half: str, test_half: str, hand: dict, max_iterations: int = MAX_ITERATIONS) -> dict:
     fit_cases, test_cases = cases[HALVES[fit_half]], cases[HALVES[test_half]]
     configs, found = {"hand_tuned": hand}, {}
     for name, hold in fits(hand).items():
         start = time.perf_counter()
-        fitted = fit_tracks([measured for _, _, measured in fit_cases], hand, hold=hold)
+        fitted = fit_tracks([measured for _, _, measured in fit_cases], hand, hold=hold, max_iterations=max_iterations)
         configs[name] = fitted.config
         found[name] = {
             "held": list(hold),
@@ -63,6 +63,7 @@ def fold(cases, fit_half: str, test_half: str, hand: dict) -> dict:
             "objects": fitted.objects,
             "reports": fitted.reports,
             "evaluations": fitted.evaluations,
+            "converged": fitted.converged,
             "seconds": time.perf_counter() - start,
         }
     rows = [
@@ -91,7 +92,9 @@ def at_least_as_good(result: dict) -> dict:
     return verdict
 
 
-def evaluate(path=SOLENT, *, config=SHIPS, sigma=10.0, seed=2016, vessel_count=None, max_reports=None) -> dict:
+def evaluate(
+    path=SOLENT, *, config=SHIPS, sigma=10.0, seed=2016, vessel_count=None, max_reports=None, max_iterations=MAX_ITERATIONS
+) -> dict:
     found = vessels(path, vessel_count, max_reports)
     if len(found) < 2:
         raise SystemExit(f"{path}: {len(found)} object(s) with course, speed and min_reports reports; two halves need at least 2")
@@ -110,7 +113,7 @@ def evaluate(path=SOLENT, *, config=SHIPS, sigma=10.0, seed=2016, vessel_count=N
             "max_reports": max_reports,
             "hand_tuned_values": starting_values(hand),
         },
-        "folds": [fold(cases, "A", "B", hand), fold(cases, "B", "A", hand)],
+        "folds": [fold(cases, "A", "B", hand, max_iterations), fold(cases, "B", "A", hand, max_iterations)],
     }
     result["fitted_at_least_as_good"] = at_least_as_good(result)
     return result
@@ -143,9 +146,16 @@ def main(argv=None) -> dict:
     parser.add_argument("--max-reports", type=int, help="the first K reports of each vessel only")
     parser.add_argument("--sigma", type=float, default=10.0, help="noise added to the reports (m)")
     parser.add_argument("--seed", type=int, default=2016)
+    parser.add_argument("--max-iterations", type=int, default=MAX_ITERATIONS, help="the optimizer's iterations per fit at most")
     args = parser.parse_args(argv)
     result = evaluate(
-        args.file, config=args.config, sigma=args.sigma, seed=args.seed, vessel_count=args.vessels, max_reports=args.max_reports
+        args.file,
+        config=args.config,
+        sigma=args.sigma,
+        seed=args.seed,
+        vessel_count=args.vessels,
+        max_reports=args.max_reports,
+        max_iterations=args.max_iterations,
     )
     result["command"] = "python experiments/fit_halves.py " + " ".join(sys.argv[1:] if argv is None else argv)
     for f in result["folds"]:

@@ -17,7 +17,8 @@ m²/s³, every mode without its own; started from σ_w²/10 s for a file of the
 per-report ``process_noise``), with more than one mode the mean time in
 each mode (``[estimator] sojourn``, s, one per mode: ``sojourn.<mode>``, :func:`sojourns`), and each mode's own
 process densities (``<mode>.rate_density`` …, :func:`mode_densities`).  θ̂ maximizes ℓ
-(L-BFGS-B from the configuration's values); the standard errors come from
+(L-BFGS-B from the configuration's values, at most ``max_iterations`` iterations, 60 unless given:
+``FitResult.converged`` says whether it stopped at a minimum); the standard errors come from
 the observed information, the numerical Hessian H of −ℓ in the logarithms at
 θ̂ (central differences): SE(ln θ_i) = √(H⁻¹)_ii and SE(θ_i) = θ̂_i SE(ln θ_i)
 (the delta method).  Parameters named in ``hold`` (``hybridtrack fit --hold NAME``) keep the configuration's
@@ -112,7 +113,8 @@ def describe(name: str) -> tuple[str, str, str]:
 @attrs.frozen
 class FitResult:
     """``values`` and ``standard_errors`` by parameter name, the log-likelihood at the fit and at the start, the
-    objects and reports used, the likelihood evaluations taken and the fitted configuration (a checked dict)."""
+    objects and reports used, the likelihood evaluations taken, the fitted configuration (a checked dict) and whether
+    the optimizer converged (False: it stopped at ``max_iterations``, θ̂ is where it stopped)."""
 
     values: dict[str, float]
     standard_errors: dict[str, float]
@@ -122,6 +124,7 @@ class FitResult:
     reports: int
     evaluations: int
     config: dict
+    converged: bool = True
 
 
 def _with(config: dict, values: Mapping[str, float], registry=None) -> dict:
@@ -158,6 +161,10 @@ def log_likelihood(config: dict, tracks: Iterable, registry=None) -> float:
     return total
 
 
+#: the optimizer's iterations unless a fit is given ``max_iterations`` (``hybridtrack fit --max-iterations``)
+MAX_ITERATIONS = 60
+
+
 def _check_fittable(cfg: dict) -> None:
     if cfg["estimator"]["algorithm"] not in MULTIPLE_MODEL:
         raise ConfigError(f"[estimator] algorithm {cfg['estimator']['algorithm']!r}: fit needs a multiple-model algorithm {MULTIPLE_MODEL}")
@@ -170,6 +177,7 @@ def fit_config(
     ids=None,
     max_objects: int | None = None,
     hold: Iterable[str] = (),
+    max_iterations: int = MAX_ITERATIONS,
     registry=None,
 ) -> FitResult:
     """θ̂ and its standard errors for the objects of ``path`` (those in ``ids``, or the first ``max_objects`` with at
@@ -183,7 +191,7 @@ def fit_config(
     chosen = chosen[:max_objects] if max_objects is not None else chosen
     if not chosen:
         raise ConfigError(f"{path}: no object with at least min_reports = {cfg['min_reports']} reports to fit")
-    return fit_tracks(chosen, cfg, hold=hold, registry=registry)
+    return fit_tracks(chosen, cfg, hold=hold, max_iterations=max_iterations, registry=registry)
 
 
 def starting_values(config: dict, registry=None) -> dict[str, float]:
@@ -196,9 +204,13 @@ def starting_values(config: dict, registry=None) -> dict[str, float]:
     return start | {name: value for name, (_, _, value) in mode_densities(config, registry).items()}
 
 
-def fit_tracks(tracks: Iterable, config: dict, *, hold: Iterable[str] = (), registry=None) -> FitResult:
+def fit_tracks(
+    tracks: Iterable, config: dict, *, hold: Iterable[str] = (), max_iterations: int = MAX_ITERATIONS, registry=None
+) -> FitResult:
     """:func:`fit_config` on tracks already read (:class:`~hybridtrack.io.track_files.Track` objects, e.g. a
     part of a file's, or tracks with simulated noise) under a checked configuration (:func:`load_config`)."""
+    if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or max_iterations < 1:
+        raise ConfigError(f"max_iterations: expected a positive whole number of optimizer iterations, got {max_iterations!r}")
     cfg, chosen = config, list(tracks)
     _check_fittable(cfg)
     if not chosen:
@@ -221,7 +233,9 @@ def fit_tracks(tracks: Iterable, config: dict, *, hold: Iterable[str] = (), regi
 
     x0 = np.log([start[n] for n in names])
     start_value = negative(x0)
-    found = minimize(negative, x0, method="L-BFGS-B", bounds=[(v - 7.0, v + 7.0) for v in x0], options={"eps": 1e-4, "maxiter": 60})
+    found = minimize(
+        negative, x0, method="L-BFGS-B", bounds=[(v - 7.0, v + 7.0) for v in x0], options={"eps": 1e-4, "maxiter": max_iterations}
+    )
     theta = found.x
     H = _hessian(negative, theta, found.fun)
     try:
@@ -239,6 +253,7 @@ def fit_tracks(tracks: Iterable, config: dict, *, hold: Iterable[str] = (), regi
         reports=sum(len(t) for t in chosen),
         evaluations=evaluations,
         config=_with(cfg, values, registry),
+        converged=bool(found.success),
     )
 
 

@@ -1,4 +1,4 @@
-"""``hybridtrack fit FILE --config CONFIG.toml --out TUNED.toml [--id ID …] [--max-objects N] [--hold NAME …] [--json]``: fit a
+"""``hybridtrack fit FILE --config CONFIG.toml --out TUNED.toml [--id ID …] [--max-objects N] [--hold NAME …] [--max-iterations N] [--json]``: fit a
 tracker configuration's parameters to a file by maximum likelihood.
 
 Estimates the measurement noise σ (and the reported course and speed's σ_χ, σ_s where CONFIG measures them), the
@@ -28,6 +28,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--hold", action="append", default=[], metavar="NAME", help="keep this parameter at CONFIG's value (repeatable; e.g. course_sigma)"
     )
+    parser.add_argument("--max-iterations", type=int, metavar="N", help="stop the optimizer after N iterations (default 60)")
     parser.add_argument("--json", action="store_true", help="print the fit as JSON")
 
 
@@ -38,22 +39,27 @@ def run(args: argparse.Namespace) -> int:
 
     if args.max_objects is not None and args.max_objects < 1:
         raise UsageError(f"--max-objects {args.max_objects}: expected a positive number of objects")
+    if args.max_iterations is not None and args.max_iterations < 1:
+        raise UsageError(f"--max-iterations {args.max_iterations}: expected a positive number of iterations")
     if not Path(args.file).is_file():
         raise UsageError(f"{args.file}: no such position file")
     check_output_file("--out", args.out, "a file (the fitted configuration, TOML)")  # before the fit, not after it
     try:
-        result = fit_config(args.file, args.config, ids=args.ids, max_objects=args.max_objects, hold=args.hold)
+        limit = {} if args.max_iterations is None else {"max_iterations": args.max_iterations}
+        result = fit_config(args.file, args.config, ids=args.ids, max_objects=args.max_objects, hold=args.hold, **limit)
         write_fitted(args.config, result.values, args.out)
     except ValueError as error:
         raise UsageError(str(error)) from None
     if args.json:
-        fields = ("values", "standard_errors", "loglik", "start_loglik", "objects", "reports", "evaluations")
+        fields = ("values", "standard_errors", "loglik", "start_loglik", "objects", "reports", "evaluations", "converged")
         print(json.dumps({key: getattr(result, key) for key in fields}, indent=2))
     else:
         print(f"fitted on {result.objects} object(s), {result.reports} reports: ln L {result.start_loglik:.1f} → {result.loglik:.1f}")
         for name, value in result.values.items():
             table, key, units = describe(name)
             print(f"  [{table}] {key:<14} {value:12.6g} ± {result.standard_errors[name]:.3g} {units}")
+        if not result.converged:
+            print("not converged: the optimizer stopped at its iteration limit (--max-iterations); the values are where it stopped")
         print(f"written: {args.out}")
     return 0
 

@@ -107,6 +107,22 @@ def test_held_parameters_keep_the_configurations_values(tmp_path, capsys):
     )
 
 
+def test_a_fit_stopped_at_its_iteration_limit_says_so(tmp_path, capsys):
+    """``--max-iterations 1``: the optimizer stops before a minimum; the fit says it has not converged (JSON and
+    text), and the values are where it stopped (the likelihood no worse than at the start)."""
+    csv, cfg = write_tracks(tmp_path / "t.csv", objects=2, reports=40), tmp_path / "c.toml"
+    cfg.write_text(CONFIG)
+    out = ["--out", str(tmp_path / "tuned.toml")]
+    assert main(["fit", str(csv), "--config", str(cfg), *out, "--max-iterations", "1", "--json"]) == 0
+    fit = json.loads(capsys.readouterr().out)
+    assert fit["converged"] is False and fit["loglik"] >= fit["start_loglik"]
+    assert main(["fit", str(csv), "--config", str(cfg), *out, "--max-iterations", "1"]) == 0
+    assert "not converged: the optimizer stopped at its iteration limit" in capsys.readouterr().out
+    assert fit_config(csv, cfg).converged is True
+    with pytest.raises(ValueError, match="max_iterations: expected a positive whole number of optimizer iterations, got 0"):
+        fit_config(csv, cfg, max_iterations=0)
+
+
 @pytest.mark.parametrize(
     ("edit", "argv_extra", "message"),
     [
@@ -115,6 +131,7 @@ def test_held_parameters_keep_the_configurations_values(tmp_path, capsys):
         (lambda c: c, ["--max-objects", "0"], "--max-objects 0"),
         (lambda c: c, ["--hold", "speed_sigma"], "hold 'speed_sigma': not a parameter of this configuration; expected some of sigma,"),
         (lambda c: c, ["--hold", "sigma", "--hold", "noise_density"], "every parameter held, nothing left to fit"),
+        (lambda c: c, ["--max-iterations", "0"], "--max-iterations 0: expected a positive number of iterations"),
     ],
 )
 def test_bad_inputs_are_one_line_and_status_2(tmp_path, capsys, edit, argv_extra, message):
