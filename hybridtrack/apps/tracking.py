@@ -50,6 +50,7 @@ a :class:`ConfigError` (a ValueError) naming the key.
 from __future__ import annotations
 
 import contextlib
+import copy
 import inspect
 import json
 import math
@@ -120,6 +121,29 @@ CONFIG_KEYS = {
 _RESERVED = {"modes", "sensors", "estimator", "name", "registry", "alpha", "beta", "bank_size", "initial_mode", "sojourn"}
 
 
+#: the keys :func:`load_config` adds beside the sections: a mapping with all of them is its result
+CHECKED_KEYS = {"min_reports", "speed_limit", "unlabelled"}
+
+
+def _as_written(checked: Mapping[str, Any]) -> dict:
+    """The sections of a checked configuration as a file would give them: the reader's ``min_reports`` back in
+    ``[reader]``, each mode a table, ``[segments]`` by model without the motion rule's thresholds, no
+    ``[association]`` for a labelled file."""
+    raw = {section: copy.deepcopy(dict(checked[section])) for section in CONFIG_KEYS if section in checked}
+    raw.setdefault("reader", {})["min_reports"] = checked["min_reports"]
+    estimator = raw.get("estimator", {})
+    if isinstance(estimator.get("modes"), list):
+        estimator["modes"] = [{"name": m[0], **m[1]} if isinstance(m, tuple) else m for m in estimator["modes"]]
+    first = estimator.get("initial_mode")
+    if isinstance(first, int) and not isinstance(first, bool):  # checked: the index of the mode it names
+        estimator["initial_mode"] = _mode_label(*checked["estimator"]["modes"][first])
+    if raw.get("segments", {}).get("by") == "model":
+        raw["segments"] = {"by": "model"}
+    if not checked["unlabelled"]:
+        raw.pop("association", None)
+    return raw
+
+
 class ConfigError(ValueError):
     """A configuration the tracker cannot use: the message names the file, the key and what is expected."""
 
@@ -133,9 +157,11 @@ def _positive(section: str, key: str, value, where: str) -> float:
 def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) -> dict:
     """The checked configuration (a dict of the four sections, defaults filled) from a TOML file or a mapping.
 
-    ``[estimator] algorithm`` must name an algorithm of ``registry`` (default: the installed plugins')."""
+    ``[estimator] algorithm`` must name an algorithm of ``registry`` (default: the installed plugins').  A mapping
+    that is this function's own result is checked again from its sections (``load_config(load_config(c))`` equals
+    ``load_config(c)``), so the checked dict can be passed on to :func:`track_file` and the other entry points."""
     if isinstance(config, Mapping):
-        where, raw = "config", dict(config)
+        where, raw = "config", _as_written(config) if CHECKED_KEYS <= set(config) else dict(config)
     else:
         where = str(config)
         if not Path(config).is_file():
@@ -259,7 +285,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         bank = est.setdefault("bank_size", 30)
         if bank != "algorithm4" and (isinstance(bank, bool) or not isinstance(bank, int) or bank < 1):
             raise ConfigError(f"{where}: [estimator] bank_size = {bank!r}; expected a positive integer or 'algorithm4'")
-        names = [name if "radius" not in params else f"{name}_r{params['radius']:g}" for name, params in est["modes"]]
+        names = [_mode_label(name, params) for name, params in est["modes"]]
         first = est.get("initial_mode", names[0])
         if first not in names:
             raise ConfigError(f"{where}: [estimator] initial_mode = {first!r}; expected one of {names}")
@@ -271,6 +297,11 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
         if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
             raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
     return out
+
+
+def _mode_label(name: str, params: Mapping) -> str:
+    """A mode's name in ``initial_mode``: the registry name, with ``_r<radius>`` for a turn of a given radius."""
+    return name if "radius" not in params else f"{name}_r{params['radius']:g}"
 
 
 def _segment_rule(table: dict, where: str) -> dict:

@@ -336,3 +336,19 @@ def test_smoothing_errors_are_one_line_and_status_2(tmp_path, capsys, extra, mes
     status = main(["track", str(csv), "--config", str(cfg), "--out", str(tmp_path / "out")] + extra)
     err = capsys.readouterr().err
     assert status == 2 and message in err, err
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in (ROOT / "examples").glob("*.toml")))
+def test_a_checked_configuration_is_checked_again_unchanged(name):
+    """load_config takes its own result (a user composing in Python passes it on): checking it again gives it back."""
+    checked = load_config(ROOT / "examples" / name)
+    assert load_config(checked) == checked
+
+
+def test_track_file_takes_the_checked_configuration(tmp_path):
+    """track_file(path, load_config(...)) tracks as track_file(path, the TOML file) does (the same summary)."""
+    config = ROOT / "examples" / "ships.toml"
+    first = ["235007473"]
+    from_file = track_file(SOLENT, config, tmp_path / "file", ids=first)
+    from_dict = track_file(SOLENT, load_config(config), tmp_path / "dict", ids=first)
+    assert from_dict["objects"] == from_file["objects"]
