@@ -124,7 +124,7 @@ class FitResult:
     reports: int
     evaluations: int
     config: dict
-    converged: bool = True
+    converged: bool
 
 
 def _with(config: dict, values: Mapping[str, float], registry=None) -> dict:
