@@ -321,8 +321,8 @@ class MultipleModelEstimator:
         (R, n), F = (start_means.shape[0], start_means.shape[-1]), len(filter_models)
         if start_means.ndim == 2:
             start_means, start_covs = start_means[:, None], start_covs[:, None]
-        x0 = np.broadcast_to(start_means, (R, F, n)).reshape(R * F, n)
-        P0 = np.broadcast_to(start_covs, (R, F, n, n)).reshape(R * F, n, n)
+        x0 = (start_means if start_means.shape == (R, F, n) else np.broadcast_to(start_means, (R, F, n))).reshape(R * F, n)
+        P0 = (start_covs if start_covs.shape == (R, F, n, n) else np.broadcast_to(start_covs, (R, F, n, n))).reshape(R * F, n, n)
         models = [self.models[f] for f in filter_models] * R
         P0, runs = 0.5 * (P0 + np.swapaxes(P0, -1, -2)), np.repeat(np.arange(R), F)
         done = self.bank.restart_step(x0, P0, models, x0, runs, dt, z)  # the compiled lane, if the estimator has one

@@ -222,7 +222,7 @@ def gate_checked(predicted: np.ndarray, S: np.ndarray, detections: np.ndarray, g
     shifted = velocities is not None
     radius = np.sqrt(gamma * _largest_eigenvalue(S))
     if shifted:
-        radius = radius + np.linalg.norm(velocities, axis=1) * float(np.abs(offsets).max())
+        radius = radius + np.sqrt(np.einsum("ti,ti->t", velocities, velocities)) * float(np.abs(offsets).max())
     radius = radius * (1.0 + _RADIUS_SLACK) + np.finfo(float).tiny
     if m == 2:
         a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
@@ -294,8 +294,11 @@ def clusters(gate: Gate) -> tuple[np.ndarray, np.ndarray, int]:
                 if np.array_equal(jumped, labels):
                     break
                 labels = jumped
-        roots, labels = np.unique(labels, return_inverse=True)  # roots ascending: the order of first appearance
-        count = roots.size
+        # every label is its component's smallest node, a root (labels[r] = r): numbered in ascending order, the
+        # order of first appearance
+        rank = np.cumsum(labels == np.arange(n)) - 1
+        labels = rank[labels]
+        count = int(rank[-1]) + 1
     else:
         indptr = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(np.bincount(u, minlength=n), out=indptr[1:])  # the pairs are sorted by track: CSR rows as they are
