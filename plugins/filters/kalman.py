@@ -255,15 +255,15 @@ class KalmanFilter(BankEstimator):
             return None
         # R(x⁻) = R + the state-dependent blocks at each filter's prediction (MeasurementStep.with_state_noise); the
         # blocks go to the kernel as they come (one sensor) or side by side over their span
-        with np.errstate(all="ignore"):
-            if len(dependent) == 1:
-                extra = np.ascontiguousarray(dependent[0][0].state_noise(x_pred, layout), dtype=float)
-            elif dependent:
-                extra = np.zeros((M, span, span))
-                for sensor, block in dependent:
-                    extra[:, block, block] = sensor.state_noise(x_pred, layout)
-            else:
-                extra = _NO_EXTRA
+        extra = _NO_EXTRA
+        if dependent:
+            with np.errstate(all="ignore"):
+                if len(dependent) == 1:
+                    extra = np.ascontiguousarray(dependent[0][0].state_noise(x_pred, layout), dtype=float)
+                else:
+                    extra = np.zeros((M, span, span))
+                    for sensor, block in dependent:
+                        extra[:, block, block] = sensor.state_noise(x_pred, layout)
         x, P = np.empty((M, n)), np.empty((M, n, n))
         loglik, nis, dims = np.empty(M), np.empty(M), np.empty(M, dtype=np.intp)
         zc = np.ascontiguousarray(z, dtype=float)

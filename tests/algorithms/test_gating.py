@@ -209,3 +209,32 @@ def test_clusters_by_label_propagation_and_by_scipy_agree(monkeypatch, small_gra
     expected_count, expected = connected_components(graph, directed=False)
     assert count == expected_count
     np.testing.assert_array_equal(np.concatenate([track_cluster, detection_cluster]), expected)
+
+
+@pytest.mark.parametrize("shifted", [False, True])
+@pytest.mark.parametrize("seed", range(3))
+def test_the_compiled_gate_and_cluster_layout_equal_the_numpy_ones(monkeypatch, shifted, seed):
+    """numba's m = 2 all-pairs gate and cluster layout (_gating_kernels) against the numpy code they replace,
+    bit for bit: the same pairs, d², log-likelihoods, labels and orders."""
+    import hybridtrack.algorithms.multitarget.gating as gating
+
+    pytest.importorskip("numba")
+    rng = np.random.default_rng(70 + seed)
+    T, N = int(rng.integers(1, 40)), int(rng.integers(1, 60))
+    predicted, detections = rng.uniform(-30, 30, (T, 2)), rng.uniform(-30, 30, (N, 2))
+    S = random_covariances(rng, T, 2, elongation=4.0) * rng.uniform(1.0, 30.0, (T, 1, 1))
+    moved = dict(velocities=rng.normal(0, 2, (T, 2)), offsets=rng.uniform(-3, 0, N)) if shifted else {}
+    gamma = gate_threshold(0.999, 2)
+    compiled = gate(predicted, S, detections, threshold=gamma, **moved)
+    compiled_layout = cluster_layout(compiled)
+    monkeypatch.setattr(gating, "NUMBA_AVAILABLE", False)
+    reference = gate(predicted, S, detections, threshold=gamma, **moved)
+    assert compiled.pairs == reference.pairs and reference.pairs > 0
+    for name in ("track", "detection", "d2", "log_likelihood"):
+        np.testing.assert_array_equal(getattr(compiled, name), getattr(reference, name), err_msg=name)
+    reference_layout = cluster_layout(reference)
+    assert compiled_layout.count == reference_layout.count
+    for name in ("track_cluster", "detection_cluster", "edge_cluster", "edge_order", "edge_start", "track_order", "track_start"):
+        np.testing.assert_array_equal(getattr(compiled_layout, name), getattr(reference_layout, name), err_msg=name)
+    np.testing.assert_array_equal(compiled_layout.detection_order, reference_layout.detection_order)
+    np.testing.assert_array_equal(compiled_layout.detection_start, reference_layout.detection_start)

@@ -24,6 +24,8 @@ the independent sub-problems of every association method (Bar-Shalom & Li 1995, 
 
 from __future__ import annotations
 
+import functools
+import importlib.util
 import math
 
 import attrs
@@ -43,6 +45,17 @@ _RADIUS_SLACK = 1e-9
 _DENSE_PAIRS = 4096
 #: up to this many gated pairs, :func:`clusters` propagates labels in numpy (no sparse graph)
 _SMALL_GRAPH = 2000
+#: numba is installed: the m = 2 gate of up to :data:`_DENSE_PAIRS` pairs and :func:`cluster_layout` run compiled
+#: (:mod:`._gating_kernels`, the same arithmetic), else in numpy
+NUMBA_AVAILABLE = importlib.util.find_spec("numba") is not None
+
+
+@functools.cache
+def _kernels():
+    """The compiled kernels of :mod:`._gating_kernels`, imported (and numba with it) on first use."""
+    from hybridtrack.algorithms.multitarget import _gating_kernels
+
+    return _gating_kernels
 
 
 def _index_array(value, name: str) -> np.ndarray:
@@ -232,6 +245,12 @@ def gate_checked(predicted: np.ndarray, S: np.ndarray, detections: np.ndarray, g
             _cholesky(S)  # raises the ValueError naming the first bad S_t
             raise ValueError(f"S: expected symmetric positive definite innovation covariances, S[{int(np.flatnonzero(bad)[0])}] is not")
         log_det = np.log(det)
+        if NUMBA_AVAILABLE and T * N <= _DENSE_PAIRS:  # every pair, compiled: the same d² and log-likelihoods
+            track, detection = np.empty(T * N, dtype=np.intp), np.empty(T * N, dtype=np.intp)
+            d2, log_likelihood = np.empty(T * N), np.empty(T * N)
+            moved = (velocities, offsets) if shifted else _NOT_SHIFTED
+            E = _kernels().dense_gate_2d(predicted, a, b, c, det, log_det, detections, *moved, gamma, track, detection, d2, log_likelihood)
+            return _built_gate(T, N, track[:E], detection[:E], d2[:E], log_likelihood[:E])
     else:
         L = _cholesky(S)
         log_det = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
@@ -249,6 +268,9 @@ def gate_checked(predicted: np.ndarray, S: np.ndarray, detections: np.ndarray, g
     track, detection, d2 = track[keep], detection[keep], d2[keep]
     log_likelihood = -0.5 * (d2 + log_det[track] + m * math.log(2.0 * math.pi))
     return _built_gate(T, N, track, detection, d2, log_likelihood)
+
+
+_NOT_SHIFTED = (np.zeros((0, 2)), np.zeros(0))  # the kernel's velocities and offsets of an unshifted gate
 
 
 def _built_gate(T: int, N: int, *arrays: np.ndarray) -> Gate:
@@ -348,7 +370,12 @@ class ClusterLayout:
 
 
 def cluster_layout(gate: Gate) -> ClusterLayout:
-    """:func:`clusters` of ``gate`` with its pairs, tracks and detections grouped by cluster."""
+    """:func:`clusters` of ``gate`` with its pairs, tracks and detections grouped by cluster (compiled with numba:
+    union–find and counting sorts, the same labels and orders)."""
+    if NUMBA_AVAILABLE:
+        T = gate.tracks
+        labels, count, *grouped = _kernels().cluster_layout(T, gate.detections, gate.track, gate.detection)
+        return ClusterLayout(labels[:T], labels[T:], int(count), *grouped)
     track_cluster, detection_cluster, count = clusters(gate)
 
     def group(labels):
