@@ -214,7 +214,7 @@ def test_clusters_by_label_propagation_and_by_scipy_agree(monkeypatch, small_gra
 @pytest.mark.parametrize("shifted", [False, True])
 @pytest.mark.parametrize("seed", range(3))
 def test_the_compiled_gate_and_cluster_layout_equal_the_numpy_ones(monkeypatch, shifted, seed):
-    """numba's m = 2 all-pairs gate and cluster layout (_gating_kernels) against the numpy code they replace,
+    """numba's m = 2 all-pairs gate and cluster layout (_association_kernels) against the numpy code they replace,
     bit for bit: the same pairs, d², log-likelihoods, labels and orders."""
     import hybridtrack.algorithms.multitarget.gating as gating
 

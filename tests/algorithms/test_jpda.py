@@ -257,3 +257,21 @@ def test_stone_soup_jpda_marginals():
         assert set(ours) == {i for i, p in theirs.items() if p > 0}
         for i, p in ours.items():
             assert theirs[i] == pytest.approx(p, abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_compiled_simple_clusters_equal_the_numpy_ones(seed, monkeypatch):
+    """The one-track and one-detection clusters in numba (_association_kernels.simple_marginals) against the numpy
+    code, on sparse scenes with many of both (and a few larger clusters), to rounding."""
+    import hybridtrack.algorithms.multitarget.gating as gating
+
+    pytest.importorskip("numba")
+    g, scores, miss = random_scene(100 + seed, T=150, N=150, spread=200.0, scale=20.0)
+    layout = gating.cluster_layout(g)
+    Tc, Nc = layout.cluster_tracks, layout.cluster_detections
+    assert ((Tc == 1) & (Nc >= 1)).sum() > 20 and ((Tc >= 2) & (Nc == 1)).sum() >= 3 and ((Tc >= 2) & (Nc >= 2)).sum() > 5
+    compiled = jpda(g, scores, miss_scores=miss)
+    monkeypatch.setattr(gating, "NUMBA_AVAILABLE", False)
+    reference = jpda(g, scores, miss_scores=miss)
+    np.testing.assert_allclose(compiled[0], reference[0], rtol=1e-14, atol=0)
+    np.testing.assert_allclose(compiled[1], reference[1], rtol=1e-14, atol=0)

@@ -45,17 +45,17 @@ _RADIUS_SLACK = 1e-9
 _DENSE_PAIRS = 4096
 #: up to this many gated pairs, :func:`clusters` propagates labels in numpy (no sparse graph)
 _SMALL_GRAPH = 2000
-#: numba is installed: the m = 2 gate of up to :data:`_DENSE_PAIRS` pairs and :func:`cluster_layout` run compiled
-#: (:mod:`._gating_kernels`, the same arithmetic), else in numpy
+#: numba is installed: the m = 2 gate of up to :data:`_DENSE_PAIRS` pairs, :func:`cluster_layout` and JPDA's one-track
+#: and one-detection clusters run compiled (:mod:`._association_kernels`, the same arithmetic), else in numpy
 NUMBA_AVAILABLE = importlib.util.find_spec("numba") is not None
 
 
 @functools.cache
-def _kernels():
-    """The compiled kernels of :mod:`._gating_kernels`, imported (and numba with it) on first use."""
-    from hybridtrack.algorithms.multitarget import _gating_kernels
+def association_kernels():
+    """The compiled kernels of :mod:`._association_kernels`, imported (and numba with it) on first use."""
+    from hybridtrack.algorithms.multitarget import _association_kernels
 
-    return _gating_kernels
+    return _association_kernels
 
 
 def _index_array(value, name: str) -> np.ndarray:
@@ -249,7 +249,9 @@ def gate_checked(predicted: np.ndarray, S: np.ndarray, detections: np.ndarray, g
             track, detection = np.empty(T * N, dtype=np.intp), np.empty(T * N, dtype=np.intp)
             d2, log_likelihood = np.empty(T * N), np.empty(T * N)
             moved = (velocities, offsets) if shifted else _NOT_SHIFTED
-            E = _kernels().dense_gate_2d(predicted, a, b, c, det, log_det, detections, *moved, gamma, track, detection, d2, log_likelihood)
+            E = association_kernels().dense_gate_2d(
+                predicted, a, b, c, det, log_det, detections, *moved, gamma, track, detection, d2, log_likelihood
+            )
             return _built_gate(T, N, track[:E], detection[:E], d2[:E], log_likelihood[:E])
     else:
         L = _cholesky(S)
@@ -374,7 +376,7 @@ def cluster_layout(gate: Gate) -> ClusterLayout:
     union–find and counting sorts, the same labels and orders)."""
     if NUMBA_AVAILABLE:
         T = gate.tracks
-        labels, count, *grouped = _kernels().cluster_layout(T, gate.detections, gate.track, gate.detection)
+        labels, count, *grouped = association_kernels().cluster_layout(T, gate.detections, gate.track, gate.detection)
         return ClusterLayout(labels[:T], labels[T:], int(count), *grouped)
     track_cluster, detection_cluster, count = clusters(gate)
 

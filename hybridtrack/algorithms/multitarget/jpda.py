@@ -39,6 +39,7 @@ import numpy as np
 import scipy.sparse
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from hybridtrack.algorithms.multitarget import gating
 from hybridtrack.algorithms.multitarget.gating import Gate, check_scores, cluster_layout
 from hybridtrack.core.validation import check_positive_int
 
@@ -357,7 +358,23 @@ def jpda(gate: Gate, scores, *, miss_scores=None, max_hypotheses: int = 1_000_00
     layout = cluster_layout(gate)
     Tc, Nc = layout.cluster_tracks, layout.cluster_detections
     edge_cluster = layout.edge_cluster
+    if gating.NUMBA_AVAILABLE:  # the one-track and one-detection clusters, compiled
+        gating.association_kernels().simple_marginals(gain, gate.track, edge_cluster, Tc, Nc, beta, beta_miss)
+    else:
+        _simple_marginals(gate, gain, layout, beta, beta_miss)
+    for cluster in np.flatnonzero((Tc >= 2) & (Nc >= 2)).tolist():
+        tracks, detections, edges = layout.members(cluster)
+        row = np.searchsorted(tracks, gate.track[edges])
+        col = np.searchsorted(detections, gate.detection[edges])
+        size_text = f"{tracks.size} tracks × {detections.size} detections ({edges.size} gated pairs)"
+        beta[edges], beta_miss[tracks] = _cluster_marginals(row, col, gain[edges], tracks.size, detections.size, limit, size_text)
+    return beta, beta_miss
 
+
+def _simple_marginals(gate: Gate, gain: np.ndarray, layout, beta: np.ndarray, beta_miss: np.ndarray) -> None:
+    """β and β_t0 of the clusters with one track or one detection (module docstring), written into ``beta`` and
+    ``beta_miss``, in numpy (:func:`._association_kernels.simple_marginals` compiled)."""
+    Tc, Nc, edge_cluster = layout.cluster_tracks, layout.cluster_detections, layout.edge_cluster
     # one track: ln Z_t = ln(1 + Σ_e e^{g_e}) relative to "missed"
     e = np.flatnonzero(Tc[edge_cluster] == 1)
     if e.size:
@@ -384,11 +401,3 @@ def jpda(gate: Gate, scores, *, miss_scores=None, max_hypotheses: int = 1_000_00
         rest = np.exp(-top) + np.bincount(c[~dominant], weights=weight[~dominant], minlength=layout.count)
         others = np.where(dominant, rest[c], total[c] - weight)
         beta_miss[gate.track[e]] = others / total[c]
-
-    for cluster in np.flatnonzero((Tc >= 2) & (Nc >= 2)).tolist():
-        tracks, detections, edges = layout.members(cluster)
-        row = np.searchsorted(tracks, gate.track[edges])
-        col = np.searchsorted(detections, gate.detection[edges])
-        size_text = f"{tracks.size} tracks × {detections.size} detections ({edges.size} gated pairs)"
-        beta[edges], beta_miss[tracks] = _cluster_marginals(row, col, gain[edges], tracks.size, detections.size, limit, size_text)
-    return beta, beta_miss

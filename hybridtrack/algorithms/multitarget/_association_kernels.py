@@ -95,3 +95,52 @@ def cluster_layout(T, N, track, detection):  # pragma: no cover - compiled
     _group(labels[:T], count, track_order, track_start)
     _group(labels[T:], count, detection_order, detection_start)
     return labels, count, edge_cluster, edge_order, edge_start, track_order, track_start, detection_order, detection_start
+
+
+@_jit()
+def simple_marginals(gain, track, edge_cluster, cluster_tracks, cluster_detections, beta, beta_miss):  # pragma: no cover - compiled
+    """β (E,) and β_t0 (T,) of the clusters with one track or one detection, written in place (the other clusters'
+    entries untouched): :func:`.jpda.jpda`'s formulas, its sums taken in the same order (edges ascending)."""
+    E, T, C = gain.shape[0], beta_miss.shape[0], cluster_tracks.shape[0]
+    top_t, total_t, owned = np.zeros(T), np.zeros(T), np.zeros(T, dtype=np.bool_)
+    top_c, total_c, rest_c = np.zeros(C), np.zeros(C), np.zeros(C)
+    for e in range(E):  # the largest gain of each (with 0 for "missed" / "clutter")
+        c = edge_cluster[e]
+        if cluster_tracks[c] == 1:
+            top_t[track[e]] = max(top_t[track[e]], gain[e])
+        elif cluster_detections[c] == 1:
+            top_c[c] = max(top_c[c], gain[e])
+    for e in range(E):
+        c = edge_cluster[e]
+        if cluster_tracks[c] == 1:
+            beta[e] = math.exp(gain[e] - top_t[track[e]])
+            total_t[track[e]] += beta[e]
+            owned[track[e]] = True
+        elif cluster_detections[c] == 1:
+            beta[e] = math.exp(gain[e] - top_c[c])
+            total_c[c] += beta[e]
+    for t in range(T):
+        if owned[t]:
+            total_t[t] += math.exp(-top_t[t])
+    for c in range(C):
+        if cluster_tracks[c] >= 2 and cluster_detections[c] == 1:
+            total_c[c] += math.exp(-top_c[c])
+    for e in range(E):  # β_t0 = (Z − e^{g_e}) / Z, the difference taken only where it does not cancel
+        c = edge_cluster[e]
+        if cluster_tracks[c] >= 2 and cluster_detections[c] == 1 and not beta[e] > 0.5 * total_c[c]:
+            rest_c[c] += beta[e]
+    for c in range(C):
+        if cluster_tracks[c] >= 2 and cluster_detections[c] == 1:
+            rest_c[c] += math.exp(-top_c[c])
+    for e in range(E):
+        c = edge_cluster[e]
+        if cluster_tracks[c] == 1:
+            beta[e] = beta[e] / total_t[track[e]]
+        elif cluster_detections[c] == 1:
+            weight = beta[e]
+            others = rest_c[c] if weight > 0.5 * total_c[c] else total_c[c] - weight
+            beta[e] = weight / total_c[c]
+            beta_miss[track[e]] = others / total_c[c]
+    for t in range(T):
+        if owned[t]:
+            beta_miss[t] = math.exp(-top_t[t]) / total_t[t]
