@@ -300,6 +300,10 @@ class MultipleModelEstimator:
     def log_transition_matrix(self, dt) -> np.ndarray:
         """ln Π (−∞ for a forbidden switch) for one step of ``dt`` seconds (→ (r, r)) or steps (R,) (→ (R, r, r));
         the Δt not seen before are computed in one expm call."""
+        if type(dt) is list and len(dt) == 1 and type(dt[0]) is float and self._log_matrix is None:  # one step seen before
+            known = self._log_matrices.get(dt[0])
+            if known is not None:
+                return known[None]
         steps = np.asarray(dt, dtype=float)
         if self._log_matrix is not None:
             return np.broadcast_to(self._log_matrix, steps.shape + self._log_matrix.shape)

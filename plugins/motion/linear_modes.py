@@ -245,11 +245,17 @@ class _FixedMatrixMode(_Noise, MotionModel):
         transition per distinct step, vectorized, indexed back to the rows (a step beyond the float64 arithmetic is
         :meth:`transition`'s ValueError).  The transitions of the steps seen before come from the model's table
         (:class:`_StepTable`: irregular report times revisit the same Δt), the new ones are computed in one call."""
-        steps = step_lengths(tau, np.shape(switch_states)[0])
         table = self.__dict__.get("_step_table")
         if table is None:  # the instance's own (attrs frozen: set through __dict__; not part of eq or the fields)
             table = self.__dict__["_step_table"] = _StepTable()
-        return table.bank(steps, self._distinct_bank)
+        rows = np.shape(switch_states)[0]
+        if not (type(tau) is float and 0.0 < tau < math.inf):
+            return table.bank(step_lengths(tau, rows), self._distinct_bank)
+        last = self.__dict__.get("_last_step")  # one step for all rows (the common case): its row, repeated
+        if last is None or last[0] != tau:
+            last = self.__dict__["_last_step"] = (tau, table.bank(np.array([tau]), self._distinct_bank))
+        one = last[1]
+        return TransitionBank(*(None if a is None else np.repeat(a, rows, axis=0) for a in (one.F, one.B, one.Q, one.noise_root)))
 
     def prepare_steps(self, steps) -> None:
         """Build the transitions of the step lengths ``steps`` (any shape; those finite and > 0) in one vectorized
