@@ -320,7 +320,7 @@ def _segments() -> dict[str, Entry]:
             'string: "model", "motion"',
             "what decides a report's mode in the segments: the followed or most probable model (a turn-rate model's step "
             "a left or right turn by the sign of ω̂), or the estimated motion — the hysteresis of the mode labels on ω̂ and "
-            '\\|v̂\\| (needs a mode with ω in its state); the other keys need `by = "motion"`',
+            '\\|v̂\\| (needs a mode with ω in its state); the thresholds below need `by = "motion"`',
             _filled("imm", "segments", "by"),
         ),
         "turn_rate_on": Entry(
@@ -339,6 +339,14 @@ def _segments() -> dict[str, Entry]:
             _filled("imm", "segments", "stop_speed"),
         ),
         "go_speed": Entry("number, m/s > 0, ≥ `stop_speed`", "a stop lasts until the speed exceeds it", absent=f"{go:g} × `stop_speed`"),
+        "sojourn_quantile": Entry(
+            "number in [0, 1)",
+            "q > 0: each mode's minimum duration d_j = −T_j ln(1 − q), the q-quantile of its sojourn prior (`[estimator] sojourn` T_j): "
+            "causally a switch is taken once it has lasted d_j (dated from its start, decided d_j later: the `decisions`' `time` and "
+            "`start`); with `--smooth` segments shorter than d_j are merged into their longer neighbour; `imm`, `gpb1`, `gpb2` only, "
+            "either `by` ([Real data](real_data.md#minimum-durations))",
+            _filled("imm", "segments", "sojourn_quantile"),
+        ),
     }
 
 

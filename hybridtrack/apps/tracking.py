@@ -69,6 +69,7 @@ import numpy as np
 from hybridtrack.algorithms.bank_runs import record_run, run_ragged
 from hybridtrack.apps.association_keys import ASSOCIATION_DEFAULTS
 from hybridtrack.apps.geojson import tracks_geojson
+from hybridtrack.apps.minimum_duration import held_modes, merged_modes, minimum_durations
 from hybridtrack.apps.mode_labels import motion_states
 from hybridtrack.core.plugins import resolve
 from hybridtrack.core.registry import registry_or_default
@@ -112,7 +113,7 @@ CONFIG_KEYS = {
     "measurement": {"sigma", "time_jitter", "speed_sigma", "course_sigma"},
     "altitude": set(ALTITUDE_DEFAULTS),
     "prior": {"velocity", "position_sigma", "velocity_sigma", "turn_rate_sigma"},
-    "segments": {"by", "turn_rate_on", "turn_rate_off", "stop_speed", "go_speed"},
+    "segments": {"by", "turn_rate_on", "turn_rate_off", "stop_speed", "go_speed", "sojourn_quantile"},
     "estimator": {"algorithm", "kind", "filter", "process_noise", "noise_density", "modes", "radii", "parameters"}
     | set(_KIND_ONLY["unknown_change"] + _KIND_ONLY["imm"]),
     "association": set(ASSOCIATION_DEFAULTS),  # unlabelled detections (hybridtrack.apps.multitarget)
@@ -138,7 +139,7 @@ def _as_written(checked: Mapping[str, Any]) -> dict:
     if isinstance(first, int) and not isinstance(first, bool):  # checked: the index of the mode it names
         estimator["initial_mode"] = _mode_label(*checked["estimator"]["modes"][first])
     if raw.get("segments", {}).get("by") == "model":
-        raw["segments"] = {"by": "model"}
+        raw["segments"] = {"by": "model", "sojourn_quantile": raw["segments"]["sojourn_quantile"]}
     if not checked["unlabelled"]:
         raw.pop("association", None)
     return raw
@@ -296,6 +297,10 @@ def load_config(config: str | os.PathLike | Mapping[str, Any], registry=None) ->
             _positive("estimator", "sojourn", v, where)
         if isinstance(sojourn, list) and len(sojourn) != len(est["modes"]):
             raise ConfigError(f"{where}: [estimator] sojourn: {len(sojourn)} values for {len(est['modes'])} modes")
+    if out["segments"]["sojourn_quantile"] > 0 and family != "imm":
+        raise ConfigError(
+            f"{where}: [segments] sojourn_quantile needs the modes' sojourn prior: an algorithm of {MULTIPLE_MODEL}, not {kind!r}"
+        )
     return out
 
 
@@ -314,8 +319,13 @@ def _segment_rule(table: dict, where: str) -> dict:
         raise ConfigError(
             f"{where}: [segments] by = {by!r}; expected 'model' (the most probable model) or 'motion' (the estimated turn rate and speed)"
         )
-    if by == "model" and set(table) - {"by"}:
-        raise ConfigError(f"{where}: [segments] {sorted(set(table) - {'by'})} need by = 'motion'")
+    if by == "model" and set(table) - {"by", "sojourn_quantile"}:
+        raise ConfigError(f"{where}: [segments] {sorted(set(table) - {'by', 'sojourn_quantile'})} need by = 'motion'")
+    quantile = table.get("sojourn_quantile", 0.0)
+    if isinstance(quantile, bool) or not isinstance(quantile, (int, float)) or not 0.0 <= quantile < 1.0:
+        raise ConfigError(
+            f"{where}: [segments] sojourn_quantile = {quantile!r}; expected a probability q in [0, 1) (0: no minimum duration)"
+        )
     on = _positive("segments", "turn_rate_on", table.get("turn_rate_on", 0.5), where)
     off = _positive("segments", "turn_rate_off", table.get("turn_rate_off", on / 2), where)
     stop = _positive("segments", "stop_speed", table.get("stop_speed", 0.5), where)
@@ -324,7 +334,7 @@ def _segment_rule(table: dict, where: str) -> dict:
         raise ConfigError(
             f"{where}: [segments] expected turn_rate_off ≤ turn_rate_on and go_speed ≥ stop_speed, got {off:g} > {on:g} or {go:g} < {stop:g}"
         )
-    return {"by": by, "turn_rate_on": on, "turn_rate_off": off, "stop_speed": stop, "go_speed": go}
+    return {"by": by, "turn_rate_on": on, "turn_rate_off": off, "stop_speed": stop, "go_speed": go, "sojourn_quantile": float(quantile)}
 
 
 def _modes(modes, radii, where) -> list[tuple[str, dict]]:
@@ -545,6 +555,37 @@ def _step_modes(models, run, layout, rule=None) -> tuple[list[str], list[float |
     return list(modes), list(radii)
 
 
+def mode_sojourns(models, sojourn) -> dict[str, float]:
+    """Summary mode name → the mean sojourn T_j (s) of the models it comes from (the shortest of several): ``sojourn``
+    ``[estimator] sojourn`` (one for all models or one per model); a model with ω in its state gives both turns."""
+    values = sojourn if isinstance(sojourn, list) else [sojourn] * len(models)
+    out: dict[str, float] = {}
+    for model, T in zip(models, values):
+        for name in ("left_turn", "right_turn") if "omega" in model.layout else (_summary_mode(model)[0],):
+            out[name] = min(float(T), out.get(name, math.inf))
+    return out
+
+
+def _with_minimum_durations(models, config, times, modes, radii, *, offline: bool):
+    """(modes, radii, decided) of the steps with ``[segments] sojourn_quantile`` q > 0: each mode's minimum duration
+    d_j = −T_j ln(1 − q) from its sojourn prior (:mod:`hybridtrack.apps.minimum_duration`), held causally (decided:
+    (first step, deciding step) per switch) or, ``offline`` (fixed-interval smoothing), merged (decided None);
+    q = 0: the steps as they are."""
+    quantile = config["segments"]["sojourn_quantile"]
+    if quantile <= 0:
+        return modes, radii, None
+    durations = minimum_durations(mode_sojourns(models, config["estimator"]["sojourn"]), quantile)
+    labels = list(zip(modes, radii))
+    minimum = {label: durations.get(label[0], 0.0) for label in set(labels)}
+    decided = None
+    if offline:
+        labels = merged_modes(times, labels, minimum)
+    else:
+        labels, decided = held_modes(times, labels, minimum)
+    held, held_radii = (list(x) for x in zip(*labels)) if labels else ([], [])
+    return held, held_radii, decided
+
+
 def describe_segments(segments: list[dict], times: np.ndarray, means: np.ndarray, layout: Sequence[str], epoch=None) -> list[dict]:
     """Each segment of :func:`segments_of` with what the estimate says about it: ``mean_speed`` (m/s, the mean of
     |v̂| over its steps), ``heading_change`` (degrees, positive to the left (counter-clockwise): the unwrapped
@@ -661,6 +702,7 @@ def track_one(
             in_3d = (None, None) if heights is None else (np.column_stack([xy, heights]), np.column_stack([est_xy, altitude[0][:, 0]]))
             record_track(recorder, estimator.name, run.times, *in_3d, *geo)
         modes, radii = _step_modes(models, run, layout, config["segments"])
+        modes, radii, decided = _with_minimum_durations(models, config, run.times, modes, radii, offline=smooth)
         if recorder is not None and config["segments"]["by"] == "motion":  # the summary's modes: lanes, the path's colours
             names = list(dict.fromkeys(modes))
             followed = SimpleNamespace(mode=np.array([names.index(m) for m in modes]), modes=tuple(names), times=run.times)
@@ -668,8 +710,10 @@ def track_one(
     if getattr(estimator, "detector", None) is not None:
         by_label = dict(zip(run.modes, models))
         decisions = [{"time": float(d.time), "mode": _summary_mode(by_label[d.mode])[0]} for d in run.decisions]
+    elif decided is not None:  # held to the minimum durations: each switch decided once it had lasted its d_j
+        decisions = [{"time": float(run.times[k]), "start": float(run.times[first]), "mode": modes[first]} for first, k in decided]
     else:
-        changes = np.array(modes) if config["segments"]["by"] == "motion" else run.mode
+        changes = np.array(modes) if config["segments"]["by"] == "motion" or config["segments"]["sojourn_quantile"] > 0 else run.mode
         switches = np.flatnonzero(changes[1:] != changes[:-1]) + 1
         decisions = [{"time": float(run.times[k]), "mode": modes[k]} for k in switches]
     if out is not None:
