@@ -233,6 +233,7 @@ class MultiTargetTracker:
         self._kinematic = ("x", "vx", "y", "vy")
         self._kinematic_index = np.array([layout.index(c) for c in self._kinematic])
         self.R = np.asarray(self.sensor.measurement_noise(np.zeros(2)), dtype=float)
+        self._seed_slack = 3.0 * math.sqrt(2.0 * float(np.max(np.diag(self.R))))  # 3σ of a two-report difference
         self.gamma = gate_threshold(self.gate_probability, 2)
         self._gamma_joint = gate_threshold(self.gate_probability, 4)
         self._gamma_duplicate = None if duplicate_probability is None else gate_threshold(duplicate_probability, 4)
@@ -311,8 +312,8 @@ class MultiTargetTracker:
         distance: two reports of one moored ship minutes apart pair, a moored ship and its neighbour do not."""
         if seeds_z.shape[0] == 0 or z.shape[0] == 0:
             return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
-        slack = 3.0 * math.sqrt(2.0 * float(np.max(np.diag(self.R))))
-        reach = self.max_speed * float(np.max(t) - np.min(seeds_t)) + slack
+        slack = self._seed_slack
+        reach = self.max_speed * float(t.max() - seeds_t.min()) + slack
         if z.shape[0] * seeds_z.shape[0] <= DENSE_SEED_PAIRS:  # every distance: quicker than a tree for a few
             rows, cols = np.nonzero(np.sum((z[:, None, :] - seeds_z[None, :, :]) ** 2, axis=-1) <= reach**2)
         else:
@@ -717,7 +718,8 @@ class MultiTargetTracker:
                     state, status, ids = take_rows(state, keep), status.take(keep), ids[keep]
             # initiation from the detections no track took
             birth, free, paired = self._births(detections, seeds, here, np.flatnonzero(~used), now)
-            seeds = seeds[~np.isin(seeds, paired)]
+            if paired.size:
+                seeds = seeds[~np.isin(seeds, paired)]
             if birth is not None:
                 fresh, new_status, origin = birth
                 B = origin.shape[0]
