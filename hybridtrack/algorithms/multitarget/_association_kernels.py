@@ -1,7 +1,9 @@
-"""The compiled kernels of :mod:`.gating` (numba, ``cache=True``): imported on first use only, so that importing the
-trackers does not import numba.  The formulas and the arithmetic (the order of every floating-point operation) are
-those of :func:`.gating.gate_checked` (m = 2, every pair computed) and :func:`.gating.cluster_layout`, so the results
-are equal to theirs (tests/algorithms/test_gating.py)."""
+"""The compiled kernels of the association (numba, ``cache=True``), loaded by :func:`.gating.association_kernels` on
+first use only, so that importing the trackers does not import numba.  The formulas and the order of every
+floating-point operation are those of the numpy code they stand for — :func:`.gating.gate_checked` (m = 2, every
+pair computed), :func:`.gating.cluster_layout` and the one-track and one-detection clusters of :func:`.jpda.jpda` —
+so the results equal theirs, bit for bit (the exponentials of the last to rounding; tests/algorithms/test_gating.py,
+tests/algorithms/test_jpda.py)."""
 
 from __future__ import annotations
 
