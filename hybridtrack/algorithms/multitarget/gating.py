@@ -233,10 +233,6 @@ def gate_checked(predicted: np.ndarray, S: np.ndarray, detections: np.ndarray, g
     if T == 0 or N == 0:
         return Gate.empty(T, N)
     shifted = velocities is not None
-    radius = np.sqrt(gamma * _largest_eigenvalue(S))
-    if shifted:
-        radius = radius + np.sqrt(np.einsum("ti,ti->t", velocities, velocities)) * float(np.abs(offsets).max())
-    radius = radius * (1.0 + _RADIUS_SLACK) + np.finfo(float).tiny
     if m == 2:
         a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
         det = a * c - b * b
@@ -256,6 +252,10 @@ def gate_checked(predicted: np.ndarray, S: np.ndarray, detections: np.ndarray, g
     else:
         L = _cholesky(S)
         log_det = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+    radius = np.sqrt(gamma * _largest_eigenvalue(S))  # the ball holding every gated detection (module docstring)
+    if shifted:
+        radius = radius + np.sqrt(np.einsum("ti,ti->t", velocities, velocities)) * float(np.abs(offsets).max())
+    radius = radius * (1.0 + _RADIUS_SLACK) + np.finfo(float).tiny
     track, detection = _candidates(predicted, detections, radius)
     nu = detections[detection] - predicted[track]
     if shifted:

@@ -251,7 +251,8 @@ class MultiTargetTracker:
         through the velocity alone): the position sensor's R + σ_t² v vᵀ with a time-stamp jitter σ_t
         (``PositionSensor(time_jitter=…)``: AIS positions are fixes to metres, the time they are stamped with is
         not), the velocity sensor's σ_s² I + σ_χ² (|v|² I − v vᵀ); R alone for a sensor whose noise is fixed."""
-        R = np.broadcast_to(np.asarray(sensor.measurement_noise(np.zeros(2)), dtype=float), (velocity.shape[0], 2, 2))
+        fixed = self.R if sensor is self.sensor else np.asarray(sensor.measurement_noise(np.zeros(2)), dtype=float)
+        R = np.broadcast_to(fixed, (velocity.shape[0], 2, 2))
         if not sensor.noise_depends_on_state:
             return R
         x = np.zeros((velocity.shape[0], len(self.estimator.layout)))
