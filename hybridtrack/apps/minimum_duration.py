@@ -1,7 +1,7 @@
 """The shortest segment a person should believe, from the mode sojourn prior of a multiple-model tracker.
 
 A multiple-model estimator with mean sojourn times T_j (``[estimator] sojourn``) holds that mode j lasts an
-exponential time of mean T_j: Π(Δt) = expm(Λ Δt), Λ_jj = −1/T_j (Bar-Shalom, Li & Kirubarajan 2001, §11.6.7,
+exponential time of mean T_j: Π(Δt) = expm(Λ Δt), Λ_jj = −1/T_j (Bar-Shalom, Li & Kirubarajan 2001, §11.6,
 the sojourn time of a Markov chain), P(sojourn < d) = 1 − e^{−d/T_j}.  Of its true segments of mode j the prior
 puts the fraction q below the q-quantile
 
