@@ -41,6 +41,10 @@ import numpy as np
 from hybridtrack.core.interfaces import Estimator, Innovation, MotionModel, Sensor, TransitionBank
 from hybridtrack.engine.layouts import LayoutFill
 
+#: the lists of models whose :meth:`FilterBank.restart_step` plans a bank keeps (a tracker alternates lists of many
+#: lengths: its tracks' predictions and its gated pairs' updates; a plan is a few index arrays)
+RESTART_PLANS = 64
+
 
 class BankStep:
     """One step of a bank: ``updates``, the runs each update covered (ascending) with the estimator's own
@@ -652,7 +656,7 @@ class FilterBank:
         """([(model, its filters' rows, (gather/scatter indices of its components in the flattened (F, n) and (F, n, n)
         arrays) or None for a model of the bank's layout)], the flattened indices of the components the filters
         lack in (F, n) and of their variances in (F, n, n), their union-layout components) for a list of models, or
-        None when :meth:`restart_step` cannot take them; kept for the last few lists (by the models' identities)."""
+        None when :meth:`restart_step` cannot take them; kept for the last :data:`RESTART_PLANS` lists (by the models' identities)."""
         key = tuple(map(id, models))
         cached = self._restart_plans.get(key)
         if cached is not None:
@@ -684,7 +688,7 @@ class FilterBank:
             comps = [np.tile(lack, rows.size) for rows, lack in lacking] or [np.zeros(0, dtype=np.intp)]
             rows_l, comps = np.concatenate(rows_l), np.concatenate(comps)
             plan = (groups, rows_l * n + comps, rows_l * n * n + comps * (n + 1), comps)
-        if len(self._restart_plans) >= 8:
+        if len(self._restart_plans) >= RESTART_PLANS:
             self._restart_plans.pop(next(iter(self._restart_plans)))
         self._restart_plans[key] = (list(models), plan)  # the models kept: their ids stay theirs
         return plan
