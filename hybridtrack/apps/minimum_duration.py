@@ -61,11 +61,17 @@ def held_modes(times: np.ndarray, modes: Sequence, minimum: Mapping) -> tuple[li
 
 
 def merged_modes(times: np.ndarray, modes: Sequence, minimum: Mapping) -> list:
-    """The modes of the steps with every segment shorter than its d_j merged away (module docstring: the shortest
-    relative to its d_j first, into its longer neighbour).  A segment spans from its first step to the next
-    segment's first step (the last: to the last step)."""
+    """The modes of the steps with every segment shorter than its d_j merged away (:func:`merged_runs`)."""
+    runs = merged_runs(joined_runs([[mode, k, k] for k, mode in enumerate(modes)]), times, minimum)
+    return [mode for mode, first, last in runs for _ in range(first, last + 1)]
+
+
+def merged_runs(runs: list[list], times: np.ndarray, minimum: Mapping) -> list[list]:
+    """[mode, first step, last step] runs (equal neighbours joined) with every run shorter than its mode's minimum
+    (``minimum`` mode → seconds, absent: 0) merged away: the shortest relative to its minimum first, into its longer
+    neighbour, equal neighbours joined again (module docstring; with one minimum for every mode the rule of the
+    course labels).  A run spans from its first step to the next run's first step (the last: to its last step)."""
     times = np.asarray(times, dtype=float)
-    runs = _joined([[mode, k, k] for k, mode in enumerate(modes)])
     while len(runs) > 1:
         ends = [run[1] for run in runs[1:]] + [runs[-1][2]]
         lengths = [times[end] - times[first] for (_, first, _), end in zip(runs, ends)]
@@ -80,16 +86,16 @@ def merged_modes(times: np.ndarray, modes: Sequence, minimum: Mapping) -> list:
         j = i - 1 if left >= right else i + 1
         runs[j] = [runs[j][0], min(runs[j][1], runs[i][1]), max(runs[j][2], runs[i][2])]
         del runs[i]
-        runs = _joined(runs)
-    return [mode for mode, first, last in runs for _ in range(first, last + 1)]
+        runs = joined_runs(runs)
+    return runs
 
 
-def _joined(runs: list[list]) -> list[list]:
+def joined_runs(runs: list[list]) -> list[list]:
     """[mode, first step, last step] runs with equal neighbours joined."""
     out: list[list] = []
     for mode, first, last in runs:
         if out and out[-1][0] == mode:
-            out[-1][2] = last
+            out[-1] = [mode, out[-1][1], last]
         else:
             out.append([mode, first, last])
     return out

@@ -44,12 +44,12 @@ models: a turn is a constant-rate segment).
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import attrs
 import numpy as np
 
+from hybridtrack.apps.minimum_duration import joined_runs, merged_runs
 from hybridtrack.core.validation import check_positive
 
 #: default parameters (SI units; the turn rates are 0.5°/s and 0.25°/s)
@@ -193,27 +193,6 @@ def motion_states(omega, v, p) -> list[str]:
     return out
 
 
-def _joined(runs: list[list]) -> list[list]:
-    """[mode, first, last] runs with equal neighbours joined."""
-    groups = [list(group) for _, group in itertools.groupby(runs, key=lambda r: r[0])]
-    return [[group[0][0], group[0][1], group[-1][2]] for group in groups]
-
-
-def _merge_short(runs: list[list], t: np.ndarray, min_duration: float) -> list[list]:
-    while len(runs) > 1:
-        lengths = np.diff(t[[r[1] for r in runs] + [runs[-1][2]]])  # a run ends where the next starts (the last: at its last)
-        i = int(np.argmin(lengths))
-        if lengths[i] >= min_duration:
-            break
-        left = lengths[i - 1] if i > 0 else -1.0
-        right = lengths[i + 1] if i + 1 < len(runs) else -1.0
-        j = i - 1 if left >= right else i + 1
-        runs[j][1], runs[j][2] = min(runs[j][1], runs[i][1]), max(runs[j][2], runs[i][2])
-        del runs[i]
-        runs = _joined(runs)
-    return runs
-
-
 def label_modes(times, course, speed, **parameters) -> ModeLabels:
     """Label the reports (times (K,) s, compass course (K,) degrees, speed over ground (K,) m/s; NaN = missing) with
     straight / left_turn / right_turn / stop segments (module docstring).
@@ -237,7 +216,8 @@ def label_modes(times, course, speed, **parameters) -> ModeLabels:
     t, c, v = _checked(times, course=course, speed=speed)
     omega = turn_rate(t, c, p["window"])
     vbar = smoothed_speed(t, v, p["window"])
-    runs = _merge_short(_joined([[m, k, k] for k, m in enumerate(motion_states(omega, vbar, p))]), t, p["min_duration"])
+    runs = joined_runs([[m, k, k] for k, m in enumerate(motion_states(omega, vbar, p))])
+    runs = merged_runs(runs, t, dict.fromkeys({run[0] for run in runs}, p["min_duration"]))
     raw = _step_rates(t, c)
     segments = []
     for i, (mode, first, last) in enumerate(runs):
